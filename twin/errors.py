@@ -1,0 +1,31 @@
+"""Errors of the core, one per role. Messages name the offending value."""
+
+from __future__ import annotations
+
+
+class TwinError(Exception):
+    """Base of every error building-twin raises on purpose."""
+
+
+class ModelError(TwinError):
+    """A building model (IFC file or records) is unusable: missing, malformed, unsupported or empty."""
+
+
+class StoreError(TwinError):
+    """The graph store cannot be opened, written or queried as asked."""
+
+
+class QueryError(StoreError):
+    """A SPARQL query does not parse, or is not allowed (e.g. an update on a read-only endpoint)."""
+
+
+class SkillError(TwinError):
+    """A skill profile is invalid or unknown."""
+
+
+class MapError(TwinError):
+    """A map cannot be built or read (unknown storey, bad grid file, inconsistent frame)."""
+
+
+class ConfigError(TwinError):
+    """The configuration file is missing, malformed or has an invalid value."""

@@ -1,0 +1,153 @@
+"""Grid frames and occupancy grids.
+
+A grid frame is the building's XY plane (IFC world coordinates, metres) cut into square cells of
+``resolution_m``. Cell ``(row, col)`` covers ``x in [origin_x + col*res, origin_x + (col+1)*res]``
+and ``y in [origin_y + row*res, origin_y + (row+1)*res]``. Row 0 is at the origin (the bottom, lowest
+y): the same row-major layout as ``nav_msgs/OccupancyGrid``, so image writers flip rows.
+
+Values follow ``nav_msgs/OccupancyGrid``: 0 free, 100 occupied, -1 unknown.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from twin.errors import MapError
+
+FREE = np.int8(0)
+OCCUPIED = np.int8(100)
+UNKNOWN = np.int8(-1)
+
+GridData = npt.NDArray[np.int8]
+
+
+@dataclass(frozen=True, slots=True)
+class Window:
+    """A rectangle of cells: rows ``[row0, row1)`` and columns ``[col0, col1)``."""
+
+    row0: int
+    col0: int
+    row1: int
+    col1: int
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.row1 - self.row0, self.col1 - self.col0)
+
+    @property
+    def empty(self) -> bool:
+        return self.row1 <= self.row0 or self.col1 <= self.col0
+
+    def intersect(self, other: Window) -> Window:
+        return Window(
+            max(self.row0, other.row0),
+            max(self.col0, other.col0),
+            min(self.row1, other.row1),
+            min(self.col1, other.col1),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class GridFrame:
+    """Where a grid lies in the world: lower-left corner, cell size and size in cells."""
+
+    origin_x: float
+    origin_y: float
+    resolution_m: float
+    width: int
+    height: int
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.resolution_m) and self.resolution_m > 0):
+            msg = f"Grid resolution must be a positive number of metres, got {self.resolution_m!r}."
+            raise MapError(msg)
+        if not (math.isfinite(self.origin_x) and math.isfinite(self.origin_y)):
+            msg = f"Grid origin must be finite, got ({self.origin_x!r}, {self.origin_y!r})."
+            raise MapError(msg)
+        if self.width <= 0 or self.height <= 0:
+            msg = f"Grid size must be positive, got {self.width}x{self.height} cells."
+            raise MapError(msg)
+
+    @classmethod
+    def around(
+        cls,
+        xmin: float,
+        ymin: float,
+        xmax: float,
+        ymax: float,
+        *,
+        resolution_m: float,
+        margin_m: float = 1.0,
+    ) -> GridFrame:
+        """The frame covering ``[xmin, xmax] x [ymin, ymax]`` plus ``margin_m``, origin snapped to cells.
+
+        Example::
+
+            frame = GridFrame.around(0.0, 0.0, 10.0, 4.0, resolution_m=0.05, margin_m=1.0)
+            assert (frame.origin_x, frame.width) == (-1.0, 240)
+        """
+        values = (xmin, ymin, xmax, ymax)
+        if not all(math.isfinite(v) for v in values) or xmax < xmin or ymax < ymin:
+            msg = f"Grid extent must be finite and ordered, got {values!r}."
+            raise MapError(msg)
+        res = resolution_m
+        ox = math.floor((xmin - margin_m) / res) * res
+        oy = math.floor((ymin - margin_m) / res) * res
+        width = math.ceil((xmax + margin_m - ox) / res - 1e-9)
+        height = math.ceil((ymax + margin_m - oy) / res - 1e-9)
+        return cls(round(ox, 9), round(oy, 9), res, max(width, 1), max(height, 1))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(height, width)``: numpy shape of the grid's data."""
+        return (self.height, self.width)
+
+    @property
+    def full(self) -> Window:
+        return Window(0, 0, self.height, self.width)
+
+    def window_for(self, xmin: float, ymin: float, xmax: float, ymax: float) -> Window:
+        """The smallest window of cells covering the world rectangle, clipped to the grid."""
+        res = self.resolution_m
+        col0 = math.floor((xmin - self.origin_x) / res)
+        row0 = math.floor((ymin - self.origin_y) / res)
+        col1 = math.floor((xmax - self.origin_x) / res) + 1
+        row1 = math.floor((ymax - self.origin_y) / res) + 1
+        return Window(row0, col0, row1, col1).intersect(self.full)
+
+    def cell_centres(self, window: Window | None = None) -> tuple[npt.NDArray[np.float64], ...]:
+        """``(xs, ys)``: world x of the window's column centres and y of its row centres."""
+        w = window or self.full
+        res = self.resolution_m
+        xs = self.origin_x + (np.arange(w.col0, w.col1) + 0.5) * res
+        ys = self.origin_y + (np.arange(w.row0, w.row1) + 0.5) * res
+        return xs, ys
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class OccupancyGrid:
+    """One skill map of one storey: a frame and ``(height, width) int8`` values (0, 100, -1).
+
+    ``elevation_m`` is the storey's elevation: the z the map's heights are measured from.
+    """
+
+    frame: GridFrame
+    data: GridData
+    storey: str
+    skill: str
+    elevation_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.data.shape != self.frame.shape:
+            msg = f"Grid data has shape {self.data.shape}, but its frame is {self.frame.shape}."
+            raise MapError(msg)
+        if self.data.dtype != np.int8:
+            msg = f"Grid data must be int8, got {self.data.dtype}."
+            raise MapError(msg)
+
+    def occupied(self) -> npt.NDArray[np.bool_]:
+        return self.data == OCCUPIED

@@ -1,0 +1,196 @@
+"""Typed records at the boundaries of the core.
+
+Adapters turn foreign data (IFC files, wire payloads) into these records; the store turns them into
+triples and back. They import nothing but numpy. All lengths are metres, in the building's world frame
+unless a field says ``local``.
+
+Arrays follow trimesh's conventions:
+
+- ``vertices``: ``(n, 3) float64``
+- ``faces``: ``(m, 3) int32`` indices into ``vertices``
+- ``placement``: ``(4, 4) float64`` homogeneous matrix, world-from-local
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from twin.errors import ModelError
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int32]
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class Mesh:
+    """A triangle mesh in an element's local frame.
+
+    Attributes:
+        vertices: ``(n, 3) float64`` local coordinates in metres.
+        faces: ``(m, 3) int32`` vertex indices, one row a triangle.
+        closed: True when every edge is shared by exactly two faces (a watertight solid): such
+            meshes are filled when sliced; open meshes contribute their surfaces only.
+    """
+
+    vertices: FloatArray
+    faces: IntArray
+    closed: bool
+
+    def __post_init__(self) -> None:
+        if self.vertices.ndim != 2 or self.vertices.shape[1] != 3:
+            msg = f"Mesh vertices must have shape (n, 3), got {self.vertices.shape}."
+            raise ModelError(msg)
+        if self.faces.ndim != 2 or self.faces.shape[1] != 3:
+            msg = f"Mesh faces must have shape (m, 3), got {self.faces.shape}."
+            raise ModelError(msg)
+        if not np.isfinite(self.vertices).all():
+            msg = "Mesh vertices contain NaN or infinite coordinates."
+            raise ModelError(msg)
+        if self.faces.size and (self.faces.min() < 0 or self.faces.max() >= len(self.vertices)):
+            msg = (
+                f"Mesh face indices must lie in [0, {len(self.vertices)}), "
+                f"got [{self.faces.min()}, {self.faces.max()}]."
+            )
+            raise ModelError(msg)
+
+    @property
+    def triangle_count(self) -> int:
+        return int(self.faces.shape[0])
+
+
+def is_closed(faces: IntArray) -> bool:
+    """Return True if every undirected edge of ``faces`` ``(m, 3) int`` is used by exactly two faces.
+
+    The vertices must be welded (one index per position) for the answer to mean watertight.
+    """
+    if faces.size == 0:
+        return False
+    f = faces.astype(np.int64)
+    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    edges.sort(axis=1)
+    keys = edges[:, 0] * (int(f.max()) + 1) + edges[:, 1]
+    _, counts = np.unique(keys, return_counts=True)
+    return bool((counts == 2).all())
+
+
+IDENTITY: FloatArray = np.eye(4)
+
+
+def check_placement(matrix: npt.ArrayLike) -> FloatArray:
+    """Coerce ``matrix`` to a finite ``(4, 4) float64`` affine matrix or raise ModelError naming it."""
+    m = np.asarray(matrix, dtype=np.float64)
+    if m.shape != (4, 4):
+        msg = f"A placement must be a 4x4 matrix, got shape {m.shape}."
+        raise ModelError(msg)
+    if not np.isfinite(m).all():
+        msg = "A placement contains NaN or infinite values."
+        raise ModelError(msg)
+    if not np.allclose(m[3], [0.0, 0.0, 0.0, 1.0]):
+        msg = f"A placement's last row must be [0, 0, 0, 1], got {m[3].tolist()}."
+        raise ModelError(msg)
+    return m
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class Geometry:
+    """An element's shape: a local mesh and the placement that puts it in the world."""
+
+    mesh: Mesh
+    placement: FloatArray = field(default_factory=lambda: IDENTITY.copy())
+
+    def world_vertices(self) -> FloatArray:
+        """``(n, 3) float64``: the mesh vertices transformed by the placement."""
+        v = self.mesh.vertices
+        return v @ self.placement[:3, :3].T + self.placement[:3, 3]
+
+
+@dataclass(frozen=True, slots=True)
+class Site:
+    guid: str
+    name: str
+
+
+@dataclass(frozen=True, slots=True)
+class Building:
+    guid: str
+    name: str
+    site_guid: str | None
+
+
+@dataclass(frozen=True, slots=True)
+class Storey:
+    """A building storey. ``elevation_m`` is in metres in the world frame (z of its floor datum)."""
+
+    guid: str
+    name: str
+    elevation_m: float
+    building_guid: str | None
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class Space:
+    """A room (``IfcSpace``): a volume of air, bounded by elements, containing elements."""
+
+    guid: str
+    name: str
+    storey_guid: str | None
+    geometry: Geometry | None = None
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class Element:
+    """A physical (or virtual, e.g. an opening) building element.
+
+    Attributes:
+        guid: the IFC GlobalId (22-character compressed form).
+        ifc_class: the IFC entity name, e.g. ``"IfcWallStandardCase"``.
+        materials: IfcMaterial names, in file order, without duplicates.
+        is_static: part of the building's fixed structure (configured per IFC class).
+        storey_guid: the storey that contains it (directly or through a parent), if any.
+        geometry: local mesh + placement, or None when it has no body or failed to mesh.
+    """
+
+    guid: str
+    ifc_class: str
+    name: str
+    materials: tuple[str, ...]
+    is_static: bool
+    storey_guid: str | None = None
+    geometry: Geometry | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Relation:
+    """A directed pair of GlobalIds, e.g. (space, element) for adjacency."""
+
+    subject: str
+    object: str
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class BuildingModel:
+    """Everything the graph world model is initialised from, independent of the IFC library.
+
+    Relations are sets of GlobalId pairs:
+        adjacent: (space, element) pairs from space boundaries (``bot:adjacentElement``).
+        contained: (space or storey, element) pairs (``bot:containsElement``).
+        decomposed: (whole, part) pairs, including (host, opening) and (opening, filling)
+            (``bot:hasSubElement``).
+    """
+
+    source_name: str
+    schema: str
+    source_lines: int
+    sites: tuple[Site, ...]
+    buildings: tuple[Building, ...]
+    storeys: tuple[Storey, ...]
+    spaces: tuple[Space, ...]
+    elements: tuple[Element, ...]
+    adjacent: frozenset[Relation]
+    contained: frozenset[Relation]
+    decomposed: frozenset[Relation]
+    mesh_failures: tuple[str, ...] = ()
+    kernel_fallbacks: tuple[str, ...] = ()

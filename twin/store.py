@@ -1,0 +1,203 @@
+"""The graph store: an embedded pyoxigraph store behind one small interface.
+
+On disk by default (a directory, RocksDB), in memory when no path is given (tests). Only one process
+can open an on-disk store for writing: the daemon owns it, others query through the daemon.
+
+Example::
+
+    with GraphStore.open(Path("site.store")) as store:
+        rows = store.select("SELECT ?s WHERE { ?s a bot:Storey }")
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import IO, Self
+
+import pyoxigraph as ox
+
+from twin import vocab
+from twin.errors import QueryError, StoreError
+
+log = logging.getLogger(__name__)
+
+Term = ox.NamedNode | ox.BlankNode | ox.Literal | ox.Triple
+Row = dict[str, Term | None]
+
+
+class _CountingWriter(io.RawIOBase):
+    """A binary sink that only counts bytes (to measure a dump without keeping it)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, b: bytes | bytearray | memoryview) -> int:  # type: ignore[override]
+        n = len(b)
+        self.count += n
+        return n
+
+
+@dataclass(frozen=True, slots=True)
+class StoreInfo:
+    path: Path | None
+    read_only: bool
+
+
+class GraphStore:
+    """A pyoxigraph store with typed helpers. Use :meth:`open` and close it (or use ``with``)."""
+
+    def __init__(self, store: ox.Store, info: StoreInfo) -> None:
+        self._store = store
+        self.info = info
+
+    # --- lifecycle --------------------------------------------------------------------------------
+    @classmethod
+    def open(cls, path: Path | None = None, *, read_only: bool = False, create: bool = True) -> GraphStore:
+        """Open the store at ``path`` (a directory), or an in-memory store when ``path`` is None."""
+        if path is None:
+            return cls(ox.Store(), StoreInfo(None, read_only=False))
+        path = Path(path)
+        if path.exists() and not path.is_dir():
+            msg = f"Store path {path} exists and is not a directory."
+            raise StoreError(msg)
+        if not path.exists():
+            if read_only or not create:
+                msg = f"No store at {path}: run 'twin import MODEL.ifc --store {path}' first."
+                raise StoreError(msg)
+            path.mkdir(parents=True)
+        try:
+            store = ox.Store.read_only(str(path)) if read_only else ox.Store(str(path))
+        except OSError as err:
+            hint = " (is another process, e.g. the daemon, using it?)" if "lock" in str(err).lower() else ""
+            msg = f"Cannot open the store at {path}{hint}: {err}"
+            raise StoreError(msg) from err
+        return cls(store, StoreInfo(path, read_only))
+
+    def close(self) -> None:
+        if not self.info.read_only and self.info.path is not None:
+            self._store.flush()
+        del self._store
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    # --- writing ------------------------------------------------------------------------------------
+    def _writable(self) -> ox.Store:
+        if self.info.read_only:
+            msg = f"The store at {self.info.path} is open read-only."
+            raise StoreError(msg)
+        return self._store
+
+    def bulk_add(self, quads: Iterable[ox.Quad]) -> None:
+        """Add many quads at once (initial loads). Not atomic: use :meth:`add` for live changes."""
+        self._writable().bulk_extend(quads)
+
+    def add(self, quads: Iterable[ox.Quad]) -> None:
+        """Add quads atomically."""
+        self._writable().extend(quads)
+
+    def update(self, sparql_update: str) -> None:
+        """Run a SPARQL 1.1 update atomically (the vocabulary's prefixes are predefined)."""
+        try:
+            self._writable().update(sparql_update, prefixes=vocab.PREFIXES)
+        except SyntaxError as err:
+            msg = f"SPARQL update does not parse: {err}"
+            raise QueryError(msg) from err
+
+    def clear(self) -> None:
+        self._writable().clear()
+
+    # --- reading ----------------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self._store)
+
+    def is_empty(self) -> bool:
+        return next(iter(self._store.quads_for_pattern(None, None, None)), None) is None
+
+    def _query(self, sparql: str) -> ox.QueryResults:
+        try:
+            return self._store.query(sparql, prefixes=vocab.PREFIXES)
+        except SyntaxError as err:
+            msg = f"SPARQL query does not parse: {err}"
+            raise QueryError(msg) from err
+        except OSError as err:
+            msg = f"SPARQL query failed: {err}"
+            raise QueryError(msg) from err
+
+    def select(self, sparql: str) -> list[Row]:
+        """Run a SELECT query; return one dict per solution, variable name -> term (or None)."""
+        result = self._query(sparql)
+        if not isinstance(result, ox.QuerySolutions):
+            msg = "Expected a SELECT query."
+            raise QueryError(msg)
+        names = [v.value for v in result.variables]
+        return [{n: s[n] for n in names} for s in result]
+
+    def iter_select(self, sparql: str) -> Iterator[ox.QuerySolution]:
+        result = self._query(sparql)
+        if not isinstance(result, ox.QuerySolutions):
+            msg = "Expected a SELECT query."
+            raise QueryError(msg)
+        return iter(result)
+
+    def ask(self, sparql: str) -> bool:
+        result = self._query(sparql)
+        if not isinstance(result, ox.QueryBoolean):
+            msg = "Expected an ASK query."
+            raise QueryError(msg)
+        return bool(result)
+
+    def query_serialized(self, sparql: str) -> tuple[str, bytes]:
+        """Run any read-only query; return (media type, bytes): SPARQL JSON results, or Turtle for graphs."""
+        result = self._query(sparql)
+        if isinstance(result, ox.QueryTriples):
+            buf = io.BytesIO()
+            result.serialize(buf, format=ox.RdfFormat.TURTLE)
+            return "text/turtle", buf.getvalue()
+        buf = io.BytesIO()
+        result.serialize(buf, format=ox.QueryResultsFormat.JSON)
+        return "application/sparql-results+json", buf.getvalue()
+
+    def query_json(self, sparql: str) -> dict[str, object]:
+        media, body = self.query_serialized(sparql)
+        if media != "application/sparql-results+json":
+            msg = "Expected a SELECT or ASK query for JSON results."
+            raise QueryError(msg)
+        value: dict[str, object] = json.loads(body)
+        return value
+
+    def dump_turtle(self, out: IO[bytes] | Path) -> None:
+        """Write the default graph as Turtle with the LBD prefixes."""
+        target: IO[bytes] | str = str(out) if isinstance(out, Path) else out
+        self._store.dump(
+            target, format=ox.RdfFormat.TURTLE, from_graph=ox.DefaultGraph(), prefixes=vocab.PREFIXES
+        )
+
+    def turtle_size(self) -> int:
+        """Bytes of :meth:`dump_turtle` output, without keeping it in memory."""
+        sink = _CountingWriter()
+        self._store.dump(sink, format=ox.RdfFormat.TURTLE, from_graph=ox.DefaultGraph(), prefixes=vocab.PREFIXES)
+        return sink.count
+
+
+def literal_value(term: Term | None) -> str | None:
+    """The lexical value of a literal or IRI term, None for an unbound variable."""
+    if term is None:
+        return None
+    if isinstance(term, ox.Triple):
+        return str(term)
+    return term.value

@@ -1,0 +1,207 @@
+"""Namespaces, terms and IRI minting of the graph world model (Linked Building Data).
+
+Element IRIs follow IFCtoLBD: ``<base><ifc type lowercased without "ifc">_<uncompressed GlobalId>``,
+e.g. ``https://example.org/lab#wallstandardcase_0e5d1b7c-...``, so the graph joins with other LBD
+tools. The project's own terms live in one namespace, ``TWIN``.
+
+Example::
+
+    from twin import vocab
+    iri = vocab.element_iri("https://example.org/lab#", "IfcWall", "2O2Fr$t4X7Zf8NOew3FLOH")
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+from twin.errors import ModelError
+
+BOT: Final = "https://w3id.org/bot#"
+BEO: Final = "https://pi.pauwel.be/voc/buildingelement#"
+FURN: Final = "http://pi.pauwel.be/voc/furniture#"
+PROPS: Final = "https://w3id.org/props#"
+OMG: Final = "https://w3id.org/omg#"
+FOG: Final = "https://w3id.org/fog#"
+TWIN: Final = "https://w3id.org/building-twin#"
+RDF: Final = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
+RDFS: Final = "http://www.w3.org/2000/01/rdf-schema#"
+XSD: Final = "http://www.w3.org/2001/XMLSchema#"
+
+PREFIXES: Final[dict[str, str]] = {
+    "bot": BOT,
+    "beo": BEO,
+    "furn": FURN,
+    "props": PROPS,
+    "omg": OMG,
+    "fog": FOG,
+    "twin": TWIN,
+    "rdf": RDF,
+    "rdfs": RDFS,
+    "xsd": XSD,
+}
+
+
+def sparql_prefixes() -> str:
+    """The ``PREFIX`` lines for every namespace above, to put before a query."""
+    return "".join(f"PREFIX {p}: <{iri}>\n" for p, iri in PREFIXES.items())
+
+
+# --- terms ------------------------------------------------------------------------------------
+RDF_TYPE: Final = RDF + "type"
+RDFS_LABEL: Final = RDFS + "label"
+
+BOT_SITE: Final = BOT + "Site"
+BOT_BUILDING: Final = BOT + "Building"
+BOT_STOREY: Final = BOT + "Storey"
+BOT_SPACE: Final = BOT + "Space"
+BOT_ELEMENT: Final = BOT + "Element"
+BOT_HAS_BUILDING: Final = BOT + "hasBuilding"
+BOT_HAS_STOREY: Final = BOT + "hasStorey"
+BOT_HAS_SPACE: Final = BOT + "hasSpace"
+BOT_ADJACENT_ELEMENT: Final = BOT + "adjacentElement"
+BOT_CONTAINS_ELEMENT: Final = BOT + "containsElement"
+BOT_HAS_SUB_ELEMENT: Final = BOT + "hasSubElement"
+
+PROPS_GLOBAL_ID: Final = PROPS + "globalIdIfcRoot_attribute_simple"
+PROPS_NAME: Final = PROPS + "nameIfcRoot_attribute_simple"
+
+OMG_HAS_GEOMETRY: Final = OMG + "hasGeometry"
+OMG_GEOMETRY: Final = OMG + "Geometry"
+FOG_PLY_BINARY_LE: Final = FOG + "asPly_v1.0-binaryLE"
+XSD_BASE64: Final = XSD + "base64Binary"
+XSD_DOUBLE: Final = XSD + "double"
+XSD_BOOLEAN: Final = XSD + "boolean"
+XSD_INTEGER: Final = XSD + "integer"
+
+TWIN_IFC_CLASS: Final = TWIN + "ifcClass"
+TWIN_MATERIAL: Final = TWIN + "material"
+TWIN_IS_STATIC: Final = TWIN + "isStatic"
+TWIN_ELEVATION: Final = TWIN + "elevation"
+TWIN_STOREY_KEY: Final = TWIN + "storeyKey"
+TWIN_PLACEMENT: Final = TWIN + "placement"
+TWIN_MATRIX4: Final = TWIN + "Matrix4x4"
+TWIN_CLOSED: Final = TWIN + "closedMesh"
+TWIN_TRIANGLES: Final = TWIN + "triangleCount"
+TWIN_MODEL: Final = TWIN + "Model"
+TWIN_SOURCE: Final = TWIN + "sourceFile"
+TWIN_SCHEMA: Final = TWIN + "ifcSchema"
+TWIN_SOURCE_LINES: Final = TWIN + "sourceLines"
+TWIN_MESH_FAILED: Final = TWIN + "meshFailed"
+TWIN_KERNEL_FALLBACK: Final = TWIN + "kernelFallback"
+TWIN_REVISION: Final = TWIN + "revision"
+
+# IFC classes whose BEO / FURN class is not simply the IFC name without "Ifc" and suffixes.
+_BEO_CLASSES: Final = frozenset(
+    {
+        "Beam", "BuildingElementProxy", "Chimney", "Column", "Covering", "CurtainWall", "Door",
+        "Footing", "Member", "Pile", "Plate", "Railing", "Ramp", "RampFlight", "Roof",
+        "ShadingDevice", "Slab", "Stair", "StairFlight", "Wall", "Window", "BuildingElementPart",
+        "DiscreteAccessory", "ElementAssembly", "Fastener", "MechanicalFastener", "ReinforcingBar",
+        "ReinforcingMesh", "Tendon", "TendonAnchor", "TransportElement", "VirtualElement",
+        "OpeningElement", "GeographicElement", "CivilElement",
+    }
+)
+_FURN_CLASSES: Final = {
+    "FurnishingElement": "Furniture",
+    "Furniture": "Furniture",
+    "SystemFurnitureElement": "SystemFurnitureElement",
+}
+_SUFFIXES: Final = ("StandardCase", "ElementedCase")
+
+
+def semantic_class(ifc_class: str) -> str | None:
+    """The BEO or FURN class IRI for an IFC class, or None when LBD has none (e.g. flow terminals).
+
+    >>> semantic_class("IfcWallStandardCase")
+    'https://pi.pauwel.be/voc/buildingelement#Wall'
+    """
+    name = ifc_class.removeprefix("Ifc")
+    for suffix in _SUFFIXES:
+        name = name.removesuffix(suffix)
+    if name in _FURN_CLASSES:
+        return FURN + _FURN_CLASSES[name]
+    if name in _BEO_CLASSES:
+        return BEO + name
+    return None
+
+
+# --- GlobalId -----------------------------------------------------------------------------------
+_GUID_CHARS: Final = "0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_$"
+_GUID_INDEX: Final = {c: i for i, c in enumerate(_GUID_CHARS)}
+
+
+def expand_guid(guid: str) -> str:
+    """Uncompress a 22-character IFC GlobalId to a lower-case UUID ``8-4-4-4-12``.
+
+    >>> expand_guid("0" * 22)
+    '00000000-0000-0000-0000-000000000000'
+    """
+    if len(guid) != 22 or guid[0] not in "0123" or any(c not in _GUID_INDEX for c in guid):
+        msg = f"Not an IFC GlobalId (22 characters of the IFC base-64 alphabet): {guid!r}."
+        raise ModelError(msg)
+    value = 0
+    for c in guid:
+        value = value * 64 + _GUID_INDEX[c]
+    h = f"{value:032x}"
+    return f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:]}"
+
+
+def compress_guid(uuid: str) -> str:
+    """Inverse of :func:`expand_guid`: a UUID (with or without dashes) to a 22-character GlobalId."""
+    h = uuid.replace("-", "")
+    if len(h) != 32:
+        msg = f"Not a UUID: {uuid!r}."
+        raise ModelError(msg)
+    value = int(h, 16)
+    chars = []
+    for _ in range(22):
+        value, r = divmod(value, 64)
+        chars.append(_GUID_CHARS[r])
+    return "".join(reversed(chars))
+
+
+# --- IRIs ---------------------------------------------------------------------------------------
+def check_base(base_iri: str) -> str:
+    """Return ``base_iri`` if usable as an IRI prefix (absolute, ending in ``#`` or ``/``)."""
+    if "://" not in base_iri or base_iri[-1] not in "#/" or any(c in base_iri for c in ' <>"{}|\\^`'):
+        msg = f"Base IRI must be absolute and end with '#' or '/', got {base_iri!r}."
+        raise ModelError(msg)
+    return base_iri
+
+
+def entity_iri(base_iri: str, ifc_class: str, guid: str) -> str:
+    """The IFCtoLBD IRI of any rooted IFC entity (element, space, storey, building, site)."""
+    kind = ifc_class.lower().removeprefix("ifc")
+    return f"{base_iri}{kind}_{expand_guid(guid)}"
+
+
+element_iri = entity_iri
+
+
+def geometry_iri(entity: str) -> str:
+    """The IRI of an element's geometry node: the element IRI with ``/geometry`` appended."""
+    return f"{entity}/geometry"
+
+
+def model_iri(base_iri: str) -> str:
+    """The IRI of the node describing the import itself (source file, schema, counts)."""
+    return f"{base_iri}model"
+
+
+def storey_key(name: str, used: set[str] | None = None) -> str:
+    """A stable, URL- and key-expression-safe key for a storey name (``"1. Obergeschoss"`` -> ``1-obergeschoss``).
+
+    When ``used`` is given, a numeric suffix makes the key unique and the key is added to it.
+    """
+    out = []
+    for c in name.lower():
+        out.append(c if c.isascii() and c.isalnum() else "-")
+    key = "-".join(filter(None, "".join(out).split("-"))) or "storey"
+    if used is None:
+        return key
+    candidate, n = key, 2
+    while candidate in used:
+        candidate = f"{key}-{n}"
+        n += 1
+    used.add(candidate)
+    return candidate
