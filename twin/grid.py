@@ -119,12 +119,14 @@ class GridFrame:
         row1 = math.floor((ymax - self.origin_y) / res) + 1
         return Window(row0, col0, row1, col1).intersect(self.full)
 
-    def cell_centres(self, window: Window | None = None) -> tuple[npt.NDArray[np.float64], ...]:
+    def cell_centres(
+        self, window: Window | None = None
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """``(xs, ys)``: world x of the window's column centres and y of its row centres."""
         w = window or self.full
         res = self.resolution_m
-        xs = self.origin_x + (np.arange(w.col0, w.col1) + 0.5) * res
-        ys = self.origin_y + (np.arange(w.row0, w.row1) + 0.5) * res
+        xs = self.origin_x + (np.arange(w.col0, w.col1, dtype=np.float64) + 0.5) * res
+        ys = self.origin_y + (np.arange(w.row0, w.row1, dtype=np.float64) + 0.5) * res
         return xs, ys
 
 
@@ -150,4 +152,5 @@ class OccupancyGrid:
             raise MapError(msg)
 
     def occupied(self) -> npt.NDArray[np.bool_]:
-        return self.data == OCCUPIED
+        occupied: npt.NDArray[np.bool_] = self.data == OCCUPIED
+        return occupied

@@ -57,8 +57,11 @@ def _geometry_quads(node: str, geometry: Geometry, cache: dict[int, ox.Literal])
     yield ox.Quad(_n(node), _n(vocab.OMG_HAS_GEOMETRY), g)
     yield ox.Quad(g, _TYPE, _n(vocab.OMG_GEOMETRY))
     yield ox.Quad(g, _n(vocab.FOG_PLY_BINARY_LE), ply)
-    yield ox.Quad(g, _n(vocab.TWIN_PLACEMENT), ox.Literal(encode_placement(geometry.placement),
-                                                          datatype=_n(vocab.TWIN_MATRIX4)))
+    yield ox.Quad(
+        g,
+        _n(vocab.TWIN_PLACEMENT),
+        ox.Literal(encode_placement(geometry.placement), datatype=_n(vocab.TWIN_MATRIX4)),
+    )
     yield ox.Quad(g, _n(vocab.TWIN_CLOSED), ox.Literal(geometry.mesh.closed))
     yield ox.Quad(g, _n(vocab.TWIN_TRIANGLES), ox.Literal(geometry.mesh.triangle_count))
 
@@ -128,6 +131,8 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
         if semantic is not None:
             yield ox.Quad(_n(node), _TYPE, _n(semantic))
         yield ox.Quad(_n(node), _n(vocab.TWIN_IFC_CLASS), ox.Literal(el.ifc_class))
+        for t in el.ifc_types or (el.ifc_class,):
+            yield ox.Quad(_n(node), _n(vocab.TWIN_IFC_TYPE), ox.Literal(t))
         yield from name_quads(node, el.guid, el.name)
         for mat in el.materials:
             yield ox.Quad(_n(node), _n(vocab.TWIN_MATERIAL), ox.Literal(mat))
@@ -147,7 +152,9 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
             if r.subject in iri_of and r.object in iri_of:
                 yield ox.Quad(_n(iri_of[r.subject]), _n(pred), _n(iri_of[r.object]))
             else:
-                log.debug("Skipping %s relation %s -> %s: an end is not in the model", pred, r.subject, r.object)
+                log.debug(
+                    "Skipping %s relation %s -> %s: an end is not in the model", pred, r.subject, r.object
+                )
 
 
 def import_model(

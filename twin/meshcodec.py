@@ -78,7 +78,9 @@ def decode_mesh(text: str) -> Mesh:
     start = end + len(b"end_header\n")
     need = nv * 24 + nf * _FACE_DTYPE.itemsize
     if len(raw) - start != need:
-        msg = f"Mesh literal body has {len(raw) - start} bytes, expected {need} for {nv} vertices, {nf} faces."
+        msg = (
+            f"Mesh literal body has {len(raw) - start} bytes, expected {need} for {nv} vertices, {nf} faces."
+        )
         raise ModelError(msg)
     vertices = np.frombuffer(raw, dtype="<f8", count=nv * 3, offset=start).reshape(nv, 3).astype(np.float64)
     faces_rec = np.frombuffer(raw, dtype=_FACE_DTYPE, count=nf, offset=start + nv * 24)

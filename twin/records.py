@@ -69,11 +69,13 @@ def is_closed(faces: IntArray) -> bool:
     if faces.size == 0:
         return False
     f = faces.astype(np.int64)
-    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    edges.sort(axis=1)
-    keys = edges[:, 0] * (int(f.max()) + 1) + edges[:, 1]
-    _, counts = np.unique(keys, return_counts=True)
-    return bool((counts == 2).all())
+    a = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
+    b = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
+    keys = np.sort(np.minimum(a, b) * (int(f.max()) + 1) + np.maximum(a, b))
+    if len(keys) % 2:
+        return False
+    # sorted keys must come in pairs: k0 == k1 != k2 == k3 != ...
+    return bool((keys[0::2] == keys[1::2]).all() and (keys[2::2] != keys[1:-1:2]).all())
 
 
 IDENTITY: FloatArray = np.eye(4)
@@ -88,7 +90,7 @@ def check_placement(matrix: npt.ArrayLike) -> FloatArray:
     if not np.isfinite(m).all():
         msg = "A placement contains NaN or infinite values."
         raise ModelError(msg)
-    if not np.allclose(m[3], [0.0, 0.0, 0.0, 1.0]):
+    if abs(m[3, 0]) + abs(m[3, 1]) + abs(m[3, 2]) + abs(m[3, 3] - 1.0) > 1e-9:
         msg = f"A placement's last row must be [0, 0, 0, 1], got {m[3].tolist()}."
         raise ModelError(msg)
     return m
@@ -99,7 +101,7 @@ class Geometry:
     """An element's shape: a local mesh and the placement that puts it in the world."""
 
     mesh: Mesh
-    placement: FloatArray = field(default_factory=lambda: IDENTITY.copy())
+    placement: FloatArray = field(default_factory=IDENTITY.copy)
 
     def world_vertices(self) -> FloatArray:
         """``(n, 3) float64``: the mesh vertices transformed by the placement."""
@@ -147,6 +149,8 @@ class Element:
     Attributes:
         guid: the IFC GlobalId (22-character compressed form).
         ifc_class: the IFC entity name, e.g. ``"IfcWallStandardCase"``.
+        ifc_types: ``ifc_class`` and all its supertypes, most specific first (``IfcWallStandardCase``,
+            ``IfcWall``, ``IfcBuildingElement``, ...), so selections by type include subtypes.
         materials: IfcMaterial names, in file order, without duplicates.
         is_static: part of the building's fixed structure (configured per IFC class).
         storey_guid: the storey that contains it (directly or through a parent), if any.
@@ -160,6 +164,7 @@ class Element:
     is_static: bool
     storey_guid: str | None = None
     geometry: Geometry | None = None
+    ifc_types: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)

@@ -128,7 +128,7 @@ class GraphStore:
     def is_empty(self) -> bool:
         return next(iter(self._store.quads_for_pattern(None, None, None)), None) is None
 
-    def _query(self, sparql: str) -> ox.QueryResults:
+    def _query(self, sparql: str) -> ox.QuerySolutions | ox.QueryBoolean | ox.QueryTriples:
         try:
             return self._store.query(sparql, prefixes=vocab.PREFIXES)
         except SyntaxError as err:
@@ -190,7 +190,12 @@ class GraphStore:
     def turtle_size(self) -> int:
         """Bytes of :meth:`dump_turtle` output, without keeping it in memory."""
         sink = _CountingWriter()
-        self._store.dump(sink, format=ox.RdfFormat.TURTLE, from_graph=ox.DefaultGraph(), prefixes=vocab.PREFIXES)
+        self._store.dump(
+            sink,  # type: ignore[arg-type]  # any binary writer works
+            format=ox.RdfFormat.TURTLE,
+            from_graph=ox.DefaultGraph(),
+            prefixes=vocab.PREFIXES,
+        )
         return sink.count
 
 

@@ -74,6 +74,7 @@ XSD_BOOLEAN: Final = XSD + "boolean"
 XSD_INTEGER: Final = XSD + "integer"
 
 TWIN_IFC_CLASS: Final = TWIN + "ifcClass"
+TWIN_IFC_TYPE: Final = TWIN + "ifcType"
 TWIN_MATERIAL: Final = TWIN + "material"
 TWIN_IS_STATIC: Final = TWIN + "isStatic"
 TWIN_ELEVATION: Final = TWIN + "elevation"
@@ -93,12 +94,41 @@ TWIN_REVISION: Final = TWIN + "revision"
 # IFC classes whose BEO / FURN class is not simply the IFC name without "Ifc" and suffixes.
 _BEO_CLASSES: Final = frozenset(
     {
-        "Beam", "BuildingElementProxy", "Chimney", "Column", "Covering", "CurtainWall", "Door",
-        "Footing", "Member", "Pile", "Plate", "Railing", "Ramp", "RampFlight", "Roof",
-        "ShadingDevice", "Slab", "Stair", "StairFlight", "Wall", "Window", "BuildingElementPart",
-        "DiscreteAccessory", "ElementAssembly", "Fastener", "MechanicalFastener", "ReinforcingBar",
-        "ReinforcingMesh", "Tendon", "TendonAnchor", "TransportElement", "VirtualElement",
-        "OpeningElement", "GeographicElement", "CivilElement",
+        "Beam",
+        "BuildingElementProxy",
+        "Chimney",
+        "Column",
+        "Covering",
+        "CurtainWall",
+        "Door",
+        "Footing",
+        "Member",
+        "Pile",
+        "Plate",
+        "Railing",
+        "Ramp",
+        "RampFlight",
+        "Roof",
+        "ShadingDevice",
+        "Slab",
+        "Stair",
+        "StairFlight",
+        "Wall",
+        "Window",
+        "BuildingElementPart",
+        "DiscreteAccessory",
+        "ElementAssembly",
+        "Fastener",
+        "MechanicalFastener",
+        "ReinforcingBar",
+        "ReinforcingMesh",
+        "Tendon",
+        "TendonAnchor",
+        "TransportElement",
+        "VirtualElement",
+        "OpeningElement",
+        "GeographicElement",
+        "CivilElement",
     }
 )
 _FURN_CLASSES: Final = {
@@ -189,7 +219,9 @@ def model_iri(base_iri: str) -> str:
 
 
 def storey_key(name: str, used: set[str] | None = None) -> str:
-    """A stable, URL- and key-expression-safe key for a storey name (``"1. Obergeschoss"`` -> ``1-obergeschoss``).
+    """A stable, URL- and key-expression-safe key for a storey name.
+
+    ``"1. Obergeschoss"`` gives ``"1-obergeschoss"``.
 
     When ``used`` is given, a numeric suffix makes the key unique and the key is added to it.
     """

@@ -1,4 +1,4 @@
-"""Read an IFC file into a :class:`twin.records.BuildingModel` (spatial structure, elements, relations, meshes).
+"""Read an IFC file into a :class:`twin.records.BuildingModel`: structure, elements, relations, meshes.
 
 Lengths come out in metres whatever the file's unit: the geometry iterator converts meshes and
 placements, and storey elevations are scaled by the file's length unit.
@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
+import ifcopenshell
 import ifcopenshell.util.element
 import ifcopenshell.util.placement
 import ifcopenshell.util.unit
@@ -49,27 +51,34 @@ def material_names(element: Any) -> tuple[str, ...]:
     return tuple(names)
 
 
-def _parent(entity: Any) -> Any | None:
-    """The whole an element is part of: its aggregate, the host of an opening, the opening it fills."""
-    agg = ifcopenshell.util.element.get_aggregate(entity)
-    if agg is not None:
-        return agg
-    for rel in getattr(entity, "VoidsElements", None) or ():
-        return rel.RelatingBuildingElement
-    for rel in getattr(entity, "FillsVoids", None) or ():
-        return rel.RelatingOpeningElement
-    return None
+def _hierarchy(f: Any) -> dict[int, Any]:
+    """Map entity id -> the entity it belongs to: spatial container, aggregate, host, or opening filled."""
+    up: dict[int, Any] = {}
+    for rel in f.by_type("IfcRelContainedInSpatialStructure"):
+        for e in rel.RelatedElements or ():
+            up.setdefault(e.id(), rel.RelatingStructure)
+    for rel in f.by_type("IfcRelAggregates"):
+        for e in rel.RelatedObjects or ():
+            up.setdefault(e.id(), rel.RelatingObject)
+    for rel in f.by_type("IfcRelNests"):
+        for e in rel.RelatedObjects or ():
+            up.setdefault(e.id(), rel.RelatingObject)
+    for rel in f.by_type("IfcRelVoidsElement"):
+        up.setdefault(rel.RelatedOpeningElement.id(), rel.RelatingBuildingElement)
+    for rel in f.by_type("IfcRelFillsElement"):
+        up.setdefault(rel.RelatedBuildingElement.id(), rel.RelatingOpeningElement)
+    return up
 
 
-def _storey_of(entity: Any, storey_ids: set[int]) -> Any | None:
+def _ancestor(entity: Any, up: dict[int, Any], kind: str) -> Any | None:
+    """The nearest ancestor (through :func:`_hierarchy`) that is an ``kind``, or None."""
     seen: set[int] = set()
-    node = entity
+    node = up.get(entity.id())
     while node is not None and node.id() not in seen:
-        seen.add(node.id())
-        if node.id() in storey_ids:
+        if node.is_a(kind):
             return node
-        container = ifcopenshell.util.element.get_container(node)
-        node = container if container is not None else _parent(node)
+        seen.add(node.id())
+        node = up.get(node.id())
     return None
 
 
@@ -80,6 +89,19 @@ def _elevation_m(storey: Any, scale: float) -> float:
     return float(storey.Elevation or 0.0) * scale
 
 
+def _supertypes(schema: Any, ifc_class: str, cache: dict[str, tuple[str, ...]]) -> tuple[str, ...]:
+    """``ifc_class`` and its supertypes up to IfcRoot, most specific first."""
+    chain = cache.get(ifc_class)
+    if chain is None:
+        names = []
+        decl = schema.declaration_by_name(ifc_class)
+        while decl is not None:
+            names.append(str(decl.name()))
+            decl = decl.supertype()
+        chain = cache[ifc_class] = tuple(names)
+    return chain
+
+
 def _pairs(rels: Iterable[tuple[Any, Any]], left: set[int], right: set[int]) -> frozenset[Relation]:
     return frozenset(
         Relation(a.GlobalId, b.GlobalId)
@@ -88,59 +110,13 @@ def _pairs(rels: Iterable[tuple[Any, Any]], left: set[int], right: set[int]) -> 
     )
 
 
-def read_model(
-    path: Path,
-    *,
-    static_types: Sequence[str] = (),
-    kernels: Sequence[str] = DEFAULT_KERNELS,
-    threads: int = 2,
-    progress: Progress | None = None,
-) -> BuildingModel:
-    """Read ``path`` into records. Raise :class:`~adapters.ifc.errors.IfcFileError` on a bad file."""
-    f, lines = open_ifc(path)
-    scale = float(ifcopenshell.util.unit.calculate_unit_scale(f))
-    sites = f.by_type("IfcSite")
-    buildings = f.by_type("IfcBuilding")
-    storeys = f.by_type("IfcBuildingStorey")
-    spaces = f.by_type("IfcSpace")
-    elements = f.by_type("IfcElement")
-    storey_ids = {s.id() for s in storeys}
-
-    meshed = mesh_products(f, [*elements, *spaces], kernels=kernels, threads=threads, progress=progress)
-    fallback_kernel = kernels[0] if kernels else ""
-    kernel_fallbacks = tuple(
-        f.by_id(pid).GlobalId
-        for pid, kernel in meshed.kernel_of.items()
-        if kernel != fallback_kernel and f.by_id(pid).is_a("IfcElement")
-    )
-    failures = tuple(f.by_id(pid).GlobalId for pid in meshed.unmeshed if f.by_id(pid).is_a("IfcElement"))
-
-    def agg_guid(entity: Any, kind: str) -> str | None:
-        node = ifcopenshell.util.element.get_aggregate(entity)
-        while node is not None and not node.is_a(kind):
-            node = ifcopenshell.util.element.get_aggregate(node)
-        return str(node.GlobalId) if node is not None else None
-
-    def storey_guid(entity: Any) -> str | None:
-        st = _storey_of(entity, storey_ids)
-        return str(st.GlobalId) if st is not None else None
-
-    statics = tuple(static_types)
-    element_records = tuple(
-        Element(
-            guid=str(e.GlobalId),
-            ifc_class=e.is_a(),
-            name=str(e.Name or ""),
-            materials=material_names(e),
-            is_static=any(e.is_a(t) for t in statics),
-            storey_guid=storey_guid(e),
-            geometry=meshed.geometry.get(e.id()),
-        )
-        for e in elements
-    )
+def _relations(
+    f: Any, elements: list[Any], spaces: list[Any], storeys: list[Any]
+) -> tuple[frozenset[Relation], frozenset[Relation], frozenset[Relation]]:
+    """(adjacent, contained, decomposed) GlobalId pairs; see :class:`twin.records.BuildingModel`."""
     element_ids = {e.id() for e in elements}
     space_ids = {s.id() for s in spaces}
-    structure_ids = space_ids | storey_ids
+    structure_ids = space_ids | {s.id() for s in storeys}
     adjacent = _pairs(
         ((r.RelatingSpace, r.RelatedBuildingElement) for r in f.by_type("IfcRelSpaceBoundary")),
         space_ids,
@@ -165,18 +141,100 @@ def read_model(
         element_ids,
         element_ids,
     )
+    return adjacent, contained, decomposed
+
+
+def read_model(
+    path: Path,
+    *,
+    static_types: Sequence[str] = (),
+    kernels: Sequence[str] = DEFAULT_KERNELS,
+    threads: int = 2,
+    progress: Progress | None = None,
+) -> BuildingModel:
+    """Read ``path`` into records. Raise :class:`~adapters.ifc.errors.IfcFileError` on a bad file."""
+    f, lines = open_ifc(path)
+    scale = float(ifcopenshell.util.unit.calculate_unit_scale(f))
+    sites = f.by_type("IfcSite")
+    buildings = f.by_type("IfcBuilding")
+    storeys = f.by_type("IfcBuildingStorey")
+    spaces = f.by_type("IfcSpace")
+    elements = f.by_type("IfcElement")
+
+    # Mesh in the background (a child process does the work) while this thread reads the structure.
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="twin-mesh") as pool:
+        future = pool.submit(
+            mesh_products, f, [*elements, *spaces], kernels=kernels, threads=threads, progress=progress
+        )
+        up = _hierarchy(f)
+
+        def guid_of(node: Any | None) -> str | None:
+            return str(node.GlobalId) if node is not None else None
+
+        statics = tuple(static_types)
+        schema = ifcopenshell.ifcopenshell_wrapper.schema_by_name(f.schema)
+        type_cache: dict[str, tuple[str, ...]] = {}
+        infos = []
+        for e in elements:
+            chain = _supertypes(schema, e.is_a(), type_cache)
+            infos.append(
+                (
+                    e,
+                    chain,
+                    material_names(e),
+                    any(t in chain for t in statics),
+                    guid_of(_ancestor(e, up, "IfcBuildingStorey")),
+                )
+            )
+        relations = _relations(f, elements, spaces, storeys)
+        meshed = future.result()
+    first_kernel = kernels[0] if kernels else ""
+    kernel_fallbacks = tuple(
+        f.by_id(pid).GlobalId
+        for pid, kernel in meshed.kernel_of.items()
+        if kernel != first_kernel and f.by_id(pid).is_a("IfcElement")
+    )
+    failures = tuple(f.by_id(pid).GlobalId for pid in meshed.unmeshed if f.by_id(pid).is_a("IfcElement"))
+    element_records = tuple(
+        Element(
+            guid=str(e.GlobalId),
+            ifc_class=chain[0],
+            name=str(e.Name or ""),
+            materials=materials,
+            is_static=is_static,
+            storey_guid=storey,
+            geometry=meshed.geometry.get(e.id()),
+            ifc_types=chain,
+        )
+        for e, chain, materials, is_static, storey in infos
+    )
+    adjacent, contained, decomposed = relations
     return BuildingModel(
         source_name=Path(path).name,
         schema=str(f.schema),
         source_lines=lines,
         sites=tuple(Site(str(s.GlobalId), str(s.Name or "")) for s in sites),
-        buildings=tuple(Building(str(b.GlobalId), str(b.Name or ""), agg_guid(b, "IfcSite")) for b in buildings),
+        buildings=tuple(
+            Building(str(b.GlobalId), str(b.Name or ""), guid_of(_ancestor(b, up, "IfcSite")))
+            for b in buildings
+        ),
         storeys=tuple(
-            Storey(str(s.GlobalId), str(s.Name or ""), _elevation_m(s, scale), agg_guid(s, "IfcBuilding"))
+            Storey(
+                str(s.GlobalId),
+                str(s.Name or ""),
+                _elevation_m(s, scale),
+                guid_of(_ancestor(s, up, "IfcBuilding")),
+            )
             for s in storeys
         ),
         spaces=tuple(
-            Space(str(s.GlobalId), str(s.Name or ""), storey_guid(s), meshed.geometry.get(s.id())) for s in spaces
+            Space(
+                str(s.GlobalId),
+                str(s.Name or ""),
+                guid_of(_ancestor(s, up, "IfcBuildingStorey")),
+                meshed.geometry.get(s.id()),
+            )
+            for s in spaces
         ),
         elements=element_records,
         adjacent=adjacent,

@@ -1,0 +1,233 @@
+"""Skill profiles: which elements a robot skill's map is made of, and at which heights.
+
+A profile is a typed record parsed from a TOML table or a JSON object. Two kinds:
+
+- ``localization``: what a planar lidar at ``lidar_height_m`` sees: a slab of ``slab_thickness_m``
+  centred on that height;
+- ``navigation``: everything between ``floor_clearance_m`` and ``robot_height_m``, projected.
+
+Heights are relative to the storey's elevation. The element selection becomes one SPARQL query over
+the graph (IFC types with their subtypes, BEO/FURN classes, materials, or a raw pattern on ``?element``).
+
+Example::
+
+    skill = parse_skill("lab-navigation", {"kind": "navigation", "robot_height_m": 0.5})
+    rows = store.select(selection_query(skill))
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import pyoxigraph as ox
+
+from twin import vocab
+from twin.errors import SkillError
+
+Kind = Literal["localization", "navigation"]
+_NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
+_IFC_NAME = re.compile(r"^Ifc[A-Za-z0-9]+$")
+_CURIE = re.compile(r"^(?P<prefix>[a-z]+):(?P<local>[A-Za-z0-9_-]+)$")
+
+_COMMON = {
+    "kind",
+    "resolution_m",
+    "include_types",
+    "exclude_types",
+    "exclude_materials",
+    "sparql",
+    "unknown_outside",
+    "description",
+}
+_FIELDS: dict[str, set[str]] = {
+    "localization": _COMMON | {"lidar_height_m", "slab_thickness_m"},
+    "navigation": _COMMON | {"robot_height_m", "floor_clearance_m", "inflation_radius_m"},
+}
+
+
+@dataclass(frozen=True, slots=True)
+class SkillProfile:
+    """A validated skill profile. Heights and sizes in metres."""
+
+    name: str
+    kind: Kind
+    resolution_m: float = 0.05
+    lidar_height_m: float = 0.5
+    slab_thickness_m: float = 0.02
+    robot_height_m: float = 1.5
+    floor_clearance_m: float = 0.05
+    inflation_radius_m: float = 0.0
+    include_types: tuple[str, ...] = ()
+    exclude_types: tuple[str, ...] = ()
+    exclude_materials: tuple[str, ...] = ()
+    sparql: str | None = None
+    unknown_outside: bool = False
+    description: str = ""
+    extra: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def z_range(self) -> tuple[float, float]:
+        """``(z_lo, z_hi)`` of the slab relative to the storey's elevation."""
+        if self.kind == "localization":
+            half = self.slab_thickness_m / 2
+            return (self.lidar_height_m - half, self.lidar_height_m + half)
+        return (self.floor_clearance_m, self.robot_height_m)
+
+    def to_json(self) -> dict[str, Any]:
+        """The profile as the JSON object :func:`parse_skill` accepts (only the kind's fields)."""
+        out: dict[str, Any] = {}
+        for key in sorted(_FIELDS[self.kind]):
+            value = getattr(self, key)
+            if isinstance(value, tuple):
+                value = list(value)
+            if value is None or value == [] or (key == "description" and not value):
+                continue
+            out[key] = value
+        return out
+
+
+def _number(name: str, key: str, value: Any, *, minimum: float, strict: bool, maximum: float = 1e3) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        msg = f"Skill {name!r}: field {key!r} must be a finite number of metres, got {value!r}."
+        raise SkillError(msg)
+    ok = value > minimum if strict else value >= minimum
+    if not ok or value > maximum:
+        bound = f"> {minimum}" if strict else f">= {minimum}"
+        msg = f"Skill {name!r}: field {key!r} must be {bound} and <= {maximum}, got {value!r}."
+        raise SkillError(msg)
+    return float(value)
+
+
+def _strings(name: str, key: str, value: Any, pattern: re.Pattern[str] | None = None) -> tuple[str, ...]:
+    if not isinstance(value, list | tuple) or not all(isinstance(v, str) and v for v in value):
+        msg = f"Skill {name!r}: field {key!r} must be a list of non-empty strings, got {value!r}."
+        raise SkillError(msg)
+    for v in value:
+        if pattern is not None and not (pattern.match(v) or _class_iri(v)):
+            msg = (
+                f"Skill {name!r}: field {key!r} has {v!r}, which is neither an IFC class name (IfcWall) "
+                "nor a class CURIE/IRI (beo:Wall, <https://...>)."
+            )
+            raise SkillError(msg)
+    return tuple(value)
+
+
+def _class_iri(value: str) -> str | None:
+    m = _CURIE.match(value)
+    if m and m["prefix"] in vocab.PREFIXES:
+        return vocab.PREFIXES[m["prefix"]] + m["local"]
+    if value.startswith("<") and value.endswith(">") and "://" in value and " " not in value:
+        return value[1:-1]
+    return None
+
+
+def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
+    """Validate ``data`` (a TOML table or JSON object) into a profile; SkillError names the bad field."""
+    if not isinstance(name, str) or not _NAME.match(name):
+        msg = f"Skill name must be 1-64 of [a-z0-9_-] starting with a letter or digit, got {name!r}."
+        raise SkillError(msg)
+    if not isinstance(data, Mapping):
+        msg = f"Skill {name!r} must be an object/table, got {type(data).__name__}."
+        raise SkillError(msg)
+    kind = data.get("kind")
+    if kind not in _FIELDS:
+        msg = f"Skill {name!r}: field 'kind' must be 'localization' or 'navigation', got {kind!r}."
+        raise SkillError(msg)
+    unknown = sorted(set(data) - _FIELDS[kind])
+    if unknown:
+        other = "navigation" if kind == "localization" else "localization"
+        for_other = [k for k in unknown if k in _FIELDS[other]]
+        hint = f" ({', '.join(for_other)} belongs to {other} skills)" if for_other else ""
+        msg = f"Skill {name!r}: unknown field {unknown[0]!r}{hint}."
+        raise SkillError(msg)
+    args: dict[str, Any] = {"name": name, "kind": kind}
+    if "resolution_m" in data:
+        args["resolution_m"] = _number(
+            name, "resolution_m", data["resolution_m"], minimum=0.001, strict=False, maximum=10.0
+        )
+    for key in ("lidar_height_m", "robot_height_m"):
+        if key in data:
+            args[key] = _number(name, key, data[key], minimum=0.0, strict=True, maximum=100.0)
+    for key in ("slab_thickness_m",):
+        if key in data:
+            args[key] = _number(name, key, data[key], minimum=0.0, strict=True, maximum=10.0)
+    for key in ("floor_clearance_m", "inflation_radius_m"):
+        if key in data:
+            args[key] = _number(name, key, data[key], minimum=0.0, strict=False, maximum=100.0)
+    if "include_types" in data:
+        args["include_types"] = _strings(name, "include_types", data["include_types"], _IFC_NAME)
+    if "exclude_types" in data:
+        args["exclude_types"] = _strings(name, "exclude_types", data["exclude_types"], _IFC_NAME)
+    if "exclude_materials" in data:
+        args["exclude_materials"] = tuple(
+            m.lower() for m in _strings(name, "exclude_materials", data["exclude_materials"])
+        )
+    for key in ("unknown_outside",):
+        if key in data:
+            if not isinstance(data[key], bool):
+                msg = f"Skill {name!r}: field {key!r} must be true or false, got {data[key]!r}."
+                raise SkillError(msg)
+            args[key] = data[key]
+    if "description" in data:
+        if not isinstance(data["description"], str):
+            msg = f"Skill {name!r}: field 'description' must be a string."
+            raise SkillError(msg)
+        args["description"] = data["description"]
+    if "sparql" in data:
+        if not isinstance(data["sparql"], str) or not data["sparql"].strip():
+            msg = f"Skill {name!r}: field 'sparql' must be a non-empty SPARQL group graph pattern."
+            raise SkillError(msg)
+        args["sparql"] = data["sparql"]
+    skill = SkillProfile(**args)
+    if skill.kind == "navigation" and skill.floor_clearance_m >= skill.robot_height_m:
+        msg = (
+            f"Skill {name!r}: field 'floor_clearance_m' ({skill.floor_clearance_m}) must be below "
+            f"'robot_height_m' ({skill.robot_height_m})."
+        )
+        raise SkillError(msg)
+    _check_query(skill)
+    return skill
+
+
+def _check_query(skill: SkillProfile) -> None:
+    try:
+        ox.Store().query(selection_query(skill), prefixes=vocab.PREFIXES)
+    except SyntaxError as err:
+        first = str(err).splitlines()[0] if str(err) else "syntax error"
+        msg = f"Skill {skill.name!r}: field 'sparql' does not parse: {first}"
+        raise SkillError(msg) from err
+
+
+def _type_test(types: tuple[str, ...]) -> str:
+    """A pattern true when ?element has one of ``types`` (IFC names with subtypes, or class IRIs)."""
+    alternatives = []
+    for t in types:
+        iri = _class_iri(t)
+        if iri is not None:
+            alternatives.append(f"{{ ?element a <{iri}> }}")
+        else:
+            alternatives.append(f"{{ ?element twin:ifcType {json.dumps(t)} }}")
+    return " UNION ".join(alternatives)
+
+
+def selection_query(skill: SkillProfile) -> str:
+    """The SPARQL SELECT of the ``?element`` IRIs the skill's maps are made of (with geometry only)."""
+    lines = ["SELECT DISTINCT ?element WHERE {", "  ?element a bot:Element ; omg:hasGeometry ?geometry ."]
+    if skill.include_types:
+        lines.append(f"  {_type_test(skill.include_types)}")
+    if skill.exclude_types:
+        lines.append(f"  FILTER NOT EXISTS {{ {_type_test(skill.exclude_types)} }}")
+    for mat in skill.exclude_materials:
+        lines.append(
+            "  FILTER NOT EXISTS { ?element twin:material ?material . "
+            f"FILTER(CONTAINS(LCASE(STR(?material)), {json.dumps(mat)})) }}"
+        )
+    if skill.sparql:
+        lines.append("  {\n" + skill.sparql + "\n  }")
+    lines.append("}")
+    return "\n".join(lines)
