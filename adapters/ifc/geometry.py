@@ -17,6 +17,7 @@ Example::
 
 from __future__ import annotations
 
+import faulthandler
 import logging
 import multiprocessing as mp
 from collections.abc import Callable, Sequence
@@ -75,6 +76,7 @@ def _settings() -> Any:
 
 def _run_kernel(f: Any, ids: list[int], kernel: str, threads: int, conn: Connection) -> None:
     """Child process: mesh ``ids`` with ``kernel``; send batches of shapes, then None."""
+    faulthandler.disable()  # a kernel crash is expected and handled by the parent: no dump on stderr
     try:
         it = ifcopenshell.geom.iterator(
             _settings(),

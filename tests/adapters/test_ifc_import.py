@@ -1,0 +1,251 @@
+"""IFC -> graph: the graph must say exactly what the IFC file says (counts, relations, meshes, units)."""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable
+from pathlib import Path
+
+import ifcopenshell
+import ifcopenshell.geom
+import ifcopenshell.util.shape
+import numpy as np
+import pytest
+
+from adapters.ifc import IfcFileError, read_model
+from adapters.sample_lab import LabLayout, write_lab
+from tests.conftest import SHARED_MODELS, imported, shared_model
+from twin.meshcodec import decode_mesh, decode_placement
+from twin.records import BuildingModel
+from twin.store import GraphStore, literal_value
+
+MODELS = ["lab", *SHARED_MODELS]
+
+
+@pytest.fixture(scope="module", params=MODELS)
+def case(
+    request: pytest.FixtureRequest,
+    lab: tuple[Path, LabLayout],
+    read_cached: Callable[[Path], BuildingModel],
+) -> tuple[ifcopenshell.file, BuildingModel, GraphStore]:
+    path = lab[0] if request.param == "lab" else shared_model(request.param)
+    model = read_cached(path)
+    return ifcopenshell.open(str(path)), model, imported(model)
+
+
+def _guid_pairs(store: GraphStore, predicate: str, subject_class: str) -> set[tuple[str, str]]:
+    rows = store.select(
+        f"SELECT ?a ?b WHERE {{ ?s a {subject_class} ; {predicate} ?e . "
+        "?s props:globalIdIfcRoot_attribute_simple ?a . ?e props:globalIdIfcRoot_attribute_simple ?b }"
+    )
+    return {(literal_value(r["a"]) or "", literal_value(r["b"]) or "") for r in rows}
+
+
+def test_element_counts_per_class_equal_ifcopenshell_counts(case) -> None:
+    f, _, store = case
+    expected = Counter(e.is_a() for e in f.by_type("IfcElement"))
+    rows = store.select(
+        "SELECT ?c (COUNT(?e) AS ?n) WHERE { ?e a bot:Element ; twin:ifcClass ?c } GROUP BY ?c"
+    )
+    got = {literal_value(r["c"]): int(literal_value(r["n"]) or 0) for r in rows}
+    assert got == dict(expected)
+
+
+def test_spaces_and_storeys_counts_equal_ifcopenshell_counts(case) -> None:
+    f, _, store = case
+    for cls, ifc in (("bot:Space", "IfcSpace"), ("bot:Storey", "IfcBuildingStorey")):
+        n = store.select(f"SELECT (COUNT(?s) AS ?n) WHERE {{ ?s a {cls} }}")[0]["n"]
+        assert int(literal_value(n) or 0) == len(f.by_type(ifc)), cls
+
+
+def test_adjacency_pairs_equal_the_files_space_boundaries(case) -> None:
+    f, _, store = case
+    expected = {
+        (r.RelatingSpace.GlobalId, r.RelatedBuildingElement.GlobalId)
+        for r in f.by_type("IfcRelSpaceBoundary")
+        if r.RelatedBuildingElement is not None
+        and r.RelatingSpace is not None
+        and r.RelatingSpace.is_a("IfcSpace")
+        and r.RelatedBuildingElement.is_a("IfcElement")
+    }
+    assert _guid_pairs(store, "bot:adjacentElement", "bot:Space") == expected
+
+
+def test_containment_pairs_equal_the_files_spatial_containment(case) -> None:
+    f, _, store = case
+    expected = {
+        (r.RelatingStructure.GlobalId, e.GlobalId)
+        for r in f.by_type("IfcRelContainedInSpatialStructure")
+        if r.RelatingStructure.is_a("IfcSpace") or r.RelatingStructure.is_a("IfcBuildingStorey")
+        for e in r.RelatedElements
+        if e.is_a("IfcElement")
+    }
+    got = _guid_pairs(store, "bot:containsElement", "bot:Space") | _guid_pairs(
+        store, "bot:containsElement", "bot:Storey"
+    )
+    assert got == expected
+
+
+def test_every_element_with_a_body_has_a_mesh_or_is_named_as_a_failure(case) -> None:
+    f, model, _ = case
+    with_body = {e.GlobalId for e in f.by_type("IfcElement") if e.Representation is not None}
+    meshed = {e.guid for e in model.elements if e.geometry is not None}
+    assert meshed | set(model.mesh_failures) == with_body
+    assert not set(model.mesh_failures) & meshed
+
+
+def test_element_iris_follow_ifctolbd_and_are_stable(case) -> None:
+    _, model, store = case
+    element = model.elements[0]
+    expected = (
+        f"https://example.org/test#{element.ifc_class.lower()[3:]}_{ifcopenshell.guid.expand(element.guid)}"
+    )
+    rows = store.select(f'SELECT ?e WHERE {{ ?e props:globalIdIfcRoot_attribute_simple "{element.guid}" }}')
+    got = literal_value(rows[0]["e"]) or ""
+    assert got.replace("-", "") == expected
+    again = imported(model)
+    assert again.ask(f"ASK {{ <{got}> a bot:Element }}")
+
+
+def _world_vertices(store: GraphStore, guid: str) -> np.ndarray:
+    rows = store.select(
+        f'SELECT ?ply ?pl WHERE {{ ?e props:globalIdIfcRoot_attribute_simple "{guid}" ; omg:hasGeometry ?g . '
+        "?g fog:asPly_v1.0-binaryLE ?ply ; twin:placement ?pl }"
+    )
+    mesh = decode_mesh(literal_value(rows[0]["ply"]) or "")
+    m = decode_placement(literal_value(rows[0]["pl"]) or "")
+    return mesh.vertices @ m[:3, :3].T + m[:3, 3]
+
+
+def _assert_same_points(a: np.ndarray, b: np.ndarray, tol: float = 1e-6) -> None:
+    """Every point of ``a`` is within ``tol`` of a point of ``b`` and vice versa."""
+    for p, q in ((a, b), (b, a)):
+        d = np.sqrt(((p[:, None, :] - q[None, :, :]) ** 2).sum(axis=2)).min(axis=1)
+        assert d.max() <= tol, d.max()
+
+
+def test_meshes_read_back_equal_ifcopenshell_world_meshes(case) -> None:
+    f, model, store = case
+    settings = ifcopenshell.geom.settings()
+    settings.set("use-world-coords", True)
+    fallback = set(model.kernel_fallbacks)
+    candidates = [
+        e
+        for e in model.elements
+        if e.geometry is not None and e.guid not in fallback and len(e.geometry.mesh.vertices) <= 1500
+    ]
+    rng = np.random.default_rng(7)
+    sample = [
+        candidates[i] for i in rng.choice(len(candidates), size=min(12, len(candidates)), replace=False)
+    ]
+    for element in sample:
+        shape = ifcopenshell.geom.create_shape(settings, f.by_guid(element.guid), geometry_library="manifold")
+        expected = np.asarray(ifcopenshell.util.shape.get_vertices(shape.geometry), dtype=float).reshape(
+            -1, 3
+        )
+        _assert_same_points(_world_vertices(store, element.guid), expected)
+
+
+def test_a_glass_wall_is_found_by_a_sparql_query_on_material(lab_store: GraphStore, lab) -> None:
+    _, layout = lab
+    rows = lab_store.select(
+        "SELECT ?g WHERE { ?e a beo:Wall ; twin:material ?m ; props:globalIdIfcRoot_attribute_simple ?g . "
+        'FILTER(CONTAINS(LCASE(?m), "glass")) }'
+    )
+    assert {literal_value(r["g"]) for r in rows} == {layout.glass_wall.global_id}
+
+
+PAPER_SELECTION = """
+SELECT ?g WHERE {
+  ?e a bot:Element ; twin:ifcClass ?t ; props:globalIdIfcRoot_attribute_simple ?g .
+  FILTER(?t NOT IN ("IfcOpeningElement", "IfcFurnishingElement",
+                    "IfcBuildingElementProxy", "IfcFlowTerminal"))
+  MINUS { ?e twin:material ?m . FILTER(CONTAINS(LCASE(?m), "glass")) }
+}"""
+
+
+def test_the_papers_selection_query_returns_the_walls_except_glass_on_the_sample(lab_store, lab) -> None:
+    _, layout = lab
+    got = {literal_value(r["g"]) for r in lab_store.select(PAPER_SELECTION)}
+    expected = {w.global_id for w in layout.walls} - {layout.glass_wall.global_id}
+    assert got == expected
+    assert layout.table.global_id not in got
+    assert layout.arch.global_id in got
+
+
+def test_storeys_have_elevations_names_and_keys(lab2, read_cached) -> None:
+    path, layout = lab2
+    store = imported(read_cached(path))
+    rows = store.select(
+        "SELECT ?name ?elev ?key WHERE { ?b bot:hasStorey ?s . ?s rdfs:label ?name ; twin:elevation ?elev ; "
+        "twin:storeyKey ?key }"
+    )
+    got = {(literal_value(r["name"]), round(float(literal_value(r["elev"]) or 0), 6)) for r in rows}
+    assert got == {(s.name, round(s.elevation_m, 6)) for s in layout.storeys}
+    assert len({literal_value(r["key"]) for r in rows}) == len(rows)
+
+
+def test_static_flag_follows_the_configured_types(lab_store: GraphStore, lab) -> None:
+    _, layout = lab
+    rows = lab_store.select(
+        "SELECT ?g ?s WHERE { ?e twin:isStatic ?s ; props:globalIdIfcRoot_attribute_simple ?g }"
+    )
+    static = {literal_value(r["g"]): literal_value(r["s"]) == "true" for r in rows}
+    assert static[layout.table.global_id] is False
+    assert all(static[w.global_id] for w in layout.walls)
+
+
+def test_a_feet_model_and_a_metres_model_give_the_same_coordinates(tmp_path: Path) -> None:
+    metre, foot = tmp_path / "m.ifc", tmp_path / "ft.ifc"
+    write_lab(metre, storeys=2)
+    write_lab(foot, length_unit="foot", storeys=2)
+    a, b = read_model(metre), read_model(foot)
+    assert {s.guid: round(s.elevation_m, 9) for s in a.storeys} == {
+        s.guid: round(s.elevation_m, 9) for s in b.storeys
+    }
+    geo_b = {e.guid: e.geometry for e in b.elements}
+    for e in a.elements:
+        ga, gb = e.geometry, geo_b[e.guid]
+        assert ga is not None
+        assert gb is not None
+        np.testing.assert_allclose(ga.world_vertices(), gb.world_vertices(), atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (None, "No such file"),
+        (b"hello world\n", "not an IFC/STEP file"),
+        (b"ISO-10303-21;\nHEADER;\nFILE_SCHEMA(('IFC4'));\nENDSEC;\nDATA;\n#1=IFCWALL(", "truncated"),
+        (
+            b"ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION((''),'2;1');\nFILE_NAME('','',(''),(''),'','','');\n"
+            b"FILE_SCHEMA(('IFC9'));\nENDSEC;\nDATA;\nENDSEC;\nEND-ISO-10303-21;\n",
+            "IFC9|schema",
+        ),
+        (
+            b"ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION((''),'2;1');\nFILE_NAME('','',(''),(''),'','','');\n"
+            b"FILE_SCHEMA(('IFC4'));\nENDSEC;\nDATA;\nENDSEC;\nEND-ISO-10303-21;\n",
+            "empty model",
+        ),
+    ],
+    ids=["missing", "not-step", "truncated", "unsupported-schema", "empty"],
+)
+def test_bad_files_raise_an_error_naming_the_problem(
+    tmp_path: Path, content: bytes | None, message: str
+) -> None:
+    path = tmp_path / "bad.ifc"
+    if content is not None:
+        path.write_bytes(content)
+    with pytest.raises(IfcFileError, match=message):
+        read_model(path)
+
+
+def test_a_model_without_spaces_is_rejected(tmp_path: Path) -> None:
+    path = tmp_path / "nospace.ifc"
+    write_lab(tmp_path / "lab.ifc")
+    f = ifcopenshell.open(str(tmp_path / "lab.ifc"))
+    for space in f.by_type("IfcSpace"):
+        f.remove(space)
+    f.write(str(path))
+    with pytest.raises(IfcFileError, match="no IfcSpace"):
+        read_model(path)

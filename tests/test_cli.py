@@ -1,0 +1,130 @@
+"""The ``twin`` command as a user runs it: a real process, real files, one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from adapters.ros import read_map_server
+
+
+def twin(*args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "twin.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=300,
+        check=False,
+    )
+
+
+@pytest.fixture(scope="module")
+def lab_store_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("cli")
+    r = twin("sample", "lab", root / "lab.ifc", "--storeys", "2")
+    assert r.returncode == 0, r.stderr
+    r = twin("import", root / "lab.ifc", "--store", root / "store", "--site", "lab")
+    assert r.returncode == 0, r.stderr
+    assert "imported" in r.stdout
+    return root / "store"
+
+
+def test_stats_prints_table_one_and_the_storey_keys(lab_store_dir: Path) -> None:
+    r = twin("stats", "--store", lab_store_dir)
+    assert r.returncode == 0, r.stderr
+    for label in ("lines in IFC file", "triples", "Turtle size", "elements", "meshes", "ground-floor"):
+        assert label in r.stdout
+
+
+def test_stats_json_counts_the_lab(lab_store_dir: Path) -> None:
+    r = twin("stats", "--store", lab_store_dir, "--json")
+    data = json.loads(r.stdout)
+    assert data["spaces"] == 4
+    assert [s["key"] for s in data["storeys"]] == ["ground-floor", "first-floor"]
+    assert data["elements_per_class"]["IfcFurnishingElement"] == 1
+    assert data["triples"] > 0
+    assert data["turtle_bytes"] > 0
+
+
+def test_reimport_into_a_non_empty_store_needs_replace(lab_store_dir: Path, tmp_path: Path) -> None:
+    model = tmp_path / "lab.ifc"
+    twin("sample", "lab", model)
+    r = twin("import", model, "--store", lab_store_dir)
+    assert r.returncode != 0
+    assert "--replace" in r.stderr
+
+
+def test_export_writes_turtle_with_lbd_prefixes(lab_store_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "lab.ttl"
+    r = twin("export", "--store", lab_store_dir, out)
+    assert r.returncode == 0, r.stderr
+    text = out.read_text()
+    assert "@prefix bot: <https://w3id.org/bot#>" in text
+    assert "bot:adjacentElement" in text
+
+
+def test_query_prints_a_table_and_sparql_json(lab_store_dir: Path) -> None:
+    q = "SELECT ?s WHERE { ?s a bot:Space }"
+    r = twin("query", "--store", lab_store_dir, q)
+    assert r.returncode == 0, r.stderr
+    assert "(4 rows)" in r.stdout
+    r = twin("query", "--store", lab_store_dir, q, "--json")
+    assert len(json.loads(r.stdout)["results"]["bindings"]) == 4
+
+
+def test_query_refuses_updates_with_a_one_line_error(lab_store_dir: Path) -> None:
+    r = twin("query", "--store", lab_store_dir, "DELETE WHERE { ?s ?p ?o }")
+    assert r.returncode == 1
+    assert r.stderr.startswith("twin: error: SPARQL query does not parse")
+    assert "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (None, "No such file"),
+        (b"PK\x03\x04zip", "not an IFC/STEP file"),
+        (b"ISO-10303-21;\nHEADER;", "truncated"),
+    ],
+    ids=["missing", "not-ifc", "truncated"],
+)
+def test_import_errors_are_one_line_without_traceback(
+    tmp_path: Path, content: bytes | None, message: str
+) -> None:
+    model = tmp_path / "bad.ifc"
+    if content is not None:
+        model.write_bytes(content)
+    r = twin("import", model, "--store", tmp_path / "store")
+    assert r.returncode == 1
+    assert message in r.stderr
+    assert r.stderr.count("\n") == 1
+    assert "Traceback" not in r.stderr
+
+
+def test_commands_on_a_missing_store_say_how_to_make_one(tmp_path: Path) -> None:
+    r = twin("stats", "--store", tmp_path / "nothing")
+    assert r.returncode == 1
+    assert "twin import" in r.stderr
+
+
+def test_map_writes_map_server_files_for_every_skill_and_storey(lab_store_dir: Path, tmp_path: Path) -> None:
+    r = twin("map", "--store", lab_store_dir, "--all-skills", "--out", tmp_path)
+    assert r.returncode == 0, r.stderr
+    yamls = sorted(p.name for p in tmp_path.glob("*.yaml"))
+    assert len(yamls) == 2 * 4
+    grid = read_map_server(tmp_path / "ground-floor__lab-navigation.yaml")
+    assert grid.occupied().any()
+    assert (tmp_path / "ground-floor__lab-navigation.png").stat().st_size > 0
+    assert (tmp_path / "ground-floor__lab-navigation.cdr").stat().st_size > grid.data.size
+
+
+def test_map_rejects_an_unknown_skill_naming_the_known_ones(lab_store_dir: Path, tmp_path: Path) -> None:
+    r = twin("map", "--store", lab_store_dir, "--skill", "flying", "--out", tmp_path)
+    assert r.returncode == 1
+    assert "Unknown skill 'flying'" in r.stderr
+    assert "lab-navigation" in r.stderr

@@ -1,0 +1,69 @@
+from __future__ import annotations
+
+import base64
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from twin.errors import ModelError
+from twin.meshcodec import decode_mesh, decode_placement, encode_mesh, encode_placement
+from twin.records import Mesh, is_closed
+
+TETRA = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]], dtype=np.int32)
+
+
+@settings(max_examples=40, deadline=None)
+@given(arrays(np.float64, st.tuples(st.integers(4, 40), st.just(3)), elements=st.floats(-1e4, 1e4)))
+def test_a_mesh_round_trips_bit_for_bit(vertices: np.ndarray) -> None:
+    faces = np.arange(len(vertices) - len(vertices) % 3, dtype=np.int32).reshape(-1, 3)
+    mesh = Mesh(vertices, faces, False)
+    again = decode_mesh(encode_mesh(mesh))
+    assert again.vertices.tobytes() == vertices.tobytes()
+    assert np.array_equal(again.faces, faces)
+    assert again.closed is False
+
+
+def test_the_closed_flag_round_trips() -> None:
+    mesh = Mesh(np.eye(4, 3), TETRA, is_closed(TETRA))
+    assert decode_mesh(encode_mesh(mesh)).closed is True
+
+
+def test_closedness_needs_every_edge_twice() -> None:
+    assert is_closed(TETRA)
+    assert not is_closed(TETRA[:3])
+    assert not is_closed(np.concatenate([TETRA, TETRA]))
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("###", "not valid base64"),
+        (base64.b64encode(b"solid x").decode(), "not a PLY"),
+        (encode_mesh(Mesh(np.eye(4, 3), TETRA, True))[:-8], "bytes, expected"),
+    ],
+)
+def test_bad_mesh_literals_raise_model_error(text: str, message: str) -> None:
+    with pytest.raises(ModelError, match=message):
+        decode_mesh(text)
+
+
+def test_placements_round_trip_and_bad_ones_are_rejected() -> None:
+    m = np.eye(4)
+    m[:3, 3] = [1.5, -2.25, 1e-9]
+    assert np.array_equal(decode_placement(encode_placement(m)), m)
+    with pytest.raises(ModelError, match="16 numbers"):
+        decode_placement("1 2 3")
+    bad = m.copy()
+    bad[0, 0] = np.nan
+    with pytest.raises(ModelError, match="NaN"):
+        encode_placement(bad)
+
+
+def test_meshes_reject_nan_and_out_of_range_faces() -> None:
+    with pytest.raises(ModelError, match="NaN"):
+        Mesh(np.full((3, 3), np.nan), np.array([[0, 1, 2]], dtype=np.int32), False)
+    with pytest.raises(ModelError, match="indices"):
+        Mesh(np.zeros((3, 3)), np.array([[0, 1, 5]], dtype=np.int32), False)

@@ -1,0 +1,88 @@
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from twin.config import load_config
+from twin.errors import ConfigError, SkillError
+from twin.skills import parse_skill, selection_query
+from twin.store import GraphStore, literal_value
+
+
+def test_shipped_profiles_reproduce_the_paper() -> None:
+    cfg = load_config()
+    loc, nav = cfg.skill("localization"), cfg.skill("navigation")
+    assert loc.kind == "localization"
+    assert loc.lidar_height_m == 0.5
+    assert set(loc.exclude_types) == {
+        "IfcOpeningElement",
+        "IfcFurnishingElement",
+        "IfcBuildingElementProxy",
+        "IfcFlowTerminal",
+    }
+    assert loc.exclude_materials == ("glass",)
+    assert nav.robot_height_m == 1.5
+    assert cfg.skill("lab-localization").lidar_height_m == 0.1
+    assert cfg.skill("lab-navigation").robot_height_m == 0.5
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"kind": "flying"}, "field 'kind'"),
+        ({"kind": "navigation", "robot_height_m": -1.0}, "field 'robot_height_m'"),
+        ({"kind": "navigation", "robot_height_m": float("nan")}, "field 'robot_height_m'"),
+        ({"kind": "localization", "lidar_height_m": "high"}, "field 'lidar_height_m'"),
+        ({"kind": "localization", "colour": "red"}, "unknown field 'colour'"),
+        ({"kind": "navigation", "lidar_height_m": 0.2}, "belongs to localization"),
+        ({"kind": "navigation", "sparql": "?element a ?"}, "field 'sparql' does not parse"),
+        ({"kind": "navigation", "exclude_types": ["wall"]}, "field 'exclude_types'"),
+        ({"kind": "navigation", "floor_clearance_m": 1.0, "robot_height_m": 0.5}, "floor_clearance_m"),
+    ],
+)
+def test_bad_profiles_are_rejected_naming_the_field(data: dict[str, object], message: str) -> None:
+    with pytest.raises(SkillError, match=message):
+        parse_skill("bad", data)
+
+
+def test_a_profile_round_trips_through_json() -> None:
+    skill = parse_skill("x", {"kind": "navigation", "robot_height_m": 0.7, "exclude_materials": ["Glass"]})
+    assert parse_skill("x", skill.to_json()) == skill
+
+
+def test_selection_by_type_includes_subtypes_and_excludes_glass(lab_store: GraphStore, lab) -> None:
+    _, layout = lab
+    skill = parse_skill(
+        "walls", {"kind": "localization", "include_types": ["IfcWall"], "exclude_materials": ["GLASS"]}
+    )
+    got = {literal_value(r["element"]) for r in lab_store.select(selection_query(skill))}
+    rows = lab_store.select("SELECT ?e ?g WHERE { ?e props:globalIdIfcRoot_attribute_simple ?g }")
+    guid = {literal_value(r["e"]): literal_value(r["g"]) for r in rows}
+    assert {guid[e] for e in got} == {w.global_id for w in layout.walls} - {layout.glass_wall.global_id}
+
+
+def test_a_raw_sparql_pattern_narrows_the_selection(lab_store: GraphStore) -> None:
+    skill = parse_skill("furniture", {"kind": "navigation", "sparql": "?element a furn:Furniture ."})
+    assert len(lab_store.select(selection_query(skill))) == 1
+
+
+def test_a_user_config_overrides_and_adds_skills(tmp_path: Path) -> None:
+    path = tmp_path / "site.toml"
+    path.write_text('[site]\nname = "hq"\n[skills.tall]\nkind = "navigation"\nrobot_height_m = 2.0\n')
+    cfg = load_config(path)
+    assert cfg.site == "hq"
+    assert cfg.skill("tall").robot_height_m == 2.0
+    assert "localization" in cfg.skills
+    with pytest.raises(SkillError, match="Unknown skill 'nope'"):
+        cfg.skill("nope")
+
+
+def test_a_bad_config_file_names_the_problem(tmp_path: Path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text("[skills.x]\nkind = 3\n")
+    with pytest.raises(ConfigError, match="field 'kind'"):
+        load_config(path)
+    path.write_text("not toml ===")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(path)

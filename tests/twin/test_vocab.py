@@ -1,0 +1,45 @@
+from __future__ import annotations
+
+import ifcopenshell.guid
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from twin import vocab
+from twin.errors import ModelError
+
+
+@given(st.uuids())
+def test_guid_expansion_matches_ifcopenshell_and_round_trips(u) -> None:
+    compressed = ifcopenshell.guid.compress(u.hex)
+    assert vocab.expand_guid(compressed) == str(u)
+    assert vocab.compress_guid(str(u)) == compressed
+
+
+def test_an_invalid_guid_is_rejected_naming_it() -> None:
+    with pytest.raises(ModelError, match="'not-a-guid'"):
+        vocab.expand_guid("not-a-guid")
+
+
+def test_element_iri_is_ifctolbd_style() -> None:
+    iri = vocab.entity_iri("https://ex.org/b#", "IfcWallStandardCase", "0" * 22)
+    assert iri == "https://ex.org/b#wallstandardcase_00000000-0000-0000-0000-000000000000"
+
+
+def test_semantic_classes_map_walls_to_beo_and_furniture_to_furn() -> None:
+    assert vocab.semantic_class("IfcWallStandardCase") == vocab.BEO + "Wall"
+    assert vocab.semantic_class("IfcFurnishingElement") == vocab.FURN + "Furniture"
+    assert vocab.semantic_class("IfcFlowTerminal") is None
+
+
+def test_storey_keys_are_safe_and_unique() -> None:
+    used: set[str] = set()
+    assert vocab.storey_key("1. Obergeschoss", used) == "1-obergeschoss"
+    assert vocab.storey_key("1 Obergeschoss", used) == "1-obergeschoss-2"
+    assert vocab.storey_key("Floor Plan_1st Floor") == "floor-plan-1st-floor"
+
+
+@pytest.mark.parametrize("base", ["example.org/x#", "https://ex.org/x", "https://ex.org/a b#"])
+def test_a_bad_base_iri_is_rejected(base: str) -> None:
+    with pytest.raises(ModelError, match="Base IRI"):
+        vocab.check_base(base)

@@ -1,0 +1,57 @@
+"""``twin map``: write skill maps of a store as nav2 map_server files, PNG previews and CDR messages."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+from twin.config import Config
+from twin.errors import SkillError
+from twin.maps import build_map, plan_map
+from twin.scene import load_scene
+from twin.skills import selection_query
+from twin.store import GraphStore, literal_value
+
+
+def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
+    from adapters.ros import write_map_files
+
+    if args.all_skills == bool(args.skill):
+        msg = "Give either --skill NAME (repeatable) or --all-skills."
+        raise SkillError(msg)
+    skills = [cfg.skill(name) for name in (args.skill or sorted(cfg.skills))]
+    out = Path(args.out) if args.out else cfg.maps_out
+    store_path = Path(args.store) if args.store else cfg.store_path
+    stamp_ns = time.time_ns()
+    with GraphStore.open(store_path, read_only=True) as store:
+        t0 = time.perf_counter()
+        scene = load_scene(store)
+        print(
+            f"loaded {len(scene.elements)} elements ({len(scene.elements.triangles):,} triangles) "
+            f"in {time.perf_counter() - t0:.2f} s"
+        )
+        storeys = [scene.storey(args.storey)] if args.storey else list(scene.storeys)
+        for skill in skills:
+            iris = [literal_value(r["element"]) or "" for r in store.select(selection_query(skill))]
+            for storey in storeys:
+                t1 = time.perf_counter()
+                grid = build_map(scene, plan_map(scene, skill, storey.key, iris, margin_m=cfg.margin_m))
+                files = write_map_files(grid, out, stamp_ns=stamp_ns)
+                occupied = int(grid.occupied().sum())
+                print(
+                    f"{storey.key}/{skill.name}: {grid.frame.width}x{grid.frame.height} cells, "
+                    f"{occupied:,} occupied, {time.perf_counter() - t1:.2f} s -> {files.yaml}"
+                )
+    return 0
+
+
+def add_map_parser(sub: Any) -> None:
+    sp = sub.add_parser("map", help="write skill maps (map_server YAML+PGM, PNG, CDR) per storey")
+    sp.add_argument("--store", help="store directory (default: store.path of the configuration)")
+    sp.add_argument("--skill", action="append", help="a configured skill (repeatable)")
+    sp.add_argument("--all-skills", action="store_true", help="every configured skill")
+    sp.add_argument("--storey", help="one storey key (see 'twin stats'); default: every storey")
+    sp.add_argument("--out", help="output directory (default: maps.out of the configuration)")
+    sp.set_defaults(func=cmd_map)

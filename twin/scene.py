@@ -1,0 +1,217 @@
+"""The scene: world-space triangles of every element (and space) with geometry, indexed for slicing.
+
+Loaded once from the store; each distinct mesh literal is decoded once. Triangles are grouped by
+element (``start[i]:start[i+1]``) and every element has a world AABB, so a map window is recomputed
+from only the elements that overlap it.
+
+Example::
+
+    scene = load_scene(store)
+    ids = scene.elements.indices_of(iris)            # selected elements
+    near = scene.elements.overlapping(ids, xmin=0, ymin=0, xmax=5, ymax=5, z_lo=0.05, z_hi=1.5)
+    tris, owner = scene.elements.triangles_of(near)
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Self
+
+import numpy as np
+import numpy.typing as npt
+
+from twin.errors import MapError
+from twin.meshcodec import decode_mesh, decode_placement
+from twin.records import Mesh
+from twin.store import GraphStore, literal_value
+
+log = logging.getLogger(__name__)
+
+IndexArray = npt.NDArray[np.intp]
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class MeshSet:
+    """World triangles of ``k`` nodes (elements or spaces).
+
+    Attributes:
+        iris: ``k`` node IRIs; ``index[iri]`` is the node's position.
+        triangles: ``(n, 3, 3) float64`` world xyz, grouped by node.
+        start: ``(k + 1,) intp``: node ``i`` owns ``triangles[start[i]:start[i+1]]``.
+        closed: ``(k,) bool`` watertight meshes (filled when sliced).
+        bounds: ``(k, 6) float64`` world AABB ``xmin, ymin, zmin, xmax, ymax, zmax``.
+    """
+
+    iris: tuple[str, ...]
+    index: dict[str, int]
+    triangles: npt.NDArray[np.float64]
+    start: IndexArray
+    closed: npt.NDArray[np.bool_]
+    bounds: npt.NDArray[np.float64]
+
+    @classmethod
+    def build(cls, items: list[tuple[str, Mesh, npt.NDArray[np.float64]]]) -> Self:
+        """From ``(iri, local mesh, (4, 4) placement)`` items."""
+        iris = tuple(i for i, _, _ in items)
+        counts = np.array([m.triangle_count for _, m, _ in items], dtype=np.intp)
+        start = np.zeros(len(items) + 1, dtype=np.intp)
+        np.cumsum(counts, out=start[1:])
+        triangles = np.empty((int(start[-1]), 3, 3), dtype=np.float64)
+        bounds = np.zeros((len(items), 6), dtype=np.float64)
+        for i, (_, mesh, placement) in enumerate(items):
+            world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]
+            triangles[start[i] : start[i + 1]] = world[mesh.faces]
+            if len(world):
+                bounds[i, :3] = world.min(axis=0)
+                bounds[i, 3:] = world.max(axis=0)
+        closed = np.array([m.closed for _, m, _ in items], dtype=np.bool_)
+        return cls(iris, {iri: i for i, iri in enumerate(iris)}, triangles, start, closed, bounds)
+
+    def __len__(self) -> int:
+        return len(self.iris)
+
+    def indices_of(self, iris: list[str] | tuple[str, ...]) -> IndexArray:
+        """Positions of ``iris`` that have geometry here (others are ignored), sorted."""
+        return np.array(sorted({self.index[i] for i in iris if i in self.index}), dtype=np.intp)
+
+    def overlapping(
+        self,
+        ids: IndexArray,
+        *,
+        xmin: float,
+        ymin: float,
+        xmax: float,
+        ymax: float,
+        z_lo: float,
+        z_hi: float,
+    ) -> IndexArray:
+        """The subset of ``ids`` whose AABB meets the box (closed intervals)."""
+        b = self.bounds[ids]
+        keep = (
+            (b[:, 0] <= xmax)
+            & (b[:, 3] >= xmin)
+            & (b[:, 1] <= ymax)
+            & (b[:, 4] >= ymin)
+            & (b[:, 2] <= z_hi)
+            & (b[:, 5] >= z_lo)
+        )
+        return ids[keep]
+
+    def triangles_of(self, ids: IndexArray) -> tuple[npt.NDArray[np.float64], IndexArray]:
+        """``(triangles (m, 3, 3), owner (m,))``: the triangles of ``ids``; ``owner`` indexes into ``ids``."""
+        counts = self.start[ids + 1] - self.start[ids]
+        total = int(counts.sum())
+        owner = np.repeat(np.arange(len(ids), dtype=np.intp), counts)
+        offsets = np.zeros(len(ids), dtype=np.intp)
+        np.cumsum(counts[:-1], out=offsets[1:])
+        rows = np.arange(total, dtype=np.intp) - offsets[owner] + self.start[ids][owner]
+        return self.triangles[rows], owner
+
+
+@dataclass(frozen=True, slots=True)
+class StoreyInfo:
+    """A storey of the scene: its stable key, name, elevation and XY extent (for the grid frame)."""
+
+    iri: str
+    key: str
+    name: str
+    elevation_m: float
+    extent: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class Scene:
+    elements: MeshSet
+    spaces: MeshSet
+    storeys: tuple[StoreyInfo, ...]
+    space_storey: dict[str, str]
+
+    def storey(self, key: str) -> StoreyInfo:
+        for s in self.storeys:
+            if s.key == key:
+                return s
+        known = ", ".join(s.key for s in self.storeys) or "none"
+        msg = f"Unknown storey {key!r}; storeys of this model: {known}."
+        raise MapError(msg)
+
+
+_GEOMETRY = """SELECT ?node ?ply ?placement ?closed WHERE {{
+  ?node a {kind} ; omg:hasGeometry ?g .
+  ?g fog:asPly_v1.0-binaryLE ?ply ; twin:placement ?placement ; twin:closedMesh ?closed .
+}}"""
+
+
+def _mesh_items(store: GraphStore, kind: str) -> list[tuple[str, Mesh, npt.NDArray[np.float64]]]:
+    decoded: dict[str, Mesh] = {}
+    items = []
+    for row in store.iter_select(_GEOMETRY.format(kind=kind)):
+        text = row["ply"].value
+        mesh = decoded.get(text)
+        if mesh is None:
+            mesh = decoded[text] = decode_mesh(text)
+        items.append((row["node"].value, mesh, decode_placement(row["placement"].value)))
+    items.sort(key=lambda item: item[0])
+    return items
+
+
+def _extent(sets: list[tuple[MeshSet, IndexArray]]) -> tuple[float, float, float, float] | None:
+    boxes = [ms.bounds[ids] for ms, ids in sets if len(ids)]
+    if not boxes:
+        return None
+    b = np.concatenate(boxes)
+    return (float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 3].max()), float(b[:, 4].max()))
+
+
+def load_scene(store: GraphStore) -> Scene:
+    """Read every element's and space's geometry and every storey from ``store``."""
+    elements = MeshSet.build(_mesh_items(store, "bot:Element"))
+    spaces = MeshSet.build(_mesh_items(store, "bot:Space"))
+    if len(elements) == 0:
+        msg = "The store holds no element with geometry: import a model first."
+        raise MapError(msg)
+    members: dict[str, list[str]] = {}
+    for row in store.select(
+        """SELECT ?st ?el WHERE {
+             ?st a bot:Storey .
+             ?st (bot:containsElement|bot:hasSpace/bot:containsElement)/bot:hasSubElement* ?el .
+           }"""
+    ):
+        members.setdefault(literal_value(row["st"]) or "", []).append(literal_value(row["el"]) or "")
+    space_storey: dict[str, str] = {}
+    storey_spaces: dict[str, list[str]] = {}
+    for row in store.select("SELECT ?st ?sp WHERE { ?st a bot:Storey ; bot:hasSpace ?sp }"):
+        st, sp = literal_value(row["st"]) or "", literal_value(row["sp"]) or ""
+        space_storey[sp] = st
+        storey_spaces.setdefault(st, []).append(sp)
+    everything = _extent([(elements, np.arange(len(elements), dtype=np.intp))])
+    assert everything is not None
+    storeys = []
+    for row in store.select(
+        "SELECT ?st ?key ?name ?elev WHERE { ?st a bot:Storey ; twin:storeyKey ?key ; twin:elevation ?elev . "
+        "OPTIONAL { ?st rdfs:label ?name } } ORDER BY ?elev ?key"
+    ):
+        iri = literal_value(row["st"]) or ""
+        ext = _extent(
+            [
+                (elements, elements.indices_of(members.get(iri, []))),
+                (spaces, spaces.indices_of(storey_spaces.get(iri, []))),
+            ]
+        )
+        storeys.append(
+            StoreyInfo(
+                iri=iri,
+                key=literal_value(row["key"]) or "",
+                name=literal_value(row["name"]) or "",
+                elevation_m=float(literal_value(row["elev"]) or 0.0),
+                extent=ext or everything,
+            )
+        )
+    log.info(
+        "Scene: %d elements (%d triangles), %d spaces, %d storeys",
+        len(elements),
+        len(elements.triangles),
+        len(spaces),
+        len(storeys),
+    )
+    return Scene(elements, spaces, tuple(storeys), space_storey)
