@@ -1,0 +1,38 @@
+# building-twin: the two commands are `make demo` (the main job) and `make test` (what CI runs).
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+VAR    := var
+
+.PHONY: demo test lint bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+## demo: install, generate the sample lab, import it into the embedded store, write every skill map
+demo: $(STAMP)
+	$(BIN)/twin sample lab $(VAR)/lab.ifc --storeys 2
+	$(BIN)/twin import $(VAR)/lab.ifc --store $(VAR)/store --replace
+	$(BIN)/twin stats --store $(VAR)/store
+	$(BIN)/twin map --store $(VAR)/store --all-skills --out $(VAR)/maps
+	@echo "maps (nav2 map_server YAML+PGM, PNG previews, CDR OccupancyGrid) are in $(VAR)/maps"
+
+## test: install, then run the whole test suite
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+## lint: ruff and mypy on the library code
+lint: $(STAMP)
+	$(BIN)/ruff check twin adapters tests benchmarks
+	$(BIN)/mypy
+
+## bench: the performance harness (prints a table, writes JSON)
+bench: $(STAMP)
+	$(BIN)/python benchmarks/run.py --json benchmarks/results/latest.json
+
+clean:
+	rm -rf $(VAR) .pytest_cache .mypy_cache .ruff_cache

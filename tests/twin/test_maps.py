@@ -1,0 +1,254 @@
+"""Skill maps: the paper's lab result, storeys, exactness against a reference, and window recompute."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from adapters.sample_lab import Box, LabLayout
+from tests.conftest import imported, shared_model
+from tests.twin.reference import rasterize_reference, slab_geometry
+from twin.config import Config
+from twin.grid import OCCUPIED, OccupancyGrid, Window
+from twin.maps import build_map, dilate_disk, plan_map, render_window
+from twin.records import BuildingModel
+from twin.scene import Scene, load_scene
+from twin.skills import SkillProfile, parse_skill, selection_query
+from twin.store import GraphStore, literal_value
+
+
+def selected(store: GraphStore, skill: SkillProfile) -> list[str]:
+    return [literal_value(r["element"]) or "" for r in store.select(selection_query(skill))]
+
+
+def make_map(store: GraphStore, scene: Scene, skill: SkillProfile, storey: str) -> OccupancyGrid:
+    return build_map(scene, plan_map(scene, skill, storey, selected(store, skill)))
+
+
+def inside(grid: OccupancyGrid, box: Box, *, shrink: float) -> np.ndarray:
+    """Cells of the grid well inside ``box`` (shrunk by ``shrink`` metres on every side)."""
+    w = grid.frame.window_for(box.xmin + shrink, box.ymin + shrink, box.xmax - shrink, box.ymax - shrink)
+    return grid.data[w.row0 : w.row1, w.col0 : w.col1]
+
+
+@pytest.fixture(scope="module")
+def lab_scene(lab_store: GraphStore) -> Scene:
+    return load_scene(lab_store)
+
+
+@pytest.fixture(scope="module")
+def lab_maps(lab_store: GraphStore, lab_scene: Scene, config: Config) -> dict[str, OccupancyGrid]:
+    return {
+        name: make_map(lab_store, lab_scene, config.skill(name), "ground-floor")
+        for name in ("lab-localization", "lab-navigation", "localization", "navigation")
+    }
+
+
+def test_the_arch_blocks_the_short_robot_but_the_low_lidar_sees_under_it(lab_maps, lab) -> None:
+    _, layout = lab
+    arch = layout.arch.box
+    assert (inside(lab_maps["lab-navigation"], arch, shrink=0.02) == OCCUPIED).all()
+    assert not (inside(lab_maps["lab-localization"], arch, shrink=0.06) == OCCUPIED).any()
+
+
+def test_the_glass_wall_is_only_in_navigation_maps(lab_maps, lab) -> None:
+    _, layout = lab
+    glass = layout.glass_wall.box
+    for name in ("lab-localization", "localization"):
+        assert not (inside(lab_maps[name], glass, shrink=0.06) == OCCUPIED).any(), name
+    for name in ("lab-navigation", "navigation"):
+        assert (inside(lab_maps[name], glass, shrink=0.01) == OCCUPIED).all(), name
+
+
+def test_the_table_is_in_navigation_maps_and_not_in_localization_maps(lab_maps, lab) -> None:
+    _, layout = lab
+    table = layout.table.box
+    for name in ("lab-localization", "localization"):
+        assert not (inside(lab_maps[name], table, shrink=0.01) == OCCUPIED).any(), name
+    for name in ("lab-navigation", "navigation"):
+        assert (inside(lab_maps[name], table, shrink=0.01) == OCCUPIED).all(), name
+
+
+def test_walls_are_closed_rings_in_the_localization_map(lab_maps, lab) -> None:
+    _, layout = lab
+    grid = lab_maps["lab-localization"]
+    for wall in layout.walls:
+        if wall.name in (layout.arch.name, layout.glass_wall.name):
+            continue
+        assert (inside(grid, wall.box, shrink=0.01) == OCCUPIED).all(), wall.name
+
+
+def test_the_frame_covers_the_storey_with_a_snapped_margin(lab_maps) -> None:
+    frame = lab_maps["lab-navigation"].frame
+    for v in (frame.origin_x, frame.origin_y):
+        assert abs(v / frame.resolution_m - round(v / frame.resolution_m)) < 1e-9
+    assert frame.origin_x <= 10.0 - 0.2 - 1.0 + 1e-9
+
+
+def test_two_storeys_give_two_maps_from_their_own_heights(lab2, read_cached, config: Config) -> None:
+    path, layout = lab2
+    store = imported(read_cached(path))
+    scene = load_scene(store)
+    nav = config.skill("lab-navigation")
+    ground = make_map(store, scene, nav, "ground-floor")
+    first = make_map(store, scene, nav, "first-floor")
+    interior = (
+        layout.element("Hall interior wall").box
+        if any(e.name == "Hall interior wall" for e in layout.elements)
+        else next(
+            e.box for e in layout.elements if e.storey != layout.storeys[0].name and e.material == "Brick"
+        )
+    )
+    assert (inside(first, interior, shrink=0.01) == OCCUPIED).all()
+    assert not (inside(ground, interior, shrink=0.01) == OCCUPIED).any()
+    assert (inside(ground, layout.arch.box, shrink=0.02) == OCCUPIED).all()
+    assert not (inside(first, layout.arch.box, shrink=0.06) == OCCUPIED).any()
+    assert first.elevation_m == pytest.approx(3.0)
+
+
+def test_maps_equal_the_union_of_single_element_maps(lab_store, lab_scene, config: Config) -> None:
+    skill = config.skill("lab-navigation")
+    iris = selected(lab_store, skill)
+    full = make_map(lab_store, lab_scene, skill, "ground-floor")
+    union = np.zeros(full.data.shape, dtype=bool)
+    for iri in iris:
+        single = build_map(lab_scene, plan_map(lab_scene, skill, "ground-floor", [iri]))
+        union |= single.occupied()
+    assert np.array_equal(union, full.occupied())
+
+
+def test_inflation_grows_obstacles_by_the_robot_radius(lab_store, lab_scene) -> None:
+    base = parse_skill("r0", {"kind": "navigation", "robot_height_m": 0.5})
+    fat = parse_skill("r3", {"kind": "navigation", "robot_height_m": 0.5, "inflation_radius_m": 0.15})
+    a = make_map(lab_store, lab_scene, base, "ground-floor").occupied()
+    b = make_map(lab_store, lab_scene, fat, "ground-floor").occupied()
+    assert np.array_equal(b, dilate_disk(a, 3.0))
+    assert (b & ~a).sum() > 0
+    assert not (a & ~b).any()
+
+
+def test_disk_dilation_matches_a_brute_force_distance_test() -> None:
+    rng = np.random.default_rng(1)
+    occ = rng.random((40, 50)) < 0.01
+    got = dilate_disk(occ, 2.5)
+    yy, xx = np.mgrid[0:40, 0:50]
+    want = np.zeros_like(occ)
+    for y, x in zip(*np.nonzero(occ), strict=True):
+        want |= (yy - y) ** 2 + (xx - x) ** 2 <= 2.5**2
+    assert np.array_equal(got, want)
+
+
+def test_unknown_outside_marks_cells_outside_every_space(lab_store, lab_scene, lab) -> None:
+    _, layout = lab
+    skill = parse_skill("u", {"kind": "navigation", "robot_height_m": 0.5, "unknown_outside": True})
+    grid = make_map(lab_store, lab_scene, skill, "ground-floor")
+    assert grid.data[0, 0] == -1
+    room = layout.space("Room A").box
+    assert (inside(grid, room, shrink=0.3) != -1).all()
+
+
+def _windows(frame, rng: np.random.Generator, n: int) -> list[Window]:
+    out = []
+    for _ in range(n):
+        r0, c0 = int(rng.integers(0, frame.height)), int(rng.integers(0, frame.width))
+        out.append(Window(r0, c0, r0 + int(rng.integers(1, 120)), c0 + int(rng.integers(1, 120))))
+    return out
+
+
+@pytest.mark.parametrize("inflation", [0.0, 0.2])
+def test_any_window_recomputed_alone_equals_the_full_map_on_the_lab(lab_store, lab_scene, inflation) -> None:
+    skill = parse_skill("w", {"kind": "navigation", "robot_height_m": 0.5, "inflation_radius_m": inflation})
+    plan = plan_map(lab_scene, skill, "ground-floor", selected(lab_store, skill))
+    full = build_map(lab_scene, plan).data
+    for w in _windows(plan.frame, np.random.default_rng(3), 40):
+        w = w.intersect(plan.frame.full)
+        assert np.array_equal(render_window(lab_scene, plan, w), full[w.row0 : w.row1, w.col0 : w.col1]), w
+
+
+SHARED_FOR_MAPS = ["AC20-FZK-Haus.ifc", "AC11-Institute-Var-2-IFC.ifc", "revit2012_janesville_restaurant.ifc"]
+
+
+@pytest.fixture(scope="module", params=SHARED_FOR_MAPS)
+def shared_scene(
+    request: pytest.FixtureRequest, read_cached: Callable[[Path], BuildingModel]
+) -> tuple[GraphStore, Scene]:
+    store = imported(read_cached(shared_model(request.param)))
+    return store, load_scene(store)
+
+
+def test_windows_equal_the_full_map_bit_for_bit_on_shared_models(shared_scene, config: Config) -> None:
+    store, scene = shared_scene
+    for name in ("localization", "navigation"):
+        skill = config.skill(name)
+        storey = scene.storeys[0].key
+        plan = plan_map(scene, skill, storey, selected(store, skill))
+        full = build_map(scene, plan).data
+        for w in _windows(plan.frame, np.random.default_rng(11), 15):
+            w = w.intersect(plan.frame.full)
+            assert np.array_equal(render_window(scene, plan, w), full[w.row0 : w.row1, w.col0 : w.col1])
+
+
+def _reference_window(scene: Scene, plan, win: Window) -> tuple[np.ndarray, np.ndarray]:
+    """(strict, loose) reference occupancy of ``win``: cells whose shrunk / grown square meets the geometry."""
+    f = plan.frame
+    sub = type(f)(
+        f.origin_x + win.col0 * f.resolution_m,
+        f.origin_y + win.row0 * f.resolution_m,
+        f.resolution_m,
+        win.shape[1],
+        win.shape[0],
+    )
+    strict = np.zeros(win.shape, dtype=bool)
+    loose = np.zeros(win.shape, dtype=bool)
+    ms = scene.elements
+    near = ms.overlapping(
+        plan.selected,
+        xmin=sub.origin_x - 0.1,
+        ymin=sub.origin_y - 0.1,
+        xmax=sub.origin_x + sub.width * sub.resolution_m + 0.1,
+        ymax=sub.origin_y + sub.height * sub.resolution_m + 0.1,
+        z_lo=plan.z_lo,
+        z_hi=plan.z_hi,
+    )
+    for k in near:
+        tris = ms.triangles[ms.start[k] : ms.start[k + 1]]
+        verts = tris.reshape(-1, 3)
+        faces = np.arange(len(verts)).reshape(-1, 3)
+        if ms.closed[k]:  # weld so trimesh sees the solid
+            verts, inverse = np.unique(verts, axis=0, return_inverse=True)
+            faces = inverse.reshape(-1, 3)
+        geom = slab_geometry(verts, faces, bool(ms.closed[k]), plan.z_lo, plan.z_hi)
+        if not geom.is_empty:
+            strict |= rasterize_reference(geom, sub, grow=-1e-6)
+            loose |= rasterize_reference(geom, sub, grow=+1e-6)
+    return strict, loose
+
+
+def test_maps_match_an_exact_polygon_reference_on_shared_models(shared_scene, config: Config) -> None:
+    """No missed cell and no extra cell, in 5 m x 5 m windows of up to three storeys per skill."""
+    store, scene = shared_scene
+    rng = np.random.default_rng(5)
+    checked = 0
+    for name in ("localization", "navigation"):
+        skill = config.skill(name)
+        iris = selected(store, skill)
+        for storey in scene.storeys[:3]:
+            plan = plan_map(scene, skill, storey.key, iris)
+            grid = build_map(scene, plan)
+            rows, cols = np.nonzero(grid.occupied())
+            if not len(rows):
+                continue
+            i = int(rng.integers(len(rows)))
+            half = int(2.5 / plan.frame.resolution_m)
+            win = Window(rows[i] - half, cols[i] - half, rows[i] + half, cols[i] + half).intersect(
+                plan.frame.full
+            )
+            ours = grid.occupied()[win.row0 : win.row1, win.col0 : win.col1]
+            strict, loose = _reference_window(scene, plan, win)
+            assert not (strict & ~ours).any(), f"{name}/{storey.key}: {(strict & ~ours).sum()} missed cells"
+            assert not (ours & ~loose).any(), f"{name}/{storey.key}: {(ours & ~loose).sum()} extra cells"
+            checked += 1
+    assert checked >= 2
