@@ -128,3 +128,15 @@ def test_map_rejects_an_unknown_skill_naming_the_known_ones(lab_store_dir: Path,
     assert r.returncode == 1
     assert "Unknown skill 'flying'" in r.stderr
     assert "lab-navigation" in r.stderr
+
+
+def test_a_store_in_use_by_another_process_gives_a_clear_error(lab_store_dir: Path, tmp_path: Path) -> None:
+    from twin.store import GraphStore
+
+    model = tmp_path / "lab.ifc"
+    twin("sample", "lab", model)
+    with GraphStore.open(lab_store_dir):
+        r = twin("import", model, "--store", lab_store_dir, "--replace")
+    assert r.returncode == 1
+    assert "another process" in r.stderr
+    assert "Traceback" not in r.stderr

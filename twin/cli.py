@@ -55,19 +55,14 @@ def _store_path(args: argparse.Namespace, cfg: Config) -> Path:
 
 def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     from adapters.ifc import read_model
-    from twin.import_model import import_model
+    from twin.import_model import ensure_importable, import_model
 
     site = args.site or cfg.site
     base_iri = args.base_iri or cfg.base_iri(site)
     store_path = _store_path(args, cfg)
     t0 = time.perf_counter()
     with GraphStore.open(store_path) as store:
-        if not store.is_empty() and not args.replace:
-            print(
-                f"twin: error: the store at {store_path} is not empty: pass --replace to re-import",
-                file=sys.stderr,
-            )
-            return 1
+        ensure_importable(store, replace=args.replace)
         model = read_model(
             Path(args.model),
             static_types=cfg.import_.static_types,
@@ -94,6 +89,13 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     return 0
 
 
+def _size(n: int) -> str:
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= scale:
+            return f"{n / scale:,.1f} {unit}"
+    return f"{n} B"
+
+
 def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
     from twin.stats import model_stats
 
@@ -106,7 +108,7 @@ def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
         ("source", f"{stats.source} ({stats.schema})"),
         ("lines in IFC file", f"{stats.ifc_lines:,}"),
         ("triples", f"{stats.triples:,}"),
-        ("Turtle size", f"{stats.turtle_bytes / 1e6:,.1f} MB"),
+        ("Turtle size", _size(stats.turtle_bytes)),
         ("elements", f"{stats.elements:,}"),
         ("meshes", f"{stats.meshes:,} ({stats.triangles:,} triangles)"),
         ("spaces", f"{stats.spaces:,}"),
@@ -131,7 +133,7 @@ def cmd_export(args: argparse.Namespace, cfg: Config) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     with GraphStore.open(_store_path(args, cfg), read_only=True) as store:
         store.dump_turtle(out)
-    print(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB)")
+    print(f"wrote {out} ({_size(out.stat().st_size)})")
     return 0
 
 

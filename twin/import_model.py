@@ -157,15 +157,20 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
                 )
 
 
+def ensure_importable(store: GraphStore, *, replace: bool) -> None:
+    """Raise StoreError if ``store`` holds a model and ``replace`` is not set (check before meshing)."""
+    if not replace and not store.is_empty():
+        where = store.info.path or "memory"
+        msg = f"The store at {where} is not empty: pass --replace to re-import into it."
+        raise StoreError(msg)
+
+
 def import_model(
     store: GraphStore, model: BuildingModel, *, base_iri: str, site: str, replace: bool = False
 ) -> ImportSummary:
     """Write ``model`` into ``store``. A non-empty store is an error unless ``replace`` is set."""
-    if not store.is_empty():
-        if not replace:
-            where = store.info.path or "memory"
-            msg = f"The store at {where} is not empty: pass --replace to re-import into it."
-            raise StoreError(msg)
+    ensure_importable(store, replace=replace)
+    if replace:
         store.clear()
     store.bulk_add(model_quads(model, base_iri=base_iri, site=site))
     meshes = sum(1 for e in model.elements if e.geometry is not None)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from adapters.sample_lab import Box, LabLayout
+from adapters.sample_lab import Box
 from tests.conftest import imported, shared_model
 from tests.twin.reference import rasterize_reference, slab_geometry
 from twin.config import Config
@@ -163,8 +163,8 @@ def test_any_window_recomputed_alone_equals_the_full_map_on_the_lab(lab_store, l
     skill = parse_skill("w", {"kind": "navigation", "robot_height_m": 0.5, "inflation_radius_m": inflation})
     plan = plan_map(lab_scene, skill, "ground-floor", selected(lab_store, skill))
     full = build_map(lab_scene, plan).data
-    for w in _windows(plan.frame, np.random.default_rng(3), 40):
-        w = w.intersect(plan.frame.full)
+    for window in _windows(plan.frame, np.random.default_rng(3), 40):
+        w = window.intersect(plan.frame.full)
         assert np.array_equal(render_window(lab_scene, plan, w), full[w.row0 : w.row1, w.col0 : w.col1]), w
 
 
@@ -186,13 +186,13 @@ def test_windows_equal_the_full_map_bit_for_bit_on_shared_models(shared_scene, c
         storey = scene.storeys[0].key
         plan = plan_map(scene, skill, storey, selected(store, skill))
         full = build_map(scene, plan).data
-        for w in _windows(plan.frame, np.random.default_rng(11), 15):
-            w = w.intersect(plan.frame.full)
+        for window in _windows(plan.frame, np.random.default_rng(11), 15):
+            w = window.intersect(plan.frame.full)
             assert np.array_equal(render_window(scene, plan, w), full[w.row0 : w.row1, w.col0 : w.col1])
 
 
 def _reference_window(scene: Scene, plan, win: Window) -> tuple[np.ndarray, np.ndarray]:
-    """(strict, loose) reference occupancy of ``win``: cells whose shrunk / grown square meets the geometry."""
+    """(strict, loose) reference occupancy of ``win``: cells whose shrunk / grown square meets geometry."""
     f = plan.frame
     sub = type(f)(
         f.origin_x + win.col0 * f.resolution_m,
