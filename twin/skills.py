@@ -194,6 +194,24 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
     return skill
 
 
+def parse_skill_json(name: str, payload: str | bytes) -> SkillProfile:
+    """Parse a profile sent as JSON (e.g. over the wire); SkillError names what is wrong.
+
+    Example::
+
+        skill = parse_skill_json("tall", b'{"kind": "navigation", "robot_height_m": 2.0}')
+    """
+    if len(payload) > 64 * 1024:
+        msg = f"Skill {name!r}: JSON profile is {len(payload)} bytes, more than the 64 KiB allowed."
+        raise SkillError(msg)
+    try:
+        data = json.loads(payload)
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        msg = f"Skill {name!r}: profile is not valid JSON: {err}."
+        raise SkillError(msg) from err
+    return parse_skill(name, data)
+
+
 def _check_query(skill: SkillProfile) -> None:
     try:
         ox.Store().query(selection_query(skill), prefixes=vocab.PREFIXES)

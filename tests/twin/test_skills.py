@@ -6,7 +6,7 @@ import pytest
 
 from twin.config import load_config
 from twin.errors import ConfigError, SkillError
-from twin.skills import parse_skill, selection_query
+from twin.skills import parse_skill, parse_skill_json, selection_query
 from twin.store import GraphStore, literal_value
 
 
@@ -86,3 +86,14 @@ def test_a_bad_config_file_names_the_problem(tmp_path: Path) -> None:
     path.write_text("not toml ===")
     with pytest.raises(ConfigError, match="not valid TOML"):
         load_config(path)
+
+
+def test_profiles_load_from_json_and_bad_json_is_named() -> None:
+    skill = parse_skill_json("tall", b'{"kind": "navigation", "robot_height_m": 2.0}')
+    assert skill.robot_height_m == 2.0
+    with pytest.raises(SkillError, match="not valid JSON"):
+        parse_skill_json("tall", b"{kind: navigation")
+    with pytest.raises(SkillError, match="must be an object"):
+        parse_skill_json("tall", b"[1, 2]")
+    with pytest.raises(SkillError, match="64 KiB"):
+        parse_skill_json("tall", b" " * 70000)
