@@ -58,13 +58,14 @@ class MeshSet:
         start = np.zeros(len(items) + 1, dtype=np.intp)
         np.cumsum(counts, out=start[1:])
         triangles = np.empty((int(start[-1]), 3, 3), dtype=np.float64)
-        bounds = np.zeros((len(items), 6), dtype=np.float64)
+        bounds = np.full((len(items), 6), np.nan)  # NaN bounds never overlap: empty meshes drop out
         for i, (_, mesh, placement) in enumerate(items):
             world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]
             triangles[start[i] : start[i + 1]] = world[mesh.faces]
-            if len(world):
-                bounds[i, :3] = world.min(axis=0)
-                bounds[i, 3:] = world.max(axis=0)
+            if mesh.triangle_count:
+                used = world[mesh.faces.ravel()]
+                bounds[i, :3] = used.min(axis=0)
+                bounds[i, 3:] = used.max(axis=0)
         closed = np.array([m.closed for _, m, _ in items], dtype=np.bool_)
         return cls(iris, {iri: i for i, iri in enumerate(iris)}, triangles, start, closed, bounds)
 
@@ -157,9 +158,10 @@ def _mesh_items(store: GraphStore, kind: str) -> list[tuple[str, Mesh, npt.NDArr
 
 def _extent(sets: list[tuple[MeshSet, IndexArray]]) -> tuple[float, float, float, float] | None:
     boxes = [ms.bounds[ids] for ms, ids in sets if len(ids)]
-    if not boxes:
+    b = np.concatenate(boxes) if boxes else np.empty((0, 6))
+    b = b[~np.isnan(b).any(axis=1)]
+    if not len(b):
         return None
-    b = np.concatenate(boxes)
     return (float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 3].max()), float(b[:, 4].max()))
 
 

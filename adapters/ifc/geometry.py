@@ -153,7 +153,7 @@ def mesh_products(
         meshes: dict[str, Mesh] = {}
         for batch in batches:
             for pid, geom_id, verts, faces, matrix in batch:
-                if verts is not None:
+                if verts is not None and len(faces):  # an empty mesh is no mesh: the next kernel tries
                     meshes[geom_id] = _make_mesh(verts, faces)
                 if pid in pending and geom_id in meshes:
                     result.geometry[pid] = Geometry(meshes[geom_id], check_placement(matrix))
