@@ -12,13 +12,11 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TextIO
 
 from twin.config import Config, load_config
-from twin.errors import TwinError
-from twin.store import GraphStore, literal_value
-
-log = logging.getLogger("twin")
+from twin.errors import ModelError, TwinError
+from twin.store import GraphStore
 
 
 class ProgressBar:
@@ -56,36 +54,40 @@ def _store_path(args: argparse.Namespace, cfg: Config) -> Path:
 def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     from adapters.ifc import read_model
     from twin.import_model import ensure_importable, import_model
+    from twin.vocab import check_base
 
     site = args.site or cfg.site
-    base_iri = args.base_iri or cfg.base_iri(site)
+    base_iri = check_base(args.base_iri or cfg.base_iri(site))
     store_path = _store_path(args, cfg)
+    model_path = Path(args.model)
+    if not model_path.is_file():
+        msg = f"No such file: {model_path}"
+        raise ModelError(msg)
+    if store_path.exists():  # fail before meshing, which dominates the time
+        with GraphStore.open(store_path) as store:
+            ensure_importable(store, replace=args.replace)
     t0 = time.perf_counter()
+    # Mesh before the store is open: the meshing child is forked, and the store runs threads.
+    model = read_model(
+        model_path,
+        static_types=cfg.import_.static_types,
+        kernels=cfg.import_.kernels,
+        threads=cfg.import_.threads,
+        progress=ProgressBar("meshing"),
+    )
+    t1 = time.perf_counter()
     with GraphStore.open(store_path) as store:
-        ensure_importable(store, replace=args.replace)
-        model = read_model(
-            Path(args.model),
-            static_types=cfg.import_.static_types,
-            kernels=cfg.import_.kernels,
-            threads=cfg.import_.threads,
-            progress=ProgressBar("meshing"),
-        )
-        t1 = time.perf_counter()
         summary = import_model(store, model, base_iri=base_iri, site=site, replace=args.replace)
     t2 = time.perf_counter()
     print(
-        f"imported {args.model} into {store_path}: {summary.elements} elements "
+        f"imported {model_path} into {store_path}: {summary.elements} elements "
         f"({summary.meshes} with meshes), {summary.spaces} spaces, {summary.storeys} storeys, "
         f"{summary.triples} triples in {t2 - t0:.1f} s (read+mesh {t1 - t0:.1f} s, store {t2 - t1:.1f} s)"
     )
     if summary.kernel_fallbacks:
         print(f"{len(summary.kernel_fallbacks)} element(s) meshed by a fallback kernel")
     if summary.mesh_failures:
-        print(
-            f"warning: {len(summary.mesh_failures)} element(s) could not be meshed: "
-            + ", ".join(summary.mesh_failures[:10]),
-            file=sys.stderr,
-        )
+        print(f"{len(summary.mesh_failures)} element(s) without geometry ('twin stats --json' lists them)")
     return 0
 
 
@@ -135,11 +137,6 @@ def cmd_export(args: argparse.Namespace, cfg: Config) -> int:
         store.dump_turtle(out)
     print(f"wrote {out} ({_size(out.stat().st_size)})")
     return 0
-
-
-def _format_term(term: Any) -> str:
-    value = literal_value(term)
-    return "" if value is None else value
 
 
 def cmd_query(args: argparse.Namespace, cfg: Config) -> int:
@@ -240,6 +237,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return code
     except TwinError as err:
         print(f"twin: error: {err}", file=sys.stderr)
+        return 1
+    except OSError as err:  # files the user named: unreadable, missing, a directory, disk full ...
+        where = f" {err.filename}" if getattr(err, "filename", None) else ""
+        print(f"twin: error:{where} {err.strerror or err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("twin: interrupted", file=sys.stderr)

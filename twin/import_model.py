@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import pyoxigraph as ox
 
 from twin import vocab
-from twin.errors import StoreError
+from twin.errors import ModelError, StoreError
 from twin.meshcodec import encode_mesh, encode_placement
 from twin.records import BuildingModel, Geometry
 from twin.store import GraphStore
@@ -66,20 +66,36 @@ def _geometry_quads(node: str, geometry: Geometry, cache: dict[int, ox.Literal])
     yield ox.Quad(g, _n(vocab.TWIN_TRIANGLES), ox.Literal(geometry.mesh.triangle_count))
 
 
-def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[ox.Quad]:
-    """All triples (in the default graph) of ``model``; IRIs minted under ``base_iri``."""
+def mint_iris(model: BuildingModel, base_iri: str) -> dict[str, str]:
+    """GlobalId -> IRI for every rooted node; ModelError names a bad or duplicated GlobalId."""
     base = vocab.check_base(base_iri)
     iri_of: dict[str, str] = {}
-    for s in model.sites:
-        iri_of[s.guid] = vocab.entity_iri(base, "IfcSite", s.guid)
-    for b in model.buildings:
-        iri_of[b.guid] = vocab.entity_iri(base, "IfcBuilding", b.guid)
-    for st in model.storeys:
-        iri_of[st.guid] = vocab.entity_iri(base, "IfcBuildingStorey", st.guid)
-    for sp in model.spaces:
-        iri_of[sp.guid] = vocab.entity_iri(base, "IfcSpace", sp.guid)
-    for el in model.elements:
-        iri_of[el.guid] = vocab.entity_iri(base, el.ifc_class, el.guid)
+    nodes = [
+        *((s.guid, "IfcSite", s.name) for s in model.sites),
+        *((b.guid, "IfcBuilding", b.name) for b in model.buildings),
+        *((s.guid, "IfcBuildingStorey", s.name) for s in model.storeys),
+        *((s.guid, "IfcSpace", s.name) for s in model.spaces),
+        *((e.guid, e.ifc_class, e.name) for e in model.elements),
+    ]
+    for guid, ifc_class, name in nodes:
+        try:
+            iri = vocab.entity_iri(base, ifc_class, guid)
+        except ModelError as err:
+            msg = f"{model.source_name}: {ifc_class} {name!r} has an invalid GlobalId {guid!r}."
+            raise ModelError(msg) from err
+        if guid in iri_of:
+            msg = (
+                f"{model.source_name}: GlobalId {guid!r} is used twice ({ifc_class} {name!r} and "
+                f"{iri_of[guid]}); GlobalIds must be unique."
+            )
+            raise ModelError(msg)
+        iri_of[guid] = iri
+    return iri_of
+
+
+def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[ox.Quad]:
+    """All triples (in the default graph) of ``model``; IRIs minted under ``base_iri``."""
+    iri_of = mint_iris(model, base_iri)
 
     def name_quads(node: str, guid: str, name: str) -> Iterator[ox.Quad]:
         yield ox.Quad(_n(node), _n(vocab.PROPS_GLOBAL_ID), ox.Literal(guid))
@@ -87,7 +103,7 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
             yield ox.Quad(_n(node), _n(vocab.PROPS_NAME), ox.Literal(name))
             yield ox.Quad(_n(node), _n(vocab.RDFS_LABEL), ox.Literal(name))
 
-    m = _n(vocab.model_iri(base))
+    m = _n(vocab.model_iri(vocab.check_base(base_iri)))
     yield ox.Quad(m, _TYPE, _n(vocab.TWIN_MODEL))
     yield ox.Quad(m, _n(vocab.RDFS_LABEL), ox.Literal(site))
     yield ox.Quad(m, _n(vocab.TWIN_SOURCE), ox.Literal(model.source_name))
@@ -170,16 +186,14 @@ def import_model(
 ) -> ImportSummary:
     """Write ``model`` into ``store``. A non-empty store is an error unless ``replace`` is set."""
     ensure_importable(store, replace=replace)
+    quads = list(model_quads(model, base_iri=base_iri, site=site))  # every check passes before a clear
     if replace:
         store.clear()
-    store.bulk_add(model_quads(model, base_iri=base_iri, site=site))
+    store.bulk_add(quads)
     meshes = sum(1 for e in model.elements if e.geometry is not None)
     if model.mesh_failures:
-        log.warning(
-            "%d element(s) have a body that no geometry kernel could mesh; they are in the graph "
-            "without geometry: %s",
-            len(model.mesh_failures),
-            ", ".join(model.mesh_failures[:20]) + (" ..." if len(model.mesh_failures) > 20 else ""),
+        log.info(
+            "%d element(s) are in the graph without geometry (twin:meshFailed)", len(model.mesh_failures)
         )
     return ImportSummary(
         triples=len(store),

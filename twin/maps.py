@@ -74,18 +74,21 @@ def plan_map(
 def _occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -> BoolGrid:
     f = plan.frame
     res, eps = f.resolution_m, 1e-6
-    near = meshes.overlapping(
-        ids,
-        xmin=f.origin_x + window.col0 * res - eps,
-        ymin=f.origin_y + window.row0 * res - eps,
-        xmax=f.origin_x + window.col1 * res + eps,
-        ymax=f.origin_y + window.row1 * res + eps,
-        z_lo=plan.z_lo,
-        z_hi=plan.z_hi,
-    )
+    box = {
+        "xmin": f.origin_x + window.col0 * res - eps,
+        "ymin": f.origin_y + window.row0 * res - eps,
+        "xmax": f.origin_x + window.col1 * res + eps,
+        "ymax": f.origin_y + window.row1 * res + eps,
+        "z_lo": plan.z_lo,
+        "z_hi": plan.z_hi,
+    }
+    near = meshes.overlapping(ids, **box)
     if len(near) == 0:
         return np.zeros(window.shape, dtype=np.bool_)
-    triangles, owner = meshes.triangles_of(near)
+    if window == f.full:
+        triangles, owner = meshes.triangles_of(near)
+    else:
+        triangles, owner = meshes.triangles_for_window(near, **box)
     return rasterize_slab(triangles, owner, meshes.closed[near], plan.z_lo, plan.z_hi, f, window)
 
 

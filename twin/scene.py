@@ -40,7 +40,8 @@ class MeshSet:
         triangles: ``(n, 3, 3) float64`` world xyz, grouped by node.
         start: ``(k + 1,) intp``: node ``i`` owns ``triangles[start[i]:start[i+1]]``.
         closed: ``(k,) bool`` watertight meshes (filled when sliced).
-        bounds: ``(k, 6) float64`` world AABB ``xmin, ymin, zmin, xmax, ymax, zmax``.
+        bounds: ``(k, 6) float64`` world AABB ``xmin, ymin, zmin, xmax, ymax, zmax`` (NaN if empty).
+        triangle_bounds: ``(n, 6) float32`` each triangle's AABB, rounded outwards (a superset filter).
     """
 
     iris: tuple[str, ...]
@@ -49,6 +50,7 @@ class MeshSet:
     start: IndexArray
     closed: npt.NDArray[np.bool_]
     bounds: npt.NDArray[np.float64]
+    triangle_bounds: npt.NDArray[np.float32]
 
     @classmethod
     def build(cls, items: list[tuple[str, Mesh, npt.NDArray[np.float64]]]) -> Self:
@@ -67,7 +69,11 @@ class MeshSet:
                 bounds[i, :3] = used.min(axis=0)
                 bounds[i, 3:] = used.max(axis=0)
         closed = np.array([m.closed for _, m, _ in items], dtype=np.bool_)
-        return cls(iris, {iri: i for i, iri in enumerate(iris)}, triangles, start, closed, bounds)
+        lo, hi = triangles.min(axis=1), triangles.max(axis=1)
+        pad = 1e-3 + 1e-6 * np.abs(np.concatenate([lo, hi], axis=1)).max(initial=0.0)
+        triangle_bounds = np.concatenate([lo - pad, hi + pad], axis=1).astype(np.float32)
+        index = {iri: i for i, iri in enumerate(iris)}
+        return cls(iris, index, triangles, start, closed, bounds, triangle_bounds)
 
     def __len__(self) -> int:
         return len(self.iris)
@@ -99,15 +105,46 @@ class MeshSet:
         )
         return ids[keep]
 
-    def triangles_of(self, ids: IndexArray) -> tuple[npt.NDArray[np.float64], IndexArray]:
-        """``(triangles (m, 3, 3), owner (m,))``: the triangles of ``ids``; ``owner`` indexes into ``ids``."""
+    def _rows_of(self, ids: IndexArray) -> tuple[IndexArray, IndexArray]:
+        """``(rows, owner)``: triangle rows of ``ids`` and, per row, its position in ``ids``."""
         counts = self.start[ids + 1] - self.start[ids]
         total = int(counts.sum())
         owner = np.repeat(np.arange(len(ids), dtype=np.intp), counts)
         offsets = np.zeros(len(ids), dtype=np.intp)
         np.cumsum(counts[:-1], out=offsets[1:])
         rows = np.arange(total, dtype=np.intp) - offsets[owner] + self.start[ids][owner]
+        return rows, owner
+
+    def triangles_of(self, ids: IndexArray) -> tuple[npt.NDArray[np.float64], IndexArray]:
+        """``(triangles (m, 3, 3), owner (m,))``: the triangles of ``ids``; ``owner`` indexes into ``ids``."""
+        rows, owner = self._rows_of(ids)
         return self.triangles[rows], owner
+
+    def triangles_for_window(
+        self,
+        ids: IndexArray,
+        *,
+        xmin: float,
+        ymin: float,
+        xmax: float,
+        ymax: float,
+        z_lo: float,
+        z_hi: float,
+    ) -> tuple[npt.NDArray[np.float64], IndexArray]:
+        """Like :meth:`triangles_of`, but only the triangles a slab map of the box can depend on.
+
+        Kept: triangles meeting the box and the slab, and, of closed elements, triangles in the box's
+        y-range that cross the slab's mid-height (their section crossings set the fill's winding
+        number inside the box, wherever they lie in x).
+        """
+        rows, owner = self._rows_of(ids)
+        tb = self.triangle_bounds[rows]
+        z_f = 0.5 * (z_lo + z_hi)
+        in_rows = (tb[:, 1] <= ymax) & (tb[:, 4] >= ymin) & (tb[:, 2] <= z_hi) & (tb[:, 5] >= z_lo)
+        in_box = (tb[:, 0] <= xmax) & (tb[:, 3] >= xmin)
+        crosses_fill = self.closed[ids][owner] & (tb[:, 2] <= z_f) & (tb[:, 5] >= z_f)
+        keep = in_rows & (in_box | crosses_fill)
+        return self.triangles[rows[keep]], owner[keep]
 
 
 @dataclass(frozen=True, slots=True)

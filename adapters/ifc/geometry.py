@@ -3,15 +3,17 @@
 The fast kernel (manifold, ~10x opencascade) meshes almost everything; the products it cannot mesh are
 given to the next kernel, so no geometry is lost and no product is meshed twice. A kernel can also
 *crash* the process on some models (manifold segfaults on the Duplex sample), so each kernel pass runs
-in a forked child process that streams shapes back over a pipe: if the child dies, what it had not
-delivered goes to the next kernel.
+in a child process forked from the calling thread, which streams shapes back over a pipe that a
+thread drains: if the child dies or stalls, what it had not delivered goes to the next kernel.
 
 Meshes are local (``use-world-coords`` off) with the placement as a separate matrix; instances that
 share a representation share one :class:`~twin.records.Mesh` (decoded once).
 
 Example::
 
-    result = mesh_products(f, products, kernels=("manifold", "opencascade"))
+    with start_meshing(f, products, kernels=("manifold", "opencascade")) as job:
+        ...                                   # read the structure meanwhile
+        result = job.result()
     geometry = result.geometry[product.id()]
 """
 
@@ -20,10 +22,13 @@ from __future__ import annotations
 import faulthandler
 import logging
 import multiprocessing as mp
+import threading
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
-from typing import Any
+from types import TracebackType
+from typing import Any, Self
 
 import ifcopenshell
 import ifcopenshell.geom
@@ -35,8 +40,11 @@ from twin.records import Geometry, Mesh, check_placement, is_closed
 log = logging.getLogger(__name__)
 
 Progress = Callable[[int, int], None]
+Shape = tuple[int, str, Any, Any, Any]  # product id, geometry id, vertices | None, faces | None, matrix
 DEFAULT_KERNELS = ("manifold", "opencascade")
-_BATCH = 64
+_BATCH_SHAPES = 8  # small: what a crashing kernel had meshed is kept
+_BATCH_SECONDS = 0.05
+STALL_SECONDS = 300.0
 
 
 @dataclass(slots=True)
@@ -86,7 +94,8 @@ def _run_kernel(f: Any, ids: list[int], kernel: str, threads: int, conn: Connect
             geometry_library=kernel,  # type: ignore[arg-type]  # validated by the iterator itself
         )
         seen: set[str] = set()
-        batch: list[tuple[int, str, Any, Any, Any]] = []
+        batch: list[Shape] = []
+        sent = time.monotonic()
         more = bool(it.initialize())
         while more:
             shape = it.get()
@@ -100,9 +109,9 @@ def _run_kernel(f: Any, ids: list[int], kernel: str, threads: int, conn: Connect
                 faces = np.asarray(ifcopenshell.util.shape.get_faces(geom), dtype=np.int32).reshape(-1, 3)
             matrix = np.asarray(ifcopenshell.util.shape.get_shape_matrix(shape), dtype=np.float64)
             batch.append((int(shape.id), str(geom.id), verts, faces, matrix))
-            if len(batch) >= _BATCH:
+            if len(batch) >= _BATCH_SHAPES or time.monotonic() - sent > _BATCH_SECONDS:
                 conn.send(batch)
-                batch = []
+                batch, sent = [], time.monotonic()
             more = bool(it.next())
         conn.send(batch)
         conn.send(None)
@@ -110,6 +119,171 @@ def _run_kernel(f: Any, ids: list[int], kernel: str, threads: int, conn: Connect
         conn.send(f"{type(err).__name__}: {err}")
     finally:
         conn.close()
+
+
+class _KernelRun:
+    """One kernel pass: a child forked from the calling thread, its pipe drained by a thread."""
+
+    def __init__(
+        self, f: Any, ids: list[int], kernel: str, threads: int, on_shapes: Callable[[int], None]
+    ) -> None:
+        ctx = mp.get_context("fork")
+        self.kernel = kernel
+        self._receiver, sender = ctx.Pipe(duplex=False)
+        self._child = ctx.Process(target=_run_kernel, args=(f, ids, kernel, threads, sender), daemon=True)
+        self._child.start()
+        sender.close()
+        self._on_shapes = on_shapes
+        self.batches: list[list[Shape]] = []
+        self.finished = False
+        self.error: str | None = None
+        self._thread = threading.Thread(target=self._drain, name=f"twin-mesh-{kernel}", daemon=True)
+        self._thread.start()
+
+    def _drain(self) -> None:
+        while True:
+            if not self._receiver.poll(STALL_SECONDS):
+                self.error = f"no shape for {STALL_SECONDS:.0f} s (stalled)"
+                self._child.kill()
+                break
+            try:
+                message = self._receiver.recv()
+            except EOFError:
+                break
+            if message is None:
+                self.finished = True
+                break
+            if isinstance(message, str):
+                self.error = message
+                break
+            self.batches.append(message)
+            self._on_shapes(len(message))
+        self._receiver.close()
+
+    def wait(self) -> None:
+        self._thread.join()
+        self._child.join()
+
+    def kill(self) -> None:
+        if self._child.is_alive():
+            self._child.kill()
+        self._thread.join()
+        self._child.join()
+
+    @property
+    def exitcode(self) -> int | None:
+        return self._child.exitcode
+
+
+class MeshingJob:
+    """Meshing in progress: the first kernel starts at once; :meth:`result` finishes the fallbacks.
+
+    Use it as a context manager: leaving it on an error (or Ctrl-C) kills the kernel process.
+    """
+
+    def __init__(
+        self,
+        f: Any,
+        products: Sequence[Any],
+        *,
+        kernels: Sequence[str],
+        threads: int,
+        progress: Progress | None,
+    ) -> None:
+        self._f = f
+        self._kernels = list(kernels)
+        self._threads = threads
+        self._progress = progress
+        self._pending = {p.id() for p in products if getattr(p, "Representation", None) is not None}
+        self._total = len(self._pending)
+        self._received = 0
+        self._lock = threading.Lock()
+        self._result = MeshResult()
+        self._run: _KernelRun | None = None
+        self._next_kernel()
+
+    def _shapes_arrived(self, n: int) -> None:
+        with self._lock:
+            self._received = min(self._received + n, self._total)
+            done = self._received
+        if self._progress is not None:
+            self._progress(done, self._total)
+
+    def _next_kernel(self) -> None:
+        self._run = None
+        if self._pending and self._kernels:
+            kernel = self._kernels.pop(0)
+            self._run = _KernelRun(
+                self._f, sorted(self._pending), kernel, self._threads, self._shapes_arrived
+            )
+
+    def _collect(self, run: _KernelRun) -> None:
+        run.wait()
+        meshes: dict[str, Mesh] = {}
+        result = self._result
+        for batch in run.batches:
+            for pid, geom_id, verts, faces, matrix in batch:
+                if verts is not None and len(faces):  # an empty mesh is no mesh: the next kernel tries
+                    meshes[geom_id] = _make_mesh(verts, faces)
+                if pid in self._pending and geom_id in meshes:
+                    result.geometry[pid] = Geometry(meshes[geom_id], check_placement(matrix))
+                    result.kernel_of[pid] = run.kernel
+                    self._pending.discard(pid)
+        with self._lock:
+            self._received = len(result.geometry)
+        left = len(self._pending)
+        if run.error is not None:
+            log.warning(
+                "Geometry kernel %s failed: %s; %d product(s) left for the next kernel",
+                run.kernel,
+                run.error,
+                left,
+            )
+        elif not run.finished:
+            result.crashed.append(run.kernel)
+            log.warning(
+                "Geometry kernel %s crashed (exit code %s); %d product(s) left for the next kernel",
+                run.kernel,
+                run.exitcode,
+                left,
+            )
+        elif left:
+            log.info("%d product(s) not meshed by %s; trying the next kernel", left, run.kernel)
+
+    def result(self) -> MeshResult:
+        """Wait for the running kernel, then run the fallbacks on what is left; return everything."""
+        while self._run is not None:
+            self._collect(self._run)
+            self._next_kernel()
+        self._result.unmeshed = sorted(self._pending)
+        if self._progress is not None and self._total:
+            self._progress(self._total, self._total)
+        return self._result
+
+    def cancel(self) -> None:
+        if self._run is not None:
+            self._run.kill()
+            self._run = None
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.cancel()
+
+
+def start_meshing(
+    f: Any,
+    products: Sequence[Any],
+    *,
+    kernels: Sequence[str] = DEFAULT_KERNELS,
+    threads: int = 2,
+    progress: Progress | None = None,
+) -> MeshingJob:
+    """Start meshing ``products`` (ifcopenshell entities) in the background; see :class:`MeshingJob`."""
+    return MeshingJob(f, products, kernels=kernels, threads=threads, progress=progress)
 
 
 def mesh_products(
@@ -120,68 +294,6 @@ def mesh_products(
     threads: int = 2,
     progress: Progress | None = None,
 ) -> MeshResult:
-    """Mesh ``products`` (ifcopenshell entities); each kernel gets only what the previous ones missed."""
-    result = MeshResult()
-    pending = {p.id() for p in products if getattr(p, "Representation", None) is not None}
-    total, done = len(pending), 0
-    ctx = mp.get_context("fork")
-    for kernel in kernels:
-        if not pending:
-            break
-        receiver, sender = ctx.Pipe(duplex=False)
-        child = ctx.Process(
-            target=_run_kernel, args=(f, sorted(pending), kernel, threads, sender), daemon=True
-        )
-        child.start()
-        sender.close()
-        # Drain first, process after: a parent busy welding would block the child on a full pipe.
-        batches: list[list[tuple[int, str, Any, Any, Any]]] = []
-        finished = False
-        error: str | None = None
-        while True:
-            try:
-                message = receiver.recv()
-            except EOFError:
-                break
-            if message is None:
-                finished = True
-                break
-            if isinstance(message, str):
-                error = message
-                break
-            batches.append(message)
-        meshes: dict[str, Mesh] = {}
-        for batch in batches:
-            for pid, geom_id, verts, faces, matrix in batch:
-                if verts is not None and len(faces):  # an empty mesh is no mesh: the next kernel tries
-                    meshes[geom_id] = _make_mesh(verts, faces)
-                if pid in pending and geom_id in meshes:
-                    result.geometry[pid] = Geometry(meshes[geom_id], check_placement(matrix))
-                    result.kernel_of[pid] = kernel
-                    pending.discard(pid)
-                    done += 1
-                    if progress is not None:
-                        progress(done, total)
-        receiver.close()
-        child.join()
-        if error is not None:
-            log.warning(
-                "Geometry kernel %s failed: %s; %d product(s) left for the next kernel",
-                kernel,
-                error,
-                len(pending),
-            )
-        elif not finished:
-            result.crashed.append(kernel)
-            log.warning(
-                "Geometry kernel %s crashed (exit code %s); %d product(s) left for the next kernel",
-                kernel,
-                child.exitcode,
-                len(pending),
-            )
-        elif pending:
-            log.info("%d product(s) not meshed by %s; trying the next kernel", len(pending), kernel)
-    result.unmeshed = sorted(pending)
-    if progress is not None and total:
-        progress(total, total)
-    return result
+    """Mesh ``products`` and wait; each kernel gets only what the previous ones missed."""
+    with start_meshing(f, products, kernels=kernels, threads=threads, progress=progress) as job:
+        return job.result()

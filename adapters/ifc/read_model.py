@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +20,7 @@ import ifcopenshell.util.element
 import ifcopenshell.util.placement
 import ifcopenshell.util.unit
 
-from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, mesh_products
+from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
 from adapters.ifc.open_file import open_ifc
 from twin.records import Building, BuildingModel, Element, Relation, Site, Space, Storey
 
@@ -110,13 +109,26 @@ def _pairs(rels: Iterable[tuple[Any, Any]], left: set[int], right: set[int]) -> 
     )
 
 
+def _warn_unmeshed(f: Any, ids: list[int]) -> None:
+    """One warning naming every element and space that has a body no kernel could mesh."""
+    if not ids:
+        return
+    names = [f"{f.by_id(i).is_a()} {f.by_id(i).GlobalId} {f.by_id(i).Name or ''}".strip() for i in ids]
+    log.warning(
+        "%d product(s) have a body that no geometry kernel could mesh; they are in the graph without "
+        "geometry: %s",
+        len(names),
+        "; ".join(names),
+    )
+
+
 def _relations(
-    f: Any, elements: list[Any], spaces: list[Any], storeys: list[Any]
+    f: Any, elements: list[Any], *, spaces: list[Any], zones: list[Any]
 ) -> tuple[frozenset[Relation], frozenset[Relation], frozenset[Relation]]:
     """(adjacent, contained, decomposed) GlobalId pairs; see :class:`twin.records.BuildingModel`."""
     element_ids = {e.id() for e in elements}
     space_ids = {s.id() for s in spaces}
-    structure_ids = space_ids | {s.id() for s in storeys}
+    structure_ids = space_ids | {z.id() for z in zones}
     adjacent = _pairs(
         ((r.RelatingSpace, r.RelatedBuildingElement) for r in f.by_type("IfcRelSpaceBoundary")),
         space_ids,
@@ -161,11 +173,8 @@ def read_model(
     spaces = f.by_type("IfcSpace")
     elements = f.by_type("IfcElement")
 
-    # Mesh in the background (a child process does the work) while this thread reads the structure.
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="twin-mesh") as pool:
-        future = pool.submit(
-            mesh_products, f, [*elements, *spaces], kernels=kernels, threads=threads, progress=progress
-        )
+    # Mesh in the background (a forked child does the work) while this thread reads the structure.
+    with start_meshing(f, [*elements, *spaces], kernels=kernels, threads=threads, progress=progress) as job:
         up = _hierarchy(f)
 
         def guid_of(node: Any | None) -> str | None:
@@ -186,8 +195,8 @@ def read_model(
                     guid_of(_ancestor(e, up, "IfcBuildingStorey")),
                 )
             )
-        relations = _relations(f, elements, spaces, storeys)
-        meshed = future.result()
+        relations = _relations(f, elements, spaces=spaces, zones=[*storeys, *buildings, *sites])
+        meshed = job.result()
     first_kernel = kernels[0] if kernels else ""
     kernel_fallbacks = tuple(
         f.by_id(pid).GlobalId
@@ -195,6 +204,7 @@ def read_model(
         if kernel != first_kernel and f.by_id(pid).is_a("IfcElement")
     )
     failures = tuple(f.by_id(pid).GlobalId for pid in meshed.unmeshed if f.by_id(pid).is_a("IfcElement"))
+    _warn_unmeshed(f, meshed.unmeshed)
     element_records = tuple(
         Element(
             guid=str(e.GlobalId),

@@ -76,12 +76,17 @@ def test_containment_pairs_equal_the_files_spatial_containment(case) -> None:
     expected = {
         (r.RelatingStructure.GlobalId, e.GlobalId)
         for r in f.by_type("IfcRelContainedInSpatialStructure")
-        if r.RelatingStructure.is_a("IfcSpace") or r.RelatingStructure.is_a("IfcBuildingStorey")
+        if any(
+            r.RelatingStructure.is_a(t) for t in ("IfcSpace", "IfcBuildingStorey", "IfcBuilding", "IfcSite")
+        )
         for e in r.RelatedElements
         if e.is_a("IfcElement")
     }
-    got = _guid_pairs(store, "bot:containsElement", "bot:Space") | _guid_pairs(
-        store, "bot:containsElement", "bot:Storey"
+    got = set().union(
+        *(
+            _guid_pairs(store, "bot:containsElement", z)
+            for z in ("bot:Space", "bot:Storey", "bot:Building", "bot:Site")
+        )
     )
     assert got == expected
 
