@@ -21,7 +21,7 @@ import json
 import math
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import pyoxigraph as ox
@@ -32,6 +32,7 @@ from twin.errors import SkillError
 Kind = Literal["localization", "navigation"]
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
 _IFC_NAME = re.compile(r"^Ifc[A-Za-z0-9]+$")
+_SERVICE = re.compile(r"\bSERVICE\b", re.IGNORECASE)
 _CURIE = re.compile(r"^(?P<prefix>[a-z]+):(?P<local>[A-Za-z0-9_-]+)$")
 
 _COMMON = {
@@ -68,7 +69,6 @@ class SkillProfile:
     sparql: str | None = None
     unknown_outside: bool = False
     description: str = ""
-    extra: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def z_range(self) -> tuple[float, float]:
@@ -182,6 +182,9 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
         if not isinstance(data["sparql"], str) or not data["sparql"].strip():
             msg = f"Skill {name!r}: field 'sparql' must be a non-empty SPARQL group graph pattern."
             raise SkillError(msg)
+        if _SERVICE.search(data["sparql"]):
+            msg = f"Skill {name!r}: field 'sparql' may not use SERVICE (no remote queries)."
+            raise SkillError(msg)
         args["sparql"] = data["sparql"]
     skill = SkillProfile(**args)
     if skill.kind == "navigation" and skill.floor_clearance_m >= skill.robot_height_m:
@@ -201,13 +204,17 @@ def parse_skill_json(name: str, payload: str | bytes) -> SkillProfile:
 
         skill = parse_skill_json("tall", b'{"kind": "navigation", "robot_height_m": 2.0}')
     """
-    if len(payload) > 64 * 1024:
-        msg = f"Skill {name!r}: JSON profile is {len(payload)} bytes, more than the 64 KiB allowed."
+    size = len(payload.encode() if isinstance(payload, str) else payload)
+    if size > 64 * 1024:
+        msg = f"Skill {name!r}: JSON profile is {size} bytes, more than the 64 KiB allowed."
         raise SkillError(msg)
     try:
         data = json.loads(payload)
     except (json.JSONDecodeError, UnicodeDecodeError) as err:
         msg = f"Skill {name!r}: profile is not valid JSON: {err}."
+        raise SkillError(msg) from err
+    except RecursionError as err:
+        msg = f"Skill {name!r}: profile JSON is nested too deeply."
         raise SkillError(msg) from err
     return parse_skill(name, data)
 
@@ -234,18 +241,25 @@ def _type_test(types: tuple[str, ...]) -> str:
 
 
 def selection_query(skill: SkillProfile) -> str:
-    """The SPARQL SELECT of the ``?element`` IRIs the skill's maps are made of (with geometry only)."""
-    lines = ["SELECT DISTINCT ?element WHERE {", "  ?element a bot:Element ; omg:hasGeometry ?geometry ."]
+    """The SPARQL SELECT of the ``?element`` IRIs the skill's maps are made of (with geometry only).
+
+    The user's pattern runs as a sub-select that projects only ``?element``: its other variables can
+    neither bind nor undo the type and material filters.
+    """
+    lines = [
+        "SELECT DISTINCT ?element WHERE {",
+        "  ?element a bot:Element ; omg:hasGeometry ?twin_geometry .",
+    ]
     if skill.include_types:
         lines.append(f"  {_type_test(skill.include_types)}")
     if skill.exclude_types:
         lines.append(f"  FILTER NOT EXISTS {{ {_type_test(skill.exclude_types)} }}")
     for mat in skill.exclude_materials:
         lines.append(
-            "  FILTER NOT EXISTS { ?element twin:material ?material . "
-            f"FILTER(CONTAINS(LCASE(STR(?material)), {json.dumps(mat)})) }}"
+            "  FILTER NOT EXISTS { ?element twin:material ?twin_material . "
+            f"FILTER(CONTAINS(LCASE(STR(?twin_material)), {json.dumps(mat)})) }}"
         )
     if skill.sparql:
-        lines.append("  {\n" + skill.sparql + "\n  }")
+        lines.append("  { SELECT DISTINCT ?element WHERE {\n" + skill.sparql + "\n  } }")
     lines.append("}")
     return "\n".join(lines)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import io
 import json
 import logging
+import re
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +27,8 @@ from twin import vocab
 from twin.errors import QueryError, StoreError
 
 log = logging.getLogger(__name__)
+
+_SERVICE = re.compile(r"\bSERVICE\b", re.IGNORECASE)
 
 Term = ox.NamedNode | ox.BlankNode | ox.Literal | ox.Triple
 Row = dict[str, Term | None]
@@ -56,15 +59,22 @@ class GraphStore:
     """A pyoxigraph store with typed helpers. Use :meth:`open` and close it (or use ``with``)."""
 
     def __init__(self, store: ox.Store, info: StoreInfo) -> None:
-        self._store = store
+        self._handle: ox.Store | None = store
         self.info = info
+
+    @property
+    def _store(self) -> ox.Store:
+        if self._handle is None:
+            msg = f"The store at {self.info.path or 'memory'} is closed."
+            raise StoreError(msg)
+        return self._handle
 
     # --- lifecycle --------------------------------------------------------------------------------
     @classmethod
     def open(cls, path: Path | None = None, *, read_only: bool = False, create: bool = True) -> GraphStore:
         """Open the store at ``path`` (a directory), or an in-memory store when ``path`` is None."""
         if path is None:
-            return cls(ox.Store(), StoreInfo(None, read_only=False))
+            return cls(ox.Store(), StoreInfo(None, read_only=read_only))
         path = Path(path)
         if path.exists() and not path.is_dir():
             msg = f"Store path {path} exists and is not a directory."
@@ -83,9 +93,12 @@ class GraphStore:
         return cls(store, StoreInfo(path, read_only))
 
     def close(self) -> None:
+        """Flush and release the store; closing twice is harmless."""
+        if self._handle is None:
+            return
         if not self.info.read_only and self.info.path is not None:
-            self._store.flush()
-        del self._store
+            self._handle.flush()
+        self._handle = None
 
     def __enter__(self) -> Self:
         return self
@@ -129,6 +142,9 @@ class GraphStore:
         return next(iter(self._store.quads_for_pattern(None, None, None)), None) is None
 
     def _query(self, sparql: str) -> ox.QuerySolutions | ox.QueryBoolean | ox.QueryTriples:
+        if _SERVICE.search(sparql):
+            msg = "SPARQL queries may not use SERVICE: the store answers from its own graph only."
+            raise QueryError(msg)
         try:
             return self._store.query(sparql, prefixes=vocab.PREFIXES)
         except SyntaxError as err:

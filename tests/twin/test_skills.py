@@ -1,11 +1,12 @@
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
 
 from twin.config import load_config
-from twin.errors import ConfigError, SkillError
+from twin.errors import ConfigError, QueryError, SkillError
 from twin.skills import parse_skill, parse_skill_json, selection_query
 from twin.store import GraphStore, literal_value
 
@@ -48,7 +49,7 @@ def test_bad_profiles_are_rejected_naming_the_field(data: dict[str, object], mes
 
 def test_a_profile_round_trips_through_json() -> None:
     skill = parse_skill("x", {"kind": "navigation", "robot_height_m": 0.7, "exclude_materials": ["Glass"]})
-    assert parse_skill("x", skill.to_json()) == skill
+    assert parse_skill_json("x", json.dumps(skill.to_json())) == skill
 
 
 def test_selection_by_type_includes_subtypes_and_excludes_glass(lab_store: GraphStore, lab) -> None:
@@ -97,3 +98,32 @@ def test_profiles_load_from_json_and_bad_json_is_named() -> None:
         parse_skill_json("tall", b"[1, 2]")
     with pytest.raises(SkillError, match="64 KiB"):
         parse_skill_json("tall", b" " * 70000)
+
+
+def test_a_user_pattern_cannot_undo_the_material_filter(lab_store: GraphStore, lab) -> None:
+    _, layout = lab
+    skill = parse_skill(
+        "sneaky",
+        {
+            "kind": "localization",
+            "exclude_materials": ["glass"],
+            "sparql": '?element twin:material ?material . FILTER(?material != "Steel")',
+        },
+    )
+    rows = lab_store.select("SELECT ?e ?g WHERE { ?e props:globalIdIfcRoot_attribute_simple ?g }")
+    guid = {literal_value(r["e"]): literal_value(r["g"]) for r in rows}
+    got = {guid[literal_value(r["element"])] for r in lab_store.select(selection_query(skill))}
+    assert layout.glass_wall.global_id not in got
+    assert got
+
+
+def test_remote_service_calls_are_rejected_in_profiles_and_queries(lab_store: GraphStore) -> None:
+    with pytest.raises(SkillError, match="SERVICE"):
+        parse_skill("x", {"kind": "navigation", "sparql": "SERVICE <http://127.0.0.1:9/> { ?element ?p ?o }"})
+    with pytest.raises(QueryError, match="SERVICE"):
+        lab_store.select("SELECT * WHERE { SERVICE <http://127.0.0.1:9/sparql> { ?s ?p ?o } }")
+
+
+def test_deeply_nested_json_is_a_skill_error() -> None:
+    with pytest.raises(SkillError, match="nested too deeply"):
+        parse_skill_json("x", "[" * 60000)
