@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
 
-from twin.config import Config, load_config
+from twin.config import Config, load_config, store_path_of
 from twin.errors import ModelError, TwinError
 from twin.store import GraphStore
 
@@ -47,10 +47,6 @@ class ProgressBar:
 
 
 # --- commands ---------------------------------------------------------------------------------------
-def _store_path(args: argparse.Namespace, cfg: Config) -> Path:
-    return Path(args.store) if args.store else cfg.store_path
-
-
 def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     from adapters.ifc import read_model
     from twin.import_model import ensure_importable, import_model
@@ -58,7 +54,7 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
 
     site = args.site or cfg.site
     base_iri = check_base(args.base_iri or cfg.base_iri(site))
-    store_path = _store_path(args, cfg)
+    store_path = store_path_of(args, cfg)
     model_path = Path(args.model)
     if not model_path.is_file():
         msg = f"No such file: {model_path}"
@@ -101,7 +97,7 @@ def _size(n: int) -> str:
 def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
     from twin.stats import model_stats
 
-    with GraphStore.open(_store_path(args, cfg), read_only=True) as store:
+    with GraphStore.open(store_path_of(args, cfg), read_only=True) as store:
         stats = model_stats(store)
     if args.json:
         print(json.dumps(stats.as_dict(), indent=2))
@@ -133,7 +129,7 @@ def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
 def cmd_export(args: argparse.Namespace, cfg: Config) -> int:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    with GraphStore.open(_store_path(args, cfg), read_only=True) as store:
+    with GraphStore.open(store_path_of(args, cfg), read_only=True) as store:
         store.dump_turtle(out)
     print(f"wrote {out} ({_size(out.stat().st_size)})")
     return 0
@@ -141,7 +137,7 @@ def cmd_export(args: argparse.Namespace, cfg: Config) -> int:
 
 def cmd_query(args: argparse.Namespace, cfg: Config) -> int:
     sparql = Path(args.sparql[1:]).read_text() if args.sparql.startswith("@") else args.sparql
-    with GraphStore.open(_store_path(args, cfg), read_only=True) as store:
+    with GraphStore.open(store_path_of(args, cfg), read_only=True) as store:
         media, body = store.query_serialized(sparql)
         if args.json or media == "text/turtle":
             sys.stdout.write(body.decode())

@@ -7,8 +7,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from twin.config import Config
-from twin.errors import SkillError
+from twin.config import Config, store_path_of
+from twin.errors import MapError, SkillError
 from twin.maps import build_map, plan_map
 from twin.scene import load_scene
 from twin.skills import selection_query
@@ -23,7 +23,7 @@ def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
         raise SkillError(msg)
     skills = [cfg.skill(name) for name in (args.skill or sorted(cfg.skills))]
     out = Path(args.out) if args.out else cfg.maps_out
-    store_path = Path(args.store) if args.store else cfg.store_path
+    store_path = store_path_of(args, cfg)
     stamp_ns = time.time_ns()
     with GraphStore.open(store_path, read_only=True) as store:
         t0 = time.perf_counter()
@@ -33,6 +33,9 @@ def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
             f"in {time.perf_counter() - t0:.2f} s"
         )
         storeys = [scene.storey(args.storey)] if args.storey else list(scene.storeys)
+        if not storeys:
+            msg = "The model has no storey (IfcBuildingStorey): maps are made per storey."
+            raise MapError(msg)
         for skill in skills:
             iris = [literal_value(r["element"]) or "" for r in store.select(selection_query(skill))]
             for storey in storeys:

@@ -17,7 +17,8 @@ from typing import Any
 from twin.errors import ConfigError, SkillError
 from twin.skills import SkillProfile, parse_skill
 
-DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "default.toml"
+DEFAULT_CONFIG = Path(__file__).resolve().parent / "default.toml"  # package data: installs with twin
+KERNELS = ("manifold", "opencascade", "cgal", "cgal-simple", "hybrid-cgal-simple-opencascade")
 
 
 @dataclass(frozen=True, slots=True)
@@ -56,6 +57,9 @@ def _read(path: Path) -> dict[str, Any]:
     except FileNotFoundError:
         msg = f"No configuration file at {path}."
         raise ConfigError(msg) from None
+    except OSError as err:
+        msg = f"Cannot read the configuration file {path}: {err.strerror or err}."
+        raise ConfigError(msg) from err
     except tomllib.TOMLDecodeError as err:
         msg = f"Configuration file {path} is not valid TOML: {err}."
         raise ConfigError(msg) from err
@@ -104,16 +108,30 @@ def load_config(path: Path | None = None) -> Config:
     if threads < 1:
         msg = f"Configuration 'import.threads' must be >= 1, got {threads}."
         raise ConfigError(msg)
+    kernels = _get(raw, "import.kernels", list)
+    if not kernels or any(k not in KERNELS for k in kernels):
+        msg = f"Configuration 'import.kernels' must list kernels among {', '.join(KERNELS)}, got {kernels!r}."
+        raise ConfigError(msg)
+    static_types = _get(raw, "import.static_types", list)
+    if any(not isinstance(t, str) or not t.startswith("Ifc") for t in static_types):
+        msg = f"Configuration 'import.static_types' must list IFC class names, got {static_types!r}."
+        raise ConfigError(msg)
+    margin = float(_get(raw, "maps.margin_m", (int, float)))
+    if not 0.0 <= margin <= 100.0:  # also false for NaN
+        msg = f"Configuration 'maps.margin_m' must be between 0 and 100 metres, got {margin!r}."
+        raise ConfigError(msg)
     return Config(
         site=_get(raw, "site.name", str),
         base_iri_template=_get(raw, "site.base_iri", str),
         store_path=Path(_get(raw, "store.path", str)),
-        import_=ImportConfig(
-            kernels=tuple(_get(raw, "import.kernels", list)),
-            threads=threads,
-            static_types=tuple(_get(raw, "import.static_types", list)),
-        ),
-        margin_m=float(_get(raw, "maps.margin_m", (int, float))),
+        import_=ImportConfig(kernels=tuple(kernels), threads=threads, static_types=tuple(static_types)),
+        margin_m=margin,
         maps_out=Path(_get(raw, "maps.out", str)),
         skills=skills,
     )
+
+
+def store_path_of(args: Any, cfg: Config) -> Path:
+    """The store directory a command works on: ``--store`` if given, else the configuration's."""
+    store = getattr(args, "store", None)
+    return Path(store) if store else cfg.store_path

@@ -22,12 +22,14 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from twin.errors import MapError
 from twin.grid import FREE, OCCUPIED, UNKNOWN, GridData, GridFrame, OccupancyGrid, Window
 from twin.raster import rasterize_slab
 from twin.scene import IndexArray, MeshSet, Scene, StoreyInfo
 from twin.skills import SkillProfile
 
 BoolGrid = npt.NDArray[np.bool_]
+MAX_CELLS = 50_000_000  # 50 M cells: a 350 m x 350 m storey at 5 cm
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -58,6 +60,12 @@ def plan_map(
     storey = scene.storey(storey_key)
     xmin, ymin, xmax, ymax = storey.extent
     frame = GridFrame.around(xmin, ymin, xmax, ymax, resolution_m=skill.resolution_m, margin_m=margin_m)
+    if frame.width * frame.height > MAX_CELLS:
+        msg = (
+            f"Skill {skill.name!r}: resolution_m={skill.resolution_m} gives a {frame.width}x{frame.height} "
+            f"grid for storey {storey_key!r}, more than {MAX_CELLS:,} cells; use a coarser resolution."
+        )
+        raise MapError(msg)
     lo, hi = skill.z_range
     spaces = [iri for iri, st in scene.space_storey.items() if st == storey.iri]
     return MapPlan(

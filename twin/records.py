@@ -61,23 +61,6 @@ class Mesh:
         return int(self.faces.shape[0])
 
 
-def is_closed(faces: IntArray) -> bool:
-    """Return True if every undirected edge of ``faces`` ``(m, 3) int`` is used by exactly two faces.
-
-    The vertices must be welded (one index per position) for the answer to mean watertight.
-    """
-    if faces.size == 0:
-        return False
-    f = faces.astype(np.int64)
-    a = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
-    b = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
-    keys = np.sort(np.minimum(a, b) * (int(f.max()) + 1) + np.maximum(a, b))
-    if len(keys) % 2:
-        return False
-    # sorted keys must come in pairs: k0 == k1 != k2 == k3 != ...
-    return bool((keys[0::2] == keys[1::2]).all() and (keys[2::2] != keys[1:-1:2]).all())
-
-
 IDENTITY: FloatArray = np.eye(4)
 
 

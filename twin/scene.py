@@ -174,6 +174,10 @@ class Scene:
         raise MapError(msg)
 
 
+STOREY_MEMBER = "(bot:containsElement|bot:hasSpace/bot:containsElement)/bot:hasSubElement*"
+"""A SPARQL property path from a storey to every element on it: contained directly or in one of its
+spaces, and the parts of those (openings, fillings, aggregated parts)."""
+
 _GEOMETRY = """SELECT ?node ?ply ?placement ?closed WHERE {{
   ?node a {kind} ; omg:hasGeometry ?g .
   ?g fog:asPly_v1.0-binaryLE ?ply ; twin:placement ?placement ; twin:closedMesh ?closed .
@@ -211,10 +215,10 @@ def load_scene(store: GraphStore) -> Scene:
         raise MapError(msg)
     members: dict[str, list[str]] = {}
     for row in store.select(
-        """SELECT ?st ?el WHERE {
+        f"""SELECT ?st ?el WHERE {{
              ?st a bot:Storey .
-             ?st (bot:containsElement|bot:hasSpace/bot:containsElement)/bot:hasSubElement* ?el .
-           }"""
+             ?st {STOREY_MEMBER} ?el .
+           }}"""
     ):
         members.setdefault(literal_value(row["st"]) or "", []).append(literal_value(row["el"]) or "")
     space_storey: dict[str, str] = {}
@@ -224,7 +228,9 @@ def load_scene(store: GraphStore) -> Scene:
         space_storey[sp] = st
         storey_spaces.setdefault(st, []).append(sp)
     everything = _extent([(elements, np.arange(len(elements), dtype=np.intp))])
-    assert everything is not None
+    if everything is None:
+        msg = "Every element's mesh in the store is empty: there is nothing to map."
+        raise MapError(msg)
     storeys = []
     for row in store.select(
         "SELECT ?st ?key ?name ?elev WHERE { ?st a bot:Storey ; twin:storeyKey ?key ; twin:elevation ?elev . "

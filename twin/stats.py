@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from twin.scene import STOREY_MEMBER
 from twin.store import GraphStore, literal_value
 
 
@@ -40,6 +41,7 @@ class ModelStats:
     elements_per_class: dict[str, int]
     mesh_failures: int
     kernel_fallbacks: int
+    failed_elements: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -70,13 +72,13 @@ def model_stats(store: GraphStore, *, turtle: bool = True) -> ModelStats:
             elements=int(literal_value(r["elements"]) or 0),
         )
         for r in store.select(
-            """SELECT ?key ?name ?elev (COUNT(DISTINCT ?sp) AS ?spaces) (COUNT(DISTINCT ?el) AS ?elements)
-               WHERE {
+            f"""SELECT ?key ?name ?elev (COUNT(DISTINCT ?sp) AS ?spaces) (COUNT(DISTINCT ?el) AS ?elements)
+               WHERE {{
                  ?st a bot:Storey ; twin:storeyKey ?key ; twin:elevation ?elev .
-                 OPTIONAL { ?st rdfs:label ?name }
-                 OPTIONAL { ?st bot:hasSpace ?sp }
-                 OPTIONAL { ?st bot:containsElement ?el }
-               } GROUP BY ?key ?name ?elev ORDER BY ?elev ?key"""
+                 OPTIONAL {{ ?st rdfs:label ?name }}
+                 OPTIONAL {{ ?st bot:hasSpace ?sp }}
+                 OPTIONAL {{ ?st {STOREY_MEMBER} ?el }}
+               }} GROUP BY ?key ?name ?elev ORDER BY ?elev ?key"""
         )
     )
     per_class = {
@@ -102,5 +104,9 @@ def model_stats(store: GraphStore, *, turtle: bool = True) -> ModelStats:
         storeys=storeys,
         elements_per_class=per_class,
         mesh_failures=_count(store, "?e twin:meshFailed true"),
+        failed_elements=tuple(
+            literal_value(r["e"]) or ""
+            for r in store.select("SELECT ?e WHERE { ?e twin:meshFailed true } ORDER BY ?e")
+        ),
         kernel_fallbacks=_count(store, "?e twin:kernelFallback true"),
     )

@@ -7,7 +7,7 @@ tools. The project's own terms live in one namespace, ``TWIN``.
 Example::
 
     from twin import vocab
-    iri = vocab.element_iri("https://example.org/lab#", "IfcWall", "2O2Fr$t4X7Zf8NOew3FLOH")
+    iri = vocab.entity_iri("https://example.org/lab#", "IfcWall", "2O2Fr$t4X7Zf8NOew3FLOH")
 """
 
 from __future__ import annotations
@@ -137,6 +137,7 @@ _FURN_CLASSES: Final = {
     "SystemFurnitureElement": "SystemFurnitureElement",
 }
 _SUFFIXES: Final = ("StandardCase", "ElementedCase")
+_RENAMED: Final = {"Opening": "OpeningElement"}  # IfcOpeningStandardCase
 
 
 def semantic_class(ifc_class: str) -> str | None:
@@ -148,6 +149,7 @@ def semantic_class(ifc_class: str) -> str | None:
     name = ifc_class.removeprefix("Ifc")
     for suffix in _SUFFIXES:
         name = name.removesuffix(suffix)
+    name = _RENAMED.get(name, name)
     if name in _FURN_CLASSES:
         return FURN + _FURN_CLASSES[name]
     if name in _BEO_CLASSES:
@@ -203,9 +205,6 @@ def entity_iri(base_iri: str, ifc_class: str, guid: str) -> str:
     """The IFCtoLBD IRI of any rooted IFC entity (element, space, storey, building, site)."""
     kind = ifc_class.lower().removeprefix("ifc")
     return f"{base_iri}{kind}_{expand_guid(guid)}"
-
-
-element_iri = entity_iri
 
 
 def geometry_iri(entity: str) -> str:

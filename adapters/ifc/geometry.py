@@ -35,7 +35,8 @@ import ifcopenshell.geom
 import ifcopenshell.util.shape
 import numpy as np
 
-from twin.records import Geometry, Mesh, check_placement, is_closed
+from twin.meshops import is_closed, orient_faces
+from twin.records import Geometry, Mesh, check_placement
 
 log = logging.getLogger(__name__)
 
@@ -68,11 +69,17 @@ def weld(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def _make_mesh(vertices: np.ndarray, faces: np.ndarray) -> Mesh:
-    """A Mesh with its closedness; vertices are welded only when the kernel's output is not closed."""
+    """A Mesh with its closedness. Only when the kernel's output is not a consistently oriented solid
+    are its vertices welded and, if it is watertight, its faces re-oriented."""
     if is_closed(faces):
         return Mesh(vertices, faces, True)
     v, f = weld(vertices, faces)
-    return Mesh(v, f, is_closed(f) if len(v) != len(vertices) else False)
+    if is_closed(f):
+        return Mesh(v, f, True)
+    oriented = orient_faces(f)
+    if oriented is not None:
+        return Mesh(v, oriented, True)
+    return Mesh(v, f, False)
 
 
 def _settings() -> Any:

@@ -10,7 +10,8 @@ from hypothesis.extra.numpy import arrays
 
 from twin.errors import ModelError
 from twin.meshcodec import decode_mesh, decode_placement, encode_mesh, encode_placement
-from twin.records import Mesh, is_closed
+from twin.meshops import is_closed, is_edge_closed, orient_faces
+from twin.records import Mesh
 
 TETRA = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]], dtype=np.int32)
 
@@ -35,6 +36,26 @@ def test_closedness_needs_every_edge_twice() -> None:
     assert is_closed(TETRA)
     assert not is_closed(TETRA[:3])
     assert not is_closed(np.concatenate([TETRA, TETRA]))
+
+
+def test_a_flipped_face_makes_a_mesh_edge_closed_but_not_closed_until_reoriented() -> None:
+    bad = TETRA.copy()
+    bad[2] = bad[2, ::-1]
+    assert is_edge_closed(bad)
+    assert not is_closed(bad)
+    fixed = orient_faces(bad)
+    assert fixed is not None
+    assert is_closed(fixed)
+    assert sorted(map(sorted, fixed.tolist())) == sorted(map(sorted, TETRA.tolist()))
+
+
+def test_every_shell_is_oriented_on_its_own_and_open_meshes_are_not_repaired() -> None:
+    two = np.concatenate([TETRA, TETRA + 4])
+    two[[1, 6]] = two[[1, 6], ::-1]
+    fixed = orient_faces(two)
+    assert fixed is not None
+    assert is_closed(fixed)
+    assert orient_faces(TETRA[:3]) is None
 
 
 @pytest.mark.parametrize(

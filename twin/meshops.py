@@ -1,0 +1,94 @@
+"""Mesh topology: watertightness and consistent face orientation.
+
+A closed mesh is filled when sliced, with the winding rule, which needs every face oriented
+consistently (each edge walked once in each direction). Exporters do not always deliver that, so
+:func:`orient_faces` repairs it where the surface allows.
+
+Example::
+
+    faces = orient_faces(faces) if is_edge_closed(faces) and not is_closed(faces) else faces
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import numpy.typing as npt
+
+IntArray = npt.NDArray[np.int32]
+
+
+def _edges(faces: IntArray) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    f = faces.astype(np.int64)
+    return np.concatenate([f[:, 0], f[:, 1], f[:, 2]]), np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
+
+
+def is_edge_closed(faces: IntArray) -> bool:
+    """True if every undirected edge of ``faces`` ``(m, 3) int`` is used by exactly two faces."""
+    if faces.size == 0:
+        return False
+    a, b = _edges(faces)
+    n = int(faces.max()) + 1
+    keys = np.sort(np.minimum(a, b) * n + np.maximum(a, b))
+    if len(keys) % 2:
+        return False
+    # sorted keys must come in pairs: k0 == k1 != k2 == k3 != ...
+    return bool((keys[0::2] == keys[1::2]).all() and (keys[2::2] != keys[1:-1:2]).all())
+
+
+def is_closed(faces: IntArray) -> bool:
+    """True if ``faces`` is watertight and consistently oriented: each directed edge (a, b) occurs
+    exactly once and so does its reverse (b, a). The vertices must be welded for this to mean solid."""
+    if faces.size == 0:
+        return False
+    a, b = _edges(faces)
+    n = int(faces.max()) + 1
+    forward = np.sort(a * n + b)
+    return bool((forward[1:] != forward[:-1]).all() and np.array_equal(forward, np.sort(b * n + a)))
+
+
+def orient_faces(faces: IntArray) -> IntArray | None:
+    """Flip faces of an edge-closed mesh so it becomes consistently oriented, per connected shell.
+
+    Returns the repaired ``(m, 3) int32`` faces, or None when the surface is not orientable or not
+    edge-closed. Each shell keeps the orientation of its first face (a fully inverted shell still
+    fills: the winding number is -1 instead of 1).
+    """
+    if not is_edge_closed(faces):
+        return None
+    m = len(faces)
+    a, b = _edges(faces)
+    n = int(faces.max()) + 1
+    keys = np.minimum(a, b) * n + np.maximum(a, b)
+    order = np.argsort(keys, kind="stable")
+    first, second = order[0::2], order[1::2]  # the two uses of each undirected edge
+    face_of = np.arange(3 * m) % m
+    # two faces sharing an edge agree if they walk it in opposite directions
+    parity = (a[first] == a[second]).astype(np.int8)  # 1: same direction, one of them must flip
+    f1, f2 = face_of[first], face_of[second]
+    # every face has exactly three neighbours (one per edge): sort the pairs by face into (m, 3) tables
+    by_face = np.argsort(np.concatenate([f1, f2]), kind="stable")
+    nbr = np.concatenate([f2, f1])[by_face].reshape(m, 3)
+    par = np.concatenate([parity, parity])[by_face].reshape(m, 3)
+    flip: list[int] = [-1] * m  # a breadth-first walk over the face graph, per shell
+    nbr_l: list[list[int]] = nbr.tolist()
+    par_l: list[list[int]] = par.tolist()
+    for start in range(m):
+        if flip[start] >= 0:
+            continue
+        flip[start] = 0
+        queue = deque([start])
+        while queue:
+            face = queue.popleft()
+            for other, p in zip(nbr_l[face], par_l[face], strict=True):
+                want = flip[face] ^ p
+                if flip[other] < 0:
+                    flip[other] = want
+                    queue.append(other)
+                elif flip[other] != want:
+                    return None  # not orientable (e.g. a Moebius strip or a non-manifold fan)
+    out = faces.astype(np.int32, copy=True)
+    flipped = np.array(flip) == 1
+    out[flipped] = out[flipped][:, ::-1]
+    return out
