@@ -11,6 +11,11 @@ import pytest
 
 from adapters.ros import read_map_server
 
+HEADER = (
+    b"ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION((''),'2;1');\nFILE_NAME('','',(''),(''),'','','');\n"
+    b"FILE_SCHEMA(('IFC4'));\nENDSEC;\n"
+)
+
 
 def twin(*args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
@@ -90,8 +95,15 @@ def test_query_refuses_updates_with_a_one_line_error(lab_store_dir: Path) -> Non
         (None, "No such file"),
         (b"PK\x03\x04zip", "not an IFC/STEP file"),
         (b"ISO-10303-21;\nHEADER;", "truncated"),
+        (HEADER.replace(b"IFC4", b"IFC9") + b"DATA;\nENDSEC;\nEND-ISO-10303-21;\n", "IFC9"),
+        (HEADER + b"DATA;\nENDSEC;\nEND-ISO-10303-21;\n", "empty model"),
+        (
+            HEADER
+            + b"DATA;\n#1=IFCWALL('0000000000000000000000',$,$,$,$,$,$,$,$);\nENDSEC;\nEND-ISO-10303-21;\n",
+            "no IfcSpace",
+        ),
     ],
-    ids=["missing", "not-ifc", "truncated"],
+    ids=["missing", "not-ifc", "truncated", "unsupported-schema", "empty", "no-spaces"],
 )
 def test_import_errors_are_one_line_without_traceback(
     tmp_path: Path, content: bytes | None, message: str
@@ -139,4 +151,41 @@ def test_a_store_in_use_by_another_process_gives_a_clear_error(lab_store_dir: Pa
         r = twin("import", model, "--store", lab_store_dir, "--replace")
     assert r.returncode == 1
     assert "another process" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_map_of_one_storey_writes_only_that_storey(lab_store_dir: Path, tmp_path: Path) -> None:
+    r = twin(
+        "map",
+        "--store",
+        lab_store_dir,
+        "--skill",
+        "lab-navigation",
+        "--storey",
+        "first-floor",
+        "--out",
+        tmp_path,
+    )
+    assert r.returncode == 0, r.stderr
+    assert [p.name for p in tmp_path.glob("*.yaml")] == ["first-floor__lab-navigation.yaml"]
+    r = twin(
+        "map", "--store", lab_store_dir, "--skill", "lab-navigation", "--storey", "attic", "--out", tmp_path
+    )
+    assert r.returncode == 1
+    assert "Unknown storey 'attic'" in r.stderr
+
+
+def test_stats_json_lists_every_element_without_geometry(lab_store_dir: Path) -> None:
+    data = json.loads(twin("stats", "--store", lab_store_dir, "--json").stdout)
+    assert data["failed_elements"] == []
+    assert data["mesh_failures"] == 0
+
+
+def test_a_bad_config_or_query_file_is_a_one_line_error(lab_store_dir: Path, tmp_path: Path) -> None:
+    r = twin("--config", tmp_path, "stats", "--store", lab_store_dir)
+    assert r.returncode == 1
+    assert "Traceback" not in r.stderr
+    r = twin("query", "--store", lab_store_dir, f"@{tmp_path / 'missing.rq'}")
+    assert r.returncode == 1
+    assert "missing.rq" in r.stderr
     assert "Traceback" not in r.stderr
