@@ -3,7 +3,9 @@
 The paper "Generation of skill-specific maps from graph world models for robotic systems" shows its
 method on a small lab: two rooms joined by a corridor, with an arch across the corridor that a lidar
 at 0.1 m sees under but a 0.5 m tall robot cannot pass, a glass wall that a lidar does not see, and a
-table. This module writes that lab as an IFC4 file so the demo and the tests need no downloaded model.
+table. This module writes that lab as an IFC4 file so the demo and the tests need no downloaded model;
+it adds a floor slab under each storey and a door, so that files carry the openings and fillings real
+models have.
 
 The ground floor, in the storey's frame (metres, interior faces of the walls; the building is placed
 at ``BUILDING_OFFSET``, so add (10, 5, 0) for world coordinates)::
@@ -15,16 +17,33 @@ at ``BUILDING_OFFSET``, so add (10, 5, 0) for world coordinates)::
           |             Corridor   A            G     A: the arch, x 5.9..6.1, z 0.3..1.0
     y=1.4 |          +-----------------+        G
           |          |                 |        G
-      y=0 +----------+                 +--------+
+      y=0 +---DDD----+                 +--------+     D: Door A, x 1.55..2.45, in Wall A south
 
 Walls are 0.2 m thick and 2.7 m tall (the glass wall 0.1 m). The arch spans the corridor at x 5.9..6.1
 from z 0.3 to 1.0 m. The table (1.2 x 0.8 x 0.75 m) stands in Room A at x 1.4..2.6, y 2.6..3.4. With
 ``storeys=2`` a first floor at elevation 3.0 m holds one hall (x 0..12, y 0..4) with a short interior
 wall at x 5.9..6.1, y 0..1.0, where the ground floor has nothing, and no arch.
 
+Each storey stands on a floor slab (``IfcSlab``, predefined type FLOOR, concrete, 0.2 m thick) that
+covers its whole footprint, outer wall faces included, with its top at the storey's elevation: so it
+lies below every map's heights of its own storey. The ground floor's slab is H-shaped, the outline of
+the rooms and the corridor (x -0.2..12.1, y -0.2..4.2, without x 4.2..7.8 outside y 1.2..2.8); the
+first floor's is the rectangle x -0.2..12.2, y -0.2..4.2, its underside (2.8 m) above the ground
+floor's walls (2.7 m). A slab's layout box is its bounding box.
+
+Door A (``IfcDoor``, wood, 0.9 m wide, 2.1 m high, 0.05 m thick) stands in the middle of Wall A
+south's thickness at x 1.55..2.45, y -0.125..-0.075. It fills "Door A opening", an
+``IfcOpeningElement`` (x 1.55..2.45, y -0.2..0, z 0..2.1: the wall's full thickness) that voids the
+wall (``IfcRelVoidsElement``; the door ``IfcRelFillsElement``), so the geometry kernel cuts the wall.
+The opening has no material and no spatial container: its layout ``container`` is the wall it voids.
+The door bounds Room A (``IfcRelSpaceBoundary``).
+
 Every GlobalId is derived from a fixed name (uuid5), so two generations, and the metre and foot
 variants, carry the same ids. The foot variant writes every length divided by 0.3048: its geometry
-in metres is the same as the metre variant's.
+in metres is the same as the metre variant's. (Meshed, so is every element's, but for the cut wall
+under IfcOpenShell's manifold kernel: it enlarges an opening by 10 times its precision in project
+units before subtracting it, so that wall differs by under a millimetre between the two variants;
+the opencascade kernel cuts exactly.)
 
 Example::
 
@@ -48,6 +67,7 @@ from typing import Final, Literal, NamedTuple, TypeVar
 import ifcopenshell
 import ifcopenshell.api.aggregate
 import ifcopenshell.api.context
+import ifcopenshell.api.feature
 import ifcopenshell.api.geometry
 import ifcopenshell.api.material
 import ifcopenshell.api.project
@@ -67,9 +87,15 @@ BUILDING_OFFSET: Final = (10.0, 5.0, 0.0)
 WALL_HEIGHT: Final = 2.7
 STOREY_HEIGHT: Final = 3.0
 
+SLAB_THICKNESS: Final = 0.2
+
 ARCH: Final = "Arch"
 GLASS_WALL: Final = "Glass wall"
 TABLE: Final = "Table"
+DOOR: Final = "Door A"
+DOOR_OPENING: Final = "Door A opening"
+DOOR_HOST: Final = "Wall A south"
+"""The wall that the door's opening voids."""
 
 _GUID_NAMESPACE: Final = uuid.uuid5(uuid.NAMESPACE_URL, "https://w3id.org/building-twin/sample-lab")
 
@@ -93,15 +119,17 @@ class Box(NamedTuple):
 
 @dataclass(frozen=True, slots=True)
 class LabElement:
-    """A physical element of the lab: its GlobalId, IFC class, material and world box (metres)."""
+    """An element of the lab: its GlobalId, IFC class, material and world box (metres)."""
 
     name: str
     global_id: str
     ifc_class: str
-    material: str
+    material: str | None
+    """Name of its ``IfcMaterial``; None for the door's opening, which has none."""
     storey: str
     container: str
-    """Name of the spatial structure that contains it: its storey, or a space (the table)."""
+    """Name of the spatial structure that contains it: its storey, or a space (the table); for the
+    door's opening, which no spatial structure contains, the element it voids."""
     box: Box
 
 
@@ -162,9 +190,22 @@ class LabLayout:
         return self.element(TABLE)
 
     @property
+    def door(self) -> LabElement:
+        return self.element(DOOR)
+
+    @property
+    def door_opening(self) -> LabElement:
+        return self.element(DOOR_OPENING)
+
+    @property
     def walls(self) -> tuple[LabElement, ...]:
         """Every ``IfcWall``, including the arch and the glass wall."""
         return tuple(e for e in self.elements if e.ifc_class == "IfcWall")
+
+    @property
+    def slabs(self) -> tuple[LabElement, ...]:
+        """The floor slab of each storey, in storey order."""
+        return tuple(e for e in self.elements if e.ifc_class == "IfcSlab")
 
 
 _Named = TypeVar("_Named", LabElement, LabSpace, LabStorey)
@@ -181,13 +222,20 @@ def _by_name(items: tuple[_Named, ...], name: str) -> _Named:
 # --- the plan, in each storey's frame (metres) ----------------------------------------------------
 
 
+_XY = tuple[float, float]
+
+
 @dataclass(frozen=True, slots=True)
 class _ElementPlan:
     name: str
     box: Box
-    material: str
+    material: str | None
     ifc_class: str = "IfcWall"
     space: str | None = None  # contained in this space instead of the storey
+    predefined_type: str | None = None
+    outline: tuple[_XY, ...] = ()  # a footprint other than the box's rectangle (counter-clockwise)
+    voids: str | None = None  # an opening: the element it cuts (not spatially contained)
+    fills: str | None = None  # a door: the opening it fills
 
 
 @dataclass(frozen=True, slots=True)
@@ -205,12 +253,18 @@ class _StoreyPlan:
     spaces: tuple[_SpacePlan, ...]
 
 
-_XY = tuple[float, float]
-
-
 def _wall(name: str, xy0: _XY, xy1: _XY, material: str = "Concrete") -> _ElementPlan:
     """A full-height wall from floor corner ``xy0`` to ``xy1`` (storey frame, metres)."""
     return _ElementPlan(name, Box(*xy0, 0.0, *xy1, WALL_HEIGHT), material)
+
+
+def _floor_slab(storey: str, outline: tuple[_XY, ...]) -> _ElementPlan:
+    """The storey's floor: ``outline`` (storey frame, counter-clockwise) from z -0.2 up to z 0."""
+    xs, ys = [x for x, _ in outline], [y for _, y in outline]
+    box = Box(min(xs), min(ys), -SLAB_THICKNESS, max(xs), max(ys), 0.0)
+    return _ElementPlan(
+        f"{storey} slab", box, "Concrete", "IfcSlab", predefined_type="FLOOR", outline=outline
+    )
 
 
 _GROUND_FLOOR: Final = _StoreyPlan(
@@ -231,12 +285,45 @@ _GROUND_FLOOR: Final = _StoreyPlan(
         _wall(GLASS_WALL, (12.0, 0.0), (12.1, 4.0), material="Glass"),
         _ElementPlan(ARCH, Box(5.9, 1.4, 0.3, 6.1, 2.6, 1.0), "Steel"),
         _ElementPlan(TABLE, Box(1.4, 2.6, 0.0, 2.6, 3.4, 0.75), "Wood", "IfcFurnishingElement", "Room A"),
+        _floor_slab(
+            "Ground floor",
+            (
+                (-0.2, -0.2),
+                (4.2, -0.2),
+                (4.2, 1.2),
+                (7.8, 1.2),
+                (7.8, -0.2),
+                (12.1, -0.2),
+                (12.1, 4.2),
+                (7.8, 4.2),
+                (7.8, 2.8),
+                (4.2, 2.8),
+                (4.2, 4.2),
+                (-0.2, 4.2),
+            ),
+        ),
+        _ElementPlan(
+            DOOR_OPENING,
+            Box(1.55, -0.2, 0.0, 2.45, 0.0, 2.1),
+            None,
+            "IfcOpeningElement",
+            predefined_type="OPENING",
+            voids=DOOR_HOST,
+        ),
+        _ElementPlan(
+            DOOR,
+            Box(1.55, -0.125, 0.0, 2.45, -0.075, 2.1),
+            "Wood",
+            "IfcDoor",
+            predefined_type="DOOR",
+            fills=DOOR_OPENING,
+        ),
     ),
     spaces=(
         _SpacePlan(
             "Room A",
             Box(0.0, 0.0, 0.0, 4.0, 4.0, WALL_HEIGHT),
-            ("Wall A south", "Wall A west", "Wall A north", "Wall A east 1", "Wall A east 2"),
+            ("Wall A south", "Wall A west", "Wall A north", "Wall A east 1", "Wall A east 2", DOOR),
         ),
         _SpacePlan(
             "Corridor",
@@ -268,6 +355,7 @@ _FIRST_FLOOR: Final = _StoreyPlan(
         _wall("Wall L1 north", (-0.2, 4.0), (12.2, 4.2)),
         _wall("Wall L1 east", (12.0, 0.0), (12.2, 4.0)),
         _wall("Wall L1 interior", (5.9, 0.0), (6.1, 1.0), material="Brick"),
+        _floor_slab("First floor", ((-0.2, -0.2), (12.2, -0.2), (12.2, 4.2), (-0.2, 4.2))),
     ),
     spaces=(
         _SpacePlan(
@@ -400,7 +488,7 @@ class _LabBuilder:
             space = self._root("IfcSpace", sp.name, predefined_type="INTERNAL")
             ifcopenshell.api.aggregate.assign_object(self.file, products=[space], relating_object=storey)
             self._place(space, (sp.box.xmin + dx, sp.box.ymin + dy, sp.box.zmin + dz))
-            self._assign_box_body(space, sp.box)
+            self._assign_prism_body(space, sp.box)
             spaces[sp.name] = space
             world_box = sp.box.moved(dx, dy, dz)
             lab_spaces.append(LabSpace(sp.name, space.GlobalId, plan.name, world_box, sp.bounded_by))
@@ -409,16 +497,21 @@ class _LabBuilder:
         lab_elements = []
         in_storey = []
         for el in plan.elements:
-            product = self._root(el.ifc_class, el.name)
+            product = self._root(el.ifc_class, el.name, el.predefined_type)
             products[el.name] = product
-            if el.space is None:
+            if el.voids is not None:  # an opening belongs to the element it voids, not to a storey
+                ifcopenshell.api.feature.add_feature(self.file, feature=product, element=products[el.voids])
+            elif el.space is None:
                 in_storey.append(product)
             else:  # contained in its room, so that the file has both kinds of containment
                 ifcopenshell.api.spatial.assign_container(
                     self.file, products=[product], relating_structure=spaces[el.space]
                 )
-            self._add_material(el.material)
-            self.by_material[el.material].append(product)
+            if el.fills is not None:
+                ifcopenshell.api.feature.add_filling(self.file, opening=products[el.fills], element=product)
+            if el.material is not None:
+                self._add_material(el.material)
+                self.by_material[el.material].append(product)
             lab_elements.append(
                 LabElement(
                     name=el.name,
@@ -426,21 +519,25 @@ class _LabBuilder:
                     ifc_class=el.ifc_class,
                     material=el.material,
                     storey=plan.name,
-                    container=el.space or plan.name,
+                    container=el.voids or el.space or plan.name,
                     box=el.box.moved(dx, dy, dz),
                 )
             )
         ifcopenshell.api.spatial.assign_container(self.file, products=in_storey, relating_structure=storey)
 
-        # Placements after containment: edit_object_placement takes a world matrix and writes it
-        # relative to the container's placement.
+        # Placements after containment, voiding and filling, in plan order (a host before what it
+        # hosts): edit_object_placement takes a world matrix and writes it relative to the placement
+        # of the container, of the voided wall (the opening) or of the filled opening (the door).
         for el in plan.elements:
             product = products[el.name]
             if el.ifc_class == "IfcWall":
                 self._place_wall(product, el.box, (dx, dy, dz))
             else:
                 self._place(product, (el.box.xmin + dx, el.box.ymin + dy, el.box.zmin + dz))
-                self._assign_box_body(product, el.box)
+                self._assign_prism_body(product, el.box, el.outline)
+            if el.ifc_class == "IfcDoor":
+                product.OverallWidth = (el.box.xmax - el.box.xmin) / self.scale
+                product.OverallHeight = (el.box.zmax - el.box.zmin) / self.scale
 
         for sp in plan.spaces:
             for name in sp.bounded_by:
@@ -521,10 +618,17 @@ class _LabBuilder:
             self.file, product=wall, representation=representation
         )
 
-    def _assign_box_body(self, product: ifcopenshell.entity_instance, box: Box) -> None:
-        """An extruded rectangle from the product's origin, sized like ``box`` (written in project units)."""
+    def _assign_prism_body(
+        self, product: ifcopenshell.entity_instance, box: Box, outline: tuple[_XY, ...] = ()
+    ) -> None:
+        """Extrude from the product's origin (``box``'s low corner) ``box``'s rectangle, or ``outline``
+        (same frame as ``box``) when given, by ``box``'s height; written in project units."""
         s = self.scale
-        curve = self.shapes.rectangle(size=((box.xmax - box.xmin) / s, (box.ymax - box.ymin) / s))
+        if outline:
+            points = [((x - box.xmin) / s, (y - box.ymin) / s) for x, y in outline]
+            curve = self.shapes.polyline(points, closed=True)
+        else:
+            curve = self.shapes.rectangle(size=((box.xmax - box.xmin) / s, (box.ymax - box.ymin) / s))
         solid = self.shapes.extrude(self.shapes.profile(curve), magnitude=(box.zmax - box.zmin) / s)
         representation = self.shapes.get_representation(self.body, [solid])
         ifcopenshell.api.geometry.assign_representation(

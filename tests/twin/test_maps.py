@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from adapters.sample_lab import Box
+from adapters.sample_lab import DOOR_HOST, Box
 from tests.conftest import imported, shared_model
 from tests.twin.reference import rasterize_reference, slab_geometry
 from twin.config import Config
@@ -72,13 +72,34 @@ def test_the_table_is_in_navigation_maps_and_not_in_localization_maps(lab_maps, 
         assert (inside(lab_maps[name], table, shrink=0.01) == OCCUPIED).all(), name
 
 
-def test_walls_are_closed_rings_in_the_localization_map(lab_maps, lab) -> None:
+def test_walls_are_solid_in_the_localization_map_except_at_the_door(lab_maps, lab) -> None:
     _, layout = lab
     grid = lab_maps["lab-localization"]
+    opening = layout.door_opening.box
     for wall in layout.walls:
         if wall.name in (layout.arch.name, layout.glass_wall.name):
             continue
-        assert (inside(grid, wall.box, shrink=0.01) == OCCUPIED).all(), wall.name
+        box = wall.box
+        if wall.name == DOOR_HOST:
+            left = box._replace(xmax=opening.xmin)
+            right = box._replace(xmin=opening.xmax)
+            assert (inside(grid, left, shrink=0.01) == OCCUPIED).all(), wall.name
+            assert (inside(grid, right, shrink=0.01) == OCCUPIED).all(), wall.name
+            assert not (inside(grid, opening, shrink=0.06) == OCCUPIED).any(), (
+                "the doorway is open to the lidar"
+            )
+        else:
+            assert (inside(grid, box, shrink=0.01) == OCCUPIED).all(), wall.name
+
+
+def test_the_door_blocks_navigation_and_the_floor_slab_is_below_the_clearance(lab_maps, lab) -> None:
+    _, layout = lab
+    assert (inside(lab_maps["lab-navigation"], layout.door.box, shrink=0.0) == OCCUPIED).any()
+    nav = lab_maps["lab-navigation"]
+    room = layout.space("Room A").box
+    free = inside(nav, room, shrink=0.3)
+    table = inside(nav, layout.table.box, shrink=0.0)
+    assert (free == OCCUPIED).sum() == (table == OCCUPIED).sum()  # only the table: no slab
 
 
 def test_the_frame_covers_the_storey_with_a_snapped_margin(lab_maps) -> None:
