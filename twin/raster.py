@@ -54,15 +54,6 @@ Spans = tuple[IntArray, IntArray, IntArray]  # (row, first column, last column),
 
 #: Polygon slots: a triangle clipped by two planes has at most 5 vertices.
 MAX_VERTICES = 5
-#: Triangles clipped at once (about 1 MB of input: the working set stays in cache).
-CHUNK_TRIANGLES = 1 << 14
-#: Polygons, and (polygon, row) pairs, rasterised at once.
-CHUNK_POLYGONS = 1 << 15
-CHUNK_PAIRS = 1 << 17
-#: :class:`SlabGeometry`'s window index: each chunk's polygons sorted by the tile (of this size, in
-#: metres) of their centre, and the bounds of each run of BLOCK polygons.
-TILE_M = 1.0
-BLOCK = 1 << 8
 
 
 @dataclass(frozen=True, slots=True)
@@ -78,6 +69,44 @@ class Tolerances:
 
 
 TOLERANCES = Tolerances()
+
+
+@dataclass(frozen=True, slots=True)
+class RasterSettings:
+    """Work sizes of rasterising: they change speed and memory, never the result.
+
+    Attributes:
+        chunk_triangles: triangles clipped at once (about 1 MB of input: the working set stays in cache).
+        chunk_polygons: polygons rasterised at once.
+        chunk_pairs: (polygon, row) pairs rasterised at once.
+        tile_m: side, in metres, of the tiles :func:`slab_geometry` sorts each chunk's polygons by
+            (the tile of their centre), so that runs of ``block`` polygons are compact.
+        block: polygons per run whose bounds :class:`SlabGeometry` keeps as its window index.
+
+    Example::
+
+        tiny = RasterSettings(chunk_triangles=7, chunk_polygons=5, chunk_pairs=16, tile_m=0.3, block=3)
+        assert (rasterize_slab(tri, el, closed, 0.0, 1.0, frame, settings=tiny) == full).all()
+    """
+
+    chunk_triangles: int = 1 << 14
+    chunk_polygons: int = 1 << 15
+    chunk_pairs: int = 1 << 17
+    tile_m: float = 1.0
+    block: int = 1 << 8
+
+    def __post_init__(self) -> None:
+        for name in ("chunk_triangles", "chunk_polygons", "chunk_pairs", "block"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+                msg = f"RasterSettings.{name} must be a positive integer, got {value!r}."
+                raise MapError(msg)
+        if not (isinstance(self.tile_m, int | float) and 0 < self.tile_m < np.inf):
+            msg = f"RasterSettings.tile_m must be a positive, finite number of metres, got {self.tile_m!r}."
+            raise MapError(msg)
+
+
+RASTER_SETTINGS = RasterSettings()
 
 
 class _Polygons(NamedTuple):
@@ -106,9 +135,10 @@ class SlabGeometry:
         segment_element: ``(s,) intp`` element of each segment.
         segment_winding: ``(s,) int8`` +1 if the segment, oriented with its solid on the left, runs
             towards +y, else -1.
-        block_bounds: ``(4, ceil(m / BLOCK)) float64`` bounds of each run of ``BLOCK`` consecutive
-            polygons (sorted, chunk by chunk, by the ``TILE_M`` tile of their centre): a coarse spatial
-            index that lets a window skip most polygons.
+        block_bounds: ``(4, ceil(m / block)) float64`` bounds of each run of ``block`` consecutive
+            polygons (sorted, chunk by chunk, by the ``RasterSettings.tile_m`` tile of their centre): a
+            coarse spatial index that lets a window skip most polygons.
+        block: polygons per run of ``block_bounds`` (the ``RasterSettings.block`` it was made with).
     """
 
     xs: FloatArray
@@ -119,6 +149,7 @@ class SlabGeometry:
     segment_element: IntArray
     segment_winding: Int8Array
     block_bounds: FloatArray
+    block: int = RASTER_SETTINGS.block
 
 
 def rasterize_slab(  # noqa: PLR0917 (the map generator's established call)
@@ -131,6 +162,7 @@ def rasterize_slab(  # noqa: PLR0917 (the map generator's established call)
     window: Window | None = None,
     *,
     tol: Tolerances = TOLERANCES,
+    settings: RasterSettings = RASTER_SETTINGS,
 ) -> BoolArray:
     """Cells of ``window`` (default: the whole frame) touched by the elements between ``z_lo`` and ``z_hi``.
 
@@ -142,6 +174,8 @@ def rasterize_slab(  # noqa: PLR0917 (the map generator's established call)
         z_lo, z_hi: the slab, world z, ``z_lo <= z_hi``.
         frame: the grid.
         window: compute only these cells; equal bit for bit to the same window of the full result.
+        tol: numerical tolerances.
+        settings: work sizes (the result does not depend on them).
 
     Returns:
         ``(window rows, window cols) bool``, True = occupied.
@@ -152,8 +186,11 @@ def rasterize_slab(  # noqa: PLR0917 (the map generator's established call)
     _check_inputs(triangles, element, closed, z_lo, z_hi)
     win = _check_window(frame, window)
     region = None if win == frame.full else _region(frame, win, frame.resolution_m + tol.cell_m)
-    cells = _Cells(frame, win, tol)
-    for part in _parts(triangles, element, closed, z_lo=z_lo, z_hi=z_hi, region=region, tol=tol):
+    cells = _Cells(frame, win, tol, settings)
+    parts = _parts(
+        triangles, element, closed, z_lo=z_lo, z_hi=z_hi, region=region, tol=tol, settings=settings
+    )
+    for part in parts:
         cells.add_polygons(part)
         cells.add_segments(part)
     return cells.occupied()
@@ -167,6 +204,7 @@ def slab_geometry(
     z_hi: float,
     *,
     tol: Tolerances = TOLERANCES,
+    settings: RasterSettings = RASTER_SETTINGS,
 ) -> SlabGeometry:
     """Clip the triangles to the slab and section the closed elements at its mid-height.
 
@@ -175,21 +213,24 @@ def slab_geometry(
     """
     _check_inputs(triangles, element, closed, z_lo, z_hi)
     parts = [
-        _by_tile(p) for p in _parts(triangles, element, closed, z_lo=z_lo, z_hi=z_hi, region=None, tol=tol)
+        _by_tile(p, settings.tile_m)
+        for p in _parts(
+            triangles, element, closed, z_lo=z_lo, z_hi=z_hi, region=None, tol=tol, settings=settings
+        )
     ]
     p = _Polygons(*(np.concatenate(field, axis=-1) for field in zip(*parts, strict=True)))
-    starts = np.arange(0, p.thin.size, BLOCK)
+    starts = np.arange(0, p.thin.size, settings.block)
     blocks = np.empty((4, len(starts)))
     for i, op in enumerate((np.minimum, np.minimum, np.maximum, np.maximum)):
         blocks[i] = op.reduceat(p.bounds[i], starts) if len(starts) else blocks[i]
-    return SlabGeometry(*p, block_bounds=blocks)
+    return SlabGeometry(*p, block_bounds=blocks, block=settings.block)
 
 
-def _by_tile(p: _Polygons) -> _Polygons:
-    """The polygons of one chunk sorted by the ``TILE_M`` tile of their centre (compact index blocks)."""
+def _by_tile(p: _Polygons, tile_m: float) -> _Polygons:
+    """The polygons of one chunk sorted by the ``tile_m`` tile of their centre (compact index blocks)."""
     if not p.thin.size:
         return p
-    centre = 0.5 * (p.bounds[:2] + p.bounds[2:]) / TILE_M
+    centre = 0.5 * (p.bounds[:2] + p.bounds[2:]) / tile_m
     tile = (centre - centre.min(axis=1, keepdims=True)).astype(np.int64)
     order = np.argsort(tile[1] * (tile[0].max() + 1) + tile[0], kind="stable")
     return p._replace(xs=p.xs[:, order], ys=p.ys[:, order], bounds=p.bounds[:, order], thin=p.thin[order])
@@ -201,25 +242,28 @@ def rasterize(
     window: Window | None = None,
     *,
     tol: Tolerances = TOLERANCES,
+    settings: RasterSettings = RASTER_SETTINGS,
 ) -> BoolArray:
     """Cells of ``window`` (default: the whole frame) touched by ``geometry``: ``(rows, cols) bool``.
 
-    Equal to :func:`rasterize_slab` with the arguments ``geometry`` was made from.
+    Equal to :func:`rasterize_slab` with the arguments ``geometry`` was made from. The index block
+    size is ``geometry``'s own; ``settings`` gives the chunk sizes.
     """
     win = _check_window(frame, window)
-    cells = _Cells(frame, win, tol)
+    cells = _Cells(frame, win, tol, settings)
     x0, y0, x1, y1 = _region(frame, win, tol.cell_m + 1e-6 * frame.resolution_m)
+    chunk, block = settings.chunk_polygons, geometry.block
     if win == frame.full:
-        for i in range(0, geometry.thin.size, CHUNK_POLYGONS):
-            cells.add_polygons(geometry, np.arange(i, min(i + CHUNK_POLYGONS, geometry.thin.size)))
+        for i in range(0, geometry.thin.size, chunk):
+            cells.add_polygons(geometry, np.arange(i, min(i + chunk, geometry.thin.size)))
     else:
         bx0, by0, bx1, by1 = geometry.block_bounds
         blocks = np.flatnonzero((bx1 >= x0) & (by1 >= y0) & (bx0 <= x1) & (by0 <= y1))
-        _, candidates = _expand(blocks * BLOCK, np.minimum(blocks * BLOCK + BLOCK, geometry.thin.size) - 1)
+        _, candidates = _expand(blocks * block, np.minimum(blocks * block + block, geometry.thin.size) - 1)
         xmin, ymin, xmax, ymax = geometry.bounds[:, candidates]
         picked = candidates[(xmax >= x0) & (ymax >= y0) & (xmin <= x1) & (ymin <= y1)]
-        for i in range(0, len(picked), CHUNK_POLYGONS):
-            cells.add_polygons(geometry, picked[i : i + CHUNK_POLYGONS])
+        for i in range(0, len(picked), chunk):
+            cells.add_polygons(geometry, picked[i : i + chunk])
     cells.add_segments(geometry, np.flatnonzero((geometry.segments[3] >= y0) & (geometry.segments[1] <= y1)))
     return cells.occupied()
 
@@ -238,8 +282,9 @@ def _region(frame: GridFrame, win: Window, pad: float) -> tuple[float, float, fl
 class _Cells:
     """Collects the spans of one window as difference-array indices, and the section segments to fill."""
 
-    def __init__(self, frame: GridFrame, win: Window, tol: Tolerances) -> None:
+    def __init__(self, frame: GridFrame, win: Window, tol: Tolerances, settings: RasterSettings) -> None:
         self.frame, self.win, self.tol = frame, win, tol.cell_m / frame.resolution_m
+        self.chunk_pairs = settings.chunk_pairs
         self.starts: list[IntArray] = []
         self.ends: list[IntArray] = []
         self.segments: list[FloatArray] = [np.empty((4, 0))]
@@ -247,7 +292,9 @@ class _Cells:
         self.segment_winding: list[Int8Array] = [np.empty(0, np.int8)]
 
     def add_polygons(self, polygons: _Polygons | SlabGeometry, idx: IntArray | None = None) -> None:
-        for spans in _polygon_spans(polygons, idx, self.frame, self.win, self.tol):
+        for spans in _polygon_spans(
+            polygons, idx, self.frame, self.win, self.tol, chunk_pairs=self.chunk_pairs
+        ):
             self._add(spans)
 
     def add_segments(self, source: _Polygons | SlabGeometry, idx: IntArray | slice = slice(None)) -> None:
@@ -329,6 +376,7 @@ def _parts(
     z_hi: float,
     region: tuple[float, float, float, float] | None,
     tol: Tolerances,
+    settings: RasterSettings,
 ) -> Iterator[_Polygons]:
     """The slab geometry of the triangles meeting the slab (and the world ``region``), chunk by chunk.
 
@@ -338,8 +386,9 @@ def _parts(
     """
     picked: list[IntArray] = []
     inside: list[BoolArray] = []
-    for i in range(0, len(triangles), CHUNK_TRIANGLES):
-        chunk = triangles[i : i + CHUNK_TRIANGLES]
+    size = settings.chunk_triangles
+    for i in range(0, len(triangles), size):
+        chunk = triangles[i : i + size]
         if not (np.isfinite(chunk.sum()) or np.isfinite(chunk).all()):
             bad = i + int(np.flatnonzero(~np.isfinite(chunk).all(axis=(1, 2)))[0])
             msg = f"triangles must be finite, triangle {bad} is {triangles[bad].tolist()}."
@@ -354,11 +403,11 @@ def _parts(
         picked.append(idx + i)
     idx = np.concatenate(picked) if picked else np.empty(0, np.intp)
     flags = np.concatenate(inside) if inside else np.ones(len(idx), dtype=bool)
-    for i in range(0, max(len(idx), 1), CHUNK_TRIANGLES):
-        sel = idx[i : i + CHUNK_TRIANGLES]
+    for i in range(0, max(len(idx), 1), size):
+        sel = idx[i : i + size]
         run = len(sel) > 0 and sel[-1] - sel[0] == len(sel) - 1
         rows: slice | IntArray = slice(sel[0], sel[-1] + 1) if run else sel  # a run needs no copy
-        keep = flags[i : i + CHUNK_TRIANGLES]
+        keep = flags[i : i + size]
         part = _slab_chunk(triangles[rows], element[rows], keep, closed=closed, z_lo=z_lo, z_hi=z_hi, tol=tol)
         if region is not None:
             seg = part.segments
@@ -510,20 +559,27 @@ def _expand(lo: IntArray, hi: IntArray) -> tuple[IntArray, IntArray]:
     return owner, np.arange(len(owner)) + shift[owner]
 
 
-def _batches(counts: IntArray) -> list[slice]:
-    """Consecutive runs of items of at most ``CHUNK_PAIRS`` total ``counts`` each (or of one item)."""
+def _batches(counts: IntArray, limit: int) -> list[slice]:
+    """Consecutive runs of items of at most ``limit`` total ``counts`` each (or of one item)."""
     if not len(counts):
         return []
     total = np.cumsum(counts)
-    cuts = np.searchsorted(total, np.arange(CHUNK_PAIRS, total[-1], CHUNK_PAIRS), side="right")
+    cuts = np.searchsorted(total, np.arange(limit, total[-1], limit), side="right")
     bounds = [0, *np.unique(cuts[(cuts > 0) & (cuts < len(counts))]).tolist(), len(counts)]
     return [slice(a, b) for a, b in pairwise(bounds)]
 
 
 def _polygon_spans(
-    polygons: _Polygons | SlabGeometry, idx: IntArray | None, frame: GridFrame, win: Window, tol: float
+    polygons: _Polygons | SlabGeometry,
+    idx: IntArray | None,
+    frame: GridFrame,
+    win: Window,
+    tol: float,
+    *,
+    chunk_pairs: int,
 ) -> list[Spans]:
-    """Spans of the cells of ``win`` rows touched by the polygons ``idx`` (None: all).
+    """Spans of the cells of ``win`` rows touched by the polygons ``idx`` (None: all), expanded in
+    batches of at most ``chunk_pairs`` (polygon, row) pairs.
 
     Cells are ``[c + s, c + 1 - s] x [r + s, r + 1 - s]`` in grid units, ``s = tol`` (``-tol`` for thin
     polygons). A convex polygon touches every row its y-range meets; in a row, the columns its x-range
@@ -549,7 +605,7 @@ def _polygon_spans(
     one = live & boxed & (r_lo == r_hi)  # most polygons: one span, no expansion
     out = [(r_lo[one], c_lo[one], c_hi[one])]
     pick = np.flatnonzero(live & boxed & ~one)
-    for sl in _batches(r_hi[pick] - r_lo[pick] + 1):
+    for sl in _batches(r_hi[pick] - r_lo[pick] + 1, chunk_pairs):
         p = pick[sl]
         owner, row = _expand(r_lo[p], r_hi[p])
         out.append((row, c_lo[p][owner], c_hi[p][owner]))
@@ -566,7 +622,7 @@ def _polygon_spans(
     order = np.argsort(size, kind="stable")
     gen, size = gen[order], size[order]
     u, v = (xs[:, order] - ox) / res, (ys[:, order] - oy) / res
-    for sl in _batches(r_hi[gen] - r_lo[gen] + 1):
+    for sl in _batches(r_hi[gen] - r_lo[gen] + 1, chunk_pairs):
         g = gen[sl]
         out.append(_strip_spans(u[:, sl], v[:, sl], size[sl], s=s[g], r_lo=r_lo[g], r_hi=r_hi[g]))
     return out

@@ -40,6 +40,12 @@ class Mesh:
     closed: bool
 
     def __post_init__(self) -> None:
+        if self.vertices.dtype != np.float64 or self.faces.dtype != np.int32:
+            msg = (
+                "Mesh arrays must be float64 vertices and int32 faces, "
+                f"got {self.vertices.dtype} and {self.faces.dtype}."
+            )
+            raise ModelError(msg)
         if self.vertices.ndim != 2 or self.vertices.shape[1] != 3:
             msg = f"Mesh vertices must have shape (n, 3), got {self.vertices.shape}."
             raise ModelError(msg)
@@ -136,7 +142,6 @@ class Element:
             ``IfcWall``, ``IfcBuildingElement``, ...), so selections by type include subtypes.
         materials: IfcMaterial names, in file order, without duplicates.
         is_static: part of the building's fixed structure (configured per IFC class).
-        storey_guid: the storey that contains it (directly or through a parent), if any.
         geometry: local mesh + placement, or None when it has no body or failed to mesh.
     """
 
@@ -145,7 +150,6 @@ class Element:
     name: str
     materials: tuple[str, ...]
     is_static: bool
-    storey_guid: str | None = None
     geometry: Geometry | None = None
     ifc_types: tuple[str, ...] = ()
 

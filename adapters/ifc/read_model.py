@@ -186,15 +186,7 @@ def read_model(
         infos = []
         for e in elements:
             chain = _supertypes(schema, e.is_a(), type_cache)
-            infos.append(
-                (
-                    e,
-                    chain,
-                    material_names(e),
-                    any(t in chain for t in statics),
-                    guid_of(_ancestor(e, up, "IfcBuildingStorey")),
-                )
-            )
+            infos.append((e, chain, material_names(e), any(t in chain for t in statics)))
         relations = _relations(f, elements, spaces=spaces, zones=[*storeys, *buildings, *sites])
         meshed = job.result()
     first_kernel = kernels[0] if kernels else ""
@@ -212,11 +204,10 @@ def read_model(
             name=str(e.Name or ""),
             materials=materials,
             is_static=is_static,
-            storey_guid=storey,
             geometry=meshed.geometry.get(e.id()),
             ifc_types=chain,
         )
-        for e, chain, materials, is_static, storey in infos
+        for e, chain, materials, is_static in infos
     )
     adjacent, contained, decomposed = relations
     return BuildingModel(

@@ -17,10 +17,9 @@ import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from twin import raster
 from twin.errors import MapError
 from twin.grid import GridFrame, Window
-from twin.raster import TOLERANCES, rasterize, rasterize_slab, slab_geometry
+from twin.raster import TOLERANCES, RasterSettings, rasterize, rasterize_slab, slab_geometry
 
 TOL = TOLERANCES.cell_m
 FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -395,27 +394,39 @@ def test_any_window_equals_the_same_slice_of_the_full_map_bit_for_bit(scene, sla
     np.testing.assert_array_equal(rasterize_slab(tri[near], el[near], closed, *slab, FRAME, win), want)
 
 
+TINY = RasterSettings(chunk_triangles=7, chunk_polygons=5, chunk_pairs=16, tile_m=0.3, block=3)
+
+
 @settings(max_examples=20, deadline=None)
 @given(scene=scenes(max_elements=8), slab=slabs)
 def test_small_chunks_and_index_blocks_give_the_same_map(scene, slab):
     full = run(scene, *slab, FRAME)
     tri, el, closed = scene.arrays()
     win = Window(7, 11, 40, 50)
-    sizes = (raster.CHUNK_TRIANGLES, raster.CHUNK_POLYGONS, raster.CHUNK_PAIRS, raster.BLOCK, raster.TILE_M)
-    try:
-        raster.CHUNK_TRIANGLES, raster.CHUNK_POLYGONS, raster.CHUNK_PAIRS, raster.BLOCK, raster.TILE_M = (
-            7,
-            5,
-            16,
-            3,
-            0.3,
-        )
-        np.testing.assert_array_equal(run(scene, *slab, FRAME), full)
-        geometry = slab_geometry(tri, el, closed, *slab)
-        np.testing.assert_array_equal(rasterize(geometry, FRAME), full)
-        np.testing.assert_array_equal(rasterize(geometry, FRAME, win), full[7:40, 11:50])
-    finally:
-        raster.CHUNK_TRIANGLES, raster.CHUNK_POLYGONS, raster.CHUNK_PAIRS, raster.BLOCK, raster.TILE_M = sizes
+    np.testing.assert_array_equal(rasterize_slab(tri, el, closed, *slab, FRAME, settings=TINY), full)
+    np.testing.assert_array_equal(
+        rasterize_slab(tri, el, closed, *slab, FRAME, win, settings=TINY), full[7:40, 11:50]
+    )
+    geometry = slab_geometry(tri, el, closed, *slab, settings=TINY)
+    np.testing.assert_array_equal(rasterize(geometry, FRAME, settings=TINY), full)
+    np.testing.assert_array_equal(rasterize(geometry, FRAME, win, settings=TINY), full[7:40, 11:50])
+    # the geometry keeps its own index block size, whatever chunk sizes rasterise it
+    np.testing.assert_array_equal(rasterize(geometry, FRAME, win), full[7:40, 11:50])
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"chunk_triangles": 0}, r"chunk_triangles must be a positive integer, got 0"),
+        ({"block": 2.5}, r"block must be a positive integer, got 2.5"),
+        ({"chunk_pairs": True}, r"chunk_pairs must be a positive integer, got True"),
+        ({"tile_m": float("nan")}, r"tile_m must be a positive, finite number of metres, got nan"),
+        ({"tile_m": 0.0}, r"tile_m must be a positive, finite number of metres, got 0.0"),
+    ],
+)
+def test_unusable_raster_settings_are_refused(change, match):
+    with pytest.raises(MapError, match=match):
+        RasterSettings(**change)
 
 
 def test_an_element_entirely_above_or_below_the_slab_contributes_nothing():
