@@ -141,7 +141,7 @@ class _KernelRun:
         self._child.start()
         sender.close()
         self._on_shapes = on_shapes
-        self.batches: list[list[Shape]] = []
+        self.meshed: list[tuple[int, str, Mesh | None, Any]] = []  # product, geometry id, new mesh, matrix
         self.finished = False
         self.error: str | None = None
         self._thread = threading.Thread(target=self._drain, name=f"twin-mesh-{kernel}", daemon=True)
@@ -163,7 +163,9 @@ class _KernelRun:
             if isinstance(message, str):
                 self.error = message
                 break
-            self.batches.append(message)
+            for pid, geom_id, verts, faces, matrix in message:
+                mesh = _make_mesh(verts, faces) if verts is not None and len(faces) else None
+                self.meshed.append((pid, geom_id, mesh, matrix))
             self._on_shapes(len(message))
         self._receiver.close()
 
@@ -228,14 +230,13 @@ class MeshingJob:
         run.wait()
         meshes: dict[str, Mesh] = {}
         result = self._result
-        for batch in run.batches:
-            for pid, geom_id, verts, faces, matrix in batch:
-                if verts is not None and len(faces):  # an empty mesh is no mesh: the next kernel tries
-                    meshes[geom_id] = _make_mesh(verts, faces)
-                if pid in self._pending and geom_id in meshes:
-                    result.geometry[pid] = Geometry(meshes[geom_id], check_placement(matrix))
-                    result.kernel_of[pid] = run.kernel
-                    self._pending.discard(pid)
+        for pid, geom_id, mesh, matrix in run.meshed:
+            if mesh is not None:  # an empty mesh is no mesh: the next kernel tries
+                meshes[geom_id] = mesh
+            if pid in self._pending and geom_id in meshes:
+                result.geometry[pid] = Geometry(meshes[geom_id], check_placement(matrix))
+                result.kernel_of[pid] = run.kernel
+                self._pending.discard(pid)
         with self._lock:
             self._received = len(result.geometry)
         left = len(self._pending)
