@@ -33,7 +33,7 @@ from PIL import Image, ImageDraw
 
 from twin.grid import GridFrame
 from twin.maps import MapPlan
-from twin.scene import IndexArray, Scene
+from twin.scene import IndexArray, Scene, SlabBox
 
 FloatArray = npt.NDArray[np.float64]
 BoolGrid = npt.NDArray[np.bool_]
@@ -66,8 +66,7 @@ class Welded:
 def near_elements(scene: Scene, plan: MapPlan, ids: IndexArray | None = None) -> IndexArray:
     """The selected elements whose AABB meets the frame and the slab (the same test as ``twin.maps``)."""
     f = plan.frame
-    return scene.elements.overlapping(
-        plan.selected if ids is None else ids,
+    box = SlabBox(
         xmin=f.origin_x,
         ymin=f.origin_y,
         xmax=f.origin_x + f.width * f.resolution_m,
@@ -75,6 +74,7 @@ def near_elements(scene: Scene, plan: MapPlan, ids: IndexArray | None = None) ->
         z_lo=plan.z_lo,
         z_hi=plan.z_hi,
     )
+    return scene.elements.overlapping(plan.selected if ids is None else ids, box)
 
 
 # --- rasterising with Pillow -----------------------------------------------------------------------

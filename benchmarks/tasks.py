@@ -213,6 +213,8 @@ class MapSetup:
 def busiest_storey(scene: Any, navigation: Any) -> str:
     """The storey whose navigation slab (``navigation.z_range`` above its elevation, over its extent)
     meets the most element bounding boxes: the busiest floor a robot drives on. First one on ties."""
+    from twin.scene import SlabBox
+
     everything = np.arange(len(scene.elements), dtype=np.intp)
     lo, hi = navigation.z_range
 
@@ -220,7 +222,7 @@ def busiest_storey(scene: Any, navigation: Any) -> str:
         xmin, ymin, xmax, ymax = storey.extent
         z0 = storey.elevation_m
         near = scene.elements.overlapping(
-            everything, xmin=xmin, ymin=ymin, xmax=xmax, ymax=ymax, z_lo=z0 + lo, z_hi=z0 + hi
+            everything, SlabBox(xmin, ymin, xmax, ymax, z_lo=z0 + lo, z_hi=z0 + hi)
         )
         return len(near)
 

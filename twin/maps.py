@@ -25,7 +25,7 @@ import numpy.typing as npt
 from twin.errors import MapError
 from twin.grid import FREE, OCCUPIED, UNKNOWN, GridData, GridFrame, OccupancyGrid, Window
 from twin.raster import rasterize_slab
-from twin.scene import IndexArray, MeshSet, Scene, StoreyInfo
+from twin.scene import IndexArray, MeshSet, Scene, SlabBox, StoreyInfo
 from twin.skills import SkillProfile
 
 BoolGrid = npt.NDArray[np.bool_]
@@ -82,21 +82,21 @@ def plan_map(
 def _occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -> BoolGrid:
     f = plan.frame
     res, eps = f.resolution_m, 1e-6
-    box = {
-        "xmin": f.origin_x + window.col0 * res - eps,
-        "ymin": f.origin_y + window.row0 * res - eps,
-        "xmax": f.origin_x + window.col1 * res + eps,
-        "ymax": f.origin_y + window.row1 * res + eps,
-        "z_lo": plan.z_lo,
-        "z_hi": plan.z_hi,
-    }
-    near = meshes.overlapping(ids, **box)
+    box = SlabBox(
+        xmin=f.origin_x + window.col0 * res - eps,
+        ymin=f.origin_y + window.row0 * res - eps,
+        xmax=f.origin_x + window.col1 * res + eps,
+        ymax=f.origin_y + window.row1 * res + eps,
+        z_lo=plan.z_lo,
+        z_hi=plan.z_hi,
+    )
+    near = meshes.overlapping(ids, box)
     if len(near) == 0:
         return np.zeros(window.shape, dtype=np.bool_)
     if window == f.full:
         triangles, owner = meshes.triangles_of(near)
     else:
-        triangles, owner = meshes.triangles_for_window(near, **box)
+        triangles, owner = meshes.triangles_for_window(near, box)
     return rasterize_slab(triangles, owner, meshes.closed[near], plan.z_lo, plan.z_hi, f, window)
 
 

@@ -8,7 +8,7 @@ Example::
 
     scene = load_scene(store)
     ids = scene.elements.indices_of(iris)            # selected elements
-    near = scene.elements.overlapping(ids, xmin=0, ymin=0, xmax=5, ymax=5, z_lo=0.05, z_hi=1.5)
+    near = scene.elements.overlapping(ids, SlabBox(0.0, 0.0, 5.0, 5.0, z_lo=0.05, z_hi=1.5))
     tris, owner = scene.elements.triangles_of(near)
 """
 
@@ -29,6 +29,18 @@ from twin.store import GraphStore, literal_value
 log = logging.getLogger(__name__)
 
 IndexArray = npt.NDArray[np.intp]
+
+
+@dataclass(frozen=True, slots=True)
+class SlabBox:
+    """A world box: an XY rectangle and a z slab, metres (what a map window depends on)."""
+
+    xmin: float
+    ymin: float
+    xmax: float
+    ymax: float
+    z_lo: float
+    z_hi: float
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -82,26 +94,16 @@ class MeshSet:
         """Positions of ``iris`` that have geometry here (others are ignored), sorted."""
         return np.array(sorted({self.index[i] for i in iris if i in self.index}), dtype=np.intp)
 
-    def overlapping(
-        self,
-        ids: IndexArray,
-        *,
-        xmin: float,
-        ymin: float,
-        xmax: float,
-        ymax: float,
-        z_lo: float,
-        z_hi: float,
-    ) -> IndexArray:
-        """The subset of ``ids`` whose AABB meets the box (closed intervals)."""
+    def overlapping(self, ids: IndexArray, box: SlabBox) -> IndexArray:
+        """The subset of ``ids`` whose AABB meets ``box`` (closed intervals; empty meshes never do)."""
         b = self.bounds[ids]
         keep = (
-            (b[:, 0] <= xmax)
-            & (b[:, 3] >= xmin)
-            & (b[:, 1] <= ymax)
-            & (b[:, 4] >= ymin)
-            & (b[:, 2] <= z_hi)
-            & (b[:, 5] >= z_lo)
+            (b[:, 0] <= box.xmax)
+            & (b[:, 3] >= box.xmin)
+            & (b[:, 1] <= box.ymax)
+            & (b[:, 4] >= box.ymin)
+            & (b[:, 2] <= box.z_hi)
+            & (b[:, 5] >= box.z_lo)
         )
         return ids[keep]
 
@@ -121,15 +123,7 @@ class MeshSet:
         return self.triangles[rows], owner
 
     def triangles_for_window(
-        self,
-        ids: IndexArray,
-        *,
-        xmin: float,
-        ymin: float,
-        xmax: float,
-        ymax: float,
-        z_lo: float,
-        z_hi: float,
+        self, ids: IndexArray, box: SlabBox
     ) -> tuple[npt.NDArray[np.float64], IndexArray]:
         """Like :meth:`triangles_of`, but only the triangles a slab map of the box can depend on.
 
@@ -139,9 +133,11 @@ class MeshSet:
         """
         rows, owner = self._rows_of(ids)
         tb = self.triangle_bounds[rows]
-        z_f = 0.5 * (z_lo + z_hi)
-        in_rows = (tb[:, 1] <= ymax) & (tb[:, 4] >= ymin) & (tb[:, 2] <= z_hi) & (tb[:, 5] >= z_lo)
-        in_box = (tb[:, 0] <= xmax) & (tb[:, 3] >= xmin)
+        z_f = 0.5 * (box.z_lo + box.z_hi)
+        in_rows = (
+            (tb[:, 1] <= box.ymax) & (tb[:, 4] >= box.ymin) & (tb[:, 2] <= box.z_hi) & (tb[:, 5] >= box.z_lo)
+        )
+        in_box = (tb[:, 0] <= box.xmax) & (tb[:, 3] >= box.xmin)
         crosses_fill = self.closed[ids][owner] & (tb[:, 2] <= z_f) & (tb[:, 5] >= z_f)
         keep = in_rows & (in_box | crosses_fill)
         return self.triangles[rows[keep]], owner[keep]

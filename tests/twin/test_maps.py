@@ -15,7 +15,7 @@ from twin.config import Config
 from twin.grid import OCCUPIED, OccupancyGrid, Window
 from twin.maps import build_map, dilate_disk, plan_map, render_window
 from twin.records import BuildingModel
-from twin.scene import Scene, load_scene
+from twin.scene import Scene, SlabBox, load_scene
 from twin.skills import SkillProfile, parse_skill, selection_query
 from twin.store import GraphStore, literal_value
 
@@ -227,12 +227,14 @@ def _reference_window(scene: Scene, plan, win: Window) -> tuple[np.ndarray, np.n
     ms = scene.elements
     near = ms.overlapping(
         plan.selected,
-        xmin=sub.origin_x - 0.1,
-        ymin=sub.origin_y - 0.1,
-        xmax=sub.origin_x + sub.width * sub.resolution_m + 0.1,
-        ymax=sub.origin_y + sub.height * sub.resolution_m + 0.1,
-        z_lo=plan.z_lo,
-        z_hi=plan.z_hi,
+        SlabBox(
+            xmin=sub.origin_x - 0.1,
+            ymin=sub.origin_y - 0.1,
+            xmax=sub.origin_x + sub.width * sub.resolution_m + 0.1,
+            ymax=sub.origin_y + sub.height * sub.resolution_m + 0.1,
+            z_lo=plan.z_lo,
+            z_hi=plan.z_hi,
+        ),
     )
     for k in near:
         tris = ms.triangles[ms.start[k] : ms.start[k + 1]]

@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 
 from twin.records import Mesh
-from twin.scene import MeshSet
+from twin.scene import MeshSet, SlabBox
 
 BOX_V = np.array([[x, y, z] for x in (0.0, 1) for y in (0.0, 1) for z in (0.0, 1)])
 BOX_F = np.array(
@@ -41,7 +41,7 @@ def test_an_empty_mesh_has_no_bounds_and_never_overlaps() -> None:
     ms = MeshSet.build([("a", Mesh(BOX_V, BOX_F, True), _placed(100.0)), ("b", empty, np.eye(4))])
     assert np.isnan(ms.bounds[1]).all()
     ids = np.arange(2, dtype=np.intp)
-    near = ms.overlapping(ids, xmin=-1e9, ymin=-1e9, xmax=1e9, ymax=1e9, z_lo=-1e9, z_hi=1e9)
+    near = ms.overlapping(ids, SlabBox(-1e9, -1e9, 1e9, 1e9, z_lo=-1e9, z_hi=1e9))
     assert near.tolist() == [0]
 
 
