@@ -189,3 +189,24 @@ def test_a_bad_config_or_query_file_is_a_one_line_error(lab_store_dir: Path, tmp
     assert r.returncode == 1
     assert "missing.rq" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_the_progress_bar_draws_on_a_terminal_and_ends_once() -> None:
+    import io
+
+    from twin.cli import ProgressBar
+
+    class Tty(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    out = Tty()
+    bar = ProgressBar("meshing", stream=out)
+    for done in (1, 50, 100, 100):
+        bar(done, 100)
+    text = out.getvalue()
+    assert "100/100" in text
+    assert text.count("\n") == 1
+    quiet = io.StringIO()
+    ProgressBar("meshing", stream=quiet)(1, 2)
+    assert quiet.getvalue() == ""

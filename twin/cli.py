@@ -28,9 +28,10 @@ class ProgressBar:
         self.enabled = self.stream.isatty()
         self.start = time.monotonic()
         self._last = -1.0
+        self._finished = False
 
     def __call__(self, done: int, total: int) -> None:
-        if not self.enabled or total <= 0:
+        if not self.enabled or total <= 0 or self._finished:
             return
         now = time.monotonic()
         if done < total and now - self._last < 0.1:
@@ -42,6 +43,7 @@ class ProgressBar:
         rate = done / max(now - self.start, 1e-9)
         self.stream.write(f"\r{self.label} [{bar}] {done}/{total} ({rate:.0f}/s)")
         if done >= total:
+            self._finished = True
             self.stream.write("\n")
         self.stream.flush()
 

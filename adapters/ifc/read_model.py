@@ -20,6 +20,7 @@ import ifcopenshell.util.element
 import ifcopenshell.util.placement
 import ifcopenshell.util.unit
 
+from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
 from adapters.ifc.open_file import open_ifc
 from twin.records import Building, BuildingModel, Element, Relation, Site, Space, Storey
@@ -165,6 +166,23 @@ def read_model(
     progress: Progress | None = None,
 ) -> BuildingModel:
     """Read ``path`` into records. Raise :class:`~adapters.ifc.errors.IfcFileError` on a bad file."""
+    try:
+        return _read_model(
+            path, static_types=static_types, kernels=kernels, threads=threads, progress=progress
+        )
+    except RuntimeError as err:  # ifcopenshell parses lazily: a corrupt entity surfaces while reading
+        msg = f"{path} cannot be read as IFC: {str(err).strip() or type(err).__name__}"
+        raise IfcFileError(msg) from err
+
+
+def _read_model(
+    path: Path,
+    *,
+    static_types: Sequence[str] = (),
+    kernels: Sequence[str] = DEFAULT_KERNELS,
+    threads: int = 2,
+    progress: Progress | None = None,
+) -> BuildingModel:
     f, lines = open_ifc(path)
     scale = float(ifcopenshell.util.unit.calculate_unit_scale(f))
     sites = f.by_type("IfcSite")
