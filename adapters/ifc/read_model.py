@@ -11,7 +11,8 @@ Example::
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -157,6 +158,16 @@ def _relations(
     return adjacent, contained, decomposed
 
 
+@contextmanager
+def _as_file_error(path: Path) -> Iterator[None]:
+    """ifcopenshell parses lazily: a corrupt entity raises RuntimeError wherever it is first read."""
+    try:
+        yield
+    except RuntimeError as err:
+        msg = f"{path} cannot be read as IFC: {str(err).strip() or type(err).__name__}"
+        raise IfcFileError(msg) from err
+
+
 def read_model(
     path: Path,
     *,
@@ -166,99 +177,85 @@ def read_model(
     progress: Progress | None = None,
 ) -> BuildingModel:
     """Read ``path`` into records. Raise :class:`~adapters.ifc.errors.IfcFileError` on a bad file."""
-    try:
-        return _read_model(
-            path, static_types=static_types, kernels=kernels, threads=threads, progress=progress
-        )
-    except RuntimeError as err:  # ifcopenshell parses lazily: a corrupt entity surfaces while reading
-        msg = f"{path} cannot be read as IFC: {str(err).strip() or type(err).__name__}"
-        raise IfcFileError(msg) from err
-
-
-def _read_model(
-    path: Path,
-    *,
-    static_types: Sequence[str] = (),
-    kernels: Sequence[str] = DEFAULT_KERNELS,
-    threads: int = 2,
-    progress: Progress | None = None,
-) -> BuildingModel:
     f, lines = open_ifc(path)
-    scale = float(ifcopenshell.util.unit.calculate_unit_scale(f))
-    sites = f.by_type("IfcSite")
-    buildings = f.by_type("IfcBuilding")
-    storeys = f.by_type("IfcBuildingStorey")
-    spaces = f.by_type("IfcSpace")
-    elements = f.by_type("IfcElement")
+    with _as_file_error(path):
+        scale = float(ifcopenshell.util.unit.calculate_unit_scale(f))
+        sites = f.by_type("IfcSite")
+        buildings = f.by_type("IfcBuilding")
+        storeys = f.by_type("IfcBuildingStorey")
+        spaces = f.by_type("IfcSpace")
+        elements = f.by_type("IfcElement")
 
-    # Mesh in the background (a forked child does the work) while this thread reads the structure.
-    with start_meshing(f, [*elements, *spaces], kernels=kernels, threads=threads, progress=progress) as job:
-        up = _hierarchy(f)
+        # Mesh in the background (a forked child does the work) while this thread reads the structure.
+        with start_meshing(
+            f, [*elements, *spaces], kernels=kernels, threads=threads, progress=progress
+        ) as job:
+            up = _hierarchy(f)
 
-        def guid_of(node: Any | None) -> str | None:
-            return str(node.GlobalId) if node is not None else None
+            def guid_of(node: Any | None) -> str | None:
+                return str(node.GlobalId) if node is not None else None
 
-        statics = tuple(static_types)
-        schema = ifcopenshell.ifcopenshell_wrapper.schema_by_name(f.schema)
-        type_cache: dict[str, tuple[str, ...]] = {}
-        infos = []
-        for e in elements:
-            chain = _supertypes(schema, e.is_a(), type_cache)
-            infos.append((e, chain, material_names(e), any(t in chain for t in statics)))
-        relations = _relations(f, elements, spaces=spaces, zones=[*storeys, *buildings, *sites])
-        meshed = job.result()
-    first_kernel = kernels[0] if kernels else ""
-    kernel_fallbacks = tuple(
-        f.by_id(pid).GlobalId
-        for pid, kernel in meshed.kernel_of.items()
-        if kernel != first_kernel and f.by_id(pid).is_a("IfcElement")
-    )
-    failures = tuple(f.by_id(pid).GlobalId for pid in meshed.unmeshed if f.by_id(pid).is_a("IfcElement"))
-    _warn_unmeshed(f, meshed.unmeshed)
-    element_records = tuple(
-        Element(
-            guid=str(e.GlobalId),
-            ifc_class=chain[0],
-            name=str(e.Name or ""),
-            materials=materials,
-            is_static=is_static,
-            geometry=meshed.geometry.get(e.id()),
-            ifc_types=chain,
+            statics = tuple(static_types)
+            schema = ifcopenshell.ifcopenshell_wrapper.schema_by_name(f.schema)
+            type_cache: dict[str, tuple[str, ...]] = {}
+            infos = []
+            for e in elements:
+                chain = _supertypes(schema, e.is_a(), type_cache)
+                infos.append((e, chain, material_names(e), any(t in chain for t in statics)))
+            relations = _relations(f, elements, spaces=spaces, zones=[*storeys, *buildings, *sites])
+            meshed = job.result()
+        first_kernel = kernels[0] if kernels else ""
+        kernel_fallbacks = tuple(
+            f.by_id(pid).GlobalId
+            for pid, kernel in meshed.kernel_of.items()
+            if kernel != first_kernel and f.by_id(pid).is_a("IfcElement")
         )
-        for e, chain, materials, is_static in infos
-    )
-    adjacent, contained, decomposed = relations
-    return BuildingModel(
-        source_name=Path(path).name,
-        schema=str(f.schema),
-        source_lines=lines,
-        sites=tuple(Site(str(s.GlobalId), str(s.Name or "")) for s in sites),
-        buildings=tuple(
-            Building(str(b.GlobalId), str(b.Name or ""), guid_of(_ancestor(b, up, "IfcSite")))
-            for b in buildings
-        ),
-        storeys=tuple(
-            Storey(
-                str(s.GlobalId),
-                str(s.Name or ""),
-                _elevation_m(s, scale),
-                guid_of(_ancestor(s, up, "IfcBuilding")),
+        failures = tuple(f.by_id(pid).GlobalId for pid in meshed.unmeshed if f.by_id(pid).is_a("IfcElement"))
+        _warn_unmeshed(f, meshed.unmeshed)
+        element_records = tuple(
+            Element(
+                guid=str(e.GlobalId),
+                ifc_class=chain[0],
+                name=str(e.Name or ""),
+                materials=materials,
+                is_static=is_static,
+                geometry=meshed.geometry.get(e.id()),
+                ifc_types=chain,
             )
-            for s in storeys
-        ),
-        spaces=tuple(
-            Space(
-                str(s.GlobalId),
-                str(s.Name or ""),
-                guid_of(_ancestor(s, up, "IfcBuildingStorey")),
-                meshed.geometry.get(s.id()),
-            )
-            for s in spaces
-        ),
-        elements=element_records,
-        adjacent=adjacent,
-        contained=contained,
-        decomposed=decomposed,
-        mesh_failures=failures,
-        kernel_fallbacks=kernel_fallbacks,
-    )
+            for e, chain, materials, is_static in infos
+        )
+        adjacent, contained, decomposed = relations
+        return BuildingModel(
+            source_name=Path(path).name,
+            schema=str(f.schema),
+            source_lines=lines,
+            sites=tuple(Site(str(s.GlobalId), str(s.Name or "")) for s in sites),
+            buildings=tuple(
+                Building(str(b.GlobalId), str(b.Name or ""), guid_of(_ancestor(b, up, "IfcSite")))
+                for b in buildings
+            ),
+            storeys=tuple(
+                Storey(
+                    str(s.GlobalId),
+                    str(s.Name or ""),
+                    _elevation_m(s, scale),
+                    guid_of(_ancestor(s, up, "IfcBuilding")),
+                )
+                for s in storeys
+            ),
+            spaces=tuple(
+                Space(
+                    str(s.GlobalId),
+                    str(s.Name or ""),
+                    guid_of(_ancestor(s, up, "IfcBuildingStorey")),
+                    meshed.geometry.get(s.id()),
+                )
+                for s in spaces
+            ),
+            elements=element_records,
+            adjacent=adjacent,
+            contained=contained,
+            decomposed=decomposed,
+            mesh_failures=failures,
+            kernel_fallbacks=kernel_fallbacks,
+        )
