@@ -167,8 +167,11 @@ def _note(r: Row) -> str:
             f"first (cold) run {secs(r['first_s'], 'ms')} ms; scene load {r['setup']['scene_load_s']:.2f} s; "
             f"{r['setup']['selected']} selected"
         )
-    if method == "twin-region":
-        return f"{r['windows']} windows of {r['window_cells']}^2 cells, max {secs(r.get('max_s'), 'ms')} ms"
+    if method in ("twin-region", "twin-region-prepared"):
+        note = f"{r['windows']} windows of {r['window_cells']}^2 cells, max {secs(r.get('max_s'), 'ms')} ms"
+        if "prepare_s" in r:
+            note += f"; slab prepared once in {secs(r['prepare_s'], 'ms')} ms"
+        return note
     if method == "trimesh":
         drawn = r.get("segments", r.get("triangles_drawn", 0))
         what = "segments" if "segments" in r else "triangles"
@@ -189,7 +192,7 @@ def _note(r: Row) -> str:
 
 def map_targets(r: Row, peers: list[Row]) -> str:
     method = r["method"]
-    if method == "twin-region" and "median_s" in r:
+    if method in ("twin-region", "twin-region-prepared") and "median_s" in r:
         return f"<5ms: {verdict(r['median_s'] < TARGET_REGION_S)}"
     if method == "twin-full" and JANESVILLE in r["model"].lower():
         peer_times = [p["median_s"] for p in peers if p["ok"] and "median_s" in p]

@@ -32,7 +32,7 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 SHARED_IFC = Path(__file__).resolve().parents[2] / "shared" / "data" / "ifc"
 SKILLS = ("localization", "navigation")
-MAP_METHODS = ("twin-full", "twin-region", "trimesh", "manifold3d")
+MAP_METHODS = ("twin-full", "twin-region", "twin-region-prepared", "trimesh", "manifold3d")
 PACKAGES = ("numpy", "ifcopenshell", "pyoxigraph", "trimesh", "manifold3d", "Pillow")
 SMALL_BYTES = 10_000_000
 RESULT_TAG = "BENCH-RESULT "

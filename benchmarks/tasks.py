@@ -32,7 +32,7 @@ REGION_M = 5.0
 REGION_WINDOWS = 20
 REGION_SEED = 20261122
 PEER_BUDGET_S = 20.0  # a slow peer repeats only while its runs stay within this budget
-MAP_METHODS = ("twin-full", "twin-region", "trimesh", "manifold3d")
+MAP_METHODS = ("twin-full", "twin-region", "twin-region-prepared", "trimesh", "manifold3d")
 
 
 # --- memory ----------------------------------------------------------------------------------------
@@ -302,24 +302,30 @@ def region_windows(occupied: np.ndarray, cells: int, count: int, seed: int) -> l
     ]
 
 
-def map_twin_region(setup: MapSetup, repeat: int) -> dict[str, Any]:
+def map_twin_region(setup: MapSetup, repeat: int, *, prepared: bool = False) -> dict[str, Any]:
+    """5 m x 5 m windows; ``prepared``: from the slab clipped once (``twin.maps.prepare_slab``)."""
     from twin.grid import OCCUPIED
-    from twin.maps import render_window
+    from twin.maps import prepare_slab, render_window
 
     full = _twin_occupied(setup)
     frame = setup.plan.frame
     cells = round(REGION_M / frame.resolution_m)
     windows = region_windows(full, cells, REGION_WINDOWS, REGION_SEED)
     memory = MethodMemory.start()
+    t0 = time.perf_counter()
+    slab = prepare_slab(setup.scene, setup.plan) if prepared else None
+    prepare_s = time.perf_counter() - t0
     medians: list[float] = []
     mismatched = 0
     for w in windows:
-        times, data = timed_runs(lambda w=w: render_window(setup.scene, setup.plan, w), repeat)
+        times, data = timed_runs(lambda w=w: render_window(setup.scene, setup.plan, w, prepared=slab), repeat)
         medians.append(statistics.median(times))
         clipped = w.intersect(frame.full)
         expected = full[clipped.row0 : clipped.row1, clipped.col0 : clipped.col1]
         mismatched += int(np.count_nonzero((data == OCCUPIED) != expected))
     out: dict[str, Any] = {**memory.report(), "windows": len(windows), "window_cells": cells}
+    if prepared:
+        out["prepare_s"] = prepare_s
     if medians:
         out |= {"median_s": statistics.median(medians), "max_s": max(medians), "runs": repeat}
     out["xor_cells"] = mismatched  # against the same window of the full map: must be 0
@@ -379,6 +385,8 @@ def run_map(path: Path, skill: str, method: str, repeat: int) -> dict[str, Any]:
         result = map_twin_full(setup, repeat)
     elif method == "twin-region":
         result = map_twin_region(setup, repeat)
+    elif method == "twin-region-prepared":
+        result = map_twin_region(setup, repeat, prepared=True)
     elif method in ("trimesh", "manifold3d"):
         result = map_peer(setup, repeat, method)
     else:

@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from twin.errors import MapError
 from twin.grid import FREE, OCCUPIED, UNKNOWN, GridData, GridFrame, OccupancyGrid, Window
-from twin.raster import rasterize_slab
+from twin.raster import SlabGeometry, rasterize, rasterize_slab, slab_geometry
 from twin.scene import IndexArray, MeshSet, Scene, SlabBox, StoreyInfo
 from twin.skills import SkillProfile
 
@@ -79,6 +79,27 @@ def plan_map(
     )
 
 
+@dataclass(frozen=True, eq=False, slots=True)
+class PreparedSlab:
+    """A plan's slab clipped once for a set of elements (e.g. the static ones), grid-independent.
+
+    Any window is then rasterised from the prepared polygons without touching the triangles again;
+    elements outside ``ids`` (e.g. what robots observed since) are rasterised from their triangles and
+    OR-ed in (a map is the union of its elements' maps), so the result is the same bit for bit.
+    """
+
+    ids: IndexArray
+    geometry: SlabGeometry
+
+
+def prepare_slab(scene: Scene, plan: MapPlan, ids: IndexArray | None = None) -> PreparedSlab:
+    """Clip ``ids`` (default: every element the plan selects) to the plan's slab, once."""
+    chosen = plan.selected if ids is None else np.intersect1d(ids, plan.selected)
+    triangles, owner = scene.elements.triangles_of(chosen)
+    closed = scene.elements.closed[chosen]
+    return PreparedSlab(chosen, slab_geometry(triangles, owner, closed, plan.z_lo, plan.z_hi))
+
+
 def _occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -> BoolGrid:
     f = plan.frame
     res, eps = f.resolution_m, 1e-6
@@ -129,8 +150,14 @@ def dilate_disk(occupied: BoolGrid, radius_cells: float) -> BoolGrid:
     return out
 
 
-def render_window(scene: Scene, plan: MapPlan, window: Window) -> GridData:
-    """The ``(rows, cols) int8`` values of ``window`` of the plan's map: 0 free, 100 occupied, -1 unknown."""
+def render_window(
+    scene: Scene, plan: MapPlan, window: Window, *, prepared: PreparedSlab | None = None
+) -> GridData:
+    """The ``(rows, cols) int8`` values of ``window`` of the plan's map: 0 free, 100 occupied, -1 unknown.
+
+    With ``prepared``, its elements come from the prepared polygons (fast for repeated windows) and
+    only the plan's other elements are sliced from their triangles; the cells are the same.
+    """
     window = window.intersect(plan.frame.full)
     if window.empty:
         return np.zeros((max(window.shape[0], 0), max(window.shape[1], 0)), dtype=np.int8)
@@ -138,7 +165,13 @@ def render_window(scene: Scene, plan: MapPlan, window: Window) -> GridData:
     padded = Window(window.row0 - pad, window.col0 - pad, window.row1 + pad, window.col1 + pad).intersect(
         plan.frame.full
     )
-    occupied = _occupancy(scene.elements, plan.selected, plan, padded)
+    if prepared is None:
+        occupied = _occupancy(scene.elements, plan.selected, plan, padded)
+    else:
+        occupied = rasterize(prepared.geometry, plan.frame, padded)
+        rest = np.setdiff1d(plan.selected, prepared.ids, assume_unique=True)
+        if len(rest):
+            occupied |= _occupancy(scene.elements, rest, plan, padded)
     if pad:
         occupied = dilate_disk(occupied, plan.inflation_cells)
     r0, c0 = window.row0 - padded.row0, window.col0 - padded.col0
@@ -150,11 +183,11 @@ def render_window(scene: Scene, plan: MapPlan, window: Window) -> GridData:
     return data
 
 
-def build_map(scene: Scene, plan: MapPlan) -> OccupancyGrid:
+def build_map(scene: Scene, plan: MapPlan, *, prepared: PreparedSlab | None = None) -> OccupancyGrid:
     """The full map of ``plan``."""
     return OccupancyGrid(
         frame=plan.frame,
-        data=render_window(scene, plan, plan.frame.full),
+        data=render_window(scene, plan, plan.frame.full, prepared=prepared),
         storey=plan.storey.key,
         skill=plan.skill.name,
         elevation_m=plan.storey.elevation_m,

@@ -13,7 +13,7 @@ from tests.conftest import imported, shared_model
 from tests.twin.reference import rasterize_reference, slab_geometry
 from twin.config import Config
 from twin.grid import OCCUPIED, OccupancyGrid, Window
-from twin.maps import build_map, dilate_disk, plan_map, render_window
+from twin.maps import build_map, dilate_disk, plan_map, prepare_slab, render_window
 from twin.records import BuildingModel
 from twin.scene import Scene, SlabBox, load_scene
 from twin.skills import SkillProfile, parse_skill, selection_query
@@ -184,9 +184,12 @@ def test_any_window_recomputed_alone_equals_the_full_map_on_the_lab(lab_store, l
     skill = parse_skill("w", {"kind": "navigation", "robot_height_m": 0.5, "inflation_radius_m": inflation})
     plan = plan_map(lab_scene, skill, "ground-floor", selected(lab_store, skill))
     full = build_map(lab_scene, plan).data
+    prepared = prepare_slab(lab_scene, plan, plan.selected[1:])
     for window in _windows(plan.frame, np.random.default_rng(3), 40):
         w = window.intersect(plan.frame.full)
-        assert np.array_equal(render_window(lab_scene, plan, w), full[w.row0 : w.row1, w.col0 : w.col1]), w
+        want = full[w.row0 : w.row1, w.col0 : w.col1]
+        assert np.array_equal(render_window(lab_scene, plan, w), want), w
+        assert np.array_equal(render_window(lab_scene, plan, w, prepared=prepared), want), w
 
 
 SHARED_FOR_MAPS = ["AC20-FZK-Haus.ifc", "AC11-Institute-Var-2-IFC.ifc", "revit2012_janesville_restaurant.ifc"]
@@ -248,6 +251,22 @@ def _reference_window(scene: Scene, plan, win: Window) -> tuple[np.ndarray, np.n
             strict |= rasterize_reference(geom, sub, grow=-1e-6)
             loose |= rasterize_reference(geom, sub, grow=+1e-6)
     return strict, loose
+
+
+def test_windows_from_a_prepared_slab_equal_the_full_map(shared_scene, config: Config) -> None:
+    """Static elements prepared once, the others (as if observed later) sliced per window: same cells."""
+    store, scene = shared_scene
+    for name in ("localization", "navigation"):
+        skill = config.skill(name)
+        plan = plan_map(scene, skill, scene.storeys[0].key, selected(store, skill))
+        full = build_map(scene, plan).data
+        static = plan.selected[::2]  # any split: half prepared, half sliced from triangles
+        prepared = prepare_slab(scene, plan, static)
+        assert np.array_equal(build_map(scene, plan, prepared=prepared).data, full)
+        for window in _windows(plan.frame, np.random.default_rng(13), 15):
+            w = window.intersect(plan.frame.full)
+            got = render_window(scene, plan, w, prepared=prepared)
+            assert np.array_equal(got, full[w.row0 : w.row1, w.col0 : w.col1])
 
 
 def test_maps_match_an_exact_polygon_reference_on_shared_models(shared_scene, config: Config) -> None:
