@@ -1,0 +1,66 @@
+"""Slab rasterising: which grid cells the elements' geometry between two heights touches.
+
+The geometry of a height slab ``z_lo <= z <= z_hi`` is, for every triangle, its part inside the slab
+(a convex polygon of up to 5 vertices) projected to XY, plus, for closed (watertight) elements, the
+solid's interior inside the slab. A cell is occupied iff that geometry touches the cell, where
+
+- cells are closed squares *shrunk* by ``Tolerances.cell_m`` for every projected polygon of positive
+  area and for every polygon of a closed element (a wall face lying exactly on a grid line does not
+  spill into the neighbouring cell), and
+- cells are *grown* by ``Tolerances.cell_m`` for the degenerate polygons (area at most ``cell_m``
+  times their extent: a vertical face seen from above, a point) of open elements, so thin open
+  surfaces never vanish, not even on a grid line.
+
+Closed elements are filled exactly: a cell overlapping the solid's projection either contains part of
+its boundary, which lies on some clipped triangle, or has its centre inside the solid's section at
+the slab's mid-height ``z_f``. The section is cast against every cell-centre row line; the crossings
+are sorted per element and row and a point is inside where the winding number is non-zero, so
+overlapping shells of one element, and overlapping elements, never cancel.
+
+In each row strip a convex polygon touches exactly the cells whose x-interval overlaps the polygon's
+x-range within the strip; spans become cells through a difference array. Everything is computed in
+global grid coordinates, so a window is bit for bit the same window of the full result. A window can
+also be computed from only the elements whose bounds meet it (with all their triangles): the other
+elements contribute nothing there.
+
+Arrays are processed whole, in cache-sized chunks, never per triangle or per cell. Inputs follow
+trimesh's conventions (triangles ``(n, 3, 3) float64``, world metres); prepared geometry is stored
+coordinate-major (``(5, m)``) because column access dominates the cost.
+
+Example::
+
+    frame = GridFrame.around(0.0, 0.0, 10.0, 8.0, resolution_m=0.05)
+    occupied = rasterize_slab(triangles, element, closed, 0.05, 1.5, frame)  # (height, width) bool
+"""
+
+from twin.raster.api import rasterize, rasterize_slab, slab_geometry
+from twin.raster.clip import SlabGeometry
+from twin.raster.settings import (
+    MAX_VERTICES,
+    RASTER_SETTINGS,
+    TOLERANCES,
+    BoolArray,
+    FloatArray,
+    Int8Array,
+    IntArray,
+    RasterSettings,
+    Spans,
+    Tolerances,
+)
+
+__all__ = [
+    "MAX_VERTICES",
+    "RASTER_SETTINGS",
+    "TOLERANCES",
+    "BoolArray",
+    "FloatArray",
+    "Int8Array",
+    "IntArray",
+    "RasterSettings",
+    "SlabGeometry",
+    "Spans",
+    "Tolerances",
+    "rasterize",
+    "rasterize_slab",
+    "slab_geometry",
+]
