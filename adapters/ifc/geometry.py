@@ -55,7 +55,6 @@ class MeshResult:
     geometry: dict[int, Geometry] = field(default_factory=dict)
     kernel_of: dict[int, str] = field(default_factory=dict)
     unmeshed: list[int] = field(default_factory=list)
-    crashed: list[str] = field(default_factory=list)
 
 
 def weld(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -248,7 +247,6 @@ class MeshingJob:
                 left,
             )
         elif not run.finished:
-            result.crashed.append(run.kernel)
             log.warning(
                 "Geometry kernel %s crashed (exit code %s); %d product(s) left for the next kernel",
                 run.kernel,
@@ -293,15 +291,3 @@ def start_meshing(
     """Start meshing ``products`` (ifcopenshell entities) in the background; see :class:`MeshingJob`."""
     return MeshingJob(f, products, kernels=kernels, threads=threads, progress=progress)
 
-
-def mesh_products(
-    f: Any,
-    products: Sequence[Any],
-    *,
-    kernels: Sequence[str] = DEFAULT_KERNELS,
-    threads: int = 2,
-    progress: Progress | None = None,
-) -> MeshResult:
-    """Mesh ``products`` and wait; each kernel gets only what the previous ones missed."""
-    with start_meshing(f, products, kernels=kernels, threads=threads, progress=progress) as job:
-        return job.result()

@@ -89,7 +89,7 @@ def slab_geometry(
     blocks = np.empty((4, len(starts)))
     for i, op in enumerate((np.minimum, np.minimum, np.maximum, np.maximum)):
         blocks[i] = op.reduceat(p.bounds[i], starts) if len(starts) else blocks[i]
-    return SlabGeometry(*p, block_bounds=blocks, block=settings.block)
+    return SlabGeometry(p, block_bounds=blocks, block=settings.block)
 
 
 def _by_tile(p: _Polygons, tile_m: float) -> _Polygons:
@@ -118,17 +118,17 @@ def rasterize(
     win = _check_window(frame, window)
     cells = _Cells(frame, win, tol, settings)
     x0, y0, x1, y1 = _region(frame, win, tol.cell_m + 1e-6 * frame.resolution_m)
-    chunk, block = settings.chunk_polygons, geometry.block
+    chunk, block, p = settings.chunk_polygons, geometry.block, geometry.polygons
     if win == frame.full:
-        for i in range(0, geometry.thin.size, chunk):
-            cells.add_polygons(geometry, np.arange(i, min(i + chunk, geometry.thin.size)))
+        for i in range(0, p.thin.size, chunk):
+            cells.add_polygons(p, np.arange(i, min(i + chunk, p.thin.size)))
     else:
         bx0, by0, bx1, by1 = geometry.block_bounds
         blocks = np.flatnonzero((bx1 >= x0) & (by1 >= y0) & (bx0 <= x1) & (by0 <= y1))
-        _, candidates = _expand(blocks * block, np.minimum(blocks * block + block, geometry.thin.size) - 1)
-        xmin, ymin, xmax, ymax = geometry.bounds[:, candidates]
+        _, candidates = _expand(blocks * block, np.minimum(blocks * block + block, p.thin.size) - 1)
+        xmin, ymin, xmax, ymax = p.bounds[:, candidates]
         picked = candidates[(xmax >= x0) & (ymax >= y0) & (xmin <= x1) & (ymin <= y1)]
         for i in range(0, len(picked), chunk):
-            cells.add_polygons(geometry, picked[i : i + chunk])
-    cells.add_segments(geometry, np.flatnonzero((geometry.segments[3] >= y0) & (geometry.segments[1] <= y1)))
+            cells.add_polygons(p, picked[i : i + chunk])
+    cells.add_segments(p, np.flatnonzero((p.segments[3] >= y0) & (p.segments[1] <= y1)))
     return cells.occupied()

@@ -27,7 +27,19 @@ from twin.raster.settings import (
 
 
 class _Polygons(NamedTuple):
-    """Clipped, projected polygons and section segments of some triangles (fields as in SlabGeometry)."""
+    """Clipped, projected polygons and section segments of some triangles.
+
+    Attributes:
+        xs, ys: ``(5, m) float64`` world XY of the vertices of each clipped triangle's convex
+            polygon (polygon ``i`` is ``xs[:, i], ys[:, i]``, in order); unused slots repeat the last.
+        bounds: ``(4, m) float64`` rows ``xmin, ymin, xmax, ymax`` of each polygon.
+        thin: ``(m,) bool`` degenerate polygon of an open element (rasterised with grown cells).
+        segments: ``(4, s) float64`` rows ``x1, y1, x2, y2``: the closed elements' section at the
+            slab's mid-height, the endpoint of lower y (then lower x) first.
+        segment_element: ``(s,) intp`` element of each segment.
+        segment_winding: ``(s,) int8`` +1 if the segment, oriented with its solid on the left, runs
+            towards +y, else -1.
+    """
 
     xs: FloatArray
     ys: FloatArray
@@ -43,28 +55,14 @@ class SlabGeometry:
     """The projected geometry of one slab, independent of any grid: rasterise it with :func:`rasterize`.
 
     Attributes:
-        xs, ys: ``(5, m) float64`` world XY of the vertices of each clipped triangle's convex
-            polygon (polygon ``i`` is ``xs[:, i], ys[:, i]``, in order); unused slots repeat the last.
-        bounds: ``(4, m) float64`` rows ``xmin, ymin, xmax, ymax`` of each polygon.
-        thin: ``(m,) bool`` degenerate polygon of an open element (rasterised with grown cells).
-        segments: ``(4, s) float64`` rows ``x1, y1, x2, y2``: the closed elements' section at the
-            slab's mid-height, the endpoint of lower y (then lower x) first.
-        segment_element: ``(s,) intp`` element of each segment.
-        segment_winding: ``(s,) int8`` +1 if the segment, oriented with its solid on the left, runs
-            towards +y, else -1.
+        polygons: the clipped polygons and section segments (see :class:`_Polygons`), sorted chunk
+            by chunk by the ``RasterSettings.tile_m`` tile of their centre.
         block_bounds: ``(4, ceil(m / block)) float64`` bounds of each run of ``block`` consecutive
-            polygons (sorted, chunk by chunk, by the ``RasterSettings.tile_m`` tile of their centre): a
-            coarse spatial index that lets a window skip most polygons.
+            polygons: a coarse spatial index that lets a window skip most polygons.
         block: polygons per run of ``block_bounds`` (the ``RasterSettings.block`` it was made with).
     """
 
-    xs: FloatArray
-    ys: FloatArray
-    bounds: FloatArray
-    thin: BoolArray
-    segments: FloatArray
-    segment_element: IntArray
-    segment_winding: Int8Array
+    polygons: _Polygons
     block_bounds: FloatArray
     block: int = RASTER_SETTINGS.block
 

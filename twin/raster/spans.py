@@ -7,7 +7,7 @@ from itertools import pairwise
 import numpy as np
 
 from twin.grid import GridFrame, Window
-from twin.raster.clip import SlabGeometry, _Polygons
+from twin.raster.clip import _Polygons
 from twin.raster.settings import (
     MAX_VERTICES,
     BoolArray,
@@ -32,13 +32,13 @@ class _Cells:
         self.segment_element: list[IntArray] = [np.empty(0, np.intp)]
         self.segment_winding: list[Int8Array] = [np.empty(0, np.int8)]
 
-    def add_polygons(self, polygons: _Polygons | SlabGeometry, idx: IntArray | None = None) -> None:
+    def add_polygons(self, polygons: _Polygons, idx: IntArray | None = None) -> None:
         for spans in _polygon_spans(
             polygons, idx, self.frame, self.win, self.tol, chunk_pairs=self.chunk_pairs
         ):
             self._add(spans)
 
-    def add_segments(self, source: _Polygons | SlabGeometry, idx: IntArray | slice = slice(None)) -> None:
+    def add_segments(self, source: _Polygons, idx: IntArray | slice = slice(None)) -> None:
         self.segments.append(source.segments[:, idx])
         self.segment_element.append(source.segment_element[idx])
         self.segment_winding.append(source.segment_winding[idx])
@@ -85,7 +85,7 @@ def _batches(counts: IntArray, limit: int) -> list[slice]:
 
 
 def _polygon_spans(
-    polygons: _Polygons | SlabGeometry,
+    polygons: _Polygons,
     idx: IntArray | None,
     frame: GridFrame,
     win: Window,
