@@ -153,13 +153,13 @@ def twin_import(path: Path, store_dir: Path) -> dict[str, Any]:
     from adapters.ifc import read_model
     from twin.config import load_config
     from twin.import_model import import_model
-    from twin.store import GraphStore
+    from twin.store import EmbeddedStore
 
     cfg = load_config()
     t0 = time.perf_counter()
     model = read_model(path, static_types=cfg.import_.static_types)
     t1 = time.perf_counter()
-    store = GraphStore.open(store_dir)
+    store = EmbeddedStore.open(store_dir)
     try:
         summary_ = import_model(store, model, base_iri=BASE_IRI, site=SITE)
     finally:
@@ -183,10 +183,10 @@ def twin_import(path: Path, store_dir: Path) -> dict[str, Any]:
 def table1(store_dir: Path) -> dict[str, Any]:
     """The paper's Table 1 numbers of an imported store."""
     from twin.stats import model_stats
-    from twin.store import GraphStore
+    from twin.store import EmbeddedStore
 
     t0 = time.perf_counter()
-    with GraphStore.open(store_dir, read_only=True) as store:
+    with EmbeddedStore.open(store_dir, read_only=True) as store:
         stats = model_stats(store)
     return {
         "seconds": time.perf_counter() - t0,
@@ -237,11 +237,11 @@ def map_setup(path: Path, skill_name: str) -> MapSetup:
     from twin.maps import plan_map
     from twin.scene import load_scene
     from twin.skills import selection_query
-    from twin.store import GraphStore
+    from twin.store import EmbeddedStore
 
     cfg = load_config()
     skill = cfg.skill(skill_name)
-    store = GraphStore.open(None)
+    store = EmbeddedStore.open(None)
     t0 = time.perf_counter()
     import_model(store, read_model(path, static_types=cfg.import_.static_types), base_iri=BASE_IRI, site=SITE)
     t1 = time.perf_counter()

@@ -19,7 +19,7 @@ HEADER = (
 
 def twin(*args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "twin.cli", *map(str, args)],
+        [sys.executable, "-m", "adapters.cli", *map(str, args)],
         capture_output=True,
         text=True,
         cwd=cwd,
@@ -143,11 +143,11 @@ def test_map_rejects_an_unknown_skill_naming_the_known_ones(lab_store_dir: Path,
 
 
 def test_a_store_in_use_by_another_process_gives_a_clear_error(lab_store_dir: Path, tmp_path: Path) -> None:
-    from twin.store import GraphStore
+    from twin.store import EmbeddedStore
 
     model = tmp_path / "lab.ifc"
     twin("sample", "lab", model)
-    with GraphStore.open(lab_store_dir):
+    with EmbeddedStore.open(lab_store_dir):
         r = twin("import", model, "--store", lab_store_dir, "--replace")
     assert r.returncode == 1
     assert "another process" in r.stderr
@@ -191,22 +191,20 @@ def test_a_bad_config_or_query_file_is_a_one_line_error(lab_store_dir: Path, tmp
     assert "Traceback" not in r.stderr
 
 
-def test_the_progress_bar_draws_on_a_terminal_and_ends_once() -> None:
+def test_the_progress_bar_draws_on_a_terminal_and_stays_silent_in_a_pipe() -> None:
     import io
 
-    from twin.cli import ProgressBar
+    from rich.console import Console
 
-    class Tty(io.StringIO):
-        def isatty(self) -> bool:
-            return True
+    from adapters.cli.progress import progress_bar
 
-    out = Tty()
-    bar = ProgressBar("meshing", stream=out)
-    for done in (1, 50, 100, 100):
-        bar(done, 100)
-    text = out.getvalue()
-    assert "100/100" in text
-    assert text.count("\n") == 1
+    out = io.StringIO()
+    with progress_bar("meshing", console=Console(file=out, force_terminal=True, width=80)) as advance:
+        for done in (1, 50, 100):
+            advance(done, 100)
+    assert "100/100" in out.getvalue()
+    assert "meshing" in out.getvalue()
     quiet = io.StringIO()
-    ProgressBar("meshing", stream=quiet)(1, 2)
+    with progress_bar("meshing", console=Console(file=quiet, force_terminal=False)) as advance:
+        advance(1, 2)
     assert quiet.getvalue() == ""

@@ -129,9 +129,3 @@ def load_config(path: Path | None = None) -> Config:
         maps_out=Path(_get(raw, "maps.out", str)),
         skills=skills,
     )
-
-
-def store_path_of(args: Any, cfg: Config) -> Path:
-    """The store directory a command works on: ``--store`` if given, else the configuration's."""
-    store = getattr(args, "store", None)
-    return Path(store) if store else cfg.store_path

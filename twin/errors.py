@@ -15,6 +15,14 @@ class StoreError(TwinError):
     """The graph store cannot be opened, written or queried as asked."""
 
 
+class StoreNotFoundError(StoreError):
+    """There is no store where one was to be opened (nothing was imported there yet)."""
+
+
+class StoreNotEmptyError(StoreError):
+    """A model was to be imported into a store that already holds one."""
+
+
 class QueryError(StoreError):
     """A SPARQL query does not parse, or is not allowed (e.g. an update on a read-only endpoint)."""
 
@@ -29,3 +37,7 @@ class MapError(TwinError):
 
 class ConfigError(TwinError):
     """The configuration file is missing, malformed or has an invalid value."""
+
+
+class ObservationError(TwinError):
+    """An observation (robot-reported change) is malformed, exceeds a limit or is not allowed."""

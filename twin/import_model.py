@@ -8,7 +8,7 @@ their class (BOT + BEO/FURN + the IFC class), GlobalId, name, materials, ``twin:
 Example::
 
     model = adapters.ifc.read_model(Path("lab.ifc"))
-    with GraphStore.open(Path("lab.store")) as store:
+    with EmbeddedStore.open(Path("lab.store")) as store:
         summary = import_model(store, model, base_iri="https://example.org/lab#", site="lab")
 """
 
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import pyoxigraph as ox
 
 from twin import vocab
-from twin.errors import ModelError, StoreError
+from twin.errors import ModelError, StoreNotEmptyError
 from twin.meshcodec import encode_mesh, encode_placement
 from twin.records import BuildingModel, Geometry
 from twin.store import GraphStore
@@ -174,11 +174,10 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
 
 
 def ensure_importable(store: GraphStore, *, replace: bool) -> None:
-    """Raise StoreError if ``store`` holds a model and ``replace`` is not set (check before meshing)."""
+    """Raise StoreNotEmptyError if ``store`` holds a model and ``replace`` is unset (check before meshing)."""
     if not replace and not store.is_empty():
-        where = store.info.path or "memory"
-        msg = f"The store at {where} is not empty: pass --replace to re-import into it."
-        raise StoreError(msg)
+        msg = "The store already holds a model."
+        raise StoreNotEmptyError(msg)
 
 
 def import_model(

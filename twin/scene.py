@@ -184,11 +184,11 @@ def _mesh_items(store: GraphStore, kind: str) -> list[tuple[str, Mesh, npt.NDArr
     decoded: dict[str, Mesh] = {}
     items = []
     for row in store.iter_select(_GEOMETRY.format(kind=kind)):
-        text = row["ply"].value
+        text = row["ply"] or ""
         mesh = decoded.get(text)
         if mesh is None:
             mesh = decoded[text] = decode_mesh(text)
-        items.append((row["node"].value, mesh, decode_placement(row["placement"].value)))
+        items.append((row["node"] or "", mesh, decode_placement(row["placement"] or "")))
     items.sort(key=lambda item: item[0])
     return items
 

@@ -2,7 +2,7 @@
 
 Example::
 
-    with GraphStore.open(Path("lab.store"), read_only=True) as store:
+    with EmbeddedStore.open(Path("lab.store"), read_only=True) as store:
         print(model_stats(store).as_dict())
 """
 

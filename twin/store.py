@@ -5,7 +5,7 @@ can open an on-disk store for writing: the daemon owns it, others query through 
 
 Example::
 
-    with GraphStore.open(Path("site.store")) as store:
+    with EmbeddedStore.open(Path("site.store")) as store:
         rows = store.select("SELECT ?s WHERE { ?s a bot:Storey }")
 """
 
@@ -19,19 +19,119 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Self
+from typing import IO, Protocol, Self
 
 import pyoxigraph as ox
 
 from twin import vocab
-from twin.errors import QueryError, StoreError
+from twin.errors import QueryError, StoreError, StoreNotFoundError
 
 log = logging.getLogger(__name__)
 
 _SERVICE = re.compile(r"\bSERVICE\b", re.IGNORECASE)
 
 Term = ox.NamedNode | ox.BlankNode | ox.Literal | ox.Triple
-Row = dict[str, Term | None]
+Row = dict[str, str | None]
+"""One solution of a SELECT: variable name -> lexical value of its term (IRI text, literal value), or
+None when unbound."""
+
+
+@dataclass(frozen=True, slots=True)
+class Literal:
+    """An RDF literal as a plain value: its lexical form and datatype IRI."""
+
+    value: str
+    datatype: str = vocab.XSD + "string"
+
+
+Object = str | Literal
+"""The object of a triple: an IRI (``str``) or a :class:`Literal`."""
+
+
+@dataclass(frozen=True, slots=True)
+class Triple:
+    subject: str
+    predicate: str
+    object: Object
+
+
+@dataclass(frozen=True, slots=True)
+class ChangeSet:
+    """One transaction: remove the triples matching ``remove``, then add ``add``.
+
+    Attributes:
+        remove: ``(subject, predicate)`` patterns; ``predicate`` None removes every triple of the subject.
+        add: the triples to insert.
+    """
+
+    remove: tuple[tuple[str, str | None], ...] = ()
+    add: tuple[Triple, ...] = ()
+
+    def __bool__(self) -> bool:
+        return bool(self.remove or self.add)
+
+
+class GraphStore(Protocol):
+    """What the core needs of a graph store. :class:`EmbeddedStore` is the embedded implementation."""
+
+    def select(self, sparql: str) -> list[Row]: ...
+
+    def iter_select(self, sparql: str) -> Iterator[Row]: ...
+
+    def ask(self, sparql: str) -> bool: ...
+
+    def query_serialized(self, sparql: str) -> tuple[str, bytes]: ...
+
+    def apply(self, changes: ChangeSet) -> None: ...
+
+    def bulk_add(self, quads: Iterable[ox.Quad]) -> None: ...
+
+    def clear(self) -> None: ...
+
+    def is_empty(self) -> bool: ...
+
+    def __len__(self) -> int: ...
+
+    def dump_turtle(self, out: IO[bytes] | Path) -> None: ...
+
+    def turtle_size(self) -> int: ...
+
+    def close(self) -> None: ...
+
+
+def _term(term: Term | None) -> str | None:
+    if term is None:
+        return None
+    if isinstance(term, ox.Triple):
+        return str(term)
+    return term.value
+
+
+def _nt_iri(iri: str) -> str:
+    if any(c in iri for c in '<>"{}|\\^` \n') or not iri:
+        msg = f"Not an IRI usable in a change: {iri!r}."
+        raise StoreError(msg)
+    return f"<{iri}>"
+
+
+def _nt_object(obj: Object) -> str:
+    if isinstance(obj, Literal):
+        return str(ox.Literal(obj.value, datatype=ox.NamedNode(obj.datatype)))
+    return _nt_iri(obj)
+
+
+def changes_to_sparql(changes: ChangeSet) -> str:
+    """The SPARQL 1.1 update of ``changes`` (one request: a store runs it in one transaction)."""
+    parts = []
+    for subject, predicate in changes.remove:
+        p = _nt_iri(predicate) if predicate is not None else "?p"
+        parts.append(f"DELETE WHERE {{ {_nt_iri(subject)} {p} ?o }}")
+    if changes.add:
+        body = "\n".join(
+            f"{_nt_iri(t.subject)} {_nt_iri(t.predicate)} {_nt_object(t.object)} ." for t in changes.add
+        )
+        parts.append(f"INSERT DATA {{\n{body}\n}}")
+    return " ;\n".join(parts)
 
 
 class _CountingWriter(io.RawIOBase):
@@ -55,8 +155,8 @@ class StoreInfo:
     read_only: bool
 
 
-class GraphStore:
-    """A pyoxigraph store with typed helpers. Use :meth:`open` and close it (or use ``with``)."""
+class EmbeddedStore:
+    """The embedded pyoxigraph store (a :class:`GraphStore`). Use :meth:`open` and close it (or ``with``)."""
 
     def __init__(self, store: ox.Store, info: StoreInfo) -> None:
         self._handle: ox.Store | None = store
@@ -71,7 +171,7 @@ class GraphStore:
 
     # --- lifecycle --------------------------------------------------------------------------------
     @classmethod
-    def open(cls, path: Path | None = None, *, read_only: bool = False, create: bool = True) -> GraphStore:
+    def open(cls, path: Path | None = None, *, read_only: bool = False, create: bool = True) -> EmbeddedStore:
         """Open the store at ``path`` (a directory), or an in-memory store when ``path`` is None."""
         if path is None:
             return cls(ox.Store(), StoreInfo(None, read_only=read_only))
@@ -81,8 +181,8 @@ class GraphStore:
             raise StoreError(msg)
         if not path.exists():
             if read_only or not create:
-                msg = f"No store at {path}: run 'twin import MODEL.ifc --store {path}' first."
-                raise StoreError(msg)
+                msg = f"No store at {path}."
+                raise StoreNotFoundError(msg)
             path.mkdir(parents=True)
         try:
             store = ox.Store.read_only(str(path)) if read_only else ox.Store(str(path))
@@ -123,6 +223,12 @@ class GraphStore:
         """Add quads atomically."""
         self._writable().extend(quads)
 
+    def apply(self, changes: ChangeSet) -> None:
+        """Apply ``changes`` in one transaction (all or nothing), durable once this returns."""
+        if not changes:
+            return
+        self.update(changes_to_sparql(changes))
+
     def update(self, sparql_update: str) -> None:
         """Run a SPARQL 1.1 update atomically (the vocabulary's prefixes are predefined)."""
         try:
@@ -155,20 +261,17 @@ class GraphStore:
             raise QueryError(msg) from err
 
     def select(self, sparql: str) -> list[Row]:
-        """Run a SELECT query; return one dict per solution, variable name -> term (or None)."""
+        """Run a SELECT query; one plain row per solution (see :data:`Row`)."""
+        return list(self.iter_select(sparql))
+
+    def iter_select(self, sparql: str) -> Iterator[Row]:
+        """Like :meth:`select`, lazily."""
         result = self._query(sparql)
         if not isinstance(result, ox.QuerySolutions):
             msg = "Expected a SELECT query."
             raise QueryError(msg)
         names = [v.value for v in result.variables]
-        return [{n: s[n] for n in names} for s in result]
-
-    def iter_select(self, sparql: str) -> Iterator[ox.QuerySolution]:
-        result = self._query(sparql)
-        if not isinstance(result, ox.QuerySolutions):
-            msg = "Expected a SELECT query."
-            raise QueryError(msg)
-        return iter(result)
+        return ({n: _term(s[n]) for n in names} for s in result)
 
     def ask(self, sparql: str) -> bool:
         result = self._query(sparql)
@@ -215,10 +318,8 @@ class GraphStore:
         return sink.count
 
 
-def literal_value(term: Term | None) -> str | None:
-    """The lexical value of a literal or IRI term, None for an unbound variable."""
-    if term is None:
-        return None
-    if isinstance(term, ox.Triple):
-        return str(term)
-    return term.value
+def literal_value(term: Term | str | None) -> str | None:
+    """The lexical value of a term (a plain row value passes through), None for an unbound variable."""
+    if term is None or isinstance(term, str):
+        return term
+    return _term(term)

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.twin.box_lab import GROUND, spec
 from twin.config import load_config
 from twin.errors import ConfigError, QueryError, SkillError
 from twin.skills import parse_skill, parse_skill_json, selection_query
@@ -52,20 +53,20 @@ def test_a_profile_round_trips_through_json() -> None:
     assert parse_skill_json("x", json.dumps(skill.to_json())) == skill
 
 
-def test_selection_by_type_includes_subtypes_and_excludes_glass(lab_store: GraphStore, lab) -> None:
-    _, layout = lab
+def test_selection_by_type_includes_subtypes_and_excludes_glass(box_store: GraphStore) -> None:
     skill = parse_skill(
         "walls", {"kind": "localization", "include_types": ["IfcWall"], "exclude_materials": ["GLASS"]}
     )
-    got = {literal_value(r["element"]) for r in lab_store.select(selection_query(skill))}
-    rows = lab_store.select("SELECT ?e ?g WHERE { ?e props:globalIdIfcRoot_attribute_simple ?g }")
+    got = {literal_value(r["element"]) for r in box_store.select(selection_query(skill))}
+    rows = box_store.select("SELECT ?e ?g WHERE { ?e props:globalIdIfcRoot_attribute_simple ?g }")
     guid = {literal_value(r["e"]): literal_value(r["g"]) for r in rows}
-    assert {guid[e] for e in got} == {w.global_id for w in layout.walls} - {layout.glass_wall.global_id}
+    walls = {s.guid for s in GROUND if s.ifc_class == "IfcWall"}
+    assert {guid[e] for e in got} == walls - {spec("Glass wall").guid}
 
 
-def test_a_raw_sparql_pattern_narrows_the_selection(lab_store: GraphStore) -> None:
+def test_a_raw_sparql_pattern_narrows_the_selection(box_store: GraphStore) -> None:
     skill = parse_skill("furniture", {"kind": "navigation", "sparql": "?element a furn:Furniture ."})
-    assert len(lab_store.select(selection_query(skill))) == 1
+    assert len(box_store.select(selection_query(skill))) == 1
 
 
 def test_a_user_config_overrides_and_adds_skills(tmp_path: Path) -> None:
@@ -100,8 +101,7 @@ def test_profiles_load_from_json_and_bad_json_is_named() -> None:
         parse_skill_json("tall", b" " * 70000)
 
 
-def test_a_user_pattern_cannot_undo_the_material_filter(lab_store: GraphStore, lab) -> None:
-    _, layout = lab
+def test_a_user_pattern_cannot_undo_the_material_filter(box_store: GraphStore) -> None:
     skill = parse_skill(
         "sneaky",
         {
@@ -110,18 +110,18 @@ def test_a_user_pattern_cannot_undo_the_material_filter(lab_store: GraphStore, l
             "sparql": '?element twin:material ?material . FILTER(?material != "Steel")',
         },
     )
-    rows = lab_store.select("SELECT ?e ?g WHERE { ?e props:globalIdIfcRoot_attribute_simple ?g }")
+    rows = box_store.select("SELECT ?e ?g WHERE { ?e props:globalIdIfcRoot_attribute_simple ?g }")
     guid = {literal_value(r["e"]): literal_value(r["g"]) for r in rows}
-    got = {guid[literal_value(r["element"])] for r in lab_store.select(selection_query(skill))}
-    assert layout.glass_wall.global_id not in got
+    got = {guid[literal_value(r["element"])] for r in box_store.select(selection_query(skill))}
+    assert spec("Glass wall").guid not in got
     assert got
 
 
-def test_remote_service_calls_are_rejected_in_profiles_and_queries(lab_store: GraphStore) -> None:
+def test_remote_service_calls_are_rejected_in_profiles_and_queries(box_store: GraphStore) -> None:
     with pytest.raises(SkillError, match="SERVICE"):
         parse_skill("x", {"kind": "navigation", "sparql": "SERVICE <http://127.0.0.1:9/> { ?element ?p ?o }"})
     with pytest.raises(QueryError, match="SERVICE"):
-        lab_store.select("SELECT * WHERE { SERVICE <http://127.0.0.1:9/sparql> { ?s ?p ?o } }")
+        box_store.select("SELECT * WHERE { SERVICE <http://127.0.0.1:9/sparql> { ?s ?p ?o } }")
 
 
 def test_deeply_nested_json_is_a_skill_error() -> None:

@@ -6,31 +6,31 @@ import pyoxigraph as ox
 import pytest
 
 from twin.errors import QueryError, StoreError
-from twin.store import GraphStore
+from twin.store import EmbeddedStore
 
 Q = ox.Quad(ox.NamedNode("https://ex.org/a"), ox.NamedNode("https://ex.org/p"), ox.Literal("x"))
 
 
 def test_an_on_disk_store_keeps_its_triples_across_opens(tmp_path: Path) -> None:
-    with GraphStore.open(tmp_path / "s") as store:
+    with EmbeddedStore.open(tmp_path / "s") as store:
         store.add([Q])
-    with GraphStore.open(tmp_path / "s", read_only=True) as again:
+    with EmbeddedStore.open(tmp_path / "s", read_only=True) as again:
         assert len(again) == 1
 
 
 def test_a_read_only_store_refuses_writes(tmp_path: Path) -> None:
-    GraphStore.open(tmp_path / "s").close()
+    EmbeddedStore.open(tmp_path / "s").close()
     with (
-        GraphStore.open(tmp_path / "s", read_only=True) as store,
+        EmbeddedStore.open(tmp_path / "s", read_only=True) as store,
         pytest.raises(StoreError, match="read-only"),
     ):
         store.add([Q])
-    with GraphStore.open(None, read_only=True) as mem, pytest.raises(StoreError, match="read-only"):
+    with EmbeddedStore.open(None, read_only=True) as mem, pytest.raises(StoreError, match="read-only"):
         mem.add([Q])
 
 
 def test_closing_twice_is_harmless_and_use_after_close_is_a_clear_error() -> None:
-    store = GraphStore.open(None)
+    store = EmbeddedStore.open(None)
     store.close()
     store.close()
     with pytest.raises(StoreError, match="closed"):
@@ -38,13 +38,13 @@ def test_closing_twice_is_harmless_and_use_after_close_is_a_clear_error() -> Non
 
 
 def test_a_missing_store_is_not_created_for_reading(tmp_path: Path) -> None:
-    with pytest.raises(StoreError, match="twin import"):
-        GraphStore.open(tmp_path / "none", read_only=True)
+    with pytest.raises(StoreError, match="No store at"):
+        EmbeddedStore.open(tmp_path / "none", read_only=True)
     assert not (tmp_path / "none").exists()
 
 
 def test_queries_that_do_not_parse_and_updates_are_query_errors() -> None:
-    with GraphStore.open(None) as store:
+    with EmbeddedStore.open(None) as store:
         with pytest.raises(QueryError, match="does not parse"):
             store.select("SELEKT ?s")
         with pytest.raises(QueryError, match="does not parse"):
@@ -54,7 +54,7 @@ def test_queries_that_do_not_parse_and_updates_are_query_errors() -> None:
 
 
 def test_serialized_results_are_sparql_json_or_turtle() -> None:
-    with GraphStore.open(None) as store:
+    with EmbeddedStore.open(None) as store:
         store.add([Q])
         media, body = store.query_serialized("SELECT ?s WHERE { ?s ?p ?o }")
         assert media == "application/sparql-results+json"

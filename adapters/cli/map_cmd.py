@@ -7,17 +7,17 @@ import time
 from pathlib import Path
 from typing import Any
 
-from twin.config import Config, store_path_of
+from adapters.cli.common import store_path_of
+from adapters.ros import write_map_files
+from twin.config import Config
 from twin.errors import MapError, SkillError
 from twin.maps import build_map, plan_map
 from twin.scene import load_scene
 from twin.skills import selection_query
-from twin.store import GraphStore, literal_value
+from twin.store import EmbeddedStore, literal_value
 
 
 def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
-    from adapters.ros import write_map_files
-
     if args.all_skills == bool(args.skill):
         msg = "Give either --skill NAME (repeatable) or --all-skills."
         raise SkillError(msg)
@@ -25,7 +25,7 @@ def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
     out = Path(args.out) if args.out else cfg.maps_out
     store_path = store_path_of(args, cfg)
     stamp_ns = time.time_ns()
-    with GraphStore.open(store_path, read_only=True) as store:
+    with EmbeddedStore.open(store_path, read_only=True) as store:
         t0 = time.perf_counter()
         scene = load_scene(store)
         print(

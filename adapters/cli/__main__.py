@@ -1,0 +1,5 @@
+import sys
+
+from adapters.cli.app import main
+
+sys.exit(main())

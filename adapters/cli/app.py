@@ -1,0 +1,104 @@
+"""The ``twin`` command: the composition root that wires the core to its adapters.
+
+Run ``twin --help`` or ``twin COMMAND --help``. Every error is one line on stderr and a non-zero exit.
+Each command lives in its own module (``model_cmds``, ``map_cmd``, ...) and registers its parser here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from adapters.cli import map_cmd, model_cmds
+from twin.config import load_config
+from twin.errors import StoreNotEmptyError, StoreNotFoundError, TwinError
+
+
+def _store_arg(sp: argparse.ArgumentParser) -> None:
+    sp.add_argument("--store", help="store directory (default: store.path of the configuration)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="twin", description="building-twin: IFC -> graph world model -> robot maps, served live"
+    )
+    p.add_argument("--config", type=Path, help="a TOML file merged over config/default.toml")
+    p.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv for debug)")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    sp = sub.add_parser("import", help="build the graph world model of an IFC file into a store")
+    sp.add_argument("model", help="the IFC file")
+    _store_arg(sp)
+    sp.add_argument("--site", help="site name (default: site.name of the configuration)")
+    sp.add_argument("--base-iri", help="base IRI of the site's nodes (default from the configuration)")
+    sp.add_argument("--replace", action="store_true", help="replace the contents of a non-empty store")
+    sp.set_defaults(func=model_cmds.cmd_import)
+
+    sp = sub.add_parser("stats", help="the model's statistics (the paper's Table 1, storeys, classes)")
+    _store_arg(sp)
+    sp.add_argument("--json", action="store_true", help="print JSON")
+    sp.set_defaults(func=model_cmds.cmd_stats)
+
+    sp = sub.add_parser("export", help="write the graph as Turtle")
+    _store_arg(sp)
+    sp.add_argument("out", help="the Turtle file to write")
+    sp.set_defaults(func=model_cmds.cmd_export)
+
+    sp = sub.add_parser(
+        "query", help="run a read-only SPARQL query (prefixes bot, beo, twin, ... predefined)"
+    )
+    _store_arg(sp)
+    sp.add_argument("sparql", help="the query, or @FILE to read it from a file")
+    sp.add_argument("--json", action="store_true", help="print SPARQL JSON results")
+    sp.set_defaults(func=model_cmds.cmd_query)
+
+    sp = sub.add_parser("sample", help="write a bundled sample building")
+    sp.add_argument(
+        "which", choices=["lab"], help="which sample: 'lab' (the paper's lab, two rooms and a corridor)"
+    )
+    sp.add_argument("out", help="the IFC file to write")
+    sp.add_argument("--unit", choices=["metre", "foot"], default="metre", help="length unit of the file")
+    sp.add_argument("--storeys", type=int, choices=[1, 2], default=1, help="number of storeys")
+    sp.set_defaults(func=model_cmds.cmd_sample)
+
+    sp = sub.add_parser("map", help="write skill maps (map_server YAML+PGM, PNG, CDR) per storey")
+    _store_arg(sp)
+    sp.add_argument("--skill", action="append", help="a configured skill (repeatable)")
+    sp.add_argument("--all-skills", action="store_true", help="every configured skill")
+    sp.add_argument("--storey", help="one storey key (see 'twin stats'); default: every storey")
+    sp.add_argument("--out", help="output directory (default: maps.out of the configuration)")
+    sp.set_defaults(func=map_cmd.cmd_map)
+    return p
+
+
+def _hint(err: TwinError, args: argparse.Namespace) -> str:
+    """The error's message with what to do next, in this command's words."""
+    if isinstance(err, StoreNotFoundError):
+        return f"{err} Run 'twin import MODEL.ifc --store DIR' first."
+    if isinstance(err, StoreNotEmptyError):
+        return f"{err} Pass --replace to re-import into it."
+    return str(err)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    level = logging.WARNING - 10 * min(args.verbose, 2)
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        cfg = load_config(args.config)
+        code: int = args.func(args, cfg)
+        return code
+    except TwinError as err:
+        print(f"twin: error: {_hint(err, args)}", file=sys.stderr)
+        return 1
+    except OSError as err:  # files the user named: unreadable, missing, a directory, disk full ...
+        where = f" {err.filename}" if getattr(err, "filename", None) else ""
+        print(f"twin: error:{where} {err.strerror or err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("twin: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,132 @@
+"""``twin import``, ``stats``, ``export``, ``query`` and ``sample``: build the graph and look into it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from adapters.cli.common import human_size, store_path_of
+from adapters.cli.progress import progress_bar
+from twin.config import Config
+from twin.errors import ModelError
+from twin.store import EmbeddedStore
+
+
+# --- commands ---------------------------------------------------------------------------------------
+def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
+    from adapters.ifc import read_model
+    from twin.import_model import ensure_importable, import_model
+    from twin.vocab import check_base
+
+    site = args.site or cfg.site
+    base_iri = check_base(args.base_iri or cfg.base_iri(site))
+    store_path = store_path_of(args, cfg)
+    model_path = Path(args.model)
+    if not model_path.is_file():
+        msg = f"No such file: {model_path}"
+        raise ModelError(msg)
+    if store_path.exists():  # fail before meshing, which dominates the time
+        with EmbeddedStore.open(store_path) as store:
+            ensure_importable(store, replace=args.replace)
+    t0 = time.perf_counter()
+    # Mesh before the store is open: the meshing child is forked, and the store runs threads.
+    with progress_bar("meshing") as advance:
+        model = read_model(
+            model_path,
+            static_types=cfg.import_.static_types,
+            kernels=cfg.import_.kernels,
+            threads=cfg.import_.threads,
+            progress=advance,
+        )
+    t1 = time.perf_counter()
+    with EmbeddedStore.open(store_path) as store:
+        summary = import_model(store, model, base_iri=base_iri, site=site, replace=args.replace)
+    t2 = time.perf_counter()
+    print(
+        f"imported {model_path} into {store_path}: {summary.elements} elements "
+        f"({summary.meshes} with meshes), {summary.spaces} spaces, {summary.storeys} storeys, "
+        f"{summary.triples} triples in {t2 - t0:.1f} s (read+mesh {t1 - t0:.1f} s, store {t2 - t1:.1f} s)"
+    )
+    if summary.kernel_fallbacks:
+        print(f"{len(summary.kernel_fallbacks)} element(s) meshed by a fallback kernel")
+    if summary.mesh_failures:
+        print(f"{len(summary.mesh_failures)} element(s) without geometry ('twin stats --json' lists them)")
+    return 0
+
+
+def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
+    from twin.stats import model_stats
+
+    with EmbeddedStore.open(store_path_of(args, cfg), read_only=True) as store:
+        stats = model_stats(store)
+    if args.json:
+        print(json.dumps(stats.as_dict(), indent=2))
+        return 0
+    rows = [
+        ("source", f"{stats.source} ({stats.schema})"),
+        ("lines in IFC file", f"{stats.ifc_lines:,}"),
+        ("triples", f"{stats.triples:,}"),
+        ("Turtle size", human_size(stats.turtle_bytes)),
+        ("elements", f"{stats.elements:,}"),
+        ("meshes", f"{stats.meshes:,} ({stats.triangles:,} triangles)"),
+        ("spaces", f"{stats.spaces:,}"),
+        ("storeys", f"{len(stats.storeys)}"),
+        ("mesh failures", f"{stats.mesh_failures}"),
+        ("kernel fallbacks", f"{stats.kernel_fallbacks}"),
+    ]
+    w = max(len(k) for k, _ in rows)
+    for k, v in rows:
+        print(f"{k:<{w}}  {v}")
+    print("\nstoreys (key, elevation, spaces, elements, name):")
+    for s in stats.storeys:
+        print(f"  {s.key:<24} {s.elevation_m:8.3f} m {s.spaces:5d} {s.elements:7d}  {s.name}")
+    print("\nelements per IFC class:")
+    for cls, n in stats.elements_per_class.items():
+        print(f"  {cls:<32} {n:6d}")
+    return 0
+
+
+def cmd_export(args: argparse.Namespace, cfg: Config) -> int:
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with EmbeddedStore.open(store_path_of(args, cfg), read_only=True) as store:
+        store.dump_turtle(out)
+    print(f"wrote {out} ({human_size(out.stat().st_size)})")
+    return 0
+
+
+def cmd_query(args: argparse.Namespace, cfg: Config) -> int:
+    sparql = Path(args.sparql[1:]).read_text() if args.sparql.startswith("@") else args.sparql
+    with EmbeddedStore.open(store_path_of(args, cfg), read_only=True) as store:
+        media, body = store.query_serialized(sparql)
+        if args.json or media == "text/turtle":
+            sys.stdout.write(body.decode())
+            if not body.endswith(b"\n"):
+                sys.stdout.write("\n")
+            return 0
+        data = json.loads(body)
+        if "boolean" in data:
+            print("true" if data["boolean"] else "false")
+            return 0
+        names = data["head"]["vars"]
+        rows = [[b.get(n, {}).get("value", "") for n in names] for b in data["results"]["bindings"]]
+    widths = [min(60, max([len(n), *(len(r[i]) for r in rows)])) for i, n in enumerate(names)]
+    print("  ".join(n.ljust(w) for n, w in zip(names, widths, strict=True)))
+    print("  ".join("-" * w for w in widths))
+    for r in rows:
+        print("  ".join(v[:60].ljust(w) for v, w in zip(r, widths, strict=True)))
+    print(f"({len(rows)} row{'s' if len(rows) != 1 else ''})")
+    return 0
+
+
+def cmd_sample(args: argparse.Namespace, cfg: Config) -> int:
+    from adapters.sample_lab import write_lab
+
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_lab(out, length_unit=args.unit, storeys=args.storeys)
+    print(f"wrote the sample lab building to {out}")
+    return 0
