@@ -8,14 +8,20 @@ Example::
 
 from __future__ import annotations
 
+import re
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from twin.errors import ConfigError, SkillError
 from twin.skills import SkillProfile, parse_skill
+
+Right = Literal["create", "dynamic", "doors", "static"]
+RIGHTS: tuple[Right, ...] = ("create", "dynamic", "doors", "static")
+RosLayout = Literal["bridge", "rmw_zenoh"]
+ZenohMode = Literal["peer", "client", "router"]
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "default.toml"  # package data: installs with twin
 KERNELS = ("manifold", "opencascade", "cgal", "cgal-simple", "hybrid-cgal-simple-opencascade")
@@ -29,6 +35,53 @@ class ImportConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class ZenohConfig:
+    """Where the daemon meets robots. ``prefix`` has ``{site}`` replaced (see :meth:`Config.key_prefix`)."""
+
+    prefix: str = "twin/{site}"
+    mode: ZenohMode = "peer"
+    listen: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
+    connect: tuple[str, ...] = ()
+    multicast_scouting: bool = False
+    shared_memory: bool = False
+    config_file: Path | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Limits:
+    """Bounds on what one message may ask of the daemon."""
+
+    payload_bytes: int = 1 << 20
+    elements_per_observation: int = 256
+    triangles_per_mesh: int = 200_000
+    box_size_m: float = 50.0
+    site_margin_m: float = 20.0
+    sparql_timeout_s: float = 5.0
+    sparql_result_bytes: int = 16 << 20
+    full_map_interval_s: float = 0.2
+
+
+@dataclass(frozen=True, slots=True)
+class RobotConfig:
+    """A configured robot: what it may change, and (with a ``namespace``) the ROS 2 map it receives."""
+
+    name: str
+    rights: frozenset[Right]
+    namespace: str | None = None
+    skill: str | None = None
+    storey: str | None = None
+    domain_id: int = 0
+    ros: tuple[RosLayout, ...] = ("bridge", "rmw_zenoh")
+
+
+@dataclass(frozen=True, slots=True)
+class RerunConfig:
+    record: bool = True
+    directory: Path = Path("var/recordings")
+    connect_url: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class Config:
     site: str
     base_iri_template: str
@@ -37,6 +90,21 @@ class Config:
     margin_m: float
     maps_out: Path
     skills: Mapping[str, SkillProfile]
+    zenoh: ZenohConfig = ZenohConfig()
+    limits: Limits = Limits()
+    default_rights: frozenset[Right] = frozenset({"create", "dynamic", "doors"})
+    robots: Mapping[str, RobotConfig] = field(default_factory=dict)
+    frame_id: str = "map"
+    rerun: RerunConfig = RerunConfig()
+
+    def key_prefix(self, site: str | None = None) -> str:
+        """The Zenoh key prefix of this site, e.g. ``twin/lab``."""
+        return self.zenoh.prefix.replace("{site}", site or self.site).strip("/")
+
+    def rights_of(self, robot: str) -> frozenset[Right]:
+        """What ``robot`` may change: its own ``rights`` if configured, else ``[rights] default``."""
+        configured = self.robots.get(robot)
+        return configured.rights if configured is not None else self.default_rights
 
     def base_iri(self, site: str | None = None) -> str:
         return self.base_iri_template.replace("{site}", site or self.site)
@@ -120,12 +188,171 @@ def load_config(path: Path | None = None) -> Config:
     if not 0.0 <= margin <= 100.0:  # also false for NaN
         msg = f"Configuration 'maps.margin_m' must be between 0 and 100 metres, got {margin!r}."
         raise ConfigError(msg)
+    site = _get(raw, "site.name", str)
+    if not _SITE.match(site):
+        msg = f"Configuration 'site.name' must be 1-64 of [A-Za-z0-9_-], got {site!r}."
+        raise ConfigError(msg)
+    default_rights = _rights("rights.default", raw.get("rights", {}).get("default", list(_DEFAULT_RIGHTS)))
     return Config(
-        site=_get(raw, "site.name", str),
+        site=site,
         base_iri_template=_get(raw, "site.base_iri", str),
         store_path=Path(_get(raw, "store.path", str)),
         import_=ImportConfig(kernels=tuple(kernels), threads=threads, static_types=tuple(static_types)),
         margin_m=margin,
         maps_out=Path(_get(raw, "maps.out", str)),
         skills=skills,
+        zenoh=_zenoh(raw.get("zenoh", {})),
+        limits=_limits(raw.get("limits", {})),
+        default_rights=default_rights,
+        robots=_robots(raw.get("robots", {}), default_rights, skills),
+        frame_id=str(raw.get("ros", {}).get("frame_id", "map")),
+        rerun=_rerun(raw.get("rerun", {})),
+    )
+
+
+_SITE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+_ROBOT = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+_DEFAULT_RIGHTS: tuple[Right, ...] = ("create", "dynamic", "doors")
+
+
+def _table(raw: Any, name: str) -> Mapping[str, Any]:
+    if not isinstance(raw, Mapping):
+        msg = f"Configuration '{name}' must be a table, got {raw!r}."
+        raise ConfigError(msg)
+    return raw
+
+
+def _unknown(table: Mapping[str, Any], name: str, known: set[str]) -> None:
+    extra = sorted(set(table) - known)
+    if extra:
+        msg = f"Configuration '{name}' has an unknown key {extra[0]!r} (known: {', '.join(sorted(known))})."
+        raise ConfigError(msg)
+
+
+def _endpoints(value: Any, name: str) -> tuple[str, ...]:
+    if not isinstance(value, list) or not all(isinstance(v, str) and "/" in v for v in value):
+        msg = f"Configuration '{name}' must list endpoints such as \"tcp/127.0.0.1:7447\", got {value!r}."
+        raise ConfigError(msg)
+    return tuple(value)
+
+
+def _flag(table: Mapping[str, Any], key: str, name: str, default: bool) -> bool:
+    value = table.get(key, default)
+    if not isinstance(value, bool):
+        msg = f"Configuration '{name}.{key}' must be true or false, got {value!r}."
+        raise ConfigError(msg)
+    return value
+
+
+def _zenoh(raw: Any) -> ZenohConfig:
+    t = _table(raw, "zenoh")
+    _unknown(
+        t,
+        "zenoh",
+        {"prefix", "mode", "listen", "connect", "multicast_scouting", "shared_memory", "config_file"},
+    )
+    mode = t.get("mode", "peer")
+    if mode not in ("peer", "client", "router"):
+        msg = f"Configuration 'zenoh.mode' must be peer, client or router, got {mode!r}."
+        raise ConfigError(msg)
+    prefix = t.get("prefix", "twin/{site}")
+    if not isinstance(prefix, str) or not prefix.strip("/") or any(c in prefix for c in "*$?#"):
+        msg = f"Configuration 'zenoh.prefix' must be a key expression without wildcards, got {prefix!r}."
+        raise ConfigError(msg)
+    cfg_file = t.get("config_file")
+    if cfg_file is not None and not isinstance(cfg_file, str):
+        msg = f"Configuration 'zenoh.config_file' must be a path, got {cfg_file!r}."
+        raise ConfigError(msg)
+    return ZenohConfig(
+        prefix=prefix,
+        mode=mode,
+        listen=_endpoints(t.get("listen", ["tcp/127.0.0.1:7447"]), "zenoh.listen"),
+        connect=_endpoints(t.get("connect", []), "zenoh.connect"),
+        multicast_scouting=_flag(t, "multicast_scouting", "zenoh", False),
+        shared_memory=_flag(t, "shared_memory", "zenoh", False),
+        config_file=Path(cfg_file) if cfg_file else None,
+    )
+
+
+def _limits(raw: Any) -> Limits:
+    t = _table(raw, "limits")
+    known = set(Limits.__dataclass_fields__)
+    _unknown(t, "limits", known)
+    args: dict[str, Any] = {}
+    for key, value in t.items():
+        default = getattr(Limits(), key)
+        kind = int if isinstance(default, int) else (int, float)
+        if isinstance(value, bool) or not isinstance(value, kind) or not (0 < value < float("inf")):
+            msg = f"Configuration 'limits.{key}' must be a positive number, got {value!r}."
+            raise ConfigError(msg)
+        args[key] = value if isinstance(default, int) else float(value)
+    return Limits(**args)
+
+
+def _rights(name: str, value: Any) -> frozenset[Right]:
+    if not isinstance(value, list) or any(v not in RIGHTS for v in value):
+        msg = f"Configuration '{name}' must list rights among {', '.join(RIGHTS)}, got {value!r}."
+        raise ConfigError(msg)
+    return frozenset(value)
+
+
+def _robots(
+    raw: Any, default_rights: frozenset[Right], skills: Mapping[str, SkillProfile]
+) -> dict[str, RobotConfig]:
+    robots: dict[str, RobotConfig] = {}
+    for name, table in _table(raw, "robots").items():
+        where = f"robots.{name}"
+        if not _ROBOT.match(name):
+            msg = f"Configuration '{where}': a robot name must be 1-64 of [A-Za-z0-9_-]."
+            raise ConfigError(msg)
+        t = _table(table, where)
+        _unknown(t, where, {"namespace", "skill", "storey", "domain_id", "ros", "rights"})
+        rights = _rights(f"{where}.rights", t["rights"]) if "rights" in t else default_rights
+        ns = t.get("namespace")
+        if ns is not None and (not isinstance(ns, str) or not _NAMESPACE.match(ns)):
+            msg = (
+                f"Configuration '{where}.namespace' must be a ROS namespace such as \"/robot1\", got {ns!r}."
+            )
+            raise ConfigError(msg)
+        skill, storey = t.get("skill"), t.get("storey")
+        if ns is not None and (not isinstance(skill, str) or not isinstance(storey, str)):
+            msg = f"Configuration '{where}': a robot with a namespace needs 'skill' and 'storey'."
+            raise ConfigError(msg)
+        if skill is not None and skill not in skills:
+            known = ", ".join(sorted(skills))
+            msg = f"Configuration '{where}.skill': unknown skill {skill!r}; configured: {known}."
+            raise ConfigError(msg)
+        domain = t.get("domain_id", 0)
+        if isinstance(domain, bool) or not isinstance(domain, int) or not 0 <= domain <= 232:
+            msg = f"Configuration '{where}.domain_id' must be an integer in [0, 232], got {domain!r}."
+            raise ConfigError(msg)
+        ros = t.get("ros", ["bridge", "rmw_zenoh"])
+        if not isinstance(ros, list) or not ros or any(v not in ("bridge", "rmw_zenoh") for v in ros):
+            msg = f'Configuration \'{where}.ros\' must list "bridge" and/or "rmw_zenoh", got {ros!r}.'
+            raise ConfigError(msg)
+        robots[name] = RobotConfig(
+            name=name,
+            rights=rights,
+            namespace=("/" + ns.strip("/")) if ns else None,
+            skill=skill,
+            storey=storey,
+            domain_id=domain,
+            ros=tuple(dict.fromkeys(ros)),
+        )
+    return robots
+
+
+_NAMESPACE = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*/?$")
+
+
+def _rerun(raw: Any) -> RerunConfig:
+    t = _table(raw, "rerun")
+    _unknown(t, "rerun", {"record", "directory", "connect_url"})
+    directory = t.get("directory", "var/recordings")
+    url = t.get("connect_url", "")
+    if not isinstance(directory, str) or not isinstance(url, str):
+        msg = "Configuration 'rerun.directory' and 'rerun.connect_url' must be strings."
+        raise ConfigError(msg)
+    return RerunConfig(
+        record=_flag(t, "record", "rerun", True), directory=Path(directory), connect_url=url or None
     )
