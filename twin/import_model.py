@@ -22,6 +22,7 @@ import pyoxigraph as ox
 
 from twin import vocab
 from twin.errors import ModelError, StoreNotEmptyError
+from twin.extents import format_extent, storey_extents
 from twin.meshcodec import encode_mesh, encode_placement
 from twin.records import BuildingModel, Geometry
 from twin.store import GraphStore
@@ -121,12 +122,15 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
         if b.site_guid in iri_of:
             yield ox.Quad(_n(iri_of[b.site_guid]), _n(vocab.BOT_HAS_BUILDING), _n(node))
     used_keys: set[str] = set()
+    extents = storey_extents(model)
     for st in sorted(model.storeys, key=lambda s: (s.elevation_m, s.name)):
         node = iri_of[st.guid]
         yield ox.Quad(_n(node), _TYPE, _n(vocab.BOT_STOREY))
         yield from name_quads(node, st.guid, st.name)
         yield ox.Quad(_n(node), _n(vocab.TWIN_ELEVATION), ox.Literal(float(st.elevation_m)))
         yield ox.Quad(_n(node), _n(vocab.TWIN_STOREY_KEY), ox.Literal(vocab.storey_key(st.name, used_keys)))
+        if st.guid in extents:
+            yield ox.Quad(_n(node), _n(vocab.TWIN_EXTENT), ox.Literal(format_extent(extents[st.guid])))
         if st.building_guid in iri_of:
             yield ox.Quad(_n(iri_of[st.building_guid]), _n(vocab.BOT_HAS_STOREY), _n(node))
     cache: dict[int, ox.Literal] = {}

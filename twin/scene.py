@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.errors import MapError
+from twin.extents import parse_extent
 from twin.meshcodec import decode_mesh, decode_placement
 from twin.records import Mesh
 from twin.store import GraphStore, literal_value
@@ -229,11 +230,12 @@ def load_scene(store: GraphStore) -> Scene:
         raise MapError(msg)
     storeys = []
     for row in store.select(
-        "SELECT ?st ?key ?name ?elev WHERE { ?st a bot:Storey ; twin:storeyKey ?key ; twin:elevation ?elev . "
-        "OPTIONAL { ?st rdfs:label ?name } } ORDER BY ?elev ?key"
+        "SELECT ?st ?key ?name ?elev ?extent WHERE { ?st a bot:Storey ; twin:storeyKey ?key ; "
+        "twin:elevation ?elev . OPTIONAL { ?st rdfs:label ?name } OPTIONAL { ?st twin:extent ?extent } } "
+        "ORDER BY ?elev ?key"
     ):
         iri = literal_value(row["st"]) or ""
-        ext = _extent(
+        ext = parse_extent(row["extent"] or "") or _extent(  # stored at import; older stores: computed
             [
                 (elements, elements.indices_of(members.get(iri, []))),
                 (spaces, spaces.indices_of(storey_spaces.get(iri, []))),

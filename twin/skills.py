@@ -20,7 +20,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -33,6 +33,7 @@ Kind = Literal["localization", "navigation"]
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
 _IFC_NAME = re.compile(r"^Ifc[A-Za-z0-9]+$")
 _SERVICE = re.compile(r"\bSERVICE\b", re.IGNORECASE)
+_IRI = re.compile(r'^[^<>"{}|^`\\\s]+:[^<>"{}|^`\\\s]*$')
 _CURIE = re.compile(r"^(?P<prefix>[a-z]+):(?P<local>[A-Za-z0-9_-]+)$")
 
 _COMMON = {
@@ -240,15 +241,21 @@ def _type_test(types: tuple[str, ...]) -> str:
     return " UNION ".join(alternatives)
 
 
-def selection_query(skill: SkillProfile) -> str:
+def selection_query(skill: SkillProfile, only: Sequence[str] | None = None) -> str:
     """The SPARQL SELECT of the ``?element`` IRIs the skill's maps are made of (with geometry only).
 
     The user's pattern runs as a sub-select that projects only ``?element``: its other variables can
-    neither bind nor undo the type and material filters.
+    neither bind nor undo the type and material filters. Doors observed open (``twin:isOpen true``)
+    are never selected: they are passable, and a sensor sees through their doorway. With ``only``,
+    just those IRIs are tested (what the daemon does after a change: cheap on any graph).
     """
-    lines = [
-        "SELECT DISTINCT ?element WHERE {",
+    lines = ["SELECT DISTINCT ?element WHERE {"]
+    if only is not None:
+        values = " ".join(f"<{iri}>" for iri in only if _IRI.match(iri))
+        lines.append(f"  VALUES ?element {{ {values} }}")
+    lines += [
         "  ?element a bot:Element ; omg:hasGeometry ?twin_geometry .",
+        "  FILTER NOT EXISTS { ?element twin:isOpen true }",
     ]
     if skill.include_types:
         lines.append(f"  {_type_test(skill.include_types)}")

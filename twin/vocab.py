@@ -90,6 +90,20 @@ TWIN_SOURCE_LINES: Final = TWIN + "sourceLines"
 TWIN_MESH_FAILED: Final = TWIN + "meshFailed"
 TWIN_KERNEL_FALLBACK: Final = TWIN + "kernelFallback"
 TWIN_REVISION: Final = TWIN + "revision"
+TWIN_EXTENT: Final = TWIN + "extent"
+"""A storey's map extent: ``"xmin ymin xmax ymax"`` in metres (fixed at import: maps never move)."""
+# Observations (robot-reported changes) and their provenance.
+TWIN_STOREY: Final = TWIN + "storey"
+TWIN_BOX: Final = TWIN + "box"
+TWIN_IS_OPEN: Final = TWIN + "isOpen"
+TWIN_REMOVED: Final = TWIN + "removed"
+TWIN_OBSERVED_BY: Final = TWIN + "observedBy"
+TWIN_OBSERVED_AT: Final = TWIN + "observedAt"
+XSD_DATETIME: Final = XSD + "dateTime"
+XSD_STRING: Final = XSD + "string"
+# Skill profiles added at run time (kept in the graph so that they survive a restart).
+TWIN_SKILL: Final = TWIN + "Skill"
+TWIN_PROFILE_JSON: Final = TWIN + "profileJson"
 
 # IFC classes whose BEO / FURN class is not simply the IFC name without "Ifc" and suffixes.
 _BEO_CLASSES: Final = frozenset(
@@ -210,6 +224,11 @@ def entity_iri(base_iri: str, ifc_class: str, guid: str) -> str:
 def geometry_iri(entity: str) -> str:
     """The IRI of an element's geometry node: the element IRI with ``/geometry`` appended."""
     return f"{entity}/geometry"
+
+
+def skill_iri(base_iri: str, name: str) -> str:
+    """The IRI of a skill profile added at run time."""
+    return f"{base_iri}skill_{name}"
 
 
 def model_iri(base_iri: str) -> str:

@@ -1,0 +1,336 @@
+"""Observations: what robots report about elements, parsed from Turtle into typed records.
+
+An observation is a Turtle document (N-Triples is valid Turtle) with one or more element
+descriptions; the subjects are element IRIs (see ``README.md``, "Observations", for the wire format).
+This module checks everything that needs no graph: the syntax, the known terms, one value per term,
+finite numbers, sizes and counts within :class:`~twin.config.Limits`. What needs the graph (does the
+element exist, is it static, may this robot change it) is checked by :mod:`twin.live`.
+
+Example::
+
+    reports = parse_observation(b'''
+        @prefix twin: <https://w3id.org/building-twin#> .
+        <urn:robot1:table-1> twin:ifcClass "IfcFurniture" ; twin:storey "ground-floor" ;
+            twin:box "2.0 3.0 0.375 1.2 0.8 0.75 0.0" .
+    ''', limits=Limits())
+    reports[0].box.sx        # 1.2
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections import defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import pyoxigraph as ox
+
+from twin import vocab
+from twin.config import Limits
+from twin.errors import ModelError, ObservationError
+from twin.meshcodec import decode_mesh, decode_placement
+from twin.records import FloatArray, Geometry
+
+_IRI = re.compile(r'^[A-Za-z][A-Za-z0-9+.-]*:[^<>"{}|^`\\\s]*$')
+_CLASS_NAMESPACES = (vocab.BEO, vocab.FURN)
+
+
+@dataclass(frozen=True, slots=True)
+class ObservedBox:
+    """An oriented box: centre (x, y in the building's XY frame, z above the storey's elevation),
+    sizes and yaw about +z; metres and radians."""
+
+    cx: float
+    cy: float
+    cz: float
+    sx: float
+    sy: float
+    sz: float
+    yaw: float
+
+    def text(self) -> str:
+        return " ".join(repr(v) for v in (self.cx, self.cy, self.cz, self.sx, self.sy, self.sz, self.yaw))
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class ElementReport:
+    """What one observation says about one element. Unset fields are left as they are in the twin."""
+
+    iri: str
+    ifc_class: str | None = None
+    storey: str | None = None
+    box: ObservedBox | None = None
+    geometry: Geometry | None = None
+    """A full mesh and its placement (``omg:hasGeometry``)."""
+    placement: FloatArray | None = None
+    """A new placement only (a move): same mesh."""
+    is_open: bool | None = None
+    removed: bool = False
+    labels: tuple[str, ...] = ()
+    materials: tuple[str, ...] = ()
+    classes: tuple[str, ...] = ()
+    """Extra ``rdf:type`` IRIs (BEO or FURN classes such as ``furn:Table``)."""
+
+    @property
+    def changes_geometry(self) -> bool:
+        return self.box is not None or self.geometry is not None or self.placement is not None
+
+
+def _fail(message: str) -> ObservationError:
+    return ObservationError(message)
+
+
+def _parse_turtle(payload: bytes) -> list[ox.Triple]:
+    try:
+        return [
+            t if isinstance(t, ox.Triple) else t.triple
+            for t in ox.parse(payload, format=ox.RdfFormat.TURTLE, without_named_graphs=True)
+        ]
+    except SyntaxError as err:
+        first = str(err).splitlines()[0] if str(err) else "syntax error"
+        raise _fail(f"Observation is not valid Turtle: {first}") from err
+    except UnicodeDecodeError as err:
+        raise _fail(f"Observation is not UTF-8 text: {err}") from err
+
+
+def _name(term: ox.NamedNode | ox.BlankNode | ox.Literal | ox.Triple) -> str:
+    if isinstance(term, ox.NamedNode):
+        return f"<{term.value}>"
+    return str(term)
+
+
+def _one(subject: str, predicate: str, values: list[ox.Literal | ox.NamedNode | ox.BlankNode]) -> object:
+    if len(values) != 1:
+        raise _fail(f"Element <{subject}> has {len(values)} values for <{predicate}>; give exactly one.")
+    return values[0]
+
+
+def _literal(subject: str, predicate: str, values: list[object], datatypes: tuple[str, ...]) -> ox.Literal:
+    term = _one(subject, predicate, values)  # type: ignore[arg-type]
+    if not isinstance(term, ox.Literal) or term.datatype.value not in datatypes:
+        short = predicate.rsplit("#", 1)[-1]
+        kinds = " or ".join(d.rsplit("#", 1)[-1] for d in datatypes)
+        raise _fail(f"Element <{subject}>: twin:{short} must be a literal of type {kinds}, got {term}.")
+    return term
+
+
+def _numbers(subject: str, what: str, text: str, count: int) -> list[float]:
+    parts = text.split()
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise _fail(f"Element <{subject}>: {what} must be {count} numbers, got {text[:120]!r}.") from None
+    if len(values) != count:
+        raise _fail(
+            f"Element <{subject}>: {what} must be {count} numbers, got {len(values)} in {text[:120]!r}."
+        )
+    if not all(math.isfinite(v) for v in values):
+        raise _fail(f"Element <{subject}>: {what} has a NaN or infinite number: {text[:120]!r}.")
+    return values
+
+
+def _box(subject: str, text: str, limits: Limits) -> ObservedBox:
+    cx, cy, cz, sx, sy, sz, yaw = _numbers(subject, "twin:box", text, 7)
+    for name, size in (("sx", sx), ("sy", sy), ("sz", sz)):
+        if not 0.0 < size <= limits.box_size_m:
+            raise _fail(
+                f"Element <{subject}>: box size {name}={size} m is outside (0, {limits.box_size_m}] m."
+            )
+    return ObservedBox(cx, cy, cz, sx, sy, sz, yaw)
+
+
+def _placement(subject: str, text: str) -> FloatArray:
+    _numbers(subject, "twin:placement", text, 16)
+    try:
+        return decode_placement(text)
+    except ModelError as err:
+        raise _fail(f"Element <{subject}>: {err}") from err
+
+
+def _geometry(
+    subject: str,
+    node: ox.NamedNode | ox.BlankNode,
+    by_subject: dict[str, dict[str, list[object]]],
+    limits: Limits,
+) -> Geometry:
+    props = by_subject.pop(_name(node), None)
+    if props is None:
+        raise _fail(f"Element <{subject}>: its omg:hasGeometry node {node} has no fog:asPly_v1.0-binaryLE.")
+    allowed = {vocab.FOG_PLY_BINARY_LE, vocab.TWIN_PLACEMENT, vocab.RDF_TYPE}
+    for predicate in props:
+        if predicate not in allowed:
+            raise _fail(f"Element <{subject}>: unknown term <{predicate}> on its geometry node.")
+    if vocab.FOG_PLY_BINARY_LE not in props:
+        raise _fail(f"Element <{subject}>: its geometry node has no fog:asPly_v1.0-binaryLE literal.")
+    ply = _literal(subject, vocab.FOG_PLY_BINARY_LE, props[vocab.FOG_PLY_BINARY_LE], (vocab.XSD_BASE64,))
+    try:
+        mesh = decode_mesh(ply.value)
+    except ModelError as err:
+        raise _fail(f"Element <{subject}>: its mesh is unusable: {err}") from err
+    if mesh.triangle_count > limits.triangles_per_mesh:
+        raise _fail(
+            f"Element <{subject}>: its mesh has {mesh.triangle_count} triangles, "
+            f"more than the {limits.triangles_per_mesh} allowed."
+        )
+    if mesh.triangle_count == 0:
+        raise _fail(f"Element <{subject}>: its mesh has no triangles.")
+    placement = (
+        _placement(
+            subject,
+            _literal(
+                subject,
+                vocab.TWIN_PLACEMENT,
+                props[vocab.TWIN_PLACEMENT],
+                (vocab.TWIN_MATRIX4, vocab.XSD_STRING),
+            ).value,
+        )
+        if vocab.TWIN_PLACEMENT in props
+        else None
+    )
+    return Geometry(mesh) if placement is None else Geometry(mesh, placement)
+
+
+_ELEMENT_TERMS = {
+    vocab.TWIN_IFC_CLASS,
+    vocab.TWIN_STOREY,
+    vocab.TWIN_BOX,
+    vocab.OMG_HAS_GEOMETRY,
+    vocab.TWIN_PLACEMENT,
+    vocab.TWIN_IS_OPEN,
+    vocab.TWIN_REMOVED,
+    vocab.RDFS_LABEL,
+    vocab.TWIN_MATERIAL,
+    vocab.RDF_TYPE,
+}
+
+
+def _strings(subject: str, predicate: str, values: list[object]) -> tuple[str, ...]:
+    out = []
+    for v in values:
+        if not isinstance(v, ox.Literal):
+            raise _fail(f"Element <{subject}>: <{predicate}> must be a literal, got {v}.")
+        if len(v.value) > 1024:
+            raise _fail(f"Element <{subject}>: <{predicate}> is longer than 1024 characters.")
+        out.append(v.value)
+    return tuple(out)
+
+
+def _report(
+    subject: str,
+    props: dict[str, list[object]],
+    by_subject: dict[str, dict[str, list[object]]],
+    limits: Limits,
+) -> ElementReport:
+    if not _IRI.match(subject) or len(subject) > 2048:
+        raise _fail(f"Element IRI {subject[:200]!r} is not an absolute IRI.")
+    for predicate in props:
+        if predicate not in _ELEMENT_TERMS:
+            raise _fail(
+                f"Element <{subject}>: unknown term <{predicate}> (known: twin:ifcClass, twin:storey, "
+                "twin:box, omg:hasGeometry, twin:placement, twin:isOpen, twin:removed, rdfs:label, "
+                "twin:material, rdf:type)."
+            )
+    args: dict[str, object] = {"iri": subject}
+    if vocab.TWIN_IFC_CLASS in props:
+        value = _literal(
+            subject, vocab.TWIN_IFC_CLASS, props[vocab.TWIN_IFC_CLASS], (vocab.XSD_STRING,)
+        ).value
+        if not re.fullmatch(r"Ifc[A-Za-z0-9]{1,64}", value):
+            raise _fail(f"Element <{subject}>: twin:ifcClass {value!r} is not an IFC class name.")
+        args["ifc_class"] = value
+    if vocab.TWIN_STOREY in props:
+        args["storey"] = _literal(
+            subject, vocab.TWIN_STOREY, props[vocab.TWIN_STOREY], (vocab.XSD_STRING,)
+        ).value
+    if vocab.TWIN_BOX in props:
+        text = _literal(subject, vocab.TWIN_BOX, props[vocab.TWIN_BOX], (vocab.XSD_STRING,)).value
+        args["box"] = _box(subject, text, limits)
+        if "storey" not in args:
+            raise _fail(f"Element <{subject}>: twin:box needs twin:storey (its z is above that storey).")
+    if vocab.OMG_HAS_GEOMETRY in props:
+        node = _one(subject, vocab.OMG_HAS_GEOMETRY, props[vocab.OMG_HAS_GEOMETRY])  # type: ignore[arg-type]
+        if not isinstance(node, ox.NamedNode | ox.BlankNode):
+            raise _fail(f"Element <{subject}>: omg:hasGeometry must point to a node, got {node}.")
+        args["geometry"] = _geometry(subject, node, by_subject, limits)
+    if vocab.TWIN_PLACEMENT in props:
+        text = _literal(
+            subject, vocab.TWIN_PLACEMENT, props[vocab.TWIN_PLACEMENT], (vocab.TWIN_MATRIX4, vocab.XSD_STRING)
+        ).value
+        args["placement"] = _placement(subject, text)
+    if vocab.TWIN_IS_OPEN in props:
+        args["is_open"] = _literal(
+            subject, vocab.TWIN_IS_OPEN, props[vocab.TWIN_IS_OPEN], (vocab.XSD_BOOLEAN,)
+        ).value in ("true", "1")
+    if vocab.TWIN_REMOVED in props:
+        removed = _literal(subject, vocab.TWIN_REMOVED, props[vocab.TWIN_REMOVED], (vocab.XSD_BOOLEAN,)).value
+        if removed not in ("true", "1"):
+            raise _fail(f"Element <{subject}>: twin:removed can only be true.")
+        args["removed"] = True
+    if vocab.RDFS_LABEL in props:
+        args["labels"] = _strings(subject, vocab.RDFS_LABEL, props[vocab.RDFS_LABEL])
+    if vocab.TWIN_MATERIAL in props:
+        args["materials"] = _strings(subject, vocab.TWIN_MATERIAL, props[vocab.TWIN_MATERIAL])
+    if vocab.RDF_TYPE in props:
+        classes = []
+        for v in props[vocab.RDF_TYPE]:
+            if not isinstance(v, ox.NamedNode) or not (
+                v.value.startswith(_CLASS_NAMESPACES) or v.value == vocab.BOT_ELEMENT
+            ):
+                raise _fail(
+                    f"Element <{subject}>: rdf:type {v} is not allowed; only BEO and FURN classes "
+                    "(e.g. furn:Table) and bot:Element."
+                )
+            classes.append(v.value)
+        args["classes"] = tuple(classes)
+    report = ElementReport(**args)  # type: ignore[arg-type]
+    geometries = [k for k in ("box", "geometry", "placement") if k in args]
+    if len(geometries) > 1:
+        raise _fail(
+            f"Element <{subject}>: give one of twin:box, omg:hasGeometry or twin:placement, not {geometries}."
+        )
+    if report.removed and (report.changes_geometry or report.is_open is not None or report.ifc_class):
+        raise _fail(f"Element <{subject}>: twin:removed true cannot come with other changes.")
+    return report
+
+
+def parse_observation(payload: bytes | str, *, limits: Limits) -> tuple[ElementReport, ...]:
+    """Parse and check an observation document; ObservationError names the first problem.
+
+    Args:
+        payload: the Turtle document (bytes, UTF-8).
+        limits: payload size, element count, mesh size and box size limits.
+
+    Returns:
+        One report per described element, in IRI order.
+    """
+    data = payload.encode() if isinstance(payload, str) else bytes(payload)
+    if len(data) > limits.payload_bytes:
+        raise _fail(f"Observation is {len(data):,} bytes, more than the {limits.payload_bytes:,} allowed.")
+    if not data.strip():
+        raise _fail("Observation is empty: it must describe at least one element.")
+    triples = _parse_turtle(data)
+    by_subject: dict[str, dict[str, list[object]]] = defaultdict(lambda: defaultdict(list))
+    objects_of_geometry: set[str] = set()
+    for t in triples:
+        by_subject[_name(t.subject)][t.predicate.value].append(t.object)
+        if t.predicate.value == vocab.OMG_HAS_GEOMETRY:
+            objects_of_geometry.add(_name(t.object))
+    subjects = sorted(s for s in by_subject if s not in objects_of_geometry)
+    for s in subjects:
+        if not s.startswith("<"):
+            raise _fail(f"Observation describes a blank node {s}: element subjects must be IRIs.")
+    if len(subjects) > limits.elements_per_observation:
+        raise _fail(
+            f"Observation describes {len(subjects)} elements, more than the "
+            f"{limits.elements_per_observation} allowed."
+        )
+    reports = [_report(s[1:-1], dict(by_subject.pop(s)), by_subject, limits) for s in subjects]
+    leftover = sorted(by_subject)
+    if leftover:
+        raise _fail(f"Observation has triples about {leftover[0]} that belong to no element.")
+    return tuple(reports)
+
+
+def report_iris(reports: Sequence[ElementReport]) -> tuple[str, ...]:
+    return tuple(r.iri for r in reports)
