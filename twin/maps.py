@@ -16,7 +16,7 @@ Example::
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -150,6 +150,32 @@ def dilate_disk(occupied: BoolGrid, radius_cells: float) -> BoolGrid:
     return out
 
 
+Layer = tuple[MeshSet, IndexArray]
+"""Elements to draw: a mesh set and the positions of the chosen elements in it."""
+
+
+def _render(
+    occupancy: Callable[[Window], BoolGrid], plan: MapPlan, window: Window, spaces: MeshSet
+) -> GridData:
+    window = window.intersect(plan.frame.full)
+    if window.empty:
+        return np.zeros((max(window.shape[0], 0), max(window.shape[1], 0)), dtype=np.int8)
+    pad = math.floor(plan.inflation_cells + 1e-9)
+    padded = Window(window.row0 - pad, window.col0 - pad, window.row1 + pad, window.col1 + pad).intersect(
+        plan.frame.full
+    )
+    occupied = occupancy(padded)
+    if pad:
+        occupied = dilate_disk(occupied, plan.inflation_cells)
+    r0, c0 = window.row0 - padded.row0, window.col0 - padded.col0
+    occupied = occupied[r0 : r0 + window.shape[0], c0 : c0 + window.shape[1]]
+    data = np.where(occupied, OCCUPIED, FREE).astype(np.int8)
+    if plan.skill.unknown_outside:
+        inside = _occupancy(spaces, plan.spaces, plan, window)
+        data[~inside & ~occupied] = UNKNOWN
+    return data
+
+
 def render_window(
     scene: Scene, plan: MapPlan, window: Window, *, prepared: PreparedSlab | None = None
 ) -> GridData:
@@ -158,29 +184,31 @@ def render_window(
     With ``prepared``, its elements come from the prepared polygons (fast for repeated windows) and
     only the plan's other elements are sliced from their triangles; the cells are the same.
     """
-    window = window.intersect(plan.frame.full)
-    if window.empty:
-        return np.zeros((max(window.shape[0], 0), max(window.shape[1], 0)), dtype=np.int8)
-    pad = math.floor(plan.inflation_cells + 1e-9)
-    padded = Window(window.row0 - pad, window.col0 - pad, window.row1 + pad, window.col1 + pad).intersect(
-        plan.frame.full
-    )
-    if prepared is None:
-        occupied = _occupancy(scene.elements, plan.selected, plan, padded)
-    else:
+
+    def occupancy(padded: Window) -> BoolGrid:
+        if prepared is None:
+            return _occupancy(scene.elements, plan.selected, plan, padded)
         occupied = rasterize(prepared.geometry, plan.frame, padded)
         rest = np.setdiff1d(plan.selected, prepared.ids, assume_unique=True)
         if len(rest):
             occupied |= _occupancy(scene.elements, rest, plan, padded)
-    if pad:
-        occupied = dilate_disk(occupied, plan.inflation_cells)
-    r0, c0 = window.row0 - padded.row0, window.col0 - padded.col0
-    occupied = occupied[r0 : r0 + window.shape[0], c0 : c0 + window.shape[1]]
-    data = np.where(occupied, OCCUPIED, FREE).astype(np.int8)
-    if plan.skill.unknown_outside:
-        inside = _occupancy(scene.spaces, plan.spaces, plan, window)
-        data[~inside & ~occupied] = UNKNOWN
-    return data
+        return occupied
+
+    return _render(occupancy, plan, window, scene.spaces)
+
+
+def render_layers(layers: Sequence[Layer], plan: MapPlan, window: Window, *, spaces: MeshSet) -> GridData:
+    """Like :func:`render_window`, for the union of several layers of elements (ignoring
+    ``plan.selected``): what the live twin draws, the imported elements plus those robots changed."""
+
+    def occupancy(padded: Window) -> BoolGrid:
+        occupied = np.zeros(padded.shape, dtype=np.bool_)
+        for meshes, ids in layers:
+            if len(ids):
+                occupied |= _occupancy(meshes, ids, plan, padded)
+        return occupied
+
+    return _render(occupancy, plan, window, spaces)
 
 
 def build_map(scene: Scene, plan: MapPlan, *, prepared: PreparedSlab | None = None) -> OccupancyGrid:

@@ -15,7 +15,7 @@ Example::
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Self
 
 import numpy as np
@@ -157,10 +157,14 @@ class StoreyInfo:
 
 @dataclass(frozen=True, eq=False, slots=True)
 class Scene:
+    """Elements and spaces with geometry, storeys, and each element's local mesh and placement
+    (``shapes``: elements that share a mesh literal share one :class:`Mesh` object)."""
+
     elements: MeshSet
     spaces: MeshSet
     storeys: tuple[StoreyInfo, ...]
     space_storey: dict[str, str]
+    shapes: dict[str, tuple[Mesh, npt.NDArray[np.float64]]] = field(default_factory=dict)
 
     def storey(self, key: str) -> StoreyInfo:
         for s in self.storeys:
@@ -205,7 +209,8 @@ def _extent(sets: list[tuple[MeshSet, IndexArray]]) -> tuple[float, float, float
 
 def load_scene(store: GraphStore) -> Scene:
     """Read every element's and space's geometry and every storey from ``store``."""
-    elements = MeshSet.build(_mesh_items(store, "bot:Element"))
+    items = _mesh_items(store, "bot:Element")
+    elements = MeshSet.build(items)
     spaces = MeshSet.build(_mesh_items(store, "bot:Space"))
     if len(elements) == 0:
         msg = "The store holds no element with geometry: import a model first."
@@ -257,4 +262,4 @@ def load_scene(store: GraphStore) -> Scene:
         len(spaces),
         len(storeys),
     )
-    return Scene(elements, spaces, tuple(storeys), space_storey)
+    return Scene(elements, spaces, tuple(storeys), space_storey, {i: (m, p) for i, m, p in items})

@@ -2,7 +2,8 @@
 
 Same layout as ``adapters.sample_lab`` (world frame: the building at x 10.., y 5..), ground floor only
 unless ``storeys=2``: rooms A and B joined by a corridor, an arch across the corridor, a glass wall on
-room B's east side, Door A in an opening of Wall A south, and a table in room A.
+room B's east side, Door A in the gap of Wall A south (x 1.55..2.45, a header above 2.1 m), and a
+table in room A.
 """
 
 from __future__ import annotations
@@ -46,7 +47,9 @@ def _guid(n: int) -> str:
 GROUND: tuple[BoxSpec, ...] = (
     BoxSpec("Wall A west", _guid(1), "IfcWall", "Brick", (-0.2, -0.2, 0.0, 0.0, 4.2, 2.7)),
     BoxSpec("Wall A north", _guid(2), "IfcWall", "Brick", (-0.2, 4.0, 0.0, 4.2, 4.2, 2.7)),
-    BoxSpec("Wall A south", _guid(3), "IfcWall", "Brick", (-0.2, -0.2, 0.0, 4.2, 0.0, 2.7)),
+    BoxSpec("Wall A south", _guid(3), "IfcWall", "Brick", (-0.2, -0.2, 0.0, 1.55, 0.0, 2.7)),
+    BoxSpec("Wall A south right", _guid(17), "IfcWall", "Brick", (2.45, -0.2, 0.0, 4.2, 0.0, 2.7)),
+    BoxSpec("Wall A south header", _guid(18), "IfcWall", "Brick", (1.55, -0.2, 2.1, 2.45, 0.0, 2.7)),
     BoxSpec("Wall A east low", _guid(4), "IfcWall", "Brick", (4.0, -0.2, 0.0, 4.2, 1.4, 2.7)),
     BoxSpec("Wall A east high", _guid(5), "IfcWall", "Brick", (4.0, 2.6, 0.0, 4.2, 4.2, 2.7)),
     BoxSpec("Corridor north", _guid(6), "IfcWall", "Brick", (4.2, 2.6, 0.0, 7.8, 2.8, 2.7)),
