@@ -350,7 +350,7 @@ class TwinService:
             self.store.apply(plan.changes)  # durable from here on
         except ObservationError as err:
             self._counters.rejected += 1
-            log.info("Rejected an observation by %s: %s", req.robot, err)
+            log.warning("Rejected an observation by %s: %s", req.robot, err)
             self._emit(ObservationRejected(req.robot, str(err), stamp, len(req.payload)))
             return Reply.error(str(err))
         except TwinError as err:

@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from adapters.cli import map_cmd, model_cmds
+from adapters.cli import map_cmd, model_cmds, robot_cmds, serve_cmd
 from twin.config import load_config
 from twin.errors import StoreNotEmptyError, StoreNotFoundError, TwinError
 
@@ -71,6 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--storey", help="one storey key (see 'twin stats'); default: every storey")
     sp.add_argument("--out", help="output directory (default: maps.out of the configuration)")
     sp.set_defaults(func=map_cmd.cmd_map)
+
+    serve_cmd.add_parser(sub)
+    robot_cmds.add_parsers(sub)
     return p
 
 

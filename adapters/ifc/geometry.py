@@ -290,4 +290,3 @@ def start_meshing(
 ) -> MeshingJob:
     """Start meshing ``products`` (ifcopenshell entities) in the background; see :class:`MeshingJob`."""
     return MeshingJob(f, products, kernels=kernels, threads=threads, progress=progress)
-

@@ -13,5 +13,5 @@ class RemoteError(TwinError):
     """The daemon answered a request with an error (the message is the daemon's)."""
 
 
-class TimeoutError_(TwinError):  # noqa: N801  (the builtin TimeoutError is an OSError)
+class DaemonTimeoutError(TwinError):
     """The daemon did not answer in time (is it running, and reachable at the given endpoint?)."""

@@ -31,9 +31,7 @@ def session_config(
 ) -> zenoh.Config:
     """A zenoh configuration from ``settings``; ``mode``, ``listen`` and ``connect`` override them."""
     try:
-        conf = (
-            zenoh.Config.from_file(str(settings.config_file)) if settings.config_file else zenoh.Config()
-        )
+        conf = zenoh.Config.from_file(str(settings.config_file)) if settings.config_file else zenoh.Config()
     except Exception as err:  # zenoh raises ZError for a bad file
         msg = f"Cannot read the zenoh configuration file {settings.config_file}: {err}"
         raise TransportError(msg) from err

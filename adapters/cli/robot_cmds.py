@@ -1,0 +1,159 @@
+"""``twin observe`` and ``twin watch``: what a robot does, from the command line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+from adapters.ros import write_map_files
+from adapters.zenoh.client import MapVersion, MapWatcher, TwinClient
+from adapters.zenoh.errors import RemoteError
+from twin import vocab
+from twin.config import Config
+from twin.errors import ObservationError
+
+
+def _endpoints(args: argparse.Namespace, cfg: Config) -> list[str]:
+    return list(args.connect or cfg.zenoh.connect or cfg.zenoh.listen)
+
+
+def _prefix(args: argparse.Namespace, cfg: Config) -> str:
+    return cfg.key_prefix(args.site)
+
+
+def observation_turtle(args: argparse.Namespace) -> bytes:
+    """The observation document the options describe."""
+    t = vocab.TWIN
+    if args.turtle:
+        return Path(args.turtle).read_bytes()
+    if args.box:
+        try:
+            values = [float(v) for v in args.box.split(",")]
+        except ValueError:
+            values = []
+        if len(values) != 7:
+            msg = f"--box takes 7 comma-separated numbers x,y,z,sx,sy,sz,yaw, got {args.box!r}."
+            raise ObservationError(msg)
+        if not args.ifc_class or not args.storey:
+            msg = "--box needs --class IFCCLASS and --storey KEY."
+            raise ObservationError(msg)
+        iri = args.id or f"urn:twin:{args.robot}:{uuid.uuid4()}"
+        box = " ".join(repr(v) for v in values)
+        return (
+            f"<{iri}> <{t}ifcClass> {json.dumps(args.ifc_class)} ; <{t}storey> {json.dumps(args.storey)} ; "
+            f'<{t}box> "{box}" .\n'
+        ).encode()
+    if args.remove:
+        return f"<{args.remove}> <{t}removed> true .\n".encode()
+    if args.open:
+        return f"<{args.open}> <{t}isOpen> true .\n".encode()
+    if args.close:
+        return f"<{args.close}> <{t}isOpen> false .\n".encode()
+    msg = "Say what was observed: --box ... | --turtle FILE | --remove IRI | --open IRI | --close IRI."
+    raise ObservationError(msg)
+
+
+def cmd_observe(args: argparse.Namespace, cfg: Config) -> int:
+    payload = observation_turtle(args)
+    with TwinClient.connect(_endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout) as twin:
+        if args.no_ack:
+            twin.publish_observation(args.robot, payload)
+            time.sleep(0.2)  # let the put leave before the session closes
+            print("sent (no ack requested)")
+            return 0
+        try:
+            ack = twin.observe(args.robot, payload)
+        except RemoteError as err:
+            print(json.dumps({"ok": False, "error": str(err)}))
+            return 1
+    print(json.dumps(ack))
+    return 0
+
+
+def _describe(v: MapVersion) -> str:
+    occupied = int((v.grid.data == 100).sum())
+    return (
+        f"{v.grid.storey}/{v.grid.skill} version {v.version} (revision {v.revision}) via {v.via}: "
+        f"{v.grid.frame.width}x{v.grid.frame.height} cells, {occupied} occupied"
+    )
+
+
+def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
+    with TwinClient.connect(_endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout) as twin:
+        storeys = [args.storey] if args.storey else [s for s, k in twin.list_maps() if k == args.skill]
+        if not storeys:
+            print(f"twin: error: the daemon serves no map of skill {args.skill!r}", file=sys.stderr)
+            return 1
+        seen = threading.Semaphore(0)
+        lock = threading.Lock()
+
+        def on_version(v: MapVersion) -> None:
+            with lock:
+                print(_describe(v), flush=True)
+            seen.release()
+
+        watchers: list[MapWatcher] = [twin.watch(s, args.skill, on_version) for s in storeys]
+        try:
+            deadline = time.monotonic() + args.timeout
+            got = 0
+            while args.count is None or got < args.count:
+                left = deadline - time.monotonic() if args.count is not None else 3600.0
+                if left <= 0 or not seen.acquire(timeout=left):
+                    if args.count is not None:
+                        print(
+                            f"twin: error: {got} of {args.count} map versions in {args.timeout} s",
+                            file=sys.stderr,
+                        )
+                        return 1
+                    continue
+                got += 1
+        except KeyboardInterrupt:
+            pass
+        finally:
+            for w in watchers:
+                w.close()
+        if args.out:
+            out = Path(args.out)
+            for w in watchers:
+                if w.latest is not None:
+                    files = write_map_files(w.latest.grid, out, stamp_ns=time.time_ns())
+                    print(f"wrote {files.yaml}")
+    return 0
+
+
+def add_parsers(sub: Any) -> None:
+    def common(sp: argparse.ArgumentParser) -> None:
+        sp.add_argument(
+            "--connect", action="append", metavar="ENDPOINT", help="the daemon or a router (repeatable)"
+        )
+        sp.add_argument("--site", help="site name (key prefix twin/<site>; default: site.name)")
+        sp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the daemon")
+
+    sp = sub.add_parser("observe", help="send a robot's observation to the daemon and print the ack")
+    common(sp)
+    sp.add_argument("--robot", required=True, help="the observing robot's name")
+    what = sp.add_mutually_exclusive_group(required=True)
+    what.add_argument("--box", metavar="x,y,z,sx,sy,sz,yaw", help="an oriented box (z above the storey)")
+    what.add_argument("--turtle", metavar="FILE", help="a Turtle observation document")
+    what.add_argument("--remove", metavar="IRI", help="the element is gone")
+    what.add_argument("--open", metavar="IRI", help="the door was seen open")
+    what.add_argument("--close", metavar="IRI", help="the door was seen closed")
+    sp.add_argument("--id", help="IRI of the boxed element (default: a new urn:twin:<robot>:<uuid>)")
+    sp.add_argument("--class", dest="ifc_class", help="IFC class of the boxed element, e.g. IfcFurniture")
+    sp.add_argument("--storey", help="storey key of the boxed element (see 'twin stats')")
+    sp.add_argument("--no-ack", action="store_true", help="best effort: put, do not wait for an ack")
+    sp.set_defaults(func=cmd_observe)
+
+    sp = sub.add_parser("watch", help="subscribe to a skill's maps like a robot; print each version")
+    common(sp)
+    sp.add_argument("--skill", required=True, help="the skill whose maps to watch")
+    sp.add_argument("--storey", help="one storey key (default: every storey)")
+    sp.add_argument("--count", type=int, help="stop after this many map versions")
+    sp.add_argument("--out", help="write the final maps as map_server files into this directory")
+    sp.set_defaults(func=cmd_watch)

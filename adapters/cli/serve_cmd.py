@@ -1,0 +1,131 @@
+"""``twin serve``: the daemon. Opens the store (importing ``--ifc`` first when it is empty), builds and
+publishes every skill map, serves robots over Zenoh until SIGINT/SIGTERM, then shuts down cleanly."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib
+import logging
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from adapters.cli.common import store_path_of
+from adapters.zenoh.daemon import ZenohDaemon
+from adapters.zenoh.errors import TransportError
+from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.session import session_config
+from twin.config import Config
+from twin.events import TwinSink
+from twin.service import TwinService
+from twin.store import EmbeddedStore
+
+log = logging.getLogger(__name__)
+
+
+def _needs_import(store_path: Path) -> bool:
+    if not store_path.exists():
+        return True
+    with EmbeddedStore.open(store_path) as store:
+        return store.is_empty()
+
+
+def _recorder(args: argparse.Namespace, cfg: Config, site: str) -> TwinSink | None:
+    """The Rerun recorder sink, when recording is on and the adapter is installed."""
+    if args.no_record or (not cfg.rerun.record and not args.record and not cfg.rerun.connect_url):
+        return None
+    try:
+        RerunRecorder = importlib.import_module("adapters.rerun").RerunRecorder  # noqa: N806
+    except (ImportError, AttributeError):
+        log.info("Recording is off: the Rerun adapter is not available")
+        return None
+    path = Path(args.record) if args.record else None
+    if path is None and cfg.rerun.record:
+        path = cfg.rerun.directory / f"{site}-{time.strftime('%Y%m%d-%H%M%S')}.rrd"
+    recorder: TwinSink = RerunRecorder(
+        path=path, connect_url=cfg.rerun.connect_url, application=f"twin {site}"
+    )
+    return recorder
+
+
+def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
+    if args.site:
+        cfg = dataclasses.replace(cfg, site=args.site)
+    store_path = store_path_of(args, cfg)
+    if args.ifc and _needs_import(store_path):
+        from adapters.cli.model_cmds import cmd_import
+
+        ns = argparse.Namespace(
+            model=args.ifc, store=str(store_path), site=cfg.site, base_iri=None, replace=False
+        )
+        cmd_import(ns, cfg)  # before any Zenoh or store thread exists: meshing forks a child
+    keys = SiteKeys(cfg.key_prefix())
+    conf = session_config(cfg.zenoh, mode=args.mode, listen=args.listen or None, connect=args.connect or None)
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: Any) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    with EmbeddedStore.open(store_path, create=False) as store:
+        if store.is_empty():
+            from twin.errors import StoreNotFoundError
+
+            msg = f"The store at {store_path} is empty."
+            raise StoreNotFoundError(msg)
+        try:
+            session = zenoh.open(conf)
+        except Exception as err:
+            endpoints = ", ".join(args.listen or cfg.zenoh.listen)
+            msg = f"Cannot open the Zenoh session (listening on {endpoints}): {err}"
+            raise TransportError(msg) from err
+        recorder = _recorder(args, cfg, cfg.site)
+        try:
+            service = TwinService(store, cfg)
+            daemon = ZenohDaemon(session, service, keys=keys, frame_id=cfg.frame_id)
+            service.sinks.append(daemon)
+            if recorder is not None:
+                service.sinks.append(recorder)
+            t0 = time.perf_counter()
+            service.start()
+            maps = service.published_maps()
+            endpoints = ", ".join(args.listen or cfg.zenoh.listen) or "(no listener)"
+            print(
+                f"serving site {cfg.site!r} at revision {service.revision} on {endpoints} "
+                f"under {keys.prefix}/: {len(maps)} maps published in {time.perf_counter() - t0:.2f} s",
+                flush=True,
+            )
+            service.serve_forever(stop)
+        finally:
+            t1 = time.perf_counter()
+            if "daemon" in locals():
+                daemon.close()
+            session.close()
+            if recorder is not None:
+                recorder.close()  # type: ignore[attr-defined]
+    print(f"stopped cleanly in {time.perf_counter() - t1:.2f} s", flush=True)
+    sys.stdout.flush()
+    return 0
+
+
+def add_parser(sub: Any) -> None:
+    sp = sub.add_parser("serve", help="run the live twin daemon: serve maps, take observations (Zenoh)")
+    sp.add_argument("--store", help="store directory (default: store.path of the configuration)")
+    sp.add_argument("--ifc", help="an IFC file to import first when the store is empty")
+    sp.add_argument("--site", help="site name (default: site.name; the key prefix is twin/<site>)")
+    sp.add_argument(
+        "--listen", action="append", metavar="ENDPOINT", help="e.g. tcp/127.0.0.1:7447 (repeatable)"
+    )
+    sp.add_argument("--connect", action="append", metavar="ENDPOINT", help="a router or peer to connect to")
+    sp.add_argument("--mode", choices=["peer", "client", "router"], help="Zenoh mode (default: zenoh.mode)")
+    rec = sp.add_mutually_exclusive_group()
+    rec.add_argument("--record", metavar="FILE.rrd", help="record the run to this Rerun file")
+    rec.add_argument("--no-record", action="store_true", help="do not record the run")
+    sp.set_defaults(func=cmd_serve)

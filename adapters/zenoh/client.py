@@ -1,0 +1,282 @@
+"""The robot side: a small client of the daemon over Zenoh (what ``twin observe`` and ``twin watch`` use).
+
+Example::
+
+    with TwinClient.connect(["tcp/127.0.0.1:7447"], prefix="twin/lab") as twin:
+        ack = twin.observe("robot1", turtle)              # {"ok": true, "revision": ..., "maps": [...]}
+        grid, revision, version = twin.get_map("ground-floor", "navigation")
+        with twin.watch("ground-floor", "navigation", on_version=print) as watcher:
+            ...
+        graph = twin.sparql("CONSTRUCT { ?s ?p ?o } WHERE { ?s a bot:Storey ; ?p ?o }")  # rdflib.Graph
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from types import TracebackType
+from typing import Any, Self
+
+import rdflib
+import zenoh
+import zenoh.ext
+
+from adapters.ros import apply_update, decode_occupancy_grid, decode_occupancy_grid_update
+from adapters.zenoh.errors import DaemonTimeoutError, RemoteError, TransportError
+from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.session import client_config
+from twin.config import ZenohConfig
+from twin.grid import OccupancyGrid
+
+log = logging.getLogger(__name__)
+
+
+def _meta(sample: zenoh.Sample) -> tuple[int, int]:
+    """``(revision, version)`` from a map sample's attachment."""
+    if sample.attachment is None:
+        return (-1, -1)
+    try:
+        data = json.loads(sample.attachment.to_bytes())
+        return int(data["revision"]), int(data["version"])
+    except (ValueError, KeyError, TypeError):
+        return (-1, -1)
+
+
+def _error_text(payload: bytes) -> str:
+    try:
+        data = json.loads(payload)
+        return str(data.get("error", payload.decode(errors="replace")))
+    except (ValueError, AttributeError):
+        return payload.decode(errors="replace")
+
+
+@dataclass(frozen=True, slots=True)
+class MapVersion:
+    """A robot's copy of a map after a full map or an update: ``via`` is ``"map"`` or ``"update"``."""
+
+    grid: OccupancyGrid
+    revision: int
+    version: int
+    via: str
+
+
+class MapWatcher:
+    """Keeps a copy of one map current: the latched full map, then updates applied in order.
+
+    An update applies when it brings the copy from version V to V+1; otherwise (a missed update) the
+    copy waits for the next full map, which the daemon publishes within a second of any change.
+    """
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        keys: SiteKeys,
+        storey: str,
+        skill: str,
+        on_version: Callable[[MapVersion], None] | None,
+    ) -> None:
+        self.storey, self.skill = storey, skill
+        self.on_version = on_version
+        self.latest: MapVersion | None = None
+        self.versions: list[MapVersion] = []
+        self._cond = threading.Condition()
+        self._pending: list[tuple[int, int, Any, Any]] = []  # updates that came before their base
+        self._updates = session.declare_subscriber(keys.map_updates(storey, skill), self._on_update)
+        self._maps = zenoh.ext.declare_advanced_subscriber(
+            session,
+            keys.map(storey, skill),
+            self._on_map,
+            history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
+        )
+
+    def _accept(self, version: MapVersion) -> None:
+        with self._cond:
+            self.latest = version
+            self.versions.append(version)
+            self._cond.notify_all()
+        if self.on_version is not None:
+            try:
+                self.on_version(version)
+            except Exception:
+                log.exception("on_version callback failed")
+
+    def _on_map(self, sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.DELETE:
+            return
+        revision, version = _meta(sample)
+        if self.latest is not None and version <= self.latest.version and version >= 0:
+            return  # an older or repeated full map: the copy is newer
+        grid, _ = decode_occupancy_grid(sample.payload.to_bytes(), storey=self.storey, skill=self.skill)
+        self._accept(MapVersion(grid, revision, version, "map"))
+        self._drain()
+
+    def _on_update(self, sample: zenoh.Sample) -> None:
+        revision, version = _meta(sample)
+        window, cells, _ = decode_occupancy_grid_update(sample.payload.to_bytes())
+        with self._cond:
+            self._pending.append((version, revision, window, cells))
+        self._drain()
+
+    def _drain(self) -> None:
+        while True:
+            with self._cond:
+                base = self.latest
+                if base is None:
+                    return
+                self._pending = [p for p in self._pending if p[0] > base.version]
+                nxt = next((p for p in self._pending if p[0] == base.version + 1), None)
+                if nxt is None:
+                    return
+                self._pending.remove(nxt)
+            version, revision, window, cells = nxt
+            self._accept(MapVersion(apply_update(base.grid, window, cells), revision, version, "update"))
+
+    def wait_for(self, predicate: Callable[[MapVersion], bool], timeout_s: float) -> MapVersion:
+        """Block until the copy satisfies ``predicate``; DaemonTimeoutError after ``timeout_s``."""
+        with self._cond:
+            ok = self._cond.wait_for(lambda: self.latest is not None and predicate(self.latest), timeout_s)
+            if not ok or self.latest is None:
+                got = "no map" if self.latest is None else f"version {self.latest.version}"
+                msg = f"Map {self.storey}/{self.skill}: not there after {timeout_s} s (have {got})."
+                raise DaemonTimeoutError(msg)
+            return self.latest
+
+    def close(self) -> None:
+        for entity in (self._maps, self._updates):
+            try:
+                entity.undeclare()
+            except Exception:
+                log.debug("undeclare failed", exc_info=True)
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self, t: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+
+class TwinClient:
+    """Requests to one site's daemon over an open Zenoh session."""
+
+    def __init__(
+        self, session: zenoh.Session, *, prefix: str = "twin/lab", timeout_s: float = 10.0, own: bool = False
+    ) -> None:
+        self.session = session
+        self.keys = SiteKeys(prefix.strip("/"))
+        self.timeout_s = timeout_s
+        self._own = own
+
+    @classmethod
+    def connect(
+        cls,
+        connect: Sequence[str],
+        *,
+        prefix: str = "twin/lab",
+        timeout_s: float = 10.0,
+        settings: ZenohConfig | None = None,
+        mode: str = "peer",
+    ) -> TwinClient:
+        """Open a session to ``connect`` (the daemon's or a router's endpoints); close the client after."""
+        if not connect:
+            msg = "Give the daemon's endpoint to connect to, e.g. tcp/127.0.0.1:7447."
+            raise TransportError(msg)
+        try:
+            session = zenoh.open(client_config(connect, settings=settings, mode=mode))  # type: ignore[arg-type]
+        except Exception as err:
+            msg = f"Cannot open a Zenoh session to {', '.join(connect)}: {err}"
+            raise TransportError(msg) from err
+        return cls(session, prefix=prefix, timeout_s=timeout_s, own=True)
+
+    def close(self) -> None:
+        if self._own:
+            self.session.close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self, t: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    # --- requests ---------------------------------------------------------------------------------
+    def _get(self, selector: str, payload: bytes | None = None, *, what: str) -> list[zenoh.Sample]:
+        replies = self.session.get(selector, payload=payload, timeout=self.timeout_s)
+        samples = []
+        for reply in replies:
+            if reply.ok is not None:
+                samples.append(reply.ok)
+            elif reply.err is not None:
+                raise RemoteError(_error_text(reply.err.payload.to_bytes()))
+        if not samples:
+            msg = f"No answer to {what} at {selector} within {self.timeout_s} s (is the daemon running?)."
+            raise DaemonTimeoutError(msg)
+        return samples
+
+    def observe(self, robot: str, turtle: bytes | str) -> dict[str, Any]:
+        """Send an observation and wait for the ack (once durable); RemoteError carries a refusal."""
+        payload = turtle.encode() if isinstance(turtle, str) else turtle
+        sample = self._get(self.keys.observe(robot), payload, what="the observation")[0]
+        ack: dict[str, Any] = json.loads(sample.payload.to_bytes())
+        return ack
+
+    def publish_observation(self, robot: str, turtle: bytes | str) -> None:
+        """Best effort: put the observation, with no ack (errors are only logged by the daemon)."""
+        payload = turtle.encode() if isinstance(turtle, str) else turtle
+        self.session.put(self.keys.observations(robot), payload)
+
+    def get_map(self, storey: str, skill: str) -> tuple[OccupancyGrid, int, int]:
+        """The current map: ``(grid, revision, version)``."""
+        sample = self._get(self.keys.map(storey, skill), what=f"the map {storey}/{skill}")[0]
+        grid, _ = decode_occupancy_grid(sample.payload.to_bytes(), storey=storey, skill=skill)
+        revision, version = _meta(sample)
+        return grid, revision, version
+
+    def list_maps(self) -> list[tuple[str, str]]:
+        """``(storey, skill)`` of every map the daemon serves."""
+        found = {self.keys.map_of(str(s.key_expr)) for s in self._get(self.keys.maps, what="the maps")}
+        return sorted(m for m in found if m is not None)
+
+    def skills(self) -> dict[str, dict[str, Any]]:
+        return {
+            self.keys.last(str(s.key_expr)): json.loads(s.payload.to_bytes())
+            for s in self._get(f"{self.keys.prefix}/skills/**", what="the skills")
+        }
+
+    def put_skill(self, name: str, profile: dict[str, Any] | str) -> None:
+        text = profile if isinstance(profile, str) else json.dumps(profile)
+        self.session.put(self.keys.skill(name), text.encode())
+
+    def delete_skill(self, name: str) -> None:
+        self.session.delete(self.keys.skill(name))
+
+    def status(self) -> dict[str, Any]:
+        data: dict[str, Any] = json.loads(self._get(self.keys.status, what="status")[0].payload.to_bytes())
+        return data
+
+    def sparql(self, query: str) -> dict[str, Any] | rdflib.Graph:
+        """Run a read-only query: SPARQL JSON results, or an ``rdflib.Graph`` for CONSTRUCT/DESCRIBE."""
+        sample = self._get(self.keys.sparql, query.encode(), what="the SPARQL query")[0]
+        body = sample.payload.to_bytes()
+        if str(sample.encoding).startswith("text/turtle"):
+            graph = rdflib.Graph()
+            graph.parse(data=body, format="turtle")
+            return graph
+        data: dict[str, Any] = json.loads(body)
+        return data
+
+    def daemon_alive(self) -> bool:
+        """True when the daemon's liveliness token is present."""
+        replies = self.session.liveliness().get(self.keys.daemon, timeout=self.timeout_s)
+        return any(r.ok is not None for r in replies)
+
+    def watch(
+        self, storey: str, skill: str, on_version: Callable[[MapVersion], None] | None = None
+    ) -> MapWatcher:
+        """Subscribe like a robot: the latched map (late joiners too), then every update."""
+        return MapWatcher(self.session, self.keys, storey, skill, on_version)

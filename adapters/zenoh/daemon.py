@@ -1,0 +1,233 @@
+"""The daemon's Zenoh side: binds a :class:`twin.service.TwinService` to a session.
+
+Declares, under the site's prefix (see :class:`~adapters.zenoh.keys.SiteKeys`):
+
+- per map, an advanced publisher on ``map/<storey>/<skill>`` (cache of one, publisher detection:
+  latched) and a publisher on ``map_updates/<storey>/<skill>``; both reliable, congestion BLOCK;
+  samples carry the attachment ``{"revision": R, "version": V}`` (JSON);
+- a queryable on ``map/**`` answering ``get`` with the latest full maps (CDR ``OccupancyGrid``);
+- a subscriber on ``observations/*`` (best effort: errors are logged) and a queryable on
+  ``observe/*`` (the JSON ack once the change is durable, or ``reply_err`` with the error);
+- a subscriber on ``skills/*`` (put a JSON profile, delete to remove) and a queryable listing them;
+- queryables ``sparql`` (read-only) and ``status``; the liveliness token ``daemon``.
+
+Zenoh callbacks only enqueue work for the service's thread or read immutable snapshots.
+
+Example::
+
+    with zenoh.open(conf) as session:
+        daemon = ZenohDaemon(session, service, keys=SiteKeys("twin/lab"), frame_id="map")
+        service.sinks.append(daemon)
+        service.start()
+        ...
+        daemon.close()
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from dataclasses import dataclass
+from typing import Any
+
+import zenoh
+import zenoh.ext
+
+from adapters.ros import encode_occupancy_grid, encode_occupancy_grid_update
+from adapters.zenoh.keys import SiteKeys
+from twin.errors import TwinError
+from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
+from twin.grid import OccupancyGrid
+from twin.service import Reply, TwinService
+
+log = logging.getLogger(__name__)
+
+CDR = zenoh.Encoding.APPLICATION_CDR
+JSON = zenoh.Encoding.APPLICATION_JSON
+
+
+def attachment(revision: int, version: int) -> bytes:
+    """The attachment of every map sample: JSON ``{"revision": R, "version": V}``."""
+    return json.dumps({"revision": revision, "version": version}).encode()
+
+
+@dataclass(slots=True)
+class _MapOut:
+    latched: Any  # zenoh.ext.AdvancedPublisher
+    updates: zenoh.Publisher
+    current: OccupancyGrid  # the last full map, patched by the updates since (to encode updates)
+    full: bytes  # the CDR of the last full map published
+    revision: int
+    version: int
+
+
+class ZenohDaemon:
+    """Publishes the service's maps and feeds it the robots' requests. A :class:`~twin.events.TwinSink`."""
+
+    def __init__(
+        self, session: zenoh.Session, service: TwinService, *, keys: SiteKeys, frame_id: str
+    ) -> None:
+        self.session = session
+        self.service = service
+        self.keys = keys
+        self.frame_id = frame_id
+        self._maps: dict[tuple[str, str], _MapOut] = {}
+        self._lock = threading.Lock()
+        self._declared: list[Any] = [
+            session.liveliness().declare_token(keys.daemon),
+            session.declare_subscriber(f"{keys.prefix}/observations/*", self._on_observation),
+            session.declare_queryable(f"{keys.prefix}/observe/*", self._on_observe),
+            session.declare_subscriber(keys.skills, self._on_skill),
+            session.declare_queryable(f"{keys.prefix}/skills/**", self._on_list_skills),
+            session.declare_queryable(keys.maps, self._on_get_map),
+            session.declare_queryable(keys.sparql, self._on_sparql),
+            session.declare_queryable(keys.status, self._on_status),
+        ]
+
+    # --- sink ---------------------------------------------------------------------------------------
+    def emit(self, event: TwinEvent) -> None:
+        if isinstance(event, MapPublished):
+            self._publish(event)
+        elif isinstance(event, MapUpdated):
+            self._update(event)
+        elif isinstance(event, MapRemoved):
+            self._remove(event.storey, event.skill)
+
+    def _publish(self, event: MapPublished) -> None:
+        grid = event.grid
+        key = (grid.storey, grid.skill)
+        payload = encode_occupancy_grid(grid, stamp_ns=event.stamp_ns, frame_id=self.frame_id)
+        out = self._maps.get(key)
+        if out is None:
+            latched = zenoh.ext.declare_advanced_publisher(
+                self.session,
+                self.keys.map(*key),
+                encoding=CDR,
+                congestion_control=zenoh.CongestionControl.BLOCK,
+                reliability=zenoh.Reliability.RELIABLE,
+                cache=zenoh.ext.CacheConfig(max_samples=1),
+                publisher_detection=True,
+            )
+            updates = self.session.declare_publisher(
+                self.keys.map_updates(*key),
+                encoding=CDR,
+                congestion_control=zenoh.CongestionControl.BLOCK,
+                reliability=zenoh.Reliability.RELIABLE,
+            )
+            out = _MapOut(latched, updates, grid, payload, event.revision, event.version)
+        else:
+            out.current, out.full, out.revision, out.version = grid, payload, event.revision, event.version
+        with self._lock:
+            self._maps[key] = out
+        out.latched.put(payload, attachment=attachment(event.revision, event.version))
+
+    def _update(self, event: MapUpdated) -> None:
+        out = self._maps.get((event.storey, event.skill))
+        if out is None:
+            log.warning("An update of %s/%s came before its map: ignored", event.storey, event.skill)
+            return
+        w = event.window
+        data = out.current.data.copy()
+        data[w.row0 : w.row1, w.col0 : w.col1] = event.data
+        out.current = OccupancyGrid(
+            out.current.frame, data, event.storey, event.skill, out.current.elevation_m
+        )
+        payload = encode_occupancy_grid_update(
+            out.current, w, stamp_ns=event.stamp_ns, frame_id=self.frame_id
+        )
+        out.updates.put(payload, attachment=attachment(event.revision, event.version))
+
+    def _remove(self, storey: str, skill: str) -> None:
+        with self._lock:
+            out = self._maps.pop((storey, skill), None)
+        if out is None:
+            return
+        try:
+            out.latched.delete()
+        finally:
+            out.latched.undeclare()
+            out.updates.undeclare()
+
+    # --- requests (Zenoh threads: enqueue or read snapshots only) -------------------------------------
+    def _on_observation(self, sample: zenoh.Sample) -> None:
+        robot = self.keys.robot_of(str(sample.key_expr))
+        self.service.submit_observation(robot, sample.payload.to_bytes(), reply=None)
+
+    def _on_observe(self, query: zenoh.Query) -> None:
+        robot = self.keys.robot_of(str(query.key_expr))
+        payload = query.payload.to_bytes() if query.payload is not None else b""
+        key = str(query.key_expr)
+
+        def reply(r: Reply) -> None:
+            if r.ok:
+                query.reply(key, r.to_json(), encoding=JSON)
+            else:
+                query.reply_err(r.to_json(), encoding=JSON)
+
+        self.service.submit_observation(robot, payload, reply=reply)
+
+    def _on_skill(self, sample: zenoh.Sample) -> None:
+        name = self.keys.last(str(sample.key_expr))
+        if sample.kind == zenoh.SampleKind.DELETE:
+            self.service.submit_skill(name, None, reply=_log_reply(f"removing skill {name!r}"))
+        else:
+            payload = sample.payload.to_bytes()
+            self.service.submit_skill(name, payload, reply=_log_reply(f"skill {name!r}"))
+
+    def _on_list_skills(self, query: zenoh.Query) -> None:
+        for name, profile in sorted(self.service.skills.items()):
+            key = self.keys.skill(name)
+            if zenoh.KeyExpr(key).intersects(query.key_expr):
+                query.reply(key, json.dumps(profile.to_json()).encode(), encoding=JSON)
+
+    def _on_get_map(self, query: zenoh.Query) -> None:
+        with self._lock:
+            maps = list(self._maps.items())
+        for (storey, skill), out in maps:
+            key = self.keys.map(storey, skill)
+            if zenoh.KeyExpr(key).intersects(query.key_expr):
+                query.reply(key, out.full, encoding=CDR, attachment=attachment(out.revision, out.version))
+
+    def _on_sparql(self, query: zenoh.Query) -> None:
+        text = query.payload.to_string() if query.payload is not None else ""
+        if not text.strip():
+            query.reply_err(
+                Reply.error("Send the SPARQL query as the payload of the get.").to_json(), encoding=JSON
+            )
+            return
+        try:
+            media, body = self.service.query(text)
+        except TwinError as err:
+            query.reply_err(Reply.error(str(err)).to_json(), encoding=JSON)
+            return
+        query.reply(self.keys.sparql, body, encoding=zenoh.Encoding(media))
+
+    def _on_status(self, query: zenoh.Query) -> None:
+        query.reply(self.keys.status, json.dumps(self.service.status()).encode(), encoding=JSON)
+
+    # --- lifecycle ----------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Undeclare everything (the session stays open; its owner closes it)."""
+        with self._lock:
+            maps = list(self._maps.values())
+            self._maps.clear()
+        for out in maps:
+            out.latched.undeclare()
+            out.updates.undeclare()
+        for entity in self._declared:
+            try:
+                entity.undeclare()
+            except Exception:  # already gone with the session
+                log.debug("Undeclaring %s failed", entity, exc_info=True)
+        self._declared.clear()
+
+
+def _log_reply(what: str) -> Any:
+    def reply(r: Reply) -> None:
+        if r.ok:
+            log.info("Accepted %s: revision %s", what, r.body.get("revision"))
+        else:
+            log.warning("Refused %s: %s", what, r.body.get("error"))
+
+    return reply

@@ -1,0 +1,80 @@
+"""The Zenoh key expressions of one site (see README.md, "Zenoh keys").
+
+Example::
+
+    keys = SiteKeys("twin/lab")
+    keys.map("ground-floor", "navigation")     # "twin/lab/map/ground-floor/navigation"
+    keys.robot_of(keys.observe("robot1"))      # "robot1"
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from adapters.zenoh.errors import TransportError
+
+_CHUNK = re.compile(r"^[A-Za-z0-9_.-]{1,128}$")
+
+
+def check_chunk(value: str, what: str) -> str:
+    """``value`` if it can be one chunk of a key expression (no ``/``, wildcards or ``$``)."""
+    if not _CHUNK.match(value):
+        msg = f"{what} {value!r} cannot be part of a key: use 1-128 of [A-Za-z0-9_.-]."
+        raise TransportError(msg)
+    return value
+
+
+@dataclass(frozen=True, slots=True)
+class SiteKeys:
+    prefix: str
+
+    def map(self, storey: str, skill: str) -> str:
+        return f"{self.prefix}/map/{storey}/{skill}"
+
+    def map_updates(self, storey: str, skill: str) -> str:
+        return f"{self.prefix}/map_updates/{storey}/{skill}"
+
+    @property
+    def maps(self) -> str:
+        return f"{self.prefix}/map/**"
+
+    def observations(self, robot: str) -> str:
+        return f"{self.prefix}/observations/{check_chunk(robot, 'Robot name')}"
+
+    def observe(self, robot: str) -> str:
+        return f"{self.prefix}/observe/{check_chunk(robot, 'Robot name')}"
+
+    def skill(self, name: str) -> str:
+        return f"{self.prefix}/skills/{check_chunk(name, 'Skill name')}"
+
+    @property
+    def skills(self) -> str:
+        return f"{self.prefix}/skills/*"
+
+    @property
+    def sparql(self) -> str:
+        return f"{self.prefix}/sparql"
+
+    @property
+    def status(self) -> str:
+        return f"{self.prefix}/status"
+
+    @property
+    def daemon(self) -> str:
+        """The daemon's liveliness token."""
+        return f"{self.prefix}/daemon"
+
+    def last(self, key: str) -> str:
+        """The last chunk of ``key`` (the robot of an observation key, the name of a skill key)."""
+        return str(key).rsplit("/", 1)[-1]
+
+    def robot_of(self, key: str) -> str:
+        return self.last(key)
+
+    def map_of(self, key: str) -> tuple[str, str] | None:
+        """``(storey, skill)`` of a map key of this site, or None."""
+        parts = str(key).removeprefix(self.prefix + "/").split("/")
+        if len(parts) == 3 and parts[0] in ("map", "map_updates"):
+            return parts[1], parts[2]
+        return None
