@@ -13,13 +13,10 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-## demo: install, generate the sample lab, import it into the embedded store, write every skill map
+## demo: install, then the live loop on the bundled lab: import, daemon, a robot observes, a watcher
+## receives the map updates, the daemon stops cleanly; maps and the recording land in var/
 demo: $(STAMP)
-	$(BIN)/twin sample lab $(VAR)/lab.ifc --storeys 2
-	$(BIN)/twin import $(VAR)/lab.ifc --store $(VAR)/store --replace
-	$(BIN)/twin stats --store $(VAR)/store
-	$(BIN)/twin map --store $(VAR)/store --all-skills --out $(VAR)/maps
-	@echo "maps (nav2 map_server YAML+PGM, PNG previews, CDR OccupancyGrid) are in $(VAR)/maps"
+	$(BIN)/twin demo --workdir $(VAR)
 
 ## test: install, then run the whole test suite
 test: $(STAMP)

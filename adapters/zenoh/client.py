@@ -94,6 +94,8 @@ class MapWatcher:
 
     def _accept(self, version: MapVersion) -> None:
         with self._cond:
+            if self.latest is not None and 0 <= version.version <= self.latest.version:
+                return  # a full map that the updates already brought the copy to, or an older one
             self.latest = version
             self.versions.append(version)
             self._cond.notify_all()
@@ -107,7 +109,8 @@ class MapWatcher:
         if sample.kind == zenoh.SampleKind.DELETE:
             return
         revision, version = _meta(sample)
-        if self.latest is not None and version <= self.latest.version and version >= 0:
+        latest = self.latest
+        if latest is not None and 0 <= version <= latest.version:
             return  # an older or repeated full map: the copy is newer
         grid, _ = decode_occupancy_grid(sample.payload.to_bytes(), storey=self.storey, skill=self.skill)
         self._accept(MapVersion(grid, revision, version, "map"))
