@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from twin.config import Config
+from twin.vocab import RDFS_LABEL
 
 # The table the robot sees: in the corridor, east of the arch (lab frame + the building's offset).
 TABLE_BOX = "16.6,7.0,0.375,0.6,0.6,0.75,0.3"
@@ -170,7 +171,7 @@ def _run_turtle_box(iri: str, box: str) -> str:
     t = "https://w3id.org/building-twin#"
     return (
         f'<{iri}> <{t}ifcClass> "IfcFurniture" ; <{t}storey> "ground-floor" ; '
-        f'<{t}box> "{x} {y} {z} {sx} {sy} {sz} {yaw}" ; <http://www.w3.org/2000/01/rdf-schema#label> "table" .'
+        f'<{t}box> "{x} {y} {z} {sx} {sy} {sz} {yaw}" ; <{RDFS_LABEL}> "table" .'
     )
 
 

@@ -28,8 +28,18 @@ class Recorder:
         return [e for e in self.events if isinstance(e, kind)]
 
 
-def box_turtle(iri: str, x: float, y: float, *, sx: float = 0.8, sy: float = 0.6, sz: float = 0.75,
-               yaw: float = 0.0, cls: str = "IfcFurniture", storey: str = "ground-floor") -> bytes:
+def box_turtle(
+    iri: str,
+    x: float,
+    y: float,
+    *,
+    sx: float = 0.8,
+    sy: float = 0.6,
+    sz: float = 0.75,
+    yaw: float = 0.0,
+    cls: str = "IfcFurniture",
+    storey: str = "ground-floor",
+) -> bytes:
     """An observation of a box standing on the storey's floor at building-lab coordinates (x, y)."""
     return (
         PREFIX + f'<{iri}> twin:ifcClass "{cls}" ; twin:storey "{storey}" ; '
@@ -39,7 +49,9 @@ def box_turtle(iri: str, x: float, y: float, *, sx: float = 0.8, sy: float = 0.6
 
 def started(store: GraphStore | None = None, config: Config | None = None) -> tuple[TwinService, Recorder]:
     rec = Recorder()
-    service = TwinService(store if store is not None else imported(box_lab()), config or load_config(), sinks=[rec])
+    service = TwinService(
+        store if store is not None else imported(box_lab()), config or load_config(), sinks=[rec]
+    )
     service.start()
     return service, rec
 

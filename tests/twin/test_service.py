@@ -23,7 +23,8 @@ def grid_of(service: TwinService, skill: str, storey: str = "ground-floor") -> n
     return service.engine.maps[(storey, skill)].data.copy()
 
 
-def cells(service: TwinService, skill: str, x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
+def cells(service: TwinService, skill: str, *box: float) -> np.ndarray:
+    x0, y0, x1, y1 = box
     m = service.engine.maps[("ground-floor", skill)]
     w = m.plan.frame.window_for(OX + x0, OY + y0, OX + x1, OY + y1)
     return m.data[w.row0 : w.row1, w.col0 : w.col1]
@@ -116,7 +117,9 @@ def test_moving_an_imported_element_moves_it_in_the_maps() -> None:
         (b" " * (2 << 20), "more than the 1,048,576 allowed"),
     ],
 )
-def test_bad_observations_are_refused_naming_the_problem_and_change_nothing(payload: bytes, message: str) -> None:
+def test_bad_observations_are_refused_naming_the_problem_and_change_nothing(
+    payload: bytes, message: str
+) -> None:
     service, rec = started()
     triples = len(service.store)
     before = {k: m.data.copy() for k, m in service.engine.maps.items()}
@@ -133,7 +136,12 @@ def test_bad_observations_are_refused_naming_the_problem_and_change_nothing(payl
 
 def test_a_robot_with_the_static_right_may_change_structure() -> None:
     cfg = load_config()
-    cfg = type(cfg)(**{**{f: getattr(cfg, f) for f in cfg.__dataclass_fields__}, "default_rights": frozenset({"create", "static"})})
+    cfg = type(cfg)(
+        **{
+            **{f: getattr(cfg, f) for f in cfg.__dataclass_fields__},
+            "default_rights": frozenset({"create", "static"}),
+        }
+    )
     service, _ = started(config=cfg)
     wall = element_iri(spec("Corridor south"))
     assert observe(service, "builder", f"<{wall}> <{TWIN}removed> true .".encode()).ok
@@ -144,7 +152,8 @@ def test_provenance_is_in_the_graph() -> None:
     service, _ = started()
     observe(service, "robot7", box_turtle(TABLE, 6.6, 2.0))
     rows = service.store.select(
-        f"SELECT ?by ?at ?rev WHERE {{ <{TABLE}> twin:observedBy ?by ; twin:observedAt ?at ; twin:revision ?rev }}"
+        f"SELECT ?by ?at ?rev WHERE {{ <{TABLE}> twin:observedBy ?by ; twin:observedAt ?at ; "
+        "twin:revision ?rev }"
     )
     assert rows == [{"by": "robot7", "at": rows[0]["at"], "rev": "1"}]
     assert rows[0]["at"] and rows[0]["at"].startswith("20")

@@ -1,0 +1,103 @@
+"""Integration fixtures: the lab imported on disk and the daemon as a real process on a free port."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def twin(*args: str | Path, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "adapters.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=timeout,
+        check=False,
+    )
+
+
+@dataclass
+class Daemon:
+    process: subprocess.Popen[str]
+    endpoint: str
+    store: Path
+    log: list[str]
+
+    def stop(self, sig: int = signal.SIGTERM, timeout: float = 10.0) -> tuple[int, float]:
+        """Signal the daemon; return its exit code and how long it took to exit."""
+        t0 = time.monotonic()
+        self.process.send_signal(sig)
+        out, _ = self.process.communicate(timeout=timeout)
+        self.log += out.splitlines()
+        return self.process.returncode, time.monotonic() - t0
+
+
+def start_daemon(store: Path, *extra: str) -> Daemon:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "adapters.cli", "serve", "--store", str(store), "--listen", endpoint, *extra],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=ROOT,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    log: list[str] = []
+    assert process.stdout is not None
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        line = process.stdout.readline()
+        if not line:
+            break
+        log.append(line.rstrip())
+        if "serving site" in line:
+            return Daemon(process, endpoint, store, log)
+    process.kill()
+    raise AssertionError("the daemon did not start:\n" + "\n".join(log))
+
+
+@pytest.fixture(scope="module")
+def lab_store_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("live")
+    assert twin("sample", "lab", root / "lab.ifc", "--storeys", "2").returncode == 0
+    r = twin("import", root / "lab.ifc", "--store", root / "store")
+    assert r.returncode == 0, r.stderr
+    return root / "store"
+
+
+@pytest.fixture
+def fresh_store(lab_store_dir: Path, tmp_path: Path) -> Path:
+    """A copy of the imported lab's store, so that each test starts from revision 0."""
+    import shutil
+
+    copy = tmp_path / "store"
+    shutil.copytree(lab_store_dir, copy)
+    return copy
+
+
+@pytest.fixture
+def daemon(fresh_store: Path) -> Iterator[Daemon]:
+    d = start_daemon(fresh_store, "--no-record")
+    yield d
+    if d.process.poll() is None:
+        d.process.kill()
+        d.process.wait(timeout=10)
