@@ -36,14 +36,21 @@ def schema_family(schema: str) -> str:
 
 
 def supertypes(schema: str, ifc_class: str) -> tuple[str, ...] | None:
-    """``ifc_class`` and its supertypes, most specific first; None if it is no ``IfcElement`` subtype of
-    ``schema`` (matched case-insensitively, returned in the schema's spelling)."""
-    classes = _table()[schema_family(schema)]
-    chain = classes.get(ifc_class)
-    if chain is None:
-        lower = {k.lower(): v for k, v in classes.items()}
-        chain = lower.get(ifc_class.lower())
-    return chain
+    """``ifc_class`` and its supertypes, most specific first; None if it is no ``IfcElement`` subtype.
+
+    The model's ``schema`` is asked first, then the other schemas (newest first), so a robot may name
+    ``IfcFurniture`` in an IFC2X3 building. Names match case-insensitively and come back in the
+    schema's spelling.
+    """
+    family = schema_family(schema)
+    for name in (family, *(s for s in ("IFC4X3", "IFC4", "IFC2X3") if s != family)):
+        classes = _table()[name]
+        chain = classes.get(ifc_class)
+        if chain is None:
+            chain = {k.lower(): v for k, v in classes.items()}.get(ifc_class.lower())
+        if chain is not None:
+            return chain
+    return None
 
 
 def element_classes(schema: str) -> tuple[str, ...]:

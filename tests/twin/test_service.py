@@ -107,7 +107,7 @@ def test_moving_an_imported_element_moves_it_in_the_maps() -> None:
         (box_turtle(TABLE, 6.6, 2.0).replace(b" 0.375 ", b" NaN "), "NaN or infinite"),
         (box_turtle(TABLE, 6.6, 2.0, sx=500.0), "box size sx=500.0"),
         (box_turtle(TABLE, 6.6, 2.0, storey="attic"), "unknown storey 'attic'"),
-        (box_turtle(TABLE, 6.6, 2.0, cls="IfcSpaceship"), "not an IfcElement class"),
+        (box_turtle(TABLE, 6.6, 2.0, cls="IfcSpaceship"), "not an IFC element class"),
         (box_turtle(TABLE, 900.0, 2.0), "outside the site's extent"),
         (box_turtle(TABLE, 6.6, 2.0, cls="IfcWall"), "lacks the 'static' right"),
         (f"<{element_iri(spec('Wall A west'))}> <{TWIN}removed> true .".encode(), "lacks the 'static' right"),

@@ -1,0 +1,262 @@
+"""Live-twin benchmark: the daemon as a process, a robot and a map subscriber in this process.
+
+Measures, per model:
+
+- startup: ``twin serve`` start to all maps published (what the daemon reports, and wall time to its
+  "serving" line), and its resident memory (RSS now and peak, from ``/proc``);
+- end-to-end latency: from sending an acked observation (a table moved around the busiest storey) to
+  the receipt of the ``OccupancyGridUpdate`` by the subscriber (another process than the daemon),
+  p50/p99 over N observations; and the ack round trip;
+- recompute: the same changes applied incrementally (:meth:`twin.engine.MapEngine.apply`) against a
+  full rebuild of the affected maps, in this process.
+
+Usage::
+
+    python benchmarks/live.py [--models lab janesville] [--count 200] [--json OUT.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED_IFC = ROOT.parent / "shared" / "data" / "ifc"
+MODELS = {"lab": None, "janesville": SHARED_IFC / "revit2012_janesville_restaurant.ifc"}
+TWIN = "https://w3id.org/building-twin#"
+
+
+def _twin(*args: str) -> list[str]:
+    return [sys.executable, "-m", "adapters.cli", *args]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _proc_mb(pid: int, field: str) -> float:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return 0.0
+
+
+def _pct(values: list[float], q: float) -> float:
+    return float(np.percentile(np.array(values), q)) if values else float("nan")
+
+
+def prepare_store(name: str, work: Path) -> Path:
+    store = work / "store"
+    if name == "lab":
+        ifc = work / "lab.ifc"
+        subprocess.run(_twin("sample", "lab", str(ifc), "--storeys", "2"), check=True, capture_output=True)
+    else:
+        ifc = MODELS[name]
+        assert ifc is not None
+        if not ifc.exists():
+            raise FileNotFoundError(ifc)
+    subprocess.run(_twin("import", str(ifc), "--store", str(store)), check=True, capture_output=True)
+    return store
+
+
+def busiest(store: Path) -> tuple[str, tuple[float, float, float, float], float]:
+    """Busiest storey for the navigation skill: key, extent, and the x/y of free floor is not known,
+    so positions are drawn over the extent (boxes may overlap walls: that is still a change)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import tasks
+
+    from twin.config import load_config
+    from twin.scene import load_scene
+    from twin.store import EmbeddedStore
+
+    with EmbeddedStore.open(store, read_only=True) as st:
+        scene = load_scene(st)
+    key = tasks.busiest_storey(scene, load_config().skill("navigation"))
+    info = scene.storey(key)
+    return key, info.extent, info.elevation_m
+
+
+def recompute(store: Path, storey: str, positions: list[tuple[float, float]]) -> dict[str, float]:
+    """Incremental apply vs full rebuild of the affected maps, in process, on a copy of the store."""
+    from twin.config import load_config
+    from twin.service import TwinService
+    from twin.store import EmbeddedStore
+
+    copy = Path(tempfile.mkdtemp()) / "store"
+    shutil.copytree(store, copy)
+    inc, full = [], []
+    with EmbeddedStore.open(copy) as st:
+        service = TwinService(st, load_config())
+        service.start()
+        original = service.engine.apply
+
+        def timed(*a: Any, **k: Any) -> Any:
+            t0 = time.perf_counter()
+            out = original(*a, **k)
+            inc.append(time.perf_counter() - t0)
+            for u in out:  # the rebuild of the same affected maps, for comparison
+                m = service.engine.maps[(u.storey, u.skill)]
+                t1 = time.perf_counter()
+                service.engine.rebuild(m)
+                full.append(time.perf_counter() - t1)
+            return out
+
+        service.engine.apply = timed  # type: ignore[method-assign]
+        for i, (x, y) in enumerate(positions[:50]):
+            service.submit_observation("bench", _table(storey, x, y, i).encode())
+            service.process()
+    shutil.rmtree(copy.parent, ignore_errors=True)
+    return {
+        "incremental_p50_ms": _pct(inc, 50) * 1e3,
+        "full_rebuild_per_map_p50_ms": _pct(full, 50) * 1e3,
+        "speedup": _pct(full, 50) / max(_pct(inc, 50), 1e-9),
+    }
+
+
+def _table(storey: str, x: float, y: float, i: int) -> str:
+    return (
+        f'<urn:bench:table> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "{storey}" ; '
+        f'<{TWIN}box> "{x} {y} 0.375 1.2 0.8 0.75 {0.1 * (i % 30)}" .'
+    )
+
+
+def run_model(name: str, count: int) -> dict[str, Any]:
+    from adapters.zenoh.client import TwinClient
+
+    work = Path(tempfile.mkdtemp(prefix=f"live-{name}-"))
+    t_import = time.perf_counter()
+    store = prepare_store(name, work)
+    import_s = time.perf_counter() - t_import
+    storey, (xmin, ymin, xmax, ymax), _ = busiest(store)
+    rng = np.random.default_rng(7)
+    positions = [
+        (float(rng.uniform(xmin + 1, xmax - 1)), float(rng.uniform(ymin + 1, ymax - 1))) for _ in range(count)
+    ]
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    t0 = time.perf_counter()
+    daemon = subprocess.Popen(
+        _twin("serve", "--store", str(store), "--listen", endpoint, "--no-record"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    assert daemon.stdout is not None
+    line = ""
+    while "serving site" not in line:
+        line = daemon.stdout.readline()
+        if not line:
+            raise RuntimeError("daemon did not start")
+    startup_wall = time.perf_counter() - t0
+    maps_published_s = float(line.rsplit(" in ", 1)[1].split()[0])
+    rss_start = _proc_mb(daemon.pid, "VmRSS")
+    received: dict[int, float] = {}
+    got = threading.Condition()
+    latencies, acks = [], []
+    try:
+        with TwinClient.connect([endpoint], timeout_s=30) as client:
+            revision_of: dict[int, int] = {}
+
+            def on_update(sample: Any) -> None:
+                meta = json.loads(sample.attachment.to_bytes())
+                with got:
+                    received.setdefault(int(meta["revision"]), time.perf_counter())
+                    got.notify_all()
+
+            sub = client.session.declare_subscriber(client.keys.map_updates(storey, "navigation"), on_update)
+            time.sleep(0.5)
+            for i, (x, y) in enumerate(positions):
+                sent = time.perf_counter()
+                ack = client.observe("bench", _table(storey, x, y, i))
+                acks.append(time.perf_counter() - sent)
+                rev = int(ack["revision"])
+                revision_of[i] = rev
+                changed = any(m["skill"] == "navigation" and m["storey"] == storey for m in ack["maps"])
+                if changed:
+                    with got:
+                        got.wait_for(lambda r=rev: r in received, timeout=5)
+                    if rev in received:
+                        latencies.append(received[rev] - sent)
+            sub.undeclare()
+        rss_end = _proc_mb(daemon.pid, "VmRSS")
+        rss_peak = _proc_mb(daemon.pid, "VmHWM")
+    finally:
+        daemon.terminate()
+        daemon.wait(timeout=30)
+    rec = recompute(store, storey, positions)
+    shutil.rmtree(work, ignore_errors=True)
+    return {
+        "model": name,
+        "storey": storey,
+        "import_s": round(import_s, 2),
+        "startup_to_serving_s": round(startup_wall, 2),
+        "maps_published_s": maps_published_s,
+        "observations": count,
+        "updates_received": len(latencies),
+        "update_latency_p50_ms": round(_pct(latencies, 50) * 1e3, 2),
+        "update_latency_p99_ms": round(_pct(latencies, 99) * 1e3, 2),
+        "ack_p50_ms": round(_pct(acks, 50) * 1e3, 2),
+        "ack_p99_ms": round(_pct(acks, 99) * 1e3, 2),
+        "incremental_p50_ms": round(rec["incremental_p50_ms"], 2),
+        "full_rebuild_per_map_p50_ms": round(rec["full_rebuild_per_map_p50_ms"], 2),
+        "speedup": round(rec["speedup"], 1),
+        "rss_start_mb": round(rss_start),
+        "rss_end_mb": round(rss_end),
+        "rss_peak_mb": round(rss_peak),
+    }
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--models", nargs="+", default=["lab", "janesville"], choices=sorted(MODELS))
+    p.add_argument("--count", type=int, default=200)
+    p.add_argument("--json", type=Path)
+    args = p.parse_args()
+    rows = []
+    for name in args.models:
+        path = MODELS[name]
+        if path is not None and not path.exists():
+            print(f"skipping {name}: {path} not found (../shared is absent)", file=sys.stderr)
+            continue
+        print(f"running {name} ...", file=sys.stderr, flush=True)
+        rows.append(run_model(name, args.count))
+    if rows:
+        keys = list(rows[0])
+        print("| " + " | ".join(keys) + " |")
+        print("|" + "---|" * len(keys))
+        for r in rows:
+            print("| " + " | ".join(str(r[k]) for k in keys) + " |")
+    if args.json:
+        args.json.write_text(
+            json.dumps(
+                {
+                    "date": time.strftime("%Y-%m-%d"),
+                    "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count()},
+                    "rows": rows,
+                },
+                indent=2,
+            )
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
