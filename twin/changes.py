@@ -219,7 +219,7 @@ def plan_observation(
                 chain = supertypes(ctx.schema, r.ifc_class)
                 if chain is None:
                     raise _fail(
-                        f"Element <{r.iri}>: {r.ifc_class!r} is not an IFC element class (IfcElement subtype)."
+                        f"Element <{r.iri}>: {r.ifc_class!r} is not an IFC element class."
                     )
                 if r.box is None and r.geometry is None:
                     raise _fail(f"Element <{r.iri}> is new: give its twin:box or omg:hasGeometry.")
