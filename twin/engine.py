@@ -164,18 +164,38 @@ class MapEngine:
             del self.maps[k]
         return gone
 
-    def _dirty(self, m: LiveMap, boxes: Sequence[FloatArray]) -> Window | None:
-        """The window of ``m`` that ``boxes`` (world AABBs) can change, grown by inflation; or None."""
+    def _dirty(self, m: LiveMap, boxes: Sequence[FloatArray]) -> list[Window]:
+        """The disjoint windows of ``m`` that ``boxes`` (world AABBs) can change, grown by inflation.
+
+        Each box gives its own window (a table moved across a storey dirties two small windows, not
+        the rectangle between them); windows that touch are merged.
+        """
         p = m.plan
-        rects = [b for b in boxes if b[2] <= p.z_hi and b[5] >= p.z_lo]
-        if not rects:
-            return None
-        r = np.stack(rects)
-        win = p.frame.window_for(r[:, 0].min(), r[:, 1].min(), r[:, 3].max(), r[:, 4].max())
         pad = math.ceil(p.inflation_cells) + 1
-        grown = Window(win.row0 - pad, win.col0 - pad, win.row1 + pad, win.col1 + pad)
-        grown = grown.intersect(p.frame.full)
-        return None if grown.empty else grown
+        windows = []
+        for b in boxes:
+            if b[2] > p.z_hi or b[5] < p.z_lo:
+                continue
+            w = p.frame.window_for(b[0], b[1], b[3], b[4])
+            grown = Window(w.row0 - pad, w.col0 - pad, w.row1 + pad, w.col1 + pad).intersect(p.frame.full)
+            if not grown.empty:
+                windows.append(grown)
+        merged = True
+        while merged and len(windows) > 1:
+            merged = False
+            for i in range(len(windows)):
+                for j in range(i + 1, len(windows)):
+                    a, c = windows[i], windows[j]
+                    if a.row0 <= c.row1 and c.row0 <= a.row1 and a.col0 <= c.col1 and c.col0 <= a.col1:
+                        windows[i] = Window(
+                            min(a.row0, c.row0), min(a.col0, c.col0), max(a.row1, c.row1), max(a.col1, c.col1)
+                        )
+                        del windows[j]
+                        merged = True
+                        break
+                if merged:
+                    break
+        return windows
 
     def apply(
         self,
@@ -190,7 +210,8 @@ class MapEngine:
                 way (geometry, class, door state, ...): True if the skill now selects it.
 
         Returns:
-            One update per map whose cells changed: the bounding window of the changed cells.
+            One update per changed region of each map (the bounding window of its changed cells), each
+            bringing that map to its next version.
         """
         touched = set(c.iri for c in geometry) | {i for sel in membership.values() for i in sel}
         old_bounds = {i: self.bounds_of(i) for i in touched}
@@ -210,20 +231,21 @@ class MapEngine:
         for key, m in self.maps.items():
             boxes = [old_bounds[i] for i in was[key] if old_bounds[i] is not None]
             boxes += [b for i in touched if self._member(m, i) and (b := new_bounds[i]) is not None]
-            win = self._dirty(m, boxes)  # type: ignore[arg-type]
-            if win is None:
-                continue
-            fresh = self.render(m, win)
-            old = m.data[win.row0 : win.row1, win.col0 : win.col1]
-            diff = np.argwhere(fresh != old)
-            if not len(diff):
-                continue
-            (r0, c0), (r1, c1) = diff.min(axis=0), diff.max(axis=0) + 1
-            changed = Window(win.row0 + int(r0), win.col0 + int(c0), win.row0 + int(r1), win.col0 + int(c1))
-            old[...] = fresh
-            m.version += 1
-            data = m.data[changed.row0 : changed.row1, changed.col0 : changed.col1].copy()
-            updates.append(WindowUpdate(m.plan.storey.key, m.plan.skill.name, changed, data, m.version))
+            windows = self._dirty(m, boxes)  # type: ignore[arg-type]
+            fresh = [(win, self.render(m, win)) for win in windows]  # all rendered before any is written
+            for win, cells in fresh:
+                old = m.data[win.row0 : win.row1, win.col0 : win.col1]
+                diff = np.argwhere(cells != old)
+                if not len(diff):
+                    continue
+                (r0, c0), (r1, c1) = diff.min(axis=0), diff.max(axis=0) + 1
+                changed = Window(
+                    win.row0 + int(r0), win.col0 + int(c0), win.row0 + int(r1), win.col0 + int(c1)
+                )
+                old[...] = cells
+                m.version += 1
+                data = m.data[changed.row0 : changed.row1, changed.col0 : changed.col1].copy()
+                updates.append(WindowUpdate(m.plan.storey.key, m.plan.skill.name, changed, data, m.version))
         return updates
 
     def _member(self, m: LiveMap, iri: str) -> bool:
