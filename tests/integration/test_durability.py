@@ -1,0 +1,81 @@
+"""Acknowledged observations survive kill -9 of the daemon; unacknowledged ones are all or nothing."""
+
+from __future__ import annotations
+
+import json
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from adapters.zenoh.client import TwinClient
+from tests.integration.conftest import ROOT, start_daemon
+from twin.config import load_config
+from twin.service import TwinService
+from twin.store import EmbeddedStore
+
+KILLS = 5
+
+
+def test_acked_observations_survive_repeated_kill_9_and_maps_equal_a_rebuild(fresh_store: Path) -> None:
+    rng = random.Random(11)
+    daemon = start_daemon(fresh_store, "--no-record")
+    endpoint = daemon.endpoint
+    robot = subprocess.Popen(
+        [sys.executable, "-m", "tests.integration.robot", endpoint, "3"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    try:
+        for _ in range(KILLS):
+            time.sleep(rng.uniform(0.3, 1.5))
+            daemon.process.send_signal(signal.SIGKILL)
+            daemon.process.wait(timeout=10)
+            daemon = start_daemon(fresh_store, "--no-record", "--listen", endpoint)
+        time.sleep(1.0)
+    finally:
+        assert robot.stdin is not None and robot.stdout is not None and robot.stderr is not None
+        robot.stdin.close()
+        out, err = robot.stdout.read(), robot.stderr.read()
+        robot.wait(timeout=30)
+    attempts = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
+    acked = [a for a in attempts if a["acked"]]
+    assert len(acked) >= 10, err
+
+    with TwinClient.connect([daemon.endpoint]) as client:
+        time.sleep(0.5)
+        served = {(s, k): client.get_map(s, k)[0].data for s, k in client.list_maps()}
+    assert daemon.stop()[0] == 0
+
+    expected: dict[str, str | None] = {}
+    for a in acked:
+        expected[a["iri"]] = None if a["op"] == "remove" else a["box"]
+    with EmbeddedStore.open(fresh_store) as store:
+        rows = store.select(
+            'SELECT ?e ?removed ?geom ?by WHERE { ?e twin:ifcClass "IfcFurniture" . '
+            "FILTER(STRSTARTS(STR(?e), 'urn:robot:')) OPTIONAL { ?e twin:removed ?removed } "
+            "OPTIONAL { ?e omg:hasGeometry ?geom } OPTIONAL { ?e twin:observedBy ?by } }"
+        )
+        present = {r["e"]: r for r in rows}
+        for iri, box in expected.items():
+            row = present.get(iri)
+            assert row is not None, f"acked {iri} lost"
+            if box is None:
+                assert row["removed"] == "true" and row["geom"] is None, iri
+            else:
+                assert row["geom"] is not None and row["removed"] is None, iri
+        for row in rows:  # nothing half-applied: an element has its geometry and provenance, or is removed
+            assert row["by"] == "robot1"
+            assert (row["geom"] is None) == (row["removed"] == "true"), row
+        service = TwinService(store, load_config())
+        service.start()
+        for key, m in service.engine.maps.items():
+            np.testing.assert_array_equal(served[key], m.data, err_msg=str(key))
+    print(f"{len(acked)} acked of {len(attempts)} attempts across {KILLS} kills")
