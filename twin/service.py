@@ -324,7 +324,11 @@ class TwinService:
         self.process()
 
     def _handle(self, request: _Observe | _Skill) -> None:
-        reply = self._observe(request) if isinstance(request, _Observe) else self._skill(request)
+        try:
+            reply = self._observe(request) if isinstance(request, _Observe) else self._skill(request)
+        except Exception as err:  # a bug must cost one request, never the daemon
+            log.exception("Internal error while handling %s", type(request).__name__)
+            reply = Reply.error(f"Internal error ({type(err).__name__}): {err}")
         if request.reply is not None:
             try:
                 request.reply(reply)

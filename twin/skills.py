@@ -136,7 +136,7 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
         msg = f"Skill {name!r} must be an object/table, got {type(data).__name__}."
         raise SkillError(msg)
     kind = data.get("kind")
-    if kind not in _FIELDS:
+    if not isinstance(kind, str) or kind not in _FIELDS:
         msg = f"Skill {name!r}: field 'kind' must be 'localization' or 'navigation', got {kind!r}."
         raise SkillError(msg)
     unknown = sorted(set(data) - _FIELDS[kind])
