@@ -17,6 +17,7 @@ from adapters.zenoh.errors import RemoteError
 from twin import vocab
 from twin.config import Config
 from twin.errors import ObservationError
+from twin.grid import OccupancyGrid
 
 
 def _endpoints(args: argparse.Namespace, cfg: Config) -> list[str]:
@@ -84,7 +85,59 @@ def _describe(v: MapVersion) -> str:
     )
 
 
+def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
+    """``twin watch --ros NS``: subscribe exactly as an rmw_zenoh node or the DDS bridge would."""
+    from adapters.zenoh.ros_watch import RosMapWatcher, RosSample
+
+    seen = threading.Semaphore(0)
+
+    def on_sample(s: RosSample) -> None:
+        occupied = int((s.grid.data == 100).sum())
+        seq = f", rmw sequence {s.sequence}" if s.sequence is not None else ""
+        size = f"{s.grid.frame.width}x{s.grid.frame.height}"
+        print(f"{args.ros}/map via {s.kind}{seq}: {size}, {occupied} occupied", flush=True)
+        seen.release()
+
+    with TwinClient.connect(_endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout) as twin:
+        watcher = RosMapWatcher(
+            twin.session,
+            namespace=args.ros,
+            layout=args.layout,
+            domain_id=args.domain_id,
+            on_sample=on_sample,
+        )
+        try:
+            got = 0
+            while args.count is None or got < args.count:
+                if not seen.acquire(timeout=args.timeout):
+                    if args.count is not None:
+                        print(
+                            f"twin: error: {got} of {args.count} samples on {watcher.keys[0]}",
+                            file=sys.stderr,
+                        )
+                        return 1
+                    continue
+                got += 1
+        except KeyboardInterrupt:
+            pass
+        finally:
+            watcher.close()
+        if args.out and watcher.latest is not None:
+            g = watcher.latest  # a ROS message names no storey or skill: files are named <ns>__map
+            named = OccupancyGrid(
+                g.frame, g.data, args.ros.strip("/").replace("/", "-"), "map", g.elevation_m
+            )
+            files = write_map_files(named, Path(args.out), stamp_ns=time.time_ns())
+            print(f"wrote {files.yaml}")
+    return 0
+
+
 def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
+    if args.ros:
+        return cmd_watch_ros(args, cfg)
+    if not args.skill:
+        msg = "Give --skill NAME (or --ros NAMESPACE to watch a ROS 2 robot's /map)."
+        raise ObservationError(msg)
     with TwinClient.connect(_endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout) as twin:
         storeys = [args.storey] if args.storey else [s for s, k in twin.list_maps() if k == args.skill]
         if not storeys:
@@ -152,7 +205,10 @@ def add_parsers(sub: Any) -> None:
 
     sp = sub.add_parser("watch", help="subscribe to a skill's maps like a robot; print each version")
     common(sp)
-    sp.add_argument("--skill", required=True, help="the skill whose maps to watch")
+    sp.add_argument("--skill", help="the skill whose maps to watch")
+    sp.add_argument("--ros", metavar="NAMESPACE", help="watch <NAMESPACE>/map as a ROS 2 node would instead")
+    sp.add_argument("--layout", choices=["rmw_zenoh", "bridge"], default="rmw_zenoh", help="with --ros")
+    sp.add_argument("--domain-id", type=int, default=0, help="ROS domain id, with --ros (default 0)")
     sp.add_argument("--storey", help="one storey key (default: every storey)")
     sp.add_argument("--count", type=int, help="stop after this many map versions")
     sp.add_argument("--out", help="write the final maps as map_server files into this directory")

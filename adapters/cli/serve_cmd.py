@@ -20,6 +20,7 @@ from adapters.cli.common import store_path_of
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.events import TwinSink
@@ -91,6 +92,9 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             service = TwinService(store, cfg)
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=cfg.frame_id)
             service.sinks.append(daemon)
+            ros = RosMapPublisher(session, cfg) if any(r.namespace for r in cfg.robots.values()) else None
+            if ros is not None:
+                service.sinks.append(ros)
             if recorder is not None:
                 service.sinks.append(recorder)
             t0 = time.perf_counter()
@@ -107,6 +111,9 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             t1 = time.perf_counter()
             if "daemon" in locals():
                 daemon.close()
+            ros_out = locals().get("ros")
+            if isinstance(ros_out, RosMapPublisher):
+                ros_out.close()
             session.close()
             if recorder is not None:
                 recorder.close()  # type: ignore[attr-defined]

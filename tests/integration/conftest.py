@@ -51,10 +51,22 @@ class Daemon:
         return self.process.returncode, time.monotonic() - t0
 
 
-def start_daemon(store: Path, *extra: str) -> Daemon:
+def start_daemon(store: Path, *extra: str, config: Path | None = None) -> Daemon:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
+    before = ["--config", str(config)] if config is not None else []
     process = subprocess.Popen(
-        [sys.executable, "-m", "adapters.cli", "serve", "--store", str(store), "--listen", endpoint, *extra],
+        [
+            sys.executable,
+            "-m",
+            "adapters.cli",
+            *before,
+            "serve",
+            "--store",
+            str(store),
+            "--listen",
+            endpoint,
+            *extra,
+        ],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,

@@ -1,0 +1,85 @@
+"""Subscribe to a robot's ``/map`` as a ROS 2 node would (for ``twin watch --ros NAMESPACE``).
+
+``rmw_zenoh``: an AdvancedSubscriber with history and late-publisher detection on rmw_zenoh's data key
+(as rmw_zenoh_cpp subscribes to TRANSIENT_LOCAL topics); every sample's attachment must have rmw's
+33-byte layout. ``bridge``: the same on zenoh-bridge-ros2dds's key ``<ns>/map``.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import zenoh
+import zenoh.ext
+
+from adapters.ros import apply_update, decode_occupancy_grid, decode_occupancy_grid_update
+from adapters.ros.cdr import OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE
+from adapters.ros.rmw_zenoh import RosTopic, parse_attachment
+from twin.grid import OccupancyGrid
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class RosSample:
+    """What arrived: ``kind`` is ``"map"`` or ``"update"``; ``sequence`` from the rmw attachment."""
+
+    kind: str
+    grid: OccupancyGrid
+    stamp_ns: int
+    sequence: int | None
+
+
+class RosMapWatcher:
+    """Keeps a copy of ``<ns>/map`` with ``<ns>/map_updates`` applied; calls ``on_sample`` for each."""
+
+    def __init__(
+        self, session: zenoh.Session, *, namespace: str, layout: str = "rmw_zenoh", domain_id: int = 0,
+        on_sample: Callable[[RosSample], None] | None = None,
+    ) -> None:  # fmt: skip
+        self.layout = layout
+        self.on_sample = on_sample
+        self.latest: OccupancyGrid | None = None
+        maps = RosTopic(domain_id, namespace, "map", OCCUPANCY_GRID)
+        updates = RosTopic(domain_id, namespace, "map_updates", OCCUPANCY_GRID_UPDATE)
+        rmw = layout == "rmw_zenoh"
+        self.keys = (maps.data_key, updates.data_key) if rmw else (maps.bridge_key, updates.bridge_key)
+        self._subs: list[Any] = [
+            zenoh.ext.declare_advanced_subscriber(
+                session,
+                self.keys[0],
+                self._on_map,
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
+            ),
+            session.declare_subscriber(self.keys[1], self._on_update),
+        ]
+
+    def _sequence(self, sample: zenoh.Sample) -> int | None:
+        if self.layout != "rmw_zenoh":
+            return None
+        if sample.attachment is None:
+            log.warning("A sample on %s has no rmw attachment: rmw_zenoh would drop it", sample.key_expr)
+            return None
+        return parse_attachment(sample.attachment.to_bytes())[0]
+
+    def _emit(self, kind: str, grid: OccupancyGrid, stamp: int, seq: int | None) -> None:
+        self.latest = grid
+        if self.on_sample is not None:
+            self.on_sample(RosSample(kind, grid, stamp, seq))
+
+    def _on_map(self, sample: zenoh.Sample) -> None:
+        grid, stamp = decode_occupancy_grid(sample.payload.to_bytes())
+        self._emit("map", grid, stamp, self._sequence(sample))
+
+    def _on_update(self, sample: zenoh.Sample) -> None:
+        if self.latest is None:
+            return
+        window, cells, stamp = decode_occupancy_grid_update(sample.payload.to_bytes())
+        self._emit("update", apply_update(self.latest, window, cells), stamp, self._sequence(sample))
+
+    def close(self) -> None:
+        for s in self._subs:
+            s.undeclare()

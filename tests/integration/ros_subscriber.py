@@ -1,0 +1,81 @@
+"""A ROS 2 map subscriber written from the rmw_zenoh and zenoh-plugin-ros2dds sources (own process).
+
+Usage: python -m tests.integration.ros_subscriber ENDPOINT LAYOUT DOMAIN NAMESPACE OUT_DIR
+
+LAYOUT ``rmw_zenoh``: an AdvancedSubscriber with history and late-publisher detection on the rmw data
+key of ``<ns>/map`` (as rmw_subscription_data.cpp does for TRANSIENT_LOCAL), and a subscriber on
+``<ns>/map_updates``; every sample must carry the 33-byte attachment (checked with zenoh-ext's own
+deserialiser). LAYOUT ``bridge``: the same on ``<ns>/map`` and ``<ns>/map_updates`` without attachment.
+Prints a JSON line per sample; on EOF of stdin saves the map copy (updates applied) to OUT_DIR/map.npy.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import zenoh
+import zenoh.ext
+
+from adapters.ros import apply_update, decode_occupancy_grid, decode_occupancy_grid_update
+from adapters.ros.cdr import OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE
+from adapters.ros.rmw_zenoh import RosTopic
+from adapters.zenoh.session import client_config
+
+
+def main() -> int:
+    endpoint, layout, domain, ns, out = sys.argv[1:]
+    maps = RosTopic(int(domain), ns, "map", OCCUPANCY_GRID)
+    updates = RosTopic(int(domain), ns, "map_updates", OCCUPANCY_GRID_UPDATE)
+    rmw = layout == "rmw_zenoh"
+    key_map, key_upd = (maps.data_key, updates.data_key) if rmw else (maps.bridge_key, updates.bridge_key)
+    lock = threading.Lock()
+    state: dict[str, object] = {"grid": None, "sequences": {}}
+
+    def check(sample: zenoh.Sample) -> dict[str, object]:
+        info: dict[str, object] = {"key": str(sample.key_expr)}
+        if rmw:
+            assert sample.attachment is not None, "rmw_zenoh drops samples without attachment"
+            raw = sample.attachment.to_bytes()
+            seq, stamp, gid = zenoh.ext.z_deserialize(
+                tuple[zenoh.ext.Int64, zenoh.ext.Int64, bytes], sample.attachment
+            )
+            assert len(raw) == 33 and len(gid) == 16
+            info.update(seq=int(seq), stamp=int(stamp), gid=bytes(gid).hex())
+        return info
+
+    def on_map(sample: zenoh.Sample) -> None:
+        info = check(sample)
+        grid, stamp = decode_occupancy_grid(sample.payload.to_bytes())
+        with lock:
+            state["grid"] = grid
+            print(json.dumps({"kind": "map", "stamp_ns": stamp, **info}), flush=True)
+
+    def on_update(sample: zenoh.Sample) -> None:
+        info = check(sample)
+        window, cells, _ = decode_occupancy_grid_update(sample.payload.to_bytes())
+        with lock:
+            if state["grid"] is not None:
+                state["grid"] = apply_update(state["grid"], window, cells)  # type: ignore[arg-type]
+            print(json.dumps({"kind": "update", "x": window.col0, "y": window.row0, **info}), flush=True)
+
+    with zenoh.open(client_config([endpoint])) as session:
+        sub_map = zenoh.ext.declare_advanced_subscriber(
+            session, key_map, on_map, history=zenoh.ext.HistoryConfig(detect_late_publishers=True)
+        )
+        sub_upd = session.declare_subscriber(key_upd, on_update)
+        print(json.dumps({"ready": True, "key": key_map}), flush=True)
+        sys.stdin.read()
+        with lock:
+            if state["grid"] is not None:
+                np.save(Path(out) / "map.npy", state["grid"].data)  # type: ignore[attr-defined]
+        sub_map.undeclare()
+        sub_upd.undeclare()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

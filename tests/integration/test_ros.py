@@ -1,0 +1,150 @@
+"""ROS 2 robots get their map unchanged: rmw_zenoh and bridge layouts, served by the daemon process to
+subscriber processes written from the rmw_zenoh and zenoh-plugin-ros2dds sources."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+import zenoh
+
+from adapters.ros.rmw_zenoh import parse_token, type_hash
+from adapters.zenoh.client import TwinClient
+from adapters.zenoh.session import client_config
+from tests.integration.conftest import ROOT, Daemon, start_daemon, twin
+
+CONFIG = """
+[robots.robot1]
+namespace = "/robot1"
+skill = "navigation"
+storey = "ground-floor"
+
+[robots.robot2]
+namespace = "/robot2"
+skill = "lab-localization"
+storey = "ground-floor"
+ros = ["bridge"]
+"""
+
+
+@pytest.fixture
+def ros_daemon(fresh_store: Path, tmp_path: Path) -> Iterator[Daemon]:
+    config = tmp_path / "robots.toml"
+    config.write_text(CONFIG)
+    d = start_daemon(fresh_store, "--no-record", config=config)
+    yield d
+    if d.process.poll() is None:
+        d.process.kill()
+        d.process.wait(timeout=10)
+
+
+class RosSubscriber:
+    def __init__(self, d: Daemon, layout: str, ns: str, out: Path) -> None:
+        self.out = out
+        out.mkdir(parents=True, exist_ok=True)
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "tests.integration.ros_subscriber", d.endpoint, layout, "0", ns, str(out)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=ROOT,
+        )
+        self.lines: list[dict[str, object]] = []
+        assert self.next()["ready"]
+
+    def next(self) -> dict[str, object]:
+        assert self.process.stdout is not None
+        line = self.process.stdout.readline()
+        assert line, self.process.stderr.read() if self.process.stderr else "subscriber died"
+        self.lines.append(json.loads(line))
+        return self.lines[-1]
+
+    def until(self, kind: str, count: int = 1) -> None:
+        while sum(1 for ln in self.lines if ln.get("kind") == kind) < count:
+            self.next()
+
+    def finish(self) -> np.ndarray:
+        assert self.process.stdin is not None
+        self.process.stdin.close()
+        assert self.process.wait(timeout=30) == 0, self.process.stderr.read() if self.process.stderr else ""
+        return np.load(self.out / "map.npy")
+
+
+@pytest.mark.parametrize("layout", ["rmw_zenoh", "bridge"])
+def test_a_late_ros_subscriber_gets_the_map_then_the_update_and_the_new_map(
+    ros_daemon: Daemon, tmp_path: Path, layout: str
+) -> None:
+    sub = RosSubscriber(ros_daemon, layout, "/robot1", tmp_path / layout)
+    sub.until("map")  # latched: it joined after the daemon published
+    r = twin(
+        "observe",
+        "--connect",
+        ros_daemon.endpoint,
+        "--robot",
+        "r",
+        "--box",
+        "16.6,7.0,0.375,0.6,0.6,0.75,0",
+        "--class",
+        "IfcFurniture",
+        "--storey",
+        "ground-floor",
+    )
+    assert r.returncode == 0, r.stderr
+    sub.until("update")
+    sub.until("map", 2)
+    time.sleep(0.3)
+    copy = sub.finish()
+    with TwinClient.connect([ros_daemon.endpoint]) as client:
+        grid, _, _ = client.get_map("ground-floor", "navigation")
+    np.testing.assert_array_equal(copy, grid.data)
+    if layout == "rmw_zenoh":
+        seqs = [ln["seq"] for ln in sub.lines if ln.get("kind") == "map"]
+        assert seqs == sorted(seqs) and seqs[0] >= 1
+        assert all(ln["stamp"] > 0 for ln in sub.lines if "stamp" in ln)
+
+
+def test_two_robots_with_different_skills_get_different_maps(ros_daemon: Daemon, tmp_path: Path) -> None:
+    one = RosSubscriber(ros_daemon, "bridge", "/robot1", tmp_path / "one")
+    two = RosSubscriber(ros_daemon, "bridge", "/robot2", tmp_path / "two")
+    one.until("map")
+    two.until("map")
+    a, b = one.finish(), two.finish()
+    with TwinClient.connect([ros_daemon.endpoint]) as client:
+        nav, _, _ = client.get_map("ground-floor", "navigation")
+        loc, _, _ = client.get_map("ground-floor", "lab-localization")
+    np.testing.assert_array_equal(a, nav.data)
+    np.testing.assert_array_equal(b, loc.data)
+    assert (a != b).any()
+
+
+def test_the_daemon_appears_in_the_ros_graph_as_a_map_server_node(ros_daemon: Daemon) -> None:
+    with zenoh.open(client_config([ros_daemon.endpoint])) as session:
+        time.sleep(0.5)
+        keys = [str(r.ok.key_expr) for r in session.liveliness().get("@ros2_lv/0/**", timeout=5) if r.ok]
+    tokens = [parse_token(k) for k in keys]
+    nodes = {(t.namespace, t.node) for t in tokens if t.kind == "NN"}
+    assert ("/robot1", "twin_map_server") in nodes
+    assert ("/robot2", "twin_map_server") not in nodes  # bridge only: no rmw graph entry
+    pubs = {t.topic: t for t in tokens if t.kind == "MP"}
+    assert set(pubs) == {"/robot1/map", "/robot1/map_updates"}
+    m = pubs["/robot1/map"]
+    assert m.type_name == "nav_msgs::msg::dds_::OccupancyGrid_"
+    assert m.type_hash == type_hash("nav_msgs/msg/OccupancyGrid")
+    assert m.qos == {"reliability": None, "durability": 1, "history": None, "depth": 1}
+    assert pubs["/robot1/map_updates"].type_name == "map_msgs::msg::dds_::OccupancyGridUpdate_"
+
+
+def test_twin_watch_ros_receives_the_latched_map_like_a_ros_node(ros_daemon: Daemon, tmp_path: Path) -> None:
+    for layout in ("rmw_zenoh", "bridge"):
+        r = twin("watch", "--connect", ros_daemon.endpoint, "--ros", "/robot1", "--layout", layout,
+                 "--count", "1", "--out", tmp_path / layout, timeout=60)  # fmt: skip
+        assert r.returncode == 0, r.stderr
+        assert "/robot1/map via map" in r.stdout
+        assert (tmp_path / layout / "robot1__map.yaml").exists()
