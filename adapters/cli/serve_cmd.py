@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import importlib
 import logging
 import signal
 import sys
@@ -17,13 +16,13 @@ from typing import Any
 import zenoh
 
 from adapters.cli.common import store_path_of
+from adapters.rerun import RerunRecorder
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
-from twin.events import TwinSink
 from twin.service import TwinService
 from twin.store import EmbeddedStore
 
@@ -37,22 +36,15 @@ def _needs_import(store_path: Path) -> bool:
         return store.is_empty()
 
 
-def _recorder(args: argparse.Namespace, cfg: Config, site: str) -> TwinSink | None:
-    """The Rerun recorder sink, when recording is on and the adapter is installed."""
+def _recorder(args: argparse.Namespace, cfg: Config, site: str) -> RerunRecorder | None:
+    """The Rerun recorder sink, unless recording is off (``--no-record``, or ``[rerun] record = false``
+    with no ``--record`` and no viewer URL)."""
     if args.no_record or (not cfg.rerun.record and not args.record and not cfg.rerun.connect_url):
-        return None
-    try:
-        RerunRecorder = importlib.import_module("adapters.rerun").RerunRecorder  # noqa: N806
-    except (ImportError, AttributeError):
-        log.info("Recording is off: the Rerun adapter is not available")
         return None
     path = Path(args.record) if args.record else None
     if path is None and cfg.rerun.record:
         path = cfg.rerun.directory / f"{site}-{time.strftime('%Y%m%d-%H%M%S')}.rrd"
-    recorder: TwinSink = RerunRecorder(
-        path=path, connect_url=cfg.rerun.connect_url, application=f"twin {site}"
-    )
-    return recorder
+    return RerunRecorder(path=path, connect_url=cfg.rerun.connect_url, application=f"twin {site}")
 
 
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
@@ -116,7 +108,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
                 ros_out.close()
             session.close()
             if recorder is not None:
-                recorder.close()  # type: ignore[attr-defined]
+                recorder.close()
     print(f"stopped cleanly in {time.perf_counter() - t1:.2f} s", flush=True)
     sys.stdout.flush()
     return 0

@@ -1,0 +1,294 @@
+"""The Rerun recorder: a sink of the twin service that records the twin's history for operators.
+
+Every event goes through a bounded queue to the recorder's own thread, so recording never delays the
+service; a failure is logged, counted, and after repeated failures the recorder disables itself (the
+daemon keeps running). What is recorded (entity paths):
+
+- ``world/<storey>/<class>/<element>``: the building at start-up (static), one mesh per element with its
+  placement, coloured by class (walls, glass, doors, furniture, openings ...), with its IRI, class and
+  name as properties (shown on hover and selection);
+- ``maps/<storey>/<skill>``: every map version as ``rr.GridMap`` (RViz map colours; cell size and origin
+  in the building's frame, at the storey's elevation), exactly as published;
+  ``maps/<storey>/<skill>/changed``: the changed rectangle of each update, as a 3D box;
+- ``world/observations/<robot>/<element>``: what robots added or changed (cleared when removed);
+- ``events``: one text line per observation (accepted with its revision, or the rejection reason),
+  skill change and map removal.
+
+Timelines: ``revision`` (a sequence: the twin revision the data reflects) and ``time`` (wall clock of
+the change). A blueprint opens on the 3D building, one 2D panel per storey's maps, and the event log.
+
+Example::
+
+    recorder = RerunRecorder(path=Path("var/recordings/lab.rrd"))
+    service.sinks.append(recorder)
+    ...
+    recorder.close()                 # flushes the file
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import re
+import threading
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from twin.events import (
+    ElementShape,
+    MapPublished,
+    MapRemoved,
+    MapUpdated,
+    ObservationAccepted,
+    ObservationRejected,
+    SkillChanged,
+    TwinEvent,
+    TwinStarted,
+)
+
+log = logging.getLogger(__name__)
+
+_STOP = object()
+_SAFE = re.compile(r"[^A-Za-z0-9_-]+")
+
+# Colours (RGBA) by IFC class family: what an operator tells apart at a glance.
+_COLOURS: tuple[tuple[str, tuple[int, int, int, int]], ...] = (
+    ("IfcOpeningElement", (255, 80, 80, 60)),
+    ("IfcDoor", (200, 120, 40, 255)),
+    ("IfcWindow", (120, 200, 255, 120)),
+    ("IfcCurtainWall", (120, 200, 255, 120)),
+    ("IfcFurnishingElement", (90, 170, 90, 255)),
+    ("IfcFurniture", (90, 170, 90, 255)),
+    ("IfcSlab", (170, 170, 170, 255)),
+    ("IfcWall", (225, 215, 195, 255)),
+    ("IfcColumn", (160, 160, 200, 255)),
+    ("IfcBeam", (160, 160, 200, 255)),
+)
+_GLASS = (120, 200, 255, 120)
+_OBSERVED = (240, 60, 200, 255)
+_DEFAULT = (200, 200, 200, 255)
+
+
+def colour_of(shape: ElementShape) -> tuple[int, int, int, int]:
+    """The display colour of an element: glass by name, else by class (subtypes by prefix)."""
+    if "glass" in shape.name.lower():
+        return _GLASS
+    for prefix, colour in _COLOURS:
+        if shape.ifc_class.startswith(prefix):
+            return colour
+    return _DEFAULT
+
+
+def entity_name(iri: str) -> str:
+    """A short, path-safe entity name for an element IRI."""
+    tail = iri.rstrip("/#").rsplit("#", 1)[-1].rsplit("/", 1)[-1]
+    return _SAFE.sub("_", tail)[:80] or "element"
+
+
+class RerunRecorder:
+    """Records service events to an ``.rrd`` file and/or a live viewer, off the service's thread."""
+
+    def __init__(
+        self,
+        *,
+        path: Path | None = None,
+        connect_url: str | None = None,
+        application: str = "building-twin",
+        max_queue: int = 10_000,
+        max_failures: int = 20,
+    ) -> None:
+        self.path = path
+        self.stream = rr.RecordingStream(application_id=application)
+        sinks: list[rr.FileSink | rr.GrpcSink] = []
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            sinks.append(rr.FileSink(str(path)))
+        if connect_url:
+            sinks.append(rr.GrpcSink(connect_url))
+        if sinks:
+            self.stream.set_sinks(*sinks)
+        self.dropped = 0
+        self.failures = 0
+        self.max_failures = max_failures
+        self.disabled = False
+        self._storeys: dict[str, float] = {}
+        self._queue: queue.Queue[object] = queue.Queue(maxsize=max_queue)
+        self._thread = threading.Thread(target=self._run, name="rerun-recorder", daemon=True)
+        self._thread.start()
+
+    # --- the sink (service thread: never blocks, never raises) ---------------------------------------
+    def emit(self, event: TwinEvent) -> None:
+        if self.disabled:
+            return
+        try:
+            self._queue.put_nowait(event)
+        except queue.Full:
+            self.dropped += 1
+            if self.dropped in (1, 100, 10_000):
+                log.warning("The Rerun recorder is behind: %d event(s) dropped", self.dropped)
+
+    # --- the worker ---------------------------------------------------------------------------------
+    def _run(self) -> None:
+        while True:
+            event = self._queue.get()
+            if event is _STOP:
+                return
+            if self.disabled:
+                continue
+            try:
+                self._record(event)  # type: ignore[arg-type]
+            except Exception:
+                self.failures += 1
+                log.exception("Recording %s failed", type(event).__name__)
+                if self.failures >= self.max_failures:
+                    self.disabled = True
+                    log.error("The Rerun recorder is disabled after %d failures", self.failures)
+
+    def _time(self, revision: int, stamp_ns: int) -> None:
+        self.stream.set_time("revision", sequence=revision)
+        self.stream.set_time("time", timestamp=np.datetime64(stamp_ns, "ns"))
+
+    def _record(self, event: TwinEvent) -> None:
+        if isinstance(event, TwinStarted):
+            self._started(event)
+        elif isinstance(event, MapPublished):
+            self._map(event)
+        elif isinstance(event, MapUpdated):
+            self._update(event)
+        elif isinstance(event, MapRemoved):
+            self._time(event.revision, event.stamp_ns)
+            self.stream.log(f"maps/{event.storey}/{event.skill}", rr.Clear(recursive=True))
+            self._text(f"map {event.storey}/{event.skill} removed", "INFO")
+        elif isinstance(event, ObservationAccepted):
+            self._accepted(event)
+        elif isinstance(event, ObservationRejected):
+            self.stream.set_time("time", timestamp=np.datetime64(event.stamp_ns, "ns"))
+            self._text(f"{event.robot}: observation rejected: {event.error}", "WARN")
+        elif isinstance(event, SkillChanged):
+            self._time(event.revision, event.stamp_ns)
+            what = "removed" if event.profile is None else f"set to {event.profile.to_json()}"
+            self._text(f"skill {event.name} {what} (revision {event.revision})", "INFO")
+
+    def _text(self, text: str, level: str) -> None:
+        self.stream.log("events", rr.TextLog(text, level=level))
+
+    def _shape(
+        self, path: str, shape: ElementShape, colour: tuple[int, int, int, int], *, static: bool
+    ) -> None:
+        m = shape.placement
+        self.stream.log(path, rr.Transform3D(translation=m[:3, 3], mat3x3=m[:3, :3]), static=static)
+        self.stream.log(
+            path,
+            rr.Mesh3D(
+                vertex_positions=shape.mesh.vertices.astype(np.float32),
+                triangle_indices=shape.mesh.faces.astype(np.uint32),
+                albedo_factor=colour,
+            ),
+            rr.AnyValues(iri=shape.iri, ifc_class=shape.ifc_class, name=shape.name),
+            static=static,
+        )
+
+    def _started(self, event: TwinStarted) -> None:
+        self._storeys = {key: elevation for key, _, elevation in event.storeys}
+        self.stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        for shape in event.elements:
+            storey = shape.storey or "building"
+            path = f"world/{storey}/{shape.ifc_class}/{entity_name(shape.iri)}"
+            self._shape(path, shape, colour_of(shape), static=True)
+        self._blueprint([k for k, _, _ in event.storeys], list(event.skills))
+        self._time(event.revision, event.stamp_ns)
+        self._text(
+            f"twin {event.site} started at revision {event.revision}: {len(event.elements)} elements, "
+            f"{len(event.skills)} skills, {len(event.storeys)} storeys",
+            "INFO",
+        )
+
+    def _blueprint(self, storeys: Sequence[str], skills: Sequence[str]) -> None:
+        maps = [
+            rrb.Spatial3DView(name=f"{storey} maps", origin=f"maps/{storey}", contents=[f"maps/{storey}/**"])
+            for storey in storeys
+        ]
+        blueprint = rrb.Blueprint(
+            rrb.Horizontal(
+                rrb.Vertical(
+                    rrb.Spatial3DView(name="building", origin="world", contents=["world/**", "maps/**"]),
+                    rrb.TextLogView(name="events", origin="events"),
+                    row_shares=[3, 1],
+                ),
+                rrb.Tabs(*maps) if maps else rrb.TextLogView(origin="events"),
+                column_shares=[3, 2],
+            ),
+            rrb.TimePanel(state="expanded"),
+        )
+        self.stream.send_blueprint(blueprint)
+
+    def _map(self, event: MapPublished) -> None:
+        g = event.grid
+        self._time(event.revision, event.stamp_ns)
+        self.stream.log(
+            f"maps/{g.storey}/{g.skill}",
+            rr.GridMap(
+                data=np.ascontiguousarray(g.data).view(np.uint8).tobytes(),  # -1 (unknown) is 255
+                format=rr.components.ImageFormat(
+                    width=g.frame.width, height=g.frame.height, color_model="L", channel_datatype="U8"
+                ),
+                cell_size=g.frame.resolution_m,
+                translation=[g.frame.origin_x, g.frame.origin_y, g.elevation_m],
+                colormap=rr.components.Colormap.RvizMap,
+            ),
+            rr.AnyValues(map_version=event.version, map_revision=event.revision),
+        )
+
+    def _update(self, event: MapUpdated) -> None:
+        f, w = event.frame, event.window
+        res = f.resolution_m
+        z = self._storeys.get(event.storey, 0.0)
+        self._time(event.revision, event.stamp_ns)
+        self.stream.log(
+            f"maps/{event.storey}/{event.skill}/changed",
+            rr.Boxes3D(
+                mins=[f.origin_x + w.col0 * res, f.origin_y + w.row0 * res, z],
+                sizes=[w.shape[1] * res, w.shape[0] * res, 0.05],
+                colors=[(255, 200, 0, 255)],
+            ),
+            rr.AnyValues(version=event.version, x=w.col0, y=w.row0, width=w.shape[1], height=w.shape[0]),
+        )
+
+    def _accepted(self, event: ObservationAccepted) -> None:
+        self._time(event.revision, event.stamp_ns)
+        for shape in event.upserted:
+            path = f"world/observations/{entity_name(event.robot)}/{entity_name(shape.iri)}"
+            colour = _OBSERVED if not shape.is_static else colour_of(shape)
+            if shape.is_open:
+                colour = (colour[0], colour[1], colour[2], 60)
+            self._shape(path, shape, colour, static=False)
+        for iri in event.removed:
+            self.stream.log(
+                f"world/observations/{entity_name(event.robot)}/{entity_name(iri)}", rr.Clear(recursive=True)
+            )
+        changed = ", ".join(f"{m.storey}/{m.skill} v{m.version}" for m in event.maps) or "no map"
+        doors = [s.iri for s in event.upserted if s.is_open is not None]
+        extra = f"; door(s) {', '.join(doors)}" if doors else ""
+        self._text(
+            f"{event.robot}: accepted at revision {event.revision}: upserted {len(event.upserted)}, "
+            f"removed {len(event.removed)}; maps {changed}{extra}",
+            "INFO",
+        )
+
+    # --- lifecycle ----------------------------------------------------------------------------------
+    def close(self, timeout_s: float = 10.0) -> None:
+        """Record what is queued, then flush and close the file (and the viewer connection)."""
+        try:
+            self._queue.put(_STOP, timeout=timeout_s)
+        except queue.Full:
+            log.warning("The Rerun recorder could not finish its queue in %s s", timeout_s)
+        self._thread.join(timeout_s)
+        try:
+            self.stream.flush()
+            self.stream.disconnect()
+        except Exception:
+            log.exception("Closing the Rerun recording failed")

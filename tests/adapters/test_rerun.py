@@ -1,0 +1,108 @@
+"""The Rerun recording of the twin: read back from the file, and rendered in the real viewer."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rerun.chunk as rc
+
+from adapters.rerun import RerunRecorder
+from tests.twin.box_lab import element_iri, spec
+from tests.twin.live_helpers import TWIN, box_turtle, observe, started
+from twin.events import MapPublished, TwinEvent
+
+SCREENSHOT = Path(__file__).resolve().parents[3] / "shared" / "tools" / "rrd_screenshot.sh"
+
+
+def record(path: Path) -> tuple[list[TwinEvent], int]:
+    """A service run on the box lab with a recorder: a table, a door, a rejection, a removal."""
+    recorder = RerunRecorder(path=path)
+    service, kept = started()
+    for event in kept.events:  # what start() emitted before the recorder was attached
+        recorder.emit(event)
+    service.sinks.append(recorder)
+    observe(service, "robot1", box_turtle("urn:robot1:table", 6.6, 2.0))
+    observe(service, "robot1", f"<{element_iri(spec('Door A'))}> <{TWIN}isOpen> true .".encode())
+    observe(service, "robot2", b"this is not turtle")
+    observe(service, "robot1", box_turtle("urn:robot1:crate", 2.0, 1.0))
+    observe(service, "robot1", f"<urn:robot1:table> <{TWIN}removed> true .".encode())
+    recorder.close()
+    return kept.events, len(service.element_shapes())
+
+
+def chunks_by_entity(path: Path) -> dict[str, list]:  # type: ignore[type-arg]
+    out: dict[str, list] = {}  # type: ignore[type-arg]
+    for chunk in rc.RrdReader(str(path)).stream().to_chunks():
+        out.setdefault(str(chunk.entity_path), []).append(chunk.to_record_batch())
+    return out
+
+
+def column(batch: object, name: str) -> list:  # type: ignore[type-arg]
+    b = batch  # a pyarrow RecordBatch
+    return b.column(b.schema.get_field_index(name)).to_pylist()  # type: ignore[attr-defined]
+
+
+def test_every_published_map_version_is_in_the_recording_with_its_revision(tmp_path: Path) -> None:
+    path = tmp_path / "twin.rrd"
+    events, _ = record(path)
+    entities = chunks_by_entity(path)
+    published = [e for e in events if isinstance(e, MapPublished)]
+    for storey, skill in {(e.grid.storey, e.grid.skill) for e in published}:
+        ours = [e for e in published if (e.grid.storey, e.grid.skill) == (storey, skill)]
+        batches = entities[f"/maps/{storey}/{skill}"]
+        rows = [
+            (rev, data)
+            for b in batches
+            for rev, data in zip(column(b, "revision"), column(b, "GridMap:data"), strict=True)
+        ]
+        assert [r for r, _ in rows] == [e.revision for e in ours]
+        last = np.array(rows[-1][1][0], dtype=np.uint8).view(np.int8).reshape(ours[-1].grid.data.shape)
+        np.testing.assert_array_equal(last, ours[-1].grid.data)
+
+
+def test_observations_rejections_and_the_building_are_recorded(tmp_path: Path) -> None:
+    path = tmp_path / "twin.rrd"
+    _, elements = record(path)
+    entities = chunks_by_entity(path)
+    texts = [t for b in entities["/events"] for row in column(b, "TextLog:text") for t in row]
+    assert any("robot1: accepted at revision 1" in t for t in texts)
+    assert any("robot2: observation rejected: Observation is not valid Turtle" in t for t in texts)
+    assert any("door(s)" in t for t in texts)
+    building = [e for e in entities if e.startswith("/world/") and not e.startswith("/world/observations")]
+    meshes = [e for e in building if any("Mesh3D:vertex_positions" in b.schema.names for b in entities[e])]
+    assert len(meshes) == elements - 1  # every element with geometry but the observed crate
+    observed = [e for e in entities if e.startswith("/world/observations/robot1/")]
+    assert any(e.endswith("table") for e in observed) and any(e.endswith("crate") for e in observed)
+    assert any(e.endswith("/changed") for e in entities)
+
+
+def test_a_stalled_recorder_never_delays_the_service(tmp_path: Path) -> None:
+    recorder = RerunRecorder(path=tmp_path / "slow.rrd", max_queue=5)
+    recorder._record = lambda event: time.sleep(1.0)  # type: ignore[method-assign]
+    service, _ = started()
+    service.sinks.append(recorder)
+    t0 = time.perf_counter()
+    for i in range(20):
+        assert observe(service, "robot1", box_turtle(f"urn:r:{i}", 6.6, 2.0)).ok
+    assert time.perf_counter() - t0 < 5.0
+    assert recorder.dropped > 0
+
+
+@pytest.mark.skipif(not SCREENSHOT.exists(), reason=f"{SCREENSHOT} not found (../shared is absent)")
+def test_the_recording_renders_in_the_real_viewer_without_errors(tmp_path: Path) -> None:
+    path = tmp_path / "twin.rrd"
+    record(path)
+    png = tmp_path / "twin.png"
+    env = {**os.environ, "RR_STRICT": "1", "RR_TIMEOUT": "240", "RR_SIZE": "1200x800"}
+    command = ["bash", str(SCREENSHOT), str(path), str(png)]
+    r = subprocess.run(command, capture_output=True, text=True, env=env, timeout=400, check=False)
+    assert r.returncode == 0, r.stderr[-2000:]
+    report = json.loads(Path(str(png) + ".json").read_text())
+    assert png.stat().st_size > 10_000
+    assert not report.get("errors") and not report.get("viewer_errors"), report
