@@ -138,7 +138,7 @@ def _table(storey: str, x: float, y: float, i: int) -> str:
     )
 
 
-def run_model(name: str, count: int) -> dict[str, Any]:
+def run_model(name: str, count: int, *, record: bool = False) -> dict[str, Any]:
     from adapters.zenoh.client import TwinClient
 
     work = Path(tempfile.mkdtemp(prefix=f"live-{name}-"))
@@ -152,8 +152,16 @@ def run_model(name: str, count: int) -> dict[str, Any]:
     ]
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     t0 = time.perf_counter()
+    rrd = work / "run.rrd"
     daemon = subprocess.Popen(
-        _twin("serve", "--store", str(store), "--listen", endpoint, "--no-record"),
+        _twin(
+            "serve",
+            "--store",
+            str(store),
+            "--listen",
+            endpoint,
+            *(["--record", str(rrd)] if record else ["--no-record"]),
+        ),
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
@@ -168,6 +176,8 @@ def run_model(name: str, count: int) -> dict[str, Any]:
     startup_wall = time.perf_counter() - t0
     maps_published_s = float(line.rsplit(" in ", 1)[1].split()[0])
     rss_start = _proc_mb(daemon.pid, "VmRSS")
+    time.sleep(1.0)
+    rrd_start = rrd.stat().st_size if rrd.exists() else 0
     received: dict[int, float] = {}
     got = threading.Condition()
     latencies, acks = [], []
@@ -201,10 +211,12 @@ def run_model(name: str, count: int) -> dict[str, Any]:
     finally:
         daemon.terminate()
         daemon.wait(timeout=30)
+    rrd_end = rrd.stat().st_size if rrd.exists() else 0
     rec = recompute(store, storey, positions)
     shutil.rmtree(work, ignore_errors=True)
+    per_obs = (rrd_end - rrd_start) / max(count, 1)
     return {
-        "model": name,
+        "model": name + (" (recording)" if record else ""),
         "storey": storey,
         "import_s": round(import_s, 2),
         "startup_to_serving_s": round(startup_wall, 2),
@@ -221,6 +233,9 @@ def run_model(name: str, count: int) -> dict[str, Any]:
         "rss_start_mb": round(rss_start),
         "rss_end_mb": round(rss_end),
         "rss_peak_mb": round(rss_peak),
+        "rrd_start_kb": round(rrd_start / 1024),
+        "rrd_bytes_per_observation": round(per_obs),
+        "rrd_hour_10_robots_20hz_gb": round(per_obs * 200 * 3600 / 1e9, 2),
     }
 
 
@@ -229,6 +244,7 @@ def main() -> int:
     p.add_argument("--models", nargs="+", default=["lab", "janesville"], choices=sorted(MODELS))
     p.add_argument("--count", type=int, default=200)
     p.add_argument("--json", type=Path)
+    p.add_argument("--record", action="store_true", help="also run each model with recording on (Rerun)")
     args = p.parse_args()
     rows = []
     for name in args.models:
@@ -238,6 +254,8 @@ def main() -> int:
             continue
         print(f"running {name} ...", file=sys.stderr, flush=True)
         rows.append(run_model(name, args.count))
+        if args.record:
+            rows.append(run_model(name, args.count, record=True))
     if rows:
         keys = list(rows[0])
         print("| " + " | ".join(keys) + " |")
