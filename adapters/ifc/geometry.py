@@ -43,6 +43,29 @@ log = logging.getLogger(__name__)
 Progress = Callable[[int, int], None]
 Shape = tuple[int, str, Any, Any, Any]  # product id, geometry id, vertices | None, faces | None, matrix
 DEFAULT_KERNELS = ("manifold", "opencascade")
+BOOLEAN_SAFE_KERNELS = frozenset({"opencascade", "cgal", "cgal-simple", "hybrid-cgal-simple-opencascade"})
+"""Kernels that mesh IfcBooleanResult bodies correctly. manifold returns wrong solids for some boolean
+clippings without failing (FZK-Haus wall 25OWQvmXj5BPgyergP43tY: unclipped, 9.9 m3 instead of 2.06), so
+products whose body holds a boolean result skip it and go to the next kernel in the list."""
+
+
+def _has_boolean(items: Any, depth: int = 0) -> bool:
+    for item in items or ():
+        if item.is_a("IfcBooleanResult"):  # IfcBooleanClippingResult is a subtype
+            return True
+        if item.is_a("IfcMappedItem") and depth < 8:
+            source = item.MappingSource.MappedRepresentation
+            if source is not None and _has_boolean(source.Items, depth + 1):
+                return True
+    return False
+
+
+def has_boolean_body(product: Any) -> bool:
+    """True when a representation of ``product`` holds a boolean result (through mapped items too)."""
+    shape = getattr(product, "Representation", None)
+    if shape is None:
+        return False
+    return any(_has_boolean(rep.Items) for rep in shape.Representations or ())
 _BATCH_SHAPES = 8  # small: what a crashing kernel had meshed is kept
 _BATCH_SECONDS = 0.05
 STALL_SECONDS = 300.0
@@ -203,6 +226,7 @@ class MeshingJob:
         self._threads = threads
         self._progress = progress
         self._pending = {p.id() for p in products if getattr(p, "Representation", None) is not None}
+        self._boolean = {p.id() for p in products if p.id() in self._pending and has_boolean_body(p)}
         self._total = len(self._pending)
         self._received = 0
         self._lock = threading.Lock()
@@ -219,11 +243,14 @@ class MeshingJob:
 
     def _next_kernel(self) -> None:
         self._run = None
-        if self._pending and self._kernels:
+        while self._pending and self._kernels:
             kernel = self._kernels.pop(0)
-            self._run = _KernelRun(
-                self._f, sorted(self._pending), kernel, self._threads, self._shapes_arrived
-            )
+            ids = self._pending
+            if kernel not in BOOLEAN_SAFE_KERNELS and any(k in BOOLEAN_SAFE_KERNELS for k in self._kernels):
+                ids = self._pending - self._boolean  # boolean bodies wait for a kernel that gets them right
+            if ids:
+                self._run = _KernelRun(self._f, sorted(ids), kernel, self._threads, self._shapes_arrived)
+                return
 
     def _collect(self, run: _KernelRun) -> None:
         run.wait()
