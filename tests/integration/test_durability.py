@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from adapters.zenoh.client import TwinClient
-from tests.integration.conftest import ROOT, start_daemon
+from tests.integration.conftest import ROOT, Daemon, start_daemon
 from twin.config import load_config
 from twin.service import TwinService
 from twin.store import EmbeddedStore
@@ -45,6 +45,15 @@ def test_acked_observations_survive_repeated_kill_9_and_maps_equal_a_rebuild(fre
         robot.stdin.close()
         out, err = robot.stdout.read(), robot.stderr.read()
         robot.wait(timeout=30)
+    try:
+        check(daemon, fresh_store, out, err)
+    finally:
+        if daemon.process.poll() is None:  # a failed check must not leave the daemon running
+            daemon.process.kill()
+            daemon.process.wait(timeout=10)
+
+
+def check(daemon: Daemon, fresh_store: Path, out: str, err: str) -> None:
     attempts = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
     acked = [a for a in attempts if a["acked"]]
     assert len(acked) >= 10, err
