@@ -85,6 +85,24 @@ def _describe(v: MapVersion) -> str:
     )
 
 
+def _await(seen: threading.Semaphore, count: int | None, timeout_s: float, what: str) -> bool:
+    """Wait for ``count`` releases of ``seen`` (forever when None; Ctrl-C ends it); False on timeout."""
+    deadline = time.monotonic() + timeout_s
+    got = 0
+    try:
+        while count is None or got < count:
+            left = deadline - time.monotonic() if count is not None else 3600.0
+            if left <= 0 or not seen.acquire(timeout=left):
+                if count is not None:
+                    print(f"twin: error: {got} of {count} {what} in {timeout_s} s", file=sys.stderr)
+                    return False
+                continue
+            got += 1
+    except KeyboardInterrupt:
+        pass
+    return True
+
+
 def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
     """``twin watch --ros NS``: subscribe exactly as an rmw_zenoh node or the DDS bridge would."""
     from adapters.zenoh.ros_watch import RosMapWatcher, RosSample
@@ -107,19 +125,8 @@ def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
             on_sample=on_sample,
         )
         try:
-            got = 0
-            while args.count is None or got < args.count:
-                if not seen.acquire(timeout=args.timeout):
-                    if args.count is not None:
-                        print(
-                            f"twin: error: {got} of {args.count} samples on {watcher.keys[0]}",
-                            file=sys.stderr,
-                        )
-                        return 1
-                    continue
-                got += 1
-        except KeyboardInterrupt:
-            pass
+            if not _await(seen, args.count, args.timeout, f"samples on {watcher.keys[0]}"):
+                return 1
         finally:
             watcher.close()
         if args.out and watcher.latest is not None:
@@ -153,21 +160,8 @@ def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
 
         watchers: list[MapWatcher] = [twin.watch(s, args.skill, on_version) for s in storeys]
         try:
-            deadline = time.monotonic() + args.timeout
-            got = 0
-            while args.count is None or got < args.count:
-                left = deadline - time.monotonic() if args.count is not None else 3600.0
-                if left <= 0 or not seen.acquire(timeout=left):
-                    if args.count is not None:
-                        print(
-                            f"twin: error: {got} of {args.count} map versions in {args.timeout} s",
-                            file=sys.stderr,
-                        )
-                        return 1
-                    continue
-                got += 1
-        except KeyboardInterrupt:
-            pass
+            if not _await(seen, args.count, args.timeout, "map versions"):
+                return 1
         finally:
             for w in watchers:
                 w.close()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import socket
@@ -113,3 +114,28 @@ def daemon(fresh_store: Path) -> Iterator[Daemon]:
     if d.process.poll() is None:
         d.process.kill()
         d.process.wait(timeout=10)
+
+
+class JsonLinesProcess:
+    """A helper process (a robot, a subscriber) that prints one JSON object per line on stdout."""
+
+    def __init__(self, *args: str) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", *args],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+        )  # fmt: skip
+        self.lines: list[dict[str, object]] = []
+
+    def next(self) -> dict[str, object]:
+        assert self.process.stdout is not None
+        line = self.process.stdout.readline()
+        assert line, self.process.stderr.read() if self.process.stderr else "the process died"
+        self.lines.append(json.loads(line))
+        return self.lines[-1]
+
+    def close_stdin_and_wait(self, timeout: float = 30) -> None:
+        assert self.process.stdin is not None
+        self.process.stdin.close()
+        assert self.process.wait(timeout=timeout) == 0, (
+            self.process.stderr.read() if self.process.stderr else ""
+        )

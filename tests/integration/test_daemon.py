@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -13,7 +12,7 @@ import pytest
 
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import RemoteError
-from tests.integration.conftest import ROOT, Daemon, start_daemon, twin
+from tests.integration.conftest import Daemon, JsonLinesProcess, start_daemon, twin
 from twin.grid import OCCUPIED
 
 TWIN = "https://w3id.org/building-twin#"
@@ -35,45 +34,20 @@ def _box_turtle(*, box: str = "16.6 7.0 0.375 0.6 0.6 0.75 0.0", storey: str = "
     return f'<{TABLE}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "{storey}" ; <{TWIN}box> "{box}" .'
 
 
-class Subscriber:
+class Subscriber(JsonLinesProcess):
     """The subscriber process: its JSON lines, and the final copies it writes when told to stop."""
 
     def __init__(self, d: Daemon, out: Path, *skills: str) -> None:
+        super().__init__("tests.integration.subscriber", d.endpoint, str(out), "ground-floor", *skills)
         self.out = out
-        self.process = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "tests.integration.subscriber",
-                d.endpoint,
-                str(out),
-                "ground-floor",
-                *skills,
-            ],
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            cwd=ROOT,
-        )
-        self.lines: list[dict[str, object]] = []
         assert self.next()["ready"]
-
-    def next(self) -> dict[str, object]:
-        assert self.process.stdout is not None
-        line = self.process.stdout.readline()
-        assert line, self.process.stderr.read() if self.process.stderr else "subscriber died"
-        self.lines.append(json.loads(line))
-        return self.lines[-1]
 
     def until(self, skill: str, version: int) -> None:
         while not any(ln.get("skill") == skill and ln.get("version") == version for ln in self.lines):
             self.next()
 
     def finish(self) -> dict[str, np.ndarray]:
-        assert self.process.stdin is not None
-        self.process.stdin.close()
-        assert self.process.wait(timeout=30) == 0
+        self.close_stdin_and_wait()
         return {p.stem.split("__")[1]: np.load(p) for p in self.out.glob("*.npy")}
 
 

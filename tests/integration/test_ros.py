@@ -3,9 +3,6 @@ subscriber processes written from the rmw_zenoh and zenoh-plugin-ros2dds sources
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,7 +14,7 @@ import zenoh
 from adapters.ros.rmw_zenoh import parse_token, type_hash
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.session import client_config
-from tests.integration.conftest import ROOT, Daemon, start_daemon, twin
+from tests.integration.conftest import Daemon, JsonLinesProcess, start_daemon, twin
 
 CONFIG = """
 [robots.robot1]
@@ -44,36 +41,19 @@ def ros_daemon(fresh_store: Path, tmp_path: Path) -> Iterator[Daemon]:
         d.process.wait(timeout=10)
 
 
-class RosSubscriber:
+class RosSubscriber(JsonLinesProcess):
     def __init__(self, d: Daemon, layout: str, ns: str, out: Path) -> None:
-        self.out = out
         out.mkdir(parents=True, exist_ok=True)
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "tests.integration.ros_subscriber", d.endpoint, layout, "0", ns, str(out)],
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            cwd=ROOT,
-        )
-        self.lines: list[dict[str, object]] = []
+        super().__init__("tests.integration.ros_subscriber", d.endpoint, layout, "0", ns, str(out))
+        self.out = out
         assert self.next()["ready"]
-
-    def next(self) -> dict[str, object]:
-        assert self.process.stdout is not None
-        line = self.process.stdout.readline()
-        assert line, self.process.stderr.read() if self.process.stderr else "subscriber died"
-        self.lines.append(json.loads(line))
-        return self.lines[-1]
 
     def until(self, kind: str, count: int = 1) -> None:
         while sum(1 for ln in self.lines if ln.get("kind") == kind) < count:
             self.next()
 
     def finish(self) -> np.ndarray:
-        assert self.process.stdin is not None
-        self.process.stdin.close()
-        assert self.process.wait(timeout=30) == 0, self.process.stderr.read() if self.process.stderr else ""
+        self.close_stdin_and_wait()
         return np.load(self.out / "map.npy")
 
 
