@@ -237,7 +237,14 @@ class RerunRecorder:
                     width=g.frame.width, height=g.frame.height, color_model="L", channel_datatype="U8"
                 ),
                 cell_size=g.frame.resolution_m,
-                translation=[g.frame.origin_x, g.frame.origin_y, g.elevation_m],
+                # Rerun draws an image's row 0 at the far (+y) edge, the twin's row 0 is the lowest y:
+                # a half turn about x puts every cell on its world cell without touching the data.
+                translation=[
+                    g.frame.origin_x,
+                    g.frame.origin_y + g.frame.height * g.frame.resolution_m,
+                    g.elevation_m,
+                ],
+                rotation_axis_angle=rr.RotationAxisAngle(axis=[1.0, 0.0, 0.0], degrees=180.0),
                 colormap=rr.components.Colormap.RvizMap,
             ),
             rr.AnyValues(map_version=event.version, map_revision=event.revision),
