@@ -7,7 +7,7 @@ kinds of bodies wrong *without failing*:
 
 - boolean results (``IfcBooleanResult``, ``IfcBooleanClippingResult``): walls clipped by a roof come
   back unclipped (FZK-Haus, Institute, Duplex);
-- swept areas with curved profiles (circles, ellipses, composite curves with arcs, fillets): the
+- swept areas with curved profiles (circles, ellipses, curves with arcs, fillets): the
   profile is tessellated differently and often comes back as an open mesh (Janesville's chairs and
   beams, railings).
 
@@ -28,9 +28,22 @@ REFERENCE_KERNEL = "opencascade"
 """The kernel whose meshes are taken as correct (tests compare every stored mesh against it)."""
 
 _CURVED_PROFILES = ("IfcCircleProfileDef", "IfcEllipseProfileDef")
-_CURVED_CURVES = ("IfcConic", "IfcBSplineCurve", "IfcCompositeCurve", "IfcIndexedPolyCurve", "IfcTrimmedCurve")
+_CURVED_CURVES = ("IfcConic", "IfcBSplineCurve", "IfcTrimmedCurve", "IfcOffsetCurve2D")
 _CURVED_SOLIDS = ("IfcRevolvedAreaSolid", "IfcSweptDiskSolid", "IfcSurfaceCurveSweptAreaSolid", "IfcCsgSolid")
 _FILLETS = ("FilletRadius", "EdgeRadius", "FlangeEdgeRadius", "WebEdgeRadius", "InnerFilletRadius")
+
+
+def _curve_is_curved(curve: Any, depth: int = 0) -> bool:
+    """True when ``curve`` has an arc or another non-straight part (polylines and line segments are not)."""
+    if curve is None or depth > 8:
+        return False
+    if any(curve.is_a(t) for t in _CURVED_CURVES):
+        return True
+    if curve.is_a("IfcIndexedPolyCurve"):
+        return any(seg.is_a("IfcArcIndex") for seg in curve.Segments or ())
+    if curve.is_a("IfcCompositeCurve"):
+        return any(_curve_is_curved(seg.ParentCurve, depth + 1) for seg in curve.Segments or ())
+    return False
 
 
 def _profile_is_curved(profile: Any) -> bool:
@@ -42,7 +55,7 @@ def _profile_is_curved(profile: Any) -> bool:
         curves = [profile.OuterCurve]
         if profile.is_a("IfcArbitraryProfileDefWithVoids"):
             curves.extend(profile.InnerCurves or ())
-        return any(c is not None and any(c.is_a(t) for t in _CURVED_CURVES) for c in curves)
+        return any(_curve_is_curved(c) for c in curves)
     if profile.is_a("IfcCompositeProfileDef"):
         return any(_profile_is_curved(p) for p in profile.Profiles or ())
     if profile.is_a("IfcDerivedProfileDef"):
