@@ -269,7 +269,7 @@ def selection_query(skill: SkillProfile) -> str:
     for mat in skill.exclude_materials:
         lines.append(
             "  FILTER NOT EXISTS { ?element twin:facingMaterial ?twin_material . "
-            f"FILTER(REGEX(STR(?twin_material), {json.dumps(material_word_pattern(mat))}, \"i\")) }}"
+            f'FILTER(REGEX(STR(?twin_material), {json.dumps(material_word_pattern(mat))}, "i")) }}'
         )
     if skill.sparql:
         lines.append("  { SELECT DISTINCT ?element WHERE {\n" + skill.sparql + "\n  } }")

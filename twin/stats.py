@@ -115,7 +115,8 @@ def model_stats(store: GraphStore, *, turtle: bool = True) -> ModelStats:
         meshes_per_kernel={
             literal_value(r["k"]) or "": int(literal_value(r["n"]) or 0)
             for r in store.select(
-                "SELECT ?k (COUNT(?e) AS ?n) WHERE { ?e a bot:Element ; twin:meshKernel ?k } GROUP BY ?k ORDER BY ?k"
+                "SELECT ?k (COUNT(?e) AS ?n) WHERE { ?e a bot:Element ; twin:meshKernel ?k } "
+                "GROUP BY ?k ORDER BY ?k"
             )
         },
     )

@@ -248,7 +248,9 @@ class MeshingJob:
         route.run = None
         if route.pending and route.kernels:
             kernel = route.kernels.pop(0)
-            route.run = _KernelRun(self._f, sorted(route.pending), kernel, route.threads, self._shapes_arrived)
+            route.run = _KernelRun(
+                self._f, sorted(route.pending), kernel, route.threads, self._shapes_arrived
+            )
 
     def _collect(self, route: _Route, run: _KernelRun) -> None:
         run.wait()
@@ -323,4 +325,3 @@ def start_meshing(
     ``routed`` products (a subset) go to the reference kernel first, when it is among ``kernels``.
     """
     return MeshingJob(f, products, kernels=kernels, threads=threads, progress=progress, routed=routed)
-

@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import ifcopenshell
 import numpy as np
@@ -74,7 +75,9 @@ def measure(geometry: Geometry) -> MeshMeasures:
 def compare(ours: MeshMeasures, reference: MeshMeasures, tol: Tolerance = Tolerance()) -> str | None:
     """None when ``ours`` agrees with ``reference``, else a sentence saying how they differ."""
     gap = float(
-        max(np.abs(np.subtract(ours.lo, reference.lo)).max(), np.abs(np.subtract(ours.hi, reference.hi)).max())
+        max(
+            np.abs(np.subtract(ours.lo, reference.lo)).max(), np.abs(np.subtract(ours.hi, reference.hi)).max()
+        )
     )
     if gap > tol.bbox_m:
         return f"bounding box off by {gap * 100:.1f} cm"
@@ -90,13 +93,16 @@ def compare(ours: MeshMeasures, reference: MeshMeasures, tol: Tolerance = Tolera
     return None
 
 
-def reference_geometry(path: Path, guids: Sequence[str] | None = None, *, threads: int = 2) -> dict[str, Geometry]:
+def reference_geometry(
+    path: Path, guids: Sequence[str] | None = None, *, threads: int = 2
+) -> dict[str, Geometry]:
     """The reference kernel's geometry of every element of ``path`` (or of ``guids``), by GlobalId."""
     f = ifcopenshell.open(str(path))
-    products = f.by_type("IfcElement") if guids is None else [f.by_guid(g) for g in guids]
+    products: list[Any] = list(f.by_type("IfcElement")) if guids is None else [f.by_guid(g) for g in guids]
     with start_meshing(f, products, kernels=(REFERENCE_KERNEL,), threads=threads) as job:
         result = job.result()
-    return {str(f.by_id(pid).GlobalId): g for pid, g in result.geometry.items()}
+    by_id: Any = f.by_id
+    return {str(by_id(pid).GlobalId): g for pid, g in result.geometry.items()}
 
 
 def disagreements(
@@ -113,10 +119,10 @@ def disagreements(
         if e.geometry is None and ref is None:
             continue
         if e.geometry is None or ref is None:
-            reason = "no stored mesh" if e.geometry is None else "the reference kernel meshes nothing"
-            out.append(Disagreement(e.guid, e.ifc_class, e.mesh_kernel, reason))
+            missing = "no stored mesh" if e.geometry is None else "the reference kernel meshes nothing"
+            out.append(Disagreement(e.guid, e.ifc_class, e.mesh_kernel, missing))
             continue
-        reason = compare(measure(e.geometry), measure(ref), tol)
-        if reason is not None:
-            out.append(Disagreement(e.guid, e.ifc_class, e.mesh_kernel, reason))
+        differs = compare(measure(e.geometry), measure(ref), tol)
+        if differs is not None:
+            out.append(Disagreement(e.guid, e.ifc_class, e.mesh_kernel, differs))
     return out

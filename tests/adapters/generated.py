@@ -56,7 +56,10 @@ class Generated:
         if schema == "IFC2X3":  # IFC2X3 requires owner histories: a user and an application first
             _add_owner(f)
         project = ifcopenshell.api.root.create_entity(f, ifc_class="IfcProject", name="Generated")
-        units = [ifcopenshell.api.unit.add_si_unit(f, unit_type=t) for t in ("LENGTHUNIT", "AREAUNIT", "VOLUMEUNIT")]
+        units = [
+            ifcopenshell.api.unit.add_si_unit(f, unit_type=t)
+            for t in ("LENGTHUNIT", "AREAUNIT", "VOLUMEUNIT")
+        ]
         ifcopenshell.api.unit.assign_unit(f, units=units)
         model = ifcopenshell.api.context.add_context(f, context_type="Model")
         self.body = ifcopenshell.api.context.add_context(
@@ -84,7 +87,9 @@ class Generated:
         curve = self.shapes.rectangle(size=(size[0], size[1]))
         solid = self.shapes.extrude(self.shapes.profile(curve), magnitude=size[2])
         representation = self.shapes.get_representation(self.body, [solid])
-        ifcopenshell.api.geometry.assign_representation(self.file, product=element, representation=representation)
+        ifcopenshell.api.geometry.assign_representation(
+            self.file, product=element, representation=representation
+        )
         return element
 
     def material(self, name: str) -> Any:
@@ -98,9 +103,13 @@ class Generated:
         )
 
     def layer_set(self, names: list[str]) -> Any:
-        layer_set = ifcopenshell.api.material.add_material_set(self.file, name="Layers", set_type="IfcMaterialLayerSet")
+        layer_set = ifcopenshell.api.material.add_material_set(
+            self.file, name="Layers", set_type="IfcMaterialLayerSet"
+        )
         for n in names:
-            layer = ifcopenshell.api.material.add_layer(self.file, layer_set=layer_set, material=self.material(n))
+            layer = ifcopenshell.api.material.add_layer(
+                self.file, layer_set=layer_set, material=self.material(n)
+            )
             layer.LayerThickness = 0.1
         return layer_set
 
@@ -111,9 +120,13 @@ class Generated:
         )
 
     def constituents(self, element: Any, names: list[str]) -> None:
-        cset = ifcopenshell.api.material.add_material_set(self.file, name="Parts", set_type="IfcMaterialConstituentSet")
+        cset = ifcopenshell.api.material.add_material_set(
+            self.file, name="Parts", set_type="IfcMaterialConstituentSet"
+        )
         for n in names:
-            ifcopenshell.api.material.add_constituent(self.file, constituent_set=cset, material=self.material(n))
+            ifcopenshell.api.material.add_constituent(
+                self.file, constituent_set=cset, material=self.material(n)
+            )
         ifcopenshell.api.material.assign_material(
             self.file, products=[element], type="IfcMaterialConstituentSet", material=cset
         )
@@ -122,11 +135,15 @@ class Generated:
         mlist = ifcopenshell.api.material.add_material_set(self.file, name="List", set_type="IfcMaterialList")
         for n in names:
             ifcopenshell.api.material.add_list_item(self.file, material_list=mlist, material=self.material(n))
-        ifcopenshell.api.material.assign_material(self.file, products=[element], type="IfcMaterialList", material=mlist)
+        ifcopenshell.api.material.assign_material(
+            self.file, products=[element], type="IfcMaterialList", material=mlist
+        )
 
     def typed_layers(self, element: Any, type_class: str, names: list[str]) -> None:
         """``names`` as a layer set on a type object that ``element`` is typed by (nothing on the element)."""
-        element_type = ifcopenshell.api.root.create_entity(self.file, ifc_class=type_class, name=f"{type_class} type")
+        element_type = ifcopenshell.api.root.create_entity(
+            self.file, ifc_class=type_class, name=f"{type_class} type"
+        )
         ifcopenshell.api.material.assign_material(
             self.file, products=[element_type], type="IfcMaterialLayerSet", material=self.layer_set(names)
         )

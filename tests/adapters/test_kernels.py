@@ -19,7 +19,12 @@ from tests.conftest import imported, shared_model
 from twin.records import BuildingModel
 from twin.stats import model_stats
 
-SMALL_MODELS = ["AC20-FZK-Haus.ifc", "Duplex_A_20110907.ifc", "AC11-Institute-Var-2-IFC.ifc", "LargeBuilding.ifc"]
+SMALL_MODELS = [
+    "AC20-FZK-Haus.ifc",
+    "Duplex_A_20110907.ifc",
+    "AC11-Institute-Var-2-IFC.ifc",
+    "LargeBuilding.ifc",
+]
 
 # Elements whose mesh may differ from the reference, with the reason. None are needed today: the
 # elements no kernel meshes at all (Janesville's two brick walls) agree with the reference, which
@@ -63,7 +68,10 @@ def test_boolean_results_are_found_through_mapped_items() -> None:
     )
     source = g.file.createIfcRepresentationMap(solid.Position, g.shapes.get_representation(g.body, [clip]))
     mapped = g.file.createIfcMappedItem(
-        source, g.file.createIfcCartesianTransformationOperator3D(LocalOrigin=g.file.createIfcCartesianPoint((0.0, 0.0, 0.0)))
+        source,
+        g.file.createIfcCartesianTransformationOperator3D(
+            LocalOrigin=g.file.createIfcCartesianPoint((0.0, 0.0, 0.0))
+        ),
     )
     body.Items = [mapped]
     assert reference_reason(plain) == "boolean result"

@@ -1,4 +1,4 @@
-""""Made of glass": judged by words on the materials a sensor faces, on generated IFC2X3 and IFC4 models."""
+""" "Made of glass": judged by words on the materials a sensor faces, on generated IFC2X3 and IFC4 models."""
 
 from __future__ import annotations
 
@@ -25,7 +25,9 @@ def _write(path: Path, schema: str) -> Path:
     storey = g.storey("Ground", 0.0)
     walls = {}
     for i, name in enumerate(sorted(KEPT | GONE)):
-        cls = {"glass-plate": "IfcPlate", "window": "IfcWindow", "listed-window": "IfcWindow"}.get(name, "IfcWall")
+        cls = {"glass-plate": "IfcPlate", "window": "IfcWindow", "listed-window": "IfcWindow"}.get(
+            name, "IfcWall"
+        )
         walls[name] = g.box(cls, name, (float(i) * 2.0, 0.0, 0.0), (1.5, 0.3, 2.5), container=storey)
     g.layers(walls["brick-fiberglass-plaster"], ["Brick", "Fiberglass Batt", "Plaster"])
     g.layers(walls["brick-glasswool-brick"], ["Brick", "Glass wool", "Brick"])
@@ -44,7 +46,9 @@ def _write(path: Path, schema: str) -> Path:
 
 
 @pytest.fixture(scope="module", params=["IFC2X3", "IFC4"])
-def material_model(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, GraphStore]:
+def material_model(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> tuple[Path, GraphStore]:
     path = _write(tmp_path_factory.mktemp("materials"), request.param)
     return path, imported(read_model(path))
 
@@ -56,9 +60,7 @@ def _names(store: GraphStore, sparql: str) -> set[str]:
 def test_only_elements_facing_glass_are_excluded_and_insulation_inside_is_not(material_model) -> None:
     _, store = material_model
     skill = parse_skill("lidar", {"kind": "localization", "exclude_materials": ["glass"]})
-    rows = store.select(
-        f"SELECT ?n WHERE {{ {{ {selection_query(skill)} }} ?element rdfs:label ?n }}"
-    )
+    rows = store.select(f"SELECT ?n WHERE {{ {{ {selection_query(skill)} }} ?element rdfs:label ?n }}")
     assert {literal_value(r["n"]) for r in rows} == KEPT
 
 
@@ -75,7 +77,9 @@ def test_every_material_stays_in_the_graph_and_the_facing_ones_are_marked(materi
 
 def test_a_brick_wall_with_fiberglass_inside_stays_in_the_localization_map(material_model) -> None:
     _, store = material_model
-    skill = parse_skill("lidar", {"kind": "localization", "lidar_height_m": 1.0, "exclude_materials": ["glass"]})
+    skill = parse_skill(
+        "lidar", {"kind": "localization", "lidar_height_m": 1.0, "exclude_materials": ["glass"]}
+    )
     scene = load_scene(store)
     iris = [literal_value(r["element"]) or "" for r in store.select(selection_query(skill))]
     grid = build_map(scene, plan_map(scene, skill, scene.storeys[0].key, iris))

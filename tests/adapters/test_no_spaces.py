@@ -35,7 +35,9 @@ def _hall(path: Path, *, with_storey: bool) -> Path:
 
 
 @pytest.fixture(scope="module", params=["in-a-storey", "in-the-building"])
-def hall(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> tuple[str, GraphStore, Scene]:
+def hall(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> tuple[str, GraphStore, Scene]:
     path = _hall(tmp_path_factory.mktemp("hall") / "hall.ifc", with_storey=request.param == "in-a-storey")
     store = imported(read_model(path))
     return request.param, store, load_scene(store)
@@ -60,7 +62,9 @@ def test_a_hall_without_spaces_imports_its_elements_storey_and_meshes(hall) -> N
     assert len(scene.storeys) == 1
     if kind == "in-the-building":
         assert scene.storeys[0].name == BUILDING_WIDE_STOREY
-        assert store.ask("ASK { ?b a bot:Building ; bot:hasStorey ?s ; bot:containsElement ?e . ?e a beo:Column }")
+        assert store.ask(
+            "ASK { ?b a bot:Building ; bot:hasStorey ?s ; bot:containsElement ?e . ?e a beo:Column }"
+        )
     else:
         assert store.ask("ASK { ?s a bot:Storey ; bot:containsElement ?e . ?e a beo:Column }")
 
