@@ -218,9 +218,7 @@ def plan_observation(
                     raise _fail(f"Element <{r.iri}> is new: give its twin:ifcClass.")
                 chain = supertypes(ctx.schema, r.ifc_class)
                 if chain is None:
-                    raise _fail(
-                        f"Element <{r.iri}>: {r.ifc_class!r} is not an IFC element class."
-                    )
+                    raise _fail(f"Element <{r.iri}>: {r.ifc_class!r} is not an IFC element class.")
                 if r.box is None and r.geometry is None:
                     raise _fail(f"Element <{r.iri}> is new: give its twin:box or omg:hasGeometry.")
                 is_static = any(t in ctx.static_types for t in chain)
@@ -276,7 +274,12 @@ def plan_observation(
                 add.append(Triple(r.iri, vocab.RDFS_LABEL, _lit(label)))
             if r.labels:
                 state = replace(state, name=r.labels[0])
-            add += [Triple(r.iri, vocab.TWIN_MATERIAL, _lit(m)) for m in r.materials]
+            # What a robot reports is what its sensors face: each material is a facing one too.
+            add += [
+                Triple(r.iri, p, _lit(m))
+                for m in r.materials
+                for p in (vocab.TWIN_MATERIAL, vocab.TWIN_FACING_MATERIAL)
+            ]
             add += [Triple(r.iri, vocab.RDF_TYPE, c) for c in r.classes]
             states[r.iri] = replace(state, removed=False)
             upserted.append(r.iri)

@@ -156,9 +156,13 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
         yield from name_quads(node, el.guid, el.name)
         for mat in el.materials:
             yield ox.Quad(_n(node), _n(vocab.TWIN_MATERIAL), ox.Literal(mat))
+        for mat in el.facing_materials:
+            yield ox.Quad(_n(node), _n(vocab.TWIN_FACING_MATERIAL), ox.Literal(mat))
         yield ox.Quad(_n(node), _n(vocab.TWIN_IS_STATIC), ox.Literal(el.is_static))
         if el.geometry is not None:
             yield from _geometry_quads(node, el.geometry, cache)
+        if el.mesh_kernel and el.geometry is not None:
+            yield ox.Quad(_n(node), _n(vocab.TWIN_MESH_KERNEL), ox.Literal(el.mesh_kernel))
         if el.guid in failed:
             yield ox.Quad(_n(node), _n(vocab.TWIN_MESH_FAILED), ox.Literal(True))
         if el.guid in fallbacks:

@@ -58,6 +58,12 @@ def plan_map(
 ) -> MapPlan:
     """Fix the frame (storey extent + margin, snapped), the slab and the elements of one map."""
     storey = scene.storey(storey_key)
+    if skill.unknown_outside and len(scene.spaces) == 0:
+        msg = (
+            f"Skill {skill.name!r} sets unknown_outside, but this model has no spaces (IfcSpace) to tell "
+            "inside from outside; use a skill without unknown_outside."
+        )
+        raise MapError(msg)
     xmin, ymin, xmax, ymax = storey.extent
     frame = GridFrame.around(xmin, ymin, xmax, ymax, resolution_m=skill.resolution_m, margin_m=margin_m)
     if frame.width * frame.height > MAX_CELLS:

@@ -141,8 +141,11 @@ class Element:
         ifc_types: ``ifc_class`` and all its supertypes, most specific first (``IfcWallStandardCase``,
             ``IfcWall``, ``IfcBuildingElement``, ...), so selections by type include subtypes.
         materials: IfcMaterial names, in file order, without duplicates.
+        facing_materials: the subset a sensor faces: a single material, every constituent or list
+            member, only the first and last layer of a layer set.
         is_static: part of the building's fixed structure (configured per IFC class).
         geometry: local mesh + placement, or None when it has no body or failed to mesh.
+        mesh_kernel: the geometry kernel that meshed it (e.g. ``"manifold"``), "" when unknown.
     """
 
     guid: str
@@ -152,6 +155,8 @@ class Element:
     is_static: bool
     geometry: Geometry | None = None
     ifc_types: tuple[str, ...] = ()
+    mesh_kernel: str = ""
+    facing_materials: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)

@@ -34,6 +34,7 @@ _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
 _IFC_NAME = re.compile(r"^Ifc[A-Za-z0-9]+$")
 _SERVICE = re.compile(r"\bSERVICE\b", re.IGNORECASE)
 _IRI = re.compile(r'^[^<>"{}|^`\\\s]+:[^<>"{}|^`\\\s]*$')
+_REGEX_SPECIAL = frozenset("\\.^$|?*+()[]{}")
 _CURIE = re.compile(r"^(?P<prefix>[a-z]+):(?P<local>[A-Za-z0-9_-]+)$")
 
 _COMMON = {
@@ -241,13 +242,25 @@ def _type_test(types: tuple[str, ...]) -> str:
     return " UNION ".join(alternatives)
 
 
+def material_word_pattern(word: str) -> str:
+    """A regular expression matching material names that contain ``word`` as a whole word.
+
+    Words are separated by anything but letters and digits ("Glass - Clear", "glazing_glass" contain
+    the word "glass"; "Fiberglass Batt" does not). Match it case-insensitively.
+    """
+    escaped = "".join(f"\\{c}" if c in _REGEX_SPECIAL else c for c in word)
+    return f"(^|[^\\p{{L}}\\p{{N}}]){escaped}($|[^\\p{{L}}\\p{{N}}])"
+
+
 def selection_query(skill: SkillProfile, only: Sequence[str] | None = None) -> str:
     """The SPARQL SELECT of the ``?element`` IRIs the skill's maps are made of (with geometry only).
 
     The user's pattern runs as a sub-select that projects only ``?element``: its other variables can
-    neither bind nor undo the type and material filters. Doors observed open (``twin:isOpen true``)
-    are never selected: they are passable, and a sensor sees through their doorway. With ``only``,
-    just those IRIs are tested (what the daemon does after a change: cheap on any graph).
+    neither bind nor undo the type and material filters. ``exclude_materials`` drops an element when a
+    material a sensor faces (``twin:facingMaterial``) contains one of the words, case-insensitively.
+    Doors observed open (``twin:isOpen true``) are never selected: they are passable, and a sensor
+    sees through their doorway. With ``only``, just those IRIs are tested (what the daemon does after
+    a change: cheap on any graph).
     """
     lines = ["SELECT DISTINCT ?element WHERE {"]
     if only is not None:
@@ -263,8 +276,8 @@ def selection_query(skill: SkillProfile, only: Sequence[str] | None = None) -> s
         lines.append(f"  FILTER NOT EXISTS {{ {_type_test(skill.exclude_types)} }}")
     for mat in skill.exclude_materials:
         lines.append(
-            "  FILTER NOT EXISTS { ?element twin:material ?twin_material . "
-            f"FILTER(CONTAINS(LCASE(STR(?twin_material)), {json.dumps(mat)})) }}"
+            "  FILTER NOT EXISTS { ?element twin:facingMaterial ?twin_material . "
+            f'FILTER(REGEX(STR(?twin_material), {json.dumps(material_word_pattern(mat))}, "i")) }}'
         )
     if skill.sparql:
         lines.append("  { SELECT DISTINCT ?element WHERE {\n" + skill.sparql + "\n  } }")

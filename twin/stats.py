@@ -8,7 +8,7 @@ Example::
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from twin.scene import STOREY_MEMBER
@@ -42,6 +42,9 @@ class ModelStats:
     mesh_failures: int
     kernel_fallbacks: int
     failed_elements: tuple[str, ...] = ()
+    meshes_per_kernel: dict[str, int] = field(default_factory=dict)
+    """Elements meshed by each geometry kernel (``twin:meshKernel``): OpenCASCADE meshes what manifold
+    gets wrong (boolean results, curved profiles), manifold the rest."""
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -109,4 +112,11 @@ def model_stats(store: GraphStore, *, turtle: bool = True) -> ModelStats:
             for r in store.select("SELECT ?e WHERE { ?e twin:meshFailed true } ORDER BY ?e")
         ),
         kernel_fallbacks=_count(store, "?e twin:kernelFallback true"),
+        meshes_per_kernel={
+            literal_value(r["k"]) or "": int(literal_value(r["n"]) or 0)
+            for r in store.select(
+                "SELECT ?k (COUNT(?e) AS ?n) WHERE { ?e a bot:Element ; twin:meshKernel ?k } "
+                "GROUP BY ?k ORDER BY ?k"
+            )
+        },
     )

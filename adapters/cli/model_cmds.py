@@ -74,6 +74,7 @@ def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
         ("meshes", f"{stats.meshes:,} ({stats.triangles:,} triangles)"),
         ("spaces", f"{stats.spaces:,}"),
         ("storeys", f"{len(stats.storeys)}"),
+        ("meshed by kernel", ", ".join(f"{k} {n:,}" for k, n in stats.meshes_per_kernel.items()) or "-"),
         ("mesh failures", f"{stats.mesh_failures}"),
         ("kernel fallbacks", f"{stats.kernel_fallbacks}"),
     ]
@@ -83,6 +84,10 @@ def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
     print("\nstoreys (key, elevation, spaces, elements, name):")
     for s in stats.storeys:
         print(f"  {s.key:<24} {s.elevation_m:8.3f} m {s.spaces:5d} {s.elements:7d}  {s.name}")
+    if stats.failed_elements:
+        print("\nelements without geometry (no geometry kernel could mesh their body):")
+        for iri in stats.failed_elements:
+            print(f"  {iri}")
     print("\nelements per IFC class:")
     for cls, n in stats.elements_per_class.items():
         print(f"  {cls:<32} {n:6d}")

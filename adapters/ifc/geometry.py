@@ -35,6 +35,7 @@ import ifcopenshell.geom
 import ifcopenshell.util.shape
 import numpy as np
 
+from adapters.ifc.routing import REFERENCE_KERNEL
 from twin.meshops import is_closed, orient_faces
 from twin.records import Geometry, Mesh, check_placement
 
@@ -43,29 +44,6 @@ log = logging.getLogger(__name__)
 Progress = Callable[[int, int], None]
 Shape = tuple[int, str, Any, Any, Any]  # product id, geometry id, vertices | None, faces | None, matrix
 DEFAULT_KERNELS = ("manifold", "opencascade")
-BOOLEAN_SAFE_KERNELS = frozenset({"opencascade", "cgal", "cgal-simple", "hybrid-cgal-simple-opencascade"})
-"""Kernels that mesh IfcBooleanResult bodies correctly. manifold returns wrong solids for some boolean
-clippings without failing (FZK-Haus wall 25OWQvmXj5BPgyergP43tY: unclipped, 9.9 m3 instead of 2.06), so
-products whose body holds a boolean result skip it and go to the next kernel in the list."""
-
-
-def _has_boolean(items: Any, depth: int = 0) -> bool:
-    for item in items or ():
-        if item.is_a("IfcBooleanResult"):  # IfcBooleanClippingResult is a subtype
-            return True
-        if item.is_a("IfcMappedItem") and depth < 8:
-            source = item.MappingSource.MappedRepresentation
-            if source is not None and _has_boolean(source.Items, depth + 1):
-                return True
-    return False
-
-
-def has_boolean_body(product: Any) -> bool:
-    """True when a representation of ``product`` holds a boolean result (through mapped items too)."""
-    shape = getattr(product, "Representation", None)
-    if shape is None:
-        return False
-    return any(_has_boolean(rep.Items) for rep in shape.Representations or ())
 _BATCH_SHAPES = 8  # small: what a crashing kernel had meshed is kept
 _BATCH_SECONDS = 0.05
 STALL_SECONDS = 300.0
@@ -73,11 +51,15 @@ STALL_SECONDS = 300.0
 
 @dataclass(slots=True)
 class MeshResult:
-    """Geometry by product id (``ifc.id()``), which kernel meshed what, and what no kernel could mesh."""
+    """Geometry by product id (``ifc.id()``), which kernel meshed what, and what no kernel could mesh.
+
+    ``fallbacks`` are the products meshed by another kernel than the first of their route.
+    """
 
     geometry: dict[int, Geometry] = field(default_factory=dict)
     kernel_of: dict[int, str] = field(default_factory=dict)
     unmeshed: list[int] = field(default_factory=list)
+    fallbacks: set[int] = field(default_factory=set)
 
 
 def weld(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -206,10 +188,23 @@ class _KernelRun:
         return self._child.exitcode
 
 
-class MeshingJob:
-    """Meshing in progress: the first kernel starts at once; :meth:`result` finishes the fallbacks.
+class _Route:
+    """Products meshed by one chain of kernels, tried in order on what the previous one left."""
 
-    Use it as a context manager: leaving it on an error (or Ctrl-C) kills the kernel process.
+    def __init__(self, ids: set[int], kernels: Sequence[str], threads: int) -> None:
+        self.pending = set(ids)
+        self.kernels = list(kernels)
+        self.first = self.kernels[0] if self.kernels else ""
+        self.threads = threads
+        self.run: _KernelRun | None = None
+
+
+class MeshingJob:
+    """Meshing in progress: each route's first kernel starts at once; :meth:`result` finishes the rest.
+
+    Products whose body the fast kernel gets wrong (:func:`~adapters.ifc.routing.reference_reason`)
+    go to the reference kernel first, in a child of their own that runs beside the fast one.
+    Use it as a context manager: leaving it on an error (or Ctrl-C) kills the kernel processes.
     """
 
     def __init__(
@@ -220,19 +215,27 @@ class MeshingJob:
         kernels: Sequence[str],
         threads: int,
         progress: Progress | None,
+        routed: Sequence[Any] = (),
     ) -> None:
         self._f = f
-        self._kernels = list(kernels)
-        self._threads = threads
         self._progress = progress
-        self._pending = {p.id() for p in products if getattr(p, "Representation", None) is not None}
-        self._boolean = {p.id() for p in products if p.id() in self._pending and has_boolean_body(p)}
-        self._total = len(self._pending)
+        with_body = {p.id() for p in products if getattr(p, "Representation", None) is not None}
+        routed_ids = {p.id() for p in routed} & with_body if REFERENCE_KERNEL in kernels else set()
+        self._total = len(with_body)
         self._received = 0
         self._lock = threading.Lock()
         self._result = MeshResult()
-        self._run: _KernelRun | None = None
-        self._next_kernel()
+        reference_first = [REFERENCE_KERNEL, *(k for k in kernels if k != REFERENCE_KERNEL)]
+        self._routes = [
+            r
+            for r in (
+                _Route(routed_ids, reference_first, 1),
+                _Route(with_body - routed_ids, kernels, threads),
+            )
+            if r.pending
+        ]
+        for route in self._routes:
+            self._next_kernel(route)
 
     def _shapes_arrived(self, n: int) -> None:
         with self._lock:
@@ -241,31 +244,30 @@ class MeshingJob:
         if self._progress is not None:
             self._progress(done, self._total)
 
-    def _next_kernel(self) -> None:
-        self._run = None
-        while self._pending and self._kernels:
-            kernel = self._kernels.pop(0)
-            ids = self._pending
-            if kernel not in BOOLEAN_SAFE_KERNELS and any(k in BOOLEAN_SAFE_KERNELS for k in self._kernels):
-                ids = self._pending - self._boolean  # boolean bodies wait for a kernel that gets them right
-            if ids:
-                self._run = _KernelRun(self._f, sorted(ids), kernel, self._threads, self._shapes_arrived)
-                return
+    def _next_kernel(self, route: _Route) -> None:
+        route.run = None
+        if route.pending and route.kernels:
+            kernel = route.kernels.pop(0)
+            route.run = _KernelRun(
+                self._f, sorted(route.pending), kernel, route.threads, self._shapes_arrived
+            )
 
-    def _collect(self, run: _KernelRun) -> None:
+    def _collect(self, route: _Route, run: _KernelRun) -> None:
         run.wait()
         meshes: dict[str, Mesh] = {}
         result = self._result
         for pid, geom_id, mesh, matrix in run.meshed:
             if mesh is not None:  # an empty mesh is no mesh: the next kernel tries
                 meshes[geom_id] = mesh
-            if pid in self._pending and geom_id in meshes:
+            if pid in route.pending and geom_id in meshes:
                 result.geometry[pid] = Geometry(meshes[geom_id], check_placement(matrix))
                 result.kernel_of[pid] = run.kernel
-                self._pending.discard(pid)
+                if run.kernel != route.first:
+                    result.fallbacks.add(pid)
+                route.pending.discard(pid)
         with self._lock:
             self._received = len(result.geometry)
-        left = len(self._pending)
+        left = len(route.pending)
         if run.error is not None:
             log.warning(
                 "Geometry kernel %s failed: %s; %d product(s) left for the next kernel",
@@ -284,19 +286,21 @@ class MeshingJob:
             log.info("%d product(s) not meshed by %s; trying the next kernel", left, run.kernel)
 
     def result(self) -> MeshResult:
-        """Wait for the running kernel, then run the fallbacks on what is left; return everything."""
-        while self._run is not None:
-            self._collect(self._run)
-            self._next_kernel()
-        self._result.unmeshed = sorted(self._pending)
+        """Wait for the running kernels, then run the fallbacks on what is left; return everything."""
+        for route in self._routes:
+            while route.run is not None:
+                self._collect(route, route.run)
+                self._next_kernel(route)
+        self._result.unmeshed = sorted(pid for route in self._routes for pid in route.pending)
         if self._progress is not None and self._total:
             self._progress(self._total, self._total)
         return self._result
 
     def cancel(self) -> None:
-        if self._run is not None:
-            self._run.kill()
-            self._run = None
+        for route in self._routes:
+            if route.run is not None:
+                route.run.kill()
+                route.run = None
 
     def __enter__(self) -> Self:
         return self
@@ -314,6 +318,10 @@ def start_meshing(
     kernels: Sequence[str] = DEFAULT_KERNELS,
     threads: int = 2,
     progress: Progress | None = None,
+    routed: Sequence[Any] = (),
 ) -> MeshingJob:
-    """Start meshing ``products`` (ifcopenshell entities) in the background; see :class:`MeshingJob`."""
-    return MeshingJob(f, products, kernels=kernels, threads=threads, progress=progress)
+    """Start meshing ``products`` (ifcopenshell entities) in the background; see :class:`MeshingJob`.
+
+    ``routed`` products (a subset) go to the reference kernel first, when it is among ``kernels``.
+    """
+    return MeshingJob(f, products, kernels=kernels, threads=threads, progress=progress, routed=routed)

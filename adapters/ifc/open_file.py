@@ -68,7 +68,4 @@ def open_ifc(path: Path) -> tuple[Any, int]:
     if not f.by_type("IfcElement"):
         msg = f"{path} is an empty model: it holds no IfcElement"
         raise IfcFileError(msg)
-    if not f.by_type("IfcSpace"):
-        msg = f"{path} has no IfcSpace: the graph world model needs the building's spaces"
-        raise IfcFileError(msg)
     return f, lines

@@ -11,12 +11,14 @@ Example::
 from __future__ import annotations
 
 import logging
+import uuid
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import ifcopenshell
+import ifcopenshell.guid
 import ifcopenshell.util.element
 import ifcopenshell.util.placement
 import ifcopenshell.util.unit
@@ -24,32 +26,59 @@ import ifcopenshell.util.unit
 from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
 from adapters.ifc.open_file import open_ifc
+from adapters.ifc.routing import reference_reason
 from twin.records import Building, BuildingModel, Element, Relation, Site, Space, Storey
 
 log = logging.getLogger(__name__)
 
+BUILDING_WIDE_STOREY = "Whole building"
+"""Name of the storey made for a building that has none (its key is ``whole-building``)."""
 
-def material_names(element: Any) -> tuple[str, ...]:
-    """IfcMaterial names of ``element`` (own or inherited from its type), in order, without duplicates."""
+
+def _material_sets(element: Any) -> tuple[list[Any], list[Any]]:
+    """(every IfcMaterial of ``element``, the ones a sensor faces), own or inherited from its type."""
     mat = ifcopenshell.util.element.get_material(element, should_skip_usage=True)
     if mat is None:
-        return ()
-    found: list[Any] = []
+        return [], []
     if mat.is_a("IfcMaterial"):
-        found = [mat]
-    elif mat.is_a("IfcMaterialLayerSet"):
-        found = [layer.Material for layer in mat.MaterialLayers or ()]
-    elif mat.is_a("IfcMaterialList"):
+        return [mat], [mat]
+    if mat.is_a("IfcMaterialLayerSet"):
+        layers = [layer.Material for layer in mat.MaterialLayers or ()]
+        return layers, [layers[0], layers[-1]] if layers else []
+    if mat.is_a("IfcMaterialList"):
         found = list(mat.Materials or ())
     elif mat.is_a("IfcMaterialConstituentSet"):
         found = [c.Material for c in mat.MaterialConstituents or ()]
     elif mat.is_a("IfcMaterialProfileSet"):
         found = [p.Material for p in mat.MaterialProfiles or ()]
+    elif hasattr(mat, "Material"):  # a single layer, profile or constituent assigned directly
+        found = [mat.Material]
+    else:
+        found = []
+    return found, found
+
+
+def _names(materials: list[Any]) -> tuple[str, ...]:
     names: dict[str, None] = {}
-    for m in found:
+    for m in materials:
         if m is not None and m.Name:
             names[str(m.Name)] = None
     return tuple(names)
+
+
+def material_names(element: Any) -> tuple[str, ...]:
+    """IfcMaterial names of ``element`` (own or inherited from its type), in order, without duplicates."""
+    return _names(_material_sets(element)[0])
+
+
+def facing_material_names(element: Any) -> tuple[str, ...]:
+    """The names of the materials a sensor sees on ``element``'s faces.
+
+    A single material; every constituent of a constituent set and every member of a material list (a
+    window of glass and frame shows both); only the first and the last layer of a layer set (its two
+    faces: the insulation inside a wall is not seen); every profile of a profile set.
+    """
+    return _names(_material_sets(element)[1])
 
 
 def _hierarchy(f: Any) -> dict[int, Any]:
@@ -83,11 +112,31 @@ def _ancestor(entity: Any, up: dict[int, Any], kind: str) -> Any | None:
     return None
 
 
+def _building_wide_storeys(path: Path, buildings: Sequence[Any], scale: float) -> tuple[Storey, ...]:
+    """One storey per building for a model without IfcBuildingStorey, at the building's elevation.
+
+    Its GlobalId is derived from the building's, so re-imports give the same IRI. Elements contained
+    in the building stay ``bot:containsElement`` of the building; the storey's map extent is then the
+    whole model's.
+    """
+    made = []
+    for b in buildings:
+        guid = ifcopenshell.guid.compress(uuid.uuid5(uuid.NAMESPACE_URL, f"storey-of:{b.GlobalId}").hex)
+        made.append(Storey(guid, BUILDING_WIDE_STOREY, _elevation_m(b, scale), str(b.GlobalId)))
+    if made:
+        log.warning(
+            "%s has no IfcBuildingStorey: one building-wide storey %r per building holds its elements",
+            path,
+            BUILDING_WIDE_STOREY,
+        )
+    return tuple(made)
+
+
 def _elevation_m(storey: Any, scale: float) -> float:
     if storey.ObjectPlacement is not None:
         matrix = ifcopenshell.util.placement.get_local_placement(storey.ObjectPlacement)
         return float(matrix[2, 3]) * scale
-    return float(storey.Elevation or 0.0) * scale
+    return float(getattr(storey, "Elevation", None) or 0.0) * scale
 
 
 def _supertypes(schema: Any, ifc_class: str, cache: dict[str, tuple[str, ...]]) -> tuple[str, ...]:
@@ -186,9 +235,16 @@ def read_model(
         spaces = f.by_type("IfcSpace")
         elements = f.by_type("IfcElement")
 
-        # Mesh in the background (a forked child does the work) while this thread reads the structure.
+        if not spaces:
+            log.warning(
+                "%s has no IfcSpace: importing elements, storeys and meshes without space adjacency "
+                "(no bot:adjacentElement); skills with unknown_outside cannot be mapped",
+                path,
+            )
+        routed = [e for e in elements if reference_reason(e) is not None]
+        # Mesh in the background (forked children do the work) while this thread reads the structure.
         with start_meshing(
-            f, [*elements, *spaces], kernels=kernels, threads=threads, progress=progress
+            f, [*elements, *spaces], kernels=kernels, threads=threads, progress=progress, routed=routed
         ) as job:
             up = _hierarchy(f)
 
@@ -201,14 +257,12 @@ def read_model(
             infos = []
             for e in elements:
                 chain = _supertypes(schema, e.is_a(), type_cache)
-                infos.append((e, chain, material_names(e), any(t in chain for t in statics)))
+                every, facing = _material_sets(e)
+                infos.append((e, chain, _names(every), _names(facing), any(t in chain for t in statics)))
             relations = _relations(f, elements, spaces=spaces, zones=[*storeys, *buildings, *sites])
             meshed = job.result()
-        first_kernel = kernels[0] if kernels else ""
         kernel_fallbacks = tuple(
-            f.by_id(pid).GlobalId
-            for pid, kernel in meshed.kernel_of.items()
-            if kernel != first_kernel and f.by_id(pid).is_a("IfcElement")
+            f.by_id(pid).GlobalId for pid in sorted(meshed.fallbacks) if f.by_id(pid).is_a("IfcElement")
         )
         failures = tuple(f.by_id(pid).GlobalId for pid in meshed.unmeshed if f.by_id(pid).is_a("IfcElement"))
         _warn_unmeshed(f, meshed.unmeshed)
@@ -221,9 +275,20 @@ def read_model(
                 is_static=is_static,
                 geometry=meshed.geometry.get(e.id()),
                 ifc_types=chain,
+                mesh_kernel=meshed.kernel_of.get(e.id(), ""),
+                facing_materials=facing,
             )
-            for e, chain, materials, is_static in infos
+            for e, chain, materials, facing, is_static in infos
         )
+        storey_records = tuple(
+            Storey(
+                str(s.GlobalId),
+                str(s.Name or ""),
+                _elevation_m(s, scale),
+                guid_of(_ancestor(s, up, "IfcBuilding")),
+            )
+            for s in storeys
+        ) or _building_wide_storeys(path, buildings, scale)
         adjacent, contained, decomposed = relations
         return BuildingModel(
             source_name=Path(path).name,
@@ -234,15 +299,7 @@ def read_model(
                 Building(str(b.GlobalId), str(b.Name or ""), guid_of(_ancestor(b, up, "IfcSite")))
                 for b in buildings
             ),
-            storeys=tuple(
-                Storey(
-                    str(s.GlobalId),
-                    str(s.Name or ""),
-                    _elevation_m(s, scale),
-                    guid_of(_ancestor(s, up, "IfcBuilding")),
-                )
-                for s in storeys
-            ),
+            storeys=storey_records,
             spaces=tuple(
                 Space(
                     str(s.GlobalId),

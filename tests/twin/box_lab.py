@@ -97,6 +97,7 @@ def _element(s: BoxSpec, elevation: float) -> Element:
         ifc_class=s.ifc_class,
         name=s.name,
         materials=(s.material,),
+        facing_materials=(s.material,),
         is_static=s.ifc_class in STATIC,
         geometry=geometry,
         ifc_types=_TYPES[s.ifc_class],

@@ -1,0 +1,57 @@
+"""Check every stored element mesh against the reference kernel (OpenCASCADE) on the shared models.
+
+The suite checks the four small models (tests/adapters/test_kernels.py); Janesville is checked here
+because OpenCASCADE alone takes 16-30 s on it. Prints, per model, how many elements each kernel meshed
+and how many disagree with the reference (volume within 1 %, world bounding box within 1 cm).
+
+    .venv/bin/python benchmarks/kernels.py                 # every shared model
+    .venv/bin/python benchmarks/kernels.py janesville      # models by part of their file name
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "ifc"
+
+
+def main() -> int:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from adapters.ifc import read_model
+    from adapters.ifc.kernel_check import disagreements
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("models", nargs="*", help="parts of model file names (default: all)")
+    args = parser.parse_args()
+    if not SHARED.is_dir():
+        print(f"shared models not found at {SHARED}; nothing to check")
+        return 0
+    paths = sorted(SHARED.glob("*.ifc"))
+    if args.models:
+        paths = [p for p in paths if any(m.lower() in p.name.lower() for m in args.models)]
+    bad = 0
+    for path in paths:
+        t0 = time.perf_counter()
+        model = read_model(path)
+        t1 = time.perf_counter()
+        found = disagreements(path, model)
+        t2 = time.perf_counter()
+        kernels = Counter(e.mesh_kernel for e in model.elements if e.geometry is not None)
+        print(
+            f"{path.name}: {len(model.elements)} elements; meshed by "
+            + ", ".join(f"{k} {n}" for k, n in sorted(kernels.items()))
+            + f"; no mesh {len(model.mesh_failures)}; disagree with OpenCASCADE {len(found)}"
+            + f" (read {t1 - t0:.1f} s, reference {t2 - t1:.1f} s)"
+        )
+        for d in found:
+            print(f"  {d.guid} {d.ifc_class} ({d.kernel}): {d.reason}")
+        bad += len(found)
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
