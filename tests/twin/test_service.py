@@ -222,3 +222,17 @@ def test_accepted_observations_report_the_new_elements_with_their_geometry() -> 
     assert event.upserted[0].ifc_class == "IfcFurniture" and event.upserted[0].mesh.triangle_count == 12
     status = service.status()
     assert status["revision"] == 1 and status["observations"] == {"accepted": 1, "rejected": 0}
+
+
+def test_an_observed_glass_pane_is_seen_as_glass_and_a_fiberglass_crate_is_not() -> None:
+    service, _ = started()
+    for iri, material, x in (("urn:r:pane", "Glass - Clear", 6.6), ("urn:r:crate", "Fiberglass", 2.0)):
+        doc = box_turtle(iri, x, 2.0, cls="IfcBuildingElementProxy").decode()
+        doc = doc.rstrip(" .\n") + f' ; <{TWIN}material> "{material}" .'
+        assert observe(service, "robot1", doc.encode()).ok
+    skill = service.skills["lab-navigation"]
+    glassless = type(skill)(
+        **{**{f: getattr(skill, f) for f in skill.__dataclass_fields__}, "exclude_materials": ("glass",)}
+    )
+    selected = service._selected(glassless, ["urn:r:pane", "urn:r:crate"])
+    assert selected == {"urn:r:crate"}
