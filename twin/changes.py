@@ -225,9 +225,9 @@ def plan_observation(
                 _need(rights, "create", robot, f"create <{r.iri}>")
                 if is_static:
                     _need(rights, "static", robot, f"create the static {chain[0]} <{r.iri}>")
-                state = ElementState(r.iri, chain[0], chain, is_static, storey=r.storey)
-                if state is not None and ctx.states.get(r.iri) is not None:  # re-created after removal
+                if state is not None:  # re-created after its removal: start from a clean node
                     remove += [(r.iri, None)]
+                state = ElementState(r.iri, chain[0], chain, is_static, storey=r.storey)
                 add += [
                     Triple(r.iri, vocab.RDF_TYPE, vocab.BOT_ELEMENT),
                     Triple(r.iri, vocab.TWIN_IFC_CLASS, _lit(chain[0])),

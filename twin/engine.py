@@ -122,9 +122,6 @@ class MapEngine:
             return None
         return self.scene.shapes.get(iri)
 
-    def has_geometry(self, iri: str) -> bool:
-        return self.bounds_of(iri) is not None
-
     def _set_geometry(self, changes: Sequence[GeometryChange]) -> None:
         base = self.scene.elements.index
         for ch in changes:

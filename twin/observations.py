@@ -21,7 +21,6 @@ from __future__ import annotations
 import math
 import re
 from collections import defaultdict
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import pyoxigraph as ox
@@ -330,7 +329,3 @@ def parse_observation(payload: bytes | str, *, limits: Limits) -> tuple[ElementR
     if leftover:
         raise _fail(f"Observation has triples about {leftover[0]} that belong to no element.")
     return tuple(reports)
-
-
-def report_iris(reports: Sequence[ElementReport]) -> tuple[str, ...]:
-    return tuple(r.iri for r in reports)
