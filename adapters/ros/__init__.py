@@ -25,6 +25,7 @@ from adapters.ros.cdr import (
     decode_occupancy_grid_update,
     encode_occupancy_grid,
     encode_occupancy_grid_update,
+    encode_update_cells,
 )
 from adapters.ros.files import MapFiles, write_map_files
 from adapters.ros.map_server import (
@@ -52,6 +53,7 @@ __all__ = [
     "decode_occupancy_grid_update",
     "encode_occupancy_grid",
     "encode_occupancy_grid_update",
+    "encode_update_cells",
     "read_map_server",
     "write_map_files",
     "write_map_server",

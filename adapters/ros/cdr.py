@@ -33,6 +33,7 @@ __all__ = [
     "decode_occupancy_grid_update",
     "encode_occupancy_grid",
     "encode_occupancy_grid_update",
+    "encode_update_cells",
 ]
 
 OCCUPANCY_GRID = "nav_msgs/msg/OccupancyGrid"
@@ -229,12 +230,23 @@ def encode_occupancy_grid_update(
         patch = encode_occupancy_grid_update(grid, Window(10, 20, 15, 25), stamp_ns=0)
         window, cells, stamp = decode_occupancy_grid_update(patch)  # cells.shape == (5, 5)
     """
-    _check_window_inside(window, grid.frame, "Cannot encode an occupancy grid update")
+    cells = grid.data[window.row0 : window.row1, window.col0 : window.col1]
+    return encode_update_cells(grid.frame, window, cells, stamp_ns=stamp_ns, frame_id=frame_id)
+
+
+def encode_update_cells(
+    frame: GridFrame, window: Window, cells: GridData, *, stamp_ns: int, frame_id: str = "map"
+) -> bytes:
+    """Like :func:`encode_occupancy_grid_update`, from the window's new ``(h, w) int8`` cells alone
+    (what a map update event carries: no copy of the whole grid is needed)."""
+    _check_window_inside(window, frame, "Cannot encode an occupancy grid update")
     if window.empty:
         msg = f"Cannot encode an occupancy grid update for the empty {window}."
         raise MapError(msg)
     h, w = window.shape
-    cells = grid.data[window.row0 : window.row1, window.col0 : window.col1]
+    if cells.shape != (h, w):
+        msg = f"Cannot encode an occupancy grid update: {cells.shape} cells for a {h}x{w} window."
+        raise MapError(msg)
     message = _typestore().types[OCCUPANCY_GRID_UPDATE](
         header=_header(stamp_ns, frame_id),
         x=window.col0,

@@ -34,11 +34,10 @@ from typing import Any
 import zenoh
 import zenoh.ext
 
-from adapters.ros import encode_occupancy_grid, encode_occupancy_grid_update
+from adapters.ros import encode_occupancy_grid, encode_update_cells
 from adapters.zenoh.keys import SiteKeys
 from twin.errors import TwinError
 from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
-from twin.grid import OccupancyGrid
 from twin.service import Reply, TwinService
 
 log = logging.getLogger(__name__)
@@ -56,7 +55,6 @@ def attachment(revision: int, version: int) -> bytes:
 class _MapOut:
     latched: Any  # zenoh.ext.AdvancedPublisher
     updates: zenoh.Publisher
-    current: OccupancyGrid  # the last full map, patched by the updates since (to encode updates)
     full: bytes  # the CDR of the last full map published
     revision: int
     version: int
@@ -115,9 +113,9 @@ class ZenohDaemon:
                 congestion_control=zenoh.CongestionControl.BLOCK,
                 reliability=zenoh.Reliability.RELIABLE,
             )
-            out = _MapOut(latched, updates, grid, payload, event.revision, event.version)
+            out = _MapOut(latched, updates, payload, event.revision, event.version)
         else:
-            out.current, out.full, out.revision, out.version = grid, payload, event.revision, event.version
+            out.full, out.revision, out.version = payload, event.revision, event.version
         with self._lock:
             self._maps[key] = out
         out.latched.put(payload, attachment=attachment(event.revision, event.version))
@@ -127,14 +125,8 @@ class ZenohDaemon:
         if out is None:
             log.warning("An update of %s/%s came before its map: ignored", event.storey, event.skill)
             return
-        w = event.window
-        data = out.current.data.copy()
-        data[w.row0 : w.row1, w.col0 : w.col1] = event.data
-        out.current = OccupancyGrid(
-            out.current.frame, data, event.storey, event.skill, out.current.elevation_m
-        )
-        payload = encode_occupancy_grid_update(
-            out.current, w, stamp_ns=event.stamp_ns, frame_id=self.frame_id
+        payload = encode_update_cells(
+            event.frame, event.window, event.data, stamp_ns=event.stamp_ns, frame_id=self.frame_id
         )
         out.updates.put(payload, attachment=attachment(event.revision, event.version))
 

@@ -24,12 +24,11 @@ from typing import Any
 import zenoh
 import zenoh.ext
 
-from adapters.ros import encode_occupancy_grid, encode_occupancy_grid_update
+from adapters.ros import encode_occupancy_grid, encode_update_cells
 from adapters.ros.cdr import OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE
 from adapters.ros.rmw_zenoh import DEFAULT_QOS, LATCHED_QOS, RosNode, RosTopic, attachment, gid_of
 from twin.config import Config, RobotConfig
 from twin.events import MapPublished, MapUpdated, TwinEvent
-from twin.grid import OccupancyGrid
 
 log = logging.getLogger(__name__)
 
@@ -83,7 +82,6 @@ class RosMapPublisher:
         self.session = session
         self.frame_id = config.frame_id
         self.robots: list[_Robot] = []
-        self._current: dict[tuple[str, str], OccupancyGrid] = {}
         zid = str(session.zid())
         entity = 0
         for robot in sorted(config.robots.values(), key=lambda r: r.name):
@@ -125,7 +123,6 @@ class RosMapPublisher:
         try:
             if isinstance(event, MapPublished):
                 robots = self._for(event.grid.storey, event.grid.skill)
-                self._current[(event.grid.storey, event.grid.skill)] = event.grid
                 if robots:
                     payload = encode_occupancy_grid(
                         event.grid, stamp_ns=event.stamp_ns, frame_id=self.frame_id
@@ -135,16 +132,10 @@ class RosMapPublisher:
                             out.put(payload, event.stamp_ns)
             elif isinstance(event, MapUpdated):
                 robots = self._for(event.storey, event.skill)
-                base = self._current.get((event.storey, event.skill))
-                if not robots or base is None:
+                if not robots:
                     return
-                w = event.window
-                data = base.data.copy()
-                data[w.row0 : w.row1, w.col0 : w.col1] = event.data
-                grid = OccupancyGrid(base.frame, data, base.storey, base.skill, base.elevation_m)
-                self._current[(event.storey, event.skill)] = grid
-                payload = encode_occupancy_grid_update(
-                    grid, w, stamp_ns=event.stamp_ns, frame_id=self.frame_id
+                payload = encode_update_cells(
+                    event.frame, event.window, event.data, stamp_ns=event.stamp_ns, frame_id=self.frame_id
                 )
                 for r in robots:
                     for out in r.updates:
