@@ -20,7 +20,6 @@ from pathlib import Path
 from typing import IO, Any
 
 from twin.config import Config
-from twin.vocab import RDFS_LABEL
 
 # The table the robot sees: in the corridor, east of the arch (lab frame + the building's offset).
 TABLE_BOX = "16.6,7.0,0.375,0.6,0.6,0.75,0.3"
@@ -63,6 +62,7 @@ def _wait_line(stream: IO[str], needle: str, timeout_s: float) -> str:
 
 
 def cmd_demo(args: argparse.Namespace, cfg: Config) -> int:
+    from adapters.cli.robot_cmds import box_turtle
     from adapters.zenoh.client import TwinClient
 
     work = Path(args.workdir)
@@ -118,10 +118,9 @@ def cmd_demo(args: argparse.Namespace, cfg: Config) -> int:
         with TwinClient.connect([endpoint], prefix=cfg.key_prefix()) as twin:
             _step("robot1 observes a table in the corridor (acked)")
             table = "urn:twin:robot1:table-1"
-            ack = twin.observe(
-                "robot1",
-                _run_turtle_box(table, TABLE_BOX),
-            )
+            box = [float(v) for v in TABLE_BOX.split(",")]
+            turtle = box_turtle(table, box, ifc_class="IfcFurniture", storey="ground-floor", label="table")
+            ack = twin.observe("robot1", turtle)
             print("   ack    | " + json.dumps(ack))
             rows: Any = twin.sparql('SELECT ?door WHERE { ?door twin:ifcClass "IfcDoor" } LIMIT 1')
             door = rows["results"]["bindings"][0]["door"]["value"]
@@ -164,15 +163,6 @@ def cmd_demo(args: argparse.Namespace, cfg: Config) -> int:
         + (f"\n  Rerun recording: {recording} (replay with: rerun {recording})" if recording.exists() else "")
     )
     return 0
-
-
-def _run_turtle_box(iri: str, box: str) -> str:
-    x, y, z, sx, sy, sz, yaw = box.split(",")
-    t = "https://w3id.org/building-twin#"
-    return (
-        f'<{iri}> <{t}ifcClass> "IfcFurniture" ; <{t}storey> "ground-floor" ; '
-        f'<{t}box> "{x} {y} {z} {sx} {sy} {sz} {yaw}" ; <{RDFS_LABEL}> "table" .'
-    )
 
 
 def add_parser(sub: Any) -> None:

@@ -28,6 +28,15 @@ def _prefix(args: argparse.Namespace, cfg: Config) -> str:
     return cfg.key_prefix(args.site)
 
 
+def box_turtle(iri: str, box: list[float], *, ifc_class: str, storey: str, label: str | None = None) -> str:
+    """An observation of one oriented box ``[x, y, z, sx, sy, sz, yaw]`` (see README, "Observations")."""
+    t = vocab.TWIN
+    text = f"<{iri}> <{t}ifcClass> {json.dumps(ifc_class)} ; <{t}storey> {json.dumps(storey)} ; "
+    if label is not None:
+        text += f"<{vocab.RDFS_LABEL}> {json.dumps(label)} ; "
+    return text + f'<{t}box> "{" ".join(repr(v) for v in box)}" .\n'
+
+
 def observation_turtle(args: argparse.Namespace) -> bytes:
     """The observation document the options describe."""
     t = vocab.TWIN
@@ -45,11 +54,7 @@ def observation_turtle(args: argparse.Namespace) -> bytes:
             msg = "--box needs --class IFCCLASS and --storey KEY."
             raise ObservationError(msg)
         iri = args.id or f"urn:twin:{args.robot}:{uuid.uuid4()}"
-        box = " ".join(repr(v) for v in values)
-        return (
-            f"<{iri}> <{t}ifcClass> {json.dumps(args.ifc_class)} ; <{t}storey> {json.dumps(args.storey)} ; "
-            f'<{t}box> "{box}" .\n'
-        ).encode()
+        return box_turtle(iri, values, ifc_class=args.ifc_class, storey=args.storey).encode()
     if args.remove:
         return f"<{args.remove}> <{t}removed> true .\n".encode()
     if args.open:

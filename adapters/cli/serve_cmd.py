@@ -23,6 +23,7 @@ from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
+from twin.errors import StoreNotFoundError
 from twin.service import TwinService
 from twin.store import EmbeddedStore
 
@@ -69,8 +70,6 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
     signal.signal(signal.SIGTERM, on_signal)
     with EmbeddedStore.open(store_path, create=False) as store:
         if store.is_empty():
-            from twin.errors import StoreNotFoundError
-
             msg = f"The store at {store_path} is empty."
             raise StoreNotFoundError(msg)
         try:
@@ -80,15 +79,14 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             msg = f"Cannot open the Zenoh session (listening on {endpoints}): {err}"
             raise TransportError(msg) from err
         recorder = _recorder(args, cfg, cfg.site)
+        service = TwinService(store, cfg)
+        daemon: ZenohDaemon | None = None
+        ros: RosMapPublisher | None = None
         try:
-            service = TwinService(store, cfg)
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=cfg.frame_id)
-            service.sinks.append(daemon)
-            ros = RosMapPublisher(session, cfg) if any(r.namespace for r in cfg.robots.values()) else None
-            if ros is not None:
-                service.sinks.append(ros)
-            if recorder is not None:
-                service.sinks.append(recorder)
+            if any(r.namespace for r in cfg.robots.values()):
+                ros = RosMapPublisher(session, cfg)
+            service.sinks += [sink for sink in (daemon, ros, recorder) if sink is not None]
             t0 = time.perf_counter()
             service.start()
             maps = service.published_maps()
@@ -101,11 +99,9 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             service.serve_forever(stop)
         finally:
             t1 = time.perf_counter()
-            if "daemon" in locals():
-                daemon.close()
-            ros_out = locals().get("ros")
-            if isinstance(ros_out, RosMapPublisher):
-                ros_out.close()
+            for closable in (daemon, ros):
+                if closable is not None:
+                    closable.close()
             session.close()
             if recorder is not None:
                 recorder.close()
