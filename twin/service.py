@@ -108,8 +108,8 @@ class _Counters:
     accepted: int = 0
     rejected: int = 0
     started_ns: int = 0
-    pending_full: set[tuple[str, str]] = field(default_factory=set)
-    last_full_ns: int = 0
+    pending_full: dict[tuple[str, str], int] = field(default_factory=dict)
+    """Maps changed since their last full publication -> when the first such change happened (ns)."""
 
 
 class TwinService:
@@ -271,15 +271,18 @@ class TwinService:
         self._published[m.key] = PublishedMap(grid, self.revision, m.version, stamp)
         self._emit(MapPublished(grid, self.revision, m.version, stamp))
 
-    def flush_full_maps(self) -> None:
-        """Publish the full version of every map changed since its last full publication."""
+    def flush_full_maps(self, *, due_only: bool = False) -> None:
+        """Publish the full version of every map changed since its last full publication; with
+        ``due_only``, only of those whose first unpublished change is ``full_map_interval_s`` old."""
         stamp = self.clock()
-        for key in sorted(self._counters.pending_full):
+        interval_ns = int(self.config.limits.full_map_interval_s * 1e9)
+        for key, since in sorted(self._counters.pending_full.items()):
+            if due_only and stamp - since < interval_ns:
+                continue
+            del self._counters.pending_full[key]
             m = self.engine.maps.get(key)
             if m is not None:
                 self._publish_full(m, stamp)
-        self._counters.pending_full.clear()
-        self._counters.last_full_ns = stamp
 
     # --- requests (any thread) ------------------------------------------------------------------------
     def submit_observation(self, robot: str, payload: bytes, reply: ReplyFn | None = None) -> None:
@@ -296,10 +299,13 @@ class TwinService:
 
     # --- the worker -----------------------------------------------------------------------------------
     def process(self, *, timeout_s: float = 0.0) -> int:
-        """Handle queued requests until the queue is empty (waiting up to ``timeout_s`` for the first);
-        then publish coalesced full maps. Returns the number handled."""
+        """Handle queued requests until the queue is empty (waiting up to ``timeout_s`` for the first),
+        publishing the full maps that are due. Returns the number handled.
+
+        Updates go out at once; a changed map's full version follows ``full_map_interval_s`` after its
+        first unpublished change (so it comes after its updates, and a burst is coalesced).
+        """
         handled = 0
-        interval_ns = int(self.config.limits.full_map_interval_s * 1e9)
         try:
             request = self._queue.get(timeout=timeout_s) if timeout_s > 0 else self._queue.get_nowait()
         except queue.Empty:
@@ -307,21 +313,20 @@ class TwinService:
         while request is not None:
             self._handle(request)
             handled += 1
-            if self._counters.pending_full and self.clock() - self._counters.last_full_ns >= interval_ns:
-                self.flush_full_maps()
+            self.flush_full_maps(due_only=True)
             try:
                 request = self._queue.get_nowait()
             except queue.Empty:
                 request = None
-        if self._counters.pending_full:
-            self.flush_full_maps()
+        self.flush_full_maps(due_only=True)
         return handled
 
     def serve_forever(self, stop: threading.Event, *, poll_s: float = 0.05) -> None:
-        """Handle requests until ``stop`` is set (then finish what is queued)."""
+        """Handle requests until ``stop`` is set, then finish what is queued and publish every map."""
         while not stop.is_set():
             self.process(timeout_s=poll_s)
         self.process()
+        self.flush_full_maps()
 
     def _handle(self, request: _Observe | _Skill) -> None:
         try:
@@ -402,7 +407,7 @@ class TwinService:
             self._emit(
                 MapUpdated(u.storey, u.skill, m.plan.frame, u.window, u.data, self.revision, u.version, stamp)
             )
-            self._counters.pending_full.add((u.storey, u.skill))
+            self._counters.pending_full.setdefault((u.storey, u.skill), stamp)
             changes.append(MapChange(u.storey, u.skill, u.version, u.window))
         return tuple(changes)
 
@@ -441,7 +446,7 @@ class TwinService:
         self.revision += 1
         for storey, skill in self.engine.remove_skill(req.name):
             self._published.pop((storey, skill), None)
-            self._counters.pending_full.discard((storey, skill))
+            self._counters.pending_full.pop((storey, skill), None)
             self._emit(MapRemoved(storey, skill, self.revision, stamp))
         if profile is None:
             del self.skills[req.name]
