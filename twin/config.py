@@ -22,6 +22,7 @@ Right = Literal["create", "dynamic", "doors", "static"]
 RIGHTS: tuple[Right, ...] = ("create", "dynamic", "doors", "static")
 RosLayout = Literal["bridge", "rmw_zenoh"]
 ZenohMode = Literal["peer", "client", "router"]
+Identity = Literal["username", "certificate"]
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent / "default.toml"  # package data: installs with twin
 KERNELS = ("manifold", "opencascade", "cgal", "cgal-simple", "hybrid-cgal-simple-opencascade")
@@ -35,6 +36,39 @@ class ImportConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class TlsConfig:
+    """TLS on ``tls/...`` endpoints: this side's certificate and key, and the authority both trust.
+
+    ``mutual`` makes a listener require client certificates (mTLS).
+    """
+
+    root_ca: Path | None = None
+    certificate: Path | None = None
+    private_key: Path | None = None
+    mutual: bool = False
+    verify_name: bool = True
+
+
+@dataclass(frozen=True, slots=True)
+class AuthConfig:
+    """Zenoh user/password authentication: ``user`` and ``password_file`` to connect as someone,
+    ``users_file`` (``name:password`` lines) to check who connects."""
+
+    user: str | None = None
+    password_file: Path | None = None
+    users_file: Path | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class AccessConfig:
+    """Zenoh access control generated from the configured robots (see ``adapters.zenoh.access``)."""
+
+    enabled: bool = False
+    identity: Identity = "username"
+    operators: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
 class ZenohConfig:
     """Where the daemon meets robots. ``prefix`` has ``{site}`` replaced (see :meth:`Config.key_prefix`)."""
 
@@ -45,6 +79,9 @@ class ZenohConfig:
     multicast_scouting: bool = False
     shared_memory: bool = False
     config_file: Path | None = None
+    tls: TlsConfig = TlsConfig()
+    auth: AuthConfig = AuthConfig()
+    access: AccessConfig = AccessConfig()
 
 
 @dataclass(frozen=True, slots=True)
@@ -249,7 +286,8 @@ def _zenoh(raw: Any) -> ZenohConfig:
     _unknown(
         t,
         "zenoh",
-        {"prefix", "mode", "listen", "connect", "multicast_scouting", "shared_memory", "config_file"},
+        {"prefix", "mode", "listen", "connect", "multicast_scouting", "shared_memory", "config_file"}
+        | {"tls", "auth", "access"},
     )
     mode = t.get("mode", "peer")
     if mode not in ("peer", "client", "router"):
@@ -271,6 +309,68 @@ def _zenoh(raw: Any) -> ZenohConfig:
         multicast_scouting=_flag(t, "multicast_scouting", "zenoh", False),
         shared_memory=_flag(t, "shared_memory", "zenoh", False),
         config_file=Path(cfg_file) if cfg_file else None,
+        tls=_tls(t.get("tls", {})),
+        auth=_auth(t.get("auth", {})),
+        access=_access(t.get("access", {})),
+    )
+
+
+def _path(table: Mapping[str, Any], key: str, name: str) -> Path | None:
+    """An optional path setting; "" means none."""
+    value = table.get(key, "")
+    if not isinstance(value, str):
+        msg = f"Configuration '{name}.{key}' must be a path, got {value!r}."
+        raise ConfigError(msg)
+    return Path(value) if value else None
+
+
+def _tls(raw: Any) -> TlsConfig:
+    t = _table(raw, "zenoh.tls")
+    _unknown(t, "zenoh.tls", {"root_ca", "certificate", "private_key", "mutual", "verify_name"})
+    tls = TlsConfig(
+        root_ca=_path(t, "root_ca", "zenoh.tls"),
+        certificate=_path(t, "certificate", "zenoh.tls"),
+        private_key=_path(t, "private_key", "zenoh.tls"),
+        mutual=_flag(t, "mutual", "zenoh.tls", False),
+        verify_name=_flag(t, "verify_name", "zenoh.tls", True),
+    )
+    if (tls.certificate is None) != (tls.private_key is None):
+        msg = "Configuration 'zenoh.tls' needs both 'certificate' and 'private_key', or neither."
+        raise ConfigError(msg)
+    return tls
+
+
+def _auth(raw: Any) -> AuthConfig:
+    t = _table(raw, "zenoh.auth")
+    _unknown(t, "zenoh.auth", {"user", "password_file", "users_file"})
+    user = t.get("user", "")
+    if not isinstance(user, str):
+        msg = f"Configuration 'zenoh.auth.user' must be a name, got {user!r}."
+        raise ConfigError(msg)
+    auth = AuthConfig(
+        user=user or None,
+        password_file=_path(t, "password_file", "zenoh.auth"),
+        users_file=_path(t, "users_file", "zenoh.auth"),
+    )
+    if (auth.user is None) != (auth.password_file is None):
+        msg = "Configuration 'zenoh.auth' needs both 'user' and 'password_file', or neither."
+        raise ConfigError(msg)
+    return auth
+
+
+def _access(raw: Any) -> AccessConfig:
+    t = _table(raw, "zenoh.access")
+    _unknown(t, "zenoh.access", {"enabled", "identity", "operators"})
+    identity = t.get("identity", "username")
+    if identity not in ("username", "certificate"):
+        msg = f"Configuration 'zenoh.access.identity' must be username or certificate, got {identity!r}."
+        raise ConfigError(msg)
+    operators = t.get("operators", [])
+    if not isinstance(operators, list) or not all(isinstance(o, str) and _ROBOT.match(o) for o in operators):
+        msg = f"Configuration 'zenoh.access.operators' must list names of [A-Za-z0-9_-], got {operators!r}."
+        raise ConfigError(msg)
+    return AccessConfig(
+        enabled=_flag(t, "enabled", "zenoh.access", False), identity=identity, operators=tuple(operators)
     )
 
 

@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from adapters.cli import demo_cmd, map_cmd, model_cmds, record_cmd, robot_cmds, serve_cmd
+from adapters.cli import demo_cmd, map_cmd, model_cmds, network_cmds, record_cmd, robot_cmds, serve_cmd
 from twin.config import load_config
 from twin.errors import StoreNotEmptyError, StoreNotFoundError, TwinError
 
@@ -76,6 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     robot_cmds.add_parsers(sub)
     record_cmd.add_parser(sub)
     demo_cmd.add_parser(sub)
+    network_cmds.add_parsers(sub)
     return p
 
 

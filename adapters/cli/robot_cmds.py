@@ -67,7 +67,9 @@ def observation_turtle(args: argparse.Namespace) -> bytes:
 
 def cmd_observe(args: argparse.Namespace, cfg: Config) -> int:
     payload = observation_turtle(args)
-    with TwinClient.connect(_endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout) as twin:
+    with TwinClient.connect(
+        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=cfg.zenoh
+    ) as twin:
         if args.no_ack:
             twin.publish_observation(args.robot, payload)
             time.sleep(0.2)  # let the put leave before the session closes
@@ -121,7 +123,9 @@ def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
         print(f"{args.ros}/map via {s.kind}{seq}: {size}, {occupied} occupied", flush=True)
         seen.release()
 
-    with TwinClient.connect(_endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout) as twin:
+    with TwinClient.connect(
+        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=cfg.zenoh
+    ) as twin:
         watcher = RosMapWatcher(
             twin.session,
             namespace=args.ros,
@@ -150,7 +154,9 @@ def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
     if not args.skill:
         msg = "Give --skill NAME (or --ros NAMESPACE to watch a ROS 2 robot's /map)."
         raise ObservationError(msg)
-    with TwinClient.connect(_endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout) as twin:
+    with TwinClient.connect(
+        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=cfg.zenoh
+    ) as twin:
         storeys = [args.storey] if args.storey else [s for s, k in twin.list_maps() if k == args.skill]
         if not storeys:
             print(f"twin: error: the daemon serves no map of skill {args.skill!r}", file=sys.stderr)

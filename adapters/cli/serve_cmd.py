@@ -17,6 +17,7 @@ import zenoh
 
 from adapters.cli.common import store_path_of
 from adapters.rerun import RerunRecorder
+from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
@@ -60,7 +61,13 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         )
         cmd_import(ns, cfg)  # before any Zenoh or store thread exists: meshing forks a child
     keys = SiteKeys(cfg.key_prefix())
-    conf = session_config(cfg.zenoh, mode=args.mode, listen=args.listen or None, connect=args.connect or None)
+    conf = session_config(
+        cfg.zenoh,
+        mode=args.mode,
+        listen=args.listen or None,
+        connect=args.connect or None,
+        access_control=site_access_control(cfg, keys),
+    )
     stop = threading.Event()
 
     def on_signal(signum: int, frame: Any) -> None:

@@ -2,8 +2,11 @@
 
 Safe defaults: multicast scouting off (nothing is announced on the network's interfaces), shared
 memory off (no files left in ``/dev/shm``), timestamping on (the advanced publishers that latch maps
-need it). A zenoh JSON5 file (``config_file``; e.g. with TLS or access control) is read first and
-the explicit settings override it.
+need it). A zenoh JSON5 file (``config_file``) is read first and the explicit settings override it.
+
+Security, from ``[zenoh.tls]`` and ``[zenoh.auth]``: TLS certificates for ``tls/...`` endpoints
+(mutual TLS with ``mutual = true``), user/password authentication (a user to connect as, a users
+file to check others against), and an ``access_control`` section (``adapters.zenoh.access``).
 
 Example::
 
@@ -13,8 +16,10 @@ Example::
 
 from __future__ import annotations
 
+import dataclasses
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import zenoh
 
@@ -28,6 +33,7 @@ def session_config(
     mode: ZenohMode | None = None,
     listen: Sequence[str] | None = None,
     connect: Sequence[str] | None = None,
+    access_control: Mapping[str, object] | None = None,
 ) -> zenoh.Config:
     """A zenoh configuration from ``settings``; ``mode``, ``listen`` and ``connect`` override them."""
     try:
@@ -42,7 +48,10 @@ def session_config(
         "timestamping/enabled": True,
         "listen/endpoints": list(settings.listen if listen is None else listen),
         "connect/endpoints": list(settings.connect if connect is None else connect),
+        **_security(settings),
     }
+    if access_control is not None:
+        values["access_control"] = dict(access_control)
     for key, value in values.items():
         try:
             conf.insert_json5(key, json.dumps(value))
@@ -52,6 +61,44 @@ def session_config(
     return conf
 
 
+def _file(path: Path, what: str) -> str:
+    if not path.is_file():
+        msg = f"The {what} {path} does not exist."
+        raise TransportError(msg)
+    return str(path.resolve())
+
+
+def _security(settings: ZenohConfig) -> dict[str, object]:
+    """zenoh's TLS and user/password settings from ``[zenoh.tls]`` and ``[zenoh.auth]``."""
+    out: dict[str, object] = {}
+    tls, auth = settings.tls, settings.auth
+    link = "transport/link/tls"
+    if tls.root_ca is not None:
+        out[f"{link}/root_ca_certificate"] = _file(tls.root_ca, "certificate authority (zenoh.tls.root_ca)")
+    if tls.certificate is not None and tls.private_key is not None:
+        cert = _file(tls.certificate, "certificate (zenoh.tls.certificate)")
+        key = _file(tls.private_key, "private key (zenoh.tls.private_key)")
+        out |= {
+            f"{link}/listen_certificate": cert,
+            f"{link}/listen_private_key": key,
+            f"{link}/connect_certificate": cert,
+            f"{link}/connect_private_key": key,
+        }
+    if tls.mutual:
+        out[f"{link}/enable_mtls"] = True
+    if not tls.verify_name:
+        out[f"{link}/verify_name_on_connect"] = False
+    if auth.user is not None and auth.password_file is not None:
+        password = Path(_file(auth.password_file, "password file (zenoh.auth.password_file)")).read_text()
+        out["transport/auth/usrpwd/user"] = auth.user
+        out["transport/auth/usrpwd/password"] = password.strip()
+    if auth.users_file is not None:
+        out["transport/auth/usrpwd/dictionary_file"] = _file(
+            auth.users_file, "users file (zenoh.auth.users_file)"
+        )
+    return out
+
+
 def client_config(
     connect: Sequence[str],
     *,
@@ -59,5 +106,16 @@ def client_config(
     mode: ZenohMode = "peer",
     listen: Sequence[str] = (),
 ) -> zenoh.Config:
-    """A robot's session: connect to ``connect`` (the daemon or a router), listen nowhere by default."""
-    return session_config(settings or ZenohConfig(), mode=mode, listen=list(listen), connect=list(connect))
+    """A robot's session: connect to ``connect`` (the daemon or a router), listen nowhere by default;
+    a lost link is retried every second at most.
+
+    With a TLS certificate of its own, the robot presents it (zenoh sends a client certificate only
+    with ``enable_mtls``), so that a daemon with ``mutual = true`` knows it by its common name.
+    """
+    settings = settings or ZenohConfig()
+    if settings.tls.certificate is not None and not settings.tls.mutual:
+        settings = dataclasses.replace(settings, tls=dataclasses.replace(settings.tls, mutual=True))
+    conf = session_config(settings, mode=mode, listen=list(listen), connect=list(connect))
+    retry = {"period_init_ms": 250, "period_max_ms": 1000, "period_increase_factor": 2}
+    conf.insert_json5("connect/retry", json.dumps(retry))  # find a restarted daemon within a second
+    return conf

@@ -52,8 +52,8 @@ class Daemon:
         return self.process.returncode, time.monotonic() - t0
 
 
-def start_daemon(store: Path, *extra: str, config: Path | None = None) -> Daemon:
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
+def start_daemon(store: Path, *extra: str, config: Path | None = None, scheme: str = "tcp") -> Daemon:
+    endpoint = f"{scheme}/127.0.0.1:{free_port()}"
     before = ["--config", str(config)] if config is not None else []
     process = subprocess.Popen(
         [

@@ -1,0 +1,176 @@
+"""Zenoh access control for a site: who may write what, from the configured robots.
+
+The daemon (or the router robots connect to) enforces it on its links; robots are told apart by the
+name they authenticate with: their zenoh user name (``identity = "username"``, user/password
+authentication) or the common name of their TLS client certificate (``identity = "certificate"``,
+mutual TLS). A link that authenticates as nobody listed gets nothing (default deny).
+
+- every robot: read maps, map updates, status, SPARQL and the skill list, and the ROS 2 map topics
+  of the configured robots; put ``observations/<its name>`` and query ``observe/<its name>`` only;
+- operators (``[zenoh.access] operators``): everything under the site's prefix (skills too), for
+  people and for routers or daemons that relay;
+- nobody but the daemon publishes maps: a robot's put on ``map/**`` is dropped at the daemon.
+
+Example::
+
+    acl = access_control(SiteKeys("twin/lab"), robots=["robot1"], identity="username")
+    conf.insert_json5("access_control", json.dumps(acl))
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+from adapters.ros.rmw_zenoh import ADMIN_SPACE, RosTopic
+from adapters.zenoh.errors import TransportError
+from adapters.zenoh.keys import SiteKeys, check_chunk
+from twin.config import Config, Identity, RobotConfig
+
+# zenoh's ACL message kinds (zenoh-config AclMessage)
+READ = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
+ALL = [
+    "put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
+    "liveliness_token", "liveliness_query", "declare_liveliness_subscriber",
+]  # fmt: skip
+ADV = "@adv/**"  # zenoh-ext's advanced publishers and subscribers (latching, detection) live under <key>/@adv
+
+
+def _with_adv(keys: Iterable[str]) -> list[str]:
+    """``keys`` and their advanced-pub/sub sub-keys (``**`` never matches a chunk starting with ``@``)."""
+    out: list[str] = []
+    for key in keys:
+        out += [key, f"{key}/{ADV}"]
+    return out
+
+
+def ros_map_keys(robots: Iterable[RobotConfig]) -> list[str]:
+    """The key expressions of the configured robots' ROS 2 map topics, both layouts."""
+    keys: list[str] = []
+    for robot in robots:
+        if robot.namespace is None:
+            continue
+        for name in ("map", "map_updates"):
+            topic = RosTopic(robot.domain_id, robot.namespace, name, "nav_msgs/msg/OccupancyGrid")
+            if "bridge" in robot.ros:
+                keys.append(topic.bridge_key)
+            if "rmw_zenoh" in robot.ros:
+                keys.append(f"{robot.domain_id}/{topic.fqn.strip('/')}/**")
+    return keys
+
+
+def access_control(
+    keys: SiteKeys,
+    robots: Sequence[str],
+    *,
+    identity: Identity = "username",
+    operators: Sequence[str] = (),
+    ros_keys: Sequence[str] = (),
+) -> dict[str, Any]:
+    """The ``access_control`` section of a zenoh configuration for one site (see the module doc)."""
+    p = keys.prefix
+    names = sorted({check_chunk(r, "Robot name") for r in robots})
+    ops = sorted({check_chunk(o, "Operator name") for o in operators})
+    if not names and not ops:
+        msg = "Access control needs at least one robot ([robots.NAME]) or operator to let in."
+        raise TransportError(msg)
+    maps = _with_adv([f"{p}/map/**", f"{p}/map_updates/**", *ros_keys])
+    reads = [*maps, keys.status, keys.sparql, f"{p}/skills/**", keys.daemon]
+    rules: list[dict[str, Any]] = [
+        {"id": "read", "permission": "allow", "flows": ["ingress"], "messages": READ, "key_exprs": reads},
+        {   # the advanced subscribers' own detection tokens, and the ROS graph's liveliness tokens
+            "id": "tokens",
+            "permission": "allow",
+            "flows": ["ingress"],
+            "messages": ["liveliness_token"],
+            "key_exprs": [*_with_adv([f"{p}/map/**", *ros_keys]), f"{ADMIN_SPACE}/**"],
+        },
+        {
+            "id": "ros-graph",
+            "permission": "allow",
+            "flows": ["ingress"],
+            "messages": ["declare_liveliness_subscriber", "liveliness_query"],
+            "key_exprs": [f"{ADMIN_SPACE}/**"],
+        },
+        {   # what the daemon sends: maps, updates, replies, its declarations
+            "id": "from-daemon",
+            "permission": "allow",
+            "flows": ["egress"],
+            "messages": ALL,
+            "key_exprs": [*_with_adv([f"{p}/**", *ros_keys]), f"{ADMIN_SPACE}/**"],
+        },
+        {"id": "operate", "permission": "allow", "flows": ["ingress"], "messages": ALL,
+         "key_exprs": _with_adv([f"{p}/**"])},
+        {   # deny wins over allow: not even an operator publishes (or answers for) a map
+            "id": "no-forged-maps",
+            "permission": "deny",
+            "flows": ["ingress"],
+            "messages": ["put", "delete", "declare_queryable", "reply"],
+            "key_exprs": maps,
+        },
+    ]  # fmt: skip
+    subject_key = "usernames" if identity == "username" else "cert_common_names"
+    subjects: list[dict[str, Any]] = []
+    policies: list[dict[str, Any]] = []
+    for name in names:
+        rules.append(
+            {
+                "id": f"write-{name}",
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": ["put", "query"],
+                "key_exprs": [keys.observations(name), keys.observe(name)],
+            }
+        )
+        subjects.append({"id": f"robot-{name}", subject_key: [name]})
+        policies.append(
+            {
+                "rules": ["read", "tokens", "ros-graph", "from-daemon", f"write-{name}", "no-forged-maps"],
+                "subjects": [f"robot-{name}"],
+            }
+        )
+    for name in ops:
+        subjects.append({"id": f"operator-{name}", subject_key: [name]})
+        policies.append(
+            {
+                "rules": ["read", "tokens", "ros-graph", "from-daemon", "operate", "no-forged-maps"],
+                "subjects": [f"operator-{name}"],
+            }
+        )
+    return {
+        "enabled": True,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
+    }
+
+
+def site_access_control(cfg: Config, keys: SiteKeys) -> dict[str, Any] | None:
+    """The daemon's (or a router's) ``access_control`` from ``[zenoh.access]``, or None when off.
+
+    Checks that robots can be told apart: a users file for ``identity = "username"``, mutual TLS
+    for ``identity = "certificate"``.
+    """
+    access, z = cfg.zenoh.access, cfg.zenoh
+    if not access.enabled:
+        return None
+    if access.identity == "username" and z.auth.users_file is None:
+        msg = (
+            "Access control by user name needs a users file of name:password lines "
+            "(zenoh.auth.users_file): without it nobody can authenticate."
+        )
+        raise TransportError(msg)
+    if access.identity == "certificate" and not (z.tls.mutual and z.tls.certificate and z.tls.root_ca):
+        msg = (
+            "Access control by certificate needs mutual TLS: zenoh.tls.mutual = true with root_ca, "
+            "certificate and private_key, and tls/... listen endpoints."
+        )
+        raise TransportError(msg)
+    return access_control(
+        keys,
+        sorted(cfg.robots),
+        identity=access.identity,
+        operators=access.operators,
+        ros_keys=ros_map_keys(cfg.robots.values()),
+    )

@@ -1,0 +1,90 @@
+"""The access-control section and the security settings, as configured (no network)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from adapters.zenoh.access import access_control, site_access_control
+from adapters.zenoh.errors import TransportError
+from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.session import session_config
+from twin.config import load_config
+from twin.errors import ConfigError
+
+
+def config(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "site.toml"
+    path.write_text(text)
+    return path
+
+
+def test_each_robot_may_write_only_its_own_observation_keys() -> None:
+    acl = access_control(SiteKeys("twin/lab"), ["robot1", "robot2"])
+    rules = {r["id"]: r for r in acl["rules"]}
+    assert rules["write-robot1"]["key_exprs"] == ["twin/lab/observations/robot1", "twin/lab/observe/robot1"]
+    policies = {tuple(p["subjects"]): p["rules"] for p in acl["policies"]}
+    assert "write-robot2" not in policies[("robot-robot1",)]
+    assert "operate" not in policies[("robot-robot1",)]
+    assert all("no-forged-maps" in rules_ for rules_ in policies.values())
+    assert acl["default_permission"] == "deny"
+    assert {s["id"]: s["usernames"] for s in acl["subjects"]} == {
+        "robot-robot1": ["robot1"],
+        "robot-robot2": ["robot2"],
+    }
+
+
+def test_certificate_identity_names_subjects_by_common_name() -> None:
+    acl = access_control(SiteKeys("twin/lab"), ["robot1"], identity="certificate", operators=["ops"])
+    assert {s["id"]: s["cert_common_names"] for s in acl["subjects"]} == {
+        "robot-robot1": ["robot1"],
+        "operator-ops": ["ops"],
+    }
+
+
+def test_access_control_with_nobody_to_let_in_is_an_error() -> None:
+    with pytest.raises(TransportError, match="at least one robot"):
+        access_control(SiteKeys("twin/lab"), [])
+
+
+def test_access_by_user_name_without_a_users_file_is_refused(tmp_path: Path) -> None:
+    cfg = load_config(config(tmp_path, "[zenoh.access]\nenabled = true\n[robots.robot1]\n"))
+    with pytest.raises(TransportError, match="users_file"):
+        site_access_control(cfg, SiteKeys("twin/lab"))
+
+
+def test_access_by_certificate_without_mutual_tls_is_refused(tmp_path: Path) -> None:
+    cfg = load_config(
+        config(tmp_path, '[zenoh.access]\nenabled = true\nidentity = "certificate"\n[robots.r1]\n')
+    )
+    with pytest.raises(TransportError, match="mutual TLS"):
+        site_access_control(cfg, SiteKeys("twin/lab"))
+
+
+def test_access_control_is_off_unless_enabled(tmp_path: Path) -> None:
+    assert site_access_control(load_config(), SiteKeys("twin/lab")) is None
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ('[zenoh.access]\nidentity = "fingerprint"\n', "zenoh.access.identity"),
+        ('[zenoh.tls]\ncertificate = "a.pem"\n', "both 'certificate' and 'private_key'"),
+        ('[zenoh.auth]\nuser = "robot1"\n', "both 'user' and 'password_file'"),
+        ("[zenoh.tls]\nmutual = 1\n", "zenoh.tls.mutual"),
+        ('[zenoh.tls]\nca = "x"\n', "unknown key 'ca'"),
+        ('[zenoh.access]\noperators = ["a b"]\n', "zenoh.access.operators"),
+    ],
+)
+def test_bad_security_settings_are_named(tmp_path: Path, text: str, words: str) -> None:
+    with pytest.raises(ConfigError, match=words.replace("(", r"\(")):
+        load_config(config(tmp_path, text))
+
+
+def test_a_missing_certificate_file_is_named(tmp_path: Path) -> None:
+    cfg = load_config(config(tmp_path, f'[zenoh.tls]\nroot_ca = "{tmp_path / "nope.pem"}"\n'))
+    with pytest.raises(
+        TransportError, match=r"certificate authority \(zenoh.tls.root_ca\) .*nope.pem does not exist"
+    ):
+        session_config(cfg.zenoh)

@@ -1,0 +1,238 @@
+"""Access control and transport security: the daemon as a process with zenoh's ACL, user/password
+authentication, TLS and mutual TLS; robots as zenoh sessions that authenticate (or try to cheat)."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from adapters.zenoh.client import TwinClient
+from adapters.zenoh.errors import DaemonTimeoutError, TransportError
+from tests.integration.certs import CertificateAuthority
+from tests.integration.conftest import Daemon, start_daemon
+from twin.config import AuthConfig, TlsConfig, ZenohConfig
+
+TWIN = "https://w3id.org/building-twin#"
+MAP = "twin/lab/map/ground-floor/lab-navigation"
+UPDATES = "twin/lab/map_updates/ground-floor/lab-navigation"
+ROBOTS = {"robot1": "pw-robot1", "robot2": "pw-robot2", "operator": "pw-operator"}
+
+
+def table(iri: str, x: float = 16.6) -> str:
+    return (
+        f'<{iri}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "ground-floor" ; '
+        f'<{TWIN}box> "{x} 7.0 0.375 0.6 0.6 0.75 0.0" .'
+    )
+
+
+def exists(client: TwinClient, iri: str) -> bool:
+    answer = client.sparql(f"ASK {{ <{iri}> ?p ?o }}")
+    assert isinstance(answer, dict)
+    return bool(answer["boolean"])
+
+
+def stopped(d: Daemon) -> None:
+    if d.process.poll() is None:
+        d.process.kill()
+        d.process.wait(timeout=10)
+
+
+# --- user/password identities and the ACL ------------------------------------------------------------
+@pytest.fixture(scope="module")
+def secrets(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("secrets")
+    (root / "users.txt").write_text("".join(f"{u}:{p}\n" for u, p in ROBOTS.items()))
+    for user, password in ROBOTS.items():
+        (root / f"{user}.password").write_text(password + "\n")
+    (root / "wrong.password").write_text("not-the-password\n")
+    return root
+
+
+def as_robot(d: Daemon, secrets: Path, user: str, *, password: str | None = None) -> TwinClient:
+    auth = AuthConfig(user=user, password_file=secrets / f"{password or user}.password")
+    return TwinClient.connect([d.endpoint], settings=ZenohConfig(auth=auth), mode="client", timeout_s=3.0)
+
+
+@pytest.fixture(scope="module")
+def guarded(lab_store_dir: Path, secrets: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Daemon]:
+    """The lab's daemon with access control: robot1 and robot2 are robots, operator is an operator."""
+    import shutil
+
+    root = tmp_path_factory.mktemp("guarded")
+    shutil.copytree(lab_store_dir, root / "store")
+    config = root / "site.toml"
+    config.write_text(
+        f'[zenoh.auth]\nusers_file = "{secrets / "users.txt"}"\n'
+        '[zenoh.access]\nenabled = true\noperators = ["operator"]\n'
+        "[robots.robot1]\n[robots.robot2]\n"
+    )
+    d = start_daemon(root / "store", "--no-record", config=config)
+    yield d
+    stopped(d)
+
+
+def test_a_robot_observes_under_its_own_name_but_not_under_another_robots(
+    guarded: Daemon, secrets: Path
+) -> None:
+    with as_robot(guarded, secrets, "robot1") as robot1:
+        ack = robot1.observe("robot1", table("urn:test:own-table"))
+        assert ack["ok"] and exists(robot1, "urn:test:own-table")
+        t0 = time.monotonic()
+        with pytest.raises(DaemonTimeoutError):
+            robot1.observe("robot2", table("urn:test:stolen-table", x=18.0))
+        assert time.monotonic() - t0 < 2.5, "a denied query should end at once, not by its timeout"
+        robot1.publish_observation("robot2", table("urn:test:stolen-put", x=19.0))
+        time.sleep(0.5)
+        assert not exists(robot1, "urn:test:stolen-table")
+        assert not exists(robot1, "urn:test:stolen-put")
+        assert robot1.status()["revision"] == ack["revision"]
+
+
+def _collect(session: zenoh.Session, key: str) -> tuple[list[bytes], zenoh.Subscriber[None]]:
+    got: list[bytes] = []
+    lock = threading.Lock()
+
+    def on(sample: zenoh.Sample) -> None:
+        with lock:
+            got.append(sample.payload.to_bytes())
+
+    return got, session.declare_subscriber(key, on)
+
+
+def test_no_robot_or_operator_can_publish_a_map_or_an_update(guarded: Daemon, secrets: Path) -> None:
+    with as_robot(guarded, secrets, "robot1") as robot1:
+        maps, sub_maps = _collect(robot1.session, MAP)
+        updates, sub_updates = _collect(robot1.session, UPDATES)
+        grid0, revision0, version0 = robot1.get_map("ground-floor", "lab-navigation")
+        for forger in ("robot2", "operator"):
+            with as_robot(guarded, secrets, forger) as other:
+                time.sleep(0.3)
+                other.session.put(MAP, b"forged map")
+                other.session.put(UPDATES, b"forged update")
+                time.sleep(0.5)
+        # the control: the daemon's own update does reach robot1 on the same subscribers
+        robot1.observe("robot1", table("urn:test:after-forgery", x=14.0))
+        deadline = time.monotonic() + 5
+        while not updates and time.monotonic() < deadline:
+            time.sleep(0.05)
+        sub_maps.undeclare()
+        sub_updates.undeclare()
+        assert updates, "the daemon's update never arrived"
+        assert b"forged map" not in maps and b"forged update" not in updates
+        grid, revision, version = robot1.get_map("ground-floor", "lab-navigation")
+        while version == version0 and time.monotonic() < deadline:  # the full map follows its update
+            grid, revision, version = robot1.get_map("ground-floor", "lab-navigation")
+        assert version > version0 and revision > revision0 and grid.data.shape == grid0.data.shape
+
+
+def test_skills_are_changed_by_operators_and_not_by_robots(guarded: Daemon, secrets: Path) -> None:
+    profile = {"kind": "navigation", "robot_height_m": 0.8, "resolution_m": 0.1}
+    with as_robot(guarded, secrets, "robot1") as robot1, as_robot(guarded, secrets, "operator") as operator:
+        robot1.put_skill("robot-made", profile)
+        operator.put_skill("operator-made", profile)
+        deadline = time.monotonic() + 10
+        while "operator-made" not in robot1.skills() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        skills = robot1.skills()
+        assert "operator-made" in skills
+        assert "robot-made" not in skills
+
+
+def test_a_wrong_password_or_an_unknown_robot_cannot_connect(guarded: Daemon, secrets: Path) -> None:
+    with pytest.raises(TransportError, match="Cannot open a Zenoh session"):
+        as_robot(guarded, secrets, "robot1", password="wrong")
+    (secrets / "intruder.password").write_text("guess\n")
+    with pytest.raises(TransportError, match="Cannot open a Zenoh session"):
+        as_robot(guarded, secrets, "intruder")
+
+
+def test_without_access_control_a_clients_forged_map_would_reach_other_robots(daemon: Daemon) -> None:
+    """The reason for the ACL: the daemon routes its clients' puts to each other."""
+    with (
+        TwinClient.connect([daemon.endpoint], mode="client") as robot1,
+        TwinClient.connect([daemon.endpoint], mode="client") as robot2,
+    ):
+        maps, sub = _collect(robot1.session, "twin/lab/map/ground-floor/navigation")
+        time.sleep(0.3)
+        robot2.session.put("twin/lab/map/ground-floor/navigation", b"forged map")
+        deadline = time.monotonic() + 5
+        while b"forged map" not in maps and time.monotonic() < deadline:
+            time.sleep(0.05)
+        sub.undeclare()
+        assert b"forged map" in maps
+
+
+# --- TLS and mutual TLS --------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def pki(tmp_path_factory: pytest.TempPathFactory) -> CertificateAuthority:
+    ca = CertificateAuthority.create(tmp_path_factory.mktemp("pki"), "building-twin test CA")
+    for name in ("daemon", "robot1", "robot2"):
+        ca.issue(name)
+    return ca
+
+
+def tls_settings(
+    ca: CertificateAuthority, name: str | None = None, *, root: Path | None = None
+) -> ZenohConfig:
+    cert = key = None
+    if name is not None:
+        cert, key = ca.directory / f"{name}.pem", ca.directory / f"{name}.key"
+    return ZenohConfig(tls=TlsConfig(root_ca=root or ca.path, certificate=cert, private_key=key))
+
+
+def tls_daemon(store_dir: Path, root: Path, ca: CertificateAuthority, *, mutual: bool) -> Daemon:
+    import shutil
+
+    shutil.copytree(store_dir, root / "store")
+    config = root / "site.toml"
+    text = (
+        f'[zenoh.tls]\nroot_ca = "{ca.path}"\ncertificate = "{ca.directory / "daemon.pem"}"\n'
+        f'private_key = "{ca.directory / "daemon.key"}"\nmutual = {json.dumps(mutual)}\n'
+    )
+    if mutual:
+        text += '[zenoh.access]\nenabled = true\nidentity = "certificate"\n[robots.robot1]\n[robots.robot2]\n'
+    config.write_text(text)
+    return start_daemon(root / "store", "--no-record", config=config, scheme="tls")
+
+
+def test_robots_reach_the_daemon_over_tls_and_a_foreign_authority_is_refused(
+    lab_store_dir: Path, pki: CertificateAuthority, tmp_path: Path
+) -> None:
+    d = tls_daemon(lab_store_dir, tmp_path, pki, mutual=False)
+    try:
+        assert d.endpoint.startswith("tls/")
+        with TwinClient.connect([d.endpoint], settings=tls_settings(pki), mode="client") as robot:
+            assert robot.observe("robot1", table("urn:test:tls-table"))["ok"]
+        other = CertificateAuthority.create(tmp_path / "other", "someone else's CA")
+        with pytest.raises(TransportError, match="Cannot open a Zenoh session"):
+            TwinClient.connect([d.endpoint], settings=tls_settings(pki, root=other.path), mode="client")
+        plain = d.endpoint.replace("tls/", "tcp/")
+        with pytest.raises(TransportError, match="Cannot open a Zenoh session"):
+            TwinClient.connect([plain], mode="client")
+    finally:
+        stopped(d)
+
+
+def test_with_mutual_tls_a_robot_is_its_certificate(
+    lab_store_dir: Path, pki: CertificateAuthority, tmp_path: Path
+) -> None:
+    d = tls_daemon(lab_store_dir, tmp_path, pki, mutual=True)
+    try:
+        with TwinClient.connect(
+            [d.endpoint], settings=tls_settings(pki, "robot1"), mode="client", timeout_s=3.0
+        ) as robot1:
+            assert robot1.observe("robot1", table("urn:test:mtls-table"))["ok"]
+            with pytest.raises(DaemonTimeoutError):
+                robot1.observe("robot2", table("urn:test:mtls-stolen", x=18.0))
+            assert exists(robot1, "urn:test:mtls-table")
+            assert not exists(robot1, "urn:test:mtls-stolen")
+        with pytest.raises(TransportError, match="Cannot open a Zenoh session"):
+            TwinClient.connect([d.endpoint], settings=tls_settings(pki), mode="client")  # no certificate
+    finally:
+        stopped(d)
