@@ -12,7 +12,7 @@ Measures, per model:
 
 Usage::
 
-    python benchmarks/live.py [--models lab janesville] [--count 200] [--json OUT.json]
+    python benchmarks/live.py [--models lab janesville PATH.ifc ...] [--count 200] [--json OUT.json]
 """
 
 from __future__ import annotations
@@ -63,16 +63,23 @@ def _pct(values: list[float], q: float) -> float:
     return float(np.percentile(np.array(values), q)) if values else float("nan")
 
 
+def model_path(name: str) -> Path | None:
+    """A named model's IFC file (None for the lab, generated per run), or ``name`` as an IFC path."""
+    return MODELS[name] if name in MODELS else Path(name)
+
+
+def model_label(name: str) -> str:
+    return name if name in MODELS else Path(name).stem
+
+
 def prepare_store(name: str, work: Path) -> Path:
     store = work / "store"
-    if name == "lab":
+    ifc = model_path(name)
+    if ifc is None:
         ifc = work / "lab.ifc"
         subprocess.run(_twin("sample", "lab", str(ifc), "--storeys", "2"), check=True, capture_output=True)
-    else:
-        ifc = MODELS[name]
-        assert ifc is not None
-        if not ifc.exists():
-            raise FileNotFoundError(ifc)
+    elif not ifc.exists():
+        raise FileNotFoundError(ifc)
     subprocess.run(_twin("import", str(ifc), "--store", str(store)), check=True, capture_output=True)
     return store
 
@@ -141,7 +148,7 @@ def _table(storey: str, x: float, y: float, i: int) -> str:
 def run_model(name: str, count: int, *, record: bool = False) -> dict[str, Any]:
     from adapters.zenoh.client import TwinClient
 
-    work = Path(tempfile.mkdtemp(prefix=f"live-{name}-"))
+    work = Path(tempfile.mkdtemp(prefix=f"live-{model_label(name)}-"))
     t_import = time.perf_counter()
     store = prepare_store(name, work)
     import_s = time.perf_counter() - t_import
@@ -216,7 +223,7 @@ def run_model(name: str, count: int, *, record: bool = False) -> dict[str, Any]:
     shutil.rmtree(work, ignore_errors=True)
     per_obs = (rrd_end - rrd_start) / max(count, 1)
     return {
-        "model": name + (" (recording)" if record else ""),
+        "model": model_label(name) + (" (recording)" if record else ""),
         "storey": storey,
         "import_s": round(import_s, 2),
         "startup_to_serving_s": round(startup_wall, 2),
@@ -241,14 +248,16 @@ def run_model(name: str, count: int, *, record: bool = False) -> dict[str, Any]:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--models", nargs="+", default=["lab", "janesville"], choices=sorted(MODELS))
+    p.add_argument(
+        "--models", nargs="+", default=["lab", "janesville"], help=f"{', '.join(sorted(MODELS))} or IFC paths"
+    )
     p.add_argument("--count", type=int, default=200)
     p.add_argument("--json", type=Path)
     p.add_argument("--record", action="store_true", help="also run each model with recording on (Rerun)")
     args = p.parse_args()
     rows = []
     for name in args.models:
-        path = MODELS[name]
+        path = model_path(name)
         if path is not None and not path.exists():
             print(f"skipping {name}: {path} not found (../shared is absent)", file=sys.stderr)
             continue

@@ -55,6 +55,8 @@ def child_main(args: argparse.Namespace) -> int:
         result = tasks.table1(Path(args.store_dir))
     elif args.child == "map":
         result = tasks.run_map(path, args.skill, args.method, args.repeat)
+    elif args.child == "storey-maps":
+        result = tasks.storey_maps(Path(args.store_dir), args.repeat)
     else:
         print(f"unknown child task {args.child!r}", file=sys.stderr)
         return 2

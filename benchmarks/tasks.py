@@ -7,6 +7,8 @@ Tasks:
     stats     ``twin.stats.model_stats`` of the store an ``import`` child left behind (the paper's Table 1).
     map       setup (in-memory import, scene, selection, plan), then one method: ``twin-full``,
               ``twin-region``, ``trimesh`` or ``manifold3d``.
+    storey-maps  the full map of every configured skill on every storey of the store an ``import``
+              child left behind (``neuron.py``), each built ``repeat`` times.
 
 Memory in map children: the setup dominates the process peak, so the method's own peak is measured by
 resetting the kernel's high-water mark (``/proc/self/clear_refs``) after setup and reading ``VmHWM``.
@@ -203,6 +205,41 @@ def table1(store_dir: Path) -> dict[str, Any]:
 # --- map tasks -------------------------------------------------------------------------------------
 
 
+def storey_maps(store_dir: Path, repeat: int) -> dict[str, Any]:
+    """Full-map time of every (storey, skill) of an imported store, as the daemon builds them at start."""
+    from twin.config import load_config
+    from twin.maps import build_map, plan_map
+    from twin.scene import load_scene
+    from twin.skills import selection_query
+    from twin.store import EmbeddedStore, literal_value
+
+    cfg = load_config()
+    t0 = time.perf_counter()
+    with EmbeddedStore.open(store_dir, read_only=True) as store:
+        scene = load_scene(store)
+        selections = {
+            name: [literal_value(r["element"]) or "" for r in store.select(selection_query(skill))]
+            for name, skill in cfg.skills.items()
+        }
+    load_s = time.perf_counter() - t0
+    maps = []
+    for storey in scene.storeys:
+        for name, skill in cfg.skills.items():
+            plan = plan_map(scene, skill, storey.key, selections[name], margin_m=cfg.margin_m)
+            times, grid = timed_runs(lambda plan=plan: build_map(scene, plan), repeat)
+            maps.append(
+                {
+                    "storey": storey.key,
+                    "skill": name,
+                    **summary(times),
+                    "grid": [plan.frame.width, plan.frame.height],
+                    "selected": len(plan.selected),
+                    "occupied": int(grid.occupied().sum()),
+                }
+            )
+    return {"seconds": time.perf_counter() - t0, "scene_load_s": load_s, "maps": maps}
+
+
 @dataclass(frozen=True, slots=True)
 class MapSetup:
     scene: Any
@@ -237,7 +274,7 @@ def map_setup(path: Path, skill_name: str) -> MapSetup:
     from twin.maps import plan_map
     from twin.scene import load_scene
     from twin.skills import selection_query
-    from twin.store import EmbeddedStore
+    from twin.store import EmbeddedStore, literal_value
 
     cfg = load_config()
     skill = cfg.skill(skill_name)
@@ -247,7 +284,7 @@ def map_setup(path: Path, skill_name: str) -> MapSetup:
     t1 = time.perf_counter()
     scene = load_scene(store)
     t2 = time.perf_counter()
-    iris = [r["element"].value for r in store.select(selection_query(skill))]
+    iris = [literal_value(r["element"]) or "" for r in store.select(selection_query(skill))]
     storey = busiest_storey(scene, cfg.skill("navigation"))
     plan = plan_map(scene, skill, storey, iris, margin_m=1.0)
     info = {
