@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
+import threading
 from typing import Any
 
-from adapters.zenoh.access import access_control, ros_map_keys
+from adapters.zenoh.access import access_control, ros_map_keys, site_access_control
 from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.router import MapStorage, open_router
 from twin.config import Config
 
 
@@ -27,7 +30,47 @@ def cmd_acl(args: argparse.Namespace, cfg: Config) -> int:
     return 0
 
 
+def cmd_router(args: argparse.Namespace, cfg: Config) -> int:
+    """Run a Zenoh router that daemons and robots connect to; optionally keep every site's maps."""
+    listen = args.listen or list(cfg.zenoh.listen)
+    acl = site_access_control(cfg, SiteKeys(cfg.key_prefix())) if args.acl else None
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: Any) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    session = open_router(cfg.zenoh, listen=listen, connect=args.connect or [], access_control=acl)
+    storage = None
+    try:
+        if args.store_maps:
+            storage = MapStorage(session, cfg.zenoh.prefix.replace("{site}", "*").strip("/") + "/map/**")
+        what = f"; keeping the latest maps of {storage.key_expr}" if storage else ""
+        print(f"router {session.info.zid()} on {', '.join(listen)}{what}", flush=True)
+        stop.wait()
+    finally:
+        if storage is not None:
+            storage.close()
+        session.close()
+    print("router stopped", flush=True)
+    return 0
+
+
 def add_parsers(sub: Any) -> None:
+    sp = sub.add_parser("router", help="run a Zenoh router for several daemons and their robots")
+    sp.add_argument(
+        "--listen", action="append", metavar="ENDPOINT", help="default: zenoh.listen (repeatable)"
+    )
+    sp.add_argument("--connect", action="append", metavar="ENDPOINT", help="another router (repeatable)")
+    sp.add_argument(
+        "--store-maps",
+        action="store_true",
+        help="keep the latest map of every site (twin/*/map/**) and answer for it while its daemon restarts",
+    )
+    sp.add_argument("--acl", action="store_true", help="enforce [zenoh.access] of the configured site here")
+    sp.set_defaults(func=cmd_router)
+
     sp = sub.add_parser(
         "acl", help="print the Zenoh access control of the configured robots (JSON, for a router's config)"
     )

@@ -91,6 +91,8 @@ class MapWatcher:
             self._on_map,
             history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
         )
+        # also ask whoever holds the map now: the daemon, or a router's map storage while it restarts
+        session.get(keys.map(storey, skill), self._on_reply, timeout=10.0)
 
     def _accept(self, version: MapVersion) -> None:
         with self._cond:
@@ -104,6 +106,10 @@ class MapWatcher:
                 self.on_version(version)
             except Exception:
                 log.exception("on_version callback failed")
+
+    def _on_reply(self, reply: zenoh.Reply) -> None:
+        if reply.ok is not None:
+            self._on_map(reply.ok)
 
     def _on_map(self, sample: zenoh.Sample) -> None:
         if sample.kind == zenoh.SampleKind.DELETE:

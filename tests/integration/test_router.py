@@ -1,0 +1,125 @@
+"""Scale out: a router (``twin router``), two daemons for two sites and a robot, each its own process."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from adapters.zenoh.client import TwinClient
+from tests.integration.conftest import ROOT, Daemon, free_port, start_daemon
+
+TWIN = "https://w3id.org/building-twin#"
+NAV = ("ground-floor", "lab-navigation")
+
+
+class Router:
+    def __init__(self, *extra: str) -> None:
+        self.endpoint = f"tcp/127.0.0.1:{free_port()}"
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "adapters.cli", "router", "--listen", self.endpoint, *extra],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        )  # fmt: skip
+        assert self.process.stdout is not None
+        line = self.process.stdout.readline()
+        assert line.startswith("router "), line + self.process.stdout.read()
+
+    def stop(self) -> int:
+        self.process.send_signal(signal.SIGTERM)
+        self.process.communicate(timeout=10)
+        return self.process.returncode
+
+
+def site_daemon(store_dir: Path, root: Path, site: str, router: Router) -> Daemon:
+    shutil.copytree(store_dir, root / site)
+    return start_daemon(root / site, "--no-record", "--site", site, "--connect", router.endpoint)
+
+
+def kill(d: Daemon) -> None:
+    if d.process.poll() is None:
+        d.process.kill()
+        d.process.wait(timeout=10)
+
+
+@pytest.fixture
+def router() -> Iterator[Router]:
+    r = Router("--store-maps")
+    yield r
+    if r.process.poll() is None:
+        r.process.kill()
+        r.process.wait(timeout=10)
+
+
+def table(x: float) -> str:
+    return (
+        f'<urn:test:router-table> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "ground-floor" ; '
+        f'<{TWIN}box> "{x} 7.0 0.375 0.6 0.6 0.75 0.0" .'
+    )
+
+
+def test_a_robot_at_the_router_gets_both_sites_maps_and_an_observation_changes_only_its_site(
+    lab_store_dir: Path, tmp_path: Path, router: Router
+) -> None:
+    north = site_daemon(lab_store_dir, tmp_path, "north", router)
+    south = site_daemon(lab_store_dir, tmp_path, "south", router)
+    try:
+        # the robot connects to the router only, after both daemons started (late joiner)
+        with (
+            TwinClient.connect([router.endpoint], prefix="twin/north", mode="client") as at_north,
+            TwinClient(at_north.session, prefix="twin/south") as at_south,
+        ):
+            assert NAV in at_north.list_maps() and NAV in at_south.list_maps()
+            north_watch, south_watch = at_north.watch(*NAV), at_south.watch(*NAV)
+            n0 = north_watch.wait_for(lambda v: True, timeout_s=10)
+            s0 = south_watch.wait_for(lambda v: True, timeout_s=10)
+            np.testing.assert_array_equal(n0.grid.data, s0.grid.data)  # the same building, two sites
+            south_status = at_south.status()
+
+            ack = at_north.observe("robot1", table(16.6))
+            assert ack["ok"]
+            n1 = north_watch.wait_for(lambda v: v.revision >= ack["revision"], timeout_s=10)
+            assert not np.array_equal(n1.grid.data, n0.grid.data)
+            time.sleep(0.5)
+            assert at_south.status()["revision"] == south_status["revision"]
+            assert south_watch.latest is not None and south_watch.latest.version == s0.version
+            assert at_south.get_map(*NAV)[2] == s0.version
+            north_watch.close()
+            south_watch.close()
+    finally:
+        kill(north)
+        kill(south)
+    assert router.stop() == 0
+
+
+def test_the_routers_map_storage_serves_a_site_while_its_daemon_is_down(
+    lab_store_dir: Path, tmp_path: Path, router: Router
+) -> None:
+    north = site_daemon(lab_store_dir, tmp_path, "north", router)
+    try:
+        with TwinClient.connect([router.endpoint], prefix="twin/north", mode="client") as robot:
+            live = robot.get_map(*NAV)
+            robot.observe("robot1", table(18.0))
+            time.sleep(1.0)  # the full map follows the update
+            latest = robot.get_map(*NAV)
+            assert latest[2] > live[2]
+    finally:
+        kill(north)
+    time.sleep(0.5)
+    with TwinClient.connect([router.endpoint], prefix="twin/north", mode="client") as late:
+        assert not late.daemon_alive()
+        grid, _, version = late.get_map(*NAV)  # answered by the router's storage
+        assert version == latest[2]
+        np.testing.assert_array_equal(grid.data, latest[0].data)
+        watcher = late.watch(*NAV)
+        seen = watcher.wait_for(lambda v: True, timeout_s=10)
+        assert seen.version == latest[2]
+        watcher.close()
