@@ -236,3 +236,35 @@ def test_an_observed_glass_pane_is_seen_as_glass_and_a_fiberglass_crate_is_not()
     )
     selected = service._selected(glassless, ["urn:r:pane", "urn:r:crate"])
     assert selected == {"urn:r:crate"}
+
+
+def test_queued_observations_commit_one_by_one_and_share_one_map_pass_that_equals_a_rebuild() -> None:
+    service, rec = started()
+    other, _ = started()  # the same observations, one at a time
+    payloads = [
+        box_turtle("urn:robot1:a", 6.0, 2.0),
+        box_turtle("urn:robot1:a", 7.5, 2.2, yaw=0.4),  # moves what the batch just added
+        box_turtle("urn:robot1:b", 5.0, 2.4),
+        b"this is not turtle",
+        f"{PREFIX}<urn:robot1:a> twin:removed true .".encode(),
+        box_turtle("urn:robot1:b", 8.0, 1.9),
+        box_turtle("urn:robot1:a", 6.5, 2.1),  # re-created after its removal, in the same batch
+    ]
+    replies: list = []
+    for p in payloads:
+        service.submit_observation("robot1", p, replies.append)
+    assert service.process() == len(payloads)
+    one_by_one = [observe(other, "robot1", p) for p in payloads]
+    assert [r.ok for r in replies] == [r.ok for r in one_by_one] == [True, True, True, False, True, True, True]
+    assert [r.body.get("revision") for r in replies] == [1, 2, 3, None, 4, 5, 6]
+    assert service.revision == 6
+    assert len(rec.of(ObservationAccepted)) == 6 and len(rec.of(ObservationRejected)) == 1
+    assert_equals_rebuild(service)
+    for key, m in service.engine.maps.items():  # the batch ends where one-by-one processing ends
+        np.testing.assert_array_equal(m.data, other.engine.maps[key].data, err_msg=str(key))
+    updates = rec.of(MapUpdated)
+    assert updates and all(u.revision == 6 for u in updates[-len(replies[-1].body["maps"]) :])
+    rows = service.store.select(
+        "SELECT ?e ?rev WHERE { ?e twin:revision ?rev . FILTER(STRSTARTS(STR(?e), 'urn:robot1:')) }"
+    )
+    assert {r["e"]: int(r["rev"] or -1) for r in rows} == {"urn:robot1:a": 6, "urn:robot1:b": 5}
