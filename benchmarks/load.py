@@ -197,16 +197,26 @@ def run(
         assert s.stdout is not None and json.loads(s.stdout.readline())["ready"]
     start_at = time.time() + 1.0 + 0.1 * robots
     bots = [_child("robot", endpoint, str(i), str(rate), str(duration), str(start_at)) for i in range(robots)]
+    outputs: list[tuple[list[str], list[str]]] = [([], []) for _ in bots]
+    readers = []
+    for b, (out, err) in zip(bots, outputs, strict=True):  # drain the pipes while the robots run
+        readers += [
+            threading.Thread(target=out.extend, args=(b.stdout,), daemon=True),
+            threading.Thread(target=err.extend, args=(b.stderr,), daemon=True),
+        ]
+    for r in readers:
+        r.start()
     rss: list[tuple[float, float]] = []
     while any(b.poll() is None for b in bots):
         rss.append((time.time() - start_at, live._proc_mb(daemon.pid, "VmRSS")))
         time.sleep(0.25)
+    for r in readers:
+        r.join(timeout=60)
     attempts: list[dict[str, Any]] = []
     errors: list[str] = []
-    for b in bots:
-        out, err = b.communicate(timeout=60)
-        attempts += [json.loads(ln) for ln in out.splitlines() if ln.startswith("{")]
-        errors += [ln for ln in err.splitlines() if ln.strip()][:3]
+    for out, err in outputs:
+        attempts += [json.loads(ln) for ln in out if ln.startswith("{")]
+        errors += [ln.strip() for ln in err if ln.strip()][:3]
     time.sleep(1.0)  # the last full maps follow their updates by full_map_interval_s
     with TwinClient.connect([endpoint], timeout_s=30.0) as twin:
         daemon_final = {}
