@@ -12,7 +12,10 @@ Measures, per model:
 
 Usage::
 
-    python benchmarks/live.py [--models lab janesville PATH.ifc ...] [--count 200] [--json OUT.json]
+    python benchmarks/live.py [--models lab janesville PATH.ifc ...] [--count N] [--json OUT.json] [--remote]
+
+``--remote`` also runs each model with the graph on an Oxigraph server (``oxigraph serve`` on disk, on
+loopback) instead of the embedded store: ``twin serve --store-url``.
 """
 
 from __future__ import annotations
@@ -138,6 +141,41 @@ def recompute(store: Path, storey: str, positions: list[tuple[float, float]]) ->
     }
 
 
+def start_oxigraph(work: Path, store: Path) -> tuple[subprocess.Popen[bytes], str]:
+    """An ``oxigraph serve`` on disk holding a copy of ``store`` (the embedded store's graph)."""
+    import io
+
+    import pyoxigraph as ox
+
+    from twin.errors import StoreUnavailableError
+    from twin.remote_store import RemoteStore
+    from twin.store import EmbeddedStore
+
+    binary = shutil.which("oxigraph", path=str(Path(sys.executable).parent)) or "oxigraph"
+    url = f"http://127.0.0.1:{_free_port()}"
+    server = subprocess.Popen(
+        [binary, "serve", "--location", str(work / "oxigraph"), "--bind", url.removeprefix("http://")],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.monotonic() + 20
+    while True:
+        try:
+            remote = RemoteStore.open(url)
+            break
+        except StoreUnavailableError:
+            if time.monotonic() > deadline:
+                server.kill()
+                raise
+            time.sleep(0.05)
+    buf = io.BytesIO()
+    with EmbeddedStore.open(store, read_only=True) as st:
+        st.dump_turtle(buf)
+    with remote:
+        remote.bulk_add(ox.parse(buf.getvalue(), format=ox.RdfFormat.TURTLE))
+    return server, url
+
+
 def _table(storey: str, x: float, y: float, i: int) -> str:
     return (
         f'<urn:bench:table> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "{storey}" ; '
@@ -145,7 +183,7 @@ def _table(storey: str, x: float, y: float, i: int) -> str:
     )
 
 
-def run_model(name: str, count: int, *, record: bool = False) -> dict[str, Any]:
+def run_model(name: str, count: int, *, record: bool = False, remote: bool = False) -> dict[str, Any]:
     from adapters.zenoh.client import TwinClient
 
     work = Path(tempfile.mkdtemp(prefix=f"live-{model_label(name)}-"))
@@ -157,14 +195,14 @@ def run_model(name: str, count: int, *, record: bool = False) -> dict[str, Any]:
     positions = [
         (float(rng.uniform(xmin + 1, xmax - 1)), float(rng.uniform(ymin + 1, ymax - 1))) for _ in range(count)
     ]
+    server, url = start_oxigraph(work, store) if remote else (None, "")
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     t0 = time.perf_counter()
     rrd = work / "run.rrd"
     daemon = subprocess.Popen(
         _twin(
             "serve",
-            "--store",
-            str(store),
+            *(["--store-url", url] if remote else ["--store", str(store)]),
             "--listen",
             endpoint,
             *(["--record", str(rrd)] if record else ["--no-record"]),
@@ -218,12 +256,17 @@ def run_model(name: str, count: int, *, record: bool = False) -> dict[str, Any]:
     finally:
         daemon.terminate()
         daemon.wait(timeout=30)
+        if server is not None:
+            server.terminate()
+            server.wait(timeout=30)
     rrd_end = rrd.stat().st_size if rrd.exists() else 0
     rec = recompute(store, storey, positions)
     shutil.rmtree(work, ignore_errors=True)
     per_obs = (rrd_end - rrd_start) / max(count, 1)
     return {
-        "model": model_label(name) + (" (recording)" if record else ""),
+        "model": model_label(name)
+        + (" (recording)" if record else "")
+        + (" (remote store)" if remote else ""),
         "storey": storey,
         "import_s": round(import_s, 2),
         "startup_to_serving_s": round(startup_wall, 2),
@@ -254,6 +297,7 @@ def main() -> int:
     p.add_argument("--count", type=int, default=200)
     p.add_argument("--json", type=Path)
     p.add_argument("--record", action="store_true", help="also run each model with recording on (Rerun)")
+    p.add_argument("--remote", action="store_true", help="also run each model on an Oxigraph server")
     args = p.parse_args()
     rows = []
     for name in args.models:
@@ -265,6 +309,8 @@ def main() -> int:
         rows.append(run_model(name, args.count))
         if args.record:
             rows.append(run_model(name, args.count, record=True))
+        if args.remote:
+            rows.append(run_model(name, args.count, remote=True))
     if rows:
         keys = list(rows[0])
         print("| " + " | ".join(keys) + " |")

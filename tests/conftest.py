@@ -4,10 +4,12 @@ core's tests use the box lab (``tests/twin/box_lab.py``) and never import adapte
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from tests.sparql_server import SparqlServer, start_sparql_server
 from twin.config import Config, load_config
 from twin.import_model import import_model
 from twin.records import BuildingModel
@@ -40,3 +42,11 @@ def imported(model: BuildingModel) -> GraphStore:
     store = EmbeddedStore.open(None)
     import_model(store, model, base_iri=BASE, site="test")
     return store
+
+
+@pytest.fixture(scope="session")
+def sparql_server() -> Iterator[SparqlServer]:
+    """One in-memory Oxigraph server per test session (per xdist worker); tests clear it first."""
+    server = start_sparql_server()
+    yield server
+    server.stop()

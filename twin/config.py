@@ -69,6 +69,21 @@ class AccessConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class RemoteStoreConfig:
+    """A SPARQL 1.1 server holding the graph instead of the embedded store (``[store] url``).
+
+    The endpoints are paths under ``url`` (``""``: ``url`` itself) or absolute URLs; the defaults are
+    Oxigraph's (``oxigraph serve``). ``timeout_s`` bounds every socket operation of every request.
+    """
+
+    url: str
+    query_endpoint: str = "query"
+    update_endpoint: str = "update"
+    graph_store_endpoint: str = "store"
+    timeout_s: float = 30.0
+
+
+@dataclass(frozen=True, slots=True)
 class ZenohConfig:
     """Where the daemon meets robots. ``prefix`` has ``{site}`` replaced (see :meth:`Config.key_prefix`)."""
 
@@ -133,6 +148,8 @@ class Config:
     robots: Mapping[str, RobotConfig] = field(default_factory=dict)
     frame_id: str = "map"
     rerun: RerunConfig = RerunConfig()
+    remote_store: RemoteStoreConfig | None = None
+    """Set (``[store] url``): the graph is on a SPARQL 1.1 server, and ``store_path`` is unused."""
 
     def key_prefix(self, site: str | None = None) -> str:
         """The Zenoh key prefix of this site, e.g. ``twin/lab``."""
@@ -234,6 +251,7 @@ def load_config(path: Path | None = None) -> Config:
         site=site,
         base_iri_template=_get(raw, "site.base_iri", str),
         store_path=Path(_get(raw, "store.path", str)),
+        remote_store=_remote_store(raw.get("store", {})),
         import_=ImportConfig(kernels=tuple(kernels), threads=threads, static_types=tuple(static_types)),
         margin_m=margin,
         maps_out=Path(_get(raw, "maps.out", str)),
@@ -387,6 +405,29 @@ def _limits(raw: Any) -> Limits:
             raise ConfigError(msg)
         args[key] = value if isinstance(default, int) else float(value)
     return Limits(**args)
+
+
+def _remote_store(raw: Any) -> RemoteStoreConfig | None:
+    t = _table(raw, "store")
+    endpoints = ("query_endpoint", "update_endpoint", "graph_store_endpoint")
+    _unknown(t, "store", {"path", "url", "timeout_s", *endpoints})
+    url = t.get("url", "")
+    if not isinstance(url, str) or (url and not re.match(r"^https?://[^/?#\s]+", url)):
+        msg = f"Configuration 'store.url' must be \"\" or an http(s):// URL of a SPARQL server, got {url!r}."
+        raise ConfigError(msg)
+    if not url:
+        return None
+    timeout = t.get("timeout_s", 30.0)
+    if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not 0 < timeout < float("inf"):
+        msg = f"Configuration 'store.timeout_s' must be a positive number of seconds, got {timeout!r}."
+        raise ConfigError(msg)
+    fields = RemoteStoreConfig.__dataclass_fields__
+    paths = {key: t.get(key, fields[key].default) for key in endpoints}
+    for key, value in paths.items():
+        if not isinstance(value, str):
+            msg = f"Configuration 'store.{key}' must be a path under store.url or a URL, got {value!r}."
+            raise ConfigError(msg)
+    return RemoteStoreConfig(url=url, timeout_s=float(timeout), **paths)
 
 
 def _rights(name: str, value: Any) -> frozenset[Right]:

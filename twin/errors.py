@@ -23,6 +23,10 @@ class StoreNotEmptyError(StoreError):
     """A model was to be imported into a store that already holds one."""
 
 
+class StoreUnavailableError(StoreError):
+    """A remote graph store (a SPARQL endpoint) cannot be reached, or did not answer in time."""
+
+
 class QueryError(StoreError):
     """A SPARQL query does not parse, or is not allowed (e.g. an update on a read-only endpoint)."""
 

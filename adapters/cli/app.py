@@ -13,12 +13,13 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from adapters.cli import demo_cmd, map_cmd, model_cmds, network_cmds, record_cmd, robot_cmds, serve_cmd
+from adapters.cli.common import add_store_args
 from twin.config import load_config
 from twin.errors import StoreNotEmptyError, StoreNotFoundError, TwinError
 
 
 def _store_arg(sp: argparse.ArgumentParser) -> None:
-    sp.add_argument("--store", help="store directory (default: store.path of the configuration)")
+    add_store_args(sp)
 
 
 def build_parser() -> argparse.ArgumentParser:

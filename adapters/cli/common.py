@@ -3,15 +3,71 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
-from twin.config import Config
+from twin.config import Config, RemoteStoreConfig
+from twin.remote_store import RemoteStore
+from twin.store import EmbeddedStore
+
+AnyStore = EmbeddedStore | RemoteStore
 
 
 def store_path_of(args: argparse.Namespace, cfg: Config) -> Path:
     """The store directory a command works on: ``--store`` if given, else the configuration's."""
     store = getattr(args, "store", None)
     return Path(store) if store else cfg.store_path
+
+
+def remote_store_of(args: argparse.Namespace, cfg: Config) -> RemoteStoreConfig | None:
+    """The SPARQL server a command works on, if any: ``--store-url``, else ``[store] url`` unless
+    ``--store DIR`` names an embedded store."""
+    url = getattr(args, "store_url", None)
+    if url:
+        base = cfg.remote_store or RemoteStoreConfig(url=url)
+        return dataclasses.replace(base, url=url)
+    if getattr(args, "store", None):
+        return None
+    return cfg.remote_store
+
+
+def store_label(args: argparse.Namespace, cfg: Config) -> str:
+    """Where the command's store is, for messages: the server's URL or the directory."""
+    remote = remote_store_of(args, cfg)
+    return remote.url if remote is not None else str(store_path_of(args, cfg))
+
+
+def store_exists(args: argparse.Namespace, cfg: Config) -> bool:
+    """Whether there is a store to look into without creating one (a server always is one)."""
+    return remote_store_of(args, cfg) is not None or store_path_of(args, cfg).exists()
+
+
+def open_store(
+    args: argparse.Namespace, cfg: Config, *, read_only: bool = False, create: bool = True
+) -> AnyStore:
+    """Open the command's store: a :class:`RemoteStore` on a SPARQL server, else the embedded one."""
+    remote = remote_store_of(args, cfg)
+    if remote is not None:
+        return RemoteStore.open(
+            remote.url,
+            query=remote.query_endpoint,
+            update=remote.update_endpoint,
+            graph_store=remote.graph_store_endpoint,
+            timeout_s=remote.timeout_s,
+            read_only=read_only,
+        )
+    return EmbeddedStore.open(store_path_of(args, cfg), read_only=read_only, create=create)
+
+
+def add_store_args(sp: argparse.ArgumentParser) -> None:
+    """``--store DIR`` or ``--store-url URL``: the embedded store or a SPARQL 1.1 server."""
+    group = sp.add_mutually_exclusive_group()
+    group.add_argument("--store", help="store directory (default: store.path of the configuration)")
+    group.add_argument(
+        "--store-url",
+        metavar="URL",
+        help="a SPARQL 1.1 server holding the graph instead, e.g. http://127.0.0.1:7878 (oxigraph serve)",
+    )
 
 
 def human_size(n: int) -> str:

@@ -7,14 +7,14 @@ import time
 from pathlib import Path
 from typing import Any
 
-from adapters.cli.common import store_path_of
+from adapters.cli.common import add_store_args, open_store
 from adapters.ros import write_map_files
 from twin.config import Config
 from twin.errors import MapError, SkillError
 from twin.maps import build_map, plan_map
 from twin.scene import load_scene
 from twin.skills import selection_query
-from twin.store import EmbeddedStore, literal_value
+from twin.store import literal_value
 
 
 def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
@@ -23,9 +23,8 @@ def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
         raise SkillError(msg)
     skills = [cfg.skill(name) for name in (args.skill or sorted(cfg.skills))]
     out = Path(args.out) if args.out else cfg.maps_out
-    store_path = store_path_of(args, cfg)
     stamp_ns = time.time_ns()
-    with EmbeddedStore.open(store_path, read_only=True) as store:
+    with open_store(args, cfg, read_only=True) as store:
         t0 = time.perf_counter()
         scene = load_scene(store)
         print(
@@ -52,7 +51,7 @@ def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
 
 def add_map_parser(sub: Any) -> None:
     sp = sub.add_parser("map", help="write skill maps (map_server YAML+PGM, PNG, CDR) per storey")
-    sp.add_argument("--store", help="store directory (default: store.path of the configuration)")
+    add_store_args(sp)
     sp.add_argument("--skill", action="append", help="a configured skill (repeatable)")
     sp.add_argument("--all-skills", action="store_true", help="every configured skill")
     sp.add_argument("--storey", help="one storey key (see 'twin stats'); default: every storey")

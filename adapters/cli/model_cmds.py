@@ -8,11 +8,10 @@ import sys
 import time
 from pathlib import Path
 
-from adapters.cli.common import human_size, store_path_of
+from adapters.cli.common import human_size, open_store, store_exists, store_label
 from adapters.cli.progress import progress_bar
 from twin.config import Config
 from twin.errors import ModelError
-from twin.store import EmbeddedStore
 
 
 # --- commands ---------------------------------------------------------------------------------------
@@ -23,13 +22,12 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
 
     site = args.site or cfg.site
     base_iri = check_base(args.base_iri or cfg.base_iri(site))
-    store_path = store_path_of(args, cfg)
     model_path = Path(args.model)
     if not model_path.is_file():
         msg = f"No such file: {model_path}"
         raise ModelError(msg)
-    if store_path.exists():  # fail before meshing, which dominates the time
-        with EmbeddedStore.open(store_path) as store:
+    if store_exists(args, cfg):  # fail before meshing, which dominates the time
+        with open_store(args, cfg) as store:
             ensure_importable(store, replace=args.replace)
     t0 = time.perf_counter()
     # Mesh before the store is open: the meshing child is forked, and the store runs threads.
@@ -42,11 +40,11 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
             progress=advance,
         )
     t1 = time.perf_counter()
-    with EmbeddedStore.open(store_path) as store:
+    with open_store(args, cfg) as store:
         summary = import_model(store, model, base_iri=base_iri, site=site, replace=args.replace)
     t2 = time.perf_counter()
     print(
-        f"imported {model_path} into {store_path}: {summary.elements} elements "
+        f"imported {model_path} into {store_label(args, cfg)}: {summary.elements} elements "
         f"({summary.meshes} with meshes), {summary.spaces} spaces, {summary.storeys} storeys, "
         f"{summary.triples} triples in {t2 - t0:.1f} s (read+mesh {t1 - t0:.1f} s, store {t2 - t1:.1f} s)"
     )
@@ -60,7 +58,7 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
 def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
     from twin.stats import model_stats
 
-    with EmbeddedStore.open(store_path_of(args, cfg), read_only=True) as store:
+    with open_store(args, cfg, read_only=True) as store:
         stats = model_stats(store)
     if args.json:
         print(json.dumps(stats.as_dict(), indent=2))
@@ -97,7 +95,7 @@ def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
 def cmd_export(args: argparse.Namespace, cfg: Config) -> int:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    with EmbeddedStore.open(store_path_of(args, cfg), read_only=True) as store:
+    with open_store(args, cfg, read_only=True) as store:
         store.dump_turtle(out)
     print(f"wrote {out} ({human_size(out.stat().st_size)})")
     return 0
@@ -105,7 +103,7 @@ def cmd_export(args: argparse.Namespace, cfg: Config) -> int:
 
 def cmd_query(args: argparse.Namespace, cfg: Config) -> int:
     sparql = Path(args.sparql[1:]).read_text() if args.sparql.startswith("@") else args.sparql
-    with EmbeddedStore.open(store_path_of(args, cfg), read_only=True) as store:
+    with open_store(args, cfg, read_only=True) as store:
         media, body = store.query_serialized(sparql)
         if args.json or media == "text/turtle":
             sys.stdout.write(body.decode())

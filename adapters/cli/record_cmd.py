@@ -7,18 +7,17 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from adapters.cli.common import human_size, store_path_of
+from adapters.cli.common import add_store_args, human_size, open_store
 from adapters.rerun import RerunRecorder
 from twin.config import Config
 from twin.service import TwinService
-from twin.store import EmbeddedStore
 
 
 def cmd_record(args: argparse.Namespace, cfg: Config) -> int:
     out = Path(args.out)
     recorder = RerunRecorder(path=out, application=f"twin {cfg.site}")
     try:
-        with EmbeddedStore.open(store_path_of(args, cfg), read_only=True) as store:
+        with open_store(args, cfg, read_only=True) as store:
             service = TwinService(store, cfg, sinks=[recorder])
             service.start()
             maps = len(service.published_maps())
@@ -32,6 +31,6 @@ def cmd_record(args: argparse.Namespace, cfg: Config) -> int:
 
 def add_parser(sub: Any) -> None:
     sp = sub.add_parser("record", help="write the twin (building and every map) as a Rerun recording")
-    sp.add_argument("--store", help="store directory (default: store.path of the configuration)")
+    add_store_args(sp)
     sp.add_argument("out", help="the .rrd file to write")
     sp.set_defaults(func=cmd_record)

@@ -15,7 +15,7 @@ from typing import Any
 
 import zenoh
 
-from adapters.cli.common import store_path_of
+from adapters.cli.common import add_store_args, open_store, store_exists, store_label
 from adapters.rerun import RerunRecorder
 from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
@@ -26,15 +26,14 @@ from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.errors import StoreNotFoundError
 from twin.service import TwinService
-from twin.store import EmbeddedStore
 
 log = logging.getLogger(__name__)
 
 
-def _needs_import(store_path: Path) -> bool:
-    if not store_path.exists():
+def _needs_import(args: argparse.Namespace, cfg: Config) -> bool:
+    if not store_exists(args, cfg):
         return True
-    with EmbeddedStore.open(store_path) as store:
+    with open_store(args, cfg) as store:
         return store.is_empty()
 
 
@@ -52,12 +51,16 @@ def _recorder(args: argparse.Namespace, cfg: Config, site: str) -> RerunRecorder
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
     if args.site:
         cfg = dataclasses.replace(cfg, site=args.site)
-    store_path = store_path_of(args, cfg)
-    if args.ifc and _needs_import(store_path):
+    if args.ifc and _needs_import(args, cfg):
         from adapters.cli.model_cmds import cmd_import
 
         ns = argparse.Namespace(
-            model=args.ifc, store=str(store_path), site=cfg.site, base_iri=None, replace=False
+            model=args.ifc,
+            store=args.store,
+            store_url=args.store_url,
+            site=cfg.site,
+            base_iri=None,
+            replace=False,
         )
         cmd_import(ns, cfg)  # before any Zenoh or store thread exists: meshing forks a child
     keys = SiteKeys(cfg.key_prefix())
@@ -75,9 +78,9 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
-    with EmbeddedStore.open(store_path, create=False) as store:
+    with open_store(args, cfg, create=False) as store:
         if store.is_empty():
-            msg = f"The store at {store_path} is empty."
+            msg = f"The store at {store_label(args, cfg)} is empty."
             raise StoreNotFoundError(msg)
         try:
             session = zenoh.open(conf)
@@ -119,7 +122,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
 
 def add_parser(sub: Any) -> None:
     sp = sub.add_parser("serve", help="run the live twin daemon: serve maps, take observations (Zenoh)")
-    sp.add_argument("--store", help="store directory (default: store.path of the configuration)")
+    add_store_args(sp)
     sp.add_argument("--ifc", help="an IFC file to import first when the store is empty")
     sp.add_argument("--site", help="site name (default: site.name; the key prefix is twin/<site>)")
     sp.add_argument(

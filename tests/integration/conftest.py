@@ -40,7 +40,7 @@ def twin(*args: str | Path, timeout: float = 120) -> subprocess.CompletedProcess
 class Daemon:
     process: subprocess.Popen[str]
     endpoint: str
-    store: Path
+    store: Path | None
     log: list[str]
 
     def stop(self, sig: int = signal.SIGTERM, timeout: float = 10.0) -> tuple[int, float]:
@@ -52,9 +52,11 @@ class Daemon:
         return self.process.returncode, time.monotonic() - t0
 
 
-def start_daemon(store: Path, *extra: str, config: Path | None = None, scheme: str = "tcp") -> Daemon:
+def start_daemon(store: Path | None, *extra: str, config: Path | None = None, scheme: str = "tcp") -> Daemon:
+    """``twin serve`` on ``store`` (None: the store named in ``extra``, e.g. ``--store-url URL``)."""
     endpoint = f"{scheme}/127.0.0.1:{free_port()}"
     before = ["--config", str(config)] if config is not None else []
+    where = ["--store", str(store)] if store is not None else []
     process = subprocess.Popen(
         [
             sys.executable,
@@ -62,8 +64,7 @@ def start_daemon(store: Path, *extra: str, config: Path | None = None, scheme: s
             "adapters.cli",
             *before,
             "serve",
-            "--store",
-            str(store),
+            *where,
             "--listen",
             endpoint,
             *extra,

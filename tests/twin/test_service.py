@@ -255,7 +255,9 @@ def test_queued_observations_commit_one_by_one_and_share_one_map_pass_that_equal
         service.submit_observation("robot1", p, replies.append)
     assert service.process() == len(payloads)
     one_by_one = [observe(other, "robot1", p) for p in payloads]
-    assert [r.ok for r in replies] == [r.ok for r in one_by_one] == [True, True, True, False, True, True, True]
+    assert (
+        [r.ok for r in replies] == [r.ok for r in one_by_one] == [True, True, True, False, True, True, True]
+    )
     assert [r.body.get("revision") for r in replies] == [1, 2, 3, None, 4, 5, 6]
     assert service.revision == 6
     assert len(rec.of(ObservationAccepted)) == 6 and len(rec.of(ObservationRejected)) == 1

@@ -1,14 +1,54 @@
+"""The GraphStore contract, run against the embedded store and a remote SPARQL server (a real
+``oxigraph serve`` process), and what is particular to the embedded store."""
+
 from __future__ import annotations
 
+import io
+import json
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pyoxigraph as ox
 import pytest
 
+from tests.sparql_server import SparqlServer
+from twin import vocab
 from twin.errors import QueryError, StoreError
-from twin.store import EmbeddedStore
+from twin.remote_store import RemoteStore
+from twin.store import ChangeSet, EmbeddedStore, Literal, Triple
 
 Q = ox.Quad(ox.NamedNode("https://ex.org/a"), ox.NamedNode("https://ex.org/p"), ox.Literal("x"))
+EX = "https://ex.org/"
+AnyStore = EmbeddedStore | RemoteStore
+Opener = Callable[..., AnyStore]
+
+
+@pytest.fixture(params=["embedded", "remote"])
+def open_store(request: pytest.FixtureRequest) -> Iterator[Opener]:
+    """Opens a fresh, empty store of each kind (``read_only=`` as the store's own open takes it)."""
+    opened: list[AnyStore] = []
+    if request.param == "embedded":
+
+        def open_(*, read_only: bool = False) -> AnyStore:
+            opened.append(EmbeddedStore.open(None, read_only=read_only))
+            return opened[-1]
+    else:
+        server: SparqlServer = request.getfixturevalue("sparql_server")
+        with RemoteStore.open(server.url) as admin:
+            admin.clear()
+
+        def open_(*, read_only: bool = False) -> AnyStore:
+            opened.append(RemoteStore.open(server.url, read_only=read_only))
+            return opened[-1]
+
+    yield open_
+    for store in opened:
+        store.close()
+
+
+@pytest.fixture
+def store(open_store: Opener) -> AnyStore:
+    return open_store()
 
 
 def test_an_on_disk_store_keeps_its_triples_across_opens(tmp_path: Path) -> None:
@@ -29,12 +69,23 @@ def test_a_read_only_store_refuses_writes(tmp_path: Path) -> None:
         mem.add([Q])
 
 
-def test_closing_twice_is_harmless_and_use_after_close_is_a_clear_error() -> None:
-    store = EmbeddedStore.open(None)
+def test_closing_twice_is_harmless_and_use_after_close_is_a_clear_error(store: AnyStore) -> None:
     store.close()
     store.close()
     with pytest.raises(StoreError, match="closed"):
         len(store)
+
+
+def test_a_store_opened_read_only_refuses_every_write(open_store: Opener) -> None:
+    store = open_store(read_only=True)
+    for write in (
+        lambda: store.add([Q]),
+        lambda: store.bulk_add([Q]),
+        lambda: store.apply(ChangeSet(add=(Triple(EX + "a", EX + "p", Literal("x")),))),
+        store.clear,
+    ):
+        with pytest.raises(StoreError, match="read-only"):
+            write()
 
 
 def test_a_missing_store_is_not_created_for_reading(tmp_path: Path) -> None:
@@ -43,22 +94,139 @@ def test_a_missing_store_is_not_created_for_reading(tmp_path: Path) -> None:
     assert not (tmp_path / "none").exists()
 
 
-def test_queries_that_do_not_parse_and_updates_are_query_errors() -> None:
-    with EmbeddedStore.open(None) as store:
-        with pytest.raises(QueryError, match="does not parse"):
-            store.select("SELEKT ?s")
-        with pytest.raises(QueryError, match="does not parse"):
-            store.select("DELETE WHERE { ?s ?p ?o }")
-        with pytest.raises(QueryError, match="SELECT"):
-            store.select("ASK { ?s ?p ?o }")
+def test_queries_that_do_not_parse_and_updates_are_query_errors(store: AnyStore) -> None:
+    with pytest.raises(QueryError, match=r"does not parse.*at 1:"):
+        store.select("SELEKT ?s")
+    with pytest.raises(QueryError, match="does not parse"):
+        store.select("DELETE WHERE { ?s ?p ?o }")
+    with pytest.raises(QueryError, match="SELECT"):
+        store.select("ASK { ?s ?p ?o }")
+    with pytest.raises(QueryError, match="ASK"):
+        store.ask("SELECT ?s WHERE { ?s ?p ?o }")
+    with pytest.raises(QueryError, match="SERVICE"):
+        store.select("SELECT * WHERE { SERVICE <http://127.0.0.1:1/sparql> { ?s ?p ?o } }")
 
 
-def test_serialized_results_are_sparql_json_or_turtle() -> None:
-    with EmbeddedStore.open(None) as store:
-        store.add([Q])
-        media, body = store.query_serialized("SELECT ?s WHERE { ?s ?p ?o }")
-        assert media == "application/sparql-results+json"
-        assert b"https://ex.org/a" in body
-        media, body = store.query_serialized("CONSTRUCT { ?s ?p ?o } WHERE { ?s ?p ?o }")
-        assert media == "text/turtle"
-        assert b"https://ex.org/a" in body
+def test_serialized_results_are_sparql_json_or_turtle(store: AnyStore) -> None:
+    store.add([Q])
+    media, body = store.query_serialized("SELECT ?s WHERE { ?s ?p ?o }")
+    assert media == "application/sparql-results+json"
+    assert json.loads(body) == {
+        "head": {"vars": ["s"]},
+        "results": {"bindings": [{"s": {"type": "uri", "value": "https://ex.org/a"}}]},
+    }
+    media, body = store.query_serialized("ASK { ?s ?p ?o }")
+    assert (media, json.loads(body)["boolean"]) == ("application/sparql-results+json", True)
+    media, body = store.query_serialized("CONSTRUCT { ?s ?p ?o } WHERE { ?s ?p ?o }")
+    assert media == "text/turtle"
+    assert {q.triple for q in ox.parse(body, format=ox.RdfFormat.TURTLE)} == {Q.triple}
+
+
+def _terms_sample() -> list[ox.Quad]:
+    a, p, b = ox.NamedNode(EX + "a"), ox.NamedNode(EX + "p"), ox.BlankNode("b1")
+    objects = [
+        ox.Literal("x"),
+        ox.Literal("chair", language="en"),
+        ox.Literal("1.5", datatype=ox.NamedNode(vocab.XSD + "decimal")),
+        ox.Literal("7", datatype=ox.NamedNode(vocab.XSD + "integer")),
+        ox.Literal("true", datatype=ox.NamedNode(vocab.XSD_BOOLEAN)),
+        ox.Literal("1 0 0 0", datatype=ox.NamedNode(vocab.TWIN_MATRIX4)),
+        ox.Literal('quote " and \\ and\nnewline and ünïcødé'),
+        ox.NamedNode(EX + "c"),
+        b,
+    ]
+    return [ox.Quad(a, p, o) for o in objects] + [ox.Quad(b, p, ox.Literal("inner"))]
+
+
+def test_rows_carry_the_lexical_value_of_every_kind_of_term(store: AnyStore) -> None:
+    store.bulk_add(_terms_sample())
+    rows = store.select(
+        "SELECT ?o ?inner ?lang ?dt WHERE { <https://ex.org/a> ?p ?o "
+        "OPTIONAL { ?o ?p ?inner } BIND(LANG(?o) AS ?lang) BIND(DATATYPE(?o) AS ?dt) }"
+    )
+    by_value = {r["o"]: r for r in rows}
+    blank = [r for r in rows if r["inner"] == "inner"]
+    assert len(rows) == 9 and len(blank) == 1
+    label = blank[0]["o"]
+    assert label and not label.startswith("_:")  # a blank node's label, as the embedded store gives it
+    assert {k: v for k, v in by_value.items() if k != label} == {
+        "x": {"o": "x", "inner": None, "lang": "", "dt": vocab.XSD + "string"},
+        "chair": {"o": "chair", "inner": None, "lang": "en", "dt": vocab.RDF + "langString"},
+        "1.5": {"o": "1.5", "inner": None, "lang": "", "dt": vocab.XSD + "decimal"},
+        "7": {"o": "7", "inner": None, "lang": "", "dt": vocab.XSD + "integer"},
+        "true": {"o": "true", "inner": None, "lang": "", "dt": vocab.XSD_BOOLEAN},
+        "1 0 0 0": {"o": "1 0 0 0", "inner": None, "lang": "", "dt": vocab.TWIN_MATRIX4},
+        'quote " and \\ and\nnewline and ünïcødé': {
+            "o": 'quote " and \\ and\nnewline and ünïcødé',
+            "inner": None,
+            "lang": "",
+            "dt": vocab.XSD + "string",
+        },
+        EX + "c": {"o": EX + "c", "inner": None, "lang": None, "dt": None},
+    }
+    assert store.ask('ASK { <https://ex.org/a> ?p ?o . ?o ?p "inner" }')  # one node, in both triples
+
+
+def test_the_vocabulary_prefixes_are_predefined(store: AnyStore) -> None:
+    store.apply(ChangeSet(add=(Triple(EX + "s", vocab.RDF_TYPE, vocab.BOT_STOREY),)))
+    assert store.select("SELECT ?s WHERE { ?s a bot:Storey }") == [{"s": EX + "s"}]
+    assert store.select("PREFIX bot: <https://ex.org/> SELECT ?s WHERE { ?s a bot:Storey }") == []
+
+
+def test_apply_removes_the_patterns_then_adds_in_one_transaction(store: AnyStore) -> None:
+    s, p, q = EX + "s", EX + "p", EX + "q"
+    store.apply(ChangeSet(add=(Triple(s, p, Literal("1")), Triple(s, q, Literal("2")))))
+    store.apply(ChangeSet(remove=((s, p),), add=(Triple(s, p, Literal("3")),)))
+    assert sorted((r["p"], r["o"]) for r in store.select(f"SELECT ?p ?o WHERE {{ <{s}> ?p ?o }}")) == [
+        (p, "3"),
+        (q, "2"),
+    ]
+    store.apply(ChangeSet(remove=((s, None),)))
+    assert store.is_empty() and len(store) == 0
+    store.apply(ChangeSet())  # nothing to do
+    with pytest.raises(StoreError, match="Not an IRI"):
+        store.apply(ChangeSet(add=(Triple("has space", p, Literal("x")),)))
+
+
+def test_an_update_that_fails_part_way_changes_nothing(store: AnyStore) -> None:
+    with pytest.raises((StoreError, RuntimeError), match="already exists"):
+        store.update("INSERT DATA { <urn:a> <urn:p> <urn:b> } ; CREATE GRAPH <urn:g> ; CREATE GRAPH <urn:g>")
+    assert store.is_empty()
+
+
+def test_bulk_add_len_clear_and_is_empty_agree(store: AnyStore) -> None:
+    assert store.is_empty() and len(store) == 0
+    many = [ox.Quad(ox.NamedNode(f"{EX}e{i}"), ox.NamedNode(EX + "n"), ox.Literal(i)) for i in range(25_000)]
+    store.bulk_add(many)  # more than one streamed batch
+    assert len(store) == 25_000 and not store.is_empty()
+    assert store.select(f"SELECT ?n WHERE {{ <{EX}e24999> ?p ?n }}") == [{"n": "24999"}]
+    store.clear()
+    assert store.is_empty() and len(store) == 0
+
+
+def test_the_turtle_dump_has_the_lbd_prefixes_and_every_triple(store: AnyStore, tmp_path: Path) -> None:
+    quads = [q for q in _terms_sample() if not isinstance(q.subject, ox.BlankNode)]
+    quads = [q for q in quads if not isinstance(q.object, ox.BlankNode)]
+    quads.append(ox.Quad(ox.NamedNode(EX + "a"), ox.NamedNode(vocab.RDF_TYPE), ox.NamedNode(vocab.BOT_SPACE)))
+    store.bulk_add(quads)
+    buf = io.BytesIO()
+    store.dump_turtle(buf)
+    text = buf.getvalue()
+    assert b"@prefix bot: <https://w3id.org/bot#> ." in text and b"bot:Space" in text
+    assert {q.triple for q in ox.parse(text, format=ox.RdfFormat.TURTLE)} == {q.triple for q in quads}
+    assert store.turtle_size() == len(text)
+    store.dump_turtle(tmp_path / "out.ttl")
+    assert (tmp_path / "out.ttl").read_bytes() == text
+
+
+def test_both_stores_serialise_the_same_graph_to_the_same_bytes(sparql_server: SparqlServer) -> None:
+    quads = [q for q in _terms_sample() if not isinstance(q.object, ox.BlankNode)]
+    quads = [q for q in quads if not isinstance(q.subject, ox.BlankNode)]
+    with EmbeddedStore.open(None) as embedded, RemoteStore.open(sparql_server.url) as remote:
+        remote.clear()
+        embedded.bulk_add(quads)
+        remote.bulk_add(quads)
+        select = "SELECT ?p ?o WHERE { ?s ?p ?o } ORDER BY ?o"
+        assert remote.query_serialized(select) == embedded.query_serialized(select)
+        assert remote.select(select) == embedded.select(select)
+        assert remote.turtle_size() == embedded.turtle_size()
