@@ -13,6 +13,7 @@ import json
 import random
 import sys
 import threading
+import time
 
 from adapters.zenoh.client import TwinClient
 from twin.errors import TwinError
@@ -43,6 +44,7 @@ def main() -> int:
                 acked, revision = bool(ack["ok"]), int(ack["revision"])
             except TwinError:
                 acked, revision = False, -1
+                time.sleep(0.05)  # no daemon (no route: the request fails at once): try again soon
             if acked and op == "add":
                 live.append(iri)
             if acked and op == "remove":
