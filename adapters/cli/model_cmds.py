@@ -26,7 +26,12 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     store_path = store_path_of(args, cfg)
     model_path = Path(args.model)
     if not model_path.is_file():
-        msg = f"No such file: {model_path}"
+        kind = "a directory" if model_path.is_dir() else "not a regular file"
+        msg = (
+            f"{model_path} is {kind}, not an IFC file"
+            if model_path.exists()
+            else f"No such file: {model_path}"
+        )
         raise ModelError(msg)
     if store_path.exists():  # fail before meshing, which dominates the time
         with EmbeddedStore.open(store_path) as store:
