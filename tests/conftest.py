@@ -4,10 +4,12 @@ core's tests use the box lab (``tests/twin/box_lab.py``) and never import adapte
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 from tests.sparql_server import SparqlServer, start_sparql_server
 from twin.config import Config, load_config
@@ -24,6 +26,18 @@ SHARED_MODELS = (
     "revit2012_janesville_restaurant.ifc",
 )
 BASE = "https://example.org/test#"
+
+# Longer fuzz runs: HYPOTHESIS_PROFILE=long (500 examples per fuzz test, or HYPOTHESIS_MAX_EXAMPLES).
+settings.register_profile(
+    "long", max_examples=int(os.environ.get("HYPOTHESIS_MAX_EXAMPLES", "500")), deadline=None
+)
+if os.environ.get("HYPOTHESIS_PROFILE"):
+    settings.load_profile(os.environ["HYPOTHESIS_PROFILE"])
+
+
+def examples(n: int) -> int:
+    """``n`` examples in the default suite; the loaded profile's count when HYPOTHESIS_PROFILE is set."""
+    return settings.default.max_examples if os.environ.get("HYPOTHESIS_PROFILE") else n
 
 
 @pytest.fixture(scope="session")

@@ -24,6 +24,10 @@ UNKNOWN = np.int8(-1)
 
 GridData = npt.NDArray[np.int8]
 
+MAX_GRID_CELLS = 400_000_000
+"""The largest grid a frame may have (20,000 x 20,000 cells: a square kilometre at 5 cm, 400 MB).
+An extent that needs more comes from an element far from the rest of its building."""
+
 
 @dataclass(frozen=True, slots=True)
 class Window:
@@ -95,6 +99,13 @@ class GridFrame:
             msg = f"Grid extent must be finite and ordered, got {values!r}."
             raise MapError(msg)
         res = resolution_m
+        cells_x, cells_y = (xmax - xmin + 2 * margin_m) / res, (ymax - ymin + 2 * margin_m) / res
+        if not cells_x * cells_y <= MAX_GRID_CELLS:  # overflow to inf too
+            msg = (
+                f"Grid extent {values!r} at {res} m per cell needs about {cells_x:.3g} x {cells_y:.3g} "
+                f"cells, more than the limit of {MAX_GRID_CELLS:,}."
+            )
+            raise MapError(msg)
         ox = math.floor((xmin - margin_m) / res) * res
         oy = math.floor((ymin - margin_m) / res) * res
         width = math.ceil((xmax + margin_m - ox) / res - 1e-9)

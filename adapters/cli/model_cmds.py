@@ -24,7 +24,12 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     base_iri = check_base(args.base_iri or cfg.base_iri(site))
     model_path = Path(args.model)
     if not model_path.is_file():
-        msg = f"No such file: {model_path}"
+        kind = "a directory" if model_path.is_dir() else "not a regular file"
+        msg = (
+            f"{model_path} is {kind}, not an IFC file"
+            if model_path.exists()
+            else f"No such file: {model_path}"
+        )
         raise ModelError(msg)
     if store_exists(args, cfg):  # fail before meshing, which dominates the time
         with open_store(args, cfg) as store:

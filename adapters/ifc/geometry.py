@@ -24,7 +24,7 @@ import logging
 import multiprocessing as mp
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from types import TracebackType
@@ -36,6 +36,7 @@ import ifcopenshell.util.shape
 import numpy as np
 
 from adapters.ifc.routing import REFERENCE_KERNEL
+from twin.errors import ModelError
 from twin.meshops import is_closed, orient_faces
 from twin.records import Geometry, Mesh, check_placement
 
@@ -47,6 +48,9 @@ DEFAULT_KERNELS = ("manifold", "opencascade")
 _BATCH_SHAPES = 8  # small: what a crashing kernel had meshed is kept
 _BATCH_SECONDS = 0.05
 STALL_SECONDS = 300.0
+MAX_COORDINATE_M = 1e8
+"""A body farther than this from the origin (or not finite) is refused: the bad placement or
+coordinates of a broken file, which would stretch a storey's map over the whole planet."""
 
 
 @dataclass(slots=True)
@@ -84,6 +88,19 @@ def _make_mesh(vertices: np.ndarray, faces: np.ndarray) -> Mesh:
     if oriented is not None:
         return Mesh(v, oriented, True)
     return Mesh(v, f, False)
+
+
+def _geometry(mesh: Mesh, matrix: Any, reach: float) -> Geometry:
+    """``mesh`` placed by ``matrix``; raise ModelError when the result is not finite or absurdly far.
+
+    ``reach`` is the largest absolute vertex coordinate of the mesh (NaN if any is NaN).
+    """
+    placement = check_placement(matrix)
+    bound = float(np.abs(placement[:3, :3]).sum(axis=1).max()) * reach + float(np.abs(placement[:3, 3]).max())
+    if not bound <= MAX_COORDINATE_M:  # NaN too
+        msg = f"its body reaches {bound:.3g} m from the origin (limit {MAX_COORDINATE_M:.0e} m)"
+        raise ModelError(msg)
+    return Geometry(mesh, placement)
 
 
 def _settings() -> Any:
@@ -216,15 +233,19 @@ class MeshingJob:
         threads: int,
         progress: Progress | None,
         routed: Sequence[Any] = (),
+        skip: Collection[int] = (),
     ) -> None:
         self._f = f
         self._progress = progress
         with_body = {p.id() for p in products if getattr(p, "Representation", None) is not None}
+        self._skipped = sorted(with_body & set(skip))
+        with_body -= set(skip)
         routed_ids = {p.id() for p in routed} & with_body if REFERENCE_KERNEL in kernels else set()
         self._total = len(with_body)
         self._received = 0
         self._lock = threading.Lock()
         self._result = MeshResult()
+        self._refused: set[int] = set()
         reference_first = [REFERENCE_KERNEL, *(k for k in kernels if k != REFERENCE_KERNEL)]
         self._routes = [
             r
@@ -255,12 +276,27 @@ class MeshingJob:
     def _collect(self, route: _Route, run: _KernelRun) -> None:
         run.wait()
         meshes: dict[str, Mesh] = {}
+        reach: dict[str, float] = {}
         result = self._result
         for pid, geom_id, mesh, matrix in run.meshed:
             if mesh is not None:  # an empty mesh is no mesh: the next kernel tries
                 meshes[geom_id] = mesh
+                reach[geom_id] = float(np.abs(mesh.vertices).max(initial=0.0))
             if pid in route.pending and geom_id in meshes:
-                result.geometry[pid] = Geometry(meshes[geom_id], check_placement(matrix))
+                try:
+                    result.geometry[pid] = _geometry(meshes[geom_id], matrix, reach[geom_id])
+                except ModelError as err:  # left pending: the next kernel tries, then it is unmeshed
+                    if pid not in self._refused:
+                        self._refused.add(pid)
+                        product = self._f.by_id(pid)
+                        log.warning(
+                            "%s %s %s: %s; its geometry is refused",
+                            product.is_a(),
+                            product.GlobalId,
+                            product.Name or "",
+                            err,
+                        )
+                    continue
                 result.kernel_of[pid] = run.kernel
                 if run.kernel != route.first:
                     result.fallbacks.add(pid)
@@ -291,7 +327,9 @@ class MeshingJob:
             while route.run is not None:
                 self._collect(route, route.run)
                 self._next_kernel(route)
-        self._result.unmeshed = sorted(pid for route in self._routes for pid in route.pending)
+        self._result.unmeshed = sorted(
+            [*self._skipped, *(pid for route in self._routes for pid in route.pending)]
+        )
         if self._progress is not None and self._total:
             self._progress(self._total, self._total)
         return self._result
@@ -319,9 +357,13 @@ def start_meshing(
     threads: int = 2,
     progress: Progress | None = None,
     routed: Sequence[Any] = (),
+    skip: Collection[int] = (),
 ) -> MeshingJob:
     """Start meshing ``products`` (ifcopenshell entities) in the background; see :class:`MeshingJob`.
 
     ``routed`` products (a subset) go to the reference kernel first, when it is among ``kernels``.
+    Products whose id is in ``skip`` are not meshed: they are listed as unmeshed.
     """
-    return MeshingJob(f, products, kernels=kernels, threads=threads, progress=progress, routed=routed)
+    return MeshingJob(
+        f, products, kernels=kernels, threads=threads, progress=progress, routed=routed, skip=skip
+    )

@@ -11,6 +11,7 @@ Example::
 from __future__ import annotations
 
 import logging
+import math
 import uuid
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
@@ -25,7 +26,7 @@ import ifcopenshell.util.unit
 
 from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
-from adapters.ifc.open_file import open_ifc
+from adapters.ifc.open_file import open_ifc_checked
 from adapters.ifc.routing import reference_reason
 from twin.records import Building, BuildingModel, Element, Relation, Site, Space, Storey
 
@@ -94,9 +95,11 @@ def _hierarchy(f: Any) -> dict[int, Any]:
         for e in rel.RelatedObjects or ():
             up.setdefault(e.id(), rel.RelatingObject)
     for rel in f.by_type("IfcRelVoidsElement"):
-        up.setdefault(rel.RelatedOpeningElement.id(), rel.RelatingBuildingElement)
+        if rel.RelatedOpeningElement is not None:  # None: a reference the parser could not resolve
+            up.setdefault(rel.RelatedOpeningElement.id(), rel.RelatingBuildingElement)
     for rel in f.by_type("IfcRelFillsElement"):
-        up.setdefault(rel.RelatedBuildingElement.id(), rel.RelatingOpeningElement)
+        if rel.RelatedBuildingElement is not None:
+            up.setdefault(rel.RelatedBuildingElement.id(), rel.RelatingOpeningElement)
     return up
 
 
@@ -133,10 +136,28 @@ def _building_wide_storeys(path: Path, buildings: Sequence[Any], scale: float) -
 
 
 def _elevation_m(storey: Any, scale: float) -> float:
-    if storey.ObjectPlacement is not None:
-        matrix = ifcopenshell.util.placement.get_local_placement(storey.ObjectPlacement)
-        return float(matrix[2, 3]) * scale
-    return float(getattr(storey, "Elevation", None) or 0.0) * scale
+    """The storey's elevation from its placement (or its Elevation attribute), in metres; 0 with a
+    warning naming the storey when neither can be read (a placement of the wrong type, a text)."""
+    try:
+        if storey.ObjectPlacement is not None:
+            matrix = ifcopenshell.util.placement.get_local_placement(storey.ObjectPlacement)
+            elevation = float(matrix[2, 3]) * scale
+        else:
+            elevation = float(getattr(storey, "Elevation", None) or 0.0) * scale
+    except (AssertionError, AttributeError, TypeError, ValueError, RuntimeError) as err:
+        elevation, why = math.nan, f"{type(err).__name__}: {err}"
+    else:
+        why = "it is not a finite number"
+    if not math.isfinite(elevation):
+        log.warning(
+            "%s %s %r: its elevation cannot be read (%s); using 0 m",
+            storey.is_a(),
+            storey.GlobalId,
+            storey.Name,
+            why,
+        )
+        return 0.0
+    return elevation
 
 
 def _supertypes(schema: Any, ifc_class: str, cache: dict[str, tuple[str, ...]]) -> tuple[str, ...]:
@@ -207,14 +228,51 @@ def _relations(
     return adjacent, contained, decomposed
 
 
+_ENTITY_ERRORS = (RuntimeError, AttributeError, TypeError, ValueError, AssertionError, IndexError, KeyError)
+"""What reading a malformed entity raises: ifcopenshell parses lazily (RuntimeError wherever a corrupt
+entity is first read), and an attribute of the wrong type or a reference read as empty (None) fails
+in whatever uses it."""
+
+
 @contextmanager
 def _as_file_error(path: Path) -> Iterator[None]:
-    """ifcopenshell parses lazily: a corrupt entity raises RuntimeError wherever it is first read."""
+    """Re-raise what a malformed entity makes fail as IfcFileError (the traceback at debug level)."""
     try:
         yield
-    except RuntimeError as err:
-        msg = f"{path} cannot be read as IFC: {str(err).strip() or type(err).__name__}"
+    except (*_ENTITY_ERRORS, RecursionError, OverflowError) as err:
+        log.debug("reading %s failed", path, exc_info=True)
+        text = str(err).strip().splitlines()[0] if str(err).strip() else ""
+        msg = f"{path} cannot be read as IFC: {type(err).__name__}" + (f": {text}" if text else "")
         raise IfcFileError(msg) from err
+
+
+def _entity_name(e: Any) -> str:
+    return f"{e.is_a()} {e.GlobalId} {e.Name or ''}".strip()
+
+
+def _routed(elements: Sequence[Any]) -> list[Any]:
+    """The elements the reference kernel meshes first; one whose body cannot be inspected is not."""
+    routed = []
+    for e in elements:
+        try:
+            if reference_reason(e) is not None:
+                routed.append(e)
+        except _ENTITY_ERRORS as err:
+            log.warning("%s: its body cannot be inspected (%s: %s)", _entity_name(e), type(err).__name__, err)
+    return routed
+
+
+def _safe_material_sets(e: Any) -> tuple[list[Any], list[Any]]:
+    try:
+        return _material_sets(e)
+    except _ENTITY_ERRORS as err:
+        log.warning(
+            "%s: its materials cannot be read (%s: %s); imported without",
+            _entity_name(e),
+            type(err).__name__,
+            err,
+        )
+        return [], []
 
 
 def read_model(
@@ -226,9 +284,12 @@ def read_model(
     progress: Progress | None = None,
 ) -> BuildingModel:
     """Read ``path`` into records. Raise :class:`~adapters.ifc.errors.IfcFileError` on a bad file."""
-    f, lines = open_ifc(path)
+    f, lines, unplaceable = open_ifc_checked(path)
     with _as_file_error(path):
         scale = float(ifcopenshell.util.unit.calculate_unit_scale(f))
+        if not (math.isfinite(scale) and scale > 0):
+            msg = f"{path} has a length unit of {scale!r} m; it must be a positive number"
+            raise IfcFileError(msg)
         sites = f.by_type("IfcSite")
         buildings = f.by_type("IfcBuilding")
         storeys = f.by_type("IfcBuildingStorey")
@@ -241,10 +302,16 @@ def read_model(
                 "(no bot:adjacentElement); skills with unknown_outside cannot be mapped",
                 path,
             )
-        routed = [e for e in elements if reference_reason(e) is not None]
+        routed = _routed(elements)
         # Mesh in the background (forked children do the work) while this thread reads the structure.
         with start_meshing(
-            f, [*elements, *spaces], kernels=kernels, threads=threads, progress=progress, routed=routed
+            f,
+            [*elements, *spaces],
+            kernels=kernels,
+            threads=threads,
+            progress=progress,
+            routed=routed,
+            skip=unplaceable,
         ) as job:
             up = _hierarchy(f)
 
@@ -257,7 +324,7 @@ def read_model(
             infos = []
             for e in elements:
                 chain = _supertypes(schema, e.is_a(), type_cache)
-                every, facing = _material_sets(e)
+                every, facing = _safe_material_sets(e)
                 infos.append((e, chain, _names(every), _names(facing), any(t in chain for t in statics)))
             relations = _relations(f, elements, spaces=spaces, zones=[*storeys, *buildings, *sites])
             meshed = job.result()

@@ -495,3 +495,15 @@ def test_a_non_finite_vertex_is_named():
 def test_a_window_outside_the_grid_is_refused():
     with pytest.raises(MapError, match=r"Window .* must lie inside the grid of 56x64 cells"):
         rasterize_slab(GOOD, EL, CL, 0.0, 1.0, FRAME, Window(0, 0, 57, 10))
+
+
+@pytest.mark.parametrize(
+    "extent",
+    [(-1e308, 0.0, 1e308, 10.0), (0.0, 0.0, 1e6, 1e6), (0.0, 0.0, math.inf, 1.0)],
+    ids=["overflowing", "too-many-cells", "infinite"],
+)
+def test_a_frame_around_an_absurd_extent_raises_a_map_error(
+    extent: tuple[float, float, float, float],
+) -> None:
+    with pytest.raises(MapError, match="Grid extent"):
+        GridFrame.around(*extent, resolution_m=0.05)
