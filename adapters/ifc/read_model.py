@@ -26,7 +26,7 @@ import ifcopenshell.util.unit
 from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
 from adapters.ifc.open_file import open_ifc
-from adapters.ifc.routing import reference_reason
+from adapters.ifc.routing import routed_products
 from twin.records import Building, BuildingModel, Element, Relation, Site, Space, Storey
 
 log = logging.getLogger(__name__)
@@ -241,7 +241,7 @@ def read_model(
                 "(no bot:adjacentElement); skills with unknown_outside cannot be mapped",
                 path,
             )
-        routed = [e for e in elements if reference_reason(e) is not None]
+        routed = routed_products(elements)
         # Mesh in the background (forked children do the work) while this thread reads the structure.
         with start_meshing(
             f, [*elements, *spaces], kernels=kernels, threads=threads, progress=progress, routed=routed
