@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Final
 
@@ -26,7 +27,7 @@ from twin.errors import ModelError, StoreNotEmptyError
 from twin.extents import format_extent, storey_extents
 from twin.meshcodec import encode_mesh, encode_placement
 from twin.records import BuildingModel, Geometry
-from twin.store import GraphStore
+from twin.store import GraphStore, TextLoader
 
 log = logging.getLogger(__name__)
 
@@ -116,14 +117,18 @@ class _Triples:
         self.add(g, _CLOSED, _boolean(geometry.mesh.closed))
         self.add(g, _TRIANGLES, _integer(geometry.mesh.triangle_count))
 
-    def quads(self, source: str) -> Iterator[ox.Quad]:
-        """Every triple as a quad in the default graph; ModelError if the text does not parse."""
+    def data(self, source: str) -> bytes:
+        """The N-Triples text (UTF-8); ModelError if some text cannot be encoded (a lone surrogate)."""
         try:
-            yield from ox.parse("".join(self.lines).encode("utf-8"), format=ox.RdfFormat.N_QUADS)
-        except (SyntaxError, UnicodeEncodeError) as err:
+            return "".join(self.lines).encode("utf-8")
+        except UnicodeEncodeError as err:
             msg = f"{source}: the model cannot be written as RDF: {err}"
             raise ModelError(msg) from err
-        for node, ply in self.meshes:  # the nodes' IRIs parsed above: valid
+
+    def quads(self, source: str) -> Iterator[ox.Quad]:
+        """Every triple as a quad in the default graph."""
+        yield from ox.parse(self.data(source), format=ox.RdfFormat.N_QUADS)
+        for node, ply in self.meshes:
             yield ox.Quad(ox.NamedNode(node), _PLY, ply)
 
 
@@ -154,9 +159,22 @@ def mint_iris(model: BuildingModel, base_iri: str) -> dict[str, str]:
     return iri_of
 
 
-def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[ox.Quad]:
-    """All triples (in the default graph) of ``model``; IRIs minted under ``base_iri``."""
-    iri_of = {guid: _iri(iri) for guid, iri in mint_iris(model, base_iri).items()}
+def _checked_iris(model: BuildingModel, base_iri: str) -> dict[str, str]:
+    """GlobalId -> ``<IRI>`` (N-Triples) of every rooted node, each IRI (and its geometry node's) checked
+    as pyoxigraph checks it, so the text written later always parses."""
+    iri_of = mint_iris(model, base_iri)
+    for iri in (vocab.model_iri(base_iri), *iri_of.values()):
+        try:
+            ox.NamedNode(vocab.geometry_iri(iri))
+        except ValueError as err:
+            msg = f"{model.source_name}: the model cannot be written as RDF: {err} in IRI {iri!r}."
+            raise ModelError(msg) from err
+    return {guid: _iri(iri) for guid, iri in iri_of.items()}
+
+
+def _structure(model: BuildingModel, iri_of: dict[str, str], *, base_iri: str, site: str) -> _Triples:
+    """The triples that need no geometry: the model node, the spatial tree, classes, names, materials,
+    static flags and relations."""
     out = _Triples()
     add = out.add
 
@@ -167,7 +185,7 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
             add(node, _NAME, label)
             add(node, _LABEL, label)
 
-    m = _iri(vocab.model_iri(vocab.check_base(base_iri)))
+    m = _iri(vocab.model_iri(base_iri))
     add(m, _TYPE, _iri(vocab.TWIN_MODEL))
     add(m, _LABEL, _text(site))
     add(m, _iri(vocab.TWIN_SOURCE), _text(model.source_name))
@@ -185,15 +203,12 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
         if b.site_guid in iri_of:
             add(iri_of[b.site_guid], _iri(vocab.BOT_HAS_BUILDING), node)
     used_keys: set[str] = set()
-    extents = storey_extents(model)
     for st in sorted(model.storeys, key=lambda s: (s.elevation_m, s.name)):
         node = iri_of[st.guid]
         add(node, _TYPE, _iri(vocab.BOT_STOREY))
         names(node, st.guid, st.name)
         add(node, _iri(vocab.TWIN_ELEVATION), str(ox.Literal(float(st.elevation_m))))  # xsd:double
         add(node, _iri(vocab.TWIN_STOREY_KEY), _text(vocab.storey_key(st.name, used_keys)))
-        if st.guid in extents:
-            add(node, _iri(vocab.TWIN_EXTENT), _text(format_extent(extents[st.guid])))
         if st.building_guid in iri_of:
             add(iri_of[st.building_guid], _iri(vocab.BOT_HAS_STOREY), node)
     for sp in model.spaces:
@@ -202,10 +217,6 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
         names(node, sp.guid, sp.name)
         if sp.storey_guid in iri_of:
             add(iri_of[sp.storey_guid], _iri(vocab.BOT_HAS_SPACE), node)
-        if sp.geometry is not None:
-            out.geometry(node[1:-1], sp.geometry)
-    failed = set(model.mesh_failures)
-    fallbacks = set(model.kernel_fallbacks)
     semantic_of: dict[str, str | None] = {}
     for el in model.elements:
         node = iri_of[el.guid]
@@ -224,14 +235,6 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
         for mat in el.facing_materials:
             add(node, _FACING_MATERIAL, _text(mat))
         add(node, _IS_STATIC, _boolean(el.is_static))
-        if el.geometry is not None:
-            out.geometry(node[1:-1], el.geometry)
-            if el.mesh_kernel:
-                add(node, _MESH_KERNEL, _text(el.mesh_kernel))
-        if el.guid in failed:
-            add(node, _iri(vocab.TWIN_MESH_FAILED), _TRUE)
-        if el.guid in fallbacks:
-            add(node, _iri(vocab.TWIN_KERNEL_FALLBACK), _TRUE)
     for rel, pred in (
         (model.adjacent, vocab.BOT_ADJACENT_ELEMENT),
         (model.contained, vocab.BOT_CONTAINS_ELEMENT),
@@ -245,7 +248,47 @@ def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[o
                 log.debug(
                     "Skipping %s relation %s -> %s: an end is not in the model", pred, r.subject, r.object
                 )
-    yield from out.quads(model.source_name)
+    return out
+
+
+def _geometry(model: BuildingModel, iri_of: dict[str, str]) -> _Triples:
+    """The triples that need the meshes: storey extents, geometry nodes, kernels, failures, fallbacks."""
+    out = _Triples()
+    extents = storey_extents(model)
+    for st in model.storeys:
+        if st.guid in extents:
+            out.add(iri_of[st.guid], _iri(vocab.TWIN_EXTENT), _text(format_extent(extents[st.guid])))
+    for sp in model.spaces:
+        if sp.geometry is not None:
+            out.geometry(iri_of[sp.guid][1:-1], sp.geometry)
+    failed = set(model.mesh_failures)
+    fallbacks = set(model.kernel_fallbacks)
+    for el in model.elements:
+        node = iri_of[el.guid]
+        if el.geometry is not None:
+            out.geometry(node[1:-1], el.geometry)
+            if el.mesh_kernel:
+                out.add(node, _MESH_KERNEL, _text(el.mesh_kernel))
+        if el.guid in failed:
+            out.add(node, _iri(vocab.TWIN_MESH_FAILED), _TRUE)
+        if el.guid in fallbacks:
+            out.add(node, _iri(vocab.TWIN_KERNEL_FALLBACK), _TRUE)
+    return out
+
+
+def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[ox.Quad]:
+    """All triples (in the default graph) of ``model``; IRIs minted under ``base_iri``."""
+    base_iri = vocab.check_base(base_iri)
+    iri_of = _checked_iris(model, base_iri)
+    yield from _structure(model, iri_of, base_iri=base_iri, site=site).quads(model.source_name)
+    yield from _geometry(model, iri_of).quads(model.source_name)
+
+
+def _load(store: GraphStore, triples: _Triples, source: str) -> None:
+    if isinstance(store, TextLoader) and not triples.meshes:
+        store.bulk_load_ntriples(triples.data(source))
+    else:
+        store.bulk_add(triples.quads(source))
 
 
 def ensure_importable(store: GraphStore, *, replace: bool) -> None:
@@ -260,10 +303,26 @@ def import_model(
 ) -> ImportSummary:
     """Write ``model`` into ``store``. A non-empty store is an error unless ``replace`` is set."""
     ensure_importable(store, replace=replace)
-    quads = list(model_quads(model, base_iri=base_iri, site=site))  # every check passes before a clear
-    if replace:
+    base_iri = vocab.check_base(base_iri)
+    iri_of = _checked_iris(model, base_iri)
+    structure = _structure(model, iri_of, base_iri=base_iri, site=site)
+    if replace:  # every check passes before the old graph goes
+        geometry = _geometry(model, iri_of)
         store.clear()
-    store.bulk_add(quads)
+        _load(store, structure, model.source_name)
+    else:
+        # The store loads the structure (no GIL held while it parses text) while this thread builds
+        # the geometry part; if building it fails, the store is emptied again.
+        with ThreadPoolExecutor(1, thread_name_prefix="twin-import") as pool:
+            loading = pool.submit(_load, store, structure, model.source_name)
+            try:
+                geometry = _geometry(model, iri_of)
+            except BaseException:
+                wait([loading])
+                store.clear()
+                raise
+            loading.result()
+    _load(store, geometry, model.source_name)
     meshes = sum(1 for e in model.elements if e.geometry is not None)
     if model.mesh_failures:
         log.info(

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import io
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pyoxigraph as ox
@@ -24,7 +25,7 @@ from twin.import_model import import_model, mint_iris
 from twin.meshcodec import encode_mesh, encode_placement
 from twin.records import BuildingModel, Geometry, Mesh, Relation, Space, Storey
 from twin.shapes import box_mesh, box_placement
-from twin.store import EmbeddedStore
+from twin.store import EmbeddedStore, TextLoader
 
 
 def _n(iri: str) -> ox.NamedNode:
@@ -125,7 +126,13 @@ def _reference_quads(model: BuildingModel, *, base_iri: str, site: str) -> Itera
 def _awkward_lab() -> BuildingModel:
     """The two-storey box lab with hard text, shared meshes, failures, fallbacks and a meshed space."""
     lab = box_lab(storeys=2)
-    names = ['Wall "A" \\ west', "line\nbreak\rand\ttab", "Wärme — 断熱 😀", "back\\u0041slash", ""]
+    names = [
+        'Wall "A" \\ west',
+        "line\nbreak\rand\ttab",
+        "Wärme — 断熱 😀\u2028",
+        "back\\u0041slash \x00\x01\x7f",
+        "",
+    ]
     shared = box_mesh(0.5, 0.5, 0.5)
     elements = []
     for i, el in enumerate(lab.elements):
@@ -196,3 +203,49 @@ def test_world_bounds_use_only_the_vertices_some_face_uses() -> None:
         got = _bounds(geometry, {})
         assert got is not None
         assert np.array_equal(got, expected)
+
+
+class _QuadsOnly:
+    """A GraphStore that takes quads only (like a remote store): no N-Triples text loading."""
+
+    def __init__(self, inner: EmbeddedStore) -> None:
+        self._inner = inner
+
+    def __getattr__(self, name: str) -> object:
+        if name == "bulk_load_ntriples":
+            raise AttributeError(name)
+        return getattr(self._inner, name)
+
+    def __len__(self) -> int:
+        return len(self._inner)
+
+
+def test_a_store_that_takes_only_quads_gets_the_same_graph() -> None:
+    model = _awkward_lab()
+    with EmbeddedStore.open(None) as text, EmbeddedStore.open(None) as quads:
+        import_model(text, model, base_iri=BASE, site="lab")
+        assert not isinstance(_QuadsOnly(quads), TextLoader)
+        import_model(_QuadsOnly(quads), model, base_iri=BASE, site="lab")  # type: ignore[arg-type]
+        assert _nquads(quads._store) == _nquads(text._store)
+
+
+def _with_bad_placement(model: BuildingModel) -> BuildingModel:
+    el = model.elements[-1]
+    assert el.geometry is not None
+    bad = Geometry(el.geometry.mesh, np.full((4, 4), np.nan))
+    return dataclasses.replace(model, elements=(*model.elements[:-1], dataclasses.replace(el, geometry=bad)))
+
+
+def test_a_geometry_that_cannot_be_written_leaves_an_empty_store_empty_and_replace_keeps_the_old_graph(
+    tmp_path: Path,
+) -> None:
+    bad = _with_bad_placement(box_lab())
+    with EmbeddedStore.open(tmp_path / "store") as store:
+        with pytest.raises(ModelError, match="placement"):
+            import_model(store, bad, base_iri=BASE, site="lab")
+        assert store.is_empty()
+        import_model(store, box_lab(), base_iri=BASE, site="lab")
+        before = _nquads(store._store)
+        with pytest.raises(ModelError, match="placement"):
+            import_model(store, bad, base_iri=BASE, site="lab", replace=True)
+        assert _nquads(store._store) == before
