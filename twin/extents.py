@@ -14,17 +14,28 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.records import BuildingModel, Geometry
+from twin.records import BuildingModel, FloatArray, Geometry, Mesh
 
 Extent = tuple[float, float, float, float]
 
 
-def _bounds(geometry: Geometry | None) -> np.ndarray | None:
+def _used_vertices(mesh: Mesh) -> FloatArray:
+    """``(k, 3) float64``: the vertices some face uses, in index order (``vertices[np.unique(faces)]``)."""
+    used = np.zeros(len(mesh.vertices), dtype=bool)
+    used[mesh.faces.ravel()] = True
+    return mesh.vertices if used.all() else mesh.vertices[used]
+
+
+def _bounds(geometry: Geometry | None, used_of: dict[int, FloatArray]) -> np.ndarray | None:
+    """``(4,)``: xmin, ymin, xmax, ymax of the world vertices; ``used_of`` caches used vertices per mesh."""
     if geometry is None or not geometry.mesh.triangle_count:
         return None
-    used = geometry.mesh.vertices[np.unique(geometry.mesh.faces)]
+    used = used_of.get(id(geometry.mesh))
+    if used is None:
+        used = used_of[id(geometry.mesh)] = _used_vertices(geometry.mesh)
     world = used @ geometry.placement[:3, :3].T + geometry.placement[:3, 3]
-    return np.concatenate([world.min(axis=0)[:2], world.max(axis=0)[:2]])
+    xy = np.ascontiguousarray(world[:, :2].T)  # (2, k): reducing along rows is ~4x faster than (k, 2)
+    return np.concatenate([xy.min(axis=1), xy.max(axis=1)])
 
 
 def _union(boxes: list[np.ndarray]) -> Extent | None:
@@ -36,8 +47,9 @@ def _union(boxes: list[np.ndarray]) -> Extent | None:
 
 def storey_extents(model: BuildingModel) -> dict[str, Extent]:
     """``{storey GlobalId: (xmin, ymin, xmax, ymax)}`` in world metres, for every storey of ``model``."""
-    bounds = {e.guid: b for e in model.elements if (b := _bounds(e.geometry)) is not None}
-    bounds.update({s.guid: b for s in model.spaces if (b := _bounds(s.geometry)) is not None})
+    used_of: dict[int, FloatArray] = {}  # instances share a mesh: find its used vertices once
+    bounds = {e.guid: b for e in model.elements if (b := _bounds(e.geometry, used_of)) is not None}
+    bounds.update({s.guid: b for s in model.spaces if (b := _bounds(s.geometry, used_of)) is not None})
     everything = _union([bounds[e.guid] for e in model.elements if e.guid in bounds])
     parts: dict[str, list[str]] = {}
     for r in model.decomposed:

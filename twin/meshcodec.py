@@ -93,7 +93,7 @@ def decode_mesh(text: str) -> Mesh:
 def encode_placement(matrix: FloatArray) -> str:
     """A 4x4 matrix as 16 space-separated numbers, row-major, shortest exact repr."""
     m = check_placement(matrix)
-    return " ".join(repr(float(x)) for x in m.ravel())
+    return " ".join(map(repr, m.ravel().tolist()))  # tolist: Python floats, as repr(float(x))
 
 
 def decode_placement(text: str) -> FloatArray:

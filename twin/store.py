@@ -19,7 +19,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Protocol, Self
+from typing import IO, Protocol, Self, runtime_checkable
 
 import pyoxigraph as ox
 
@@ -97,6 +97,13 @@ class GraphStore(Protocol):
     def turtle_size(self) -> int: ...
 
     def close(self) -> None: ...
+
+
+@runtime_checkable
+class TextLoader(Protocol):
+    """A store that can bulk-load N-Triples text itself (faster than quads built in Python)."""
+
+    def bulk_load_ntriples(self, data: bytes) -> None: ...
 
 
 def _term(term: Term | None) -> str | None:
@@ -218,6 +225,15 @@ class EmbeddedStore:
     def bulk_add(self, quads: Iterable[ox.Quad]) -> None:
         """Add many quads at once (initial loads). Not atomic: use :meth:`add` for live changes."""
         self._writable().bulk_extend(quads)
+
+    def bulk_load_ntriples(self, data: bytes) -> None:
+        """Add N-Triples text at once (initial loads; not atomic). The parsing and writing run without
+        the GIL, so another thread can work meanwhile."""
+        try:
+            self._writable().bulk_load(data, format=ox.RdfFormat.N_TRIPLES)
+        except SyntaxError as err:
+            msg = f"N-Triples to load do not parse: {err}"
+            raise StoreError(msg) from err
 
     def add(self, quads: Iterable[ox.Quad]) -> None:
         """Add quads atomically."""

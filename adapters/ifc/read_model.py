@@ -27,7 +27,7 @@ import ifcopenshell.util.unit
 from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
 from adapters.ifc.open_file import open_ifc_checked
-from adapters.ifc.routing import reference_reason
+from adapters.ifc.routing import Router
 from twin.records import Building, BuildingModel, Element, Relation, Site, Space, Storey
 
 log = logging.getLogger(__name__)
@@ -252,10 +252,10 @@ def _entity_name(e: Any) -> str:
 
 def _routed(elements: Sequence[Any]) -> list[Any]:
     """The elements the reference kernel meshes first; one whose body cannot be inspected is not."""
-    routed = []
+    routed, router = [], Router()  # one router: it remembers its answers per class and shared item
     for e in elements:
         try:
-            if reference_reason(e) is not None:
+            if router.reason(e) is not None:
                 routed.append(e)
         except _ENTITY_ERRORS as err:
             log.warning("%s: its body cannot be inspected (%s: %s)", _entity_name(e), type(err).__name__, err)
