@@ -17,6 +17,7 @@ import numpy as np
 import pyoxigraph as ox
 import pytest
 
+import twin.import_model
 from tests.twin.box_lab import BASE, box_lab
 from twin import vocab
 from twin.errors import ModelError
@@ -171,7 +172,11 @@ def _nquads(store: ox.Store) -> list[bytes]:
     return sorted(buf.getvalue().splitlines())
 
 
-def test_the_imported_graph_equals_the_reference_writers_term_for_term() -> None:
+@pytest.mark.parametrize("min_part", [5_000, 1], ids=["one-load", "parallel-loads"])
+def test_the_imported_graph_equals_the_reference_writers_term_for_term(
+    min_part: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(twin.import_model, "_MIN_PART", min_part)  # 1: the structure loads in halves
     model = _awkward_lab()
     expected = ox.Store()
     expected.extend(_reference_quads(model, base_iri=BASE, site='lab "x"'))
