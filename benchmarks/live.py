@@ -62,6 +62,25 @@ def _proc_mb(pid: int, field: str) -> float:
     return 0.0
 
 
+def serve(*args: str) -> tuple[subprocess.Popen[str], str]:
+    """Start ``twin serve ARGS`` and wait for its "serving" line; return the process and that line."""
+    daemon = subprocess.Popen(
+        _twin("serve", *args),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        cwd=ROOT,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    assert daemon.stdout is not None
+    line = ""
+    while "serving site" not in line:
+        line = daemon.stdout.readline()
+        if not line:
+            raise RuntimeError(f"the daemon did not start: exit code {daemon.wait()}")
+    return daemon, line
+
+
 def _pct(values: list[float], q: float) -> float:
     return float(np.percentile(np.array(values), q)) if values else float("nan")
 
@@ -199,25 +218,12 @@ def run_model(name: str, count: int, *, record: bool = False, remote: bool = Fal
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     t0 = time.perf_counter()
     rrd = work / "run.rrd"
-    daemon = subprocess.Popen(
-        _twin(
-            "serve",
-            *(["--store-url", url] if remote else ["--store", str(store)]),
-            "--listen",
-            endpoint,
-            *(["--record", str(rrd)] if record else ["--no-record"]),
-        ),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    daemon, line = serve(
+        *(["--store-url", url] if remote else ["--store", str(store)]),
+        "--listen",
+        endpoint,
+        *(["--record", str(rrd)] if record else ["--no-record"]),
     )
-    assert daemon.stdout is not None
-    line = ""
-    while "serving site" not in line:
-        line = daemon.stdout.readline()
-        if not line:
-            raise RuntimeError("daemon did not start")
     startup_wall = time.perf_counter() - t0
     maps_published_s = float(line.rsplit(" in ", 1)[1].split()[0])
     rss_start = _proc_mb(daemon.pid, "VmRSS")

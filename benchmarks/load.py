@@ -30,7 +30,6 @@ import argparse
 import bisect
 import hashlib
 import json
-import os
 import random
 import subprocess
 import sys
@@ -177,20 +176,8 @@ def run(
     work = Path(tempfile.mkdtemp(prefix="load-"))
     store = store or live.prepare_store("lab", work)
     endpoint = f"tcp/127.0.0.1:{live._free_port()}"
-    daemon = subprocess.Popen(
-        live._twin("serve", "--store", str(store), "--listen", endpoint, "--no-record"),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        cwd=live.ROOT,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )
+    daemon, _ = live.serve("--store", str(store), "--listen", endpoint, "--no-record")
     assert daemon.stdout is not None
-    line = ""
-    while "serving site" not in line:
-        line = daemon.stdout.readline()
-        if not line:
-            raise RuntimeError("the daemon did not start")
     threading.Thread(target=daemon.stdout.read, daemon=True).start()  # drain its log
     subs = [_child("subscriber", endpoint, stdin=True) for _ in range(subscribers)]
     for s in subs:
@@ -245,8 +232,8 @@ def run(
             if a["nav"] and k < len(revs):
                 latencies.append(float(first[k]) - a["sent"])
     acks = [a["acked"] - a["sent"] for a in acked]
-    warm = [mb for t, mb in rss if t >= duration / 4]
-    span = [(t, mb) for t, mb in rss if t >= duration / 4]
+    span = [(t, mb) for t, mb in rss if t >= duration / 4]  # after warm-up
+    warm = [mb for _, mb in span]
     slope = (
         float(np.polyfit([t for t, _ in span], [mb for _, mb in span], 1)[0]) * 60 if len(span) > 2 else 0.0
     )

@@ -118,20 +118,7 @@ def start_daemon(store: Path, connect: str | None) -> tuple[subprocess.Popen[str
     endpoint = f"tcp/127.0.0.1:{live._free_port()}"
     extra = ["--connect", connect] if connect else []
     t0 = time.time()
-    daemon = subprocess.Popen(
-        live._twin("serve", "--store", str(store), "--listen", endpoint, "--no-record", *extra),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-        cwd=live.ROOT,
-    )
-    assert daemon.stdout is not None
-    line = ""
-    while "serving site" not in line:
-        line = daemon.stdout.readline()
-        if not line:
-            raise RuntimeError(f"daemon did not start: exit code {daemon.wait()}")
+    daemon, line = live.serve("--store", str(store), "--listen", endpoint, "--no-record", *extra)
     return daemon, t0, line, endpoint
 
 

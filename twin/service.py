@@ -335,7 +335,7 @@ class TwinService:
                 self._handle_batch(batch)
                 handled += len(batch)
             else:
-                self._handle(request)
+                self._handle_skill(request)
                 handled += 1
                 request = None
             self.flush_full_maps(due_only=True)
@@ -354,13 +354,11 @@ class TwinService:
         self.process()
         self.flush_full_maps()
 
-    def _handle(self, request: _Observe | _Skill) -> None:
+    def _handle_skill(self, request: _Skill) -> None:
         try:
-            reply = (
-                self._observe_batch([request])[0] if isinstance(request, _Observe) else self._skill(request)
-            )
+            reply = self._skill(request)
         except Exception as err:  # a bug must cost one request, never the daemon
-            log.exception("Internal error while handling %s", type(request).__name__)
+            log.exception("Internal error while handling a skill")
             reply = Reply.error(f"Internal error ({type(err).__name__}): {err}")
         self._send(request, reply)
 
