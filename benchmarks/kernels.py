@@ -6,6 +6,7 @@ and how many disagree with the reference (volume within 1 %, world bounding box 
 
     .venv/bin/python benchmarks/kernels.py                 # every shared model
     .venv/bin/python benchmarks/kernels.py janesville      # models by part of their file name
+    .venv/bin/python benchmarks/kernels.py --no-routing    # what they would be without kernel routing
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
+SHOWN = 20
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "ifc"
 
 
@@ -26,6 +28,9 @@ def main() -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("models", nargs="*", help="parts of model file names (default: all)")
+    parser.add_argument(
+        "--no-routing", action="store_true", help="mesh every body with manifold first (what routing fixes)"
+    )
     args = parser.parse_args()
     if not SHARED.is_dir():
         print(f"shared models not found at {SHARED}; nothing to check")
@@ -36,7 +41,7 @@ def main() -> int:
     bad = 0
     for path in paths:
         t0 = time.perf_counter()
-        model = read_model(path)
+        model = read_model(path, routing=not args.no_routing)
         t1 = time.perf_counter()
         found = disagreements(path, model)
         t2 = time.perf_counter()
@@ -47,8 +52,14 @@ def main() -> int:
             + f"; no mesh {len(model.mesh_failures)}; disagree with OpenCASCADE {len(found)}"
             + f" (read {t1 - t0:.1f} s, reference {t2 - t1:.1f} s)"
         )
-        for d in found:
+        for d in found[:SHOWN]:
             print(f"  {d.guid} {d.ifc_class} ({d.kernel}): {d.reason}")
+        if len(found) > SHOWN:
+            by_class = Counter(f"{d.ifc_class} ({d.kernel})" for d in found)
+            print(
+                f"  ... and {len(found) - SHOWN} more; by class: "
+                + ", ".join(f"{c} {n}" for c, n in by_class.most_common())
+            )
         bad += len(found)
     return 1 if bad else 0
 

@@ -85,8 +85,11 @@ def _median(rows: list[Row], key: str) -> float | None:
     return statistics.median(values) if values else None
 
 
-def import_summary(model: str, bare: list[Row], twin: list[Row]) -> Row:
-    """One model's import numbers: medians over the fresh-process repeats, peak = max over them."""
+def import_summary(model: str, bare: list[Row], twin: list[Row], routed: Sequence[Row] = ()) -> Row:
+    """One model's import numbers: medians over the fresh-process repeats, peak = max over them.
+
+    ``routed`` are the bare iterators with our kernel routing (older JSON files have none).
+    """
     ok_bare = [r for r in bare if r["ok"]]
     ok_twin = [r for r in twin if r["ok"]]
     out: Row = {"model": model}
@@ -108,8 +111,13 @@ def import_summary(model: str, bare: list[Row], twin: list[Row]) -> Row:
             out[key] = ok_twin[0][key]
     else:
         out["twin_error"] = twin[0]["error"] if twin else "not run"
+    ok_routed = [r for r in routed if r["ok"]]
+    if ok_routed:
+        out["routed_s"] = _median(ok_routed, "seconds")
     if out.get("bare_s") and out.get("twin_s"):
         out["overhead"] = out["twin_s"] / out["bare_s"]
+    if out.get("routed_s") and out.get("twin_s"):
+        out["overhead_routed"] = out["twin_s"] / out["routed_s"]
     return out
 
 
@@ -125,7 +133,8 @@ def import_targets(s: Row) -> str:
 def import_table(summaries: list[Row]) -> str:
     headers = [
         "model", "bare s", "bare MB", "shapes", "twin s", "read s", "store s", "twin MB", "cpu s",
-        "elements", "meshes", "triangles", "fallbk", "fail", "twin/bare", "targets",
+        "elements", "meshes", "triangles", "fallbk", "fail", "routed s", "twin/bare", "twin/routed",
+        "targets",
     ]  # fmt: skip
     rows = []
     for s in summaries:
@@ -137,7 +146,8 @@ def import_table(summaries: list[Row]) -> str:
                 twin_s, secs(s.get("read_s")), secs(s.get("store_s")), mb(s.get("twin_peak_mb")),
                 secs(s.get("twin_cpu_s")), count(s.get("elements")), count(s.get("meshes")),
                 count(s.get("triangles")), count(s.get("kernel_fallbacks")), count(s.get("mesh_failures")),
-                f"{s['overhead']:.2f}x" if "overhead" in s else "-", import_targets(s),
+                secs(s.get("routed_s")), f"{s['overhead']:.2f}x" if "overhead" in s else "-",
+                f"{s['overhead_routed']:.2f}x" if "overhead_routed" in s else "-", import_targets(s),
             ]
         )  # fmt: skip
     return table(headers, rows)

@@ -49,6 +49,8 @@ def child_main(args: argparse.Namespace) -> int:
     path = Path(args.model)
     if args.child == "bare":
         result = tasks.bare_iterator(path)
+    elif args.child == "bare-routed":
+        result = tasks.bare_routed_iterator(path)
     elif args.child == "import":
         result = tasks.twin_import(path, Path(args.store_dir))
     elif args.child == "stats":
@@ -232,11 +234,13 @@ def run_imports(
     summaries: list[dict[str, Any]] = []
     stats: list[dict[str, Any]] = []
     for model in models:
-        bare, twin = [], []
+        bare, routed, twin = [], [], []
         kept: Path | None = None
         for i in range(repeat):
             o = run(f"{model.stem} bare iterator #{i + 1}", ["bare", "--model", str(model)])
             bare.append(o.row(section="import", model=model.stem, row="bare iterator", repeat=i))
+            o = run(f"{model.stem} bare routed iterators #{i + 1}", ["bare-routed", "--model", str(model)])
+            routed.append(o.row(section="import", model=model.stem, row="bare routed iterators", repeat=i))
             store_dir = workdir / f"{model.stem}-{i}.store"
             o = run(
                 f"{model.stem} twin import #{i + 1}",
@@ -245,8 +249,8 @@ def run_imports(
             twin.append(o.row(section="import", model=model.stem, row="twin import", repeat=i))
             if o.ok and kept is None:
                 kept = store_dir
-        raw += bare + twin
-        summaries.append(report.import_summary(model.stem, bare, twin))
+        raw += bare + routed + twin
+        summaries.append(report.import_summary(model.stem, bare, twin, routed))
         if kept is not None:
             o = run(f"{model.stem} table 1", ["stats", "--model", str(model), "--store-dir", str(kept)])
             stats.append(o.row(section="table1", model=model.stem, row="model_stats"))

@@ -3,6 +3,9 @@
 Tasks:
     bare      ifcopenshell.open + geometry iterator (manifold kernel, 2 threads, our settings) over every
               IfcElement and IfcSpace with a representation, pulling vertices, faces and matrix of each.
+    bare-routed  the same with our kernel routing: the products ``adapters.ifc.routing`` sends to
+              OpenCASCADE meshed by it (1 thread) while manifold (2 threads) meshes the rest, in two
+              threads of one process: the geometry our import must compute, without anything else.
     import    ``adapters.ifc.read_model`` + ``twin.import_model.import_model`` into an on-disk store.
     stats     ``twin.stats.model_stats`` of the store an ``import`` child left behind (the paper's Table 1).
     map       setup (in-memory import, scene, selection, plan), then one method: ``twin-full``,
@@ -147,6 +150,67 @@ def bare_iterator(path: Path) -> dict[str, Any]:
         "products": len(products),
         "shapes": shapes,
         "triangles": triangles,
+    }
+
+
+def _iterate(f: Any, products: list[Any], kernel: str, threads: int) -> tuple[int, int]:
+    """Run one geometry iterator, pulling every shape's vertices, faces and matrix: (shapes, triangles)."""
+    import ifcopenshell.geom
+    import ifcopenshell.util.shape
+
+    settings = ifcopenshell.geom.settings()
+    settings.set("use-world-coords", False)
+    settings.set("weld-vertices", True)
+    it = ifcopenshell.geom.iterator(settings, f, threads, include=products, geometry_library=kernel)
+    shapes = triangles = 0
+    more = bool(it.initialize()) if products else False
+    while more:
+        shape = it.get()
+        ifcopenshell.util.shape.get_vertices(shape.geometry)
+        faces = ifcopenshell.util.shape.get_faces(shape.geometry)
+        ifcopenshell.util.shape.get_shape_matrix(shape)
+        shapes += 1
+        triangles += len(faces) // 3
+        more = bool(it.next())
+    return shapes, triangles
+
+
+def bare_routed_iterator(path: Path) -> dict[str, Any]:
+    """The bare iterators with our kernel routing: the reference kernel beside manifold, in threads."""
+    import threading
+
+    import ifcopenshell
+
+    from adapters.ifc.routing import REFERENCE_KERNEL, Router
+
+    t0 = time.perf_counter()
+    f = ifcopenshell.open(str(path))
+    t_open = time.perf_counter() - t0
+    products = [p for p in (*f.by_type("IfcElement"), *f.by_type("IfcSpace")) if p.Representation is not None]
+    router = Router()
+    routed = [p for p in products if router.reason(p) is not None]
+    routed_ids = {p.id() for p in routed}
+    rest = [p for p in products if p.id() not in routed_ids]
+    counts: dict[str, tuple[int, int]] = {}
+
+    def run(kernel: str, chosen: list[Any], threads: int) -> None:
+        counts[kernel] = _iterate(f, chosen, kernel, threads)
+
+    runs = [
+        threading.Thread(target=run, args=("manifold", rest, THREADS)),
+        threading.Thread(target=run, args=(REFERENCE_KERNEL, routed, 1)),
+    ]
+    for t in runs:
+        t.start()
+    for t in runs:
+        t.join()
+    return {
+        "seconds": time.perf_counter() - t0,
+        "open_s": t_open,
+        "products": len(products),
+        "routed": len(routed),
+        "shapes": sum(n for n, _ in counts.values()),
+        "triangles": sum(t for _, t in counts.values()),
     }
 
 

@@ -282,8 +282,13 @@ def read_model(
     kernels: Sequence[str] = DEFAULT_KERNELS,
     threads: int = 2,
     progress: Progress | None = None,
+    routing: bool = True,
 ) -> BuildingModel:
-    """Read ``path`` into records. Raise :class:`~adapters.ifc.errors.IfcFileError` on a bad file."""
+    """Read ``path`` into records. Raise :class:`~adapters.ifc.errors.IfcFileError` on a bad file.
+
+    ``routing=False`` gives every body to the first kernel, even those it gets wrong
+    (:mod:`adapters.ifc.routing`): only to measure what the routing fixes (``benchmarks/kernels.py``).
+    """
     f, lines, unplaceable = open_ifc_checked(path)
     with _as_file_error(path):
         scale = float(ifcopenshell.util.unit.calculate_unit_scale(f))
@@ -302,7 +307,7 @@ def read_model(
                 "(no bot:adjacentElement); skills with unknown_outside cannot be mapped",
                 path,
             )
-        routed = _routed(elements)
+        routed = _routed(elements) if routing else []
         # Mesh in the background (forked children do the work) while this thread reads the structure.
         with start_meshing(
             f,

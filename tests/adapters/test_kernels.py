@@ -12,6 +12,7 @@ from pathlib import Path
 import ifcopenshell
 import pytest
 
+from adapters.ifc import read_model
 from adapters.ifc.kernel_check import MeshMeasures, compare, disagreements
 from adapters.ifc.routing import REFERENCE_KERNEL, reference_reason
 from tests.adapters.generated import Generated
@@ -51,6 +52,15 @@ def test_the_clipped_knee_wall_of_fzk_haus_is_meshed_by_the_reference_kernel(rea
     assert wall.geometry is not None
     top = wall.geometry.world_vertices()[:, 2].max()
     assert top < 3.5, f"the wall is clipped by the roof at about 3.4 m, its mesh reaches {top:.2f} m"
+
+
+def test_without_routing_manifold_leaves_the_knee_wall_unclipped() -> None:
+    """The control of the test above: the fast kernel alone gets this wall wrong, silently."""
+    model = read_model(shared_model("AC20-FZK-Haus.ifc"), routing=False)
+    wall = next(e for e in model.elements if e.guid == "25OWQvmXj5BPgyergP43tY")
+    assert wall.mesh_kernel == "manifold"
+    assert wall.geometry is not None
+    assert wall.geometry.world_vertices()[:, 2].max() > 5.0
 
 
 def test_boolean_results_are_found_through_mapped_items() -> None:
