@@ -38,14 +38,17 @@ def is_edge_closed(faces: IntArray) -> bool:
 
 
 def is_closed(faces: IntArray) -> bool:
-    """True if ``faces`` is watertight and consistently oriented: each directed edge (a, b) occurs
-    exactly once and so does its reverse (b, a). The vertices must be welded for this to mean solid."""
+    """True if ``faces`` bounds a volume, consistently oriented: every directed edge (a, b) occurs as
+    often as its reverse (b, a). The vertices must be welded for this to mean solid.
+
+    Usually each edge is walked once each way; an element made of solids that touch along an edge (the
+    treads of a spiral stair) walks that edge twice each way, and still has a winding number, so it
+    still fills when sliced."""
     if faces.size == 0:
         return False
     a, b = _edges(faces)
     n = int(faces.max()) + 1
-    forward = np.sort(a * n + b)
-    return bool((forward[1:] != forward[:-1]).all() and np.array_equal(forward, np.sort(b * n + a)))
+    return bool(np.array_equal(np.sort(a * n + b), np.sort(b * n + a)))
 
 
 def orient_faces(faces: IntArray) -> IntArray | None:

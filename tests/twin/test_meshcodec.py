@@ -12,6 +12,7 @@ from twin.errors import ModelError
 from twin.meshcodec import decode_mesh, decode_placement, encode_mesh, encode_placement
 from twin.meshops import is_closed, is_edge_closed, orient_faces
 from twin.records import Mesh
+from twin.shapes import box_mesh
 
 TETRA = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]], dtype=np.int32)
 
@@ -32,10 +33,24 @@ def test_the_closed_flag_round_trips() -> None:
     assert decode_mesh(encode_mesh(mesh)).closed is True
 
 
-def test_closedness_needs_every_edge_twice() -> None:
+def test_closedness_needs_every_edge_walked_as_often_one_way_as_the_other() -> None:
     assert is_closed(TETRA)
     assert not is_closed(TETRA[:3])
-    assert not is_closed(np.concatenate([TETRA, TETRA]))
+    flipped = TETRA.copy()
+    flipped[0] = flipped[0, ::-1]
+    assert not is_closed(flipped)
+    assert not is_closed(np.concatenate([TETRA, TETRA[:2]]))
+
+
+def test_solids_touching_along_an_edge_are_closed_like_the_steps_of_a_stair() -> None:
+    first = box_mesh(1.0, 1.0, 1.0)
+    second = box_mesh(1.0, 1.0, 1.0)  # moved by (1, 0, 1): the two boxes share one edge
+    vertices = np.concatenate([first.vertices, second.vertices + np.array([1.0, 0.0, 1.0])])
+    vertices, inverse = np.unique(vertices, axis=0, return_inverse=True)
+    faces = inverse.reshape(-1)[np.concatenate([first.faces, second.faces + len(first.vertices)])]
+    assert len(vertices) == 14  # welded: the shared edge's two vertices are one
+    assert not is_edge_closed(faces)  # that edge has four faces
+    assert is_closed(faces)
 
 
 def test_a_flipped_face_makes_a_mesh_edge_closed_but_not_closed_until_reoriented() -> None:
