@@ -281,10 +281,7 @@ def test_maps_match_an_exact_polygon_reference_on_shared_models(shared_scene, co
     store, scene = shared_scene
     rng = np.random.default_rng(5)
     checked = 0
-    # On the large model (3.3 M triangles since curved profiles are meshed by OpenCASCADE) the shapely
-    # reference of a navigation window takes minutes: the suite checks its thin lidar slab only.
-    large = len(scene.elements.triangles) > 2_500_000
-    for name in ("localization",) if large else ("localization", "navigation"):
+    for name in ("localization", "navigation"):
         skill = config.skill(name)
         iris = selected(store, skill)
         for storey in scene.storeys[:3]:
