@@ -394,3 +394,22 @@ def test_the_opencascade_reference_finds_a_wall_moved_by_two_cells_and_a_lost_wa
     assert {c.guid for c in check.culprits} == {guid}
     lost, invented = one_sided(_moved(scene, wall, None), {wall: guid}, occ, ids)
     assert (lost, invented) == ([(guid, "IfcWallStandardCase")], [])
+
+
+def test_an_inflated_skill_matches_the_opencascade_reference_dilated_by_the_same_disk(
+    shared_import: Callable[[str], tuple[Path, GraphStore, Scene]],
+) -> None:
+    path, store, scene = shared_import("AC20-FZK-Haus.ifc")
+    ids = element_ids(store)
+    storey = scene.storeys[0].key
+    thin = parse_skill("thin", {"kind": "navigation", "robot_height_m": 1.5})
+    fat = parse_skill("fat", {"kind": "navigation", "robot_height_m": 1.5, "inflation_radius_m": 0.2})
+    walls = [i for i in selected(store, fat) if ids[i][1] == "IfcWallStandardCase" and i in scene.shapes]
+    wall = next(i for i in walls if build_map(scene, plan_map(scene, fat, storey, [i])).occupied().any())
+    occ = occ_meshes(path, {ids[wall][0]})
+    checks = [
+        compare_map(scene, plan_map(scene, s, storey, [wall]), list(occ.values()), ids=ids)
+        for s in (thin, fat)
+    ]
+    assert all(c.agrees for c in checks)
+    assert checks[1].check.certain > checks[0].check.certain
