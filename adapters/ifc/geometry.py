@@ -66,28 +66,54 @@ class MeshResult:
     fallbacks: set[int] = field(default_factory=set)
 
 
-def weld(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Merge vertices with identical coordinates; positions are unchanged, indices remapped."""
+NEAR_WELD_M = 1e-9
+"""Second try at welding an open mesh: vertices this close are one vertex. OpenCASCADE's boolean
+results (a wall with its openings cut out) can leave the two copies of a vertex 1e-12 m apart, so a
+bitwise weld leaves the solid open and its section unfilled in the maps (LargeBuilding's outside wall
+1F6umJ5H50aeL3A1As_wTm). Only a second try: it also joins touching bodies of one element (a skylight's
+frame and curb) at edges that four faces then share, which the bitwise weld keeps apart."""
+
+
+def weld(vertices: np.ndarray, faces: np.ndarray, *, near_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Merge vertices with identical coordinates; positions are unchanged, indices remapped.
+
+    With ``near_m``, vertices in one grid cell of that pitch are merged (into the first copy), and
+    faces that collapse to a line or a point are dropped.
+    """
     if len(vertices) == 0:
         return vertices, faces
-    unique, inverse = np.unique(vertices, axis=0, return_inverse=True)
-    if len(unique) == len(vertices):
+    if near_m <= 0:
+        unique, inverse = np.unique(vertices, axis=0, return_inverse=True)
+        if len(unique) == len(vertices):
+            return vertices, faces
+        return unique, inverse.reshape(-1)[faces].astype(np.int32)
+    _, first, inverse = np.unique(np.round(vertices / near_m), axis=0, return_index=True, return_inverse=True)
+    if len(first) == len(vertices):
         return vertices, faces
-    return unique, inverse.reshape(-1)[faces].astype(np.int32)
+    f = inverse.reshape(-1)[faces].astype(np.int32)
+    kept = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+    return vertices[first], f[kept]
+
+
+def _closed_mesh(vertices: np.ndarray, faces: np.ndarray) -> Mesh | None:
+    """The mesh as a consistently oriented solid (faces flipped where needed), or None if not watertight."""
+    if is_closed(faces):
+        return Mesh(vertices, faces, True)
+    oriented = orient_faces(faces)
+    return Mesh(vertices, oriented, True) if oriented is not None else None
 
 
 def _make_mesh(vertices: np.ndarray, faces: np.ndarray) -> Mesh:
     """A Mesh with its closedness. Only when the kernel's output is not a consistently oriented solid
-    are its vertices welded and, if it is watertight, its faces re-oriented."""
+    are its vertices welded (bitwise, then within ``NEAR_WELD_M``) and, if it is watertight, its faces
+    re-oriented."""
     if is_closed(faces):
         return Mesh(vertices, faces, True)
     v, f = weld(vertices, faces)
-    if is_closed(f):
-        return Mesh(v, f, True)
-    oriented = orient_faces(f)
-    if oriented is not None:
-        return Mesh(v, oriented, True)
-    return Mesh(v, f, False)
+    closed = _closed_mesh(v, f)
+    if closed is None:
+        closed = _closed_mesh(*weld(v, f, near_m=NEAR_WELD_M))
+    return closed if closed is not None else Mesh(v, f, False)
 
 
 def _geometry(mesh: Mesh, matrix: Any, reach: float) -> Geometry:

@@ -13,11 +13,13 @@ import numpy as np
 import pytest
 
 from adapters.ifc import IfcFileError, read_model
+from adapters.ifc.geometry import _make_mesh
 from adapters.sample_lab import LabLayout, write_lab
 from tests.conftest import SHARED_MODELS, imported, shared_model
 from twin import vocab
 from twin.meshcodec import decode_mesh, decode_placement
 from twin.records import BuildingModel
+from twin.shapes import box_mesh
 from twin.store import GraphStore, literal_value
 
 MODELS = ["lab", *SHARED_MODELS]
@@ -235,6 +237,24 @@ def test_meshes_read_back_equal_ifcopenshell_world_meshes(case) -> None:
             -1, 3
         )
         _assert_same_points(_world_vertices(store, element.guid), expected)
+
+
+def test_a_solid_whose_vertex_copies_lie_a_hair_apart_is_welded_into_a_closed_mesh() -> None:
+    box = box_mesh(1.0, 2.0, 3.0)
+    copies = box.vertices[box.faces].reshape(-1, 3)  # every triangle with its own vertices
+    copies[::2, 0] += 1e-12  # as OpenCASCADE leaves them around a cut-out opening
+    faces = np.arange(len(copies), dtype=np.int32).reshape(-1, 3)
+    mesh = _make_mesh(copies, faces)
+    assert mesh.closed
+    assert len(mesh.vertices) == 8
+    assert len(mesh.faces) == len(box.faces)
+
+
+def test_the_outside_wall_with_two_windows_cut_out_of_largebuilding_is_a_closed_solid(read_cached) -> None:
+    model = read_cached(shared_model("LargeBuilding.ifc"))
+    wall = next(e for e in model.elements if e.guid == "1F6umJ5H50aeL3A1As_wTm")
+    assert wall.geometry is not None
+    assert wall.geometry.mesh.closed, "its section must be filled in the maps, not only outlined"
 
 
 def test_a_glass_wall_is_found_by_a_sparql_query_on_material(lab_store: GraphStore, lab) -> None:
