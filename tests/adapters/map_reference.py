@@ -50,15 +50,7 @@ boxes are within 1 cm (``adapters.ifc.kernel_check.Tolerance.bbox_m``): curved f
 differently, within each kernel's deflection. With 5 cm cells that is a fifth of a cell: a wall off by
 a cell, a lost element, a wrong placement or an unfilled solid still show."""
 
-PINNED: dict[tuple[str, str], str] = {
-    ("AC20-FZK-Haus.ifc", "38a9vdh9bF5Qg28GWyHhlr"): (
-        "The spiral stair (IfcStair 'Wendeltreppe') is 45 closed solids that touch along 29 edges, "
-        "each then shared by four faces. twin.meshops.is_closed wants every directed edge exactly once, "
-        "so the stored mesh is open and its section is not filled: at the lidar height the treads are "
-        "outlined, 27 cells inside them are free. The reference fills every mesh whose edges are "
-        "used an even number of times."
-    ),
-}
+PINNED: dict[tuple[str, str], str] = {}
 """(model file, GlobalId) -> why the element's map differs from the reference. Pinned elements are
 left out of both sides; the benchmark reports them."""
 
