@@ -18,7 +18,8 @@ from collections import Counter
 from pathlib import Path
 
 SHOWN = 20
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "ifc"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from run import SHARED_IFC, find_models  # noqa: E402  (benchmarks/ is not a package)
 
 
 def main() -> int:
@@ -32,12 +33,10 @@ def main() -> int:
         "--no-routing", action="store_true", help="mesh every body with manifold first (what routing fixes)"
     )
     args = parser.parse_args()
-    if not SHARED.is_dir():
-        print(f"shared models not found at {SHARED}; nothing to check")
+    if not SHARED_IFC.is_dir():
+        print(f"shared models not found at {SHARED_IFC}; nothing to check")
         return 0
-    paths = sorted(SHARED.glob("*.ifc"))
-    if args.models:
-        paths = [p for p in paths if any(m.lower() in p.name.lower() for m in args.models)]
+    paths = find_models(args.models, quick=False)
     bad = 0
     for path in paths:
         t0 = time.perf_counter()

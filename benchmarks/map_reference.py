@@ -21,7 +21,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "data" / "ifc"
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from run import SHARED_IFC, find_models  # noqa: E402  (benchmarks/ is not a package)
+
 WIDTHS = (9, 8, 8, 6, 6, 6)
 
 
@@ -37,12 +39,10 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("models", nargs="*", help="parts of model file names (default: all)")
     args = parser.parse_args()
-    if not SHARED.is_dir():
-        print(f"shared models not found at {SHARED}; nothing to check")
+    if not SHARED_IFC.is_dir():
+        print(f"shared models not found at {SHARED_IFC}; nothing to check")
         return 0
-    paths = sorted(SHARED.glob("*.ifc"))
-    if args.models:
-        paths = [p for p in paths if any(m.lower() in p.name.lower() for m in args.models)]
+    paths = find_models(args.models, quick=False)
     config = load_config()
     skills = [config.skill("localization"), config.skill("navigation")]
     print(f"tolerance {TOLERANCE_M * 100:g} cm; skills {', '.join(s.name for s in skills)}")
