@@ -201,12 +201,29 @@ def test_any_window_recomputed_alone_equals_the_full_map_on_the_lab(lab_store, l
 SHARED_FOR_MAPS = ["AC20-FZK-Haus.ifc", "AC11-Institute-Var-2-IFC.ifc", "revit2012_janesville_restaurant.ifc"]
 
 
+@pytest.fixture(scope="module")
+def shared_import(
+    read_cached: Callable[[Path], BuildingModel],
+) -> Callable[[str], tuple[Path, GraphStore, Scene]]:
+    """``name -> (path, store, scene)`` of a shared model, imported once per module."""
+    cache: dict[str, tuple[Path, GraphStore, Scene]] = {}
+
+    def get(name: str) -> tuple[Path, GraphStore, Scene]:
+        if name not in cache:
+            path = shared_model(name)
+            store = imported(read_cached(path))
+            cache[name] = (path, store, load_scene(store))
+        return cache[name]
+
+    return get
+
+
 @pytest.fixture(scope="module", params=SHARED_FOR_MAPS)
 def shared_scene(
-    request: pytest.FixtureRequest, read_cached: Callable[[Path], BuildingModel]
+    request: pytest.FixtureRequest, shared_import: Callable[[str], tuple[Path, GraphStore, Scene]]
 ) -> tuple[GraphStore, Scene]:
-    store = imported(read_cached(shared_model(request.param)))
-    return store, load_scene(store)
+    _, store, scene = shared_import(request.param)
+    return store, scene
 
 
 def test_windows_equal_the_full_map_bit_for_bit_on_shared_models(shared_scene, config: Config) -> None:
@@ -309,23 +326,6 @@ SMALL_SHARED = [
     "LargeBuilding.ifc",
 ]
 DEFAULT_SKILLS = ("localization", "navigation")
-
-
-@pytest.fixture(scope="module")
-def shared_import(
-    read_cached: Callable[[Path], BuildingModel],
-) -> Callable[[str], tuple[Path, GraphStore, Scene]]:
-    """``name -> (path, store, scene)`` of a shared model, imported once per module."""
-    cache: dict[str, tuple[Path, GraphStore, Scene]] = {}
-
-    def get(name: str) -> tuple[Path, GraphStore, Scene]:
-        if name not in cache:
-            path = shared_model(name)
-            store = imported(read_cached(path))
-            cache[name] = (path, store, load_scene(store))
-        return cache[name]
-
-    return get
 
 
 @pytest.mark.parametrize("name", SMALL_SHARED)
