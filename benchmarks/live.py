@@ -7,7 +7,7 @@ Measures, per model:
 - end-to-end latency: from sending an acked observation (a table moved around the busiest storey) to
   the receipt of the ``OccupancyGridUpdate`` by the subscriber (another process than the daemon),
   p50/p99 over N observations; and the ack round trip;
-- recompute: the same changes applied incrementally (:meth:`twin.engine.MapEngine.apply`) against a
+- recompute: the same changes applied incrementally (:meth:`twin.live.live_maps.LiveMaps.apply`) against a
   full rebuild of the affected maps, in this process.
 
 Usage::
@@ -126,7 +126,7 @@ def busiest(store: Path) -> tuple[str, tuple[float, float, float, float], float]
 def recompute(store: Path, storey: str, positions: list[tuple[float, float]]) -> dict[str, float]:
     """Incremental apply vs full rebuild of the affected maps, in process, on a copy of the store."""
     from twin.config import load_config
-    from twin.service import TwinService
+    from twin.live import TwinService
     from twin.store import EmbeddedStore
 
     copy = Path(tempfile.mkdtemp()) / "store"

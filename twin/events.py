@@ -1,6 +1,6 @@
 """What the twin service tells the outside world: events, and the sinks that receive them.
 
-The service (:mod:`twin.service`) is the single writer of the twin. After every committed change it
+The service (:mod:`twin.live`) is the single writer of the twin. After every committed change it
 emits events, in order, to each :class:`TwinSink` it was given: the Zenoh publishers, the Rerun
 recorder, a test's list. A sink's ``emit`` runs on the service's thread and must return quickly (hand
 slow work, such as writing a recording, to a thread of its own); an exception in a sink is logged and

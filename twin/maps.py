@@ -106,7 +106,8 @@ def prepare_slab(scene: Scene, plan: MapPlan, ids: IndexArray | None = None) -> 
     return PreparedSlab(chosen, slab_geometry(triangles, owner, closed, plan.z_lo, plan.z_hi))
 
 
-def _occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -> BoolGrid:
+def occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -> BoolGrid:
+    """Which cells of ``window`` the elements ``ids`` of ``meshes`` touch within the plan's slab."""
     f = plan.frame
     res, eps = f.resolution_m, 1e-6
     box = SlabBox(
@@ -161,7 +162,7 @@ Layer = tuple[MeshSet, IndexArray]
 
 
 def _render(
-    occupancy: Callable[[Window], BoolGrid], plan: MapPlan, window: Window, spaces: MeshSet
+    occupied_in: Callable[[Window], BoolGrid], plan: MapPlan, window: Window, spaces: MeshSet
 ) -> GridData:
     window = window.intersect(plan.frame.full)
     if window.empty:
@@ -170,14 +171,14 @@ def _render(
     padded = Window(window.row0 - pad, window.col0 - pad, window.row1 + pad, window.col1 + pad).intersect(
         plan.frame.full
     )
-    occupied = occupancy(padded)
+    occupied = occupied_in(padded)
     if pad:
         occupied = dilate_disk(occupied, plan.inflation_cells)
     r0, c0 = window.row0 - padded.row0, window.col0 - padded.col0
     occupied = occupied[r0 : r0 + window.shape[0], c0 : c0 + window.shape[1]]
     data = np.where(occupied, OCCUPIED, FREE).astype(np.int8)
     if plan.skill.unknown_outside:
-        inside = _occupancy(spaces, plan.spaces, plan, window)
+        inside = occupancy(spaces, plan.spaces, plan, window)
         data[~inside & ~occupied] = UNKNOWN
     return data
 
@@ -191,30 +192,30 @@ def render_window(
     only the plan's other elements are sliced from their triangles; the cells are the same.
     """
 
-    def occupancy(padded: Window) -> BoolGrid:
+    def occupied_in(padded: Window) -> BoolGrid:
         if prepared is None:
-            return _occupancy(scene.elements, plan.selected, plan, padded)
+            return occupancy(scene.elements, plan.selected, plan, padded)
         occupied = rasterize(prepared.geometry, plan.frame, padded)
         rest = np.setdiff1d(plan.selected, prepared.ids, assume_unique=True)
         if len(rest):
-            occupied |= _occupancy(scene.elements, rest, plan, padded)
+            occupied |= occupancy(scene.elements, rest, plan, padded)
         return occupied
 
-    return _render(occupancy, plan, window, scene.spaces)
+    return _render(occupied_in, plan, window, scene.spaces)
 
 
 def render_layers(layers: Sequence[Layer], plan: MapPlan, window: Window, *, spaces: MeshSet) -> GridData:
     """Like :func:`render_window`, for the union of several layers of elements (ignoring
     ``plan.selected``): what the live twin draws, the imported elements plus those robots changed."""
 
-    def occupancy(padded: Window) -> BoolGrid:
+    def occupied_in(padded: Window) -> BoolGrid:
         occupied = np.zeros(padded.shape, dtype=np.bool_)
         for meshes, ids in layers:
             if len(ids):
-                occupied |= _occupancy(meshes, ids, plan, padded)
+                occupied |= occupancy(meshes, ids, plan, padded)
         return occupied
 
-    return _render(occupancy, plan, window, spaces)
+    return _render(occupied_in, plan, window, spaces)
 
 
 def build_map(scene: Scene, plan: MapPlan, *, prepared: PreparedSlab | None = None) -> OccupancyGrid:

@@ -191,3 +191,15 @@ class BuildingModel:
     decomposed: frozenset[Relation]
     mesh_failures: tuple[str, ...] = ()
     kernel_fallbacks: tuple[str, ...] = ()
+
+
+Shape = tuple[Mesh, FloatArray]
+"""An element's geometry as the live twin holds it: a local mesh and its ``(4, 4)`` placement."""
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class GeometryChange:
+    """An element's geometry changed: ``new`` is its mesh and placement now, None if it has none."""
+
+    iri: str
+    new: Shape | None

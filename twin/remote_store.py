@@ -307,12 +307,18 @@ class RemoteStore:
         ):
             pass
 
-    def apply(self, changes: ChangeSet) -> None:
-        """Apply ``changes`` in one transaction (one update request), committed once this returns."""
-        if not changes:
+    def apply(self, changes: ChangeSet, *more: ChangeSet) -> None:
+        """Apply ``changes`` (then each of ``more``) in one transaction (one update request), committed
+        once this returns."""
+        todo = [c for c in (changes, *more) if c]
+        if not todo:
             return
-        # DELETE WHERE then INSERT DATA of fixed IRIs and literals: idempotent, so safe to resend.
-        self.update(changes_to_sparql(changes), retry=True)
+        # DELETE WHERE, DELETE DATA then INSERT DATA of fixed IRIs and literals: the whole sequence is
+        # idempotent, so safe to resend.
+        self.update(changes_to_sparql(*todo), retry=True)
+
+    def flush(self) -> None:
+        """Nothing to do: the server manages its own buffers."""
 
     def add(self, quads: Iterable[ox.Quad]) -> None:
         """Add quads atomically (one ``INSERT DATA`` request)."""

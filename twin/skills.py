@@ -110,7 +110,7 @@ def _strings(name: str, key: str, value: Any, pattern: re.Pattern[str] | None = 
         msg = f"Skill {name!r}: field {key!r} must be a list of non-empty strings, got {value!r}."
         raise SkillError(msg)
     for v in value:
-        if pattern is not None and not (pattern.match(v) or _class_iri(v)):
+        if pattern is not None and not (pattern.match(v) or class_iri(v)):
             msg = (
                 f"Skill {name!r}: field {key!r} has {v!r}, which is neither an IFC class name (IfcWall) "
                 "nor a class CURIE/IRI (beo:Wall, <https://...>)."
@@ -119,7 +119,8 @@ def _strings(name: str, key: str, value: Any, pattern: re.Pattern[str] | None = 
     return tuple(value)
 
 
-def _class_iri(value: str) -> str | None:
+def class_iri(value: str) -> str | None:
+    """The class IRI a CURIE (``beo:Wall``) or ``<IRI>`` names, None for anything else (an IFC name)."""
     m = _CURIE.match(value)
     if m and m["prefix"] in vocab.PREFIXES:
         return vocab.PREFIXES[m["prefix"]] + m["local"]
@@ -234,7 +235,7 @@ def _type_test(types: tuple[str, ...]) -> str:
     """A pattern true when ?element has one of ``types`` (IFC names with subtypes, or class IRIs)."""
     alternatives = []
     for t in types:
-        iri = _class_iri(t)
+        iri = class_iri(t)
         if iri is not None:
             alternatives.append(f"{{ ?element a <{iri}> }}")
         else:

@@ -57,18 +57,20 @@ class Triple:
 
 @dataclass(frozen=True, slots=True)
 class ChangeSet:
-    """One transaction: remove the triples matching ``remove``, then add ``add``.
+    """One change: remove the triples matching ``remove`` and the triples ``delete``, then add ``add``.
 
     Attributes:
         remove: ``(subject, predicate)`` patterns; ``predicate`` None removes every triple of the subject.
         add: the triples to insert.
+        delete: exact triples to remove (where a pattern would remove too much).
     """
 
     remove: tuple[tuple[str, str | None], ...] = ()
     add: tuple[Triple, ...] = ()
+    delete: tuple[Triple, ...] = ()
 
     def __bool__(self) -> bool:
-        return bool(self.remove or self.add)
+        return bool(self.remove or self.add or self.delete)
 
 
 class GraphStore(Protocol):
@@ -82,7 +84,9 @@ class GraphStore(Protocol):
 
     def query_serialized(self, sparql: str) -> tuple[str, bytes]: ...
 
-    def apply(self, changes: ChangeSet) -> None: ...
+    def apply(self, changes: ChangeSet, *more: ChangeSet) -> None: ...
+
+    def flush(self) -> None: ...
 
     def bulk_add(self, quads: Iterable[ox.Quad]) -> None: ...
 
@@ -127,17 +131,22 @@ def _nt_object(obj: Object) -> str:
     return _nt_iri(obj)
 
 
-def changes_to_sparql(changes: ChangeSet) -> str:
-    """The SPARQL 1.1 update of ``changes`` (one request: a store runs it in one transaction)."""
+def _nt(triples: tuple[Triple, ...]) -> str:
+    return "\n".join(f"{_nt_iri(t.subject)} {_nt_iri(t.predicate)} {_nt_object(t.object)} ." for t in triples)
+
+
+def changes_to_sparql(*changes: ChangeSet) -> str:
+    """The SPARQL 1.1 update of ``changes``, each applied in turn (one request: a store runs it in one
+    transaction)."""
     parts = []
-    for subject, predicate in changes.remove:
-        p = _nt_iri(predicate) if predicate is not None else "?p"
-        parts.append(f"DELETE WHERE {{ {_nt_iri(subject)} {p} ?o }}")
-    if changes.add:
-        body = "\n".join(
-            f"{_nt_iri(t.subject)} {_nt_iri(t.predicate)} {_nt_object(t.object)} ." for t in changes.add
-        )
-        parts.append(f"INSERT DATA {{\n{body}\n}}")
+    for change in changes:
+        for subject, predicate in change.remove:
+            p = _nt_iri(predicate) if predicate is not None else "?p"
+            parts.append(f"DELETE WHERE {{ {_nt_iri(subject)} {p} ?o }}")
+        if change.delete:
+            parts.append(f"DELETE DATA {{\n{_nt(change.delete)}\n}}")
+        if change.add:
+            parts.append(f"INSERT DATA {{\n{_nt(change.add)}\n}}")
     return " ;\n".join(parts)
 
 
@@ -239,11 +248,20 @@ class EmbeddedStore:
         """Add quads atomically."""
         self._writable().extend(quads)
 
-    def apply(self, changes: ChangeSet) -> None:
-        """Apply ``changes`` in one transaction (all or nothing), durable once this returns."""
-        if not changes:
-            return
-        self.update(changes_to_sparql(changes))
+    def apply(self, changes: ChangeSet, *more: ChangeSet) -> None:
+        """Apply ``changes`` (then each of ``more``, in turn) in one transaction (all or nothing),
+        durable once this returns."""
+        todo = [c for c in (changes, *more) if c]
+        if todo:
+            self.update(changes_to_sparql(*todo))
+
+    def flush(self) -> None:
+        """Write the store's in-memory buffers to its files (RocksDB memtables to SST files).
+
+        Commits are durable without it (the write-ahead log); the daemon calls it now and then so that
+        neither the memory the buffers hold nor the log grows with the number of changes."""
+        if self._handle is not None and not self.info.read_only and self.info.path is not None:
+            self._handle.flush()
 
     def update(self, sparql_update: str) -> None:
         """Run a SPARQL 1.1 update atomically (the vocabulary's prefixes are predefined)."""

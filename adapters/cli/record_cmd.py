@@ -10,7 +10,7 @@ from typing import Any
 from adapters.cli.common import add_store_args, human_size, open_store
 from adapters.rerun import RerunRecorder
 from twin.config import Config
-from twin.service import TwinService
+from twin.live import TwinService
 
 
 def cmd_record(args: argparse.Namespace, cfg: Config) -> int:

@@ -25,7 +25,7 @@ from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.errors import StoreNotFoundError
-from twin.service import TwinService
+from twin.live import TwinService
 
 log = logging.getLogger(__name__)
 

@@ -1,5 +1,5 @@
 """The Zenoh adapter: the daemon's publishers, queryables and subscribers, and the robot-side client.
 
 Modules: ``session`` (configuration), ``keys`` (key expressions), ``daemon`` (binds a
-:class:`twin.service.TwinService` to a session), ``client`` (what robots and the CLI use).
+:class:`twin.live.TwinService` to a session), ``client`` (what robots and the CLI use).
 """

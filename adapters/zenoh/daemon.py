@@ -1,4 +1,4 @@
-"""The daemon's Zenoh side: binds a :class:`twin.service.TwinService` to a session.
+"""The daemon's Zenoh side: binds a :class:`twin.live.TwinService` to a session.
 
 Declares, under the site's prefix (see :class:`~adapters.zenoh.keys.SiteKeys`):
 
@@ -38,7 +38,7 @@ from adapters.ros import encode_occupancy_grid, encode_update_cells
 from adapters.zenoh.keys import SiteKeys
 from twin.errors import TwinError
 from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
-from twin.service import Reply, TwinService
+from twin.live import Reply, TwinService
 
 log = logging.getLogger(__name__)
 

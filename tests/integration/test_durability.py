@@ -16,7 +16,7 @@ import numpy as np
 from adapters.zenoh.client import TwinClient
 from tests.integration.conftest import ROOT, Daemon, start_daemon
 from twin.config import load_config
-from twin.service import TwinService
+from twin.live import TwinService
 from twin.store import EmbeddedStore
 
 KILLS = 5

@@ -8,7 +8,7 @@ from tests.conftest import imported
 from tests.twin.box_lab import OX, OY, box_lab
 from twin.config import Config, load_config
 from twin.events import TwinEvent
-from twin.service import Reply, TwinService
+from twin.live import Reply, TwinService
 from twin.store import GraphStore
 
 TWIN = "https://w3id.org/building-twin#"

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from tests.twin.box_lab import element_iri, spec
 from tests.twin.live_helpers import TWIN, observe, started
 from twin.errors import QueryError
-from twin.service import TwinService
+from twin.live import TwinService
 
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
 

@@ -14,7 +14,9 @@ from twin.config import load_config
 from twin.errors import QueryError
 from twin.events import MapPublished, MapRemoved, MapUpdated, ObservationAccepted, ObservationRejected
 from twin.grid import OCCUPIED
-from twin.service import TwinService
+from twin.live import TwinService
+from twin.live.selection import selects
+from twin.skills import selection_query
 
 TABLE = "urn:robot1:table-1"
 
@@ -221,7 +223,8 @@ def test_accepted_observations_report_the_new_elements_with_their_geometry() -> 
     assert [e.iri for e in event.upserted] == [TABLE]
     assert event.upserted[0].ifc_class == "IfcFurniture" and event.upserted[0].mesh.triangle_count == 12
     status = service.status()
-    assert status["revision"] == 1 and status["observations"] == {"accepted": 1, "rejected": 0}
+    assert status["revision"] == 1
+    assert status["observations"] == {"accepted": 1, "unchanged": 0, "rejected": 0}
 
 
 def test_an_observed_glass_pane_is_seen_as_glass_and_a_fiberglass_crate_is_not() -> None:
@@ -234,8 +237,10 @@ def test_an_observed_glass_pane_is_seen_as_glass_and_a_fiberglass_crate_is_not()
     glassless = type(skill)(
         **{**{f: getattr(skill, f) for f in skill.__dataclass_fields__}, "exclude_materials": ("glass",)}
     )
-    selected = service._selected(glassless, ["urn:r:pane", "urn:r:crate"])
-    assert selected == {"urn:r:crate"}
+    only = ["urn:r:pane", "urn:r:crate"]
+    by_store = {r["element"] for r in service.store.select(selection_query(glassless, only))}
+    in_memory = {i for i in only if selects(glassless, service.states[i], has_geometry=True)}
+    assert by_store == in_memory == {"urn:r:crate"}
 
 
 def test_queued_observations_commit_one_by_one_and_share_one_map_pass_that_equals_a_rebuild() -> None:
@@ -250,9 +255,9 @@ def test_queued_observations_commit_one_by_one_and_share_one_map_pass_that_equal
         box_turtle("urn:robot1:b", 8.0, 1.9),
         box_turtle("urn:robot1:a", 6.5, 2.1),  # re-created after its removal, in the same batch
     ]
-    replies: list = []
-    for p in payloads:
-        service.submit_observation("robot1", p, replies.append)
+    replies: list = [None] * len(payloads)
+    for i, p in enumerate(payloads):
+        service.submit_observation("robot1", p, lambda r, i=i: replies.__setitem__(i, r))
     assert service.process() == len(payloads)
     one_by_one = [observe(other, "robot1", p) for p in payloads]
     assert (

@@ -1,0 +1,355 @@
+"""The live maps: the twin's geometry as it changes, and every skill map kept current, fast.
+
+The imported elements form a frozen base (:class:`~twin.scene.MeshSet`); what robots changed lives in
+an overlay, one small mesh set per element (a new element, a moved or reshaped one); a base element
+that was moved, reshaped or removed is hidden in the base.
+
+Each (storey, skill) map keeps, besides its cells:
+
+- ``static``: the occupancy (before inflation) of its selected, visible base elements over the whole
+  grid, rendered once at start and patched only when a base element changes (a door opened, a wall
+  removed: rare);
+- the occupancy of each selected overlay element in its own small window (cached per element and map,
+  dropped when the element changes).
+
+A map is the union of its elements' maps, so a window is re-rendered by OR-ing the static cells with
+the overlay elements that overlap it, then inflating; moving a table costs one rasterisation of the
+table, not of the walls around it. The result equals a full rebuild from the triangles bit for bit
+(:meth:`LiveMaps.rebuild` is that reference, and the tests hold the two together).
+
+Example::
+
+    maps = LiveMaps(scene, margin_m=1.0)
+    maps.add_map(skill, "ground-floor", selected_iris)
+    updates = maps.apply([GeometryChange(iri, new=(mesh, placement))], {skill.name: {iri: True}})
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from twin.grid import FREE, OCCUPIED, UNKNOWN, GridData, OccupancyGrid, Window
+from twin.maps import BoolGrid, MapPlan, dilate_disk, occupancy, plan_map, render_layers
+from twin.records import FloatArray, GeometryChange, Shape
+from twin.scene import IndexArray, MeshSet, Scene
+from twin.skills import SkillProfile
+
+MapKey = tuple[str, str]
+"""``(storey key, skill name)``."""
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class WindowUpdate:
+    """New cells of one map: ``data`` holds the values of ``window``; the map is now at ``version``."""
+
+    storey: str
+    skill: str
+    window: Window
+    data: GridData
+    version: int
+
+
+@dataclass(eq=False, slots=True)
+class LiveMap:
+    """One (storey, skill) map as the live twin keeps it."""
+
+    plan: MapPlan
+    base_mask: npt.NDArray[np.bool_]
+    """Which base elements the skill selects."""
+    overlay: set[str]
+    """Which overlay elements the skill selects."""
+    static: BoolGrid
+    """Occupancy (before inflation) of the selected, visible base elements, whole grid."""
+    inside: BoolGrid | None
+    """Cells inside a space (only for ``unknown_outside`` skills)."""
+    data: GridData
+    version: int = 1
+
+    @property
+    def key(self) -> MapKey:
+        return (self.plan.storey.key, self.plan.skill.name)
+
+    def grid(self) -> OccupancyGrid:
+        return OccupancyGrid(
+            frame=self.plan.frame,
+            data=self.data.copy(),
+            storey=self.plan.storey.key,
+            skill=self.plan.skill.name,
+            elevation_m=self.plan.storey.elevation_m,
+        )
+
+
+@dataclass(eq=False, slots=True)
+class _Element:
+    """One overlay element: its shape, as a mesh set of one, and its world bounds."""
+
+    shape: Shape
+    meshes: MeshSet
+    bounds: FloatArray | None
+
+    @classmethod
+    def of(cls, iri: str, shape: Shape) -> _Element:
+        meshes = MeshSet.build([(iri, shape[0], shape[1])])
+        b = meshes.bounds[0]
+        return cls(shape, meshes, None if np.isnan(b).any() else b)
+
+
+_ONE: IndexArray = np.zeros(1, dtype=np.intp)
+
+
+@dataclass(eq=False, slots=True)
+class _Rasters:
+    """Occupancy of each overlay element on each map's grid, in the element's own window."""
+
+    cells: dict[tuple[str, MapKey], tuple[Window, BoolGrid] | None] = field(default_factory=dict)
+
+    def drop(self, iri: str) -> None:
+        for key in [k for k in self.cells if k[0] == iri]:
+            del self.cells[key]
+
+
+def _grow(w: Window, pad: int) -> Window:
+    return Window(w.row0 - pad, w.col0 - pad, w.row1 + pad, w.col1 + pad)
+
+
+def _in_band(b: FloatArray, plan: MapPlan) -> bool:
+    return not (b[2] > plan.z_hi or b[5] < plan.z_lo)
+
+
+class LiveMaps:
+    """The live scene (base + overlay) and every map over it. Not thread-safe: one writer."""
+
+    def __init__(self, scene: Scene, *, margin_m: float) -> None:
+        self.scene = scene
+        self.margin_m = margin_m
+        self.hidden = np.zeros(len(scene.elements), dtype=np.bool_)
+        self._overlay: dict[str, _Element] = {}
+        self._rasters = _Rasters()
+        self.maps: dict[MapKey, LiveMap] = {}
+
+    # --- geometry ----------------------------------------------------------------------------------
+    def bounds_of(self, iri: str) -> FloatArray | None:
+        """``(6,)`` world AABB of the element's current geometry, None if it has none."""
+        el = self._overlay.get(iri)
+        if el is not None:
+            return el.bounds
+        i = self.scene.elements.index.get(iri)
+        if i is None or self.hidden[i]:
+            return None
+        b = self.scene.elements.bounds[i]
+        return None if np.isnan(b).any() else b
+
+    def shape_of(self, iri: str) -> Shape | None:
+        """The element's current local mesh and placement, None if it has none."""
+        el = self._overlay.get(iri)
+        if el is not None:
+            return el.shape
+        i = self.scene.elements.index.get(iri)
+        if i is None or self.hidden[i]:
+            return None
+        return self.scene.shapes.get(iri)
+
+    # --- rendering ----------------------------------------------------------------------------------
+    def _base_ids(self, m: LiveMap) -> IndexArray:
+        return np.flatnonzero(m.base_mask & ~self.hidden).astype(np.intp)
+
+    def _raster(self, m: LiveMap, iri: str, el: _Element) -> tuple[Window, BoolGrid] | None:
+        """The element's occupancy on ``m``'s grid in its own window (cached), None if it has none."""
+        key = (iri, m.key)
+        if key in self._rasters.cells:
+            return self._rasters.cells[key]
+        out: tuple[Window, BoolGrid] | None = None
+        b = el.bounds
+        if b is not None and _in_band(b, m.plan):
+            frame = m.plan.frame
+            win = _grow(frame.window_for(b[0], b[1], b[3], b[4]), 1).intersect(frame.full)
+            if not win.empty:
+                cells = occupancy(el.meshes, _ONE, m.plan, win)
+                out = (win, cells) if cells.any() else None
+        self._rasters.cells[key] = out
+        return out
+
+    def _occupancy(self, m: LiveMap, window: Window) -> BoolGrid:
+        """Occupancy (before inflation) of ``window``: the static cells OR each overlay element's."""
+        occ = m.static[window.row0 : window.row1, window.col0 : window.col1].copy()
+        for iri in m.overlay:
+            el = self._overlay.get(iri)
+            if el is None:
+                continue
+            hit = self._raster(m, iri, el)
+            if hit is None:
+                continue
+            win, cells = hit
+            w = win.intersect(window)
+            if w.empty:
+                continue
+            occ[w.row0 - window.row0 : w.row1 - window.row0, w.col0 - window.col0 : w.col1 - window.col0] |= (
+                cells[w.row0 - win.row0 : w.row1 - win.row0, w.col0 - win.col0 : w.col1 - win.col0]
+            )
+        return occ
+
+    def render(self, m: LiveMap, window: Window) -> GridData:
+        """The values of ``window`` of ``m`` from its static cells and overlay elements."""
+        plan = m.plan
+        window = window.intersect(plan.frame.full)
+        if window.empty:
+            return np.zeros((max(window.shape[0], 0), max(window.shape[1], 0)), dtype=np.int8)
+        pad = math.floor(plan.inflation_cells + 1e-9)
+        padded = _grow(window, pad).intersect(plan.frame.full)
+        occupied = self._occupancy(m, padded)
+        if pad:
+            occupied = dilate_disk(occupied, plan.inflation_cells)
+        r0, c0 = window.row0 - padded.row0, window.col0 - padded.col0
+        occupied = occupied[r0 : r0 + window.shape[0], c0 : c0 + window.shape[1]]
+        data = np.where(occupied, OCCUPIED, FREE).astype(np.int8)
+        if m.inside is not None:
+            inside = m.inside[window.row0 : window.row1, window.col0 : window.col1]
+            data[~inside & ~occupied] = UNKNOWN
+        return data
+
+    def rebuild(self, m: LiveMap) -> GridData:
+        """The full map rendered from scratch from the triangles (the reference the live one equals)."""
+        items = sorted((i, *self._overlay[i].shape) for i in m.overlay if i in self._overlay)
+        over = MeshSet.build([(i, mesh, p) for i, mesh, p in items])
+        layers = [(self.scene.elements, self._base_ids(m)), (over, np.arange(len(items), dtype=np.intp))]
+        return render_layers(layers, m.plan, m.plan.frame.full, spaces=self.scene.spaces)
+
+    # --- maps ---------------------------------------------------------------------------------------
+    def add_map(self, skill: SkillProfile, storey: str, selected: Iterable[str]) -> LiveMap:
+        """Plan and fully render the map of ``skill`` on ``storey`` from the selected IRIs."""
+        chosen = set(selected)
+        plan = plan_map(self.scene, skill, storey, (), margin_m=self.margin_m)
+        mask = np.zeros(len(self.scene.elements), dtype=np.bool_)
+        mask[self.scene.elements.indices_of(tuple(chosen))] = True
+        full = plan.frame.full
+        inside = occupancy(self.scene.spaces, plan.spaces, plan, full) if skill.unknown_outside else None
+        empty = np.zeros(full.shape, dtype=np.bool_)
+        m = LiveMap(plan, mask, {i for i in chosen if i in self._overlay}, empty, inside, empty.view(np.int8))
+        m.static = occupancy(self.scene.elements, self._base_ids(m), plan, full)
+        m.data = self.render(m, full)
+        self.maps[m.key] = m
+        return m
+
+    def remove_skill(self, name: str) -> list[MapKey]:
+        gone = [k for k in self.maps if k[1] == name]
+        for k in gone:
+            del self.maps[k]
+        for key in [k for k in self._rasters.cells if k[1][1] == name]:
+            del self._rasters.cells[key]
+        return gone
+
+    def _member(self, m: LiveMap, iri: str) -> bool:
+        if iri in self._overlay:
+            return iri in m.overlay
+        i = self.scene.elements.index.get(iri)
+        return i is not None and bool(m.base_mask[i]) and not bool(self.hidden[i])
+
+    def _base_member(self, m: LiveMap, iri: str) -> bool:
+        i = self.scene.elements.index.get(iri)
+        return i is not None and bool(m.base_mask[i]) and not bool(self.hidden[i])
+
+    def _windows(self, m: LiveMap, boxes: Sequence[FloatArray], pad: int) -> list[Window]:
+        """Disjoint windows of ``m`` covering ``boxes`` (world AABBs in the map's band), grown by ``pad``
+        cells; windows that touch are merged (a table moved across a storey dirties two small windows,
+        not the rectangle between them)."""
+        p = m.plan
+        windows = []
+        for b in boxes:
+            if not _in_band(b, p):
+                continue
+            grown = _grow(p.frame.window_for(b[0], b[1], b[3], b[4]), pad).intersect(p.frame.full)
+            if not grown.empty:
+                windows.append(grown)
+        merged = True
+        while merged and len(windows) > 1:
+            merged = False
+            for i in range(len(windows)):
+                for j in range(i + 1, len(windows)):
+                    a, c = windows[i], windows[j]
+                    if a.row0 <= c.row1 and c.row0 <= a.row1 and a.col0 <= c.col1 and c.col0 <= a.col1:
+                        windows[i] = Window(
+                            min(a.row0, c.row0), min(a.col0, c.col0), max(a.row1, c.row1), max(a.col1, c.col1)
+                        )
+                        del windows[j]
+                        merged = True
+                        break
+                if merged:
+                    break
+        return windows
+
+    def apply(
+        self,
+        geometry: Sequence[GeometryChange],
+        membership: Mapping[str, Mapping[str, bool]],
+    ) -> list[WindowUpdate]:
+        """Apply geometry changes and selection changes; re-render what they touch.
+
+        Args:
+            geometry: the elements whose geometry changed (new shape, or None when gone).
+            membership: per skill name, the new selection state of every element that changed in any
+                way (geometry, class, door state, ...): True if the skill now selects it.
+
+        Returns:
+            One update per changed region of each map (the bounding window of its changed cells), each
+            bringing that map to its next version.
+        """
+        touched = {c.iri for c in geometry} | {i for sel in membership.values() for i in sel}
+        old_bounds = {i: self.bounds_of(i) for i in touched}
+        was = {k: {i for i in touched if self._member(m, i)} for k, m in self.maps.items()}
+        was_base = {k: {i for i in touched if self._base_member(m, i)} for k, m in self.maps.items()}
+        base = self.scene.elements.index
+        for ch in geometry:
+            if ch.iri in base:
+                self.hidden[base[ch.iri]] = True
+            self._rasters.drop(ch.iri)
+            if ch.new is None:
+                self._overlay.pop(ch.iri, None)
+            else:
+                self._overlay[ch.iri] = _Element.of(ch.iri, ch.new)
+        for m in self.maps.values():
+            for iri, selected in membership.get(m.plan.skill.name, {}).items():
+                if iri in self._overlay and selected:
+                    m.overlay.add(iri)
+                else:
+                    m.overlay.discard(iri)
+                if iri in base:
+                    m.base_mask[base[iri]] = selected
+        new_bounds = {i: self.bounds_of(i) for i in touched}
+        updates = []
+        for key, m in self.maps.items():
+            # 1. the static cells where a base element left (or came back to) this map: rare
+            gone = [
+                b
+                for i in was_base[key] ^ {i for i in touched if self._base_member(m, i)}
+                if (b := old_bounds[i] if i in was_base[key] else new_bounds[i]) is not None
+            ]
+            if gone:
+                ids = self._base_ids(m)
+                for win in self._windows(m, gone, 1):
+                    m.static[win.row0 : win.row1, win.col0 : win.col1] = occupancy(
+                        self.scene.elements, ids, m.plan, win
+                    )
+            # 2. the cells every old and new footprint can change, grown by the inflation
+            boxes = [b for i in was[key] if (b := old_bounds[i]) is not None]
+            boxes += [b for i in touched if self._member(m, i) and (b := new_bounds[i]) is not None]
+            pad = math.ceil(m.plan.inflation_cells) + 1
+            fresh = [(win, self.render(m, win)) for win in self._windows(m, boxes, pad)]
+            for win, cells in fresh:  # all rendered before any is written
+                old = m.data[win.row0 : win.row1, win.col0 : win.col1]
+                diff = np.argwhere(cells != old)
+                if not len(diff):
+                    continue
+                (r0, c0), (r1, c1) = diff.min(axis=0), diff.max(axis=0) + 1
+                changed = Window(
+                    win.row0 + int(r0), win.col0 + int(c0), win.row0 + int(r1), win.col0 + int(c1)
+                )
+                old[...] = cells
+                m.version += 1
+                data = m.data[changed.row0 : changed.row1, changed.col0 : changed.col1].copy()
+                updates.append(WindowUpdate(m.plan.storey.key, m.plan.skill.name, changed, data, m.version))
+        return updates

@@ -1,0 +1,244 @@
+"""The hot path: a batch of robot observations, from payload to acks.
+
+For each observation, in order: parse it (an identical payload is parsed once: robots re-send the same
+bytes), plan it against the twin as the observations before it in the batch left it
+(:func:`~twin.live.plan.plan_observation`), and answer at once when it is invalid or changes nothing
+(a re-confirmation: ``"unchanged": true``, no revision). The observations that change something are
+committed together in one store transaction (group commit: each keeps its own revision and its changes
+apply in order), then the maps are brought up to date once for all of them and each is acked with its
+revision and the map rectangles that changed. An ack always follows the commit.
+
+Skill selection of the changed elements is answered from memory (:mod:`twin.live.selection`); only a
+skill with its own SPARQL pattern asks the store.
+
+Example::
+
+    observer = Observer(store, config, live, emit=sinks.emit, clock=time.time_ns)
+    observer.observe_batch([ObserveRequest("robot1", payload, reply, time.time_ns())])
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import ChainMap, OrderedDict
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from twin.config import Config
+from twin.errors import TwinError
+from twin.events import (
+    ElementShape,
+    MapChange,
+    MapUpdated,
+    ObservationAccepted,
+    ObservationRejected,
+    TwinEvent,
+)
+from twin.live.plan import ObservationPlan, plan_observation
+from twin.live.requests import ObserveRequest, Reply
+from twin.live.selection import needs_store, selects
+from twin.live.state import ElementState, LiveState, Sighting
+from twin.observations import ElementReport, parse_observation
+from twin.records import GeometryChange, Shape
+from twin.skills import SkillProfile, selection_query
+from twin.store import GraphStore
+
+log = logging.getLogger(__name__)
+
+_PARSED_CACHE = 1024  # distinct payloads whose parse is remembered (robots re-send the same bytes)
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class _Planned:
+    request: ObserveRequest
+    plan: ObservationPlan
+    revision: int
+
+
+def element_shapes(live: LiveState, iris: Sequence[str]) -> tuple[ElementShape, ...]:
+    """The current shape of the given elements (those with geometry)."""
+    out = []
+    for iri in iris:
+        shape = live.maps.shape_of(iri)
+        state = live.states.get(iri)
+        if shape is None or state is None:
+            continue
+        out.append(
+            ElementShape(
+                iri=iri,
+                ifc_class=state.ifc_class,
+                name=state.name,
+                storey=state.storey,
+                mesh=shape[0],
+                placement=shape[1],
+                is_static=state.is_static,
+                is_open=state.is_open,
+            )
+        )
+    return tuple(out)
+
+
+class Observer:
+    """Turns batches of observations into one commit, one map pass and their acks (the writer's job)."""
+
+    def __init__(
+        self,
+        store: GraphStore,
+        config: Config,
+        live: LiveState,
+        *,
+        emit: Callable[[TwinEvent], None],
+        send: Callable[[ObserveRequest, Reply], None],
+        clock: Callable[[], int],
+    ) -> None:
+        self.store = store
+        self.config = config
+        self.live = live
+        self.emit = emit
+        self.send = send
+        self.clock = clock
+        self.accepted = 0
+        self.unchanged = 0
+        self.rejected = 0
+        self.pending_full: dict[tuple[str, str], int] = {}
+        """Maps changed since their last full publication -> when the first such change happened (ns)."""
+        self._parsed: OrderedDict[bytes, tuple[ElementReport, ...]] = OrderedDict()
+
+    def _parse(self, payload: bytes) -> tuple[ElementReport, ...]:
+        reports = self._parsed.get(payload)
+        if reports is None:
+            reports = parse_observation(payload, limits=self.config.limits)
+            self._parsed[payload] = reports
+            if len(self._parsed) > _PARSED_CACHE:
+                self._parsed.popitem(last=False)
+        else:
+            self._parsed.move_to_end(payload)
+        return reports
+
+    def _reject(self, req: ObserveRequest, err: TwinError) -> None:
+        self.rejected += 1
+        log.warning("Rejected an observation by %s: %s", req.robot, err)
+        self.emit(ObservationRejected(req.robot, str(err), self.clock(), len(req.payload)))
+        self.send(req, Reply.error(str(err)))
+
+    def observe_batch(self, batch: Sequence[ObserveRequest]) -> None:
+        """Handle ``batch`` in order; every request gets its reply through ``send``."""
+        live = self.live
+        states: dict[str, ElementState] = {}  # what this batch changed, not yet committed
+        shapes: dict[str, Shape | None] = {}
+        planned: list[_Planned] = []
+        for req in batch:
+            try:
+                reports = self._parse(req.payload)
+                plan = plan_observation(
+                    reports,
+                    robot=req.robot,
+                    rights=self.config.rights_of(req.robot),
+                    site=live.site,
+                    states=ChainMap(states, live.states),
+                    shapes={
+                        r.iri: shapes[r.iri] if r.iri in shapes else live.maps.shape_of(r.iri)
+                        for r in reports
+                    },
+                    revision=live.revision + len(planned) + 1,
+                    stamp_ns=req.received_ns,
+                )
+            except TwinError as err:  # ObservationError included
+                self._reject(req, err)
+                continue
+            for r in reports:
+                live.last_seen[r.iri] = Sighting(req.robot, req.received_ns)
+            if plan.unchanged:
+                self.unchanged += 1
+                self.send(
+                    req,
+                    Reply(
+                        True,
+                        {
+                            "ok": True,
+                            "revision": live.revision + len(planned),
+                            "unchanged": True,
+                            "upserted": [],
+                            "removed": [],
+                            "maps": [],
+                        },
+                    ),
+                )
+                continue
+            states.update(plan.states)
+            shapes.update((g.iri, g.new) for g in plan.geometry)
+            planned.append(_Planned(req, plan, live.revision + len(planned) + 1))
+        if planned:
+            self._commit(planned, states, shapes)
+
+    def _commit(
+        self, planned: list[_Planned], states: dict[str, ElementState], shapes: dict[str, Shape | None]
+    ) -> None:
+        live = self.live
+        try:
+            self.store.apply(*(p.plan.changes for p in planned))  # durable from here on
+        except TwinError as err:
+            log.error("The store refused a commit of %d observations: %s", len(planned), err)
+            for p in planned:
+                self._reject(p.request, err)
+            return
+        live.revision = planned[-1].revision
+        live.states.update(states)
+        self.accepted += len(planned)
+        stamp = self.clock()
+        geometry: list[GeometryChange] = [g for p in planned for g in p.plan.geometry]
+        membership = self._membership(list(states), shapes)
+        changes = []
+        for u in live.maps.apply(geometry, membership):
+            m = live.maps.maps[(u.storey, u.skill)]
+            self.emit(
+                MapUpdated(u.storey, u.skill, m.plan.frame, u.window, u.data, live.revision, u.version, stamp)
+            )
+            self.pending_full.setdefault((u.storey, u.skill), stamp)
+            changes.append(MapChange(u.storey, u.skill, u.version, u.window))
+        maps = tuple(changes)
+        as_json = [c.as_json() for c in maps]
+        for p in planned:
+            self.emit(
+                ObservationAccepted(
+                    robot=p.request.robot,
+                    revision=p.revision,
+                    stamp_ns=stamp,
+                    upserted=element_shapes(live, p.plan.upserted),
+                    removed=p.plan.removed,
+                    maps=maps,
+                )
+            )
+            body: dict[str, object] = {
+                "ok": True,
+                "revision": p.revision,
+                "upserted": list(p.plan.upserted),
+                "removed": list(p.plan.removed),
+                "maps": as_json,
+            }
+            self.send(p.request, Reply(True, body))
+
+    def _membership(self, iris: list[str], shapes: dict[str, Shape | None]) -> dict[str, dict[str, bool]]:
+        """Per skill, whether it now selects each changed element."""
+        live = self.live
+        out: dict[str, dict[str, bool]] = {}
+        for name, skill in live.skills.items():
+            if needs_store(skill):
+                chosen = self._selected_by_store(skill, iris)
+                out[name] = {i: i in chosen for i in iris}
+                continue
+            out[name] = {
+                i: selects(
+                    skill,
+                    live.states[i],
+                    has_geometry=(shapes[i] is not None)
+                    if i in shapes
+                    else live.maps.shape_of(i) is not None,
+                )
+                for i in iris
+                if i in live.states
+            }
+        return out
+
+    def _selected_by_store(self, skill: SkillProfile, iris: list[str]) -> set[str]:
+        return {r["element"] or "" for r in self.store.select(selection_query(skill, iris))}

@@ -1,0 +1,391 @@
+"""The twin service: the single writer of the twin, with no transport.
+
+It loads the graph (:func:`~twin.scene.load_scene`), builds every skill map of every storey, and then
+handles requests one at a time on its own worker thread: robot observations (:mod:`twin.live.observe`:
+the hot path) and skill profiles added or removed at run time (:mod:`twin.live.skill_changes`). After
+each committed change it bumps the twin's revision and emits events (:mod:`twin.events`) to its sinks:
+the changed rectangle of every affected map at once, the full maps coalesced (at most every
+``limits.full_map_interval_s`` in a burst). Requests come from any thread (e.g. Zenoh callbacks,
+which only enqueue); replies go to the callback given with each request. Now and then, when idle, it
+flushes the store's buffers so that memory and the store's log stay flat all day.
+
+Example::
+
+    service = TwinService(store, cfg, sinks=[publisher, recorder])
+    service.start()                                   # loads, builds, publishes every map
+    service.submit_observation("robot1", turtle, reply=print)
+    service.serve_forever(stop_event)                 # or service.process(timeout_s=...) in tests
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from twin.config import Config
+from twin.errors import TwinError
+from twin.events import ElementShape, MapPublished, MapRemoved, SkillChanged, TwinEvent, TwinSink, TwinStarted
+from twin.grid import OccupancyGrid
+from twin.live.live_maps import LiveMap, LiveMaps
+from twin.live.observe import Observer, element_shapes
+from twin.live.query import run_query
+from twin.live.requests import ObserveRequest, Reply, ReplyFn, Request, SkillRequest
+from twin.live.skill_changes import add_skill_maps, skill_change, stored_skills
+from twin.live.state import ElementState, LiveState, SiteFrame, StoreyFrame, load_states
+from twin.scene import Scene, load_scene
+from twin.skills import SkillProfile
+from twin.store import GraphStore
+
+log = logging.getLogger(__name__)
+
+Clock = Callable[[], int]
+
+
+@dataclass(frozen=True, slots=True)
+class PublishedMap:
+    """The latest full version of a map that was published (what a ``get`` answers)."""
+
+    grid: OccupancyGrid
+    revision: int
+    version: int
+    stamp_ns: int
+
+
+def _site_box(scene: Scene, margin: float) -> tuple[float, float, float, float, float, float]:
+    b = scene.elements.bounds
+    b = b[~np.isnan(b).any(axis=1)]
+    exts = np.array([s.extent for s in scene.storeys]) if scene.storeys else b[:, [0, 1, 3, 4]]
+    return (
+        float(min(exts[:, 0].min(), b[:, 0].min())) - margin,
+        float(min(exts[:, 1].min(), b[:, 1].min())) - margin,
+        float(b[:, 2].min()) - margin,
+        float(max(exts[:, 2].max(), b[:, 3].max())) + margin,
+        float(max(exts[:, 3].max(), b[:, 4].max())) + margin,
+        float(b[:, 5].max()) + margin,
+    )
+
+
+class TwinService:
+    """The twin's single writer. Create, :meth:`start`, then run :meth:`serve_forever` on a thread."""
+
+    def __init__(
+        self,
+        store: GraphStore,
+        config: Config,
+        *,
+        sinks: Sequence[TwinSink] = (),
+        clock: Clock = time.time_ns,
+        max_batch: int = 64,
+        flush_every_s: float = 5.0,
+    ) -> None:
+        """``max_batch``: at most this many queued observations share one commit and one map pass
+        (group commit). ``flush_every_s``: flush the store's buffers at most this often (when idle)."""
+        self.store = store
+        self.max_batch = max(1, max_batch)
+        self.config = config
+        self.sinks = list(sinks)
+        self.clock = clock
+        self.flush_every_s = flush_every_s
+        self._queue: queue.Queue[Request] = queue.Queue()
+        self._published: dict[tuple[str, str], PublishedMap] = {}
+        self._live: LiveState | None = None
+        self._observer: Observer | None = None
+        self._started_ns = 0
+        self._flushed_at = (0.0, 0)  # (monotonic time, revision) of the last flush
+        self._base_iri = ""
+
+    # --- start ----------------------------------------------------------------------------------------
+    def start(self) -> None:
+        """Load the twin, build every map, and emit TwinStarted then MapPublished for each map."""
+        t0 = time.perf_counter()
+        self._started_ns = self.clock()
+        model = self.store.select(
+            "SELECT ?m ?schema ?rev WHERE { ?m a twin:Model . OPTIONAL { ?m twin:ifcSchema ?schema } "
+            "OPTIONAL { ?m twin:revision ?rev } }"
+        )
+        if not model:
+            msg = "The store holds no imported model (no twin:Model node): import one first."
+            raise TwinError(msg)
+        model_iri = model[0]["m"] or ""
+        self._base_iri = model_iri.removesuffix("model")
+        scene = load_scene(self.store)
+        site = SiteFrame(
+            storeys={s.key: StoreyFrame(s.key, s.iri, s.elevation_m) for s in scene.storeys},
+            schema=(model[0]["schema"] or "IFC4"),
+            static_types=self.config.import_.static_types,
+            site_box=_site_box(scene, self.config.limits.site_margin_m),
+            model_iri=model_iri,
+        )
+        live = LiveState(
+            site=site,
+            maps=LiveMaps(scene, margin_m=self.config.margin_m),
+            states=load_states(self.store),
+            skills=stored_skills(self.store, dict(self.config.skills)),
+            revision=max(int(r["rev"] or 0) for r in model),
+            last_seen={},
+        )
+        self._live = live
+        self._observer = Observer(
+            self.store, self.config, live, emit=self._emit, send=_send, clock=self.clock
+        )
+        self._flushed_at = (time.monotonic(), live.revision)
+        stamp = self.clock()
+        self._emit(
+            TwinStarted(
+                site=self.config.site,
+                revision=live.revision,
+                stamp_ns=stamp,
+                storeys=tuple((s.key, s.name, s.elevation_m) for s in scene.storeys),
+                elements=self.element_shapes(),
+                skills=dict(live.skills),
+            )
+        )
+        for skill in live.skills.values():
+            for m in add_skill_maps(self.store, live, skill):
+                self._publish_full(m, stamp)
+        log.info(
+            "Twin started at revision %d: %d maps of %d skills on %d storeys in %.2f s",
+            live.revision,
+            len(self._published),
+            len(live.skills),
+            len(scene.storeys),
+            time.perf_counter() - t0,
+        )
+
+    @property
+    def live(self) -> LiveState:
+        if self._live is None:
+            msg = "The twin service has not been started."
+            raise TwinError(msg)
+        return self._live
+
+    @property
+    def observer(self) -> Observer:
+        if self._observer is None:
+            msg = "The twin service has not been started."
+            raise TwinError(msg)
+        return self._observer
+
+    @property
+    def engine(self) -> LiveMaps:
+        """The live maps (every (storey, skill) map and the geometry they are drawn from)."""
+        return self.live.maps
+
+    @property
+    def revision(self) -> int:
+        return self._live.revision if self._live is not None else 0
+
+    @property
+    def skills(self) -> dict[str, SkillProfile]:
+        return dict(self._live.skills) if self._live is not None else dict(self.config.skills)
+
+    @property
+    def states(self) -> dict[str, ElementState]:
+        """Every element's state (read it, never change it)."""
+        return self.live.states
+
+    def element_shapes(self, iris: Sequence[str] | None = None) -> tuple[ElementShape, ...]:
+        """The current shape of the given elements (default: all with geometry)."""
+        return element_shapes(self.live, iris if iris is not None else sorted(self.live.states))
+
+    # --- events ---------------------------------------------------------------------------------------
+    def _emit(self, event: TwinEvent) -> None:
+        for sink in self.sinks:
+            try:
+                sink.emit(event)
+            except Exception:  # a sink must never stop the twin
+                log.exception("Sink %s failed on %s", type(sink).__name__, type(event).__name__)
+
+    def _publish_full(self, m: LiveMap, stamp: int) -> None:
+        grid = m.grid()
+        self._published[m.key] = PublishedMap(grid, self.revision, m.version, stamp)
+        self._emit(MapPublished(grid, self.revision, m.version, stamp))
+
+    def flush_full_maps(self, *, due_only: bool = False) -> None:
+        """Publish the full version of every map changed since its last full publication; with
+        ``due_only``, only of those whose first unpublished change is ``full_map_interval_s`` old."""
+        if self._observer is None:
+            return
+        pending = self._observer.pending_full
+        stamp = self.clock()
+        interval_ns = int(self.config.limits.full_map_interval_s * 1e9)
+        for key, since in sorted(pending.items()):
+            if due_only and stamp - since < interval_ns:
+                continue
+            del pending[key]
+            m = self.engine.maps.get(key)
+            if m is not None:
+                self._publish_full(m, stamp)
+
+    def flush_store(self, *, due_only: bool = False) -> None:
+        """Flush the store's buffers if anything was committed since the last flush (with ``due_only``:
+        and ``flush_every_s`` has passed)."""
+        at, revision = self._flushed_at
+        if self.revision == revision or (due_only and time.monotonic() - at < self.flush_every_s):
+            return
+        try:
+            self.store.flush()
+        except Exception:  # a failed flush costs nothing yet: the commits are in the log
+            log.exception("Could not flush the store")
+        self._flushed_at = (time.monotonic(), self.revision)
+
+    # --- requests (any thread) ------------------------------------------------------------------------
+    def submit_observation(self, robot: str, payload: bytes, reply: ReplyFn | None = None) -> None:
+        """Queue an observation by ``robot``; ``reply`` gets the ack (or error) once it is durable."""
+        self._queue.put(ObserveRequest(robot, bytes(payload), reply, self.clock()))
+
+    def submit_skill(self, name: str, payload: bytes | None, reply: ReplyFn | None = None) -> None:
+        """Queue a skill profile (JSON) to add or replace ``name``, or its removal (``payload`` None)."""
+        self._queue.put(SkillRequest(name, None if payload is None else bytes(payload), reply))
+
+    @property
+    def queue_depth(self) -> int:
+        return self._queue.qsize()
+
+    # --- the worker -----------------------------------------------------------------------------------
+    def process(self, *, timeout_s: float = 0.0) -> int:
+        """Handle queued requests until the queue is empty (waiting up to ``timeout_s`` for the first),
+        publishing the full maps that are due. Returns the number handled.
+
+        Updates go out at once; a changed map's full version follows ``full_map_interval_s`` after its
+        first unpublished change (so it comes after its updates, and a burst is coalesced).
+        """
+        handled = 0
+        try:
+            request: Request | None = (
+                self._queue.get(timeout=timeout_s) if timeout_s > 0 else self._queue.get_nowait()
+            )
+        except queue.Empty:
+            request = None
+        while request is not None:
+            if isinstance(request, ObserveRequest):  # with the observations queued behind it, as one batch
+                batch, request = [request], None
+                while len(batch) < self.max_batch:
+                    try:
+                        nxt = self._queue.get_nowait()
+                    except queue.Empty:
+                        break
+                    if not isinstance(nxt, ObserveRequest):
+                        request = nxt
+                        break
+                    batch.append(nxt)
+                self._observe(batch)
+                handled += len(batch)
+            else:
+                self._change_skill(request)
+                handled += 1
+                request = None
+            self.flush_full_maps(due_only=True)
+            if request is None:
+                try:
+                    request = self._queue.get_nowait()
+                except queue.Empty:
+                    request = None
+        self.flush_full_maps(due_only=True)
+        return handled
+
+    def serve_forever(self, stop: threading.Event, *, poll_s: float = 0.05) -> None:
+        """Handle requests until ``stop`` is set, then finish what is queued and publish every map."""
+        while not stop.is_set():
+            if not self.process(timeout_s=poll_s):
+                self.flush_store(due_only=True)  # idle: a good moment
+        self.process()
+        self.flush_full_maps()
+        self.flush_store()
+
+    def _observe(self, batch: Sequence[ObserveRequest]) -> None:
+        try:
+            self.observer.observe_batch(batch)
+        except Exception as err:  # a bug must cost these requests, never the daemon
+            log.exception("Internal error while handling %d observations", len(batch))
+            for request in batch:
+                _send(request, Reply.error(f"Internal error ({type(err).__name__}): {err}"))
+
+    def _change_skill(self, req: SkillRequest) -> None:
+        try:
+            reply = self._skill(req)
+        except Exception as err:  # a bug must cost one request, never the daemon
+            log.exception("Internal error while handling a skill")
+            reply = Reply.error(f"Internal error ({type(err).__name__}): {err}")
+        _send(req, reply)
+
+    def _skill(self, req: SkillRequest) -> Reply:
+        live = self.live
+        stamp = self.clock()
+        try:
+            changes, profile = skill_change(self._base_iri, req.name, req.payload, live)
+            self.store.apply(changes)
+        except TwinError as err:
+            log.info("Refused a skill change for %r: %s", req.name, err)
+            return Reply.error(str(err))
+        live.revision += 1
+        for storey, skill in live.maps.remove_skill(req.name):
+            self._published.pop((storey, skill), None)
+            self.observer.pending_full.pop((storey, skill), None)
+            self._emit(MapRemoved(storey, skill, live.revision, stamp))
+        if profile is None:
+            del live.skills[req.name]
+        else:
+            live.skills[req.name] = profile
+        self._emit(SkillChanged(req.name, profile, live.revision, stamp))
+        maps = add_skill_maps(self.store, live, profile) if profile is not None else []
+        for m in maps:
+            self._publish_full(m, stamp)
+        return Reply(
+            True,
+            {
+                "ok": True,
+                "revision": live.revision,
+                "skill": req.name,
+                "removed": profile is None,
+                "maps": [
+                    {"storey": m.plan.storey.key, "skill": req.name, "version": m.version} for m in maps
+                ],
+            },
+        )
+
+    # --- read-only views (any thread) -----------------------------------------------------------------
+    def published(self, storey: str, skill: str) -> PublishedMap | None:
+        """The latest full map published for (storey, skill), or None."""
+        return self._published.get((storey, skill))
+
+    def published_maps(self) -> list[PublishedMap]:
+        return list(self._published.values())
+
+    def status(self) -> dict[str, object]:
+        live = self.live
+        obs = self.observer
+        now = self.clock()
+        return {
+            "site": self.config.site,
+            "revision": live.revision,
+            "elements": sum(1 for s in list(live.states.values()) if not s.removed),
+            "triples": len(self.store),
+            "skills": sorted(live.skills),
+            "storeys": [s.key for s in live.maps.scene.storeys],
+            "maps": [
+                {"storey": p.grid.storey, "skill": p.grid.skill, "version": p.version, "revision": p.revision}
+                for p in sorted(self.published_maps(), key=lambda p: (p.grid.storey, p.grid.skill))
+            ],
+            "observations": {"accepted": obs.accepted, "unchanged": obs.unchanged, "rejected": obs.rejected},
+            "queue_depth": self.queue_depth,
+            "uptime_s": round((now - self._started_ns) / 1e9, 3),
+        }
+
+    def query(self, sparql: str) -> tuple[str, bytes]:
+        """A read-only SPARQL query, bounded in time and result size; QueryError names the problem."""
+        return run_query(self.store, sparql, limits=self.config.limits)
+
+
+def _send(request: Request, reply: Reply) -> None:
+    if request.reply is not None:
+        try:
+            request.reply(reply)
+        except Exception:
+            log.exception("Could not send a reply")

@@ -1,0 +1,136 @@
+"""What the live twin knows of each element beyond its geometry, held in memory.
+
+Loaded once from the graph (:func:`load_states`) and kept current by the writer after each commit, so
+that the hot path (re-confirmations, rights, skill selection) needs no query.
+
+Example::
+
+    states = load_states(store)
+    states["https://example.org/building-twin/lab#door_..."].is_door     # True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from twin.live.live_maps import LiveMaps
+from twin.skills import SkillProfile
+from twin.store import GraphStore
+
+
+@dataclass(frozen=True, slots=True)
+class ElementState:
+    """One element: identity, classes, the values selections look at, and its door state."""
+
+    iri: str
+    ifc_class: str
+    ifc_types: tuple[str, ...]
+    """The IFC class and its supertypes (``twin:ifcType``)."""
+    is_static: bool
+    name: str = ""
+    storey: str | None = None
+    is_open: bool | None = None
+    removed: bool = False
+    classes: frozenset[str] = frozenset()
+    """Every ``rdf:type`` IRI (``bot:Element``, ``beo:Wall``, ``furn:Table`` ...)."""
+    labels: frozenset[str] = frozenset()
+    materials: frozenset[str] = frozenset()
+    facing_materials: frozenset[str] = frozenset()
+    """What a sensor faces (``twin:facingMaterial``): what skills exclude by."""
+
+    @property
+    def is_door(self) -> bool:
+        return "IfcDoor" in self.ifc_types
+
+
+@dataclass(frozen=True, slots=True)
+class StoreyFrame:
+    key: str
+    iri: str
+    elevation_m: float
+
+
+@dataclass(frozen=True, slots=True)
+class SiteFrame:
+    """The fixed facts an observation is checked against (they do not change while the daemon runs)."""
+
+    storeys: dict[str, StoreyFrame]
+    schema: str
+    static_types: tuple[str, ...]
+    site_box: tuple[float, float, float, float, float, float]
+    """World ``xmin, ymin, zmin, xmax, ymax, zmax`` observed geometry must lie in (margin included)."""
+    model_iri: str
+
+
+_SEP = "\u001f"  # unit separator: never in an IRI, rare in a label
+
+
+def _set(value: str | None) -> frozenset[str]:
+    return frozenset(v for v in (value or "").split(_SEP) if v)
+
+
+def load_states(store: GraphStore) -> dict[str, ElementState]:
+    """Every element's classes, static flag, names, materials, storey, door state and removal."""
+    rows = store.select(
+        f"""SELECT ?e ?cls ?static (SAMPLE(?key) AS ?storey) (SAMPLE(?open) AS ?isOpen)
+                  (SAMPLE(?gone) AS ?removed)
+                  (GROUP_CONCAT(DISTINCT ?t; separator="{_SEP}") AS ?types)
+                  (GROUP_CONCAT(DISTINCT STR(?c); separator="{_SEP}") AS ?classes)
+                  (GROUP_CONCAT(DISTINCT ?n; separator="{_SEP}") AS ?labels)
+                  (GROUP_CONCAT(DISTINCT ?m; separator="{_SEP}") AS ?materials)
+                  (GROUP_CONCAT(DISTINCT ?f; separator="{_SEP}") AS ?facing) WHERE {{
+             ?e a bot:Element ; twin:ifcClass ?cls .
+             OPTIONAL {{ ?e a ?c }}
+             OPTIONAL {{ ?e twin:isStatic ?static }}
+             OPTIONAL {{ ?e twin:ifcType ?t }}
+             OPTIONAL {{ ?e rdfs:label ?n }}
+             OPTIONAL {{ ?e twin:material ?m }}
+             OPTIONAL {{ ?e twin:facingMaterial ?f }}
+             OPTIONAL {{ ?st twin:storeyKey ?key ; bot:containsElement ?e }}
+             OPTIONAL {{ ?e twin:isOpen ?open }}
+             OPTIONAL {{ ?e twin:removed ?gone }}
+           }} GROUP BY ?e ?cls ?static"""
+    )
+    out = {}
+    for r in rows:
+        iri = r["e"] or ""
+        cls = r["cls"] or ""
+        types = [t for t in (r["types"] or cls).split(_SEP) if t]
+        labels = _set(r["labels"])
+        out[iri] = ElementState(
+            iri=iri,
+            ifc_class=cls,
+            ifc_types=(cls, *(t for t in types if t != cls)),
+            is_static=r["static"] in ("true", "1"),
+            name=min(labels) if labels else "",
+            storey=r["storey"],
+            is_open=None if r["isOpen"] is None else r["isOpen"] in ("true", "1"),
+            removed=r["removed"] in ("true", "1"),
+            classes=_set(r["classes"]),
+            labels=labels,
+            materials=_set(r["materials"]),
+            facing_materials=_set(r["facing"]),
+        )
+    return out
+
+
+@dataclass(slots=True)
+class Sighting:
+    """The latest report of an element, changed or not (kept in memory only: it changes many times a
+    second and the graph does not grow with how often an element is seen)."""
+
+    robot: str
+    stamp_ns: int
+
+
+@dataclass(eq=False, slots=True)
+class LiveState:
+    """Everything the twin's writer changes. Only the writer thread mutates it; other threads read
+    single attributes (a revision, a dict lookup), never iterate it while the writer runs."""
+
+    site: SiteFrame
+    maps: LiveMaps
+    states: dict[str, ElementState]
+    skills: dict[str, SkillProfile]
+    revision: int
+    last_seen: dict[str, Sighting]

@@ -1,0 +1,16 @@
+"""Tolerances of the live twin, in one place (metres and radians).
+
+A robot re-reports what it sees many times a second, each time with a little sensor noise. A report
+whose geometry lies within these bounds of what the twin holds is a re-confirmation: it changes
+nothing (no revision, no map work, no store write).
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+SAME_POSITION_M: Final = 1e-3
+"""Every vertex of the reported geometry within 1 mm of the held one (world frame)."""
+
+SAME_ANGLE_RAD: Final = 1e-4
+"""The reported orientation within 0.1 mrad of the held one."""
