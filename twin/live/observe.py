@@ -41,7 +41,7 @@ from twin.live.state import ElementState, LiveState, Sighting
 from twin.observations import ElementReport, parse_observation
 from twin.records import GeometryChange, Shape
 from twin.skills import SkillProfile, selection_query
-from twin.store import GraphStore
+from twin.store import GraphStore, Object
 
 log = logging.getLogger(__name__)
 
@@ -126,6 +126,7 @@ class Observer:
         live = self.live
         states: dict[str, ElementState] = {}  # what this batch changed, not yet committed
         shapes: dict[str, Shape | None] = {}
+        held: dict[str, dict[str, Object | None]] = {}
         planned: list[_Planned] = []
         for req in batch:
             try:
@@ -140,6 +141,7 @@ class Observer:
                         r.iri: shapes[r.iri] if r.iri in shapes else live.maps.shape_of(r.iri)
                         for r in reports
                     },
+                    held=ChainMap[str, dict[str, Object | None]](held, live.held),
                     revision=live.revision + len(planned) + 1,
                     stamp_ns=req.received_ns,
                 )
@@ -167,12 +169,19 @@ class Observer:
                 continue
             states.update(plan.states)
             shapes.update((g.iri, g.new) for g in plan.geometry)
+            for subject, values in plan.written.items():
+                base = {} if subject in plan.cleared else dict(held.get(subject, live.held.get(subject, {})))
+                held[subject] = base | values
             planned.append(_Planned(req, plan, live.revision + len(planned) + 1))
         if planned:
-            self._commit(planned, states, shapes)
+            self._commit(planned, states, shapes, held)
 
     def _commit(
-        self, planned: list[_Planned], states: dict[str, ElementState], shapes: dict[str, Shape | None]
+        self,
+        planned: list[_Planned],
+        states: dict[str, ElementState],
+        shapes: dict[str, Shape | None],
+        held: dict[str, dict[str, Object | None]],
     ) -> None:
         live = self.live
         try:
@@ -184,6 +193,7 @@ class Observer:
             return
         live.revision = planned[-1].revision
         live.states.update(states)
+        live.held.update(held)
         self.accepted += len(planned)
         stamp = self.clock()
         geometry: list[GeometryChange] = [g for p in planned for g in p.plan.geometry]

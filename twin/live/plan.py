@@ -37,7 +37,7 @@ from twin.meshcodec import encode_mesh, encode_placement
 from twin.observations import ElementReport
 from twin.records import FloatArray, GeometryChange, Mesh, Shape
 from twin.shapes import box_mesh, box_placement
-from twin.store import ChangeSet, Literal, Triple
+from twin.store import ChangeSet, Literal, Object, Triple
 from twin.tolerances import SAME_ANGLE_RAD, SAME_POSITION_M
 
 
@@ -49,6 +49,10 @@ class ObservationPlan:
     """The new state of every element the observation changed."""
     upserted: tuple[str, ...] = ()
     removed: tuple[str, ...] = ()
+    written: dict[str, dict[str, Object | None]] = field(default_factory=dict)
+    """The single-valued triples this plan writes, by subject (see :data:`Held`)."""
+    cleared: frozenset[str] = frozenset()
+    """Subjects whose every triple this plan removes (before writing ``written``)."""
 
     @property
     def unchanged(self) -> bool:
@@ -162,17 +166,57 @@ def _check_inside(iri: str, shape: Shape, site: SiteFrame) -> None:
         raise _fail(f"Element <{iri}>: its geometry ({box}) lies outside the site's extent ({extent}).")
 
 
+Held = Mapping[str, Mapping[str, Object | None]]
+"""Subject -> predicate -> the exact object of the single-valued triples the writer last wrote."""
+
+
 @dataclass(slots=True)
 class _Writer:
-    """The triples one observation removes (patterns and exact triples) and adds."""
+    """The triples one observation removes (patterns and exact triples) and adds.
 
+    A single-valued triple the writer wrote before is replaced by deleting that exact triple: a pattern
+    (``DELETE WHERE``) would scan every version the store still holds as a tombstone, which grows with
+    every change until compaction; an exact delete costs the same all day.
+    """
+
+    held: Held
     remove: list[tuple[str, str | None]] = field(default_factory=list)
     delete: list[Triple] = field(default_factory=list)
     add: list[Triple] = field(default_factory=list)
+    written: dict[str, dict[str, Object | None]] = field(default_factory=dict)
+    cleared: set[str] = field(default_factory=set)
 
-    def set(self, subject: str, predicate: str, obj: str | Literal) -> None:
-        self.remove.append((subject, predicate))
-        self.add.append(Triple(subject, predicate, obj))
+    def _current(self, subject: str, predicate: str) -> Object | bool | None:
+        """The object held now, None if there is none, False if unknown (a pattern must remove it)."""
+        mine = self.written.get(subject)
+        if mine is not None and (predicate in mine or subject in self.cleared):
+            return mine.get(predicate)
+        held = self.held.get(subject)
+        if held is not None and predicate in held:
+            return held[predicate]
+        return False
+
+    def set(self, subject: str, predicate: str, obj: Object | None) -> None:
+        """Make ``obj`` the one object of ``(subject, predicate)`` (None: remove it)."""
+        current = self._current(subject, predicate)
+        if current == obj:
+            return
+        if current is False:
+            self.remove.append((subject, predicate))
+        elif current is not None and not isinstance(current, bool):
+            self.delete.append(Triple(subject, predicate, current))
+        if obj is not None:
+            self.add.append(Triple(subject, predicate, obj))
+        self.written.setdefault(subject, {})[predicate] = obj
+
+    def clear(self, subject: str) -> None:
+        """Remove every triple of ``subject``."""
+        self.remove.append((subject, None))
+        self.written[subject] = {}
+        self.cleared.add(subject)
+
+    def changed(self) -> tuple[int, int, int]:
+        return (len(self.remove), len(self.delete), len(self.add))
 
 
 def _create(
@@ -211,6 +255,7 @@ def plan_observation(
     site: SiteFrame,
     states: Mapping[str, ElementState],
     shapes: Mapping[str, Shape | None],
+    held: Held,
     revision: int,
     stamp_ns: int,
 ) -> ObservationPlan:
@@ -223,10 +268,11 @@ def plan_observation(
         site: the storeys, schema and extent.
         states: every element's current state.
         shapes: the current mesh and placement of each reported element that has geometry.
+        held: the single-valued triples written before (exact deletes instead of patterns).
         revision: the twin revision this change will be (if it changes anything).
         stamp_ns: when the observation was received.
     """
-    w = _Writer()
+    w = _Writer(held)
     geometry: list[GeometryChange] = []
     new_states: dict[str, ElementState] = {}
     upserted, removed = [], []
@@ -234,13 +280,14 @@ def plan_observation(
         state = states.get(r.iri)
         exists = state is not None and not state.removed
         current = shapes.get(r.iri)
-        before = (len(w.remove), len(w.delete), len(w.add))
+        before = w.changed()
         if r.removed:
             if not exists or state is None:
                 raise _fail(f"Element <{r.iri}> cannot be removed: the twin has no such element.")
             _need(rights, "static" if state.is_static else "dynamic", robot, f"remove <{r.iri}>")
             g = vocab.geometry_iri(r.iri)
-            w.remove += [(r.iri, vocab.OMG_HAS_GEOMETRY), (g, None)]
+            w.set(r.iri, vocab.OMG_HAS_GEOMETRY, None)
+            w.clear(g)
             w.set(r.iri, vocab.TWIN_REMOVED, _bool(True))
             if current is not None:
                 geometry.append(GeometryChange(r.iri, None))
@@ -249,7 +296,7 @@ def plan_observation(
         else:
             if state is None or not exists:
                 if state is not None:  # re-created after its removal: start from a clean node
-                    w.remove.append((r.iri, None))
+                    w.clear(r.iri)
                 state = _create(r, site, robot, rights, w)
                 current = None
             elif r.ifc_class is not None and r.ifc_class.lower() != state.ifc_class.lower():
@@ -276,8 +323,9 @@ def plan_observation(
                     if current is not None and shape[0] is current[0]:  # a move: the placement only
                         w.set(g, vocab.TWIN_PLACEMENT, _lit(encode_placement(shape[1]), vocab.TWIN_MATRIX4))
                     else:
-                        w.remove += [(r.iri, vocab.OMG_HAS_GEOMETRY), (g, None)]
-                        w.add += _geometry_triples(r.iri, *shape)
+                        w.clear(g)
+                        for t in _geometry_triples(r.iri, *shape):
+                            w.set(t.subject, t.predicate, t.object)
                     geometry.append(GeometryChange(r.iri, shape))
             if r.storey is not None:
                 storey = site.storeys.get(r.storey)
@@ -317,17 +365,12 @@ def plan_observation(
                     classes=state.classes | set(classes),
                 )
             state = replace(state, removed=False)
-        if (len(w.remove), len(w.delete), len(w.add)) == before:
+        if w.changed() == before:
             continue  # this element is as the twin holds it
-        w.remove += [
-            (r.iri, p) for p in (vocab.TWIN_OBSERVED_BY, vocab.TWIN_OBSERVED_AT, vocab.TWIN_REVISION)
-        ]
         when = datetime.datetime.fromtimestamp(stamp_ns / 1e9, tz=datetime.UTC).isoformat()
-        w.add += [
-            Triple(r.iri, vocab.TWIN_OBSERVED_BY, _lit(robot)),
-            Triple(r.iri, vocab.TWIN_OBSERVED_AT, _lit(when, vocab.XSD_DATETIME)),
-            Triple(r.iri, vocab.TWIN_REVISION, _lit(str(revision), vocab.XSD_INTEGER)),
-        ]
+        w.set(r.iri, vocab.TWIN_OBSERVED_BY, _lit(robot))
+        w.set(r.iri, vocab.TWIN_OBSERVED_AT, _lit(when, vocab.XSD_DATETIME))
+        w.set(r.iri, vocab.TWIN_REVISION, _lit(str(revision), vocab.XSD_INTEGER))
         new_states[r.iri] = state
         if not r.removed:
             upserted.append(r.iri)
@@ -340,4 +383,6 @@ def plan_observation(
         states=new_states,
         upserted=tuple(upserted),
         removed=tuple(removed),
+        written=w.written,
+        cleared=frozenset(w.cleared),
     )

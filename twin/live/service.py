@@ -129,6 +129,7 @@ class TwinService:
             skills=stored_skills(self.store, dict(self.config.skills)),
             revision=max(int(r["rev"] or 0) for r in model),
             last_seen={},
+            held={},
         )
         self._live = live
         self._observer = Observer(

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from twin.live.live_maps import LiveMaps
 from twin.skills import SkillProfile
-from twin.store import GraphStore
+from twin.store import GraphStore, Object
 
 
 @dataclass(frozen=True, slots=True)
@@ -134,3 +134,6 @@ class LiveState:
     skills: dict[str, SkillProfile]
     revision: int
     last_seen: dict[str, Sighting]
+    held: dict[str, dict[str, Object | None]]
+    """Subject -> predicate -> the exact object of each single-valued triple the writer last wrote (so
+    that the next change deletes that triple exactly instead of by a pattern)."""
