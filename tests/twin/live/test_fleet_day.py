@@ -1,0 +1,177 @@
+"""A day of a fleet in the core: re-confirmations are free, the graph does not grow with sightings,
+single values stay single, and a restart gives the same twin."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from tests.conftest import imported
+from tests.twin.box_lab import box_lab, element_iri, spec
+from tests.twin.live_helpers import PREFIX, TWIN, box_turtle, observe, started
+from twin.config import load_config
+from twin.events import MapPublished, MapUpdated, ObservationAccepted
+from twin.live import TwinService
+from twin.live.selection import needs_store, selects
+from twin.meshcodec import encode_placement
+from twin.skills import parse_skill, selection_query
+
+TABLE = "urn:robot1:table-1"
+
+
+def test_a_re_confirmation_commits_no_revision_renders_nothing_and_is_acked_unchanged() -> None:
+    service, rec = started()
+    assert observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, yaw=0.3)).body["revision"] == 1
+    triples, events = len(service.store), len(rec.events)
+    for _ in range(20):
+        reply = observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, yaw=0.3))
+        assert reply.ok
+        assert reply.body["unchanged"] is True and reply.body["revision"] == 1 and reply.body["maps"] == []
+    assert service.revision == 1
+    assert len(service.store) == triples
+    assert len(rec.events) == events  # no map update, no accepted observation: nothing to publish
+    assert service.status()["observations"] == {"accepted": 1, "unchanged": 20, "rejected": 0}
+
+
+def test_noise_within_a_millimetre_and_a_tenth_of_a_milliradian_is_a_re_confirmation() -> None:
+    service, _ = started()
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, yaw=0.3))
+    assert observe(service, "robot1", box_turtle(TABLE, 6.6004, 1.9996, yaw=0.30005)).body.get("unchanged")
+    assert observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, sx=0.8004, yaw=0.3)).body.get("unchanged")
+    moved = observe(service, "robot1", box_turtle(TABLE, 6.603, 2.0, yaw=0.3))
+    assert moved.ok and "unchanged" not in moved.body and moved.body["revision"] == 2
+    turned = observe(service, "robot1", box_turtle(TABLE, 6.603, 2.0, yaw=0.3005))
+    assert turned.body["revision"] == 3
+
+
+def test_a_door_seen_as_it_is_changes_nothing_and_a_new_label_is_a_change() -> None:
+    service, _ = started()
+    door = element_iri(spec("Door A"))
+    assert observe(service, "robot1", f"{PREFIX}<{door}> twin:isOpen true .".encode()).body["revision"] == 1
+    assert observe(service, "robot1", f"{PREFIX}<{door}> twin:isOpen true .".encode()).body["unchanged"]
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
+    labelled = (
+        box_turtle(TABLE, 6.6, 2.0).decode().rstrip(" .\n")
+        + ' ; <http://www.w3.org/2000/01/rdf-schema#label> "desk" .'
+    )
+    assert observe(service, "robot1", labelled.encode()).body["revision"] == 3
+    assert observe(service, "robot1", labelled.encode()).body.get("unchanged") is True
+
+
+def test_a_robot_may_re_confirm_a_wall_but_not_move_it() -> None:
+    service, _ = started()
+    wall = element_iri(spec("Wall A west"))
+    shape = service.engine.shape_of(wall)
+    assert shape is not None
+
+    def placed(p: np.ndarray) -> bytes:
+        return f'{PREFIX}<{wall}> twin:placement "{encode_placement(p)}"^^twin:Matrix4x4 .'.encode()
+
+    reply = observe(service, "robot1", placed(shape[1]))
+    assert reply.ok and reply.body.get("unchanged") is True
+    moved = shape[1].copy()
+    moved[0, 3] += 0.1
+    refused = observe(service, "robot1", placed(moved))
+    assert not refused.ok and "lacks the 'static' right" in str(refused.body["error"])
+    assert service.revision == 0
+
+
+def test_moving_a_table_a_thousand_times_leaves_the_graph_the_size_it_was_after_the_first_move() -> None:
+    service, _ = started()
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
+    observe(service, "robot1", box_turtle(TABLE, 6.0, 2.0))
+    size = len(service.store)
+    rng = np.random.default_rng(1)
+    for x, y, yaw in zip(
+        rng.uniform(5.0, 8.0, 300), rng.uniform(1.6, 2.4, 300), rng.uniform(0, 3, 300), strict=True
+    ):
+        assert observe(service, "robot1", box_turtle(TABLE, float(x), float(y), yaw=float(yaw))).ok
+    assert len(service.store) == size
+    for predicate in ("observedBy", "observedAt", "revision"):
+        rows = service.store.select(f"SELECT ?o WHERE {{ <{TABLE}> twin:{predicate} ?o }}")
+        assert len(rows) == 1, predicate
+    rows = service.store.select(f"SELECT ?o WHERE {{ <{TABLE}/geometry> twin:placement ?o }}")
+    assert len(rows) == 1
+    model = service.store.select("SELECT ?r WHERE { ?m a twin:Model ; twin:revision ?r }")
+    assert [int(r["r"] or 0) for r in model] == [service.revision]
+
+
+def test_after_moves_door_changes_a_removal_and_a_re_creation_a_restart_gives_the_same_twin() -> None:
+    store = imported(box_lab())
+    service, _ = started(store)
+    door = element_iri(spec("Door A"))
+    docs = [
+        box_turtle(TABLE, 6.6, 2.0),
+        box_turtle(TABLE, 6.0, 2.1, yaw=0.7),
+        f"{PREFIX}<{door}> twin:isOpen true .".encode(),
+        f"{PREFIX}<{TABLE}> twin:removed true .".encode(),
+        box_turtle(TABLE, 7.0, 1.9, sx=1.0),
+        f"{PREFIX}<{door}> twin:isOpen false .".encode(),
+        box_turtle(TABLE, 7.2, 1.9, sx=1.0),
+        box_turtle(TABLE, 7.2, 1.9, sx=0.5),  # a new size: a new mesh
+    ]
+    for doc in docs:
+        assert observe(service, "robot1", doc).ok
+    again = TwinService(store, load_config())
+    again.start()
+    assert again.revision == service.revision
+    for key, m in service.engine.maps.items():
+        np.testing.assert_array_equal(m.data, again.engine.maps[key].data, err_msg=str(key))
+        np.testing.assert_array_equal(m.data, service.engine.rebuild(m), err_msg=str(key))
+    before, after = service.states[TABLE], again.states[TABLE]
+    assert set(before.ifc_types) == set(after.ifc_types)
+    assert replace(before, ifc_types=()) == replace(after, ifc_types=())
+    assert again.states[door].is_open is False
+    shape, fresh = service.engine.shape_of(TABLE), again.engine.shape_of(TABLE)
+    assert shape is not None and fresh is not None
+    np.testing.assert_array_equal(shape[1], fresh[1])
+    np.testing.assert_array_equal(shape[0].vertices, fresh[0].vertices)
+
+
+def test_in_memory_selection_answers_what_the_selection_query_answers_for_every_element() -> None:
+    service, _ = started()
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
+    pane = box_turtle("urn:r:pane", 5.0, 2.0, cls="IfcBuildingElementProxy").decode().rstrip(" .\n")
+    observe(service, "robot1", (pane + f' ; <{TWIN}material> "Glass, tempered" .').encode())
+    door = element_iri(spec("Door A"))
+    observe(service, "robot1", f"{PREFIX}<{door}> twin:isOpen true .".encode())
+    skills = [
+        *service.skills.values(),
+        parse_skill("walls", {"kind": "navigation", "include_types": ["IfcWall", "beo:Door"]}),
+        parse_skill("no-glass", {"kind": "localization", "exclude_materials": ["glass", "fiberglass"]}),
+        parse_skill("no-furniture", {"kind": "navigation", "exclude_types": ["IfcFurnishingElement"]}),
+    ]
+    for skill in skills:
+        assert not needs_store(skill)
+        by_store = {r["element"] for r in service.store.select(selection_query(skill))}
+        in_memory = {
+            iri
+            for iri, state in service.states.items()
+            if selects(skill, state, has_geometry=service.engine.shape_of(iri) is not None)
+        }
+        assert in_memory == by_store, skill.name
+
+
+def test_a_skill_with_its_own_sparql_is_selected_by_the_store() -> None:
+    config = load_config()
+    skill = parse_skill("tables", {"kind": "navigation", "sparql": '?element twin:ifcClass "IfcFurniture" .'})
+    config = replace(config, skills={**config.skills, "tables": skill})
+    service, rec = started(config=config)
+    reply = observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
+    assert ("ground-floor", "tables") in {(m["storey"], m["skill"]) for m in reply.body["maps"]}  # type: ignore[union-attr]
+    m = service.engine.maps[("ground-floor", "tables")]
+    np.testing.assert_array_equal(m.data, service.engine.rebuild(m))
+    assert rec.of(ObservationAccepted) and rec.of(MapUpdated) and rec.of(MapPublished)
+
+
+@pytest.mark.parametrize("yaw", [0.0, math.pi / 7, 1.0])
+def test_a_moved_table_keeps_its_mesh_and_changes_only_its_placement_in_the_graph(yaw: float) -> None:
+    service, _ = started()
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
+    meshes = service.store.select(f"SELECT ?ply WHERE {{ <{TABLE}/geometry> fog:asPly_v1.0-binaryLE ?ply }}")
+    observe(service, "robot1", box_turtle(TABLE, 6.0, 2.2, yaw=yaw))
+    again = service.store.select(f"SELECT ?ply WHERE {{ <{TABLE}/geometry> fog:asPly_v1.0-binaryLE ?ply }}")
+    assert meshes == again and len(again) == 1
