@@ -143,7 +143,9 @@ def _child(*args: str, stdin: bool = False) -> subprocess.Popen[str]:
     )
 
 
-def _check_graph(endpoint: str, attempts: list[dict[str, Any]]) -> tuple[int, list[str]]:
+def _check_graph(
+    endpoint: str, attempts: list[dict[str, Any]], *, prefix: str = "urn:load:"
+) -> tuple[int, list[str]]:
     """Compare the robots' acked changes with the graph: (acked changes checked, problems)."""
     from adapters.zenoh.client import TwinClient
 
@@ -154,7 +156,7 @@ def _check_graph(endpoint: str, attempts: list[dict[str, Any]]) -> tuple[int, li
     with TwinClient.connect([endpoint], timeout_s=30.0) as twin:
         rows = twin.sparql(
             "SELECT ?e ?rev ?removed WHERE { ?e twin:revision ?rev . "
-            "FILTER(STRSTARTS(STR(?e), 'urn:load:')) OPTIONAL { ?e twin:removed ?removed } }"
+            f"FILTER(STRSTARTS(STR(?e), '{prefix}')) OPTIONAL {{ ?e twin:removed ?removed }} }}"
         )
     assert isinstance(rows, dict)
     graph = {b["e"]["value"]: (int(b["rev"]["value"]), "removed" in b) for b in rows["results"]["bindings"]}

@@ -29,7 +29,8 @@ def main() -> int:
 
     with TwinClient.connect([endpoint]) as twin:
         watchers = [twin.watch(storey, skill, on_version) for skill in skills]
-        print(json.dumps({"ready": True}), flush=True)
+        with lock:  # versions may already be arriving on Zenoh's threads
+            print(json.dumps({"ready": True}), flush=True)
         sys.stdin.read()  # until the test closes our stdin
         for w in watchers:
             if w.latest is not None:

@@ -1,0 +1,310 @@
+"""Soak test of the live twin: a fleet for a long time, memory and the store sampled as it goes.
+
+The daemon (``twin serve`` on an on-disk store of the generated lab, no recording), every robot and
+every subscriber run as separate processes on loopback. Each robot owns one table in the ground
+floor's corridor and sends acked observations at ``--rate / --robots`` per second: a share
+``--reconfirm`` of them re-reports the table where it stands (a re-confirmation: nothing changes),
+the rest move it; every 100th removes it and the next adds it again under the same IRI. Each
+subscriber keeps a copy of every ground-floor map (the latched map, then the updates).
+
+Every ``--sample`` seconds it prints a row: daemon RSS, store size on disk, acked observations per
+second, ack p50/p99 over the interval. At the end:
+
+- no acknowledged change lost: each robot's last acked change of its table is the one in the graph;
+- no subscriber behind: every subscriber's final copy of every map equals the daemon's;
+- growth: RSS and store size from the end of warm-up (the first ``--warmup`` seconds) to the end,
+  within ``--max-rss-growth`` and ``--max-store-growth`` MB.
+
+Exit code 1 if any of those fails. The one-hour run (the benchmark)::
+
+    python benchmarks/soak.py --duration 3600 --json soak.json --plot soak.png
+
+The suite runs a short one (``tests/integration/test_soak.py``) and checks growth per observation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import random
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import live  # benchmarks/ is not a package
+import load
+
+TWIN = live.TWIN
+STOREY = load.STOREY
+
+
+def robot(endpoint: str, index: int, rate: float, duration: float, start_at: float, reconfirm: float) -> int:
+    """One JSON line per observation: sent, acked, ok, revision, whether it changed anything."""
+    from adapters.zenoh.client import TwinClient
+    from twin.errors import TwinError
+
+    rng = random.Random(index)
+    name = f"robot{index}"
+    x0, x1, y0, y1 = load.CORRIDOR
+    table = f"urn:soak:{name}:table"
+    present, payload = False, ""
+    with TwinClient.connect([endpoint], timeout_s=10.0) as twin:
+        time.sleep(max(0.0, start_at - time.time()))
+        i, t_end = 0, start_at + duration
+        while time.time() < t_end:
+            time.sleep(max(0.0, start_at + i / rate - time.time()))
+            if present and i % 100 == 99:
+                op, doc = "remove", f"<{table}> <{TWIN}removed> true ."
+            elif present and rng.random() < reconfirm:
+                op, doc = "same", payload
+            else:
+                op = "move" if present else "add"
+                x, y, yaw = rng.uniform(x0, x1), rng.uniform(y0, y1), rng.uniform(0, 3)
+                doc = payload = (
+                    f'<{table}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "{STOREY}" ; '
+                    f'<{TWIN}box> "{x:.3f} {y:.3f} 0.375 0.8 0.6 0.75 {yaw:.3f}" .'
+                )
+            sent = time.time()
+            try:
+                ack = twin.observe(name, doc)
+                ok, revision, unchanged = bool(ack.get("ok")), int(ack.get("revision", -1)), bool(ack.get("unchanged"))
+            except TwinError as err:
+                ok, revision, unchanged = False, -1, False
+                print(json.dumps({"error": str(err)}), file=sys.stderr, flush=True)
+            print(json.dumps([table, op, sent, time.time(), ok, revision, unchanged]), flush=True)
+            if ok and op == "remove":
+                present = False
+            elif ok and op in ("add", "move"):
+                present = True
+            i += 1
+    return 0
+
+
+def _dir_mb(path: Path) -> float:
+    return sum(f.stat().st_size for f in path.rglob("*") if f.is_file()) / 1e6
+
+
+def _pct(values: list[float], q: float) -> float:
+    return live._pct(values, q) if values else 0.0
+
+
+def run(
+    *,
+    robots: int,
+    rate: float,
+    duration: float,
+    subscribers: int,
+    reconfirm: float,
+    sample_s: float,
+    warmup_s: float,
+    quiet: bool = False,
+) -> dict[str, Any]:
+    from adapters.zenoh.client import TwinClient
+
+    work = Path(tempfile.mkdtemp(prefix="soak-"))
+    store = live.prepare_store("lab", work)
+    endpoint = f"tcp/127.0.0.1:{live._free_port()}"
+    daemon, _ = live.serve("--store", str(store), "--listen", endpoint, "--no-record")
+    assert daemon.stdout is not None
+    threading.Thread(target=daemon.stdout.read, daemon=True).start()  # drain its log
+    subs = [load._child("subscriber", endpoint, stdin=True) for _ in range(subscribers)]
+    for s in subs:
+        assert s.stdout is not None and json.loads(s.stdout.readline())["ready"]
+    start_at = time.time() + 1.0 + 0.1 * robots
+    per_robot = rate / robots
+    bots = [
+        subprocess.Popen(
+            [sys.executable, __file__, "--child", endpoint, str(i), str(per_robot), str(duration), str(start_at), str(reconfirm)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=live.ROOT,
+        )
+        for i in range(robots)
+    ]
+    lock = threading.Lock()
+    lines: list[list[Any]] = []
+    errors: list[str] = []
+
+    def drain(b: subprocess.Popen[str]) -> None:
+        assert b.stdout is not None
+        for ln in b.stdout:
+            if ln.startswith("["):
+                with lock:
+                    lines.append(json.loads(ln))
+
+    def drain_err(b: subprocess.Popen[str]) -> None:
+        assert b.stderr is not None
+        for ln in b.stderr:
+            if ln.strip() and len(errors) < 20:
+                errors.append(ln.strip())
+
+    readers = [threading.Thread(target=f, args=(b,), daemon=True) for b in bots for f in (drain, drain_err)]
+    for r in readers:
+        r.start()
+    samples: list[dict[str, float]] = []
+    header = f"{'t s':>7} {'rss MB':>8} {'store MB':>9} {'acked/s':>8} {'changed/s':>9} {'ack p50 ms':>10} {'ack p99 ms':>10}"
+    if not quiet:
+        print(header, flush=True)
+    seen = 0
+    next_at = start_at + sample_s
+    while any(b.poll() is None for b in bots):
+        time.sleep(max(0.0, min(0.5, next_at - time.time())))
+        if time.time() < next_at and any(b.poll() is None for b in bots):
+            continue
+        with lock:
+            window, seen = lines[seen:], len(lines)
+        acked = [ln for ln in window if ln[4]]
+        acks = [(ln[3] - ln[2]) * 1e3 for ln in acked]
+        row = {
+            "t_s": round(time.time() - start_at, 1),
+            "rss_mb": round(live._proc_mb(daemon.pid, "VmRSS"), 1),
+            "store_mb": round(_dir_mb(store), 2),
+            "acked_per_s": round(len(acked) / sample_s, 1),
+            "changed_per_s": round(sum(1 for ln in acked if not ln[6]) / sample_s, 1),
+            "ack_p50_ms": round(_pct(acks, 50), 2),
+            "ack_p99_ms": round(_pct(acks, 99), 2),
+            "observations": len(lines),
+        }
+        samples.append(row)
+        if not quiet:
+            print(
+                f"{row['t_s']:>7} {row['rss_mb']:>8} {row['store_mb']:>9} {row['acked_per_s']:>8} "
+                f"{row['changed_per_s']:>9} {row['ack_p50_ms']:>10} {row['ack_p99_ms']:>10}",
+                flush=True,
+            )
+        next_at += sample_s
+    for r in readers:
+        r.join(timeout=60)
+    time.sleep(1.0)  # the last full maps follow their updates by full_map_interval_s
+    with TwinClient.connect([endpoint], timeout_s=30.0) as twin:
+        daemon_final = {}
+        for skill in load.SKILLS:
+            grid, _, version = twin.get_map(STOREY, skill)
+            daemon_final[skill] = [version, load._digest(grid.data)]
+    attempts = [
+        {"iri": ln[0], "op": ln[1], "ok": ln[4], "revision": ln[5]} for ln in lines if ln[4] and not ln[6]
+    ]
+    checked, problems = load._check_graph(endpoint, attempts, prefix="urn:soak:")
+    behind = 0
+    for s in subs:
+        out, _ = s.communicate(input="", timeout=120)
+        behind += int(json.loads(out.strip().splitlines()[-1])["final"] != daemon_final)
+    daemon.terminate()
+    daemon.wait(timeout=60)
+    acked_all = [ln for ln in lines if ln[4]]
+    acks_all = [(ln[3] - ln[2]) * 1e3 for ln in acked_all]
+    warm = [s for s in samples if s["t_s"] >= warmup_s] or samples[-1:]
+    after = [s for s in samples if s["t_s"] >= warmup_s]
+    obs_after = (after[-1]["observations"] - after[0]["observations"]) if len(after) > 1 else 0
+    return {
+        "robots": robots,
+        "offered_per_s": rate,
+        "reconfirm_share": reconfirm,
+        "duration_s": duration,
+        "subscribers": subscribers,
+        "observations_sent": len(lines),
+        "observations_acked": len(acked_all),
+        "unchanged": sum(1 for ln in acked_all if ln[6]),
+        "acked_per_s": round(len(acked_all) / duration, 1),
+        "ack_p50_ms": round(_pct(acks_all, 50), 2),
+        "ack_p99_ms": round(_pct(acks_all, 99), 2),
+        "acked_changes_checked": checked,
+        "lost_acks": len(problems),
+        "subscribers_behind": behind,
+        "rss_after_warmup_mb": warm[0]["rss_mb"] if warm else None,
+        "rss_end_mb": samples[-1]["rss_mb"] if samples else None,
+        "rss_growth_mb": round(warm[-1]["rss_mb"] - warm[0]["rss_mb"], 1) if warm else None,
+        "store_after_warmup_mb": warm[0]["store_mb"] if warm else None,
+        "store_end_mb": samples[-1]["store_mb"] if samples else None,
+        "store_growth_mb": round(warm[-1]["store_mb"] - warm[0]["store_mb"], 2) if warm else None,
+        "observations_after_warmup": obs_after,
+        "problems": problems[:10],
+        "robot_errors": errors[:10],
+        "samples": samples,
+    }
+
+
+def plot(result: dict[str, Any], out: Path) -> None:
+    """RSS and store size over time (and acked/s) as a PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    s = result["samples"]
+    t = [r["t_s"] / 60 for r in s]
+    fig, (a, b) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    a.plot(t, [r["rss_mb"] for r in s], label="daemon RSS (MB)")
+    a.plot(t, [r["store_mb"] for r in s], label="store on disk (MB)")
+    a.set_ylabel("MB")
+    a.set_ylim(bottom=0)
+    a.legend()
+    a.set_title(
+        f"soak: {result['robots']} robots, {result['offered_per_s']:g} obs/s offered, "
+        f"{result['reconfirm_share']:.0%} re-confirmations"
+    )
+    b.plot(t, [r["acked_per_s"] for r in s], label="acked/s")
+    b.plot(t, [r["ack_p99_ms"] for r in s], label="ack p99 (ms)")
+    b.set_xlabel("minutes")
+    b.set_ylim(bottom=0)
+    b.legend()
+    fig.tight_layout()
+    fig.savefig(out, dpi=100)
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    p.add_argument("--robots", type=int, default=4)
+    p.add_argument("--rate", type=float, default=100.0, help="offered observations per second, all robots")
+    p.add_argument("--reconfirm", type=float, default=0.5, help="share of re-confirmations (0..1)")
+    p.add_argument("--duration", type=float, default=3600.0, help="seconds")
+    p.add_argument("--subscribers", type=int, default=2)
+    p.add_argument("--sample", type=float, default=10.0, help="seconds between samples")
+    p.add_argument("--warmup", type=float, default=60.0, help="seconds before growth is measured")
+    p.add_argument("--max-rss-growth", type=float, default=20.0, help="MB after warm-up")
+    p.add_argument("--max-store-growth", type=float, default=50.0, help="MB after warm-up")
+    p.add_argument("--json", metavar="OUT.json", help="also write the result here")
+    p.add_argument("--plot", metavar="OUT.png", help="plot RSS and store size over time")
+    p.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
+    args = p.parse_args()
+    if args.child:
+        c = args.child
+        return robot(c[0], int(c[1]), float(c[2]), float(c[3]), float(c[4]), float(c[5]))
+    print(
+        f"soak: {args.robots} robots, {args.rate:g} obs/s offered ({args.reconfirm:.0%} re-confirmations) "
+        f"for {args.duration:g} s, {args.subscribers} subscribers",
+        file=sys.stderr,
+    )
+    result = run(
+        robots=args.robots,
+        rate=args.rate,
+        duration=args.duration,
+        subscribers=args.subscribers,
+        reconfirm=args.reconfirm,
+        sample_s=args.sample,
+        warmup_s=min(args.warmup, args.duration / 2),
+    )
+    for key, value in result.items():
+        if key != "samples":
+            print(f"{key:<26}  {value}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=2))
+    if args.plot:
+        plot(result, Path(args.plot))
+    failed = (
+        result["lost_acks"]
+        or result["subscribers_behind"]
+        or (result["rss_growth_mb"] or 0) > args.max_rss_growth
+        or (result["store_growth_mb"] or 0) > args.max_store_growth
+    )
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
