@@ -152,10 +152,13 @@ class ZenohDaemon:
         key = str(query.key_expr)
 
         def reply(r: Reply) -> None:
-            if r.ok:
-                query.reply(key, r.to_json(), encoding=JSON)
-            else:
-                query.reply_err(r.to_json(), encoding=JSON)
+            try:
+                if r.ok:
+                    query.reply(key, r.to_json(), encoding=JSON)
+                else:
+                    query.reply_err(r.to_json(), encoding=JSON)
+            finally:
+                query.drop()  # finalise now: the robot's get returns at once, not when Python frees it
 
         self.service.submit_observation(robot, payload, reply=reply)
 

@@ -6,7 +6,7 @@ the hot path) and skill profiles added or removed at run time (:mod:`twin.live.s
 each committed change it bumps the twin's revision and emits events (:mod:`twin.events`) to its sinks:
 the changed rectangle of every affected map at once, the full maps coalesced (at most every
 ``limits.full_map_interval_s`` in a burst). Requests come from any thread (e.g. Zenoh callbacks,
-which only enqueue); replies go to the callback given with each request. Now and then, when idle, it
+which only enqueue); replies go to the callback given with each request. Every ``flush_every_s`` it
 flushes the store's buffers so that memory and the store's log stay flat all day.
 
 Example::
@@ -85,7 +85,7 @@ class TwinService:
         flush_every_s: float = 5.0,
     ) -> None:
         """``max_batch``: at most this many queued observations share one commit and one map pass
-        (group commit). ``flush_every_s``: flush the store's buffers at most this often (when idle)."""
+        (group commit). ``flush_every_s``: flush the store's buffers this often (if anything changed)."""
         self.store = store
         self.max_batch = max(1, max_batch)
         self.config = config
@@ -294,8 +294,8 @@ class TwinService:
     def serve_forever(self, stop: threading.Event, *, poll_s: float = 0.05) -> None:
         """Handle requests until ``stop`` is set, then finish what is queued and publish every map."""
         while not stop.is_set():
-            if not self.process(timeout_s=poll_s):
-                self.flush_store(due_only=True)  # idle: a good moment
+            self.process(timeout_s=poll_s)
+            self.flush_store(due_only=True)
         self.process()
         self.flush_full_maps()
         self.flush_store()
