@@ -231,3 +231,37 @@ def test_serve_without_a_store_is_a_one_line_error(tmp_path: Path) -> None:
     assert r.returncode == 1
     assert "No store at" in r.stderr and "twin import" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_a_re_confirmation_from_another_process_is_acked_unchanged_and_publishes_nothing(
+    daemon: Daemon, tmp_path: Path
+) -> None:
+    with TwinClient.connect([daemon.endpoint]) as client:
+        first = client.observe("robot1", _box_turtle())
+        assert first["ok"] and first["revision"] == 1 and "unchanged" not in first
+        _settle()
+        _, _, version = client.get_map("ground-floor", "navigation")
+        sub = Subscriber(daemon, tmp_path, "navigation")
+        sub.until("navigation", version)
+        for _ in range(10):
+            again = client.observe("robot1", _box_turtle(box="16.6004 7.0 0.375 0.6 0.6 0.75 0.00005"))
+            assert again == {
+                "ok": True,
+                "revision": 1,
+                "unchanged": True,
+                "upserted": [],
+                "removed": [],
+                "maps": [],
+            }
+        _settle()
+        status = client.status()
+        assert status["revision"] == 1
+        assert status["observations"] == {"accepted": 1, "unchanged": 10, "rejected": 0}
+        moved = client.observe("robot1", _box_turtle(box="16.0 7.0 0.375 0.6 0.6 0.75 0.0"))
+        assert moved["revision"] == 2
+    sub.until("navigation", version + 1)  # the move is the next version: nothing came in between
+    versions = [
+        ln["version"] for ln in sub.lines if ln.get("skill") == "navigation" and ln.get("via") == "update"
+    ]
+    assert versions == [version + 1]
+    sub.finish()
