@@ -23,7 +23,11 @@ def config(tmp_path: Path, text: str) -> Path:
 def test_each_robot_may_write_only_its_own_observation_keys() -> None:
     acl = access_control(SiteKeys("twin/lab"), ["robot1", "robot2"])
     rules = {r["id"]: r for r in acl["rules"]}
-    assert rules["write-robot1"]["key_exprs"] == ["twin/lab/observations/robot1", "twin/lab/observe/robot1"]
+    assert rules["write-robot1"]["key_exprs"] == [
+        "twin/lab/observations/robot1",
+        "twin/lab/observe/robot1",
+        "twin/lab/robots/robot1/storey",
+    ]
     policies = {tuple(p["subjects"]): p["rules"] for p in acl["policies"]}
     assert "write-robot2" not in policies[("robot-robot1",)]
     assert "operate" not in policies[("robot-robot1",)]

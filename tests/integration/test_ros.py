@@ -1,5 +1,6 @@
-"""ROS 2 robots get their map unchanged: rmw_zenoh and bridge layouts, served by the daemon process to
-subscriber processes written from the rmw_zenoh and zenoh-plugin-ros2dds sources."""
+"""ROS 2 robots get their maps unchanged: rmw_zenoh and bridge layouts, served by the daemon process to
+subscriber processes written from the rmw_zenoh and zenoh-plugin-ros2dds sources, maps decoded by
+real rclpy; one robot, several skills on several topics; the storey switched at run time."""
 
 from __future__ import annotations
 
@@ -19,8 +20,10 @@ from tests.integration.conftest import Daemon, JsonLinesProcess, start_daemon, t
 CONFIG = """
 [robots.robot1]
 namespace = "/robot1"
-skill = "navigation"
 storey = "ground-floor"
+[robots.robot1.maps]
+map = "lab-localization"
+navigation_map = "navigation"
 
 [robots.robot2]
 namespace = "/robot2"
@@ -42,9 +45,9 @@ def ros_daemon(fresh_store: Path, tmp_path: Path) -> Iterator[Daemon]:
 
 
 class RosSubscriber(JsonLinesProcess):
-    def __init__(self, d: Daemon, layout: str, ns: str, out: Path) -> None:
+    def __init__(self, d: Daemon, layout: str, ns: str, out: Path, topic: str = "map") -> None:
         out.mkdir(parents=True, exist_ok=True)
-        super().__init__("tests.integration.ros_subscriber", d.endpoint, layout, "0", ns, str(out))
+        super().__init__("tests.integration.ros_subscriber", d.endpoint, layout, "0", ns, str(out), topic)
         self.out = out
         assert self.next()["ready"]
 
@@ -61,7 +64,7 @@ class RosSubscriber(JsonLinesProcess):
 def test_a_late_ros_subscriber_gets_the_map_then_the_update_and_the_new_map(
     ros_daemon: Daemon, tmp_path: Path, layout: str
 ) -> None:
-    sub = RosSubscriber(ros_daemon, layout, "/robot1", tmp_path / layout)
+    sub = RosSubscriber(ros_daemon, layout, "/robot1", tmp_path / layout, "navigation_map")
     sub.until("map")  # latched: it joined after the daemon published
     r = twin(
         "observe",
@@ -90,18 +93,29 @@ def test_a_late_ros_subscriber_gets_the_map_then_the_update_and_the_new_map(
         assert all(ln["stamp"] > 0 for ln in sub.lines if "stamp" in ln)
 
 
-def test_two_robots_with_different_skills_get_different_maps(ros_daemon: Daemon, tmp_path: Path) -> None:
-    one = RosSubscriber(ros_daemon, "bridge", "/robot1", tmp_path / "one")
-    two = RosSubscriber(ros_daemon, "bridge", "/robot2", tmp_path / "two")
-    one.until("map")
-    two.until("map")
-    a, b = one.finish(), two.finish()
+@pytest.mark.parametrize("layout", ["rmw_zenoh", "bridge"])
+def test_two_topics_of_one_robot_carry_two_different_maps_each_equal_to_its_skill_map(
+    ros_daemon: Daemon, tmp_path: Path, layout: str
+) -> None:
+    loc_sub = RosSubscriber(ros_daemon, layout, "/robot1", tmp_path / "loc", "map")
+    nav_sub = RosSubscriber(ros_daemon, layout, "/robot1", tmp_path / "nav", "navigation_map")
+    loc_sub.until("map")
+    nav_sub.until("map")
+    a, b = loc_sub.finish(), nav_sub.finish()
     with TwinClient.connect([ros_daemon.endpoint]) as client:
-        nav, _, _ = client.get_map("ground-floor", "navigation")
         loc, _, _ = client.get_map("ground-floor", "lab-localization")
-    np.testing.assert_array_equal(a, nav.data)
-    np.testing.assert_array_equal(b, loc.data)
+        nav, _, _ = client.get_map("ground-floor", "navigation")
+    np.testing.assert_array_equal(a, loc.data)
+    np.testing.assert_array_equal(b, nav.data)
     assert (a != b).any()
+
+
+def test_the_old_single_skill_key_still_serves_that_skill_on_map(ros_daemon: Daemon, tmp_path: Path) -> None:
+    sub = RosSubscriber(ros_daemon, "bridge", "/robot2", tmp_path / "two")
+    sub.until("map")
+    with TwinClient.connect([ros_daemon.endpoint]) as client:
+        loc, _, _ = client.get_map("ground-floor", "lab-localization")
+    np.testing.assert_array_equal(sub.finish(), loc.data)
 
 
 def test_the_daemon_appears_in_the_ros_graph_as_a_map_server_node(ros_daemon: Daemon) -> None:
@@ -113,12 +127,20 @@ def test_the_daemon_appears_in_the_ros_graph_as_a_map_server_node(ros_daemon: Da
     assert ("/robot1", "twin_map_server") in nodes
     assert ("/robot2", "twin_map_server") not in nodes  # bridge only: no rmw graph entry
     pubs = {t.topic: t for t in tokens if t.kind == "MP"}
-    assert set(pubs) == {"/robot1/map", "/robot1/map_updates"}
+    assert set(pubs) == {
+        "/robot1/map",
+        "/robot1/map_updates",
+        "/robot1/navigation_map",
+        "/robot1/navigation_map_updates",
+    }
     m = pubs["/robot1/map"]
     assert m.type_name == "nav_msgs::msg::dds_::OccupancyGrid_"
     assert m.type_hash == type_hash("nav_msgs/msg/OccupancyGrid")
     assert m.qos == {"reliability": None, "durability": 1, "history": None, "depth": 1}
     assert pubs["/robot1/map_updates"].type_name == "map_msgs::msg::dds_::OccupancyGridUpdate_"
+    (sub,) = [t for t in tokens if t.kind == "MS"]
+    assert (sub.topic, sub.type_name) == ("/robot1/storey", "std_msgs::msg::dds_::String_")
+    assert sub.type_hash == type_hash("std_msgs/msg/String")
 
 
 def test_twin_watch_ros_receives_the_latched_map_like_a_ros_node(ros_daemon: Daemon, tmp_path: Path) -> None:
