@@ -371,17 +371,16 @@ class RosMapPublisher:
     def _on_storey_get(self, query: zenoh.Query) -> None:
         assert self.keys is not None
         wanted = query.payload.to_string().strip() if query.payload is not None else ""
-        with self._lock:
-            names = [
-                n for n in self._robots if zenoh.KeyExpr(self.keys.robot_storey(n)).intersects(query.key_expr)
-            ]
-        if wanted and len(names) != 1:
-            query.reply_err(
-                f"Name one robot to switch its storey, not {query.key_expr}.".encode(), encoding=TEXT
-            )
-            return
+        key = str(query.key_expr)
+        if "*" in key:  # a listing: every configured robot the selector matches
+            if wanted:
+                query.reply_err(f"Name one robot to switch its storey, not {key}.".encode(), encoding=TEXT)
+                return
+            with self._lock:
+                names = [n for n in self._robots if zenoh.KeyExpr(self.keys.robot_storey(n)).intersects(key)]
+        else:
+            names = [key.split("/")[-2]]
         for name in names:
-            key = self.keys.robot_storey(name)
             try:
                 if wanted:
                     self.switch(name, wanted, source="zenoh")
@@ -392,7 +391,7 @@ class RosMapPublisher:
             if storey is None:
                 query.reply_err(f"Robot {name!r} has not reported a storey yet.".encode(), encoding=TEXT)
             else:
-                query.reply(key, storey.encode(), encoding=TEXT)
+                query.reply(self.keys.robot_storey(name), storey.encode(), encoding=TEXT)
 
     # --- status and lifecycle ----------------------------------------------------------------------
     def status(self) -> dict[str, object]:
