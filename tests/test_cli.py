@@ -203,3 +203,22 @@ def test_the_progress_bar_draws_on_a_terminal_and_stays_silent_in_a_pipe() -> No
     with progress_bar("meshing", console=Console(file=quiet, force_terminal=False)) as advance:
         advance(1, 2)
     assert quiet.getvalue() == ""
+
+
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_global_options_are_accepted_before_and_after_the_command(
+    lab_store_dir: Path, tmp_path: Path, where: str
+) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[maps]\nmargin_m = 500\n")  # only an error if the file is read
+    options = ["--config", str(bad), "-v"]
+    command = ["stats", "--store", str(lab_store_dir)]
+    r = twin(*(options + command if where == "before" else command + options))
+    assert r.returncode == 1
+    assert "Configuration 'maps.margin_m' must be between 0 and 100 metres, got 500" in r.stderr
+
+
+def test_two_different_config_files_before_and_after_the_command_are_refused(tmp_path: Path) -> None:
+    r = twin("--config", tmp_path / "a.toml", "stats", "--config", tmp_path / "b.toml")
+    assert r.returncode == 2
+    assert "--config given twice" in r.stderr and "a.toml" in r.stderr and "b.toml" in r.stderr

@@ -113,17 +113,35 @@ class Limits:
     full_map_interval_s: float = 0.2
 
 
+DEFAULT_ROBOT_MAPS: tuple[tuple[str, str], ...] = (("map", "localization"), ("navigation_map", "navigation"))
+"""A namespaced robot's topics when its table names none: AMCL reads ``map`` (its default
+``map_topic``), so that carries the localization skill; the costmap's static layer is pointed at
+``navigation_map`` (``map_topic: navigation_map``) for the navigation skill."""
+RESERVED_TOPICS = ("storey",)
+"""Topic names under a robot's namespace that the daemon uses for something else (``/<ns>/storey``)."""
+
+
 @dataclass(frozen=True, slots=True)
 class RobotConfig:
-    """A configured robot: what it may change, and (with a ``namespace``) the ROS 2 map it receives."""
+    """A configured robot: what it may change, and (with a ``namespace``) the ROS 2 maps it receives.
+
+    ``maps`` pairs a topic name under the namespace with a skill, e.g. ``(("map", "localization"),
+    ("navigation_map", "navigation"))``: each topic carries that skill's map of the robot's current
+    ``storey`` (latched), and ``<topic>_updates`` its changed rectangles.
+    """
 
     name: str
     rights: frozenset[Right]
     namespace: str | None = None
-    skill: str | None = None
+    maps: tuple[tuple[str, str], ...] = ()
     storey: str | None = None
     domain_id: int = 0
     ros: tuple[RosLayout, ...] = ("bridge", "rmw_zenoh")
+
+    @property
+    def skills(self) -> tuple[str, ...]:
+        """The skills whose maps this robot receives, in topic order, each once."""
+        return tuple(dict.fromkeys(skill for _, skill in self.maps))
 
 
 @dataclass(frozen=True, slots=True)
@@ -447,7 +465,7 @@ def _robots(
             msg = f"Configuration '{where}': a robot name must be 1-64 of [A-Za-z0-9_-]."
             raise ConfigError(msg)
         t = _table(table, where)
-        _unknown(t, where, {"namespace", "skill", "storey", "domain_id", "ros", "rights"})
+        _unknown(t, where, {"namespace", "skill", "maps", "storey", "domain_id", "ros", "rights"})
         rights = _rights(f"{where}.rights", t["rights"]) if "rights" in t else default_rights
         ns = t.get("namespace")
         if ns is not None and (not isinstance(ns, str) or not _NAMESPACE.match(ns)):
@@ -455,13 +473,13 @@ def _robots(
                 f"Configuration '{where}.namespace' must be a ROS namespace such as \"/robot1\", got {ns!r}."
             )
             raise ConfigError(msg)
-        skill, storey = t.get("skill"), t.get("storey")
-        if ns is not None and (not isinstance(skill, str) or not isinstance(storey, str)):
-            msg = f"Configuration '{where}': a robot with a namespace needs 'skill' and 'storey'."
-            raise ConfigError(msg)
-        if skill is not None and skill not in skills:
-            known = ", ".join(sorted(skills))
-            msg = f"Configuration '{where}.skill': unknown skill {skill!r}; configured: {known}."
+        maps = _robot_maps(t, where, skills) if ns is not None or "skill" in t or "maps" in t else ()
+        storey = t.get("storey")
+        if ns is not None and (not isinstance(storey, str) or not storey):
+            msg = (
+                f"Configuration '{where}.storey': a robot with a namespace needs the key of the storey "
+                f"it starts on, got {storey!r}."
+            )
             raise ConfigError(msg)
         domain = t.get("domain_id", 0)
         if isinstance(domain, bool) or not isinstance(domain, int) or not 0 <= domain <= 232:
@@ -475,8 +493,8 @@ def _robots(
             name=name,
             rights=rights,
             namespace=("/" + ns.strip("/")) if ns else None,
-            skill=skill,
-            storey=storey,
+            maps=maps,
+            storey=storey if ns is not None else None,
             domain_id=domain,
             ros=tuple(dict.fromkeys(ros)),
         )
@@ -484,6 +502,55 @@ def _robots(
 
 
 _NAMESPACE = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*/?$")
+_TOPIC = re.compile(r"^[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
+
+
+def _robot_maps(
+    t: Mapping[str, Any], where: str, skills: Mapping[str, SkillProfile]
+) -> tuple[tuple[str, str], ...]:
+    """``[robots.NAME.maps]`` (topic = skill), the old single ``skill`` (= ``{map = skill}``), or the
+    defaults (:data:`DEFAULT_ROBOT_MAPS`)."""
+    if "skill" in t and "maps" in t:
+        msg = (
+            f"Configuration '{where}' has both 'skill' and 'maps': 'skill = \"S\"' is the old form of "
+            "'maps = { map = \"S\" }'; keep only 'maps'."
+        )
+        raise ConfigError(msg)
+    if "skill" in t:
+        raw: Any = {"map": t["skill"]}
+        key = f"{where}.skill"
+    elif "maps" in t:
+        raw, key = t["maps"], f"{where}.maps"
+    else:
+        raw, key = dict(DEFAULT_ROBOT_MAPS), f"{where}.maps (default)"
+    if not isinstance(raw, Mapping) or not raw:
+        msg = (
+            f"Configuration '{key}' must map topic names to skills, "
+            f"e.g. {{ map = \"localization\" }}, got {raw!r}."
+        )
+        raise ConfigError(msg)
+    out: list[tuple[str, str]] = []
+    for topic, skill in raw.items():
+        if not isinstance(topic, str) or not _TOPIC.match(topic):
+            msg = (
+                f"Configuration '{key}': topic {topic!r} must be a relative ROS topic name such as "
+                '"map" or "nav/map" (it goes under the robot\'s namespace).'
+            )
+            raise ConfigError(msg)
+        if topic in RESERVED_TOPICS or topic.endswith("_updates"):
+            msg = (
+                f"Configuration '{key}': topic {topic!r} is taken (the daemon uses '/<ns>/storey' and "
+                "'<topic>_updates' itself)."
+            )
+            raise ConfigError(msg)
+        if not isinstance(skill, str) or skill not in skills:
+            known = ", ".join(sorted(skills))
+            msg = (
+                f"Configuration '{key}': topic {topic!r} names unknown skill {skill!r}; configured: {known}."
+            )
+            raise ConfigError(msg)
+        out.append((topic, skill))
+    return tuple(out)
 
 
 def _rerun(raw: Any) -> RerunConfig:

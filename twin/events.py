@@ -156,6 +156,21 @@ class SkillChanged:
     stamp_ns: int
 
 
+@dataclass(frozen=True, slots=True)
+class RobotStoreyChanged:
+    """A robot's current storey changed at run time (it took the lift): every map topic of the robot
+    now carries ``storey``'s maps. ``source`` says who asked: ``"zenoh"`` (a put or get on
+    ``robots/<robot>/storey``) or ``"ros"`` (the robot's ``/<ns>/storey`` topic). ``revision`` is the
+    twin revision at the switch (a switch changes no twin data, so it commits none)."""
+
+    robot: str
+    storey: str
+    previous: str | None
+    source: str
+    revision: int
+    stamp_ns: int
+
+
 TwinEvent = (
     TwinStarted
     | MapPublished
@@ -164,6 +179,7 @@ TwinEvent = (
     | ObservationAccepted
     | ObservationRejected
     | SkillChanged
+    | RobotStoreyChanged
 )
 
 

@@ -26,8 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="twin", description="building-twin: IFC -> graph world model -> robot maps, served live"
     )
-    p.add_argument("--config", type=Path, help="a TOML file merged over config/default.toml")
-    p.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv for debug)")
+    _global_options(p, after=False)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     sp = sub.add_parser("import", help="build the graph world model of an IFC file into a store")
@@ -78,7 +77,30 @@ def build_parser() -> argparse.ArgumentParser:
     record_cmd.add_parser(sub)
     demo_cmd.add_parser(sub)
     network_cmds.add_parsers(sub)
+    for command in sub.choices.values():  # `twin serve --config FILE` as well as `twin --config FILE serve`
+        _global_options(command, after=True)
     return p
+
+
+def _global_options(p: argparse.ArgumentParser, *, after: bool) -> None:
+    """``--config`` and ``-v``, accepted before the command and after it (kept apart: see _merge)."""
+    prefix = "after_" if after else ""
+    p.add_argument(
+        "--config", dest=f"{prefix}config", type=Path, help="a TOML file merged over config/default.toml"
+    )
+    p.add_argument(
+        "-v", "--verbose", dest=f"{prefix}verbose", action="count", default=0,
+        help="more logging (-vv for debug)",
+    )  # fmt: skip
+
+
+def _merge_global_options(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """One ``config`` and one ``verbose`` from both places; two different config files are an error."""
+    after = getattr(args, "after_config", None)
+    if after is not None and args.config is not None and after != args.config:
+        parser.error(f"--config given twice: {args.config} before the command and {after} after it")
+    args.config = args.config if args.config is not None else after
+    args.verbose += getattr(args, "after_verbose", 0)
 
 
 def _hint(err: TwinError, args: argparse.Namespace) -> str:
@@ -93,6 +115,7 @@ def _hint(err: TwinError, args: argparse.Namespace) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    _merge_global_options(parser, args)
     level = logging.WARNING - 10 * min(args.verbose, 2)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
     try:

@@ -1,4 +1,4 @@
-"""``twin observe`` and ``twin watch``: what a robot does, from the command line."""
+"""``twin observe``, ``twin watch`` and ``twin storey``: what a robot does, from the command line."""
 
 from __future__ import annotations
 
@@ -84,6 +84,20 @@ def cmd_observe(args: argparse.Namespace, cfg: Config) -> int:
     return 0
 
 
+def cmd_storey(args: argparse.Namespace, cfg: Config) -> int:
+    """``twin storey --robot NAME [KEY]``: print the robot's storey, after switching it to KEY if given."""
+    with TwinClient.connect(
+        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=cfg.zenoh
+    ) as twin:
+        try:
+            storey = twin.robot_storey(args.robot, args.storey)
+        except RemoteError as err:
+            print(f"twin: error: {err}", file=sys.stderr)
+            return 1
+    print(storey)
+    return 0
+
+
 def _describe(v: MapVersion) -> str:
     occupied = int((v.grid.data == 100).sum())
     return (
@@ -120,7 +134,7 @@ def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
         occupied = int((s.grid.data == 100).sum())
         seq = f", rmw sequence {s.sequence}" if s.sequence is not None else ""
         size = f"{s.grid.frame.width}x{s.grid.frame.height}"
-        print(f"{args.ros}/map via {s.kind}{seq}: {size}, {occupied} occupied", flush=True)
+        print(f"{args.ros}/{args.topic} via {s.kind}{seq}: {size}, {occupied} occupied", flush=True)
         seen.release()
 
     with TwinClient.connect(
@@ -131,6 +145,7 @@ def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
             namespace=args.ros,
             layout=args.layout,
             domain_id=args.domain_id,
+            topic=args.topic,
             on_sample=on_sample,
         )
         try:
@@ -139,9 +154,13 @@ def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
         finally:
             watcher.close()
         if args.out and watcher.latest is not None:
-            g = watcher.latest  # a ROS message names no storey or skill: files are named <ns>__map
+            g = watcher.latest  # a ROS message names no storey or skill: files are named <ns>__<topic>
             named = OccupancyGrid(
-                g.frame, g.data, args.ros.strip("/").replace("/", "-"), "map", g.elevation_m
+                g.frame,
+                g.data,
+                args.ros.strip("/").replace("/", "-"),
+                args.topic.replace("/", "-"),
+                g.elevation_m,
             )
             files = write_map_files(named, Path(args.out), stamp_ns=time.time_ns())
             print(f"wrote {files.yaml}")
@@ -212,9 +231,18 @@ def add_parsers(sub: Any) -> None:
     common(sp)
     sp.add_argument("--skill", help="the skill whose maps to watch")
     sp.add_argument("--ros", metavar="NAMESPACE", help="watch <NAMESPACE>/map as a ROS 2 node would instead")
+    sp.add_argument(
+        "--topic", default="map", help="with --ros: the map topic under the namespace (default map)"
+    )
     sp.add_argument("--layout", choices=["rmw_zenoh", "bridge"], default="rmw_zenoh", help="with --ros")
     sp.add_argument("--domain-id", type=int, default=0, help="ROS domain id, with --ros (default 0)")
     sp.add_argument("--storey", help="one storey key (default: every storey)")
     sp.add_argument("--count", type=int, help="stop after this many map versions")
     sp.add_argument("--out", help="write the final maps as map_server files into this directory")
     sp.set_defaults(func=cmd_watch)
+
+    sp = sub.add_parser("storey", help="print a robot's current storey, or switch it (the lift)")
+    common(sp)
+    sp.add_argument("--robot", required=True, help="the robot's name ([robots.NAME])")
+    sp.add_argument("storey", nargs="?", help="the storey key to switch to (see 'twin stats')")
+    sp.set_defaults(func=cmd_storey)

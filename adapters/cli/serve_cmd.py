@@ -94,8 +94,11 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         ros: RosMapPublisher | None = None
         try:
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=cfg.frame_id)
-            if any(r.namespace for r in cfg.robots.values()):
-                ros = RosMapPublisher(session, cfg)
+            if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
+                ros = RosMapPublisher(
+                    session, cfg, keys=keys, sinks=service.sinks, revision=lambda: service.revision
+                )
+                daemon.status_sources.append(ros.status)
             service.sinks += [sink for sink in (daemon, ros, recorder) if sink is not None]
             t0 = time.perf_counter()
             service.start()

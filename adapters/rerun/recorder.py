@@ -12,7 +12,7 @@ daemon keeps running). What is recorded (entity paths):
   ``maps/<storey>/<skill>/changed``: the changed rectangle of each update, as a 3D box;
 - ``world/observations/<robot>/<element>``: what robots added or changed (cleared when removed);
 - ``events``: one text line per observation (accepted with its revision, or the rejection reason),
-  skill change and map removal.
+  skill change, map removal and robot storey switch.
 
 Timelines: ``revision`` (a sequence: the twin revision the data reflects) and ``time`` (wall clock of
 the change). A blueprint opens on the 3D building, one 2D panel per storey's maps, and the event log.
@@ -45,6 +45,7 @@ from twin.events import (
     MapUpdated,
     ObservationAccepted,
     ObservationRejected,
+    RobotStoreyChanged,
     SkillChanged,
     TwinEvent,
     TwinStarted,
@@ -172,6 +173,10 @@ class RerunRecorder:
             self._time(event.revision, event.stamp_ns)
             what = "removed" if event.profile is None else f"set to {event.profile.to_json()}"
             self._text(f"skill {event.name} {what} (revision {event.revision})", "INFO")
+        elif isinstance(event, RobotStoreyChanged):
+            self._time(event.revision, event.stamp_ns)
+            was = f" (was {event.previous})" if event.previous else ""
+            self._text(f"{event.robot}: now on storey {event.storey}{was}, via {event.source}", "INFO")
 
     def _text(self, text: str, level: str) -> None:
         self.stream.log("events", rr.TextLog(text, level=level))

@@ -1,4 +1,5 @@
-"""CDR ``nav_msgs/msg/OccupancyGrid`` and ``map_msgs/msg/OccupancyGridUpdate`` messages of core grids.
+"""CDR ``nav_msgs/msg/OccupancyGrid`` and ``map_msgs/msg/OccupancyGridUpdate`` messages of core grids,
+and the ``std_msgs/msg/String`` a robot sends on ``/<ns>/storey``.
 
 These are what travel on ``/map`` and ``/map_updates`` (e.g. through ``zenoh-bridge-ros2dds``).
 Serialisation uses ``rosbags`` with the ROS 2 Humble type store, ``map_msgs`` registered from its
@@ -28,16 +29,20 @@ from twin.grid import GridData, GridFrame, OccupancyGrid, Window
 __all__ = [
     "OCCUPANCY_GRID",
     "OCCUPANCY_GRID_UPDATE",
+    "STRING",
     "apply_update",
     "decode_occupancy_grid",
     "decode_occupancy_grid_update",
+    "decode_string",
     "encode_occupancy_grid",
     "encode_occupancy_grid_update",
+    "encode_string",
     "encode_update_cells",
 ]
 
 OCCUPANCY_GRID = "nav_msgs/msg/OccupancyGrid"
 OCCUPANCY_GRID_UPDATE = "map_msgs/msg/OccupancyGridUpdate"
+STRING = "std_msgs/msg/String"
 
 # map_msgs/msg/OccupancyGridUpdate.msg, as shipped by ROS 2 (rosbags has no map_msgs).
 _OCCUPANCY_GRID_UPDATE_MSG = """\
@@ -302,3 +307,16 @@ def apply_update(grid: OccupancyGrid, window: Window, data: npt.ArrayLike) -> Oc
     new_data: GridData = grid.data.copy()
     new_data[window.row0 : window.row1, window.col0 : window.col1] = cells
     return OccupancyGrid(grid.frame, new_data, grid.storey, grid.skill, grid.elevation_m)
+
+
+def encode_string(text: str) -> bytes:
+    """Serialise ``text`` as a CDR ``std_msgs/msg/String`` (what ``ros2 topic pub`` sends)."""
+    if not isinstance(text, str):
+        msg = f"A {STRING} holds text, got {text!r}."
+        raise MapError(msg)
+    return _serialize(_typestore().types[STRING](data=text), STRING)
+
+
+def decode_string(payload: bytes | bytearray | memoryview) -> str:
+    """Parse a CDR ``std_msgs/msg/String``: its ``data``; MapError names a malformed payload."""
+    return str(_deserialize(payload, STRING).data)

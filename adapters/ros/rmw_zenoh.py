@@ -34,6 +34,9 @@ SLASH = "%"
 LATCHED_QOS = ":1:,1:,:,:,,"
 # map_updates: RELIABLE, VOLATILE, KEEP_LAST 10: all defaults.
 DEFAULT_QOS = "::,:,:,:,,"
+# the /<ns>/storey subscription: RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1, as the latched map (a robot
+# that publishes its storey latched is read when the daemon starts; volatile publishers work too).
+STATE_QOS = LATCHED_QOS
 
 
 @functools.cache
@@ -107,8 +110,15 @@ class RosNode:
         )  # fmt: skip
 
     def publisher_token(self, topic: RosTopic, entity_id: int, qos: str) -> str:
+        return self._entity_token("MP", topic, entity_id, qos)
+
+    def subscriber_token(self, topic: RosTopic, entity_id: int, qos: str) -> str:
+        """The token of a subscription (``MS``): ``ros2 topic info`` counts it as a subscriber."""
+        return self._entity_token("MS", topic, entity_id, qos)
+
+    def _entity_token(self, kind: str, topic: RosTopic, entity_id: int, qos: str) -> str:
         return "/".join(
-            [ADMIN_SPACE, str(self.domain_id), self.zid, str(self.nid), str(entity_id), "MP", SLASH,
+            [ADMIN_SPACE, str(self.domain_id), self.zid, str(self.nid), str(entity_id), kind, SLASH,
              mangle(_namespace(self.namespace)), mangle(self.name), mangle(topic.fqn),
              mangle(dds_type_name(topic.type_name)), mangle(type_hash(topic.type_name)), qos]
         )  # fmt: skip

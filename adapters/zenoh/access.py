@@ -6,7 +6,8 @@ authentication) or the common name of their TLS client certificate (``identity =
 mutual TLS). A link that authenticates as nobody listed gets nothing (default deny).
 
 - every robot: read maps, map updates, status, SPARQL and the skill list, and the ROS 2 map topics
-  of the configured robots; put ``observations/<its name>`` and query ``observe/<its name>`` only;
+  of the configured robots; put ``observations/<its name>``, query ``observe/<its name>``, put and
+  query ``robots/<its name>/storey`` and publish its own ROS ``/<ns>/storey`` topic, nothing else;
 - operators (``[zenoh.access] operators``): everything under the site's prefix (skills too), for
   people and for routers or daemons that relay;
 - nobody but the daemon publishes maps: a robot's put on ``map/**`` is dropped at the daemon.
@@ -19,12 +20,13 @@ Example::
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from adapters.ros.rmw_zenoh import ADMIN_SPACE, RosTopic
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys, check_chunk
+from adapters.zenoh.ros_maps import STOREY_TOPIC
 from twin.config import Config, Identity, RobotConfig
 
 # zenoh's ACL message kinds (zenoh-config AclMessage)
@@ -45,17 +47,31 @@ def _with_adv(keys: Iterable[str]) -> list[str]:
 
 
 def ros_map_keys(robots: Iterable[RobotConfig]) -> list[str]:
-    """The key expressions of the configured robots' ROS 2 map topics, both layouts."""
+    """The key expressions of the configured robots' ROS 2 map topics (and their ``_updates``), both
+    layouts."""
     keys: list[str] = []
     for robot in robots:
         if robot.namespace is None:
             continue
-        for name in ("map", "map_updates"):
-            topic = RosTopic(robot.domain_id, robot.namespace, name, "nav_msgs/msg/OccupancyGrid")
-            if "bridge" in robot.ros:
-                keys.append(topic.bridge_key)
-            if "rmw_zenoh" in robot.ros:
-                keys.append(f"{robot.domain_id}/{topic.fqn.strip('/')}/**")
+        for topic_name, _ in robot.maps:
+            for name in (topic_name, f"{topic_name}_updates"):
+                keys += _ros_keys(robot, name)
+    return keys
+
+
+def ros_storey_keys(robot: RobotConfig) -> list[str]:
+    """The keys of the robot's ``/<ns>/storey`` topic (``std_msgs/String``), which only it publishes."""
+    return _ros_keys(robot, STOREY_TOPIC) if robot.namespace is not None else []
+
+
+def _ros_keys(robot: RobotConfig, name: str) -> list[str]:
+    assert robot.namespace is not None
+    topic = RosTopic(robot.domain_id, robot.namespace, name, "nav_msgs/msg/OccupancyGrid")
+    keys: list[str] = []
+    if "bridge" in robot.ros:
+        keys.append(topic.bridge_key)
+    if "rmw_zenoh" in robot.ros:
+        keys.append(f"{robot.domain_id}/{topic.fqn.strip('/')}/**")
     return keys
 
 
@@ -66,8 +82,12 @@ def access_control(
     identity: Identity = "username",
     operators: Sequence[str] = (),
     ros_keys: Sequence[str] = (),
+    robot_keys: Mapping[str, Sequence[str]] | None = None,
 ) -> dict[str, Any]:
-    """The ``access_control`` section of a zenoh configuration for one site (see the module doc)."""
+    """The ``access_control`` section of a zenoh configuration for one site (see the module doc).
+
+    ``robot_keys``: more keys a robot publishes on (its ROS ``/<ns>/storey`` topic), by robot name.
+    """
     p = keys.prefix
     names = sorted({check_chunk(r, "Robot name") for r in robots})
     ops = sorted({check_chunk(o, "Operator name") for o in operators})
@@ -119,16 +139,23 @@ def access_control(
                 "permission": "allow",
                 "flows": ["ingress"],
                 "messages": ["put", "query"],
-                "key_exprs": [keys.observations(name), keys.observe(name)],
+                "key_exprs": [keys.observations(name), keys.observe(name), keys.robot_storey(name)],
             }
         )
+        own = ["read", "tokens", "ros-graph", "from-daemon", f"write-{name}"]
+        if robot_keys and robot_keys.get(name):
+            rules.append(
+                {   # its ROS /<ns>/storey topic, latched or not (the publisher's @adv cache answers)
+                    "id": f"publish-{name}",
+                    "permission": "allow",
+                    "flows": ["ingress"],
+                    "messages": ["put", "declare_queryable", "reply", "liveliness_token"],
+                    "key_exprs": _with_adv(robot_keys[name]),
+                }
+            )  # fmt: skip
+            own.append(f"publish-{name}")
         subjects.append({"id": f"robot-{name}", subject_key: [name]})
-        policies.append(
-            {
-                "rules": ["read", "tokens", "ros-graph", "from-daemon", f"write-{name}", "no-forged-maps"],
-                "subjects": [f"robot-{name}"],
-            }
-        )
+        policies.append({"rules": [*own, "no-forged-maps"], "subjects": [f"robot-{name}"]})
     for name in ops:
         subjects.append({"id": f"operator-{name}", subject_key: [name]})
         policies.append(
@@ -173,4 +200,5 @@ def site_access_control(cfg: Config, keys: SiteKeys) -> dict[str, Any] | None:
         identity=access.identity,
         operators=access.operators,
         ros_keys=ros_map_keys(cfg.robots.values()),
+        robot_keys={name: ros_storey_keys(robot) for name, robot in cfg.robots.items()},
     )

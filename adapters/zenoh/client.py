@@ -264,6 +264,13 @@ class TwinClient:
     def delete_skill(self, name: str) -> None:
         self.session.delete(self.keys.skill(name))
 
+    def robot_storey(self, robot: str, storey: str | None = None) -> str:
+        """The storey ``robot`` is on; with ``storey``, switch it first (its ROS 2 topics republish that
+        storey's maps). RemoteError names an unknown robot or storey (nothing changed then)."""
+        payload = storey.encode() if storey is not None else None
+        sample = self._get(self.keys.robot_storey(robot), payload, what=f"robot {robot!r}'s storey")[0]
+        return sample.payload.to_string()
+
     def status(self) -> dict[str, Any]:
         data: dict[str, Any] = json.loads(self._get(self.keys.status, what="status")[0].payload.to_bytes())
         return data

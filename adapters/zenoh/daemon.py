@@ -28,6 +28,7 @@ from __future__ import annotations
 import json
 import logging
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -72,6 +73,8 @@ class ZenohDaemon:
         self.frame_id = frame_id
         self._maps: dict[tuple[str, str], _MapOut] = {}
         self._lock = threading.Lock()
+        self.status_sources: list[Callable[[], dict[str, object]]] = []
+        """More sections of the status reply (e.g. the ROS robots' storeys), merged over the service's."""
         self._declared: list[Any] = [
             session.liveliness().declare_token(keys.daemon),
             session.declare_subscriber(f"{keys.prefix}/observations/*", self._on_observation),
@@ -199,7 +202,10 @@ class ZenohDaemon:
         query.reply(self.keys.sparql, body, encoding=zenoh.Encoding(media))
 
     def _on_status(self, query: zenoh.Query) -> None:
-        query.reply(self.keys.status, json.dumps(self.service.status()).encode(), encoding=JSON)
+        status = self.service.status()
+        for source in self.status_sources:
+            status.update(source())
+        query.reply(self.keys.status, json.dumps(status).encode(), encoding=JSON)
 
     # --- lifecycle ----------------------------------------------------------------------------------
     def close(self) -> None:

@@ -15,3 +15,7 @@ class RemoteError(TwinError):
 
 class DaemonTimeoutError(TwinError):
     """The daemon did not answer in time (is it running, and reachable at the given endpoint?)."""
+
+
+class StoreySwitchError(TwinError):
+    """A robot's storey cannot be switched: unknown robot or storey (nothing changed)."""

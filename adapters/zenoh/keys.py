@@ -60,6 +60,14 @@ class SiteKeys:
     def status(self) -> str:
         return f"{self.prefix}/status"
 
+    def robot_storey(self, robot: str) -> str:
+        """Where a robot's current storey key is put and got: ``robots/<robot>/storey``."""
+        return f"{self.prefix}/robots/{check_chunk(robot, 'Robot name')}/storey"
+
+    @property
+    def robot_storeys(self) -> str:
+        return f"{self.prefix}/robots/*/storey"
+
     @property
     def daemon(self) -> str:
         """The daemon's liveliness token."""

@@ -1,8 +1,10 @@
-"""Subscribe to a robot's ``/map`` as a ROS 2 node would (for ``twin watch --ros NAMESPACE``).
+"""Subscribe to a robot's map topic (``/<ns>/map`` by default) as a ROS 2 node would (for
+``twin watch --ros NAMESPACE [--topic NAME]``).
 
 ``rmw_zenoh``: an AdvancedSubscriber with history and late-publisher detection on rmw_zenoh's data key
-(as rmw_zenoh_cpp subscribes to TRANSIENT_LOCAL topics); every sample's attachment must have rmw's
-33-byte layout. ``bridge``: the same on zenoh-bridge-ros2dds's key ``<ns>/map``.
+(as rmw_zenoh_cpp subscribes to TRANSIENT_LOCAL topics), and a subscriber on ``<topic>_updates``; every
+sample's attachment must have rmw's 33-byte layout. ``bridge``: the same on zenoh-bridge-ros2dds's keys
+``<ns>/<topic>`` and ``<ns>/<topic>_updates``.
 """
 
 from __future__ import annotations
@@ -34,17 +36,17 @@ class RosSample:
 
 
 class RosMapWatcher:
-    """Keeps a copy of ``<ns>/map`` with ``<ns>/map_updates`` applied; calls ``on_sample`` for each."""
+    """Keeps a copy of ``<ns>/<topic>`` with ``<ns>/<topic>_updates`` applied; calls ``on_sample``."""
 
     def __init__(
         self, session: zenoh.Session, *, namespace: str, layout: str = "rmw_zenoh", domain_id: int = 0,
-        on_sample: Callable[[RosSample], None] | None = None,
+        topic: str = "map", on_sample: Callable[[RosSample], None] | None = None,
     ) -> None:  # fmt: skip
         self.layout = layout
         self.on_sample = on_sample
         self.latest: OccupancyGrid | None = None
-        maps = RosTopic(domain_id, namespace, "map", OCCUPANCY_GRID)
-        updates = RosTopic(domain_id, namespace, "map_updates", OCCUPANCY_GRID_UPDATE)
+        maps = RosTopic(domain_id, namespace, topic, OCCUPANCY_GRID)
+        updates = RosTopic(domain_id, namespace, f"{topic}_updates", OCCUPANCY_GRID_UPDATE)
         rmw = layout == "rmw_zenoh"
         self.keys = (maps.data_key, updates.data_key) if rmw else (maps.bridge_key, updates.bridge_key)
         self._subs: list[Any] = [

@@ -23,7 +23,11 @@ def config(tmp_path: Path, text: str) -> Path:
 def test_each_robot_may_write_only_its_own_observation_keys() -> None:
     acl = access_control(SiteKeys("twin/lab"), ["robot1", "robot2"])
     rules = {r["id"]: r for r in acl["rules"]}
-    assert rules["write-robot1"]["key_exprs"] == ["twin/lab/observations/robot1", "twin/lab/observe/robot1"]
+    assert rules["write-robot1"]["key_exprs"] == [
+        "twin/lab/observations/robot1",
+        "twin/lab/observe/robot1",
+        "twin/lab/robots/robot1/storey",
+    ]
     policies = {tuple(p["subjects"]): p["rules"] for p in acl["policies"]}
     assert "write-robot2" not in policies[("robot-robot1",)]
     assert "operate" not in policies[("robot-robot1",)]
@@ -88,3 +92,25 @@ def test_a_missing_certificate_file_is_named(tmp_path: Path) -> None:
         TransportError, match=r"certificate authority \(zenoh.tls.root_ca\) .*nope.pem does not exist"
     ):
         session_config(cfg.zenoh)
+
+
+def test_a_ros_robot_reads_every_map_topic_and_alone_publishes_its_own_storey_topic(tmp_path: Path) -> None:
+    users = tmp_path / "users.txt"
+    users.write_text("r1:a\nr2:b\n")
+    text = (
+        f'[zenoh.auth]\nusers_file = "{users}"\n[zenoh.access]\nenabled = true\n'
+        '[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\nros = ["bridge", "rmw_zenoh"]\n'
+        '[robots.r2]\nnamespace = "/r2"\nstorey = "ground-floor"\nros = ["bridge"]\n'
+    )
+    acl = site_access_control(load_config(config(tmp_path, text)), SiteKeys("twin/lab"))
+    assert acl is not None
+    rules = {r["id"]: r for r in acl["rules"]}
+    reads = rules["read"]["key_exprs"]
+    for key in ("r1/navigation_map", "r1/navigation_map_updates", "0/r1/map/**", "r2/map_updates"):
+        assert key in reads and f"{key}/@adv/**" in reads
+    assert rules["publish-r1"]["key_exprs"] == ["r1/storey", "r1/storey/@adv/**", "0/r1/storey/**",
+                                                "0/r1/storey/**/@adv/**"]  # fmt: skip
+    assert rules["publish-r2"]["key_exprs"] == ["r2/storey", "r2/storey/@adv/**"]
+    policies = {tuple(p["subjects"]): p["rules"] for p in acl["policies"]}
+    assert "publish-r1" in policies[("robot-r1",)] and "publish-r1" not in policies[("robot-r2",)]
+    assert "twin/lab/robots/r2/storey" not in rules["write-r1"]["key_exprs"]

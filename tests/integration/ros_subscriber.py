@@ -1,12 +1,14 @@
-"""A ROS 2 map subscriber written from the rmw_zenoh and zenoh-plugin-ros2dds sources (own process).
+"""A ROS 2 map subscriber written from the rmw_zenoh and zenoh-plugin-ros2dds sources (own process);
+maps are decoded by real rclpy (``rclpy.serialization.deserialize_message`` with nav_msgs' typesupport).
 
-Usage: python -m tests.integration.ros_subscriber ENDPOINT LAYOUT DOMAIN NAMESPACE OUT_DIR
+Usage: python -m tests.integration.ros_subscriber ENDPOINT LAYOUT DOMAIN NAMESPACE OUT_DIR [TOPIC]
 
 LAYOUT ``rmw_zenoh``: an AdvancedSubscriber with history and late-publisher detection on the rmw data
-key of ``<ns>/map`` (as rmw_subscription_data.cpp does for TRANSIENT_LOCAL), and a subscriber on
-``<ns>/map_updates``; every sample must carry the 33-byte attachment (checked with zenoh-ext's own
-deserialiser). LAYOUT ``bridge``: the same on ``<ns>/map`` and ``<ns>/map_updates`` without attachment.
-Prints a JSON line per sample; on EOF of stdin saves the map copy (updates applied) to OUT_DIR/map.npy.
+key of ``<ns>/<topic>`` (as rmw_subscription_data.cpp does for TRANSIENT_LOCAL), and a subscriber on
+``<ns>/<topic>_updates``; every sample must carry the 33-byte attachment (checked with zenoh-ext's own
+deserialiser). LAYOUT ``bridge``: the same on ``<ns>/<topic>`` and ``<ns>/<topic>_updates`` without
+attachment. TOPIC defaults to ``map``. Prints a JSON line per sample; on EOF of stdin saves the map copy
+(updates applied) to OUT_DIR/map.npy.
 """
 
 from __future__ import annotations
@@ -19,21 +21,24 @@ from pathlib import Path
 import numpy as np
 import zenoh
 import zenoh.ext
+from nav_msgs.msg import OccupancyGrid as RosOccupancyGrid
+from rclpy.serialization import deserialize_message
 
-from adapters.ros import apply_update, decode_occupancy_grid, decode_occupancy_grid_update
+from adapters.ros import decode_occupancy_grid_update
 from adapters.ros.cdr import OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE
 from adapters.ros.rmw_zenoh import RosTopic
 from adapters.zenoh.session import client_config
 
 
 def main() -> int:
-    endpoint, layout, domain, ns, out = sys.argv[1:]
-    maps = RosTopic(int(domain), ns, "map", OCCUPANCY_GRID)
-    updates = RosTopic(int(domain), ns, "map_updates", OCCUPANCY_GRID_UPDATE)
+    endpoint, layout, domain, ns, out, *rest = sys.argv[1:]
+    name = rest[0] if rest else "map"
+    maps = RosTopic(int(domain), ns, name, OCCUPANCY_GRID)
+    updates = RosTopic(int(domain), ns, f"{name}_updates", OCCUPANCY_GRID_UPDATE)
     rmw = layout == "rmw_zenoh"
     key_map, key_upd = (maps.data_key, updates.data_key) if rmw else (maps.bridge_key, updates.bridge_key)
     lock = threading.Lock()
-    state: dict[str, object] = {"grid": None, "sequences": {}}
+    state: dict[str, np.ndarray] = {}
 
     def check(sample: zenoh.Sample) -> dict[str, object]:
         info: dict[str, object] = {"key": str(sample.key_expr)}
@@ -49,17 +54,21 @@ def main() -> int:
 
     def on_map(sample: zenoh.Sample) -> None:
         info = check(sample)
-        grid, stamp = decode_occupancy_grid(sample.payload.to_bytes())
+        msg = deserialize_message(sample.payload.to_bytes(), RosOccupancyGrid)
+        grid = np.asarray(msg.data, dtype=np.int8).reshape(msg.info.height, msg.info.width)
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         with lock:
-            state["grid"] = grid
-            print(json.dumps({"kind": "map", "stamp_ns": stamp, **info}), flush=True)
+            state["grid"] = grid.copy()
+            line = {"kind": "map", "stamp_ns": stamp, "width": int(msg.info.width),
+                    "height": int(msg.info.height), "occupied": int((grid == 100).sum()), **info}  # fmt: skip
+            print(json.dumps(line), flush=True)
 
     def on_update(sample: zenoh.Sample) -> None:
         info = check(sample)
         window, cells, _ = decode_occupancy_grid_update(sample.payload.to_bytes())
         with lock:
-            if state["grid"] is not None:
-                state["grid"] = apply_update(state["grid"], window, cells)  # type: ignore[arg-type]
+            if "grid" in state:
+                state["grid"][window.row0 : window.row1, window.col0 : window.col1] = cells
             print(json.dumps({"kind": "update", "x": window.col0, "y": window.row0, **info}), flush=True)
 
     with zenoh.open(client_config([endpoint])) as session:
@@ -70,8 +79,8 @@ def main() -> int:
         print(json.dumps({"ready": True, "key": key_map}), flush=True)
         sys.stdin.read()
         with lock:
-            if state["grid"] is not None:
-                np.save(Path(out) / "map.npy", state["grid"].data)  # type: ignore[attr-defined]
+            if "grid" in state:
+                np.save(Path(out) / "map.npy", state["grid"])
         sub_map.undeclare()
         sub_upd.undeclare()
     return 0

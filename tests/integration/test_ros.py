@@ -1,5 +1,6 @@
-"""ROS 2 robots get their map unchanged: rmw_zenoh and bridge layouts, served by the daemon process to
-subscriber processes written from the rmw_zenoh and zenoh-plugin-ros2dds sources."""
+"""ROS 2 robots get their maps unchanged: rmw_zenoh and bridge layouts, served by the daemon process to
+subscriber processes written from the rmw_zenoh and zenoh-plugin-ros2dds sources, maps decoded by
+real rclpy; one robot, several skills on several topics; the storey switched at run time."""
 
 from __future__ import annotations
 
@@ -19,8 +20,10 @@ from tests.integration.conftest import Daemon, JsonLinesProcess, start_daemon, t
 CONFIG = """
 [robots.robot1]
 namespace = "/robot1"
-skill = "navigation"
 storey = "ground-floor"
+[robots.robot1.maps]
+map = "lab-localization"
+navigation_map = "navigation"
 
 [robots.robot2]
 namespace = "/robot2"
@@ -32,9 +35,18 @@ ros = ["bridge"]
 
 @pytest.fixture
 def ros_daemon(fresh_store: Path, tmp_path: Path) -> Iterator[Daemon]:
+    yield from _daemon(fresh_store, tmp_path, "--no-record")
+
+
+@pytest.fixture
+def recording_daemon(fresh_store: Path, tmp_path: Path) -> Iterator[Daemon]:
+    yield from _daemon(fresh_store, tmp_path, "--record", str(tmp_path / "run.rrd"))
+
+
+def _daemon(store: Path, tmp_path: Path, *extra: str) -> Iterator[Daemon]:
     config = tmp_path / "robots.toml"
     config.write_text(CONFIG)
-    d = start_daemon(fresh_store, "--no-record", config=config)
+    d = start_daemon(store, *extra, "-v", config=config)  # -v after the command: info logs
     yield d
     if d.process.poll() is None:
         d.process.kill()
@@ -42,9 +54,9 @@ def ros_daemon(fresh_store: Path, tmp_path: Path) -> Iterator[Daemon]:
 
 
 class RosSubscriber(JsonLinesProcess):
-    def __init__(self, d: Daemon, layout: str, ns: str, out: Path) -> None:
+    def __init__(self, d: Daemon, layout: str, ns: str, out: Path, topic: str = "map") -> None:
         out.mkdir(parents=True, exist_ok=True)
-        super().__init__("tests.integration.ros_subscriber", d.endpoint, layout, "0", ns, str(out))
+        super().__init__("tests.integration.ros_subscriber", d.endpoint, layout, "0", ns, str(out), topic)
         self.out = out
         assert self.next()["ready"]
 
@@ -61,7 +73,7 @@ class RosSubscriber(JsonLinesProcess):
 def test_a_late_ros_subscriber_gets_the_map_then_the_update_and_the_new_map(
     ros_daemon: Daemon, tmp_path: Path, layout: str
 ) -> None:
-    sub = RosSubscriber(ros_daemon, layout, "/robot1", tmp_path / layout)
+    sub = RosSubscriber(ros_daemon, layout, "/robot1", tmp_path / layout, "navigation_map")
     sub.until("map")  # latched: it joined after the daemon published
     r = twin(
         "observe",
@@ -90,18 +102,29 @@ def test_a_late_ros_subscriber_gets_the_map_then_the_update_and_the_new_map(
         assert all(ln["stamp"] > 0 for ln in sub.lines if "stamp" in ln)
 
 
-def test_two_robots_with_different_skills_get_different_maps(ros_daemon: Daemon, tmp_path: Path) -> None:
-    one = RosSubscriber(ros_daemon, "bridge", "/robot1", tmp_path / "one")
-    two = RosSubscriber(ros_daemon, "bridge", "/robot2", tmp_path / "two")
-    one.until("map")
-    two.until("map")
-    a, b = one.finish(), two.finish()
+@pytest.mark.parametrize("layout", ["rmw_zenoh", "bridge"])
+def test_two_topics_of_one_robot_carry_two_different_maps_each_equal_to_its_skill_map(
+    ros_daemon: Daemon, tmp_path: Path, layout: str
+) -> None:
+    loc_sub = RosSubscriber(ros_daemon, layout, "/robot1", tmp_path / "loc", "map")
+    nav_sub = RosSubscriber(ros_daemon, layout, "/robot1", tmp_path / "nav", "navigation_map")
+    loc_sub.until("map")
+    nav_sub.until("map")
+    a, b = loc_sub.finish(), nav_sub.finish()
     with TwinClient.connect([ros_daemon.endpoint]) as client:
-        nav, _, _ = client.get_map("ground-floor", "navigation")
         loc, _, _ = client.get_map("ground-floor", "lab-localization")
-    np.testing.assert_array_equal(a, nav.data)
-    np.testing.assert_array_equal(b, loc.data)
+        nav, _, _ = client.get_map("ground-floor", "navigation")
+    np.testing.assert_array_equal(a, loc.data)
+    np.testing.assert_array_equal(b, nav.data)
     assert (a != b).any()
+
+
+def test_the_old_single_skill_key_still_serves_that_skill_on_map(ros_daemon: Daemon, tmp_path: Path) -> None:
+    sub = RosSubscriber(ros_daemon, "bridge", "/robot2", tmp_path / "two")
+    sub.until("map")
+    with TwinClient.connect([ros_daemon.endpoint]) as client:
+        loc, _, _ = client.get_map("ground-floor", "lab-localization")
+    np.testing.assert_array_equal(sub.finish(), loc.data)
 
 
 def test_the_daemon_appears_in_the_ros_graph_as_a_map_server_node(ros_daemon: Daemon) -> None:
@@ -113,12 +136,20 @@ def test_the_daemon_appears_in_the_ros_graph_as_a_map_server_node(ros_daemon: Da
     assert ("/robot1", "twin_map_server") in nodes
     assert ("/robot2", "twin_map_server") not in nodes  # bridge only: no rmw graph entry
     pubs = {t.topic: t for t in tokens if t.kind == "MP"}
-    assert set(pubs) == {"/robot1/map", "/robot1/map_updates"}
+    assert set(pubs) == {
+        "/robot1/map",
+        "/robot1/map_updates",
+        "/robot1/navigation_map",
+        "/robot1/navigation_map_updates",
+    }
     m = pubs["/robot1/map"]
     assert m.type_name == "nav_msgs::msg::dds_::OccupancyGrid_"
     assert m.type_hash == type_hash("nav_msgs/msg/OccupancyGrid")
     assert m.qos == {"reliability": None, "durability": 1, "history": None, "depth": 1}
     assert pubs["/robot1/map_updates"].type_name == "map_msgs::msg::dds_::OccupancyGridUpdate_"
+    (sub,) = [t for t in tokens if t.kind == "MS"]
+    assert (sub.topic, sub.type_name) == ("/robot1/storey", "std_msgs::msg::dds_::String_")
+    assert sub.type_hash == type_hash("std_msgs/msg/String")
 
 
 def test_twin_watch_ros_receives_the_latched_map_like_a_ros_node(ros_daemon: Daemon, tmp_path: Path) -> None:
@@ -128,3 +159,118 @@ def test_twin_watch_ros_receives_the_latched_map_like_a_ros_node(ros_daemon: Dae
         assert r.returncode == 0, r.stderr
         assert "/robot1/map via map" in r.stdout
         assert (tmp_path / layout / "robot1__map.yaml").exists()
+
+
+class StoreyPublisher(JsonLinesProcess):
+    """A ROS 2 node publishing ``/<ns>/storey`` latched (own process, message serialised by rclpy)."""
+
+    def __init__(self, d: Daemon, layout: str, ns: str) -> None:
+        super().__init__("tests.integration.ros_storey_publisher", d.endpoint, layout, "0", ns)
+        assert self.next()["ready"]
+
+    def send(self, storey: str) -> None:
+        assert self.process.stdin is not None
+        self.process.stdin.write(storey + "\n")
+        self.process.stdin.flush()
+        assert self.next() == {"sent": storey}
+
+
+def wait_for_storey(client: TwinClient, robot: str, storey: str, timeout_s: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while (now := client.robot_storey(robot)) != storey:
+        assert time.monotonic() < deadline, f"{robot} still on {now!r}, not {storey!r}"
+        time.sleep(0.05)
+
+
+def recorded_texts(path: Path) -> list[str]:
+    import rerun.chunk as rc
+
+    texts: list[str] = []
+    for chunk in rc.RrdReader(str(path)).stream().to_chunks():
+        if str(chunk.entity_path) == "/events":
+            batch = chunk.to_record_batch()
+            index = batch.schema.get_field_index("TextLog:text")
+            texts += [t for row in batch.column(index).to_pylist() for t in row]
+    return texts
+
+
+def test_a_storey_switch_republishes_every_topic_and_a_late_joiner_gets_the_new_floor(
+    recording_daemon: Daemon, tmp_path: Path
+) -> None:
+    d = recording_daemon
+    early = RosSubscriber(d, "rmw_zenoh", "/robot1", tmp_path / "early", "navigation_map")
+    early.until("map")
+    r = twin("storey", "--connect", d.endpoint, "--robot", "robot1", "first-floor")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "first-floor"
+    early.until("map", 2)  # the robot's open subscription gets the new floor too
+    late = {
+        (layout, topic): RosSubscriber(d, layout, "/robot1", tmp_path / f"{layout}-{topic}", topic)
+        for layout in ("rmw_zenoh", "bridge")
+        for topic in ("map", "navigation_map")
+    }
+    for sub in late.values():
+        sub.until("map")
+    with TwinClient.connect([d.endpoint]) as client:
+        maps = {
+            (storey, topic): client.get_map(storey, skill)[0].data
+            for storey in ("ground-floor", "first-floor")
+            for topic, skill in (("map", "lab-localization"), ("navigation_map", "navigation"))
+        }
+        robot = client.status()["robots"]["robot1"]
+    for (_, topic), sub in late.items():
+        first_line = next(ln for ln in sub.lines if ln.get("kind") == "map")
+        assert (first_line["height"], first_line["width"]) == maps[("first-floor", topic)].shape
+        np.testing.assert_array_equal(sub.finish(), maps[("first-floor", topic)])
+    np.testing.assert_array_equal(early.finish(), maps[("first-floor", "navigation_map")])
+    for topic in ("map", "navigation_map"):
+        ground, first = maps[("ground-floor", topic)], maps[("first-floor", topic)]
+        assert ground.shape != first.shape or (ground != first).any()  # the floors differ
+    assert robot["storey"] == "first-floor" and robot["switches"] == 1
+    assert robot["topics"] == {"/robot1/map": "lab-localization", "/robot1/navigation_map": "navigation"}
+    code, _ = d.stop()
+    assert code == 0
+    assert any("robot1 is now on storey first-floor" in line for line in d.log)
+    texts = recorded_texts(tmp_path / "run.rrd")
+    assert "robot1: now on storey first-floor (was ground-floor), via zenoh" in texts
+
+
+def test_an_unknown_storey_or_robot_is_refused_by_name_and_changes_nothing(ros_daemon: Daemon) -> None:
+    r = twin("storey", "--connect", ros_daemon.endpoint, "--robot", "robot1", "basement")
+    assert r.returncode == 1
+    assert "Unknown storey 'basement' for robot 'robot1'" in r.stderr
+    assert "ground-floor, first-floor" in r.stderr
+    r = twin("storey", "--connect", ros_daemon.endpoint, "--robot", "ghost", "first-floor")
+    assert r.returncode == 1
+    assert "Unknown robot 'ghost'" in r.stderr
+    with TwinClient.connect([ros_daemon.endpoint]) as client:
+        assert client.robot_storey("robot1") == "ground-floor"
+        robot = client.status()["robots"]["robot1"]
+    assert robot["switches"] == 0
+    assert "basement" in robot["refused"]
+
+
+@pytest.mark.parametrize("case", [
+    ("rmw_zenoh", "robot1", "/robot1", "navigation_map"),
+    ("bridge", "robot2", "/robot2", "map"),
+])  # fmt: skip
+def test_a_ros_robot_switches_its_floor_with_a_string_on_its_storey_topic(
+    ros_daemon: Daemon, tmp_path: Path, case: tuple[str, str, str, str]
+) -> None:
+    layout, robot, ns, topic = case
+    lift = StoreyPublisher(ros_daemon, layout, ns)
+    lift.send("first-floor")
+    with TwinClient.connect([ros_daemon.endpoint]) as client:
+        wait_for_storey(client, robot, "first-floor")
+        skill = client.status()["robots"][robot]["topics"][f"{ns}/{topic}"]
+        first, _, _ = client.get_map("first-floor", skill)
+        sub = RosSubscriber(ros_daemon, layout, ns, tmp_path / "late", topic)
+        sub.until("map")
+        np.testing.assert_array_equal(sub.finish(), first.data)
+        lift.send("basement")  # refused: the robot stays where it is
+        deadline = time.monotonic() + 10
+        while "basement" not in (client.status()["robots"][robot]["refused"] or ""):
+            assert time.monotonic() < deadline, "the refusal never showed in the status"
+            time.sleep(0.05)
+        assert client.robot_storey(robot) == "first-floor"
+    lift.close_stdin_and_wait()

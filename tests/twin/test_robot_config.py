@@ -1,0 +1,66 @@
+"""``[robots.NAME]``: a namespaced robot's topics -> skills, the old single ``skill``, and the errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from twin.config import DEFAULT_ROBOT_MAPS, load_config
+from twin.errors import ConfigError
+
+
+def robots(tmp_path: Path, text: str) -> dict[str, object]:
+    path = tmp_path / "robots.toml"
+    path.write_text(text)
+    return dict(load_config(path).robots)
+
+
+def test_a_namespaced_robot_without_topics_gets_localization_on_map_and_navigation_on_navigation_map(
+    tmp_path: Path,
+) -> None:
+    (robot,) = robots(tmp_path, '[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\n').values()
+    assert robot.maps == DEFAULT_ROBOT_MAPS == (("map", "localization"), ("navigation_map", "navigation"))
+    assert robot.skills == ("localization", "navigation")
+
+
+def test_maps_pair_topics_under_the_namespace_with_skills_in_the_order_written(tmp_path: Path) -> None:
+    text = (
+        '[robots.r1]\nnamespace = "r1/"\nstorey = "ground-floor"\n'
+        '[robots.r1.maps]\nmap = "lab-localization"\n"costmap/static" = "lab-navigation"\n'
+    )
+    robot = robots(tmp_path, text)["r1"]
+    assert robot.namespace == "/r1"
+    assert robot.maps == (("map", "lab-localization"), ("costmap/static", "lab-navigation"))
+
+
+def test_the_old_single_skill_key_means_that_skill_on_map(tmp_path: Path) -> None:
+    text = '[robots.r1]\nnamespace = "/r1"\nskill = "lab-navigation"\nstorey = "ground-floor"\n'
+    assert robots(tmp_path, text)["r1"].maps == (("map", "lab-navigation"),)
+
+
+@pytest.mark.parametrize(
+    ("table", "error"),
+    [
+        ('skill = "navigation"\nmaps = { map = "navigation" }', "both 'skill' and 'maps'"),
+        ('maps = { map = "flying" }', "robots.r1.maps': topic 'map' names unknown skill 'flying'"),
+        ('skill = "flying"', r"robots.r1.skill': topic 'map' names unknown skill 'flying'"),
+        ("maps = {}", "must map topic names to skills"),
+        ('maps = { "/abs" = "navigation" }', "topic '/abs' must be a relative ROS topic name"),
+        ('maps = { storey = "navigation" }', "topic 'storey' is taken"),
+        ('maps = { map_updates = "navigation" }', "topic 'map_updates' is taken"),
+    ],
+)
+def test_a_bad_topic_table_is_refused_naming_the_key(tmp_path: Path, table: str, error: str) -> None:
+    with pytest.raises(ConfigError, match=error):
+        robots(tmp_path, f'[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\n{table}\n')
+
+
+def test_a_namespaced_robot_needs_the_storey_it_starts_on(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"robots.r1.storey': a robot with a namespace needs"):
+        robots(tmp_path, '[robots.r1]\nnamespace = "/r1"\n')
+
+
+def test_a_robot_without_namespace_has_no_topics(tmp_path: Path) -> None:
+    robot = robots(tmp_path, "[robots.r1]\n")["r1"]
+    assert (robot.maps, robot.storey, robot.namespace) == ((), None, None)
