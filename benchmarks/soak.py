@@ -43,7 +43,9 @@ TWIN = live.TWIN
 STOREY = load.STOREY
 
 
-def robot(endpoint: str, index: int, rate: float, duration: float, start_at: float, reconfirm: float) -> int:
+def robot(
+    endpoint: str, index: int, rate: float, duration: float, start_at: float, *, reconfirm: float
+) -> int:
     """One JSON line per observation: sent, acked, ok, revision, whether it changed anything."""
     from adapters.zenoh.client import TwinClient
     from twin.errors import TwinError
@@ -72,7 +74,8 @@ def robot(endpoint: str, index: int, rate: float, duration: float, start_at: flo
             sent = time.time()
             try:
                 ack = twin.observe(name, doc)
-                ok, revision, unchanged = bool(ack.get("ok")), int(ack.get("revision", -1)), bool(ack.get("unchanged"))
+                ok, revision = bool(ack.get("ok")), int(ack.get("revision", -1))
+                unchanged = bool(ack.get("unchanged"))
             except TwinError as err:
                 ok, revision, unchanged = False, -1, False
                 print(json.dumps({"error": str(err)}), file=sys.stderr, flush=True)
@@ -119,7 +122,17 @@ def run(
     per_robot = rate / robots
     bots = [
         subprocess.Popen(
-            [sys.executable, __file__, "--child", endpoint, str(i), str(per_robot), str(duration), str(start_at), str(reconfirm)],
+            [
+                sys.executable,
+                __file__,
+                "--child",
+                endpoint,
+                str(i),
+                str(per_robot),
+                str(duration),
+                str(start_at),
+                str(reconfirm),
+            ],  # fmt: skip
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -148,7 +161,10 @@ def run(
     for r in readers:
         r.start()
     samples: list[dict[str, float]] = []
-    header = f"{'t s':>7} {'rss MB':>8} {'store MB':>9} {'acked/s':>8} {'changed/s':>9} {'ack p50 ms':>10} {'ack p99 ms':>10}"
+    header = (
+        f"{'t s':>7} {'rss MB':>8} {'store MB':>9} {'acked/s':>8} {'changed/s':>9} "
+        f"{'ack p50 ms':>10} {'ack p99 ms':>10}"
+    )
     if not quiet:
         print(header, flush=True)
     seen = 0
@@ -275,7 +291,7 @@ def main() -> int:
     args = p.parse_args()
     if args.child:
         c = args.child
-        return robot(c[0], int(c[1]), float(c[2]), float(c[3]), float(c[4]), float(c[5]))
+        return robot(c[0], int(c[1]), float(c[2]), float(c[3]), float(c[4]), reconfirm=float(c[5]))
     print(
         f"soak: {args.robots} robots, {args.rate:g} obs/s offered ({args.reconfirm:.0%} re-confirmations) "
         f"for {args.duration:g} s, {args.subscribers} subscribers",
