@@ -132,7 +132,7 @@ def run(
                 str(duration),
                 str(start_at),
                 str(reconfirm),
-            ],  # fmt: skip
+            ],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
