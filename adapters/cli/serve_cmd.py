@@ -16,6 +16,7 @@ from typing import Any
 import zenoh
 
 from adapters.cli.common import add_store_args, open_store, store_exists, store_label
+from adapters.cli.memory import free_memory_releaser
 from adapters.rerun import RerunRecorder
 from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
@@ -89,7 +90,8 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             msg = f"Cannot open the Zenoh session (listening on {endpoints}): {err}"
             raise TransportError(msg) from err
         recorder = _recorder(args, cfg, cfg.site)
-        service = TwinService(store, cfg)
+        release = free_memory_releaser()
+        service = TwinService(store, cfg, housekeeping=[release] if release is not None else [])
         daemon: ZenohDaemon | None = None
         ros: RosMapPublisher | None = None
         try:

@@ -83,15 +83,18 @@ class TwinService:
         clock: Clock = time.time_ns,
         max_batch: int = 64,
         flush_every_s: float = 5.0,
+        housekeeping: Sequence[Callable[[], None]] = (),
     ) -> None:
         """``max_batch``: at most this many queued observations share one commit and one map pass
-        (group commit). ``flush_every_s``: flush the store's buffers this often (if anything changed)."""
+        (group commit). ``flush_every_s``: flush the store's buffers this often (if anything changed),
+        then run each of ``housekeeping`` (e.g. give freed memory back to the system)."""
         self.store = store
         self.max_batch = max(1, max_batch)
         self.config = config
         self.sinks = list(sinks)
         self.clock = clock
         self.flush_every_s = flush_every_s
+        self.housekeeping = list(housekeeping)
         self._queue: queue.Queue[Request] = queue.Queue()
         self._published: dict[tuple[str, str], PublishedMap] = {}
         self._live: LiveState | None = None
@@ -234,6 +237,11 @@ class TwinService:
             self.store.flush()
         except Exception:  # a failed flush costs nothing yet: the commits are in the log
             log.exception("Could not flush the store")
+        for job in self.housekeeping:
+            try:
+                job()
+            except Exception:
+                log.exception("Housekeeping %r failed", job)
         self._flushed_at = (time.monotonic(), self.revision)
 
     # --- requests (any thread) ------------------------------------------------------------------------

@@ -175,3 +175,16 @@ def test_a_moved_table_keeps_its_mesh_and_changes_only_its_placement_in_the_grap
     observe(service, "robot1", box_turtle(TABLE, 6.0, 2.2, yaw=yaw))
     again = service.store.select(f"SELECT ?ply WHERE {{ <{TABLE}/geometry> fog:asPly_v1.0-binaryLE ?ply }}")
     assert meshes == again and len(again) == 1
+
+
+def test_the_store_is_flushed_and_housekeeping_runs_only_after_changes() -> None:
+    store = imported(box_lab())
+    jobs: list[int] = []
+    service = TwinService(store, load_config(), flush_every_s=0.0, housekeeping=[lambda: jobs.append(1)])
+    service.start()
+    service.flush_store(due_only=True)
+    assert jobs == []  # nothing committed yet: nothing to flush
+    assert observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0)).ok
+    service.flush_store(due_only=True)
+    service.flush_store(due_only=True)
+    assert jobs == [1]
