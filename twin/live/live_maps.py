@@ -100,6 +100,9 @@ class _Element:
 
 
 _ONE: IndexArray = np.zeros(1, dtype=np.intp)
+_AT_ONCE_AREA = 4
+"""Windows changed together are rendered in one pass over their bounding window when it is at most this
+many times their total area (else each alone)."""
 
 
 @dataclass(eq=False, slots=True)
@@ -193,15 +196,44 @@ class LiveMaps:
             )
         return occ
 
-    def render(self, m: LiveMap, window: Window) -> GridData:
-        """The values of ``window`` of ``m`` from its static cells and overlay elements."""
+    def _occupancy_at_once(self, m: LiveMap, window: Window) -> BoolGrid:
+        """Like :meth:`_occupancy`, with every overlay element in ``window`` rasterised in one call (cheaper
+        than one per element when several changed at once, as under load)."""
+        occ = m.static[window.row0 : window.row1, window.col0 : window.col1].copy()
+        f = m.plan.frame
+        x0, y0 = f.origin_x + window.col0 * f.resolution_m, f.origin_y + window.row0 * f.resolution_m
+        x1, y1 = f.origin_x + window.col1 * f.resolution_m, f.origin_y + window.row1 * f.resolution_m
+        items = []
+        for iri in sorted(m.overlay):
+            el = self._overlay.get(iri)
+            b = None if el is None else el.bounds
+            if el is None or b is None or not _in_band(b, m.plan):
+                continue
+            if b[0] <= x1 and b[3] >= x0 and b[1] <= y1 and b[4] >= y0:
+                items.append((iri, *el.shape))
+        if items:
+            meshes = MeshSet.build(items)
+            occ |= occupancy(meshes, np.arange(len(items), dtype=np.intp), m.plan, window)
+        return occ
+
+    def render(
+        self, m: LiveMap, window: Window, *, source: tuple[Window, BoolGrid] | None = None
+    ) -> GridData:
+        """The values of ``window`` of ``m`` from its static cells and overlay elements (or from
+        ``source``: the occupancy of a window that holds this one's, grown by the inflation)."""
         plan = m.plan
         window = window.intersect(plan.frame.full)
         if window.empty:
             return np.zeros((max(window.shape[0], 0), max(window.shape[1], 0)), dtype=np.int8)
         pad = math.floor(plan.inflation_cells + 1e-9)
         padded = _grow(window, pad).intersect(plan.frame.full)
-        occupied = self._occupancy(m, padded)
+        if source is None:
+            occupied = self._occupancy(m, padded)
+        else:
+            sw, cells = source
+            occupied = cells[
+                padded.row0 - sw.row0 : padded.row1 - sw.row0, padded.col0 - sw.col0 : padded.col1 - sw.col0
+            ]
         if pad:
             occupied = dilate_disk(occupied, plan.inflation_cells)
         r0, c0 = window.row0 - padded.row0, window.col0 - padded.col0
@@ -338,7 +370,19 @@ class LiveMaps:
             boxes = [b for i in was[key] if (b := old_bounds[i]) is not None]
             boxes += [b for i in touched if self._member(m, i) and (b := new_bounds[i]) is not None]
             pad = math.ceil(m.plan.inflation_cells) + 1
-            fresh = [(win, self.render(m, win)) for win in self._windows(m, boxes, pad)]
+            windows = self._windows(m, boxes, pad)
+            source = None
+            if len(windows) > 1:  # several changes at once: rasterise them together if they lie close
+                u = Window(
+                    min(w.row0 for w in windows),
+                    min(w.col0 for w in windows),
+                    max(w.row1 for w in windows),
+                    max(w.col1 for w in windows),
+                )
+                if u.shape[0] * u.shape[1] <= _AT_ONCE_AREA * sum(w.shape[0] * w.shape[1] for w in windows):
+                    grown = _grow(u, math.floor(m.plan.inflation_cells + 1e-9)).intersect(m.plan.frame.full)
+                    source = (grown, self._occupancy_at_once(m, grown))
+            fresh = [(win, self.render(m, win, source=source)) for win in windows]
             for win, cells in fresh:  # all rendered before any is written
                 old = m.data[win.row0 : win.row1, win.col0 : win.col1]
                 diff = np.argwhere(cells != old)

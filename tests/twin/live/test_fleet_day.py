@@ -188,3 +188,23 @@ def test_the_store_is_flushed_and_housekeeping_runs_only_after_changes() -> None
     service.flush_store(due_only=True)
     service.flush_store(due_only=True)
     assert jobs == [1]
+
+
+@pytest.mark.parametrize("inflation", [0.0, 0.12])
+def test_a_batch_of_moves_rendered_together_equals_a_rebuild(inflation: float) -> None:
+    skill = parse_skill(
+        "wide", {"kind": "navigation", "robot_height_m": 0.6, "inflation_radius_m": inflation}
+    )
+    config = load_config()
+    service, _ = started(config=replace(config, skills={**config.skills, "wide": skill}))
+    rng = np.random.default_rng(7)
+    for round_ in range(4):
+        for k in range(6):
+            x, y = float(rng.uniform(4.0, 9.0)), float(rng.uniform(1.5, 2.5))
+            doc = box_turtle(f"urn:r:t{k}", x, y, yaw=float(rng.uniform(0, 3)))
+            service.submit_observation("robot1", doc)
+        if round_ == 3:
+            service.submit_observation("robot1", f"{PREFIX}<urn:r:t2> twin:removed true .".encode())
+        service.process()
+        for key, m in service.engine.maps.items():
+            np.testing.assert_array_equal(m.data, service.engine.rebuild(m), err_msg=f"{key} round {round_}")
