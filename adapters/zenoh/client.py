@@ -81,7 +81,8 @@ class MapWatcher:
         self.storey, self.skill = storey, skill
         self.on_version = on_version
         self.latest: MapVersion | None = None
-        self.versions: list[MapVersion] = []
+        self.received = 0
+        """How many versions the copy went through (only the latest is kept: a watcher runs all day)."""
         self._cond = threading.Condition()
         self._pending: list[tuple[int, int, Any, Any]] = []  # updates that came before their base
         self._updates = session.declare_subscriber(keys.map_updates(storey, skill), self._on_update)
@@ -99,7 +100,7 @@ class MapWatcher:
             if self.latest is not None and 0 <= version.version <= self.latest.version:
                 return  # a full map that the updates already brought the copy to, or an older one
             self.latest = version
-            self.versions.append(version)
+            self.received += 1
             self._cond.notify_all()
         if self.on_version is not None:
             try:
