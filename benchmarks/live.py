@@ -7,7 +7,7 @@ Measures, per model:
 - end-to-end latency: from sending an acked observation (a table moved around the busiest storey) to
   the receipt of the ``OccupancyGridUpdate`` by the subscriber (another process than the daemon),
   p50/p99 over N observations; and the ack round trip;
-- recompute: the same changes applied incrementally (:meth:`twin.live.live_maps.LiveMaps.apply`) against a
+- recompute: the same changes applied incrementally (:meth:`twin.live.live_maps.LiveMaps.redraw`) against a
   full rebuild of the affected maps, in this process.
 
 Usage::
@@ -135,7 +135,7 @@ def recompute(store: Path, storey: str, positions: list[tuple[float, float]]) ->
     with EmbeddedStore.open(copy) as st:
         service = TwinService(st, load_config())
         service.start()
-        original = service.engine.apply
+        original = service.engine.redraw
 
         def timed(*a: Any, **k: Any) -> Any:
             t0 = time.perf_counter()
@@ -148,7 +148,7 @@ def recompute(store: Path, storey: str, positions: list[tuple[float, float]]) ->
                 full.append(time.perf_counter() - t1)
             return out
 
-        service.engine.apply = timed  # type: ignore[method-assign]
+        service.engine.redraw = timed  # type: ignore[method-assign]
         for i, (x, y) in enumerate(positions[:50]):
             service.submit_observation("bench", _table(storey, x, y, i).encode())
             service.process()

@@ -47,7 +47,7 @@ CDR = zenoh.Encoding.APPLICATION_CDR
 JSON = zenoh.Encoding.APPLICATION_JSON
 
 
-def attachment(revision: int, version: int) -> bytes:
+def revision_attachment(revision: int, version: int) -> bytes:
     """The attachment of every map sample: JSON ``{"revision": R, "version": V}``."""
     return json.dumps({"revision": revision, "version": version}).encode()
 
@@ -121,7 +121,7 @@ class ZenohDaemon:
             out.full, out.revision, out.version = payload, event.revision, event.version
         with self._lock:
             self._maps[key] = out
-        out.latched.put(payload, attachment=attachment(event.revision, event.version))
+        out.latched.put(payload, attachment=revision_attachment(event.revision, event.version))
 
     def _update(self, event: MapUpdated) -> None:
         out = self._maps.get((event.storey, event.skill))
@@ -131,7 +131,7 @@ class ZenohDaemon:
         payload = encode_update_cells(
             event.frame, event.window, event.data, stamp_ns=event.stamp_ns, frame_id=self.frame_id
         )
-        out.updates.put(payload, attachment=attachment(event.revision, event.version))
+        out.updates.put(payload, attachment=revision_attachment(event.revision, event.version))
 
     def _remove(self, storey: str, skill: str) -> None:
         with self._lock:
@@ -185,7 +185,9 @@ class ZenohDaemon:
         for (storey, skill), out in maps:
             key = self.keys.map(storey, skill)
             if zenoh.KeyExpr(key).intersects(query.key_expr):
-                query.reply(key, out.full, encoding=CDR, attachment=attachment(out.revision, out.version))
+                query.reply(
+                    key, out.full, encoding=CDR, attachment=revision_attachment(out.revision, out.version)
+                )
 
     def _on_sparql(self, query: zenoh.Query) -> None:
         text = query.payload.to_string() if query.payload is not None else ""

@@ -21,7 +21,7 @@ Example::
 
     maps = LiveMaps(scene, margin_m=1.0)
     maps.add_map(skill, "ground-floor", selected_iris)
-    updates = maps.apply([GeometryChange(iri, new=(mesh, placement))], {skill.name: {iri: True}})
+    updates = maps.redraw([GeometryChange(iri, new=(mesh, placement))], {skill.name: {iri: True}})
 """
 
 from __future__ import annotations
@@ -314,12 +314,12 @@ class LiveMaps:
                     break
         return windows
 
-    def apply(
+    def redraw(
         self,
         geometry: Sequence[GeometryChange],
         membership: Mapping[str, Mapping[str, bool]],
     ) -> list[WindowUpdate]:
-        """Apply geometry changes and selection changes; re-render what they touch.
+        """Take the new geometry and selection of the changed elements; re-render what they touch.
 
         Args:
             geometry: the elements whose geometry changed (new shape, or None when gone).

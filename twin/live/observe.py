@@ -199,7 +199,7 @@ class Observer:
         geometry: list[GeometryChange] = [g for p in planned for g in p.plan.geometry]
         membership = self._membership(list(states), shapes)
         changes = []
-        for u in live.maps.apply(geometry, membership):
+        for u in live.maps.redraw(geometry, membership):
             m = live.maps.maps[(u.storey, u.skill)]
             self.emit(
                 MapUpdated(u.storey, u.skill, m.plan.frame, u.window, u.data, live.revision, u.version, stamp)
