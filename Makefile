@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VAR    := var
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test test-fast lint bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,9 +18,13 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/twin demo --workdir $(VAR)
 
-## test: install, then run the whole test suite
+## test: install, then run the whole test suite on both cores (what CI runs; ~3.5 min on 2 cores)
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2
+
+## test-fast: the inner loop, without processes, shared models and the viewer (~30 s on 2 cores)
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -q -n 2 -m "not slow"
 
 ## lint: ruff and mypy on the library code
 lint: $(STAMP)

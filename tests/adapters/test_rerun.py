@@ -95,6 +95,7 @@ def test_a_stalled_recorder_never_delays_the_service(tmp_path: Path) -> None:
 
 
 @pytest.mark.skipif(not SCREENSHOT.exists(), reason=f"{SCREENSHOT} not found (../shared is absent)")
+@pytest.mark.slow
 def test_the_recording_renders_in_the_real_viewer_without_errors(tmp_path: Path) -> None:
     path = tmp_path / "twin.rrd"
     record(path)
