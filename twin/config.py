@@ -18,8 +18,8 @@ from typing import Any, Literal
 from twin.errors import ConfigError, SkillError
 from twin.skills import SkillProfile, parse_skill
 
-Right = Literal["create", "dynamic", "doors", "static"]
-RIGHTS: tuple[Right, ...] = ("create", "dynamic", "doors", "static")
+Right = Literal["create", "dynamic", "doors", "static", "zones"]
+RIGHTS: tuple[Right, ...] = ("create", "dynamic", "doors", "static", "zones")
 RosLayout = Literal["bridge", "rmw_zenoh"]
 ZenohMode = Literal["peer", "client", "router"]
 Identity = Literal["username", "certificate"]
@@ -526,7 +526,7 @@ def _robot_maps(
     if not isinstance(raw, Mapping) or not raw:
         msg = (
             f"Configuration '{key}' must map topic names to skills, "
-            f"e.g. {{ map = \"localization\" }}, got {raw!r}."
+            f'e.g. {{ map = "localization" }}, got {raw!r}.'
         )
         raise ConfigError(msg)
     out: list[tuple[str, str]] = []

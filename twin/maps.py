@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.errors import MapError
-from twin.grid import FREE, OCCUPIED, UNKNOWN, GridData, GridFrame, OccupancyGrid, Window
+from twin.grid import FREE, UNKNOWN, GridData, GridFrame, OccupancyGrid, Window
 from twin.raster import SlabGeometry, rasterize, rasterize_slab, slab_geometry
 from twin.scene import IndexArray, MeshSet, Scene, SlabBox, StoreyInfo
 from twin.skills import SkillProfile
@@ -176,7 +176,7 @@ def _render(
         occupied = dilate_disk(occupied, plan.inflation_cells)
     r0, c0 = window.row0 - padded.row0, window.col0 - padded.col0
     occupied = occupied[r0 : r0 + window.shape[0], c0 : c0 + window.shape[1]]
-    data = np.where(occupied, OCCUPIED, FREE).astype(np.int8)
+    data = np.where(occupied, np.int8(plan.skill.occupied_value), FREE).astype(np.int8)
     if plan.skill.unknown_outside:
         inside = occupancy(spaces, plan.spaces, plan, window)
         data[~inside & ~occupied] = UNKNOWN

@@ -66,6 +66,10 @@ class ElementReport:
     """A new placement only (a move): same mesh."""
     is_open: bool | None = None
     removed: bool = False
+    keepout: bool | None = None
+    """A keepout zone mark (``twin:keepout``), None: left as it is."""
+    speed_limit: int | None = None
+    """A speed zone mark (``twin:speedLimit``, percent; 0 lifts it), None: left as it is."""
     labels: tuple[str, ...] = ()
     materials: tuple[str, ...] = ()
     classes: tuple[str, ...] = ()
@@ -198,6 +202,8 @@ _ELEMENT_TERMS = {
     vocab.TWIN_PLACEMENT,
     vocab.TWIN_IS_OPEN,
     vocab.TWIN_REMOVED,
+    vocab.TWIN_KEEPOUT,
+    vocab.TWIN_SPEED_LIMIT,
     vocab.RDFS_LABEL,
     vocab.TWIN_MATERIAL,
     vocab.RDF_TYPE,
@@ -227,8 +233,8 @@ def _report(
         if predicate not in _ELEMENT_TERMS:
             raise _fail(
                 f"Element <{subject}>: unknown term <{predicate}> (known: twin:ifcClass, twin:storey, "
-                "twin:box, omg:hasGeometry, twin:placement, twin:isOpen, twin:removed, rdfs:label, "
-                "twin:material, rdf:type)."
+                "twin:box, omg:hasGeometry, twin:placement, twin:isOpen, twin:removed, twin:keepout, "
+                "twin:speedLimit, rdfs:label, twin:material, rdf:type)."
             )
     args: dict[str, object] = {"iri": subject}
     if vocab.TWIN_IFC_CLASS in props:
@@ -266,6 +272,21 @@ def _report(
         if removed not in ("true", "1"):
             raise _fail(f"Element <{subject}>: twin:removed can only be true.")
         args["removed"] = True
+    if vocab.TWIN_KEEPOUT in props:
+        args["keepout"] = _literal(
+            subject, vocab.TWIN_KEEPOUT, props[vocab.TWIN_KEEPOUT], (vocab.XSD_BOOLEAN,)
+        ).value in ("true", "1")
+    if vocab.TWIN_SPEED_LIMIT in props:
+        text = _literal(
+            subject, vocab.TWIN_SPEED_LIMIT, props[vocab.TWIN_SPEED_LIMIT], (vocab.XSD_INTEGER,)
+        ).value
+        limit = int(text) if re.fullmatch(r"[+-]?[0-9]{1,4}", text.strip()) else -1
+        if not 0 <= limit <= 100:
+            raise _fail(
+                f"Element <{subject}>: twin:speedLimit must be a percent from 0 (no limit) to 100, "
+                f"got {text!r}."
+            )
+        args["speed_limit"] = limit
     if vocab.RDFS_LABEL in props:
         args["labels"] = _strings(subject, vocab.RDFS_LABEL, props[vocab.RDFS_LABEL])
     if vocab.TWIN_MATERIAL in props:
@@ -288,7 +309,10 @@ def _report(
         raise _fail(
             f"Element <{subject}>: give one of twin:box, omg:hasGeometry or twin:placement, not {geometries}."
         )
-    if report.removed and (report.changes_geometry or report.is_open is not None or report.ifc_class):
+    marks = report.keepout is not None or report.speed_limit is not None
+    if report.removed and (
+        report.changes_geometry or report.is_open is not None or report.ifc_class or marks
+    ):
         raise _fail(f"Element <{subject}>: twin:removed true cannot come with other changes.")
     return report
 

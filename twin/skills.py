@@ -1,10 +1,19 @@
 """Skill profiles: which elements a robot skill's map is made of, and at which heights.
 
-A profile is a typed record parsed from a TOML table or a JSON object. Two kinds:
+A profile is a typed record parsed from a TOML table or a JSON object. Two kinds of skill map:
 
 - ``localization``: what a planar lidar at ``lidar_height_m`` sees: a slab of ``slab_thickness_m``
   centred on that height;
 - ``navigation``: everything between ``floor_clearance_m`` and ``robot_height_m``, projected.
+
+and two kinds of nav2 costmap filter mask, made of the zones operators mark (same band as navigation):
+
+- ``keepout``: the elements marked ``twin:keepout true``, as occupied (100) cells;
+- ``speed``: the elements marked ``twin:speedLimit <limit_percent>``, as cells of value ``limit_percent``
+  (nav2's speed filter, percent, base 0, multiplier 1). One profile per limit.
+
+Virtual elements (``IfcVirtualElement``, e.g. a zone an operator drew) are in masks only, never in
+localization or navigation maps.
 
 Heights are relative to the storey's elevation. The element selection becomes one SPARQL query over
 the graph (IFC types with their subtypes, BEO/FURN classes, materials, or a raw pattern on ``?element``).
@@ -29,7 +38,9 @@ import pyoxigraph as ox
 from twin import vocab
 from twin.errors import SkillError
 
-Kind = Literal["localization", "navigation"]
+Kind = Literal["localization", "navigation", "keepout", "speed"]
+MASK_KINDS: tuple[Kind, ...] = ("keepout", "speed")
+VIRTUAL_TYPE = "IfcVirtualElement"
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
 _IFC_NAME = re.compile(r"^Ifc[A-Za-z0-9]+$")
 _SERVICE = re.compile(r"\bSERVICE\b", re.IGNORECASE)
@@ -50,6 +61,8 @@ _COMMON = {
 _FIELDS: dict[str, set[str]] = {
     "localization": _COMMON | {"lidar_height_m", "slab_thickness_m"},
     "navigation": _COMMON | {"robot_height_m", "floor_clearance_m", "inflation_radius_m"},
+    "keepout": _COMMON | {"robot_height_m", "floor_clearance_m"},
+    "speed": _COMMON | {"robot_height_m", "floor_clearance_m", "limit_percent"},
 }
 
 
@@ -71,6 +84,18 @@ class SkillProfile:
     sparql: str | None = None
     unknown_outside: bool = False
     description: str = ""
+    limit_percent: int = 50
+    """``speed`` masks: the limit of the zones they show (cells of that value)."""
+
+    @property
+    def is_mask(self) -> bool:
+        """A nav2 costmap filter mask (``keepout``, ``speed``), not a map of the building."""
+        return self.kind in MASK_KINDS
+
+    @property
+    def occupied_value(self) -> int:
+        """The cell value of what the map selects: 100, or a speed mask's ``limit_percent``."""
+        return self.limit_percent if self.kind == "speed" else 100
 
     @property
     def z_range(self) -> tuple[float, float]:
@@ -139,13 +164,15 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
         raise SkillError(msg)
     kind = data.get("kind")
     if not isinstance(kind, str) or kind not in _FIELDS:
-        msg = f"Skill {name!r}: field 'kind' must be 'localization' or 'navigation', got {kind!r}."
+        msg = (
+            f"Skill {name!r}: field 'kind' must be 'localization', 'navigation', 'keepout' or 'speed', "
+            f"got {kind!r}."
+        )
         raise SkillError(msg)
     unknown = sorted(set(data) - _FIELDS[kind])
     if unknown:
-        other = "navigation" if kind == "localization" else "localization"
-        for_other = [k for k in unknown if k in _FIELDS[other]]
-        hint = f" ({', '.join(for_other)} belongs to {other} skills)" if for_other else ""
+        others = [o for o in _FIELDS if o != kind and unknown[0] in _FIELDS[o]]
+        hint = f" ({unknown[0]} belongs to {' and '.join(others)} skills)" if others else ""
         msg = f"Skill {name!r}: unknown field {unknown[0]!r}{hint}."
         raise SkillError(msg)
     args: dict[str, Any] = {"name": name, "kind": kind}
@@ -170,6 +197,12 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
         args["exclude_materials"] = tuple(
             m.lower() for m in _strings(name, "exclude_materials", data["exclude_materials"])
         )
+    if "limit_percent" in data:
+        value = data["limit_percent"]
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 100:
+            msg = f"Skill {name!r}: field 'limit_percent' must be an integer from 1 to 100, got {value!r}."
+            raise SkillError(msg)
+        args["limit_percent"] = value
     for key in ("unknown_outside",):
         if key in data:
             if not isinstance(data[key], bool):
@@ -190,7 +223,7 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
             raise SkillError(msg)
         args["sparql"] = data["sparql"]
     skill = SkillProfile(**args)
-    if skill.kind == "navigation" and skill.floor_clearance_m >= skill.robot_height_m:
+    if skill.kind != "localization" and skill.floor_clearance_m >= skill.robot_height_m:
         msg = (
             f"Skill {name!r}: field 'floor_clearance_m' ({skill.floor_clearance_m}) must be below "
             f"'robot_height_m' ({skill.robot_height_m})."
@@ -271,6 +304,12 @@ def selection_query(skill: SkillProfile, only: Sequence[str] | None = None) -> s
         "  ?element a bot:Element ; omg:hasGeometry ?twin_geometry .",
         "  FILTER NOT EXISTS { ?element twin:isOpen true }",
     ]
+    if skill.kind == "keepout":
+        lines.append("  ?element twin:keepout true .")
+    elif skill.kind == "speed":
+        lines.append(f"  ?element twin:speedLimit {skill.limit_percent} .")
+    else:
+        lines.append(f'  FILTER NOT EXISTS {{ ?element twin:ifcType "{VIRTUAL_TYPE}" }}')
     if skill.include_types:
         lines.append(f"  {_type_test(skill.include_types)}")
     if skill.exclude_types:

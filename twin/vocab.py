@@ -101,6 +101,12 @@ TWIN_STOREY: Final = TWIN + "storey"
 TWIN_BOX: Final = TWIN + "box"
 TWIN_IS_OPEN: Final = TWIN + "isOpen"
 TWIN_REMOVED: Final = TWIN + "removed"
+# Zones nav2's costmap filters read (operators mark them; keepout and speed skills map them).
+TWIN_KEEPOUT: Final = TWIN + "keepout"
+"""``true``: robots must not enter the element's footprint (a ``keepout`` skill's mask)."""
+TWIN_SPEED_LIMIT: Final = TWIN + "speedLimit"
+"""Integer percent of the robot's maximum speed inside the element's footprint (a ``speed`` skill's
+mask); 0 lifts the limit."""
 TWIN_OBSERVED_BY: Final = TWIN + "observedBy"
 TWIN_OBSERVED_AT: Final = TWIN + "observedAt"
 XSD_DATETIME: Final = XSD + "dateTime"

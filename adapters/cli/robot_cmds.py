@@ -55,13 +55,26 @@ def observation_turtle(args: argparse.Namespace) -> bytes:
             raise ObservationError(msg)
         iri = args.id or f"urn:twin:{args.robot}:{uuid.uuid4()}"
         return box_turtle(iri, values, ifc_class=args.ifc_class, storey=args.storey).encode()
-    if args.remove:
-        return f"<{args.remove}> <{t}removed> true .\n".encode()
-    if args.open:
-        return f"<{args.open}> <{t}isOpen> true .\n".encode()
-    if args.close:
-        return f"<{args.close}> <{t}isOpen> false .\n".encode()
-    msg = "Say what was observed: --box ... | --turtle FILE | --remove IRI | --open IRI | --close IRI."
+    marks = (
+        (args.remove, "removed", "true"),
+        (args.open, "isOpen", "true"),
+        (args.close, "isOpen", "false"),
+        (args.keepout, "keepout", "true"),
+        (args.no_keepout, "keepout", "false"),
+    )
+    for iri, predicate, value in marks:
+        if iri:
+            return f"<{iri}> <{t}{predicate}> {value} .\n".encode()
+    if args.speed_limit:
+        iri, percent = args.speed_limit
+        if not percent.isdigit():
+            msg = f"--speed-limit takes an IRI and a percent from 0 (no limit) to 100, got {percent!r}."
+            raise ObservationError(msg)
+        return f"<{iri}> <{t}speedLimit> {int(percent)} .\n".encode()
+    msg = (
+        "Say what was observed: --box ... | --turtle FILE | --remove IRI | --open IRI | --close IRI | "
+        "--keepout IRI | --no-keepout IRI | --speed-limit IRI PERCENT."
+    )
     raise ObservationError(msg)
 
 
@@ -221,6 +234,11 @@ def add_parsers(sub: Any) -> None:
     what.add_argument("--remove", metavar="IRI", help="the element is gone")
     what.add_argument("--open", metavar="IRI", help="the door was seen open")
     what.add_argument("--close", metavar="IRI", help="the door was seen closed")
+    what.add_argument("--keepout", metavar="IRI", help="mark a keepout zone (needs the 'zones' right)")
+    what.add_argument("--no-keepout", metavar="IRI", help="lift a keepout zone")
+    what.add_argument(
+        "--speed-limit", nargs=2, metavar=("IRI", "PERCENT"), help="mark a speed zone (0 lifts it)"
+    )
     sp.add_argument("--id", help="IRI of the boxed element (default: a new urn:twin:<robot>:<uuid>)")
     sp.add_argument("--class", dest="ifc_class", help="IFC class of the boxed element, e.g. IfcFurniture")
     sp.add_argument("--storey", help="storey key of the boxed element (see 'twin stats')")

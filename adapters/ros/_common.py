@@ -27,6 +27,7 @@ __all__ = [
     "OCCUPIED_PIXEL",
     "OCCUPIED_THRESH",
     "UNKNOWN_PIXEL",
+    "raw_pixels",
     "trinary_pixels",
     "write_atomic",
 ]
@@ -49,6 +50,13 @@ def write_atomic(path: Path, blob: bytes) -> None:
         tmp.unlink(missing_ok=True)
         msg = f"Cannot write {path}: {exc}"
         raise MapError(msg) from exc
+
+
+def raw_pixels(data: GridData) -> npt.NDArray[np.uint8]:
+    """``(h, w) uint8`` image for map_server's ``raw`` mode: the value itself, 255 for unknown (-1);
+    top row = highest y."""
+    flipped = data[::-1]
+    return np.where(flipped < 0, 255, flipped).astype(np.uint8)
 
 
 def trinary_pixels(data: GridData) -> npt.NDArray[np.uint8]:

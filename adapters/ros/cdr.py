@@ -1,5 +1,6 @@
 """CDR ``nav_msgs/msg/OccupancyGrid`` and ``map_msgs/msg/OccupancyGridUpdate`` messages of core grids,
-and the ``std_msgs/msg/String`` a robot sends on ``/<ns>/storey``.
+the ``std_msgs/msg/String`` a robot sends on ``/<ns>/storey``, and the
+``nav2_msgs/msg/CostmapFilterInfo`` that points nav2's keepout and speed filters at a mask topic.
 
 These are what travel on ``/map`` and ``/map_updates`` (e.g. through ``zenoh-bridge-ros2dds``).
 Serialisation uses ``rosbags`` with the ROS 2 Humble type store, ``map_msgs`` registered from its
@@ -27,13 +28,18 @@ from twin.errors import MapError
 from twin.grid import GridData, GridFrame, OccupancyGrid, Window
 
 __all__ = [
+    "COSTMAP_FILTER_INFO",
+    "KEEPOUT_FILTER",
     "OCCUPANCY_GRID",
     "OCCUPANCY_GRID_UPDATE",
+    "SPEED_FILTER_PERCENT",
     "STRING",
     "apply_update",
+    "decode_costmap_filter_info",
     "decode_occupancy_grid",
     "decode_occupancy_grid_update",
     "decode_string",
+    "encode_costmap_filter_info",
     "encode_occupancy_grid",
     "encode_occupancy_grid_update",
     "encode_string",
@@ -43,6 +49,20 @@ __all__ = [
 OCCUPANCY_GRID = "nav_msgs/msg/OccupancyGrid"
 OCCUPANCY_GRID_UPDATE = "map_msgs/msg/OccupancyGridUpdate"
 STRING = "std_msgs/msg/String"
+COSTMAP_FILTER_INFO = "nav2_msgs/msg/CostmapFilterInfo"
+KEEPOUT_FILTER = 0
+"""``CostmapFilterInfo.type`` of a keepout (or lanes) mask."""
+SPEED_FILTER_PERCENT = 1
+"""``CostmapFilterInfo.type`` of a speed mask in percent of the maximum speed."""
+
+# nav2_msgs/msg/CostmapFilterInfo.msg, as shipped by nav2 (Jazzy, Kilted; comments dropped).
+_COSTMAP_FILTER_INFO_MSG = """\
+std_msgs/Header header
+uint8 type
+string filter_mask_topic
+float32 base
+float32 multiplier
+"""
 
 # map_msgs/msg/OccupancyGridUpdate.msg, as shipped by ROS 2 (rosbags has no map_msgs).
 _OCCUPANCY_GRID_UPDATE_MSG = """\
@@ -61,9 +81,11 @@ _INT32_MIN, _INT32_MAX = -(2**31), 2**31 - 1
 
 @functools.cache
 def _typestore() -> Any:
-    """The ROS 2 Humble type store with ``map_msgs/msg/OccupancyGridUpdate`` registered (built once)."""
+    """The ROS 2 Humble type store with ``map_msgs/msg/OccupancyGridUpdate`` and
+    ``nav2_msgs/msg/CostmapFilterInfo`` registered (built once)."""
     store = get_typestore(Stores.ROS2_HUMBLE)
     store.register(get_types_from_msg(_OCCUPANCY_GRID_UPDATE_MSG, OCCUPANCY_GRID_UPDATE))
+    store.register(get_types_from_msg(_COSTMAP_FILTER_INFO_MSG, COSTMAP_FILTER_INFO))
     return store
 
 
@@ -117,14 +139,12 @@ def _resolution_from_float32(value: float) -> float:
     return float(np.format_float_positional(np.float32(value), unique=True, trim="-"))
 
 
-def _check_trinary(data: npt.NDArray[np.int8], what: str) -> None:
-    bad = (data != 0) & (data != 100) & (data != -1)
+def _check_values(data: npt.NDArray[np.int8], what: str) -> None:
+    """Cells are -1 (unknown) or 0..100: trinary maps, keepout masks and speed masks (percent)."""
+    bad = (data < -1) | (data > 100)
     if bad.any():
         examples = sorted({int(v) for v in data[bad][:1000]})[:5]
-        msg = (
-            f"{what} has {int(bad.sum())} cell values other than -1, 0, 100 (e.g. {examples}); "
-            "building-twin grids are trinary."
-        )
+        msg = f"{what} has {int(bad.sum())} cell values outside -1..100 (e.g. {examples})."
         raise MapError(msg)
 
 
@@ -174,7 +194,7 @@ def decode_occupancy_grid(
 
     The message carries no storey, skill or elevation: pass them. The float32 resolution is
     recovered as its shortest decimal (``0.05`` round-trips exactly). Rotated origins, a data length
-    other than ``width * height`` and non-trinary cell values raise :class:`MapError`.
+    other than ``width * height`` and cell values outside -1..100 raise :class:`MapError`.
 
     Example::
 
@@ -210,7 +230,7 @@ def decode_occupancy_grid(
         msg = f"{OCCUPANCY_GRID} payload has an invalid frame: {exc}"
         raise MapError(msg) from exc
     grid_data = data.reshape(height, width).copy()  # own the memory, not the payload's buffer
-    _check_trinary(grid_data, f"{OCCUPANCY_GRID} payload")
+    _check_values(grid_data, f"{OCCUPANCY_GRID} payload")
     grid = OccupancyGrid(frame, grid_data, storey=storey, skill=skill, elevation_m=elevation_m)
     return grid, _stamp_ns(message.header)
 
@@ -283,7 +303,7 @@ def decode_occupancy_grid_update(
         msg = f"{OCCUPANCY_GRID_UPDATE} payload has {data.size} cells, but says {w}x{h} = {w * h}."
         raise MapError(msg)
     cells = data.reshape(h, w).copy()
-    _check_trinary(cells, f"{OCCUPANCY_GRID_UPDATE} payload")
+    _check_values(cells, f"{OCCUPANCY_GRID_UPDATE} payload")
     return Window(y, x, y + h, x + w), cells, _stamp_ns(message.header)
 
 
@@ -320,3 +340,43 @@ def encode_string(text: str) -> bytes:
 def decode_string(payload: bytes | bytearray | memoryview) -> str:
     """Parse a CDR ``std_msgs/msg/String``: its ``data``; MapError names a malformed payload."""
     return str(_deserialize(payload, STRING).data)
+
+
+def encode_costmap_filter_info(
+    filter_type: int,
+    mask_topic: str,
+    *,
+    stamp_ns: int,
+    frame_id: str = "map",
+    base: float = 0.0,
+    multiplier: float = 1.0,
+) -> bytes:
+    """Serialise a CDR ``nav2_msgs/msg/CostmapFilterInfo``: nav2 reads a mask cell ``v`` as
+    ``base + multiplier * v`` (a speed limit), or any occupied cell as keepout.
+
+    Example::
+
+        info = encode_costmap_filter_info(KEEPOUT_FILTER, "/robot1/keepout_mask", stamp_ns=0)
+    """
+    if filter_type not in (0, 1, 2):
+        msg = (
+            f"CostmapFilterInfo type must be 0 (keepout), 1 (speed %) or 2 (speed m/s), got {filter_type!r}."
+        )
+        raise MapError(msg)
+    if not mask_topic.startswith("/"):
+        msg = f"A filter mask topic must be a fully qualified ROS name (/ns/topic), got {mask_topic!r}."
+        raise MapError(msg)
+    message = _typestore().types[COSTMAP_FILTER_INFO](
+        header=_header(stamp_ns, frame_id),
+        type=filter_type,
+        filter_mask_topic=mask_topic,
+        base=float(np.float32(base)),
+        multiplier=float(np.float32(multiplier)),
+    )
+    return _serialize(message, COSTMAP_FILTER_INFO)
+
+
+def decode_costmap_filter_info(payload: bytes | bytearray | memoryview) -> tuple[int, str, float, float]:
+    """Parse a CDR ``nav2_msgs/msg/CostmapFilterInfo``: ``(type, filter_mask_topic, base, multiplier)``."""
+    m = _deserialize(payload, COSTMAP_FILTER_INFO)
+    return int(m.type), str(m.filter_mask_topic), float(m.base), float(m.multiplier)

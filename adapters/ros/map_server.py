@@ -30,6 +30,7 @@ from adapters.ros._common import (
     OCCUPIED_PIXEL,
     OCCUPIED_THRESH,
     UNKNOWN_PIXEL,
+    raw_pixels,
     trinary_pixels,
     write_atomic,
 )
@@ -83,7 +84,8 @@ def _check_stem(stem: str) -> None:
 
 
 def write_map_server(grid: OccupancyGrid, out_dir: Path, stem: str) -> MapServerFiles:
-    """Write ``<stem>.yaml`` + ``<stem>.pgm`` for nav2 ``map_server`` (trinary mode).
+    """Write ``<stem>.yaml`` + ``<stem>.pgm`` for nav2 ``map_server`` (trinary mode; ``raw`` mode for a
+    speed mask, whose cells are percents: pixel = value, 255 unknown, what nav2's speed filter loads).
 
     The PGM is binary (``P5``, maxval 255, ``(height, width)`` bytes) in map_saver colours: occupied 0,
     free 254, unknown 205; image row 0 is the grid's last row (highest y). The YAML names the image
@@ -104,12 +106,14 @@ def write_map_server(grid: OccupancyGrid, out_dir: Path, stem: str) -> MapServer
     frame = grid.frame
     yaml_path, pgm_path = out_dir / f"{stem}.yaml", out_dir / f"{stem}.pgm"
     header = f"P5\n# building-twin {frame.resolution_m!r} m/pix\n{frame.width} {frame.height}\n255\n"
-    write_atomic(pgm_path, header.encode("ascii") + trinary_pixels(grid.data).tobytes())
+    trinary = bool(np.isin(grid.data, (-1, 0, 100)).all())
+    pixels = trinary_pixels(grid.data) if trinary else raw_pixels(grid.data)
+    write_atomic(pgm_path, header.encode("ascii") + pixels.tobytes())
     yaml_text = "\n".join(
         [
             _meta_comment(grid),
             f"image: {_yaml_str(pgm_path.name)}",
-            "mode: trinary",
+            f"mode: {'trinary' if trinary else 'raw'}",
             f"resolution: {frame.resolution_m!r}",
             f"origin: [{float(frame.origin_x)!r}, {float(frame.origin_y)!r}, 0.0]",
             "negate: 0",
@@ -262,8 +266,10 @@ def read_map_server(yaml_path: Path) -> OccupancyGrid:
         msg = f"{yaml_path}: missing map_server key(s) {', '.join(missing)}."
         raise MapError(msg)
     mode = keys.get("mode", "trinary")
-    if mode != "trinary":
-        msg = f"{yaml_path}: mode {mode!r} is not supported (building-twin grids are trinary)."
+    if mode not in ("trinary", "raw"):
+        msg = (
+            f"{yaml_path}: mode {mode!r} is not supported (building-twin writes trinary maps and raw masks)."
+        )
         raise MapError(msg)
     origin_text = keys["origin"]
     if not (origin_text.startswith("[") and origin_text.endswith("]")):
@@ -304,8 +310,11 @@ def read_map_server(yaml_path: Path) -> OccupancyGrid:
     pixels, maxval = _read_pgm(image_path)
 
     values = np.arange(maxval + 1, dtype=np.float64)
-    p = values / maxval if negate else (maxval - values) / maxval
-    lut = np.where(p > occupied_thresh, 100, np.where(p < free_thresh, 0, -1)).astype(np.int8)
+    if mode == "raw":  # map_server's raw mode: the pixel is the value, above 100 unknown
+        lut = np.where(values <= 100, values, -1).astype(np.int8)
+    else:
+        p = values / maxval if negate else (maxval - values) / maxval
+        lut = np.where(p > occupied_thresh, 100, np.where(p < free_thresh, 0, -1)).astype(np.int8)
     data = np.ascontiguousarray(lut[pixels[::-1]])
 
     try:

@@ -16,6 +16,11 @@ navigation for the costmap's static layer) carries that skill's map of the robot
   and liveliness tokens (one per publisher and subscriber) that put the daemon in the ROS graph as
   node ``<ns>/twin_map_server``.
 
+**nav2 costmap filters.** A topic whose skill is a mask (``kind = "keepout"`` or ``"speed"``) also gets
+``/<ns>/<topic>_info`` (``nav2_msgs/msg/CostmapFilterInfo``, latched, published once: type 0 for
+keepout, 1 for a speed limit in percent; the mask topic's full name; base 0, multiplier 1), which is
+what nav2's ``KeepoutFilter`` and ``SpeedFilter`` read as their ``filter_info_topic``.
+
 **Storey switching.** A robot's current storey starts as its configured ``storey`` and changes at run
 time through ``twin/<site>/robots/<name>/storey`` (a put of the storey key; a ``get`` answers the
 current one, a ``get`` with a storey key as payload switches and answers, or replies an error) or
@@ -44,7 +49,16 @@ import zenoh
 import zenoh.ext
 
 from adapters.ros import encode_occupancy_grid, encode_update_cells
-from adapters.ros.cdr import OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE, STRING, decode_string
+from adapters.ros.cdr import (
+    COSTMAP_FILTER_INFO,
+    KEEPOUT_FILTER,
+    OCCUPANCY_GRID,
+    OCCUPANCY_GRID_UPDATE,
+    SPEED_FILTER_PERCENT,
+    STRING,
+    decode_string,
+    encode_costmap_filter_info,
+)
 from adapters.ros.rmw_zenoh import (
     DEFAULT_QOS,
     LATCHED_QOS,
@@ -94,6 +108,8 @@ class _Topic:
     skill: str
     maps: list[_Out] = field(default_factory=list)
     updates: list[_Out] = field(default_factory=list)
+    info: list[_Out] = field(default_factory=list)
+    """``/<ns>/<name>_info`` (CostmapFilterInfo) when the skill is a mask."""
 
 
 @dataclass(eq=False, slots=True)
@@ -162,6 +178,7 @@ class RosMapPublisher:
         self._latest: dict[tuple[str, str], _Latest] = {}
         self._robots: dict[str, _Robot] = {}
         self._declared: list[Any] = []
+        self._kinds = {name: skill.kind for name, skill in config.skills.items()}
         zid = str(session.zid())
         entity = 0
         for robot in sorted(config.robots.values(), key=lambda r: r.name):
@@ -199,6 +216,10 @@ class RosMapPublisher:
                         )
                         outs.append(_Out(pub, gid=gid_of(token)))
                         r.entities.append(session.liveliness().declare_token(token))
+                mask = config.skills.get(skill)
+                if mask is not None and mask.is_mask:
+                    self._declare_info(t, robot, node, mask=map_topic, entity=entity, tokens=r.entities)
+                    entity += 1
                 r.topics.append(t)
             storey_topic = RosTopic(robot.domain_id, robot.namespace, STOREY_TOPIC, STRING)
             on_storey = self._ros_storey_handler(robot.name)
@@ -225,6 +246,24 @@ class RosMapPublisher:
                 session.declare_subscriber(keys.robot_storeys, self._on_storey_put),
                 session.declare_queryable(keys.robot_storeys, self._on_storey_get),
             ]
+
+    def _declare_info(
+        self, t: _Topic, robot: RobotConfig, node: RosNode, *, mask: RosTopic, entity: int, tokens: list[Any]
+    ) -> None:
+        """Declare ``/<ns>/<name>_info`` and publish its one CostmapFilterInfo (latched)."""
+        assert robot.namespace is not None
+        topic = RosTopic(robot.domain_id, robot.namespace, f"{t.name}_info", COSTMAP_FILTER_INFO)
+        kind = KEEPOUT_FILTER if self._kinds.get(t.skill) == "keepout" else SPEED_FILTER_PERCENT
+        if "bridge" in robot.ros:
+            t.info.append(_Out(_latched(self.session, topic.bridge_key, heartbeat=False)))
+        if "rmw_zenoh" in robot.ros:
+            token = node.publisher_token(topic, entity, LATCHED_QOS)
+            t.info.append(_Out(_latched(self.session, topic.data_key, heartbeat=True), gid=gid_of(token)))
+            tokens.append(self.session.liveliness().declare_token(token))
+        stamp = self.clock()
+        payload = encode_costmap_filter_info(kind, mask.fqn, stamp_ns=stamp, frame_id=self.frame_id)
+        for out in t.info:
+            out.put(payload, stamp)
 
     # --- the sink (service thread) ------------------------------------------------------------------
     def emit(self, event: TwinEvent) -> None:
@@ -416,7 +455,7 @@ class RosMapPublisher:
             entities = [*self._declared]
             self._declared.clear()
         for r in robots:
-            outs = [o.publisher for t in r.topics for o in (*t.maps, *t.updates)]
+            outs = [o.publisher for t in r.topics for o in (*t.maps, *t.updates, *t.info)]
             entities += [*outs, *r.entities]
         for entity in entities:
             try:

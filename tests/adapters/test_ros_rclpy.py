@@ -8,6 +8,8 @@ are missing, importing them fails this module; nothing is skipped.
 - ``map_msgs/msg/OccupancyGridUpdate`` (every ``_updates`` topic): no wheel ships map_msgs, so its hash
   comes from rosidl's generators and its bytes are checked field by field: the header is what rclpy
   serialises for ``std_msgs/msg/Header``, then x, y, width, height and the cells at CDR alignment.
+- ``nav2_msgs/msg/CostmapFilterInfo`` (every mask's ``_info`` topic): no wheel either; hash from the
+  generators, bytes field by field after rclpy's header.
 """
 
 from __future__ import annotations
@@ -27,11 +29,14 @@ from std_msgs.msg import String as RosString
 
 from adapters.ros import decode_occupancy_grid, encode_occupancy_grid, encode_update_cells
 from adapters.ros.cdr import (
+    COSTMAP_FILTER_INFO,
     OCCUPANCY_GRID,
     OCCUPANCY_GRID_UPDATE,
     STRING,
+    decode_costmap_filter_info,
     decode_occupancy_grid_update,
     decode_string,
+    encode_costmap_filter_info,
     encode_string,
 )
 from adapters.ros.rmw_zenoh import type_hash
@@ -47,6 +52,23 @@ int32 y
 uint32 width
 uint32 height
 int8[] data
+"""
+
+# nav2_msgs/msg/CostmapFilterInfo.msg as nav2 ships it (ros-navigation/navigation2, nav2_msgs)
+FILTER_INFO_MSG = """\
+std_msgs/Header header
+# Type of plugin used (keepout filter, speed limit in m/s, speed limit in percent, etc...)
+# 0: keepout/lanes filter
+# 1: speed limit filter in % of maximum speed
+# 2: speed limit filter in absolute values (m/s)
+uint8 type
+# Name of filter mask topic
+string filter_mask_topic
+# Multiplier base offset and multiplier coefficient for conversion of OccGrid.
+# Used to convert OccupancyGrid data values to filter space values.
+# <filter_space_value> = base + multiplier * <OccupancyGrid_value>
+float32 base
+float32 multiplier
 """
 
 
@@ -135,3 +157,33 @@ def test_the_update_hash_equals_what_rosidls_generators_compute(tmp_path: Path) 
     expected = generated_hash(OCCUPANCY_GRID_UPDATE, UPDATE_MSG, tmp_path, ("std_msgs", "builtin_interfaces"))
     assert type_hash(OCCUPANCY_GRID_UPDATE) == expected
     assert expected == "RIHS01_c4095b0be2e4363f8978a1570e0293ee093436f1e1c61d99b48502ac317025e8"
+
+
+def test_the_filter_info_hash_equals_what_rosidls_generators_compute(tmp_path: Path) -> None:
+    expected = generated_hash(
+        COSTMAP_FILTER_INFO, FILTER_INFO_MSG, tmp_path, ("std_msgs", "builtin_interfaces")
+    )
+    assert type_hash(COSTMAP_FILTER_INFO) == expected
+
+
+@pytest.mark.parametrize(
+    ("kind", "topic", "base", "multiplier"),
+    [(0, "/robot1/keepout_mask", 0.0, 1.0), (1, "/a/speed_mask", 10.0, 0.5)],
+)
+def test_a_filter_info_is_rclpys_header_then_the_fields_at_cdr_alignment(
+    kind: int, topic: str, base: float, multiplier: float
+) -> None:
+    ours = encode_costmap_filter_info(kind, topic, stamp_ns=STAMP_NS, base=base, multiplier=multiplier)
+    header = serialize_message(
+        Header(stamp=Time(sec=STAMP_NS // 10**9, nanosec=STAMP_NS % 10**9), frame_id="map")
+    )
+    assert ours.startswith(header)
+    o = len(header) - 4  # CDR offset after the header
+    text = topic.encode() + b"\0"
+    tail = struct.pack("<B", kind)
+    o += 1
+    tail += b"\0" * (-o % 4) + struct.pack("<I", len(text)) + text
+    o += -o % 4 + 4 + len(text)
+    tail += b"\0" * (-o % 4) + struct.pack("<ff", base, multiplier)
+    assert ours[len(header) :] == tail
+    assert decode_costmap_filter_info(ours) == (kind, topic, base, multiplier)

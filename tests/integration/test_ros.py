@@ -274,3 +274,90 @@ def test_a_ros_robot_switches_its_floor_with_a_string_on_its_storey_topic(
             time.sleep(0.05)
         assert client.robot_storey(robot) == "first-floor"
     lift.close_stdin_and_wait()
+
+
+ZONES = """
+[skills.keepout]
+kind = "keepout"
+resolution_m = 0.05
+
+[robots.robot1]
+namespace = "/robot1"
+storey = "ground-floor"
+[robots.robot1.maps]
+map = "lab-localization"
+keepout_mask = "keepout"
+
+[robots.operator]
+rights = ["create", "dynamic", "doors", "static", "zones"]
+"""
+
+
+def filter_infos(endpoint: str, key: str, timeout_s: float = 10.0) -> list[bytes]:
+    """The latched CostmapFilterInfo samples on ``key``, as a late AdvancedSubscriber gets them."""
+    got: list[bytes] = []
+    with zenoh.open(client_config([endpoint])) as session:
+        sub = zenoh.ext.declare_advanced_subscriber(
+            session,
+            key,
+            lambda s: got.append(s.payload.to_bytes()),
+            history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
+        )
+        deadline = time.monotonic() + timeout_s
+        while not got and time.monotonic() < deadline:
+            time.sleep(0.05)
+        sub.undeclare()
+    return got
+
+
+def test_a_keepout_zone_marked_at_run_time_reaches_a_ros_subscriber_as_a_mask_update_and_a_late_joiner(
+    fresh_store: Path, tmp_path: Path
+) -> None:
+    from adapters.ros.cdr import COSTMAP_FILTER_INFO, decode_costmap_filter_info
+    from adapters.ros.rmw_zenoh import RosTopic
+
+    config = tmp_path / "zones.toml"
+    config.write_text(ZONES)
+    d = start_daemon(fresh_store, "--no-record", config=config)
+    try:
+        early = RosSubscriber(d, "rmw_zenoh", "/robot1", tmp_path / "early", "keepout_mask")
+        early.until("map")
+        assert next(ln for ln in early.lines if ln.get("kind") == "map")["occupied"] == 0
+        zone = tmp_path / "zone.ttl"
+        zone.write_text(
+            "@prefix twin: <https://w3id.org/building-twin#> .\n"
+            '<urn:operator:zone-1> twin:ifcClass "IfcVirtualElement" ; twin:storey "ground-floor" ; '
+            'twin:box "16.6 7.0 1.0 1.0 1.0 2.0 0.0" ; twin:keepout true .\n'
+        )
+        r = twin("observe", "--connect", d.endpoint, "--robot", "operator", "--turtle", zone)
+        assert r.returncode == 0, r.stderr
+        early.until("update")
+        late = {
+            layout: RosSubscriber(d, layout, "/robot1", tmp_path / f"late-{layout}", "keepout_mask")
+            for layout in ("rmw_zenoh", "bridge")
+        }
+        for sub in late.values():
+            sub.until("map")
+        with TwinClient.connect([d.endpoint]) as client:
+            mask, _, _ = client.get_map("ground-floor", "keepout")
+            loc, _, _ = client.get_map("ground-floor", "lab-localization")
+        assert 400 <= int((mask.data == 100).sum()) <= 22 * 22  # the 1 m x 1 m zone at 5 cm
+        for sub in (early, *late.values()):
+            np.testing.assert_array_equal(sub.finish(), mask.data)
+        assert not (loc.data[mask.data == 100] == 100).all()  # a zone is not a wall
+        for layout in ("rmw_zenoh", "bridge"):
+            topic = RosTopic(0, "/robot1", "keepout_mask_info", COSTMAP_FILTER_INFO)
+            infos = filter_infos(d.endpoint, topic.data_key if layout == "rmw_zenoh" else topic.bridge_key)
+            assert infos, layout
+            assert decode_costmap_filter_info(infos[0]) == (0, "/robot1/keepout_mask", 0.0, 1.0)
+        refused = twin(
+            "observe", "--connect", d.endpoint, "--robot", "robot1", "--no-keepout", "urn:operator:zone-1"
+        )
+        assert refused.returncode == 1
+        assert (
+            "may not lift the keepout zone <urn:operator:zone-1> (it lacks the 'zones' right)"
+            in refused.stdout
+        )
+    finally:
+        code, _ = d.stop()
+    assert code == 0

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from twin.grid import FREE, OCCUPIED, UNKNOWN, GridData, OccupancyGrid, Window
+from twin.grid import FREE, UNKNOWN, GridData, OccupancyGrid, Window
 from twin.maps import BoolGrid, MapPlan, dilate_disk, occupancy, plan_map, render_layers
 from twin.records import FloatArray, GeometryChange, Shape
 from twin.scene import IndexArray, MeshSet, Scene
@@ -238,7 +238,7 @@ class LiveMaps:
             occupied = dilate_disk(occupied, plan.inflation_cells)
         r0, c0 = window.row0 - padded.row0, window.col0 - padded.col0
         occupied = occupied[r0 : r0 + window.shape[0], c0 : c0 + window.shape[1]]
-        data = np.where(occupied, OCCUPIED, FREE).astype(np.int8)
+        data = np.where(occupied, np.int8(plan.skill.occupied_value), FREE).astype(np.int8)
         if m.inside is not None:
             inside = m.inside[window.row0 : window.row1, window.col0 : window.col1]
             data[~inside & ~occupied] = UNKNOWN

@@ -313,6 +313,16 @@ def plan_observation(
                     _need(rights, "doors", robot, f"open or close <{r.iri}>")
                     w.set(r.iri, vocab.TWIN_IS_OPEN, _bool(r.is_open))
                     state = replace(state, is_open=r.is_open)
+            if r.keepout is not None and r.keepout != state.keepout:
+                what = "mark <{}> as a keepout zone" if r.keepout else "lift the keepout zone <{}>"
+                _need(rights, "zones", robot, what.format(r.iri))
+                w.set(r.iri, vocab.TWIN_KEEPOUT, _bool(r.keepout) if r.keepout else None)
+                state = replace(state, keepout=r.keepout)
+            if r.speed_limit is not None and r.speed_limit != state.speed_limit:
+                _need(rights, "zones", robot, f"set the speed limit of <{r.iri}>")
+                limit = _lit(str(r.speed_limit), vocab.XSD_INTEGER) if r.speed_limit else None
+                w.set(r.iri, vocab.TWIN_SPEED_LIMIT, limit)
+                state = replace(state, speed_limit=r.speed_limit)
             shape = _shape(r, site, current)
             if shape is not None:
                 _check_inside(r.iri, shape, site)

@@ -17,7 +17,7 @@ import functools
 import re
 
 from twin.live.state import ElementState
-from twin.skills import SkillProfile, class_iri
+from twin.skills import VIRTUAL_TYPE, SkillProfile, class_iri
 
 
 def needs_store(skill: SkillProfile) -> bool:
@@ -40,6 +40,15 @@ def _has_type(state: ElementState, types: tuple[str, ...]) -> bool:
     return False
 
 
+def _zone_fits(skill: SkillProfile, state: ElementState) -> bool:
+    """Masks show their zones only; maps of the building never show virtual elements."""
+    if skill.kind == "keepout":
+        return state.keepout
+    if skill.kind == "speed":
+        return state.speed_limit == skill.limit_percent
+    return VIRTUAL_TYPE not in state.ifc_types
+
+
 def selects(skill: SkillProfile, state: ElementState, *, has_geometry: bool) -> bool:
     """Whether ``skill`` selects the element (what ``selection_query(skill)`` would answer).
 
@@ -50,7 +59,7 @@ def selects(skill: SkillProfile, state: ElementState, *, has_geometry: bool) -> 
         raise ValueError(msg)
     if state.removed or not has_geometry or state.is_open is True:
         return False
-    if "https://w3id.org/bot#Element" not in state.classes:
+    if "https://w3id.org/bot#Element" not in state.classes or not _zone_fits(skill, state):
         return False
     if skill.include_types and not _has_type(state, skill.include_types):
         return False

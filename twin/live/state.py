@@ -31,6 +31,9 @@ class ElementState:
     storey: str | None = None
     is_open: bool | None = None
     removed: bool = False
+    keepout: bool = False
+    speed_limit: int = 0
+    """Percent of maximum speed inside the element (``twin:speedLimit``); 0: no limit."""
     classes: frozenset[str] = frozenset()
     """Every ``rdf:type`` IRI (``bot:Element``, ``beo:Wall``, ``furn:Table`` ...)."""
     labels: frozenset[str] = frozenset()
@@ -73,7 +76,7 @@ def load_states(store: GraphStore) -> dict[str, ElementState]:
     """Every element's classes, static flag, names, materials, storey, door state and removal."""
     rows = store.select(
         f"""SELECT ?e ?cls ?static (SAMPLE(?key) AS ?storey) (SAMPLE(?open) AS ?isOpen)
-                  (SAMPLE(?gone) AS ?removed)
+                  (SAMPLE(?gone) AS ?removed) (SAMPLE(?keep) AS ?keepout) (SAMPLE(?speed) AS ?speedLimit)
                   (GROUP_CONCAT(DISTINCT ?t; separator="{_SEP}") AS ?types)
                   (GROUP_CONCAT(DISTINCT STR(?c); separator="{_SEP}") AS ?classes)
                   (GROUP_CONCAT(DISTINCT ?n; separator="{_SEP}") AS ?labels)
@@ -89,6 +92,8 @@ def load_states(store: GraphStore) -> dict[str, ElementState]:
              OPTIONAL {{ ?st twin:storeyKey ?key ; bot:containsElement ?e }}
              OPTIONAL {{ ?e twin:isOpen ?open }}
              OPTIONAL {{ ?e twin:removed ?gone }}
+             OPTIONAL {{ ?e twin:keepout ?keep }}
+             OPTIONAL {{ ?e twin:speedLimit ?speed }}
            }} GROUP BY ?e ?cls ?static"""
     )
     out = {}
@@ -106,6 +111,8 @@ def load_states(store: GraphStore) -> dict[str, ElementState]:
             storey=r["storey"],
             is_open=None if r["isOpen"] is None else r["isOpen"] in ("true", "1"),
             removed=r["removed"] in ("true", "1"),
+            keepout=r["keepout"] in ("true", "1"),
+            speed_limit=int(r["speedLimit"] or 0),
             classes=_set(r["classes"]),
             labels=labels,
             materials=_set(r["materials"]),
