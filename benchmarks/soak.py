@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import random
+import signal
 import subprocess
 import sys
 import tempfile
@@ -107,15 +108,44 @@ def run(
     warmup_s: float,
     quiet: bool = False,
 ) -> dict[str, Any]:
-    from adapters.zenoh.client import TwinClient
 
     work = Path(tempfile.mkdtemp(prefix="soak-"))
     store = live.prepare_store("lab", work)
     endpoint = f"tcp/127.0.0.1:{live._free_port()}"
     daemon, _ = live.serve("--store", str(store), "--listen", endpoint, "--no-record")
+    children: list[subprocess.Popen[str]] = [daemon]
+    try:
+        return _run(daemon, children, store, endpoint, robots=robots, rate=rate, duration=duration,
+                    subscribers=subscribers, reconfirm=reconfirm, sample_s=sample_s, warmup_s=warmup_s,
+                    quiet=quiet)  # fmt: skip
+    finally:  # an interrupted soak (SIGINT, SIGTERM) leaves no process behind
+        for c in children:
+            if c.poll() is None:
+                c.kill()
+                c.wait(timeout=30)
+
+
+def _run(
+    daemon: subprocess.Popen[str],
+    children: list[subprocess.Popen[str]],
+    store: Path,
+    endpoint: str,
+    *,
+    robots: int,
+    rate: float,
+    duration: float,
+    subscribers: int,
+    reconfirm: float,
+    sample_s: float,
+    warmup_s: float,
+    quiet: bool,
+) -> dict[str, Any]:
+    from adapters.zenoh.client import TwinClient
+
     assert daemon.stdout is not None
     threading.Thread(target=daemon.stdout.read, daemon=True).start()  # drain its log
     subs = [load._child("subscriber", endpoint, stdin=True) for _ in range(subscribers)]
+    children += subs
     for s in subs:
         assert s.stdout is not None and json.loads(s.stdout.readline())["ready"]
     start_at = time.time() + 1.0 + 0.1 * robots
@@ -140,6 +170,7 @@ def run(
         )
         for i in range(robots)
     ]
+    children += bots
     lock = threading.Lock()
     lines: list[list[Any]] = []
     errors: list[str] = []
@@ -289,6 +320,7 @@ def main() -> int:
     p.add_argument("--plot", metavar="OUT.png", help="plot RSS and store size over time")
     p.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     args = p.parse_args()
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # run the cleanup in run()'s finally
     if args.child:
         c = args.child
         return robot(c[0], int(c[1]), float(c[2]), float(c[3]), float(c[4]), reconfirm=float(c[5]))
