@@ -12,7 +12,16 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from adapters.cli import demo_cmd, map_cmd, model_cmds, network_cmds, record_cmd, robot_cmds, serve_cmd
+from adapters.cli import (
+    demo_cmd,
+    map_cmd,
+    model_cmds,
+    network_cmds,
+    record_cmd,
+    robot_cmds,
+    serve_cmd,
+    zone_cmd,
+)
 from adapters.cli.common import add_store_args
 from twin.config import load_config
 from twin.errors import StoreNotEmptyError, StoreNotFoundError, TwinError
@@ -74,6 +83,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     serve_cmd.add_parser(sub)
     robot_cmds.add_parsers(sub)
+    zone_cmd.add_parsers(sub)
     record_cmd.add_parser(sub)
     demo_cmd.add_parser(sub)
     network_cmds.add_parsers(sub)
