@@ -16,7 +16,7 @@ from typing import Any
 import zenoh
 
 from adapters.cli.common import add_store_args, open_store, store_exists, store_label
-from adapters.cli.memory import free_memory_releaser
+from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.rerun import RerunRecorder
 from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
@@ -72,6 +72,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         connect=args.connect or None,
         access_control=site_access_control(cfg, keys),
     )
+    fix_heap_thresholds()  # before the store and Zenoh allocate: RSS stays flat all day
     stop = threading.Event()
 
     def on_signal(signum: int, frame: Any) -> None:
