@@ -7,15 +7,20 @@ daemon keeps running). What is recorded (entity paths):
 - ``world/<storey>/<class>/<element>``: the building at start-up (static), one mesh per element with its
   placement, coloured by class (walls, glass, doors, furniture, openings ...), with its IRI, class and
   name as properties (shown on hover and selection);
-- ``maps/<storey>/<skill>``: every map version as ``rr.GridMap`` (RViz map colours; cell size and origin
-  in the building's frame, at the storey's elevation), exactly as published;
-  ``maps/<storey>/<skill>/changed``: the changed rectangle of each update, as a 3D box;
+- ``maps/<storey>/<skill>/tiles/r<i>_c<j>``: every map, cut in tiles of ``TILE`` x ``TILE`` cells, each
+  an ``rr.GridMap`` (RViz map colours; cell size and origin in the building's frame, at the storey's
+  elevation). A tile is logged when the map first appears and again at every revision that changes
+  one of its cells, so at any point of the ``revision`` timeline the tiles show exactly the map the
+  daemon served at that revision, at a cost proportional to the changed tiles, not to the map
+  (:func:`map_at` reads a map back at a revision); ``maps/<storey>/<skill>`` carries its version and
+  revision; ``maps/<storey>/<skill>/changed``: the changed rectangle of each update, as a 3D box;
 - ``world/observations/<robot>/<element>``: what robots added or changed (cleared when removed);
 - ``events``: one text line per observation (accepted with its revision, or the rejection reason),
   skill change, map removal and robot storey switch.
 
 Timelines: ``revision`` (a sequence: the twin revision the data reflects) and ``time`` (wall clock of
-the change). A blueprint opens on the 3D building, one 2D panel per storey's maps, and the event log.
+the change). A blueprint opens on the 3D building, one tab per storey with one view per skill map
+(named by its skill, not stacked), and the event log.
 
 Example::
 
@@ -50,10 +55,13 @@ from twin.events import (
     TwinEvent,
     TwinStarted,
 )
+from twin.grid import OccupancyGrid, Window
 
 log = logging.getLogger(__name__)
 
 _STOP = object()
+TILE = 128
+"""Cells per side of a recorded map tile."""
 _SAFE = re.compile(r"[^A-Za-z0-9_-]+")
 
 # Colours (RGBA) by IFC class family: what an operator tells apart at a glance.
@@ -64,8 +72,8 @@ _COLOURS: tuple[tuple[str, tuple[int, int, int, int]], ...] = (
     ("IfcCurtainWall", (120, 200, 255, 120)),
     ("IfcFurnishingElement", (90, 170, 90, 255)),
     ("IfcFurniture", (90, 170, 90, 255)),
-    ("IfcSlab", (170, 170, 170, 255)),
-    ("IfcWall", (225, 215, 195, 255)),
+    ("IfcSlab", (170, 170, 170, 110)),
+    ("IfcWall", (225, 215, 195, 110)),  # translucent: what robots observed inside stands out
     ("IfcColumn", (160, 160, 200, 255)),
     ("IfcBeam", (160, 160, 200, 255)),
 )
@@ -84,10 +92,48 @@ def colour_of(shape: ElementShape) -> tuple[int, int, int, int]:
     return _DEFAULT
 
 
+def _top_down(
+    elements: Sequence[ElementShape], storey: str, elevation: float
+) -> rrb.archetypes.EyeControls3D | None:
+    """A camera looking straight down on the storey's elements (None if it has none)."""
+    points = [
+        s.mesh.vertices @ s.placement[:3, :3].T + s.placement[:3, 3]
+        for s in elements
+        if s.storey == storey and len(s.mesh.vertices)
+    ]
+    if not points:
+        return None
+    xyz = np.concatenate(points)
+    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+    cx, cy = float(lo[0] + hi[0]) / 2, float(lo[1] + hi[1]) / 2
+    span = float(max(hi[0] - lo[0], hi[1] - lo[1], 1.0))
+    return rrb.archetypes.EyeControls3D(
+        position=[cx, cy - 0.01 * span, elevation + 1.1 * span],
+        look_target=[cx, cy, elevation],
+        eye_up=[0.0, 0.0, 1.0],
+    )
+
+
 def entity_name(iri: str) -> str:
     """A short, path-safe entity name for an element IRI."""
     tail = iri.rstrip("/#").rsplit("#", 1)[-1].rsplit("/", 1)[-1]
     return _SAFE.sub("_", tail)[:80] or "element"
+
+
+class _Recorded:
+    """The recorder's copy of one map (updates applied): what its tiles show."""
+
+    def __init__(self, grid: OccupancyGrid) -> None:
+        self.grid = OccupancyGrid(grid.frame, grid.data.copy(), grid.storey, grid.skill, grid.elevation_m)
+
+
+def tiles_of(window: Window) -> list[tuple[int, int]]:
+    """``(i, j)`` of every tile ``window`` touches."""
+    return [
+        (i, j)
+        for i in range(window.row0 // TILE, (window.row1 - 1) // TILE + 1)
+        for j in range(window.col0 // TILE, (window.col1 - 1) // TILE + 1)
+    ]
 
 
 class RerunRecorder:
@@ -117,6 +163,7 @@ class RerunRecorder:
         self.max_failures = max_failures
         self.disabled = False
         self._storeys: dict[str, float] = {}
+        self._maps: dict[tuple[str, str], _Recorded] = {}
         self._queue: queue.Queue[object] = queue.Queue(maxsize=max_queue)
         self._thread = threading.Thread(target=self._run, name="rerun-recorder", daemon=True)
         self._thread.start()
@@ -162,6 +209,7 @@ class RerunRecorder:
             self._update(event)
         elif isinstance(event, MapRemoved):
             self._time(event.revision, event.stamp_ns)
+            self._maps.pop((event.storey, event.skill), None)
             self.stream.log(f"maps/{event.storey}/{event.skill}", rr.Clear(recursive=True))
             self._text(f"map {event.storey}/{event.skill} removed", "INFO")
         elif isinstance(event, ObservationAccepted):
@@ -204,7 +252,7 @@ class RerunRecorder:
             storey = shape.storey or "building"
             path = f"world/{storey}/{shape.ifc_class}/{entity_name(shape.iri)}"
             self._shape(path, shape, colour_of(shape), static=True)
-        self._blueprint([k for k, _, _ in event.storeys], list(event.skills))
+        self._blueprint(event)
         self._time(event.revision, event.stamp_ns)
         self._text(
             f"twin {event.site} started at revision {event.revision}: {len(event.elements)} elements, "
@@ -212,10 +260,21 @@ class RerunRecorder:
             "INFO",
         )
 
-    def _blueprint(self, storeys: Sequence[str], skills: Sequence[str]) -> None:
+    def _blueprint(self, event: TwinStarted) -> None:
         maps = [
-            rrb.Spatial3DView(name=f"{storey} maps", origin=f"maps/{storey}", contents=[f"maps/{storey}/**"])
-            for storey in storeys
+            rrb.Grid(
+                *(
+                    rrb.Spatial3DView(
+                        name=skill,
+                        origin=f"maps/{storey}/{skill}",
+                        contents=[f"maps/{storey}/{skill}/**"],
+                        eye_controls=_top_down(event.elements, storey, elevation),
+                    )
+                    for skill in event.skills
+                ),
+                name=storey,
+            )
+            for storey, _, elevation in event.storeys
         ]
         blueprint = rrb.Blueprint(
             rrb.Horizontal(
@@ -227,32 +286,51 @@ class RerunRecorder:
                 rrb.Tabs(*maps) if maps else rrb.TextLogView(origin="events"),
                 column_shares=[3, 2],
             ),
-            rrb.TimePanel(state="expanded"),
+            rrb.TimePanel(state="expanded", timeline="revision"),
         )
         self.stream.send_blueprint(blueprint)
 
-    def _map(self, event: MapPublished) -> None:
-        g = event.grid
-        self._time(event.revision, event.stamp_ns)
+    def _tile(self, g: OccupancyGrid, i: int, j: int) -> None:
+        """Log tile ``(i, j)`` of ``g`` as it is now (at the current revision)."""
+        f = g.frame
+        r0, c0 = i * TILE, j * TILE
+        cells = g.data[r0 : r0 + TILE, c0 : c0 + TILE]
+        h, w = cells.shape
         self.stream.log(
-            f"maps/{g.storey}/{g.skill}",
+            f"maps/{g.storey}/{g.skill}/tiles/r{i}_c{j}",
             rr.GridMap(
-                data=np.ascontiguousarray(g.data).view(np.uint8).tobytes(),  # -1 (unknown) is 255
-                format=rr.components.ImageFormat(
-                    width=g.frame.width, height=g.frame.height, color_model="L", channel_datatype="U8"
-                ),
-                cell_size=g.frame.resolution_m,
+                data=np.ascontiguousarray(cells).view(np.uint8).tobytes(),  # -1 (unknown) is 255
+                format=rr.components.ImageFormat(width=w, height=h, color_model="L", channel_datatype="U8"),
+                cell_size=f.resolution_m,
                 # Rerun draws an image's row 0 at the far (+y) edge, the twin's row 0 is the lowest y:
                 # a half turn about x puts every cell on its world cell without touching the data.
                 translation=[
-                    g.frame.origin_x,
-                    g.frame.origin_y + g.frame.height * g.frame.resolution_m,
+                    f.origin_x + c0 * f.resolution_m,
+                    f.origin_y + (r0 + h) * f.resolution_m,
                     g.elevation_m,
                 ],
                 rotation_axis_angle=rr.RotationAxisAngle(axis=[1.0, 0.0, 0.0], degrees=180.0),
                 colormap=rr.components.Colormap.RvizMap,
             ),
-            rr.AnyValues(map_version=event.version, map_revision=event.revision),
+        )
+
+    def _map(self, event: MapPublished) -> None:
+        g = event.grid
+        self._time(event.revision, event.stamp_ns)
+        key = (g.storey, g.skill)
+        known = self._maps.get(key)
+        if known is None or known.grid.frame != g.frame:
+            known = self._maps[key] = _Recorded(g)
+            changed = tiles_of(g.frame.full)
+        else:  # the full map follows its updates: only tiles that differ (none, normally)
+            diff = np.argwhere(known.grid.data != g.data)
+            changed = sorted({(int(r) // TILE, int(c) // TILE) for r, c in diff})
+            known.grid.data[...] = g.data
+        for i, j in changed:
+            self._tile(known.grid, i, j)
+        self.stream.log(
+            f"maps/{g.storey}/{g.skill}",
+            rr.AnyValues(map_version=event.version, map_revision=event.revision, tiles=TILE),
         )
 
     def _update(self, event: MapUpdated) -> None:
@@ -260,6 +338,11 @@ class RerunRecorder:
         res = f.resolution_m
         z = self._storeys.get(event.storey, 0.0)
         self._time(event.revision, event.stamp_ns)
+        known = self._maps.get((event.storey, event.skill))
+        if known is not None and known.grid.frame == f:
+            known.grid.data[w.row0 : w.row1, w.col0 : w.col1] = event.data
+            for i, j in tiles_of(w):
+                self._tile(known.grid, i, j)
         self.stream.log(
             f"maps/{event.storey}/{event.skill}/changed",
             rr.Boxes3D(
