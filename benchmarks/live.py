@@ -202,6 +202,19 @@ def _table(storey: str, x: float, y: float, i: int) -> str:
     )
 
 
+def _settled_size(path: Path, quiet_s: float = 2.0, timeout_s: float = 120.0) -> int:
+    """The file's size once it has not grown for ``quiet_s`` (the recorder has caught up)."""
+    deadline, size, since = time.monotonic() + timeout_s, -1, time.monotonic()
+    while time.monotonic() < deadline:
+        now = path.stat().st_size if path.exists() else 0
+        if now != size:
+            size, since = now, time.monotonic()
+        elif time.monotonic() - since >= quiet_s:
+            break
+        time.sleep(0.2)
+    return max(size, 0)
+
+
 def run_model(name: str, count: int, *, record: bool = False, remote: bool = False) -> dict[str, Any]:
     from adapters.zenoh.client import TwinClient
 
@@ -228,7 +241,7 @@ def run_model(name: str, count: int, *, record: bool = False, remote: bool = Fal
     maps_published_s = float(line.rsplit(" in ", 1)[1].split()[0])
     rss_start = _proc_mb(daemon.pid, "VmRSS")
     time.sleep(1.0)
-    rrd_start = rrd.stat().st_size if rrd.exists() else 0
+    rrd_start = _settled_size(rrd) if record else 0  # the building and first maps are written by then
     received: dict[int, float] = {}
     got = threading.Condition()
     latencies, acks = [], []
