@@ -168,6 +168,8 @@ class Config:
     rerun: RerunConfig = RerunConfig()
     remote_store: RemoteStoreConfig | None = None
     """Set (``[store] url``): the graph is on a SPARQL 1.1 server, and ``store_path`` is unused."""
+    store_flush_every_s: float = 60.0
+    """``[store] flush_every_s``: how often the daemon flushes the embedded store's buffers."""
 
     def key_prefix(self, site: str | None = None) -> str:
         """The Zenoh key prefix of this site, e.g. ``twin/lab``."""
@@ -270,6 +272,7 @@ def load_config(path: Path | None = None) -> Config:
         base_iri_template=_get(raw, "site.base_iri", str),
         store_path=Path(_get(raw, "store.path", str)),
         remote_store=_remote_store(raw.get("store", {})),
+        store_flush_every_s=_flush_every(raw.get("store", {})),
         import_=ImportConfig(kernels=tuple(kernels), threads=threads, static_types=tuple(static_types)),
         margin_m=margin,
         maps_out=Path(_get(raw, "maps.out", str)),
@@ -428,7 +431,7 @@ def _limits(raw: Any) -> Limits:
 def _remote_store(raw: Any) -> RemoteStoreConfig | None:
     t = _table(raw, "store")
     endpoints = ("query_endpoint", "update_endpoint", "graph_store_endpoint")
-    _unknown(t, "store", {"path", "url", "timeout_s", *endpoints})
+    _unknown(t, "store", {"path", "url", "timeout_s", "flush_every_s", *endpoints})
     url = t.get("url", "")
     if not isinstance(url, str) or (url and not re.match(r"^https?://[^/?#\s]+", url)):
         msg = f"Configuration 'store.url' must be \"\" or an http(s):// URL of a SPARQL server, got {url!r}."
@@ -446,6 +449,14 @@ def _remote_store(raw: Any) -> RemoteStoreConfig | None:
             msg = f"Configuration 'store.{key}' must be a path under store.url or a URL, got {value!r}."
             raise ConfigError(msg)
     return RemoteStoreConfig(url=url, timeout_s=float(timeout), **paths)
+
+
+def _flush_every(t: Any) -> float:
+    value = t.get("flush_every_s", 60.0) if isinstance(t, dict) else 60.0
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 1.0 <= value <= 3600.0:
+        msg = f"Configuration 'store.flush_every_s' must be seconds from 1 to 3600, got {value!r}."
+        raise ConfigError(msg)
+    return float(value)
 
 
 def _rights(name: str, value: Any) -> frozenset[Right]:

@@ -82,18 +82,19 @@ class TwinService:
         sinks: Sequence[TwinSink] = (),
         clock: Clock = time.time_ns,
         max_batch: int = 64,
-        flush_every_s: float = 5.0,
+        flush_every_s: float | None = None,
         housekeeping: Sequence[Callable[[], None]] = (),
     ) -> None:
         """``max_batch``: at most this many queued observations share one commit and one map pass
-        (group commit). ``flush_every_s``: flush the store's buffers this often (if anything changed),
-        then run each of ``housekeeping`` (e.g. give freed memory back to the system)."""
+        (group commit). ``flush_every_s``: flush the store's buffers this often (if anything changed;
+        default ``[store] flush_every_s``), then run each of ``housekeeping`` (e.g. give freed memory
+        back to the system)."""
         self.store = store
         self.max_batch = max(1, max_batch)
         self.config = config
         self.sinks = list(sinks)
         self.clock = clock
-        self.flush_every_s = flush_every_s
+        self.flush_every_s = config.store_flush_every_s if flush_every_s is None else flush_every_s
         self.housekeeping = list(housekeeping)
         self._queue: queue.Queue[Request] = queue.Queue()
         self._published: dict[tuple[str, str], PublishedMap] = {}
