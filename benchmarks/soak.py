@@ -107,12 +107,16 @@ def run(
     sample_s: float,
     warmup_s: float,
     quiet: bool = False,
+    flush_every_s: float | None = None,
 ) -> dict[str, Any]:
-
     work = Path(tempfile.mkdtemp(prefix="soak-"))
     store = live.prepare_store("lab", work)
     endpoint = f"tcp/127.0.0.1:{live._free_port()}"
-    daemon, _ = live.serve("--store", str(store), "--listen", endpoint, "--no-record")
+    config = work / "soak.toml"
+    config.write_text(f"[store]\nflush_every_s = {flush_every_s}\n" if flush_every_s else "")
+    daemon, _ = live.serve(
+        "--store", str(store), "--listen", endpoint, "--no-record", "--config", str(config)
+    )
     children: list[subprocess.Popen[str]] = [daemon]
     try:
         return _run(daemon, children, store, endpoint, robots=robots, rate=rate, duration=duration,
@@ -314,6 +318,9 @@ def main() -> int:
     p.add_argument("--subscribers", type=int, default=2)
     p.add_argument("--sample", type=float, default=10.0, help="seconds between samples")
     p.add_argument("--warmup", type=float, default=60.0, help="seconds before growth is measured")
+    p.add_argument(
+        "--flush-every", type=float, help="the daemon's [store] flush_every_s (default: the configuration's)"
+    )
     p.add_argument("--max-rss-growth", type=float, default=20.0, help="MB after warm-up")
     p.add_argument("--max-store-growth", type=float, default=50.0, help="MB after warm-up")
     p.add_argument("--json", metavar="OUT.json", help="also write the result here")
@@ -337,6 +344,7 @@ def main() -> int:
         reconfirm=args.reconfirm,
         sample_s=args.sample,
         warmup_s=min(args.warmup, args.duration / 2),
+        flush_every_s=args.flush_every,
     )
     for key, value in result.items():
         if key != "samples":

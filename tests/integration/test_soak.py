@@ -20,7 +20,7 @@ def test_a_fleet_re_reporting_and_moving_tables_grows_neither_memory_nor_store_p
     out = tmp_path / "soak.json"
     run = subprocess.run(
         [sys.executable, "benchmarks/soak.py", "--robots", "3", "--rate", "90", "--reconfirm", "0.5",
-         "--duration", "40", "--subscribers", "1", "--sample", "2", "--warmup", "10",
+         "--duration", "40", "--subscribers", "1", "--sample", "2", "--warmup", "10", "--flush-every", "5",
          "--max-rss-growth", "1000", "--max-store-growth", "1000", "--json", str(out)],
         cwd=ROOT, capture_output=True, text=True, timeout=300, check=False,
     )  # fmt: skip
