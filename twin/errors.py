@@ -45,3 +45,7 @@ class ConfigError(TwinError):
 
 class ObservationError(TwinError):
     """An observation (robot-reported change) is malformed, exceeds a limit or is not allowed."""
+
+
+class ExplainError(TwinError):
+    """A map cell that cannot be explained: an unknown map, or a point outside it."""

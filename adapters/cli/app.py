@@ -14,6 +14,7 @@ from pathlib import Path
 
 from adapters.cli import (
     demo_cmd,
+    explain_cmd,
     map_cmd,
     model_cmds,
     network_cmds,
@@ -84,6 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve_cmd.add_parser(sub)
     robot_cmds.add_parsers(sub)
     zone_cmd.add_parsers(sub)
+    explain_cmd.add_parser(sub)
     record_cmd.add_parser(sub)
     demo_cmd.add_parser(sub)
     network_cmds.add_parsers(sub)

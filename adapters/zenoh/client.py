@@ -235,6 +235,13 @@ class TwinClient:
         ack: dict[str, Any] = json.loads(sample.payload.to_bytes())
         return ack
 
+    def explain(self, storey: str, skill: str, x: float, y: float) -> dict[str, Any]:
+        """Why the cell at world ``(x, y)`` of a map is what it is (the daemon's ``explain``)."""
+        payload = json.dumps({"storey": storey, "skill": skill, "x": x, "y": y}).encode()
+        sample = self._get(self.keys.explain, payload, what="the explanation")[0]
+        answer: dict[str, Any] = json.loads(sample.payload.to_bytes())
+        return answer
+
     def publish_observation(self, robot: str, turtle: bytes | str) -> None:
         """Best effort: put the observation, with no ack (errors are only logged by the daemon)."""
         payload = turtle.encode() if isinstance(turtle, str) else turtle

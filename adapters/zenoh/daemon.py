@@ -84,6 +84,7 @@ class ZenohDaemon:
             session.declare_queryable(keys.maps, self._on_get_map),
             session.declare_queryable(keys.sparql, self._on_sparql),
             session.declare_queryable(keys.status, self._on_status),
+            session.declare_queryable(keys.explain, self._on_explain),
         ]
 
     # --- sink ---------------------------------------------------------------------------------------
@@ -202,6 +203,41 @@ class ZenohDaemon:
             query.reply_err(Reply.error(str(err)).to_json(), encoding=JSON)
             return
         query.reply(self.keys.sparql, body, encoding=zenoh.Encoding(media))
+
+    def _on_explain(self, query: zenoh.Query) -> None:
+        """``{"storey": S, "skill": K, "x": X, "y": Y}`` in, :mod:`twin.live.explain`'s answer out."""
+        try:
+            text = query.payload.to_string() if query.payload is not None else ""
+            if len(text) > 4096:
+                raise ValueError(f"the request is {len(text)} bytes, more than 4096")
+            ask = json.loads(text or "null")
+            if not isinstance(ask, dict) or not {"storey", "skill", "x", "y"} <= set(ask):
+                raise ValueError('send {"storey": KEY, "skill": NAME, "x": METRES, "y": METRES}')
+            storey, skill, x, y = ask["storey"], ask["skill"], ask["x"], ask["y"]
+            if not (isinstance(storey, str) and isinstance(skill, str)):
+                raise ValueError(f"storey and skill must be strings, got {storey!r} and {skill!r}")
+            if (
+                isinstance(x, bool)
+                or isinstance(y, bool)
+                or not isinstance(x, int | float)
+                or not isinstance(y, int | float)
+            ):
+                raise ValueError(f"x and y must be numbers of metres, got {x!r} and {y!r}")
+        except (ValueError, UnicodeDecodeError) as err:
+            query.reply_err(Reply.error(f"Explain: {err}.").to_json(), encoding=JSON)
+            query.drop()
+            return
+
+        def reply(r: Reply) -> None:
+            try:
+                if r.ok:
+                    query.reply(self.keys.explain, r.to_json(), encoding=JSON)
+                else:
+                    query.reply_err(r.to_json(), encoding=JSON)
+            finally:
+                query.drop()
+
+        self.service.submit_explain(storey, skill, float(x), float(y), reply)
 
     def _on_status(self, query: zenoh.Query) -> None:
         status = self.service.status()

@@ -60,6 +60,10 @@ class SiteKeys:
     def status(self) -> str:
         return f"{self.prefix}/status"
 
+    @property
+    def explain(self) -> str:
+        return f"{self.prefix}/explain"
+
     def robot_storey(self, robot: str) -> str:
         """Where a robot's current storey key is put and got: ``robots/<robot>/storey``."""
         return f"{self.prefix}/robots/{check_chunk(robot, 'Robot name')}/storey"

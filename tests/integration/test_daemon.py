@@ -265,3 +265,25 @@ def test_a_re_confirmation_from_another_process_is_acked_unchanged_and_publishes
     ]
     assert versions == [version + 1]
     sub.finish()
+
+
+def test_twin_explain_names_an_observed_table_with_its_robot_and_a_glass_wall_a_lidar_does_not_see(
+    daemon: Daemon,
+) -> None:
+    box = ["--box", "16.6,7.0,0.375,1.2,0.8,0.75,0", "--class", "IfcFurniture", "--storey", "ground-floor"]
+    r = twin("observe", "--connect", daemon.endpoint, "--robot", "robot7", "--id", "urn:robot7:table", *box)
+    assert r.returncode == 0, r.stderr
+    revision = json.loads(r.stdout)["revision"]
+    r = twin("explain", "--connect", daemon.endpoint, "--storey", "ground-floor", "--skill", "navigation",
+             "--at", "16.6,7.0")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "occupied (100)" in r.stdout
+    assert "IfcFurniture <urn:robot7:table>, observed by robot7 at 20" in r.stdout
+    assert f"(revision {revision})" in r.stdout
+    with TwinClient.connect([daemon.endpoint]) as client:
+        lidar = client.explain("ground-floor", "localization", 21.95, 7.0)  # inside the glass wall
+        with pytest.raises(RemoteError, match="No map ground-floor/flying"):
+            client.explain("ground-floor", "flying", 21.95, 7.0)
+    assert lidar["state"] == "free"
+    glass = next(e for e in lidar["near"] if e["name"] == "Glass wall")
+    assert glass["why_not"].startswith("made of glass") and glass["global_id"]

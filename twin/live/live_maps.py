@@ -267,6 +267,34 @@ class LiveMaps:
         self.maps[m.key] = m
         return m
 
+    def elements_at(self, key: MapKey, window: Window) -> list[str]:
+        """The elements the map ``key`` selects whose own occupancy (before inflation) touches
+        ``window``: what makes its cells occupied (what ``twin explain`` answers)."""
+        m = self.maps[key]
+        f = m.plan.frame
+        x0, y0 = f.origin_x + window.col0 * f.resolution_m, f.origin_y + window.row0 * f.resolution_m
+        x1, y1 = f.origin_x + window.col1 * f.resolution_m, f.origin_y + window.row1 * f.resolution_m
+        out = []
+        for i in self._base_ids(m):
+            b = self.scene.elements.bounds[i]
+            outside = b[0] > x1 or b[3] < x0 or b[1] > y1 or b[4] < y0
+            if np.isnan(b).any() or outside or not _in_band(b, m.plan):
+                continue
+            if occupancy(self.scene.elements, np.array([i], dtype=np.intp), m.plan, window).any():
+                out.append(self.scene.elements.iris[int(i)])
+        for iri in sorted(m.overlay):
+            el = self._overlay.get(iri)
+            hit = None if el is None else self._raster(m, iri, el)
+            if hit is None:
+                continue
+            win, cells = hit
+            w = win.intersect(window)
+            if w.empty:
+                continue
+            if cells[w.row0 - win.row0 : w.row1 - win.row0, w.col0 - win.col0 : w.col1 - win.col0].any():
+                out.append(iri)
+        return out
+
     def remove_skill(self, name: str) -> list[MapKey]:
         gone = [k for k in self.maps if k[1] == name]
         for k in gone:

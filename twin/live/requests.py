@@ -1,4 +1,4 @@
-"""What the live twin is asked (observations, skill changes) and what it answers.
+"""What the live twin is asked (observations, skill changes, why a cell is occupied) and what it answers.
 
 Requests come from any thread (e.g. Zenoh callbacks) into the service's queue; each carries the
 callback its :class:`Reply` goes to.
@@ -44,4 +44,15 @@ class SkillRequest:
     reply: ReplyFn | None
 
 
-Request = ObserveRequest | SkillRequest
+@dataclass(frozen=True, slots=True)
+class ExplainRequest:
+    """Why the cell of map (``storey``, ``skill``) at world ``(x, y)`` is what it is."""
+
+    storey: str
+    skill: str
+    x: float
+    y: float
+    reply: ReplyFn | None
+
+
+Request = ObserveRequest | SkillRequest | ExplainRequest

@@ -32,10 +32,11 @@ from twin.config import Config
 from twin.errors import TwinError
 from twin.events import ElementShape, MapPublished, MapRemoved, SkillChanged, TwinEvent, TwinSink, TwinStarted
 from twin.grid import OccupancyGrid
+from twin.live.explain import explain_cell
 from twin.live.live_maps import LiveMap, LiveMaps
 from twin.live.observe import Observer, element_shapes
 from twin.live.query import run_query
-from twin.live.requests import ObserveRequest, Reply, ReplyFn, Request, SkillRequest
+from twin.live.requests import ExplainRequest, ObserveRequest, Reply, ReplyFn, Request, SkillRequest
 from twin.live.skill_changes import add_skill_maps, skill_change, stored_skills
 from twin.live.state import ElementState, LiveState, SiteFrame, StoreyFrame, load_states
 from twin.scene import Scene, load_scene
@@ -250,6 +251,11 @@ class TwinService:
         """Queue an observation by ``robot``; ``reply`` gets the ack (or error) once it is durable."""
         self._queue.put(ObserveRequest(robot, bytes(payload), reply, self.clock()))
 
+    def submit_explain(self, storey: str, skill: str, x: float, y: float, reply: ReplyFn) -> None:
+        """Queue the question why the cell at world ``(x, y)`` of map (``storey``, ``skill``) is what it
+        is; ``reply`` gets the answer (see :mod:`twin.live.explain`)."""
+        self._queue.put(ExplainRequest(storey, skill, x, y, reply))
+
     def submit_skill(self, name: str, payload: bytes | None, reply: ReplyFn | None = None) -> None:
         """Queue a skill profile (JSON) to add or replace ``name``, or its removal (``payload`` None)."""
         self._queue.put(SkillRequest(name, None if payload is None else bytes(payload), reply))
@@ -287,6 +293,10 @@ class TwinService:
                     batch.append(nxt)
                 self._observe(batch)
                 handled += len(batch)
+            elif isinstance(request, ExplainRequest):
+                self._explain(request)
+                handled += 1
+                request = None
             else:
                 self._change_skill(request)
                 handled += 1
@@ -316,6 +326,17 @@ class TwinService:
             log.exception("Internal error while handling %d observations", len(batch))
             for request in batch:
                 _send(request, Reply.error(f"Internal error ({type(err).__name__}): {err}"))
+
+    def _explain(self, req: ExplainRequest) -> None:
+        try:
+            body = explain_cell(self.live, self.store, req.storey, req.skill, x=req.x, y=req.y)
+            reply = Reply(True, {"ok": True, **body})
+        except TwinError as err:
+            reply = Reply.error(str(err))
+        except Exception as err:  # a bug must cost one request, never the daemon
+            log.exception("Internal error while explaining a cell")
+            reply = Reply.error(f"Internal error ({type(err).__name__}): {err}")
+        _send(req, reply)
 
     def _change_skill(self, req: SkillRequest) -> None:
         try:

@@ -1,0 +1,181 @@
+"""Why is this map cell what it is? The elements that occupy it, or why the ones near it do not.
+
+For a point of a (storey, skill) map: the cell's value; the selected elements whose own occupancy
+touches the cell (within the inflation radius for an inflated map), each with its class, name,
+GlobalId and, for what robots observed, who saw it, when and at which revision; and the elements near
+the point (``near_m``) that the skill does not draw, each with the reason (excluded type, a glass
+material, an open door, outside the height band, a virtual element, not marked as a zone). Operators
+ask this of a robot that will not drive through a door.
+
+Example::
+
+    answer = explain_cell(live, store, "ground-floor", "navigation", x=16.6, y=7.0)
+    answer["value"], [e["name"] for e in answer["occupied_by"]]
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from twin import vocab
+from twin.errors import ExplainError
+from twin.grid import Window
+from twin.live.selection import _material_word, needs_store, selects
+from twin.live.state import ElementState, LiveState
+from twin.skills import VIRTUAL_TYPE, SkillProfile, class_iri
+from twin.store import GraphStore
+
+NEAR_M = 1.0
+"""How far from the point elements count as near, metres (default)."""
+
+
+def _excluded_type(types: tuple[str, ...], state: ElementState) -> str | None:
+    for t in types:
+        iri = class_iri(t)
+        if (iri is not None and iri in state.classes) or (iri is None and t in state.ifc_types):
+            return t
+    return None
+
+
+def _zone_or_kind(skill: SkillProfile, state: ElementState) -> str | None:
+    if skill.kind == "keepout" and not state.keepout:
+        return "not marked as a keepout zone"
+    if skill.kind == "speed" and state.speed_limit != skill.limit_percent:
+        return f"not marked as a {skill.limit_percent} % speed zone"
+    if not skill.is_mask and VIRTUAL_TYPE in state.ifc_types:
+        return "a virtual element (zones are in masks only)"
+    return None
+
+
+def _filters(skill: SkillProfile, state: ElementState) -> str | None:
+    if skill.include_types and _excluded_type(skill.include_types, state) is None:
+        return f"not among include_types {list(skill.include_types)}"
+    if skill.exclude_types and (t := _excluded_type(skill.exclude_types, state)) is not None:
+        return f"excluded type {t}"
+    for word in skill.exclude_materials:
+        faced = [m for m in sorted(state.facing_materials) if _material_word(word).search(m)]
+        if faced:
+            return f"made of {word} ({faced[0]})"
+    return None
+
+
+def why_not(skill: SkillProfile, state: ElementState, bounds: Any, z_lo: float, z_hi: float) -> str:
+    """Why ``skill`` does not draw the element (it has geometry near the point)."""
+    if state.removed:
+        return "removed"
+    if state.is_open is True:
+        return "a door observed open (passable)"
+    reason = _zone_or_kind(skill, state) or _filters(skill, state)
+    if reason is not None:
+        return reason
+    if bounds[5] < z_lo or bounds[2] > z_hi:
+        return f"outside the height band {z_lo:.2f}-{z_hi:.2f} m (element {bounds[2]:.2f}-{bounds[5]:.2f} m)"
+    return "selected, but its geometry does not touch this cell"
+
+
+def _details(store: GraphStore, iris: list[str]) -> dict[str, dict[str, str | None]]:
+    """GlobalId and latest provenance of each element, from the graph."""
+    if not iris:
+        return {}
+    values = " ".join(f"<{i}>" for i in iris)
+    rows = store.select(
+        f"""SELECT ?e ?gid ?by ?at ?rev WHERE {{
+              VALUES ?e {{ {values} }}
+              OPTIONAL {{ ?e <{vocab.PROPS_GLOBAL_ID}> ?gid }}
+              OPTIONAL {{ ?e twin:observedBy ?by }}
+              OPTIONAL {{ ?e twin:observedAt ?at }}
+              OPTIONAL {{ ?e twin:revision ?rev }}
+            }}"""
+    )
+    return {
+        r["e"] or "": {"global_id": r["gid"], "by": r["by"], "at": r["at"], "rev": r["rev"]} for r in rows
+    }
+
+
+def _describe(iri: str, state: ElementState | None, d: dict[str, str | None]) -> dict[str, Any]:
+    out: dict[str, Any] = {
+        "iri": iri,
+        "class": state.ifc_class if state else None,
+        "name": state.name if state else None,
+        "global_id": d.get("global_id"),
+    }
+    if d.get("by") is not None:
+        out["observed"] = {
+            "robot": d["by"],
+            "at": d.get("at"),
+            "revision": int(rev) if (rev := d.get("rev")) else None,
+        }
+    return out
+
+
+def explain_cell(
+    live: LiveState, store: GraphStore, storey: str, skill: str, *, x: float, y: float, near_m: float = NEAR_M
+) -> dict[str, Any]:
+    """What occupies the cell of map (``storey``, ``skill``) at world ``(x, y)``, or why it is free.
+
+    Raises ExplainError naming an unknown map or a point outside it.
+    """
+    if not (math.isfinite(x) and math.isfinite(y)):
+        msg = f"The point must have finite coordinates, got x={x!r}, y={y!r}."
+        raise ExplainError(msg)
+    m = live.maps.maps.get((storey, skill))
+    if m is None:
+        known = ", ".join(f"{s}/{k}" for s, k in sorted(live.maps.maps)) or "none"
+        msg = f"No map {storey}/{skill}; the twin's maps are {known}."
+        raise ExplainError(msg)
+    f, plan = m.plan.frame, m.plan
+    col = math.floor((x - f.origin_x) / f.resolution_m)
+    row = math.floor((y - f.origin_y) / f.resolution_m)
+    if not (0 <= row < f.height and 0 <= col < f.width):
+        msg = (
+            f"Point ({x}, {y}) is outside the map {storey}/{skill} "
+            f"(x {f.origin_x:.2f}..{f.origin_x + f.width * f.resolution_m:.2f}, "
+            f"y {f.origin_y:.2f}..{f.origin_y + f.height * f.resolution_m:.2f})."
+        )
+        raise ExplainError(msg)
+    pad = math.floor(plan.inflation_cells + 1e-9)
+    cell = Window(row, col, row + 1, col + 1)
+    occupied = live.maps.elements_at((storey, skill), cell)
+    inflated = []
+    if pad and not occupied:
+        grown = Window(row - pad, col - pad, row + pad + 1, col + pad + 1).intersect(f.full)
+        inflated = live.maps.elements_at((storey, skill), grown)
+    near = []
+    profile = live.skills[skill]
+    for iri, state in live.states.items():
+        b = live.maps.bounds_of(iri)
+        if b is None or iri in occupied or iri in inflated:
+            continue
+        dx = max(b[0] - x, 0.0, x - b[3])
+        dy = max(b[1] - y, 0.0, y - b[4])
+        if math.hypot(dx, dy) > near_m or b[5] < plan.storey.elevation_m - 0.5:
+            continue
+        if b[2] > plan.storey.elevation_m + 10.0:
+            continue
+        chosen = not needs_store(profile) and selects(profile, state, has_geometry=True)
+        reason = why_not(profile, state, b, plan.z_lo, plan.z_hi)
+        if chosen and not reason.startswith("outside the height band"):
+            reason = "selected, but its geometry does not touch this cell"
+        near.append((math.hypot(dx, dy), iri, state, reason))
+    near.sort(key=lambda t: (t[0], t[1]))
+    details = _details(store, [*occupied, *inflated, *(i for _, i, _, _ in near)])
+    value = int(m.data[row, col])
+    return {
+        "storey": storey,
+        "skill": skill,
+        "x": x,
+        "y": y,
+        "cell": {"col": col, "row": row},
+        "value": value,
+        "state": "occupied" if value > 0 else ("unknown" if value < 0 else "free"),
+        "occupied_by": [_describe(i, live.states.get(i), details.get(i, {})) for i in occupied],
+        "within_inflation_of": [_describe(i, live.states.get(i), details.get(i, {})) for i in inflated],
+        "near": [
+            {**_describe(i, s, details.get(i, {})), "distance_m": round(d, 3), "why_not": r}
+            for d, i, s, r in near[:20]
+        ],
+    }
+
+
+__all__ = ["NEAR_M", "explain_cell", "why_not"]
