@@ -149,6 +149,10 @@ class RerunConfig:
     record: bool = True
     directory: Path = Path("var/recordings")
     connect_url: str | None = None
+    rotate_every_s: float = 0.0
+    """Start a new file this often (0: never); each file replays on its own."""
+    max_bytes: int = 0
+    """Start a new file once the current one is this big (0: no limit)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -566,12 +570,29 @@ def _robot_maps(
 
 def _rerun(raw: Any) -> RerunConfig:
     t = _table(raw, "rerun")
-    _unknown(t, "rerun", {"record", "directory", "connect_url"})
+    _unknown(t, "rerun", {"record", "directory", "connect_url", "rotate_every_s", "max_bytes"})
+    rotate, max_bytes = t.get("rotate_every_s", 0), t.get("max_bytes", 0)
+    if isinstance(rotate, bool) or not isinstance(rotate, int | float) or not 0 <= rotate <= 7 * 86400:
+        msg = (
+            f"Configuration 'rerun.rotate_every_s' must be seconds from 0 (never) to a week, got {rotate!r}."
+        )
+        raise ConfigError(msg)
+    if (
+        isinstance(max_bytes, bool)
+        or not isinstance(max_bytes, int)
+        or not (max_bytes == 0 or max_bytes >= 2**20)
+    ):
+        msg = f"Configuration 'rerun.max_bytes' must be 0 (no limit) or at least 1048576, got {max_bytes!r}."
+        raise ConfigError(msg)
     directory = t.get("directory", "var/recordings")
     url = t.get("connect_url", "")
     if not isinstance(directory, str) or not isinstance(url, str):
         msg = "Configuration 'rerun.directory' and 'rerun.connect_url' must be strings."
         raise ConfigError(msg)
     return RerunConfig(
-        record=_flag(t, "record", "rerun", True), directory=Path(directory), connect_url=url or None
+        record=_flag(t, "record", "rerun", True),
+        directory=Path(directory),
+        connect_url=url or None,
+        rotate_every_s=float(rotate),
+        max_bytes=max_bytes,
     )

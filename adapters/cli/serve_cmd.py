@@ -46,7 +46,13 @@ def _recorder(args: argparse.Namespace, cfg: Config, site: str) -> RerunRecorder
     path = Path(args.record) if args.record else None
     if path is None and cfg.rerun.record:
         path = cfg.rerun.directory / f"{site}-{time.strftime('%Y%m%d-%H%M%S')}.rrd"
-    return RerunRecorder(path=path, connect_url=cfg.rerun.connect_url, application=f"twin {site}")
+    return RerunRecorder(
+        path=path,
+        connect_url=cfg.rerun.connect_url,
+        application=f"twin {site}",
+        rotate_every_s=cfg.rerun.rotate_every_s,
+        max_bytes=cfg.rerun.max_bytes,
+    )
 
 
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:

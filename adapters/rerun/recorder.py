@@ -18,6 +18,10 @@ daemon keeps running). What is recorded (entity paths):
 - ``events``: one text line per observation (accepted with its revision, or the rejection reason),
   skill change, map removal and robot storey switch.
 
+**Rotation** (``rotate_every_s``, ``max_bytes``): the recording continues in ``<name>-0001.rrd``,
+``-0002`` ... each starting with the building, every current map (all tiles) and what robots
+observed, at the current revision, so any file replays on its own (:attr:`RerunRecorder.files`).
+
 Timelines: ``revision`` (a sequence: the twin revision the data reflects) and ``time`` (wall clock of
 the change). A blueprint opens on the 3D building, one tab per storey with one view per skill map
 (named by its skill, not stacked), and the event log.
@@ -36,6 +40,7 @@ import logging
 import queue
 import re
 import threading
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -147,17 +152,23 @@ class RerunRecorder:
         application: str = "building-twin",
         max_queue: int = 10_000,
         max_failures: int = 20,
+        rotate_every_s: float = 0.0,
+        max_bytes: int = 0,
     ) -> None:
         self.path = path
-        self.stream = rr.RecordingStream(application_id=application)
-        sinks: list[rr.FileSink | rr.GrpcSink] = []
+        self.application = application
+        self.connect_url = connect_url
+        self.rotate_every_s = rotate_every_s
+        self.max_bytes = max_bytes
+        self.files: list[Path] = []
+        """Every file written so far, in order (the first is ``path``)."""
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
-            sinks.append(rr.FileSink(str(path)))
-        if connect_url:
-            sinks.append(rr.GrpcSink(connect_url))
-        if sinks:
-            self.stream.set_sinks(*sinks)
+        self.stream = self._open(path)
+        self._opened = time.monotonic()
+        self._started_event: TwinStarted | None = None
+        self._observed: dict[str, tuple[ElementShape, tuple[int, int, int, int]]] = {}
+        self._now: tuple[int, int] = (0, 0)  # (revision, stamp) of the last recorded event
         self.dropped = 0
         self.failures = 0
         self.max_failures = max_failures
@@ -179,15 +190,67 @@ class RerunRecorder:
             if self.dropped in (1, 100, 10_000):
                 log.warning("The Rerun recorder is behind: %d event(s) dropped", self.dropped)
 
+    # --- files -------------------------------------------------------------------------------------
+    def _open(self, path: Path | None) -> rr.RecordingStream:
+        stream = rr.RecordingStream(application_id=self.application)
+        sinks: list[rr.FileSink | rr.GrpcSink] = []
+        if path is not None:
+            sinks.append(rr.FileSink(str(path)))
+            self.files.append(path)
+        if self.connect_url:
+            sinks.append(rr.GrpcSink(self.connect_url))
+        if sinks:
+            stream.set_sinks(*sinks)
+        return stream
+
+    def _due(self) -> bool:
+        if self.path is None or self._started_event is None:
+            return False
+        if self.rotate_every_s and time.monotonic() - self._opened >= self.rotate_every_s:
+            return True
+        current = self.files[-1]
+        return bool(self.max_bytes) and current.exists() and current.stat().st_size >= self.max_bytes
+
+    def _rotate(self) -> None:
+        """Close this file and go on in the next, which starts with the twin as it is now."""
+        assert self.path is not None and self._started_event is not None
+        self.stream.flush()
+        self.stream.disconnect()
+        previous = self.files[-1]
+        path = self.path.with_name(f"{self.path.stem}-{len(self.files):04d}{self.path.suffix}")
+        self.stream = self._open(path)
+        self._opened = time.monotonic()
+        revision, stamp = self._now
+        self._building(self._started_event)
+        self._time(revision, stamp)
+        for recorded in self._maps.values():
+            for i, j in tiles_of(recorded.grid.frame.full):
+                self._tile(recorded.grid, i, j)
+        for entity, (shape, colour) in self._observed.items():
+            self._shape(entity, shape, colour, static=False)
+        self._text(f"recording continued from {previous.name} at revision {revision}", "INFO")
+        log.info("Recording continues in %s (revision %d)", path, revision)
+
     # --- the worker ---------------------------------------------------------------------------------
     def _run(self) -> None:
         while True:
             event = self._queue.get()
-            if event is _STOP:
-                return
-            if self.disabled:
-                continue
             try:
+                if event is _STOP:
+                    return
+                self._handle(event)
+            finally:
+                self._queue.task_done()
+
+    def wait_idle(self) -> None:
+        """Return once every event emitted so far is recorded (or dropped)."""
+        self._queue.join()
+
+    def _handle(self, event: object) -> None:
+        if not self.disabled:
+            try:
+                if self._due():
+                    self._rotate()
                 self._record(event)  # type: ignore[arg-type]
             except Exception:
                 self.failures += 1
@@ -197,6 +260,7 @@ class RerunRecorder:
                     log.error("The Rerun recorder is disabled after %d failures", self.failures)
 
     def _time(self, revision: int, stamp_ns: int) -> None:
+        self._now = (revision, stamp_ns)
         self.stream.set_time("revision", sequence=revision)
         self.stream.set_time("time", timestamp=np.datetime64(stamp_ns, "ns"))
 
@@ -245,14 +309,19 @@ class RerunRecorder:
             static=static,
         )
 
-    def _started(self, event: TwinStarted) -> None:
-        self._storeys = {key: elevation for key, _, elevation in event.storeys}
+    def _building(self, event: TwinStarted) -> None:
+        """The building (static) and the blueprint: what every file starts with."""
         self.stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         for shape in event.elements:
             storey = shape.storey or "building"
             path = f"world/{storey}/{shape.ifc_class}/{entity_name(shape.iri)}"
             self._shape(path, shape, colour_of(shape), static=True)
         self._blueprint(event)
+
+    def _started(self, event: TwinStarted) -> None:
+        self._storeys = {key: elevation for key, _, elevation in event.storeys}
+        self._started_event = event
+        self._building(event)
         self._time(event.revision, event.stamp_ns)
         self._text(
             f"twin {event.site} started at revision {event.revision}: {len(event.elements)} elements, "
@@ -361,10 +430,11 @@ class RerunRecorder:
             if shape.is_open:
                 colour = (colour[0], colour[1], colour[2], 60)
             self._shape(path, shape, colour, static=False)
+            self._observed[path] = (shape, colour)
         for iri in event.removed:
-            self.stream.log(
-                f"world/observations/{entity_name(event.robot)}/{entity_name(iri)}", rr.Clear(recursive=True)
-            )
+            path = f"world/observations/{entity_name(event.robot)}/{entity_name(iri)}"
+            self._observed.pop(path, None)
+            self.stream.log(path, rr.Clear(recursive=True))
         changed = ", ".join(f"{m.storey}/{m.skill} v{m.version}" for m in event.maps) or "no map"
         doors = [s.iri for s in event.upserted if s.is_open is not None]
         extra = f"; door(s) {', '.join(doors)}" if doors else ""

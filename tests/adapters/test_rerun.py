@@ -152,3 +152,35 @@ def test_maps_lie_on_their_world_cells_row_zero_at_the_lowest_y(tmp_path: Path) 
         [f.origin_x, f.origin_y + h * f.resolution_m, first.grid.elevation_m], abs=1e-4
     )
     assert column(batch, "GridMap:rotation_axis_angle")[0][0]["angle"] == pytest.approx(np.pi)
+
+
+def test_rotated_files_each_replay_alone_with_the_building_and_every_map(tmp_path: Path) -> None:
+    path = tmp_path / "day.rrd"
+    recorder = RerunRecorder(path=path)
+    service, kept = started()
+    for event in kept.events:
+        recorder.emit(event)
+    recorder.wait_idle()
+    recorder.max_bytes = 1  # from now on, a new file before every event
+    service.sinks.append(recorder)
+    for i in range(3):
+        observe(service, "robot1", box_turtle(f"urn:robot1:t{i}", 6.6 - i, 2.0))
+    recorder.close()
+    files = recorder.files
+    assert len(files) >= 3 and files[0] == path and all(f.exists() for f in files)
+    assert files[1].name == "day-0001.rrd"
+    served = served_versions(kept.events)
+    last = files[-1]
+    entities = chunks_by_entity(last)
+    assert any("Mesh3D:vertex_positions" in b.schema.names for e, bs in entities.items() for b in bs
+               if e.startswith("/world/ground-floor/"))  # fmt: skip
+    assert any(e.startswith("/world/observations/robot1/") for e in entities)
+    for f in files[1:]:  # each file alone: every map whole from its first revision on, then each change
+        for (storey, skill), versions in served.items():
+            history = map_history(f, storey, skill)
+            assert history, (f.name, storey, skill)
+            for revision, cells in history:
+                expected = versions[max(r for r in versions if r <= revision)]
+                np.testing.assert_array_equal(
+                    cells, expected, err_msg=f"{f.name} {storey}/{skill} @{revision}"
+                )
