@@ -166,8 +166,8 @@ def start_oxigraph(work: Path, store: Path) -> tuple[subprocess.Popen[bytes], st
 
     import pyoxigraph as ox
 
+    from adapters.sparql.remote_store import RemoteStore
     from twin.errors import StoreUnavailableError
-    from twin.remote_store import RemoteStore
     from twin.store import EmbeddedStore
 
     binary = shutil.which("oxigraph", path=str(Path(sys.executable).parent)) or "oxigraph"

@@ -6,8 +6,8 @@ import argparse
 import dataclasses
 from pathlib import Path
 
+from adapters.sparql.remote_store import RemoteStore
 from twin.config import Config, RemoteStoreConfig
-from twin.remote_store import RemoteStore
 from twin.store import EmbeddedStore
 
 AnyStore = EmbeddedStore | RemoteStore

@@ -12,9 +12,9 @@ from pathlib import Path
 import pyoxigraph as ox
 import pytest
 
+from adapters.sparql.remote_store import RemoteStore
 from tests.integration.conftest import start_daemon, twin
 from tests.sparql_server import SparqlServer, start_sparql_server
-from twin.remote_store import RemoteStore
 from twin.store import EmbeddedStore
 
 TWIN = "https://w3id.org/building-twin#"

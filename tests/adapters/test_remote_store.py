@@ -11,10 +11,10 @@ from pathlib import Path
 import pyoxigraph as ox
 import pytest
 
+from adapters.sparql.remote_store import RemoteStore, SparqlEndpoint
 from tests.sparql_server import SparqlServer, start_sparql_server
 from twin.config import load_config
 from twin.errors import ConfigError, StoreError, StoreUnavailableError
-from twin.remote_store import RemoteStore, SparqlEndpoint
 from twin.store import ChangeSet, Literal, Triple
 
 Q = ox.Quad(ox.NamedNode("https://ex.org/a"), ox.NamedNode("https://ex.org/p"), ox.Literal("x"))

@@ -11,10 +11,10 @@ from pathlib import Path
 import pyoxigraph as ox
 import pytest
 
+from adapters.sparql.remote_store import RemoteStore
 from tests.sparql_server import SparqlServer
 from twin import vocab
 from twin.errors import QueryError, StoreError
-from twin.remote_store import RemoteStore
 from twin.store import ChangeSet, EmbeddedStore, Literal, Triple
 
 Q = ox.Quad(ox.NamedNode("https://ex.org/a"), ox.NamedNode("https://ex.org/p"), ox.Literal("x"))
