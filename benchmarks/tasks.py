@@ -3,7 +3,7 @@
 Tasks:
     bare      ifcopenshell.open + geometry iterator (manifold kernel, 2 threads, our settings) over every
               IfcElement and IfcSpace with a representation, pulling vertices, faces and matrix of each.
-    bare-routed  the same with our kernel routing: the products ``adapters.ifc.routing`` sends to
+    bare-routed  the same with our kernel routing: the products ``adapters.ifc.kernel_choice`` sends to
               OpenCASCADE meshed by it (1 thread) while manifold (2 threads) meshes the rest, in two
               threads of one process: the geometry our import must compute, without anything else.
     import    ``adapters.ifc.read_model`` + ``twin.import_model.import_model`` into an on-disk store.
@@ -166,13 +166,13 @@ def bare_routed_iterator(path: Path) -> dict[str, Any]:
 
     import ifcopenshell
 
-    from adapters.ifc.routing import REFERENCE_KERNEL, Router
+    from adapters.ifc.kernel_choice import REFERENCE_KERNEL, KernelChoice
 
     t0 = time.perf_counter()
     f = ifcopenshell.open(str(path))
     t_open = time.perf_counter() - t0
     products = [p for p in (*f.by_type("IfcElement"), *f.by_type("IfcSpace")) if p.Representation is not None]
-    router = Router()
+    router = KernelChoice()
     routed = [p for p in products if router.reason(p) is not None]
     routed_ids = {p.id() for p in routed}
     rest = [p for p in products if p.id() not in routed_ids]

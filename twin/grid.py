@@ -24,7 +24,7 @@ UNKNOWN = np.int8(-1)
 
 GridData = npt.NDArray[np.int8]
 
-MAX_GRID_CELLS = 400_000_000
+MAX_FRAME_CELLS = 400_000_000
 """The largest grid a frame may have (20,000 x 20,000 cells: a square kilometre at 5 cm, 400 MB).
 An extent that needs more comes from an element far from the rest of its building."""
 
@@ -100,10 +100,10 @@ class GridFrame:
             raise MapError(msg)
         res = resolution_m
         cells_x, cells_y = (xmax - xmin + 2 * margin_m) / res, (ymax - ymin + 2 * margin_m) / res
-        if not cells_x * cells_y <= MAX_GRID_CELLS:  # overflow to inf too
+        if not cells_x * cells_y <= MAX_FRAME_CELLS:  # overflow to inf too
             msg = (
                 f"Grid extent {values!r} at {res} m per cell needs about {cells_x:.3g} x {cells_y:.3g} "
-                f"cells, more than the limit of {MAX_GRID_CELLS:,}."
+                f"cells, more than the limit of {MAX_FRAME_CELLS:,}."
             )
             raise MapError(msg)
         ox = math.floor((xmin - margin_m) / res) * res

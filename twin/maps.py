@@ -29,7 +29,9 @@ from twin.scene import IndexArray, MeshSet, Scene, SlabBox, StoreyInfo
 from twin.skills import SkillProfile
 
 BoolGrid = npt.NDArray[np.bool_]
-MAX_CELLS = 50_000_000  # 50 M cells: a 350 m x 350 m storey at 5 cm
+MAX_MAP_CELLS = 50_000_000
+"""The largest skill map the twin builds (50 M cells: a 350 m x 350 m storey at 5 cm); any grid frame
+may hold up to :data:`twin.grid.MAX_FRAME_CELLS`."""
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -66,10 +68,10 @@ def plan_map(
         raise MapError(msg)
     xmin, ymin, xmax, ymax = storey.extent
     frame = GridFrame.around(xmin, ymin, xmax, ymax, resolution_m=skill.resolution_m, margin_m=margin_m)
-    if frame.width * frame.height > MAX_CELLS:
+    if frame.width * frame.height > MAX_MAP_CELLS:
         msg = (
             f"Skill {skill.name!r}: resolution_m={skill.resolution_m} gives a {frame.width}x{frame.height} "
-            f"grid for storey {storey_key!r}, more than {MAX_CELLS:,} cells; use a coarser resolution."
+            f"grid for storey {storey_key!r}, more than {MAX_MAP_CELLS:,} cells; use a coarser resolution."
         )
         raise MapError(msg)
     lo, hi = skill.z_range

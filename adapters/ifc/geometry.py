@@ -35,7 +35,7 @@ import ifcopenshell.geom
 import ifcopenshell.util.shape
 import numpy as np
 
-from adapters.ifc.routing import REFERENCE_KERNEL
+from adapters.ifc.kernel_choice import REFERENCE_KERNEL
 from twin.errors import ModelError
 from twin.meshops import is_closed, orient_faces
 from twin.records import Geometry, Mesh, check_placement
@@ -245,7 +245,7 @@ class _Route:
 class MeshingJob:
     """Meshing in progress: each route's first kernel starts at once; :meth:`result` finishes the rest.
 
-    Products whose body the fast kernel gets wrong (:func:`~adapters.ifc.routing.reference_reason`)
+    Products whose body the fast kernel gets wrong (:func:`~adapters.ifc.kernel_choice.reference_reason`)
     go to the reference kernel first, in a child of their own that runs beside the fast one.
     Use it as a context manager: leaving it on an error (or Ctrl-C) kills the kernel processes.
     """

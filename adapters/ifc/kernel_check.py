@@ -22,7 +22,7 @@ import ifcopenshell
 import numpy as np
 
 from adapters.ifc.geometry import start_meshing
-from adapters.ifc.routing import REFERENCE_KERNEL
+from adapters.ifc.kernel_choice import REFERENCE_KERNEL
 from twin.records import BuildingModel, Geometry
 
 

@@ -26,8 +26,8 @@ import ifcopenshell.util.unit
 
 from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
+from adapters.ifc.kernel_choice import KernelChoice
 from adapters.ifc.open_file import open_ifc_checked
-from adapters.ifc.routing import Router
 from twin.records import Building, BuildingModel, Element, Relation, Site, Space, Storey
 
 log = logging.getLogger(__name__)
@@ -252,7 +252,7 @@ def _entity_name(e: Any) -> str:
 
 def _routed(elements: Sequence[Any]) -> list[Any]:
     """The elements the reference kernel meshes first; one whose body cannot be inspected is not."""
-    routed, router = [], Router()  # one router: it remembers its answers per class and shared item
+    routed, router = [], KernelChoice()  # one router: it remembers its answers per class and shared item
     for e in elements:
         try:
             if router.reason(e) is not None:
@@ -287,7 +287,7 @@ def read_model(
     """Read ``path`` into records. Raise :class:`~adapters.ifc.errors.IfcFileError` on a bad file.
 
     ``routing=False`` gives every body to the first kernel, even those it gets wrong
-    (:mod:`adapters.ifc.routing`): only to measure what the routing fixes (``benchmarks/kernels.py``).
+    (:mod:`adapters.ifc.kernel_choice`): only to measure what the routing fixes (``benchmarks/kernels.py``).
     """
     f, lines, unplaceable = open_ifc_checked(path)
     with _as_file_error(path):

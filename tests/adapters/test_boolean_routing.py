@@ -9,7 +9,7 @@ import ifcopenshell
 import numpy as np
 import pytest
 
-from adapters.ifc.routing import reference_reason
+from adapters.ifc.kernel_choice import reference_reason
 from tests.conftest import shared_model
 from twin.records import BuildingModel, Geometry
 

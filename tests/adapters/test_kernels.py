@@ -14,7 +14,7 @@ import pytest
 
 from adapters.ifc import read_model
 from adapters.ifc.kernel_check import MeshMeasures, compare, disagreements
-from adapters.ifc.routing import REFERENCE_KERNEL, reference_reason
+from adapters.ifc.kernel_choice import REFERENCE_KERNEL, reference_reason
 from tests.adapters.generated import Generated
 from tests.conftest import imported, shared_model
 from twin.records import BuildingModel

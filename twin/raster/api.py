@@ -11,7 +11,7 @@ from twin.raster.settings import (
     TOLERANCES,
     BoolArray,
     FloatArray,
-    IntArray,
+    IndexArray,
     RasterSettings,
     Tolerances,
 )
@@ -20,7 +20,7 @@ from twin.raster.spans import _Cells, _expand
 
 def rasterize_slab(  # noqa: PLR0917 (the map generator's established call)
     triangles: FloatArray,
-    element: IntArray,
+    element: IndexArray,
     closed: BoolArray,
     z_lo: float,
     z_hi: float,
@@ -64,7 +64,7 @@ def rasterize_slab(  # noqa: PLR0917 (the map generator's established call)
 
 def slab_geometry(
     triangles: FloatArray,
-    element: IntArray,
+    element: IndexArray,
     closed: BoolArray,
     z_lo: float,
     z_hi: float,

@@ -19,8 +19,8 @@ from twin.raster.settings import (
     RASTER_SETTINGS,
     BoolArray,
     FloatArray,
+    IndexArray,
     Int8Array,
-    IntArray,
     RasterSettings,
     Tolerances,
 )
@@ -46,7 +46,7 @@ class _Polygons(NamedTuple):
     bounds: FloatArray
     thin: BoolArray
     segments: FloatArray
-    segment_element: IntArray
+    segment_element: IndexArray
     segment_winding: Int8Array
 
 
@@ -122,7 +122,7 @@ def _check_window(frame: GridFrame, window: Window | None) -> Window:
 
 def _parts(
     triangles: FloatArray,
-    element: IntArray,
+    element: IndexArray,
     closed: BoolArray,
     *,
     z_lo: float,
@@ -137,7 +137,7 @@ def _parts(
     survivors. Triangles missing the region are dropped, except that the section keeps all those
     of the region's y-range: a row's fill needs all its crossings, however far in x.
     """
-    picked: list[IntArray] = []
+    picked: list[IndexArray] = []
     inside: list[BoolArray] = []
     size = settings.chunk_triangles
     for i in range(0, len(triangles), size):
@@ -159,7 +159,7 @@ def _parts(
     for i in range(0, max(len(idx), 1), size):
         sel = idx[i : i + size]
         run = len(sel) > 0 and sel[-1] - sel[0] == len(sel) - 1
-        rows: slice | IntArray = slice(sel[0], sel[-1] + 1) if run else sel  # a run needs no copy
+        rows: slice | IndexArray = slice(sel[0], sel[-1] + 1) if run else sel  # a run needs no copy
         keep = flags[i : i + size]
         part = _slab_chunk(triangles[rows], element[rows], keep, closed=closed, z_lo=z_lo, z_hi=z_hi, tol=tol)
         if region is not None:
@@ -175,7 +175,7 @@ def _parts(
 
 def _slab_chunk(
     chunk: FloatArray,
-    element: IntArray,
+    element: IndexArray,
     keep: BoolArray,
     *,
     closed: BoolArray,

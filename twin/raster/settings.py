@@ -10,10 +10,10 @@ import numpy.typing as npt
 from twin.errors import MapError
 
 FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.intp]
+IndexArray = npt.NDArray[np.intp]
 BoolArray = npt.NDArray[np.bool_]
 Int8Array = npt.NDArray[np.int8]
-Spans = tuple[IntArray, IntArray, IntArray]  # (row, first column, last column), global cells
+Spans = tuple[IndexArray, IndexArray, IndexArray]  # (row, first column, last column), global cells
 
 #: Polygon slots: a triangle clipped by two planes has at most 5 vertices.
 MAX_VERTICES = 5

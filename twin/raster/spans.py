@@ -12,8 +12,8 @@ from twin.raster.settings import (
     MAX_VERTICES,
     BoolArray,
     FloatArray,
+    IndexArray,
     Int8Array,
-    IntArray,
     RasterSettings,
     Spans,
     Tolerances,
@@ -26,19 +26,19 @@ class _Cells:
     def __init__(self, frame: GridFrame, win: Window, tol: Tolerances, settings: RasterSettings) -> None:
         self.frame, self.win, self.tol = frame, win, tol.cell_m / frame.resolution_m
         self.chunk_pairs = settings.chunk_pairs
-        self.starts: list[IntArray] = []
-        self.ends: list[IntArray] = []
+        self.starts: list[IndexArray] = []
+        self.ends: list[IndexArray] = []
         self.segments: list[FloatArray] = [np.empty((4, 0))]
-        self.segment_element: list[IntArray] = [np.empty(0, np.intp)]
+        self.segment_element: list[IndexArray] = [np.empty(0, np.intp)]
         self.segment_winding: list[Int8Array] = [np.empty(0, np.int8)]
 
-    def add_polygons(self, polygons: _Polygons, idx: IntArray | None = None) -> None:
+    def add_polygons(self, polygons: _Polygons, idx: IndexArray | None = None) -> None:
         for spans in _polygon_spans(
             polygons, idx, self.frame, self.win, self.tol, chunk_pairs=self.chunk_pairs
         ):
             self._add(spans)
 
-    def add_segments(self, source: _Polygons, idx: IntArray | slice = slice(None)) -> None:
+    def add_segments(self, source: _Polygons, idx: IndexArray | slice = slice(None)) -> None:
         self.segments.append(source.segments[:, idx])
         self.segment_element.append(source.segment_element[idx])
         self.segment_winding.append(source.segment_winding[idx])
@@ -66,7 +66,7 @@ class _Cells:
         return np.cumsum(diff.reshape(rows, cols + 1)[:, :cols], axis=1) > 0
 
 
-def _expand(lo: IntArray, hi: IntArray) -> tuple[IntArray, IntArray]:
+def _expand(lo: IndexArray, hi: IndexArray) -> tuple[IndexArray, IndexArray]:
     """For inclusive ranges ``[lo, hi]`` (non-empty): the owner of every member, and the member."""
     count = hi - lo + 1
     owner = np.repeat(np.arange(len(lo)), count)
@@ -74,7 +74,7 @@ def _expand(lo: IntArray, hi: IntArray) -> tuple[IntArray, IntArray]:
     return owner, np.arange(len(owner)) + shift[owner]
 
 
-def _batches(counts: IntArray, limit: int) -> list[slice]:
+def _batches(counts: IndexArray, limit: int) -> list[slice]:
     """Consecutive runs of items of at most ``limit`` total ``counts`` each (or of one item)."""
     if not len(counts):
         return []
@@ -86,7 +86,7 @@ def _batches(counts: IntArray, limit: int) -> list[slice]:
 
 def _polygon_spans(
     polygons: _Polygons,
-    idx: IntArray | None,
+    idx: IndexArray | None,
     frame: GridFrame,
     win: Window,
     tol: float,
@@ -144,7 +144,7 @@ def _polygon_spans(
 
 
 def _strip_spans(
-    u: FloatArray, v: FloatArray, size: IntArray, *, s: FloatArray, r_lo: IntArray, r_hi: IntArray
+    u: FloatArray, v: FloatArray, size: IndexArray, *, s: FloatArray, r_lo: IndexArray, r_hi: IndexArray
 ) -> Spans:
     """Exact spans of ``(5, g)`` polygons (grid units, sorted by vertex count) in rows ``[r_lo, r_hi]``.
 
@@ -176,7 +176,7 @@ def _strip_spans(
     return row[keep], np.ceil(a[keep] + sk).astype(np.intp) - 1, np.floor(b[keep] - sk).astype(np.intp)
 
 
-def _fill_spans(seg: FloatArray, seg_element: IntArray, winding: Int8Array, win: Window) -> Spans:
+def _fill_spans(seg: FloatArray, seg_element: IndexArray, winding: Int8Array, win: Window) -> Spans:
     """Spans of the cells of ``win`` rows whose centre lies inside a closed element's section.
 
     ``seg`` is ``(4, s)`` in grid units, lower v first. A segment crosses the row line

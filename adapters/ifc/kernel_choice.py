@@ -12,13 +12,13 @@ kinds of bodies wrong *without failing*:
   beams, railings).
 
 Those products go to OpenCASCADE first. The check is shallow and cheap (about 0.06 s for the
-1,660 elements of Janesville, with :class:`Router`'s caches): the body's items, looking through mapped
+1,660 elements of Janesville, with :class:`KernelChoice`'s caches): the body's items, looking through mapped
 items, and the profile of a swept area; it does not walk faceted breps.
 
 Example::
 
     reason = reference_reason(wall)          # "boolean result", "curved profile" or None
-    routed = routed_products(f.by_type("IfcElement"))   # one Router for many products
+    routed = routed_products(f.by_type("IfcElement"))   # one KernelChoice for many products
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ _CURVED_SOLIDS = ("IfcRevolvedAreaSolid", "IfcSweptDiskSolid", "IfcSurfaceCurveS
 _FILLETS = ("FilletRadius", "EdgeRadius", "FlangeEdgeRadius", "WebEdgeRadius", "InnerFilletRadius")
 
 
-class Router:
+class KernelChoice:
     """Decides which products go to the reference kernel, remembering what it has looked at.
 
     Instances share representation maps and profiles, and one IFC class answers ``is_a`` the same way
@@ -128,10 +128,10 @@ class Router:
 
 def reference_reason(product: Any) -> str | None:
     """Why ``product``'s body must be meshed by the reference kernel, or None when manifold is exact."""
-    return Router().reason(product)
+    return KernelChoice().reason(product)
 
 
 def routed_products(products: Iterable[Any]) -> list[Any]:
     """The products (in order) whose body must be meshed by the reference kernel."""
-    router = Router()
+    router = KernelChoice()
     return [p for p in products if router.reason(p) is not None]
