@@ -37,15 +37,15 @@ None when unbound."""
 
 
 @dataclass(frozen=True, slots=True)
-class Literal:
+class RdfLiteral:
     """An RDF literal as a plain value: its lexical form and datatype IRI."""
 
     value: str
     datatype: str = vocab.XSD + "string"
 
 
-Object = str | Literal
-"""The object of a triple: an IRI (``str``) or a :class:`Literal`."""
+Object = str | RdfLiteral
+"""The object of a triple: an IRI (``str``) or a :class:`RdfLiteral`."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -126,7 +126,7 @@ def _nt_iri(iri: str) -> str:
 
 
 def _nt_object(obj: Object) -> str:
-    if isinstance(obj, Literal):
+    if isinstance(obj, RdfLiteral):
         return str(ox.Literal(obj.value, datatype=ox.NamedNode(obj.datatype)))
     return _nt_iri(obj)
 

@@ -15,7 +15,7 @@ from adapters.sparql.remote_store import RemoteStore, SparqlEndpoint
 from tests.sparql_server import SparqlServer, start_sparql_server
 from twin.config import load_config
 from twin.errors import ConfigError, StoreError, StoreUnavailableError
-from twin.store import ChangeSet, Literal, Triple
+from twin.store import ChangeSet, RdfLiteral, Triple
 
 Q = ox.Quad(ox.NamedNode("https://ex.org/a"), ox.NamedNode("https://ex.org/p"), ox.Literal("x"))
 
@@ -104,7 +104,7 @@ def test_a_server_that_goes_away_gives_a_clear_error_for_reads_and_writes(own_se
     t0 = time.monotonic()
     with pytest.raises(StoreUnavailableError, match=rf"{own_server.url}/query (is unreachable|closed)"):
         store.select("SELECT * WHERE { ?s ?p ?o }")
-    change = ChangeSet(add=(Triple("https://ex.org/b", "https://ex.org/p", Literal("y")),))
+    change = ChangeSet(add=(Triple("https://ex.org/b", "https://ex.org/p", RdfLiteral("y")),))
     with pytest.raises(StoreUnavailableError, match=rf"{own_server.url}/update (is unreachable|closed)"):
         store.apply(change)
     assert time.monotonic() - t0 < 2

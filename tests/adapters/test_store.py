@@ -15,7 +15,7 @@ from adapters.sparql.remote_store import RemoteStore
 from tests.sparql_server import SparqlServer
 from twin import vocab
 from twin.errors import QueryError, StoreError
-from twin.store import ChangeSet, EmbeddedStore, Literal, Triple
+from twin.store import ChangeSet, EmbeddedStore, RdfLiteral, Triple
 
 Q = ox.Quad(ox.NamedNode("https://ex.org/a"), ox.NamedNode("https://ex.org/p"), ox.Literal("x"))
 EX = "https://ex.org/"
@@ -81,7 +81,7 @@ def test_a_store_opened_read_only_refuses_every_write(open_store: Opener) -> Non
     for write in (
         lambda: store.add([Q]),
         lambda: store.bulk_add([Q]),
-        lambda: store.apply(ChangeSet(add=(Triple(EX + "a", EX + "p", Literal("x")),))),
+        lambda: store.apply(ChangeSet(add=(Triple(EX + "a", EX + "p", RdfLiteral("x")),))),
         store.clear,
     ):
         with pytest.raises(StoreError, match="read-only"):
@@ -175,8 +175,8 @@ def test_the_vocabulary_prefixes_are_predefined(store: AnyStore) -> None:
 
 def test_apply_removes_the_patterns_then_adds_in_one_transaction(store: AnyStore) -> None:
     s, p, q = EX + "s", EX + "p", EX + "q"
-    store.apply(ChangeSet(add=(Triple(s, p, Literal("1")), Triple(s, q, Literal("2")))))
-    store.apply(ChangeSet(remove=((s, p),), add=(Triple(s, p, Literal("3")),)))
+    store.apply(ChangeSet(add=(Triple(s, p, RdfLiteral("1")), Triple(s, q, RdfLiteral("2")))))
+    store.apply(ChangeSet(remove=((s, p),), add=(Triple(s, p, RdfLiteral("3")),)))
     assert sorted((r["p"], r["o"]) for r in store.select(f"SELECT ?p ?o WHERE {{ <{s}> ?p ?o }}")) == [
         (p, "3"),
         (q, "2"),
@@ -185,7 +185,7 @@ def test_apply_removes_the_patterns_then_adds_in_one_transaction(store: AnyStore
     assert store.is_empty() and len(store) == 0
     store.apply(ChangeSet())  # nothing to do
     with pytest.raises(StoreError, match="Not an IRI"):
-        store.apply(ChangeSet(add=(Triple("has space", p, Literal("x")),)))
+        store.apply(ChangeSet(add=(Triple("has space", p, RdfLiteral("x")),)))
 
 
 def test_an_update_that_fails_part_way_changes_nothing(store: AnyStore) -> None:

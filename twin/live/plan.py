@@ -37,7 +37,7 @@ from twin.meshcodec import encode_mesh, encode_placement
 from twin.observations import ElementReport
 from twin.records import FloatArray, GeometryChange, Mesh, Shape
 from twin.shapes import box_mesh, box_placement
-from twin.store import ChangeSet, Literal, Object, Triple
+from twin.store import ChangeSet, Object, RdfLiteral, Triple
 from twin.tolerances import SAME_ANGLE_RAD, SAME_POSITION_M
 
 
@@ -69,12 +69,12 @@ def _need(rights: frozenset[Right], right: Right, robot: str, what: str) -> None
         raise _fail(f"Robot {robot!r} may not {what} (it lacks the {right!r} right).")
 
 
-def _lit(value: str, datatype: str = vocab.XSD_STRING) -> Literal:
-    return Literal(value, datatype)
+def _lit(value: str, datatype: str = vocab.XSD_STRING) -> RdfLiteral:
+    return RdfLiteral(value, datatype)
 
 
-def _bool(value: bool) -> Literal:
-    return Literal("true" if value else "false", vocab.XSD_BOOLEAN)
+def _bool(value: bool) -> RdfLiteral:
+    return RdfLiteral("true" if value else "false", vocab.XSD_BOOLEAN)
 
 
 def same_mesh(a: Mesh, b: Mesh) -> bool:

@@ -18,7 +18,7 @@ from twin.errors import SkillError
 from twin.live.live_maps import LiveMap
 from twin.live.state import LiveState
 from twin.skills import SkillProfile, parse_skill_json, selection_query
-from twin.store import ChangeSet, GraphStore, Literal, Triple
+from twin.store import ChangeSet, GraphStore, RdfLiteral, Triple
 
 log = logging.getLogger(__name__)
 
@@ -54,14 +54,14 @@ def skill_change(
     """The transaction that adds/replaces (``payload``: JSON) or removes (None) skill ``name``;
     SkillError names what is wrong (an unknown skill, a bad profile)."""
     node = vocab.skill_iri(base_iri, name)
-    head = (Triple(node, vocab.RDF_TYPE, vocab.TWIN_SKILL), Triple(node, vocab.RDFS_LABEL, Literal(name)))
+    head = (Triple(node, vocab.RDF_TYPE, vocab.TWIN_SKILL), Triple(node, vocab.RDFS_LABEL, RdfLiteral(name)))
     if payload is None:
         if name not in live.skills:
             known = ", ".join(sorted(live.skills)) or "none"
             msg = f"Unknown skill {name!r}; skills: {known}."
             raise SkillError(msg)
-        gone = Triple(node, vocab.TWIN_REMOVED, Literal("true", vocab.XSD_BOOLEAN))
+        gone = Triple(node, vocab.TWIN_REMOVED, RdfLiteral("true", vocab.XSD_BOOLEAN))
         return ChangeSet(remove=((node, None),), add=(*head, gone)), None
     profile = parse_skill_json(name, payload)
-    body = Triple(node, vocab.TWIN_PROFILE_JSON, Literal(json.dumps(profile.to_json())))
+    body = Triple(node, vocab.TWIN_PROFILE_JSON, RdfLiteral(json.dumps(profile.to_json())))
     return ChangeSet(remove=((node, None),), add=(*head, body)), profile
