@@ -88,14 +88,13 @@ def access_control(
 
     ``robot_keys``: more keys a robot publishes on (its ROS ``/<ns>/storey`` topic), by robot name.
     """
-    p = keys.prefix
     names = sorted({check_chunk(r, "Robot name") for r in robots})
     ops = sorted({check_chunk(o, "Operator name") for o in operators})
     if not names and not ops:
         msg = "Access control needs at least one robot ([robots.NAME]) or operator to let in."
         raise TransportError(msg)
-    maps = _with_adv([f"{p}/map/**", f"{p}/map_updates/**", *ros_keys])
-    reads = [*maps, keys.status, keys.sparql, f"{p}/skills/**", keys.daemon]
+    maps = _with_adv([keys.maps, keys.all_map_updates, *ros_keys])
+    reads = [*maps, keys.status, keys.sparql, keys.explain, keys.skills_listing, keys.daemon]
     rules: list[dict[str, Any]] = [
         {"id": "read", "permission": "allow", "flows": ["ingress"], "messages": READ, "key_exprs": reads},
         {   # the advanced subscribers' own detection tokens, and the ROS graph's liveliness tokens
@@ -103,7 +102,7 @@ def access_control(
             "permission": "allow",
             "flows": ["ingress"],
             "messages": ["liveliness_token"],
-            "key_exprs": [*_with_adv([f"{p}/map/**", *ros_keys]), f"{ADMIN_SPACE}/**"],
+            "key_exprs": [*_with_adv([keys.maps, *ros_keys]), f"{ADMIN_SPACE}/**"],
         },
         {
             "id": "ros-graph",
@@ -117,10 +116,10 @@ def access_control(
             "permission": "allow",
             "flows": ["egress"],
             "messages": ALL,
-            "key_exprs": [*_with_adv([f"{p}/**", *ros_keys]), f"{ADMIN_SPACE}/**"],
+            "key_exprs": [*_with_adv([keys.everything, *ros_keys]), f"{ADMIN_SPACE}/**"],
         },
         {"id": "operate", "permission": "allow", "flows": ["ingress"], "messages": ALL,
-         "key_exprs": _with_adv([f"{p}/**"])},
+         "key_exprs": _with_adv([keys.everything])},
         {   # deny wins over allow: not even an operator publishes (or answers for) a map
             "id": "no-forged-maps",
             "permission": "deny",

@@ -262,7 +262,7 @@ class TwinClient:
     def skills(self) -> dict[str, dict[str, Any]]:
         return {
             self.keys.last(str(s.key_expr)): json.loads(s.payload.to_bytes())
-            for s in self._get(f"{self.keys.prefix}/skills/**", what="the skills")
+            for s in self._get(self.keys.skills_listing, what="the skills")
         }
 
     def put_skill(self, name: str, profile: dict[str, Any] | str) -> None:

@@ -77,10 +77,10 @@ class ZenohDaemon:
         """More sections of the status reply (e.g. the ROS robots' storeys), merged over the service's."""
         self._declared: list[Any] = [
             session.liveliness().declare_token(keys.daemon),
-            session.declare_subscriber(f"{keys.prefix}/observations/*", self._on_observation),
-            session.declare_queryable(f"{keys.prefix}/observe/*", self._on_observe),
+            session.declare_subscriber(keys.all_observations, self._on_observation),
+            session.declare_queryable(keys.all_observe, self._on_observe),
             session.declare_subscriber(keys.skills, self._on_skill),
-            session.declare_queryable(f"{keys.prefix}/skills/**", self._on_list_skills),
+            session.declare_queryable(keys.skills_listing, self._on_list_skills),
             session.declare_queryable(keys.maps, self._on_get_map),
             session.declare_queryable(keys.sparql, self._on_sparql),
             session.declare_queryable(keys.status, self._on_status),

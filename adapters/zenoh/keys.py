@@ -45,6 +45,30 @@ class SiteKeys:
     def observe(self, robot: str) -> str:
         return f"{self.prefix}/observe/{check_chunk(robot, 'Robot name')}"
 
+    @property
+    def all_map_updates(self) -> str:
+        return f"{self.prefix}/map_updates/**"
+
+    @property
+    def everything(self) -> str:
+        """Every key of the site (what operators may do)."""
+        return f"{self.prefix}/**"
+
+    @property
+    def all_observations(self) -> str:
+        """Every robot's best-effort observations (``observations/*``)."""
+        return f"{self.prefix}/observations/*"
+
+    @property
+    def all_observe(self) -> str:
+        """Every robot's acked observation path (``observe/*``)."""
+        return f"{self.prefix}/observe/*"
+
+    @property
+    def skills_listing(self) -> str:
+        """What a ``get`` of every skill profile asks (``skills/**``)."""
+        return f"{self.prefix}/skills/**"
+
     def skill(self, name: str) -> str:
         return f"{self.prefix}/skills/{check_chunk(name, 'Skill name')}"
 
