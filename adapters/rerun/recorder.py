@@ -44,6 +44,7 @@ import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import rerun as rr
@@ -168,7 +169,7 @@ class RerunRecorder:
         self.stream = self._open(path)
         self._opened = time.monotonic()
         self._started_event: TwinStarted | None = None
-        self._observed: dict[str, tuple[ElementShape, tuple[int, int, int, int]]] = {}
+        self._observed: dict[str, tuple[ElementShape, tuple[int, int, int, int], tuple[str, int, int]]] = {}
         self._now: tuple[int, int] = (0, 0)  # (revision, stamp) of the last recorded event
         self.dropped = 0
         self.failures = 0
@@ -233,8 +234,8 @@ class RerunRecorder:
         for recorded in self._maps.values():
             for i, j in tiles_of(recorded.grid.frame.full):
                 self._tile(recorded.grid, i, j)
-        for entity, (shape, colour) in self._observed.items():
-            self._shape(entity, shape, colour, static=False)
+        for entity, (shape, colour, seen) in self._observed.items():
+            self._shape(entity, shape, colour, static=False, seen=seen)
         self._text(f"recording continued from {previous.name} at revision {revision}", "INFO")
         log.info("Recording continues in %s (revision %d)", path, revision)
 
@@ -301,9 +302,22 @@ class RerunRecorder:
         self.stream.log("events", rr.TextLog(text, level=level))
 
     def _shape(
-        self, path: str, shape: ElementShape, colour: tuple[int, int, int, int], *, static: bool
+        self,
+        path: str,
+        shape: ElementShape,
+        colour: tuple[int, int, int, int],
+        *,
+        static: bool,
+        seen: tuple[str, int, int] | None = None,
     ) -> None:
+        """One element's mesh; ``seen`` (robot, revision, time ns) for what a robot observed, shown when
+        an operator selects it."""
         m = shape.placement
+        provenance: dict[str, Any] = {}
+        if seen is not None:
+            robot, revision, stamp_ns = seen
+            when = str(np.datetime64(stamp_ns, "ns").astype("datetime64[ms]")) + "Z"
+            provenance = {"observed_by": robot, "observed_revision": revision, "observed_at": when}
         self.stream.log(path, rr.Transform3D(translation=m[:3, 3], mat3x3=m[:3, :3]), static=static)
         self.stream.log(
             path,
@@ -312,7 +326,7 @@ class RerunRecorder:
                 triangle_indices=shape.mesh.faces.astype(np.uint32),
                 albedo_factor=colour,
             ),
-            rr.AnyValues(iri=shape.iri, ifc_class=shape.ifc_class, name=shape.name),
+            rr.AnyValues(iri=shape.iri, ifc_class=shape.ifc_class, name=shape.name, **provenance),
             static=static,
         )
 
@@ -436,8 +450,9 @@ class RerunRecorder:
             colour = _OBSERVED if not shape.is_static else colour_of(shape)
             if shape.is_open:
                 colour = (colour[0], colour[1], colour[2], 60)
-            self._shape(path, shape, colour, static=False)
-            self._observed[path] = (shape, colour)
+            seen = (event.robot, event.revision, event.stamp_ns)
+            self._shape(path, shape, colour, static=False, seen=seen)
+            self._observed[path] = (shape, colour, seen)
         for iri in event.removed:
             path = f"world/observations/{entity_name(event.robot)}/{entity_name(iri)}"
             self._observed.pop(path, None)

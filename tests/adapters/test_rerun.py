@@ -110,6 +110,11 @@ def test_observations_rejections_and_the_building_are_recorded(tmp_path: Path) -
     assert len(meshes) == elements - 1  # every element with geometry but the observed crate
     observed = [e for e in entities if e.startswith("/world/observations/robot1/")]
     assert any(e.endswith("table") for e in observed) and any(e.endswith("crate") for e in observed)
+    crate = next(e for e in observed if e.endswith("crate"))
+    batch = next(b for b in entities[crate] if "observed_by" in b.schema.names)
+    assert column(batch, "observed_by")[0] == ["robot1"]  # who saw it, shown on selection
+    assert column(batch, "observed_revision")[0] == [3]
+    assert column(batch, "observed_at")[0][0].startswith("20")
     assert any(e.endswith("/changed") for e in entities)
 
 
