@@ -131,7 +131,7 @@ def cmd_query(args: argparse.Namespace, cfg: Config) -> int:
 
 
 def cmd_sample(args: argparse.Namespace, cfg: Config) -> int:
-    from adapters.sample_lab import write_lab
+    from adapters.ifc.sample_lab import write_lab
 
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from adapters.ifc import read_model
-from adapters.sample_lab import LabLayout, write_lab
+from adapters.ifc.sample_lab import LabLayout, write_lab
 from tests.conftest import imported
 from twin.config import Config
 from twin.records import BuildingModel

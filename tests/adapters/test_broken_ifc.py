@@ -30,7 +30,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from adapters.sample_lab import write_lab
+from adapters.ifc.sample_lab import write_lab
 from tests.conftest import examples
 
 TIMEOUT_S = 60.0

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from adapters.sample_lab import DOOR_HOST, Box
+from adapters.ifc.sample_lab import DOOR_HOST, Box
 from tests.adapters.map_reference import (
     compare_map,
     compare_model,

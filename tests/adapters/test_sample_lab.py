@@ -15,7 +15,7 @@ import ifcopenshell.util.unit
 import numpy as np
 import pytest
 
-from adapters.sample_lab import (
+from adapters.ifc.sample_lab import (
     ARCH,
     BUILDING_OFFSET,
     DOOR,

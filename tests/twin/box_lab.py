@@ -1,6 +1,6 @@
 """The paper's lab as core records built from boxes: no IFC, no ifcopenshell (the core's own tests).
 
-Same layout as ``adapters.sample_lab`` (world frame: the building at x 10.., y 5..), ground floor only
+Same layout as ``adapters.ifc.sample_lab`` (world frame: the building at x 10.., y 5..), ground floor only
 unless ``storeys=2``: rooms A and B joined by a corridor, an arch across the corridor, a glass wall on
 room B's east side, Door A in the gap of Wall A south (x 1.55..2.45, a header above 2.1 m), and a
 table in room A.

@@ -47,7 +47,7 @@ the opencascade kernel cuts exactly.)
 
 Example::
 
-    from adapters.sample_lab import write_lab
+    from adapters.ifc.sample_lab import write_lab
 
     layout = write_lab("lab.ifc", length_unit="foot", storeys=2)
     layout.arch.box.zmin          # 0.3 (metres, world frame, whatever the file's unit)
