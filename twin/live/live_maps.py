@@ -91,12 +91,26 @@ class _Element:
     shape: Shape
     meshes: MeshSet
     bounds: FloatArray | None
+    upright: bool = False
+    """An upright box (a ``twin:box``: eight corners, turned about +z only): its cells are the same in
+    every map of one frame whose band it crosses, so they are rasterised once for all of them."""
 
     @classmethod
     def of(cls, iri: str, shape: Shape) -> _Element:
         meshes = MeshSet.build([(iri, shape[0], shape[1])])
         b = meshes.bounds[0]
-        return cls(shape, meshes, None if np.isnan(b).any() else b)
+        return cls(shape, meshes, None if np.isnan(b).any() else b, _is_upright_box(shape))
+
+
+def _is_upright_box(shape: Shape) -> bool:
+    mesh, placement = shape
+    if mesh.vertices.shape != (8, 3) or len(mesh.faces) != 12 or not mesh.closed:
+        return False
+    r = placement[:3, :3]
+    if r[2, 2] != 1.0 or r[0, 2] != 0.0 or r[1, 2] != 0.0 or r[2, 0] != 0.0 or r[2, 1] != 0.0:
+        return False
+    v = mesh.vertices
+    return all(len(np.unique(v[:, k])) == 2 for k in range(3)) and len(np.unique(v, axis=0)) == 8
 
 
 _ONE: IndexArray = np.zeros(1, dtype=np.intp)
@@ -110,10 +124,14 @@ class _Rasters:
     """Occupancy of each overlay element on each map's grid, in the element's own window."""
 
     cells: dict[tuple[str, MapKey], tuple[Window, BoolGrid] | None] = field(default_factory=dict)
+    shared: dict[tuple[str, object], tuple[Window, BoolGrid] | None] = field(default_factory=dict)
+    """Upright boxes: one raster per frame, for every map of that frame whose band they cross."""
 
     def drop(self, iri: str) -> None:
         for key in [k for k in self.cells if k[0] == iri]:
             del self.cells[key]
+        for shared in [k for k in self.shared if k[0] == iri]:
+            del self.shared[shared]
 
 
 def _grow(w: Window, pad: int) -> Window:
@@ -166,8 +184,15 @@ class LiveMaps:
         key = (iri, m.key)
         if key in self._rasters.cells:
             return self._rasters.cells[key]
-        out: tuple[Window, BoolGrid] | None = None
         b = el.bounds
+        out: tuple[Window, BoolGrid] | None = None
+        shared = None
+        if el.upright and b is not None and b[2] < m.plan.z_hi - 1e-6 and b[5] > m.plan.z_lo + 1e-6:
+            shared = (iri, ("upright", m.plan.frame))  # the same cells in every band it crosses
+            if shared in self._rasters.shared:
+                out = self._rasters.shared[shared]
+                self._rasters.cells[key] = out
+                return out
         if b is not None and _in_band(b, m.plan):
             frame = m.plan.frame
             win = _grow(frame.window_for(b[0], b[1], b[3], b[4]), 1).intersect(frame.full)
@@ -175,6 +200,8 @@ class LiveMaps:
                 cells = occupancy(el.meshes, _ONE, m.plan, win)
                 out = (win, cells) if cells.any() else None
         self._rasters.cells[key] = out
+        if shared is not None:
+            self._rasters.shared[shared] = out
         return out
 
     def _occupancy(self, m: LiveMap, window: Window) -> BoolGrid:
