@@ -35,6 +35,7 @@ import numpy.typing as npt
 
 from twin.grid import FREE, UNKNOWN, GridData, OccupancyGrid, Window
 from twin.maps import BoolGrid, MapPlan, dilate_disk, occupancy, plan_map, render_layers
+from twin.raster.boxes import box_footprint, footprint_cells
 from twin.records import FloatArray, GeometryChange, Shape
 from twin.scene import IndexArray, MeshSet, Scene
 from twin.skills import SkillProfile
@@ -91,15 +92,17 @@ class _Element:
     shape: Shape
     meshes: MeshSet
     bounds: FloatArray | None
-    upright: bool = False
-    """An upright box (a ``twin:box``: eight corners, turned about +z only): its cells are the same in
-    every map of one frame whose band it crosses, so they are rasterised once for all of them."""
+    footprint: FloatArray | None = None
+    """An upright box's (a ``twin:box``: eight corners, turned about +z only) footprint corners: in a
+    band it crosses its cells are those of the footprint (:mod:`twin.raster.boxes`), the same in every
+    map of one frame, so they are computed once for all of them."""
 
     @classmethod
     def of(cls, iri: str, shape: Shape) -> _Element:
         meshes = MeshSet.build([(iri, shape[0], shape[1])])
         b = meshes.bounds[0]
-        return cls(shape, meshes, None if np.isnan(b).any() else b, _is_upright_box(shape))
+        footprint = box_footprint(shape[0].vertices, shape[1]) if _is_upright_box(shape) else None
+        return cls(shape, meshes, None if np.isnan(b).any() else b, footprint)
 
 
 def _is_upright_box(shape: Shape) -> bool:
@@ -140,6 +143,11 @@ def _grow(w: Window, pad: int) -> Window:
 
 def _in_band(b: FloatArray, plan: MapPlan) -> bool:
     return not (b[2] > plan.z_hi or b[5] < plan.z_lo)
+
+
+def _crosses(b: FloatArray | None, plan: MapPlan) -> bool:
+    """The bounds reach from below the band's bottom to above its top (an upright box's fast path)."""
+    return b is not None and b[2] < plan.z_hi - 1e-6 and b[5] > plan.z_lo + 1e-6
 
 
 class LiveMaps:
@@ -187,7 +195,7 @@ class LiveMaps:
         b = el.bounds
         out: tuple[Window, BoolGrid] | None = None
         shared = None
-        if el.upright and b is not None and b[2] < m.plan.z_hi - 1e-6 and b[5] > m.plan.z_lo + 1e-6:
+        if el.footprint is not None and _crosses(b, m.plan):
             shared = (iri, ("upright", m.plan.frame))  # the same cells in every band it crosses
             if shared in self._rasters.shared:
                 out = self._rasters.shared[shared]
@@ -197,35 +205,41 @@ class LiveMaps:
             frame = m.plan.frame
             win = _grow(frame.window_for(b[0], b[1], b[3], b[4]), 1).intersect(frame.full)
             if not win.empty:
-                cells = occupancy(el.meshes, _ONE, m.plan, win)
+                if shared is not None and el.footprint is not None:
+                    cells = footprint_cells(el.footprint, frame, win)
+                else:
+                    cells = occupancy(el.meshes, _ONE, m.plan, win)
                 out = (win, cells) if cells.any() else None
         self._rasters.cells[key] = out
         if shared is not None:
             self._rasters.shared[shared] = out
         return out
 
+    def _or_raster(self, m: LiveMap, iri: str, el: _Element, occ: BoolGrid, window: Window) -> None:
+        """OR the element's own occupancy on ``m`` into ``occ``, the cells of ``window``."""
+        hit = self._raster(m, iri, el)
+        if hit is None:
+            return
+        win, cells = hit
+        w = win.intersect(window)
+        if w.empty:
+            return
+        dst = occ[w.row0 - window.row0 : w.row1 - window.row0, w.col0 - window.col0 : w.col1 - window.col0]
+        dst |= cells[w.row0 - win.row0 : w.row1 - win.row0, w.col0 - win.col0 : w.col1 - win.col0]
+
     def _occupancy(self, m: LiveMap, window: Window) -> BoolGrid:
         """Occupancy (before inflation) of ``window``: the static cells OR each overlay element's."""
         occ = m.static[window.row0 : window.row1, window.col0 : window.col1].copy()
         for iri in m.overlay:
             el = self._overlay.get(iri)
-            if el is None:
-                continue
-            hit = self._raster(m, iri, el)
-            if hit is None:
-                continue
-            win, cells = hit
-            w = win.intersect(window)
-            if w.empty:
-                continue
-            occ[w.row0 - window.row0 : w.row1 - window.row0, w.col0 - window.col0 : w.col1 - window.col0] |= (
-                cells[w.row0 - win.row0 : w.row1 - win.row0, w.col0 - win.col0 : w.col1 - win.col0]
-            )
+            if el is not None:
+                self._or_raster(m, iri, el, occ, window)
         return occ
 
     def _occupancy_at_once(self, m: LiveMap, window: Window) -> BoolGrid:
-        """Like :meth:`_occupancy`, with every overlay element in ``window`` rasterised in one call (cheaper
-        than one per element when several changed at once, as under load)."""
+        """Like :meth:`_occupancy`, with every overlay element in ``window`` that is not an upright box
+        rasterised in one call (cheaper than one per element when several changed at once, as under
+        load); upright boxes take their own fast path."""
         occ = m.static[window.row0 : window.row1, window.col0 : window.col1].copy()
         f = m.plan.frame
         x0, y0 = f.origin_x + window.col0 * f.resolution_m, f.origin_y + window.row0 * f.resolution_m
@@ -236,7 +250,11 @@ class LiveMaps:
             b = None if el is None else el.bounds
             if el is None or b is None or not _in_band(b, m.plan):
                 continue
-            if b[0] <= x1 and b[3] >= x0 and b[1] <= y1 and b[4] >= y0:
+            if not (b[0] <= x1 and b[3] >= x0 and b[1] <= y1 and b[4] >= y0):
+                continue
+            if el.footprint is not None and _crosses(b, m.plan):
+                self._or_raster(m, iri, el, occ, window)
+            else:
                 items.append((iri, *el.shape))
         if items:
             meshes = MeshSet.build(items)
