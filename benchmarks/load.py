@@ -106,8 +106,8 @@ def robot(endpoint: str, index: int, rate: float, duration: float, start_at: flo
     return 0
 
 
-def subscriber(endpoint: str) -> int:
-    """Watch every ground-floor map; on EOF of stdin print the receipts and the final copies as JSON."""
+def subscriber(endpoint: str, storey: str = STOREY) -> int:
+    """Watch every map of ``storey``; on EOF of stdin print the receipts and the final copies as JSON."""
     from adapters.zenoh.client import MapVersion, TwinClient
 
     lock = threading.Lock()
@@ -118,7 +118,7 @@ def subscriber(endpoint: str) -> int:
             receipts.append((v.grid.skill, v.revision, time.time()))
 
     with TwinClient.connect([endpoint], timeout_s=30.0) as twin:
-        watchers = [twin.watch(STOREY, skill, on_version) for skill in SKILLS]
+        watchers = [twin.watch(storey, skill, on_version) for skill in SKILLS]
         print(json.dumps({"ready": True}), flush=True)
         sys.stdin.read()
         final = {
@@ -279,7 +279,7 @@ def main() -> int:
         kind, *rest = args.child
         if kind == "robot":
             return robot(rest[0], int(rest[1]), float(rest[2]), float(rest[3]), float(rest[4]))
-        return subscriber(rest[0])
+        return subscriber(*rest[:2])
     print(
         f"load: {args.robots} robots x {args.rate:g} obs/s for {args.duration:g} s, "
         f"{args.subscribers} subscribers ...",

@@ -48,7 +48,15 @@ STOREY = load.STOREY
 
 
 def robot(
-    endpoint: str, index: int, rate: float, duration: float, start_at: float, *, reconfirm: float
+    endpoint: str,
+    index: int,
+    rate: float,
+    duration: float,
+    start_at: float,
+    *,
+    reconfirm: float,
+    storey: str = STOREY,
+    area: tuple[float, float, float, float] = load.CORRIDOR,
 ) -> int:
     """One JSON line per observation: sent, acked, ok, revision, whether it changed anything."""
     from adapters.zenoh.client import TwinClient
@@ -56,7 +64,7 @@ def robot(
 
     rng = random.Random(index)
     name = f"robot{index}"
-    x0, x1, y0, y1 = load.CORRIDOR
+    x0, x1, y0, y1 = area
     table = f"urn:soak:{name}:table"
     present, payload = False, ""
     with TwinClient.connect([endpoint], timeout_s=10.0) as twin:
@@ -72,7 +80,7 @@ def robot(
                 op = "move" if present else "add"
                 x, y, yaw = rng.uniform(x0, x1), rng.uniform(y0, y1), rng.uniform(0, 3)
                 doc = payload = (
-                    f'<{table}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "{STOREY}" ; '
+                    f'<{table}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "{storey}" ; '
                     f'<{TWIN}box> "{x:.3f} {y:.3f} 0.375 0.8 0.6 0.75 {yaw:.3f}" .'
                 )
             sent = time.time()
@@ -111,9 +119,16 @@ def run(
     warmup_s: float,
     quiet: bool = False,
     flush_every_s: float | None = None,
+    model: str = "lab",
 ) -> dict[str, Any]:
+    """One soak on ``model`` (the lab's corridor, or the busiest storey's extent of another model)."""
     work = Path(tempfile.mkdtemp(prefix="soak-"))
-    store = live.prepare_store("lab", work)
+    store = live.prepare_store(model, work)
+    if model == "lab":
+        storey, area = STOREY, load.CORRIDOR
+    else:
+        storey, (ex0, ey0, ex1, ey1), _ = live.busiest(store)
+        area = (ex0 + 1.0, ex1 - 1.0, ey0 + 1.0, ey1 - 1.0)
     endpoint = f"tcp/127.0.0.1:{live._free_port()}"
     config = work / "soak.toml"
     config.write_text(f"[store]\nflush_every_s = {flush_every_s}\n" if flush_every_s else "")
@@ -124,7 +139,8 @@ def run(
     try:
         return _run(daemon, children, store, endpoint, robots=robots, rate=rate, duration=duration,
                     subscribers=subscribers, reconfirm=reconfirm, sample_s=sample_s, warmup_s=warmup_s,
-                    quiet=quiet, flush_every_s=flush_every_s)  # fmt: skip
+                    quiet=quiet, flush_every_s=flush_every_s, model=model, storey=storey,
+                    area=area)  # fmt: skip
     finally:  # an interrupted soak (SIGINT, SIGTERM) leaves no process behind
         for c in children:
             if c.poll() is None:
@@ -147,12 +163,15 @@ def _run(
     warmup_s: float,
     quiet: bool,
     flush_every_s: float | None,
+    model: str,
+    storey: str,
+    area: tuple[float, float, float, float],
 ) -> dict[str, Any]:
     from adapters.zenoh.client import TwinClient
 
     assert daemon.stdout is not None
     threading.Thread(target=daemon.stdout.read, daemon=True).start()  # drain its log
-    subs = [load._child("subscriber", endpoint, stdin=True) for _ in range(subscribers)]
+    subs = [load._child("subscriber", endpoint, storey, stdin=True) for _ in range(subscribers)]
     children += subs
     for s in subs:
         assert s.stdout is not None and json.loads(s.stdout.readline())["ready"]
@@ -170,6 +189,8 @@ def _run(
                 str(duration),
                 str(start_at),
                 str(reconfirm),
+                storey,
+                *map(str, area),
             ],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
@@ -240,7 +261,7 @@ def _run(
     with TwinClient.connect([endpoint], timeout_s=30.0) as twin:
         daemon_final = {}
         for skill in load.SKILLS:
-            grid, _, version = twin.get_map(STOREY, skill)
+            grid, _, version = twin.get_map(storey, skill)
             daemon_final[skill] = [version, load._digest(grid.data)]
     attempts = [
         {"iri": ln[0], "op": ln[1], "ok": ln[4], "revision": ln[5]} for ln in lines if ln[4] and not ln[6]
@@ -260,6 +281,8 @@ def _run(
     window = min(max(flush_every_s or 60.0, 2 * sample_s), span / 4)  # one flush period
     obs_after = (after[-1]["observations"] - after[0]["observations"]) if len(after) > 1 else 0
     return {
+        "model": model,
+        "storey": storey,
         "robots": robots,
         "offered_per_s": rate,
         "reconfirm_share": reconfirm,
@@ -345,6 +368,7 @@ def plot(result: dict[str, Any], out: Path) -> None:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    p.add_argument("--model", default="lab", help="lab, janesville, ... or an IFC path (see live.py)")
     p.add_argument("--robots", type=int, default=4)
     p.add_argument("--rate", type=float, default=100.0, help="offered observations per second, all robots")
     p.add_argument("--reconfirm", type=float, default=0.5, help="share of re-confirmations (0..1)")
@@ -364,9 +388,12 @@ def main() -> int:
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # run the cleanup in run()'s finally
     if args.child:
         c = args.child
-        return robot(c[0], int(c[1]), float(c[2]), float(c[3]), float(c[4]), reconfirm=float(c[5]))
+        area = (float(c[7]), float(c[8]), float(c[9]), float(c[10]))
+        rate, duration, start_at = float(c[2]), float(c[3]), float(c[4])
+        return robot(c[0], int(c[1]), rate, duration, start_at, reconfirm=float(c[5]), storey=c[6], area=area)
     print(
-        f"soak: {args.robots} robots, {args.rate:g} obs/s offered ({args.reconfirm:.0%} re-confirmations) "
+        f"soak ({args.model}): {args.robots} robots, {args.rate:g} obs/s offered "
+        f"({args.reconfirm:.0%} re-confirmations) "
         f"for {args.duration:g} s, {args.subscribers} subscribers",
         file=sys.stderr,
     )
@@ -379,6 +406,7 @@ def main() -> int:
         sample_s=args.sample,
         warmup_s=min(args.warmup, args.duration / 2),
         flush_every_s=args.flush_every,
+        model=args.model,
     )
     for key, value in result.items():
         if key != "samples":

@@ -87,22 +87,31 @@ class LiveMap:
 
 @dataclass(eq=False, slots=True)
 class _Element:
-    """One overlay element: its shape, as a mesh set of one, and its world bounds."""
+    """One overlay element: its shape, its world bounds and (made when first needed) its mesh set."""
 
     shape: Shape
-    meshes: MeshSet
     bounds: FloatArray | None
     footprint: FloatArray | None = None
     """An upright box's (a ``twin:box``: eight corners, turned about +z only) footprint corners: in a
     band it crosses its cells are those of the footprint (:mod:`twin.raster.boxes`), the same in every
     map of one frame, so they are computed once for all of them."""
+    _meshes: MeshSet | None = None
 
     @classmethod
-    def of(cls, iri: str, shape: Shape) -> _Element:
-        meshes = MeshSet.build([(iri, shape[0], shape[1])])
-        b = meshes.bounds[0]
-        footprint = box_footprint(shape[0].vertices, shape[1]) if _is_upright_box(shape) else None
-        return cls(shape, meshes, None if np.isnan(b).any() else b, footprint)
+    def of(cls, shape: Shape) -> _Element:
+        mesh, placement = shape
+        if not mesh.triangle_count:
+            return cls(shape, None)
+        world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]  # as MeshSet.build, bit for bit
+        used = world[mesh.faces.ravel()]
+        b = np.concatenate([used.min(axis=0), used.max(axis=0)])
+        footprint = box_footprint(mesh.vertices, placement) if _is_upright_box(shape) else None
+        return cls(shape, None if np.isnan(b).any() else b, footprint)
+
+    def meshes(self, iri: str) -> MeshSet:
+        if self._meshes is None:
+            self._meshes = MeshSet.build([(iri, self.shape[0], self.shape[1])])
+        return self._meshes
 
 
 def _is_upright_box(shape: Shape) -> bool:
@@ -113,7 +122,11 @@ def _is_upright_box(shape: Shape) -> bool:
     if r[2, 2] != 1.0 or r[0, 2] != 0.0 or r[1, 2] != 0.0 or r[2, 0] != 0.0 or r[2, 1] != 0.0:
         return False
     v = mesh.vertices
-    return all(len(np.unique(v[:, k])) == 2 for k in range(3)) and len(np.unique(v, axis=0)) == 8
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    if not ((lo < hi).all() and ((v == lo) | (v == hi)).all()):
+        return False  # not two distinct values per axis
+    corner = (v == hi) @ np.array([1, 2, 4])
+    return bool((np.bincount(corner, minlength=8) == 1).all())  # the eight corners, each once
 
 
 _ONE: IndexArray = np.zeros(1, dtype=np.intp)
@@ -208,7 +221,7 @@ class LiveMaps:
                 if shared is not None and el.footprint is not None:
                     cells = footprint_cells(el.footprint, frame, win)
                 else:
-                    cells = occupancy(el.meshes, _ONE, m.plan, win)
+                    cells = occupancy(el.meshes(iri), _ONE, m.plan, win)
                 out = (win, cells) if cells.any() else None
         self._rasters.cells[key] = out
         if shared is not None:
@@ -415,7 +428,7 @@ class LiveMaps:
             if ch.new is None:
                 self._overlay.pop(ch.iri, None)
             else:
-                self._overlay[ch.iri] = _Element.of(ch.iri, ch.new)
+                self._overlay[ch.iri] = _Element.of(ch.new)
         for m in self.maps.values():
             for iri, selected in membership.get(m.plan.skill.name, {}).items():
                 if iri in self._overlay and selected:
