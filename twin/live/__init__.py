@@ -11,7 +11,8 @@
 - :mod:`twin.live.requests`: requests and replies.
 """
 
+from twin.live.publication import PublishedMap
 from twin.live.requests import Reply
-from twin.live.service import PublishedMap, TwinService
+from twin.live.service import TwinService
 
 __all__ = ["PublishedMap", "Reply", "TwinService"]

@@ -1,8 +1,8 @@
 """The live maps: the twin's geometry as it changes, and every skill map kept current, fast.
 
 The imported elements form a frozen base (:class:`~twin.scene.MeshSet`); what robots changed lives in
-an overlay, one small mesh set per element (a new element, a moved or reshaped one); a base element
-that was moved, reshaped or removed is hidden in the base.
+an overlay (:mod:`twin.live.overlay`: a new element, a moved or reshaped one); a base element that was
+moved, reshaped or removed is hidden in the base. One map's cells and versions: :mod:`twin.live.live_map`.
 
 Each (storey, skill) map keeps, besides its cells:
 
@@ -10,7 +10,8 @@ Each (storey, skill) map keeps, besides its cells:
   grid, rendered once at start and patched only when a base element changes (a door opened, a wall
   removed: rare);
 - the occupancy of each selected overlay element in its own small window (cached per element and map,
-  dropped when the element changes).
+  dropped when the element changes); an upright box (``twin:box``) crossing the band is drawn straight
+  from its footprint (:mod:`twin.raster.boxes`), once for all the maps of one grid frame.
 
 A map is the union of its elements' maps, so a window is re-rendered by OR-ing the static cells with
 the overlay elements that overlap it, then inflating; moving a table costs one rasterisation of the
@@ -28,139 +29,30 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
-import numpy.typing as npt
 
-from twin.grid import FREE, UNKNOWN, GridData, OccupancyGrid, Window
-from twin.maps import BoolGrid, MapPlan, dilate_disk, occupancy, plan_map, render_layers
-from twin.raster.boxes import box_footprint, footprint_cells
+from twin.grid import FREE, UNKNOWN, GridData, Window
+from twin.live.live_map import LiveMap, WindowUpdate
+from twin.live.overlay import (
+    MapKey,
+    OverlayElement,
+    RasterCache,
+    crosses,
+    dirty_windows,
+    grow,
+    in_band,
+)
+from twin.maps import BoolGrid, dilate_disk, occupancy, plan_map, render_layers
+from twin.raster.boxes import footprint_cells
 from twin.records import FloatArray, GeometryChange, Shape
 from twin.scene import IndexArray, MeshSet, Scene
 from twin.skills import SkillProfile
-
-MapKey = tuple[str, str]
-"""``(storey key, skill name)``."""
-
-
-@dataclass(frozen=True, eq=False, slots=True)
-class WindowUpdate:
-    """New cells of one map: ``data`` holds the values of ``window``; the map is now at ``version``."""
-
-    storey: str
-    skill: str
-    window: Window
-    data: GridData
-    version: int
-
-
-@dataclass(eq=False, slots=True)
-class LiveMap:
-    """One (storey, skill) map as the live twin keeps it."""
-
-    plan: MapPlan
-    base_mask: npt.NDArray[np.bool_]
-    """Which base elements the skill selects."""
-    overlay: set[str]
-    """Which overlay elements the skill selects."""
-    static: BoolGrid
-    """Occupancy (before inflation) of the selected, visible base elements, whole grid."""
-    inside: BoolGrid | None
-    """Cells inside a space (only for ``unknown_outside`` skills)."""
-    data: GridData
-    version: int = 1
-
-    @property
-    def key(self) -> MapKey:
-        return (self.plan.storey.key, self.plan.skill.name)
-
-    def grid(self) -> OccupancyGrid:
-        return OccupancyGrid(
-            frame=self.plan.frame,
-            data=self.data.copy(),
-            storey=self.plan.storey.key,
-            skill=self.plan.skill.name,
-            elevation_m=self.plan.storey.elevation_m,
-        )
-
-
-@dataclass(eq=False, slots=True)
-class _Element:
-    """One overlay element: its shape, its world bounds and (made when first needed) its mesh set."""
-
-    shape: Shape
-    bounds: FloatArray | None
-    footprint: FloatArray | None = None
-    """An upright box's (a ``twin:box``: eight corners, turned about +z only) footprint corners: in a
-    band it crosses its cells are those of the footprint (:mod:`twin.raster.boxes`), the same in every
-    map of one frame, so they are computed once for all of them."""
-    _meshes: MeshSet | None = None
-
-    @classmethod
-    def of(cls, shape: Shape) -> _Element:
-        mesh, placement = shape
-        if not mesh.triangle_count:
-            return cls(shape, None)
-        world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]  # as MeshSet.build, bit for bit
-        used = world[mesh.faces.ravel()]
-        b = np.concatenate([used.min(axis=0), used.max(axis=0)])
-        footprint = box_footprint(mesh.vertices, placement) if _is_upright_box(shape) else None
-        return cls(shape, None if np.isnan(b).any() else b, footprint)
-
-    def meshes(self, iri: str) -> MeshSet:
-        if self._meshes is None:
-            self._meshes = MeshSet.build([(iri, self.shape[0], self.shape[1])])
-        return self._meshes
-
-
-def _is_upright_box(shape: Shape) -> bool:
-    mesh, placement = shape
-    if mesh.vertices.shape != (8, 3) or len(mesh.faces) != 12 or not mesh.closed:
-        return False
-    r = placement[:3, :3]
-    if r[2, 2] != 1.0 or r[0, 2] != 0.0 or r[1, 2] != 0.0 or r[2, 0] != 0.0 or r[2, 1] != 0.0:
-        return False
-    v = mesh.vertices
-    lo, hi = v.min(axis=0), v.max(axis=0)
-    if not ((lo < hi).all() and ((v == lo) | (v == hi)).all()):
-        return False  # not two distinct values per axis
-    corner = (v == hi) @ np.array([1, 2, 4])
-    return bool((np.bincount(corner, minlength=8) == 1).all())  # the eight corners, each once
-
 
 _ONE: IndexArray = np.zeros(1, dtype=np.intp)
 _AT_ONCE_AREA = 4
 """Windows changed together are rendered in one pass over their bounding window when it is at most this
 many times their total area (else each alone)."""
-
-
-@dataclass(eq=False, slots=True)
-class _Rasters:
-    """Occupancy of each overlay element on each map's grid, in the element's own window."""
-
-    cells: dict[tuple[str, MapKey], tuple[Window, BoolGrid] | None] = field(default_factory=dict)
-    shared: dict[tuple[str, object], tuple[Window, BoolGrid] | None] = field(default_factory=dict)
-    """Upright boxes: one raster per frame, for every map of that frame whose band they cross."""
-
-    def drop(self, iri: str) -> None:
-        for key in [k for k in self.cells if k[0] == iri]:
-            del self.cells[key]
-        for shared in [k for k in self.shared if k[0] == iri]:
-            del self.shared[shared]
-
-
-def _grow(w: Window, pad: int) -> Window:
-    return Window(w.row0 - pad, w.col0 - pad, w.row1 + pad, w.col1 + pad)
-
-
-def _in_band(b: FloatArray, plan: MapPlan) -> bool:
-    return not (b[2] > plan.z_hi or b[5] < plan.z_lo)
-
-
-def _crosses(b: FloatArray | None, plan: MapPlan) -> bool:
-    """The bounds reach from below the band's bottom to above its top (an upright box's fast path)."""
-    return b is not None and b[2] < plan.z_hi - 1e-6 and b[5] > plan.z_lo + 1e-6
 
 
 class LiveMaps:
@@ -170,8 +62,8 @@ class LiveMaps:
         self.scene = scene
         self.margin_m = margin_m
         self.hidden = np.zeros(len(scene.elements), dtype=np.bool_)
-        self._overlay: dict[str, _Element] = {}
-        self._rasters = _Rasters()
+        self._overlay: dict[str, OverlayElement] = {}
+        self._rasters = RasterCache()
         self.maps: dict[MapKey, LiveMap] = {}
 
     # --- geometry ----------------------------------------------------------------------------------
@@ -200,7 +92,7 @@ class LiveMaps:
     def _base_ids(self, m: LiveMap) -> IndexArray:
         return np.flatnonzero(m.base_mask & ~self.hidden).astype(np.intp)
 
-    def _raster(self, m: LiveMap, iri: str, el: _Element) -> tuple[Window, BoolGrid] | None:
+    def _raster(self, m: LiveMap, iri: str, el: OverlayElement) -> tuple[Window, BoolGrid] | None:
         """The element's occupancy on ``m``'s grid in its own window (cached), None if it has none."""
         key = (iri, m.key)
         if key in self._rasters.cells:
@@ -208,15 +100,15 @@ class LiveMaps:
         b = el.bounds
         out: tuple[Window, BoolGrid] | None = None
         shared = None
-        if el.footprint is not None and _crosses(b, m.plan):
+        if el.footprint is not None and crosses(b, m.plan):
             shared = (iri, ("upright", m.plan.frame))  # the same cells in every band it crosses
             if shared in self._rasters.shared:
                 out = self._rasters.shared[shared]
                 self._rasters.cells[key] = out
                 return out
-        if b is not None and _in_band(b, m.plan):
+        if b is not None and in_band(b, m.plan):
             frame = m.plan.frame
-            win = _grow(frame.window_for(b[0], b[1], b[3], b[4]), 1).intersect(frame.full)
+            win = grow(frame.window_for(b[0], b[1], b[3], b[4]), 1).intersect(frame.full)
             if not win.empty:
                 if shared is not None and el.footprint is not None:
                     cells = footprint_cells(el.footprint, frame, win)
@@ -228,7 +120,7 @@ class LiveMaps:
             self._rasters.shared[shared] = out
         return out
 
-    def _or_raster(self, m: LiveMap, iri: str, el: _Element, occ: BoolGrid, window: Window) -> None:
+    def _or_raster(self, m: LiveMap, iri: str, el: OverlayElement, occ: BoolGrid, window: Window) -> None:
         """OR the element's own occupancy on ``m`` into ``occ``, the cells of ``window``."""
         hit = self._raster(m, iri, el)
         if hit is None:
@@ -261,11 +153,11 @@ class LiveMaps:
         for iri in sorted(m.overlay):
             el = self._overlay.get(iri)
             b = None if el is None else el.bounds
-            if el is None or b is None or not _in_band(b, m.plan):
+            if el is None or b is None or not in_band(b, m.plan):
                 continue
             if not (b[0] <= x1 and b[3] >= x0 and b[1] <= y1 and b[4] >= y0):
                 continue
-            if el.footprint is not None and _crosses(b, m.plan):
+            if el.footprint is not None and crosses(b, m.plan):
                 self._or_raster(m, iri, el, occ, window)
             else:
                 items.append((iri, *el.shape))
@@ -284,7 +176,7 @@ class LiveMaps:
         if window.empty:
             return np.zeros((max(window.shape[0], 0), max(window.shape[1], 0)), dtype=np.int8)
         pad = math.floor(plan.inflation_cells + 1e-9)
-        padded = _grow(window, pad).intersect(plan.frame.full)
+        padded = grow(window, pad).intersect(plan.frame.full)
         if source is None:
             occupied = self._occupancy(m, padded)
         else:
@@ -336,7 +228,7 @@ class LiveMaps:
         for i in self._base_ids(m):
             b = self.scene.elements.bounds[i]
             outside = b[0] > x1 or b[3] < x0 or b[1] > y1 or b[4] < y0
-            if np.isnan(b).any() or outside or not _in_band(b, m.plan):
+            if np.isnan(b).any() or outside or not in_band(b, m.plan):
                 continue
             if occupancy(self.scene.elements, np.array([i], dtype=np.intp), m.plan, window).any():
                 out.append(self.scene.elements.iris[int(i)])
@@ -371,35 +263,6 @@ class LiveMaps:
         i = self.scene.elements.index.get(iri)
         return i is not None and bool(m.base_mask[i]) and not bool(self.hidden[i])
 
-    def _windows(self, m: LiveMap, boxes: Sequence[FloatArray], pad: int) -> list[Window]:
-        """Disjoint windows of ``m`` covering ``boxes`` (world AABBs in the map's band), grown by ``pad``
-        cells; windows that touch are merged (a table moved across a storey dirties two small windows,
-        not the rectangle between them)."""
-        p = m.plan
-        windows = []
-        for b in boxes:
-            if not _in_band(b, p):
-                continue
-            grown = _grow(p.frame.window_for(b[0], b[1], b[3], b[4]), pad).intersect(p.frame.full)
-            if not grown.empty:
-                windows.append(grown)
-        merged = True
-        while merged and len(windows) > 1:
-            merged = False
-            for i in range(len(windows)):
-                for j in range(i + 1, len(windows)):
-                    a, c = windows[i], windows[j]
-                    if a.row0 <= c.row1 and c.row0 <= a.row1 and a.col0 <= c.col1 and c.col0 <= a.col1:
-                        windows[i] = Window(
-                            min(a.row0, c.row0), min(a.col0, c.col0), max(a.row1, c.row1), max(a.col1, c.col1)
-                        )
-                        del windows[j]
-                        merged = True
-                        break
-                if merged:
-                    break
-        return windows
-
     def redraw(
         self,
         geometry: Sequence[GeometryChange],
@@ -428,7 +291,7 @@ class LiveMaps:
             if ch.new is None:
                 self._overlay.pop(ch.iri, None)
             else:
-                self._overlay[ch.iri] = _Element.of(ch.new)
+                self._overlay[ch.iri] = OverlayElement.of(ch.new)
         for m in self.maps.values():
             for iri, selected in membership.get(m.plan.skill.name, {}).items():
                 if iri in self._overlay and selected:
@@ -448,7 +311,7 @@ class LiveMaps:
             ]
             if gone:
                 ids = self._base_ids(m)
-                for win in self._windows(m, gone, 1):
+                for win in dirty_windows(m.plan, gone, 1):
                     m.static[win.row0 : win.row1, win.col0 : win.col1] = occupancy(
                         self.scene.elements, ids, m.plan, win
                     )
@@ -456,7 +319,7 @@ class LiveMaps:
             boxes = [b for i in was[key] if (b := old_bounds[i]) is not None]
             boxes += [b for i in touched if self._member(m, i) and (b := new_bounds[i]) is not None]
             pad = math.ceil(m.plan.inflation_cells) + 1
-            windows = self._windows(m, boxes, pad)
+            windows = dirty_windows(m.plan, boxes, pad)
             source = None
             if len(windows) > 1:  # several changes at once: rasterise them together if they lie close
                 u = Window(
@@ -466,20 +329,10 @@ class LiveMaps:
                     max(w.col1 for w in windows),
                 )
                 if u.shape[0] * u.shape[1] <= _AT_ONCE_AREA * sum(w.shape[0] * w.shape[1] for w in windows):
-                    grown = _grow(u, math.floor(m.plan.inflation_cells + 1e-9)).intersect(m.plan.frame.full)
+                    grown = grow(u, math.floor(m.plan.inflation_cells + 1e-9)).intersect(m.plan.frame.full)
                     source = (grown, self._occupancy_at_once(m, grown))
             fresh = [(win, self.render(m, win, source=source)) for win in windows]
             for win, cells in fresh:  # all rendered before any is written
-                old = m.data[win.row0 : win.row1, win.col0 : win.col1]
-                diff = np.argwhere(cells != old)
-                if not len(diff):
-                    continue
-                (r0, c0), (r1, c1) = diff.min(axis=0), diff.max(axis=0) + 1
-                changed = Window(
-                    win.row0 + int(r0), win.col0 + int(c0), win.row0 + int(r1), win.col0 + int(c1)
-                )
-                old[...] = cells
-                m.version += 1
-                data = m.data[changed.row0 : changed.row1, changed.col0 : changed.col1].copy()
-                updates.append(WindowUpdate(m.plan.storey.key, m.plan.skill.name, changed, data, m.version))
+                if (update := m.write(win, cells)) is not None:
+                    updates.append(update)
         return updates

@@ -35,6 +35,7 @@ from twin.events import (
     TwinEvent,
 )
 from twin.live.plan import ObservationPlan, plan_observation
+from twin.live.publication import Publication
 from twin.live.requests import ObserveRequest, Reply
 from twin.live.selection import needs_store, selects
 from twin.live.state import ElementState, LiveState, Sighting
@@ -90,6 +91,7 @@ class Observer:
         emit: Callable[[TwinEvent], None],
         send: Callable[[ObserveRequest, Reply], None],
         clock: Callable[[], int],
+        publication: Publication,
     ) -> None:
         self.store = store
         self.config = config
@@ -100,8 +102,7 @@ class Observer:
         self.accepted = 0
         self.unchanged = 0
         self.rejected = 0
-        self.pending_full: dict[tuple[str, str], int] = {}
-        """Maps changed since their last full publication -> when the first such change happened (ns)."""
+        self.publication = publication
         self._parsed: OrderedDict[bytes, tuple[ElementReport, ...]] = OrderedDict()
 
     def _parse(self, payload: bytes) -> tuple[ElementReport, ...]:
@@ -204,7 +205,7 @@ class Observer:
             self.emit(
                 MapUpdated(u.storey, u.skill, m.plan.frame, u.window, u.data, live.revision, u.version, stamp)
             )
-            self.pending_full.setdefault((u.storey, u.skill), stamp)
+            self.publication.changed((u.storey, u.skill), stamp)
             changes.append(MapChange(u.storey, u.skill, u.version, u.window))
         maps = tuple(changes)
         as_json = [c.as_json() for c in maps]

@@ -24,52 +24,25 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
-
-import numpy as np
 
 from twin.config import Config
 from twin.errors import TwinError
-from twin.events import ElementShape, MapPublished, MapRemoved, SkillChanged, TwinEvent, TwinSink, TwinStarted
-from twin.grid import OccupancyGrid
+from twin.events import ElementShape, TwinEvent, TwinSink, TwinStarted
 from twin.live.explain import explain_cell
-from twin.live.live_maps import LiveMap, LiveMaps
+from twin.live.live_maps import LiveMaps
+from twin.live.loading import load_live
 from twin.live.observe import Observer, element_shapes
+from twin.live.publication import Publication, PublishedMap
 from twin.live.query import run_query
 from twin.live.requests import ExplainRequest, ObserveRequest, Reply, ReplyFn, Request, SkillRequest
-from twin.live.skill_changes import add_skill_maps, skill_change, stored_skills
-from twin.live.state import ElementState, LiveState, SiteFrame, StoreyFrame, load_states
-from twin.scene import Scene, load_scene
+from twin.live.skill_changes import add_skill_maps, apply_skill
+from twin.live.state import ElementState, LiveState
 from twin.skills import SkillProfile
 from twin.store import GraphStore
 
 log = logging.getLogger(__name__)
 
 Clock = Callable[[], int]
-
-
-@dataclass(frozen=True, slots=True)
-class PublishedMap:
-    """The latest full version of a map that was published (what a ``get`` answers)."""
-
-    grid: OccupancyGrid
-    revision: int
-    version: int
-    stamp_ns: int
-
-
-def _site_box(scene: Scene, margin: float) -> tuple[float, float, float, float, float, float]:
-    b = scene.elements.bounds
-    b = b[~np.isnan(b).any(axis=1)]
-    exts = np.array([s.extent for s in scene.storeys]) if scene.storeys else b[:, [0, 1, 3, 4]]
-    return (
-        float(min(exts[:, 0].min(), b[:, 0].min())) - margin,
-        float(min(exts[:, 1].min(), b[:, 1].min())) - margin,
-        float(b[:, 2].min()) - margin,
-        float(max(exts[:, 2].max(), b[:, 3].max())) + margin,
-        float(max(exts[:, 3].max(), b[:, 4].max())) + margin,
-        float(b[:, 5].max()) + margin,
-    )
 
 
 class TwinService:
@@ -98,7 +71,9 @@ class TwinService:
         self.flush_every_s = config.store_flush_every_s if flush_every_s is None else flush_every_s
         self.housekeeping = list(housekeeping)
         self._queue: queue.Queue[Request] = queue.Queue()
-        self._published: dict[tuple[str, str], PublishedMap] = {}
+        self.publication = Publication(
+            emit=self._emit, clock=clock, interval_s=config.limits.full_map_interval_s
+        )
         self._live: LiveState | None = None
         self._observer: Observer | None = None
         self._started_ns = 0
@@ -110,35 +85,17 @@ class TwinService:
         """Load the twin, build every map, and emit TwinStarted then MapPublished for each map."""
         t0 = time.perf_counter()
         self._started_ns = self.clock()
-        model = self.store.select(
-            "SELECT ?m ?schema ?rev WHERE { ?m a twin:Model . OPTIONAL { ?m twin:ifcSchema ?schema } "
-            "OPTIONAL { ?m twin:revision ?rev } }"
-        )
-        if not model:
-            msg = "The store holds no imported model (no twin:Model node): import one first."
-            raise TwinError(msg)
-        model_iri = model[0]["m"] or ""
-        self._base_iri = model_iri.removesuffix("model")
-        scene = load_scene(self.store)
-        site = SiteFrame(
-            storeys={s.key: StoreyFrame(s.key, s.iri, s.elevation_m) for s in scene.storeys},
-            schema=(model[0]["schema"] or "IFC4"),
-            static_types=self.config.import_.static_types,
-            site_box=_site_box(scene, self.config.limits.site_margin_m),
-            model_iri=model_iri,
-        )
-        live = LiveState(
-            site=site,
-            maps=LiveMaps(scene, margin_m=self.config.margin_m),
-            states=load_states(self.store),
-            skills=stored_skills(self.store, dict(self.config.skills)),
-            revision=max(int(r["rev"] or 0) for r in model),
-            last_seen={},
-            held={},
-        )
+        live, self._base_iri = load_live(self.store, self.config)
+        scene = live.maps.scene
         self._live = live
         self._observer = Observer(
-            self.store, self.config, live, emit=self._emit, send=_send, clock=self.clock
+            self.store,
+            self.config,
+            live,
+            emit=self._emit,
+            send=_send,
+            clock=self.clock,
+            publication=self.publication,
         )
         self._flushed_at = (time.monotonic(), live.revision)
         stamp = self.clock()
@@ -154,11 +111,11 @@ class TwinService:
         )
         for skill in live.skills.values():
             for m in add_skill_maps(self.store, live, skill):
-                self._publish_full(m, stamp)
+                self.publication.publish(m, live.revision, stamp)
         log.info(
             "Twin started at revision %d: %d maps of %d skills on %d storeys in %.2f s",
             live.revision,
-            len(self._published),
+            len(self.publication.latest),
             len(live.skills),
             len(scene.storeys),
             time.perf_counter() - t0,
@@ -208,26 +165,11 @@ class TwinService:
             except Exception:  # a sink must never stop the twin
                 log.exception("Sink %s failed on %s", type(sink).__name__, type(event).__name__)
 
-    def _publish_full(self, m: LiveMap, stamp: int) -> None:
-        grid = m.grid()
-        self._published[m.key] = PublishedMap(grid, self.revision, m.version, stamp)
-        self._emit(MapPublished(grid, self.revision, m.version, stamp))
-
     def flush_full_maps(self, *, due_only: bool = False) -> None:
         """Publish the full version of every map changed since its last full publication; with
         ``due_only``, only of those whose first unpublished change is ``full_map_interval_s`` old."""
-        if self._observer is None:
-            return
-        pending = self._observer.pending_full
-        stamp = self.clock()
-        interval_ns = int(self.config.limits.full_map_interval_s * 1e9)
-        for key, since in sorted(pending.items()):
-            if due_only and stamp - since < interval_ns:
-                continue
-            del pending[key]
-            m = self.engine.maps.get(key)
-            if m is not None:
-                self._publish_full(m, stamp)
+        if self._live is not None:
+            self.publication.flush(self._live.maps.maps, self._live.revision, due_only=due_only)
 
     def flush_store(self, *, due_only: bool = False) -> None:
         """Flush the store's buffers if anything was committed since the last flush (with ``due_only``:
@@ -340,54 +282,27 @@ class TwinService:
 
     def _change_skill(self, req: SkillRequest) -> None:
         try:
-            reply = self._skill(req)
+            reply = apply_skill(
+                self.store,
+                self.live,
+                req,
+                base_iri=self._base_iri,
+                publication=self.publication,
+                emit=self._emit,
+                stamp=self.clock(),
+            )
         except Exception as err:  # a bug must cost one request, never the daemon
             log.exception("Internal error while handling a skill")
             reply = Reply.error(f"Internal error ({type(err).__name__}): {err}")
         _send(req, reply)
 
-    def _skill(self, req: SkillRequest) -> Reply:
-        live = self.live
-        stamp = self.clock()
-        try:
-            changes, profile = skill_change(self._base_iri, req.name, req.payload, live)
-            self.store.apply(changes)
-        except TwinError as err:
-            log.info("Refused a skill change for %r: %s", req.name, err)
-            return Reply.error(str(err))
-        live.revision += 1
-        for storey, skill in live.maps.remove_skill(req.name):
-            self._published.pop((storey, skill), None)
-            self.observer.pending_full.pop((storey, skill), None)
-            self._emit(MapRemoved(storey, skill, live.revision, stamp))
-        if profile is None:
-            del live.skills[req.name]
-        else:
-            live.skills[req.name] = profile
-        self._emit(SkillChanged(req.name, profile, live.revision, stamp))
-        maps = add_skill_maps(self.store, live, profile) if profile is not None else []
-        for m in maps:
-            self._publish_full(m, stamp)
-        return Reply(
-            True,
-            {
-                "ok": True,
-                "revision": live.revision,
-                "skill": req.name,
-                "removed": profile is None,
-                "maps": [
-                    {"storey": m.plan.storey.key, "skill": req.name, "version": m.version} for m in maps
-                ],
-            },
-        )
-
     # --- read-only views (any thread) -----------------------------------------------------------------
     def published(self, storey: str, skill: str) -> PublishedMap | None:
         """The latest full map published for (storey, skill), or None."""
-        return self._published.get((storey, skill))
+        return self.publication.latest.get((storey, skill))
 
     def published_maps(self) -> list[PublishedMap]:
-        return list(self._published.values())
+        return list(self.publication.latest.values())
 
     def status(self) -> dict[str, object]:
         live = self.live

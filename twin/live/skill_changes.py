@@ -5,17 +5,22 @@ then the skill's maps are dropped and, for an added or replaced profile, built a
 
 Example::
 
-    reply = change_skill(store, live, base_iri, "tall", b'{"kind": "navigation", "robot_height_m": 2}')
+    reply = apply_skill(store, live, SkillRequest("tall", b'{"kind": "navigation", "robot_height_m": 2}'),
+                        base_iri=base_iri, publication=publication, emit=sink.emit, stamp=time.time_ns())
 """
 
 from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Callable
 
 from twin import vocab
-from twin.errors import SkillError
-from twin.live.live_maps import LiveMap
+from twin.errors import SkillError, TwinError
+from twin.events import MapRemoved, SkillChanged, TwinEvent
+from twin.live.live_map import LiveMap
+from twin.live.publication import Publication
+from twin.live.requests import Reply, SkillRequest
 from twin.live.state import LiveState
 from twin.skills import SkillProfile, parse_skill_json, selection_query
 from twin.store import ChangeSet, GraphStore, RdfLiteral, Triple
@@ -65,3 +70,44 @@ def skill_change(
     profile = parse_skill_json(name, payload)
     body = Triple(node, vocab.TWIN_PROFILE_JSON, RdfLiteral(json.dumps(profile.to_json())))
     return ChangeSet(remove=((node, None),), add=(*head, body)), profile
+
+
+def apply_skill(
+    store: GraphStore,
+    live: LiveState,
+    req: SkillRequest,
+    *,
+    base_iri: str,
+    publication: Publication,
+    emit: Callable[[TwinEvent], None],
+    stamp: int,
+) -> Reply:
+    """Commit the skill change ``req``, drop the skill's old maps, build and publish its new ones."""
+    try:
+        changes, profile = skill_change(base_iri, req.name, req.payload, live)
+        store.apply(changes)
+    except TwinError as err:
+        log.info("Refused a skill change for %r: %s", req.name, err)
+        return Reply.error(str(err))
+    live.revision += 1
+    for storey, skill in live.maps.remove_skill(req.name):
+        publication.drop((storey, skill))
+        emit(MapRemoved(storey, skill, live.revision, stamp))
+    if profile is None:
+        del live.skills[req.name]
+    else:
+        live.skills[req.name] = profile
+    emit(SkillChanged(req.name, profile, live.revision, stamp))
+    maps = add_skill_maps(store, live, profile) if profile is not None else []
+    for m in maps:
+        publication.publish(m, live.revision, stamp)
+    return Reply(
+        True,
+        {
+            "ok": True,
+            "revision": live.revision,
+            "skill": req.name,
+            "removed": profile is None,
+            "maps": [{"storey": m.plan.storey.key, "skill": req.name, "version": m.version} for m in maps],
+        },
+    )

@@ -1,0 +1,64 @@
+"""What counts as the same geometry: the re-confirmation tolerances applied to meshes and placements.
+
+A robot re-reports what it sees many times a second; a report within :data:`~twin.tolerances.SAME_POSITION_M`
+of every world vertex and :data:`~twin.tolerances.SAME_ANGLE_RAD` of the orientation is the same shape, so
+the observation is a re-confirmation and changes nothing. Box placements are quantised far below those
+tolerances before they are written (shorter literals in the store).
+
+Example::
+
+    if same_shape(reported, current):
+        ...  # nothing to write
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from twin.records import FloatArray, Mesh, Shape
+from twin.tolerances import SAME_ANGLE_RAD, SAME_POSITION_M
+
+
+def same_mesh(a: Mesh, b: Mesh) -> bool:
+    """The same mesh exactly (vertices, faces, closedness)."""
+    return a is b or (
+        a.closed == b.closed
+        and a.vertices.shape == b.vertices.shape
+        and a.faces.shape == b.faces.shape
+        and bool(np.array_equal(a.faces, b.faces))
+        and bool(np.array_equal(a.vertices, b.vertices))
+    )
+
+
+def same_shape(a: Shape, b: Shape) -> bool:
+    """The same geometry within the re-confirmation tolerances: the same faces, every world vertex
+    within :data:`~twin.tolerances.SAME_POSITION_M`, the orientation within
+    :data:`~twin.tolerances.SAME_ANGLE_RAD`."""
+    (ma, pa), (mb, pb) = a, b
+    if ma.closed != mb.closed or ma.faces.shape != mb.faces.shape or ma.vertices.shape != mb.vertices.shape:
+        return False
+    if ma is not mb and not np.array_equal(ma.faces, mb.faces):
+        return False
+    wa = ma.vertices @ pa[:3, :3].T + pa[:3, 3]
+    wb = mb.vertices @ pb[:3, :3].T + pb[:3, 3]
+    if len(wa) and float(np.abs(wa - wb).max()) > SAME_POSITION_M:
+        return False
+    # the angle of the relative rotation (orthonormal parts of the placements)
+    r = _rotation(pa).T @ _rotation(pb)
+    cos = (float(np.trace(r)) - 1.0) / 2.0
+    return bool(np.arccos(np.clip(cos, -1.0, 1.0)) <= SAME_ANGLE_RAD)
+
+
+def _rotation(p: FloatArray) -> FloatArray:
+    m = p[:3, :3]
+    scale = np.linalg.norm(m, axis=0)
+    scale[scale == 0] = 1.0
+    return np.asarray(m / scale)
+
+
+def quantised(placement: FloatArray) -> FloatArray:
+    """A box's placement rounded (rotation to 1e-9, position to 1 um): far below the re-confirmation
+    tolerances, and a shorter literal in the store for every move."""
+    out = np.round(placement, 9)
+    out[:3, 3] = np.round(placement[:3, 3], 6)
+    return np.asarray(out)
