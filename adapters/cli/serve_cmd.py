@@ -111,6 +111,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             service.sinks += [sink for sink in (daemon, ros, recorder) if sink is not None]
             t0 = time.perf_counter()
             service.start()
+            daemon.drain()  # every map is declared and sent before we say so
             maps = service.published_maps()
             endpoints = ", ".join(args.listen or cfg.zenoh.listen) or "(no listener)"
             print(

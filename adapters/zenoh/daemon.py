@@ -11,7 +11,9 @@ Declares, under the site's prefix (see :class:`~adapters.zenoh.keys.SiteKeys`):
 - a subscriber on ``skills/*`` (put a JSON profile, delete to remove) and a queryable listing them;
 - queryables ``sparql`` (read-only) and ``status``; the liveliness token ``daemon``.
 
-Zenoh callbacks only enqueue work for the service's thread or read immutable snapshots.
+Zenoh callbacks only enqueue work for the service's thread or read immutable snapshots. What the
+service's thread sends (map samples, acks) goes through the :class:`~adapters.zenoh.outbox.Outbox`, in
+order, so the writer never waits for Zenoh.
 
 Example::
 
@@ -37,6 +39,7 @@ import zenoh.ext
 
 from adapters.ros import encode_occupancy_grid, encode_update_cells
 from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.outbox import Outbox
 from twin.errors import TwinError
 from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
 from twin.live import Reply, TwinService
@@ -73,6 +76,7 @@ class ZenohDaemon:
         self.frame_id = frame_id
         self._maps: dict[tuple[str, str], _MapOut] = {}
         self._lock = threading.Lock()
+        self.outbox = Outbox("twin-zenoh-out")
         self.status_sources: list[Callable[[], dict[str, object]]] = []
         """More sections of the status reply (e.g. the ROS robots' storeys), merged over the service's."""
         self._declared: list[Any] = [
@@ -89,6 +93,14 @@ class ZenohDaemon:
 
     # --- sink ---------------------------------------------------------------------------------------
     def emit(self, event: TwinEvent) -> None:
+        if isinstance(event, MapPublished | MapUpdated | MapRemoved):
+            self.outbox.put(lambda: self._send(event))
+
+    def drain(self) -> None:
+        """Wait until every map sample and reply queued so far was sent."""
+        self.outbox.drain()
+
+    def _send(self, event: TwinEvent) -> None:
         if isinstance(event, MapPublished):
             self._publish(event)
         elif isinstance(event, MapUpdated):
@@ -155,7 +167,7 @@ class ZenohDaemon:
         payload = query.payload.to_bytes() if query.payload is not None else b""
         key = str(query.key_expr)
 
-        def reply(r: Reply) -> None:
+        def send(r: Reply) -> None:
             try:
                 if r.ok:
                     query.reply(key, r.to_json(), encoding=JSON)
@@ -163,6 +175,9 @@ class ZenohDaemon:
                     query.reply_err(r.to_json(), encoding=JSON)
             finally:
                 query.drop()  # finalise now: the robot's get returns at once, not when Python frees it
+
+        def reply(r: Reply) -> None:  # on the writer's thread: after the map updates, off the thread
+            self.outbox.put(lambda: send(r))
 
         self.service.submit_observation(robot, payload, reply=reply)
 
@@ -228,7 +243,7 @@ class ZenohDaemon:
             query.drop()
             return
 
-        def reply(r: Reply) -> None:
+        def send(r: Reply) -> None:
             try:
                 if r.ok:
                     query.reply(self.keys.explain, r.to_json(), encoding=JSON)
@@ -237,7 +252,9 @@ class ZenohDaemon:
             finally:
                 query.drop()
 
-        self.service.submit_explain(storey, skill, float(x), float(y), reply)
+        self.service.submit_explain(
+            storey, skill, float(x), float(y), lambda r: self.outbox.put(lambda: send(r))
+        )
 
     def _on_status(self, query: zenoh.Query) -> None:
         status = self.service.status()
@@ -247,7 +264,8 @@ class ZenohDaemon:
 
     # --- lifecycle ----------------------------------------------------------------------------------
     def close(self) -> None:
-        """Undeclare everything (the session stays open; its owner closes it)."""
+        """Send what is queued, then undeclare everything (the session stays open; its owner closes it)."""
+        self.outbox.close()
         with self._lock:
             maps = list(self._maps.values())
             self._maps.clear()
