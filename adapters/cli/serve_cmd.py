@@ -22,6 +22,7 @@ from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.outbox import OutboxSink
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
@@ -108,7 +109,8 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
                     session, cfg, keys=keys, sinks=service.sinks, revision=lambda: service.revision
                 )
                 daemon.status_sources.append(ros.status)
-            service.sinks += [sink for sink in (daemon, ros, recorder) if sink is not None]
+            ros_sink = OutboxSink(ros, daemon.outbox) if ros is not None else None  # off the writer too
+            service.sinks += [sink for sink in (daemon, ros_sink, recorder) if sink is not None]
             t0 = time.perf_counter()
             service.start()
             daemon.drain()  # every map is declared and sent before we say so

@@ -20,6 +20,8 @@ import queue
 import threading
 from collections.abc import Callable
 
+from twin.events import TwinEvent, TwinSink
+
 log = logging.getLogger(__name__)
 
 Job = Callable[[], None]
@@ -74,3 +76,15 @@ def _run_one(job: Job) -> None:
         job()
     except Exception:  # a send must never stop the others
         log.exception("A Zenoh send failed")
+
+
+class OutboxSink:
+    """A :class:`~twin.events.TwinSink` whose events are handled on an outbox's thread, in order (e.g.
+    the ROS 2 map topics, which publish on Zenoh too)."""
+
+    def __init__(self, sink: TwinSink, outbox: Outbox) -> None:
+        self.sink = sink
+        self.outbox = outbox
+
+    def emit(self, event: TwinEvent) -> None:
+        self.outbox.put(lambda: self.sink.emit(event))
