@@ -215,7 +215,7 @@ def test_global_options_are_accepted_before_and_after_the_command(
     command = ["stats", "--store", str(lab_store_dir)]
     r = twin(*(options + command if where == "before" else command + options))
     assert r.returncode == 1
-    assert "Configuration 'maps.margin_m' must be between 0 and 100 metres, got 500" in r.stderr
+    assert "Configuration [maps] margin_m: expected a number <= 100.0, got 500." in r.stderr
 
 
 def test_two_different_config_files_before_and_after_the_command_are_refused(tmp_path: Path) -> None:

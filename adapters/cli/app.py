@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from adapters.cli import (
+    config_cmd,
     demo_cmd,
     explain_cmd,
     map_cmd,
@@ -24,7 +25,6 @@ from adapters.cli import (
     zone_cmd,
 )
 from adapters.cli.common import add_store_args
-from twin.config import load_config
 from twin.errors import StoreNotEmptyError, StoreNotFoundError, TwinError
 
 
@@ -89,6 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
     record_cmd.add_parser(sub)
     demo_cmd.add_parser(sub)
     network_cmds.add_parsers(sub)
+    config_cmd.add_parsers(sub)
     for command in sub.choices.values():  # `twin serve --config FILE` as well as `twin --config FILE serve`
         _global_options(command, after=True)
     return p
@@ -131,7 +132,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     level = logging.WARNING - 10 * min(args.verbose, 2)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
     try:
-        cfg = load_config(args.config)
+        cfg = config_cmd.load(args.config)
         code: int = args.func(args, cfg)
         return code
     except TwinError as err:

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 
 from adapters.sparql.remote_store import RemoteStore
-from twin.config import Config, RemoteStoreConfig
+from adapters.sparql.settings import RemoteStoreSettings, remote_store_settings
+from adapters.zenoh.settings import ZenohSettings
+from twin.config import Config
 from twin.store import EmbeddedStore
 
 AnyStore = EmbeddedStore | RemoteStore
@@ -19,16 +20,25 @@ def store_path_of(args: argparse.Namespace, cfg: Config) -> Path:
     return Path(store) if store else cfg.store_path
 
 
-def remote_store_of(args: argparse.Namespace, cfg: Config) -> RemoteStoreConfig | None:
+def zenoh_of(cfg: Config) -> ZenohSettings:
+    """The ``[zenoh]`` table."""
+    return cfg.section(ZenohSettings)
+
+
+def key_prefix(cfg: Config, site: str | None = None) -> str:
+    """The Zenoh key prefix of ``site`` (default: the configured one), e.g. ``twin/lab``."""
+    return zenoh_of(cfg).key_prefix(site or cfg.site)
+
+
+def remote_store_of(args: argparse.Namespace, cfg: Config) -> RemoteStoreSettings | None:
     """The SPARQL server a command works on, if any: ``--store-url``, else ``[store] url`` unless
     ``--store DIR`` names an embedded store."""
     url = getattr(args, "store_url", None)
     if url:
-        base = cfg.remote_store or RemoteStoreConfig(url=url)
-        return dataclasses.replace(base, url=url)
+        return cfg.section(RemoteStoreSettings).model_copy(update={"url": url})
     if getattr(args, "store", None):
         return None
-    return cfg.remote_store
+    return remote_store_settings(cfg)
 
 
 def store_label(args: argparse.Namespace, cfg: Config) -> str:

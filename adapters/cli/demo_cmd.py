@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 from typing import IO, Any
 
+from adapters.cli.common import key_prefix
 from twin.config import Config
 
 # The table the robot sees: in the corridor, east of the arch (lab frame + the building's offset).
@@ -115,7 +116,7 @@ def cmd_demo(args: argparse.Namespace, cfg: Config) -> int:
         assert watcher.stdout is not None
         print(f"   watch  | {watcher.stdout.readline().rstrip()}", flush=True)
 
-        with TwinClient.connect([endpoint], prefix=cfg.key_prefix()) as twin:
+        with TwinClient.connect([endpoint], prefix=key_prefix(cfg)) as twin:
             _step("robot1 observes a table in the corridor (acked)")
             table = "urn:twin:robot1:table-1"
             box = [float(v) for v in TABLE_BOX.split(",")]

@@ -12,6 +12,7 @@ import argparse
 import json
 from typing import Any
 
+from adapters.cli.common import key_prefix, zenoh_of
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import RemoteError
 from twin.config import Config
@@ -48,9 +49,9 @@ def cmd_explain(args: argparse.Namespace, cfg: Config) -> int:
     except ValueError as err:
         msg = f"--at takes the point as X,Y in metres (the map's frame), got {args.at!r}."
         raise ExplainError(msg) from err
-    endpoints = list(args.connect or cfg.zenoh.connect or cfg.zenoh.listen)
+    endpoints = list(args.connect or zenoh_of(cfg).connect or zenoh_of(cfg).listen)
     with TwinClient.connect(
-        endpoints, prefix=cfg.key_prefix(args.site), timeout_s=args.timeout, settings=cfg.zenoh
+        endpoints, prefix=key_prefix(cfg, args.site), timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         try:
             answer = twin.explain(args.storey, args.skill, x, y)

@@ -9,6 +9,7 @@ import sys
 import threading
 from typing import Any
 
+from adapters.cli.common import key_prefix, zenoh_of
 from adapters.zenoh.access import access_control, ros_map_keys, site_access_control
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.router import MapStorage, open_router
@@ -17,12 +18,12 @@ from twin.config import Config
 
 def cmd_acl(args: argparse.Namespace, cfg: Config) -> int:
     """Print the ``access_control`` section the daemon uses, for a router's or zenohd's config file."""
-    identity = args.identity or cfg.zenoh.access.identity
+    identity = args.identity or zenoh_of(cfg).access.identity
     acl = access_control(
-        SiteKeys(cfg.key_prefix(args.site)),
+        SiteKeys(key_prefix(cfg, args.site)),
         sorted(cfg.robots),
         identity=identity,
-        operators=cfg.zenoh.access.operators,
+        operators=zenoh_of(cfg).access.operators,
         ros_keys=ros_map_keys(cfg.robots.values()),
     )
     json.dump({"access_control": acl}, sys.stdout, indent=2)
@@ -32,8 +33,8 @@ def cmd_acl(args: argparse.Namespace, cfg: Config) -> int:
 
 def cmd_router(args: argparse.Namespace, cfg: Config) -> int:
     """Run a Zenoh router that daemons and robots connect to; optionally keep every site's maps."""
-    listen = args.listen or list(cfg.zenoh.listen)
-    acl = site_access_control(cfg, SiteKeys(cfg.key_prefix())) if args.acl else None
+    listen = args.listen or list(zenoh_of(cfg).listen)
+    acl = site_access_control(cfg, SiteKeys(key_prefix(cfg))) if args.acl else None
     stop = threading.Event()
 
     def on_signal(signum: int, frame: Any) -> None:
@@ -41,11 +42,11 @@ def cmd_router(args: argparse.Namespace, cfg: Config) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
-    session = open_router(cfg.zenoh, listen=listen, connect=args.connect or [], access_control=acl)
+    session = open_router(zenoh_of(cfg), listen=listen, connect=args.connect or [], access_control=acl)
     storage = None
     try:
         if args.store_maps:
-            storage = MapStorage(session, cfg.zenoh.prefix.replace("{site}", "*").strip("/") + "/map/**")
+            storage = MapStorage(session, zenoh_of(cfg).prefix.replace("{site}", "*").strip("/") + "/map/**")
         what = f"; keeping the latest maps of {storage.key_expr}" if storage else ""
         print(f"router {session.info.zid()} on {', '.join(listen)}{what}", flush=True)
         stop.wait()

@@ -11,6 +11,7 @@ import uuid
 from pathlib import Path
 from typing import Any
 
+from adapters.cli.common import key_prefix, zenoh_of
 from adapters.ros import write_map_files
 from adapters.zenoh.client import MapVersion, MapWatcher, TwinClient
 from adapters.zenoh.errors import RemoteError
@@ -21,11 +22,11 @@ from twin.grid import OccupancyGrid
 
 
 def _endpoints(args: argparse.Namespace, cfg: Config) -> list[str]:
-    return list(args.connect or cfg.zenoh.connect or cfg.zenoh.listen)
+    return list(args.connect or zenoh_of(cfg).connect or zenoh_of(cfg).listen)
 
 
 def _prefix(args: argparse.Namespace, cfg: Config) -> str:
-    return cfg.key_prefix(args.site)
+    return key_prefix(cfg, args.site)
 
 
 def box_turtle(iri: str, box: list[float], *, ifc_class: str, storey: str, label: str | None = None) -> str:
@@ -81,7 +82,7 @@ def observation_turtle(args: argparse.Namespace) -> bytes:
 def cmd_observe(args: argparse.Namespace, cfg: Config) -> int:
     payload = observation_turtle(args)
     with TwinClient.connect(
-        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=cfg.zenoh
+        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         if args.no_ack:
             twin.publish_observation(args.robot, payload)
@@ -100,7 +101,7 @@ def cmd_observe(args: argparse.Namespace, cfg: Config) -> int:
 def cmd_storey(args: argparse.Namespace, cfg: Config) -> int:
     """``twin storey --robot NAME [KEY]``: print the robot's storey, after switching it to KEY if given."""
     with TwinClient.connect(
-        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=cfg.zenoh
+        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         try:
             storey = twin.robot_storey(args.robot, args.storey)
@@ -151,7 +152,7 @@ def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
         seen.release()
 
     with TwinClient.connect(
-        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=cfg.zenoh
+        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         watcher = RosMapWatcher(
             twin.session,
@@ -187,7 +188,7 @@ def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
         msg = "Give --skill NAME (or --ros NAMESPACE to watch a ROS 2 robot's /map)."
         raise ObservationError(msg)
     with TwinClient.connect(
-        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=cfg.zenoh
+        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         storeys = [args.storey] if args.storey else [s for s, k in twin.list_maps() if k == args.skill]
         if not storeys:

@@ -15,9 +15,10 @@ from typing import Any
 
 import zenoh
 
-from adapters.cli.common import add_store_args, open_store, store_exists, store_label
+from adapters.cli.common import add_store_args, key_prefix, open_store, store_exists, store_label, zenoh_of
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.rerun import RerunRecorder
+from adapters.rerun.settings import RerunSettings
 from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
@@ -42,17 +43,18 @@ def _needs_import(args: argparse.Namespace, cfg: Config) -> bool:
 def _recorder(args: argparse.Namespace, cfg: Config, site: str) -> RerunRecorder | None:
     """The Rerun recorder sink, unless recording is off (``--no-record``, or ``[rerun] record = false``
     with no ``--record`` and no viewer URL)."""
-    if args.no_record or (not cfg.rerun.record and not args.record and not cfg.rerun.connect_url):
+    rerun = cfg.section(RerunSettings)
+    if args.no_record or (not rerun.record and not args.record and not rerun.connect_url):
         return None
     path = Path(args.record) if args.record else None
-    if path is None and cfg.rerun.record:
-        path = cfg.rerun.directory / f"{site}-{time.strftime('%Y%m%d-%H%M%S')}.rrd"
+    if path is None and rerun.record:
+        path = rerun.directory / f"{site}-{time.strftime('%Y%m%d-%H%M%S')}.rrd"
     return RerunRecorder(
         path=path,
-        connect_url=cfg.rerun.connect_url,
+        connect_url=rerun.connect_url,
         application=f"twin {site}",
-        rotate_every_s=cfg.rerun.rotate_every_s,
-        max_bytes=cfg.rerun.max_bytes,
+        rotate_every_s=rerun.rotate_every_s,
+        max_bytes=rerun.max_bytes,
     )
 
 
@@ -71,9 +73,9 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             replace=False,
         )
         cmd_import(ns, cfg)  # before any Zenoh or store thread exists: meshing forks a child
-    keys = SiteKeys(cfg.key_prefix())
+    keys = SiteKeys(key_prefix(cfg))
     conf = session_config(
-        cfg.zenoh,
+        zenoh_of(cfg),
         mode=args.mode,
         listen=args.listen or None,
         connect=args.connect or None,
@@ -94,7 +96,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         try:
             session = zenoh.open(conf)
         except Exception as err:
-            endpoints = ", ".join(args.listen or cfg.zenoh.listen)
+            endpoints = ", ".join(args.listen or zenoh_of(cfg).listen)
             msg = f"Cannot open the Zenoh session (listening on {endpoints}): {err}"
             raise TransportError(msg) from err
         recorder = _recorder(args, cfg, cfg.site)
@@ -115,7 +117,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             service.start()
             daemon.drain()  # every map is declared and sent before we say so
             maps = service.published_maps()
-            endpoints = ", ".join(args.listen or cfg.zenoh.listen) or "(no listener)"
+            endpoints = ", ".join(args.listen or zenoh_of(cfg).listen) or "(no listener)"
             print(
                 f"serving site {cfg.site!r} at revision {service.revision} on {endpoints} "
                 f"under {keys.prefix}/: {len(maps)} maps published in {time.perf_counter() - t0:.2f} s",

@@ -21,6 +21,7 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
+from adapters.cli.common import key_prefix, zenoh_of
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import RemoteError
 from twin import vocab
@@ -100,9 +101,9 @@ def cmd_zone(args: argparse.Namespace, cfg: Config) -> int:
     if args.speed_limit is not None and not 1 <= args.speed_limit <= 100:
         msg = f"--speed-limit takes a percent from 1 to 100 (--lift removes a zone), got {args.speed_limit}."
         raise ObservationError(msg)
-    endpoints = list(args.connect or cfg.zenoh.connect or cfg.zenoh.listen)
+    endpoints = list(args.connect or zenoh_of(cfg).connect or zenoh_of(cfg).listen)
     with TwinClient.connect(
-        endpoints, prefix=cfg.key_prefix(args.site), timeout_s=args.timeout, settings=cfg.zenoh
+        endpoints, prefix=key_prefix(cfg, args.site), timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         room = find_room(twin, args.space)
         payload = zone_turtle(room, keepout=args.keepout, speed_limit=args.speed_limit, lift=args.lift)

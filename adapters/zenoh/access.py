@@ -27,7 +27,8 @@ from adapters.ros.rmw_zenoh import ADMIN_SPACE, RosTopic
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys, check_chunk
 from adapters.zenoh.ros_maps import STOREY_TOPIC
-from twin.config import Config, Identity, RobotConfig
+from adapters.zenoh.settings import Identity, ZenohSettings
+from twin.config import Config, RobotConfig
 
 # zenoh's ACL message kinds (zenoh-config AclMessage)
 READ = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
@@ -178,7 +179,8 @@ def site_access_control(cfg: Config, keys: SiteKeys) -> dict[str, Any] | None:
     Checks that robots can be told apart: a users file for ``identity = "username"``, mutual TLS
     for ``identity = "certificate"``.
     """
-    access, z = cfg.zenoh.access, cfg.zenoh
+    z = cfg.section(ZenohSettings)
+    access = z.access
     if not access.enabled:
         return None
     if access.identity == "username" and z.auth.users_file is None:

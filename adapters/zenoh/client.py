@@ -28,7 +28,7 @@ from adapters.ros import apply_update, decode_occupancy_grid, decode_occupancy_g
 from adapters.zenoh.errors import DaemonTimeoutError, RemoteError, TransportError
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.session import client_config
-from twin.config import ZenohConfig
+from adapters.zenoh.settings import ZenohSettings
 from twin.grid import OccupancyGrid
 
 log = logging.getLogger(__name__)
@@ -188,7 +188,7 @@ class TwinClient:
         *,
         prefix: str = "twin/lab",
         timeout_s: float = 10.0,
-        settings: ZenohConfig | None = None,
+        settings: ZenohSettings | None = None,
         mode: str = "peer",
     ) -> TwinClient:
         """Open a session to ``connect`` (the daemon's or a router's endpoints); close the client after."""

@@ -8,7 +8,7 @@ being newer).
 
 Example::
 
-    with open_router(cfg.zenoh, listen=["tcp/127.0.0.1:7447"]) as session:
+    with open_router(cfg.section(ZenohSettings), listen=["tcp/127.0.0.1:7447"]) as session:
         storage = MapStorage(session, "twin/*/map/**")
         ...
 """
@@ -25,13 +25,13 @@ import zenoh
 
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.session import session_config
-from twin.config import ZenohConfig
+from adapters.zenoh.settings import ZenohSettings
 
 log = logging.getLogger(__name__)
 
 
 def open_router(
-    settings: ZenohConfig,
+    settings: ZenohSettings,
     *,
     listen: Sequence[str] | None = None,
     connect: Sequence[str] | None = None,

@@ -10,13 +10,12 @@ file to check others against), and an ``access_control`` section (``adapters.zen
 
 Example::
 
-    with zenoh.open(session_config(cfg.zenoh, listen=["tcp/127.0.0.1:7447"])) as session:
+    with zenoh.open(session_config(cfg.section(ZenohSettings), listen=["tcp/127.0.0.1:7447"])) as session:
         ...
 """
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -24,11 +23,11 @@ from pathlib import Path
 import zenoh
 
 from adapters.zenoh.errors import TransportError
-from twin.config import ZenohConfig, ZenohMode
+from adapters.zenoh.settings import ZenohMode, ZenohSettings
 
 
 def session_config(
-    settings: ZenohConfig,
+    settings: ZenohSettings,
     *,
     mode: ZenohMode | None = None,
     listen: Sequence[str] | None = None,
@@ -68,7 +67,7 @@ def _file(path: Path, what: str) -> str:
     return str(path.resolve())
 
 
-def _security(settings: ZenohConfig) -> dict[str, object]:
+def _security(settings: ZenohSettings) -> dict[str, object]:
     """zenoh's TLS and user/password settings from ``[zenoh.tls]`` and ``[zenoh.auth]``."""
     out: dict[str, object] = {}
     tls, auth = settings.tls, settings.auth
@@ -102,7 +101,7 @@ def _security(settings: ZenohConfig) -> dict[str, object]:
 def client_config(
     connect: Sequence[str],
     *,
-    settings: ZenohConfig | None = None,
+    settings: ZenohSettings | None = None,
     mode: ZenohMode = "peer",
     listen: Sequence[str] = (),
 ) -> zenoh.Config:
@@ -112,9 +111,9 @@ def client_config(
     With a TLS certificate of its own, the robot presents it (zenoh sends a client certificate only
     with ``enable_mtls``), so that a daemon with ``mutual = true`` knows it by its common name.
     """
-    settings = settings or ZenohConfig()
+    settings = settings or ZenohSettings()
     if settings.tls.certificate is not None and not settings.tls.mutual:
-        settings = dataclasses.replace(settings, tls=dataclasses.replace(settings.tls, mutual=True))
+        settings = settings.model_copy(update={"tls": settings.tls.model_copy(update={"mutual": True})})
     conf = session_config(settings, mode=mode, listen=list(listen), connect=list(connect))
     retry = {"period_init_ms": 250, "period_max_ms": 1000, "period_increase_factor": 2}
     conf.insert_json5("connect/retry", json.dumps(retry))  # find a restarted daemon within a second

@@ -11,7 +11,9 @@ from pathlib import Path
 import pyoxigraph as ox
 import pytest
 
+from adapters.cli.config_cmd import load
 from adapters.sparql.remote_store import RemoteStore, SparqlEndpoint
+from adapters.sparql.settings import remote_store_settings
 from tests.sparql_server import SparqlServer, start_sparql_server
 from twin.config import load_config
 from twin.errors import ConfigError, StoreError, StoreUnavailableError
@@ -54,10 +56,10 @@ def test_endpoints_are_paths_under_the_url_or_absolute_urls() -> None:
 
 
 def test_the_configuration_names_a_server_or_none(tmp_path: Path) -> None:
-    assert load_config().remote_store is None  # the default: the embedded store
+    assert remote_store_settings(load_config()) is None  # the default: the embedded store
     cfg = tmp_path / "site.toml"
     cfg.write_text('[store]\nurl = "http://10.0.0.5:3030/lab"\ntimeout_s = 2\nquery_endpoint = "sparql"\n')
-    remote = load_config(cfg).remote_store
+    remote = remote_store_settings(load(cfg))
     assert remote is not None
     assert (remote.url, remote.timeout_s, remote.query_endpoint, remote.update_endpoint) == (
         "http://10.0.0.5:3030/lab",
@@ -66,14 +68,14 @@ def test_the_configuration_names_a_server_or_none(tmp_path: Path) -> None:
         "update",
     )
     for bad, match in (
-        ('url = "localhost:7878"', "store.url"),
-        ('url = "http://h"\ntimeout_s = 0', "store.timeout_s"),
-        ('url = "http://h"\nupdate_endpoint = 3', "store.update_endpoint"),
-        ('uri = "http://h"', "unknown key 'uri'"),
+        ('url = "localhost:7878"', r"\[store\] url: expected \"\" or an http\(s\):// URL"),
+        ('url = "http://h"\ntimeout_s = 0', r"\[store\] timeout_s: expected a number > 0"),
+        ('url = "http://h"\nupdate_endpoint = 3', r"\[store\] update_endpoint: expected a string, got 3"),
+        ('uri = "http://h"', r"\[store\] uri: unknown key \(did you mean url\?\)"),
     ):
         cfg.write_text(f"[store]\n{bad}\n")
         with pytest.raises(ConfigError, match=match):
-            load_config(cfg)
+            load(cfg)
 
 
 def test_opening_a_store_where_no_server_listens_is_a_clear_error() -> None:

@@ -14,9 +14,9 @@ import zenoh
 
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import DaemonTimeoutError, TransportError
+from adapters.zenoh.settings import AuthSettings, TlsSettings, ZenohSettings
 from tests.integration.certs import CertificateAuthority
 from tests.integration.conftest import Daemon, start_daemon
-from twin.config import AuthConfig, TlsConfig, ZenohConfig
 
 TWIN = "https://w3id.org/building-twin#"
 MAP = "twin/lab/map/ground-floor/lab-navigation"
@@ -55,8 +55,8 @@ def secrets(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def as_robot(d: Daemon, secrets: Path, user: str, *, password: str | None = None) -> TwinClient:
-    auth = AuthConfig(user=user, password_file=secrets / f"{password or user}.password")
-    return TwinClient.connect([d.endpoint], settings=ZenohConfig(auth=auth), mode="client", timeout_s=3.0)
+    auth = AuthSettings(user=user, password_file=secrets / f"{password or user}.password")
+    return TwinClient.connect([d.endpoint], settings=ZenohSettings(auth=auth), mode="client", timeout_s=3.0)
 
 
 @pytest.fixture(scope="module")
@@ -179,11 +179,11 @@ def pki(tmp_path_factory: pytest.TempPathFactory) -> CertificateAuthority:
 
 def tls_settings(
     ca: CertificateAuthority, name: str | None = None, *, root: Path | None = None
-) -> ZenohConfig:
+) -> ZenohSettings:
     cert = key = None
     if name is not None:
         cert, key = ca.directory / f"{name}.pem", ca.directory / f"{name}.key"
-    return ZenohConfig(tls=TlsConfig(root_ca=root or ca.path, certificate=cert, private_key=key))
+    return ZenohSettings(tls=TlsSettings(root_ca=root or ca.path, certificate=cert, private_key=key))
 
 
 def tls_daemon(store_dir: Path, root: Path, ca: CertificateAuthority, *, mutual: bool) -> Daemon:

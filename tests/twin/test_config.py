@@ -1,25 +1,193 @@
-"""Configuration: the store's flush interval (a daemon setting that bounds memory and the log)."""
+"""Configuration: one schema per table, errors that name the table and key, defaults in one place,
+and the sections through which adapters add their own tables (the core knows no transport)."""
 
 from __future__ import annotations
 
+import re
+import tomllib
 from pathlib import Path
+from typing import ClassVar
 
 import pytest
 
-from twin.config import load_config
+from twin.config import DEFAULT_CONFIG, ConfigSection, Limits, config_schema, load_config
+from twin.config.base import Flag, Whole
+from twin.config.load import CORE_TABLES
 from twin.errors import ConfigError
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "c.toml"
+    path.write_text(text)
+    return path
+
+
+class Lights(ConfigSection):
+    """A made-up adapter's table, to try the mechanism without any real transport."""
+
+    table: ClassVar[str] = "lights"
+    enabled: Flag = False
+    channel: Whole = 3
+
+
+class Archive(ConfigSection):
+    """A made-up adapter that adds a key to the core's ``[store]`` table."""
+
+    table: ClassVar[str] = "store"
+    archive_every_s: Whole = 0
 
 
 def test_the_store_is_flushed_every_minute_unless_configured(tmp_path: Path) -> None:
     assert load_config().store_flush_every_s == 60.0
-    path = tmp_path / "c.toml"
-    path.write_text("[store]\nflush_every_s = 15\n")
-    assert load_config(path).store_flush_every_s == 15.0
+    assert load_config(write(tmp_path, "[store]\nflush_every_s = 15\n")).store_flush_every_s == 15.0
 
 
-@pytest.mark.parametrize("value", ["0", "-5", "7200", "true", '"often"'])
-def test_a_bad_flush_interval_is_refused_by_name(tmp_path: Path, value: str) -> None:
-    path = tmp_path / "c.toml"
-    path.write_text(f"[store]\nflush_every_s = {value}\n")
-    with pytest.raises(ConfigError, match=r"'store.flush_every_s' must be seconds from 1 to 3600"):
+@pytest.mark.parametrize(
+    ("value", "problem"),
+    [
+        ("0", "expected a number >= 1.0, got 0"),
+        ("-5", "expected a number >= 1.0, got -5"),
+        ("7200", "expected a number <= 3600.0, got 7200"),
+        ("true", "expected a number, got True"),
+        ('"often"', "expected a number, got 'often'"),
+    ],
+)
+def test_a_bad_flush_interval_is_refused_by_name(tmp_path: Path, value: str, problem: str) -> None:
+    with pytest.raises(ConfigError, match=re.escape(f"Configuration [store] flush_every_s: {problem}.")):
+        load_config(write(tmp_path, f"[store]\nflush_every_s = {value}\n"))
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("[maps]\nmargin = 2", "[maps] margin: unknown key (did you mean margin_m?)"),
+        ("[limits]\nbytes = 2", "[limits] bytes: unknown key (known: box_size_m, elements_per_observation"),
+        ('[import]\nthreads = "2"', "[import] threads: expected an integer, got '2'"),
+        ("[import]\nthreads = 2.0", "[import] threads: expected an integer, got 2.0"),
+        (
+            '[import]\nkernels = "manifold"',
+            "[import] kernels: expected a list of geometry kernels, got 'manifold'",
+        ),
+        ('[import]\nkernels = ["occ"]', "[import] kernels[0]: expected 'manifold', 'opencascade', "),
+        ("[import]\nkernels = []", "[import] kernels: expected at least 1 item(s)"),
+        (
+            '[import]\nstatic_types = ["Wall"]',
+            "[import] static_types[0]: expected an IFC class name, got 'Wall'",
+        ),
+        ("[maps]\nmargin_m = nan", "[maps] margin_m: expected a finite number, got nan"),
+        ('[site]\nname = "a/b"', "[site] name: expected a string matching ^[A-Za-z0-9_-]{1,64}$, got 'a/b'"),
+        ("[limits]\npayload_bytes = 0", "[limits] payload_bytes: expected a number > 0, got 0"),
+        (
+            '[rights]\ndefault = ["fly"]',
+            "[rights] default[0]: expected 'create', 'dynamic', 'doors', 'static'",
+        ),
+        ("[ros]\nframe_id = 3", "[ros] frame_id: expected a string, got 3"),
+        ("maps = 3", "[maps]: expected a table, got 3"),
+    ],
+)
+def test_a_bad_value_is_refused_naming_its_table_and_key(tmp_path: Path, text: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=re.escape(f"Configuration {message}")):
+        load_config(write(tmp_path, text + "\n"))
+
+
+def test_every_problem_of_a_file_is_named_at_once(tmp_path: Path) -> None:
+    path = write(tmp_path, "[maps]\nmargin_m = -1\n[import]\nthreads = 0\n")
+    with pytest.raises(ConfigError, match=r"\[import\] threads: .*; \[maps\] margin_m: "):
         load_config(path)
+
+
+def test_a_skill_problem_names_the_skill_and_field(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"Configuration \[skills\]: Skill 'x': .*field 'kind'"):
+        load_config(write(tmp_path, "[skills.x]\nkind = 3\n"))
+
+
+def test_the_defaults_file_shows_the_schemas_defaults(tmp_path: Path) -> None:
+    with DEFAULT_CONFIG.open("rb") as fh:
+        shipped = tomllib.load(fh)
+    for name, model in CORE_TABLES.items():
+        written = {k: v for k, v in shipped[name].items() if k in model.model_fields}
+        assert model.model_validate(written) == model(), name
+    assert load_config().limits == Limits()
+
+
+def test_without_sections_the_core_keeps_the_adapters_tables_as_written(tmp_path: Path) -> None:
+    cfg = load_config(write(tmp_path, "[lights]\nchannel = 7\n[store]\narchive_every_s = 60\n"))
+    assert cfg.tables["lights"] == {"channel": 7}
+    assert cfg.section(Lights) == Lights(enabled=False, channel=7)  # parsed when asked for
+    assert cfg.section(Archive).archive_every_s == 60
+
+
+def test_a_section_asked_for_later_names_its_bad_key(tmp_path: Path) -> None:
+    cfg = load_config(write(tmp_path, "[lights]\nchanel = 7\n"))
+    with pytest.raises(ConfigError, match=re.escape("[lights] chanel: unknown key (did you mean channel?)")):
+        cfg.section(Lights)
+
+
+def test_with_sections_the_whole_file_is_checked_at_load(tmp_path: Path) -> None:
+    defaults = tmp_path / "defaults.toml"
+    defaults.write_text("[store]\npath = 'here'\n")  # no other adapter's table
+    cfg = load_config(
+        write(tmp_path, "[lights]\nenabled = true\n"), sections=[Lights, Archive], defaults=defaults
+    )
+    assert (cfg.section(Lights).enabled, cfg.section(Archive).archive_every_s, cfg.store_path) == (
+        True,
+        0,
+        Path("here"),
+    )
+    message = "Configuration [lights] enabled: expected true or false, got 1."
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        load_config(write(tmp_path, "[lights]\nenabled = 1\n"), sections=[Lights], defaults=defaults)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("[lihgts]\nchannel = 1", "[lihgts]: unknown table (did you mean lights?)"),
+        ("[store]\narchive_every = 1", "[store] archive_every: unknown key (did you mean archive_every_s?)"),
+        ("[lights]\nchanel = 1", "[lights] chanel: unknown key (did you mean channel?)"),
+    ],
+)
+def test_with_sections_an_unknown_table_or_key_is_refused(tmp_path: Path, text: str, message: str) -> None:
+    defaults = tmp_path / "defaults.toml"
+    defaults.write_text("")
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        load_config(write(tmp_path, text), sections=[Lights, Archive], defaults=defaults)
+
+
+def test_the_shipped_defaults_need_the_adapters_sections_to_load_strictly() -> None:
+    with pytest.raises(ConfigError, match=re.escape("[zenoh]: unknown table")):
+        load_config(sections=[Lights, Archive])  # the defaults' [zenoh] without the zenoh adapter's section
+
+
+def test_the_json_schema_describes_every_table_and_refuses_unknown_ones() -> None:
+    schema = config_schema([Lights, Archive])
+    assert schema["additionalProperties"] is False
+    assert {
+        "site",
+        "store",
+        "import",
+        "maps",
+        "limits",
+        "rights",
+        "ros",
+        "skills",
+        "robots",
+        "lights",
+    } <= set(schema["properties"])
+    store = schema["$defs"][schema["properties"]["store"]["$ref"].split("/")[-1]]
+    assert {"path", "flush_every_s", "archive_every_s"} == set(store["properties"])
+    assert store["properties"]["flush_every_s"] == {
+        "default": 60.0,
+        "description": "How often 'twin serve' flushes the embedded store's write buffers, seconds.",
+        "maximum": 3600.0,
+        "minimum": 1.0,
+        "title": "Flush Every S",
+        "type": "number",
+    }
+
+
+def test_a_file_that_is_not_toml_or_not_there_is_named(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(write(tmp_path, "not toml ==="))
+    with pytest.raises(ConfigError, match=r"No configuration file at .*nope.toml"):
+        load_config(tmp_path / "nope.toml")

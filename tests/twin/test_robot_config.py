@@ -43,12 +43,15 @@ def test_the_old_single_skill_key_means_that_skill_on_map(tmp_path: Path) -> Non
     ("table", "error"),
     [
         ('skill = "navigation"\nmaps = { map = "navigation" }', "both 'skill' and 'maps'"),
-        ('maps = { map = "flying" }', "robots.r1.maps': topic 'map' names unknown skill 'flying'"),
-        ('skill = "flying"', r"robots.r1.skill': topic 'map' names unknown skill 'flying'"),
-        ("maps = {}", "must map topic names to skills"),
-        ('maps = { "/abs" = "navigation" }', "topic '/abs' must be a relative ROS topic name"),
-        ('maps = { storey = "navigation" }', "topic 'storey' is taken"),
-        ('maps = { map_updates = "navigation" }', "topic 'map_updates' is taken"),
+        ('maps = { map = "flying" }', r"\[robots.r1\] maps: topic 'map' names unknown skill 'flying'"),
+        ('skill = "flying"', r"\[robots.r1\] skill: topic 'map' names unknown skill 'flying'"),
+        ("maps = {}", r"\[robots.r1\] maps: must map topic names to skills"),
+        ('maps = { "/abs" = "navigation" }', r"\[robots.r1\] maps: topic '/abs' must be a relative ROS"),
+        ('maps = { storey = "navigation" }', r"\[robots.r1\] maps: topic 'storey' is taken"),
+        ('maps = { map_updates = "navigation" }', r"\[robots.r1\] maps: topic 'map_updates' is taken"),
+        ("domain_id = 233", r"\[robots.r1\] domain_id: expected a number <= 232, got 233"),
+        ('ros = ["dds"]', r"\[robots.r1\] ros\[0\]: expected 'bridge' or 'rmw_zenoh', got 'dds'"),
+        ('namespace_ = "/r1"', r"\[robots.r1\] namespace_: unknown key \(did you mean namespace\?\)"),
     ],
 )
 def test_a_bad_topic_table_is_refused_naming_the_key(tmp_path: Path, table: str, error: str) -> None:
@@ -57,8 +60,13 @@ def test_a_bad_topic_table_is_refused_naming_the_key(tmp_path: Path, table: str,
 
 
 def test_a_namespaced_robot_needs_the_storey_it_starts_on(tmp_path: Path) -> None:
-    with pytest.raises(ConfigError, match=r"robots.r1.storey': a robot with a namespace needs"):
+    with pytest.raises(ConfigError, match=r"\[robots.r1\]: a robot with a namespace needs 'storey'"):
         robots(tmp_path, '[robots.r1]\nnamespace = "/r1"\n')
+
+
+def test_a_robot_name_that_cannot_be_a_key_expression_chunk_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"\[robots\] name 'a b': expected a string matching"):
+        robots(tmp_path, '[robots."a b"]\n')
 
 
 def test_a_robot_without_namespace_has_no_topics(tmp_path: Path) -> None:

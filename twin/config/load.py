@@ -1,0 +1,235 @@
+"""Loading: ``config/default.toml`` merged with an optional user file, validated table by table into
+a :class:`Config`.
+
+The core validates its own tables. The adapters' tables (``[zenoh]``, ``[rerun]``, the remote
+store's keys in ``[store]``) are :class:`~twin.config.base.ConfigSection` schemas that the composition
+root passes as ``sections``: then the whole file is checked at once, and a table or key that nobody
+knows is an error. Without ``sections`` (the core's own tests and tools) the adapters' tables are kept
+as they were written and parsed when first asked for (:meth:`Config.section`).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TypeVar
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
+
+from twin.config.base import ConfigSection, ConfigTable
+from twin.config.messages import config_error
+from twin.config.robots import RobotConfig, RobotName, RobotTable
+from twin.config.tables import (
+    ImportConfig,
+    Limits,
+    MapsTable,
+    Right,
+    RightsTable,
+    RosTable,
+    SiteTable,
+    StoreTable,
+)
+from twin.errors import ConfigError, SkillError
+from twin.skills import SkillProfile, parse_skill
+
+DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "default.toml"  # package data: installs with twin
+S = TypeVar("S", bound=ConfigSection)
+
+CORE_TABLES: dict[str, type[ConfigTable]] = {
+    "site": SiteTable,
+    "store": StoreTable,
+    "import": ImportConfig,
+    "maps": MapsTable,
+    "limits": Limits,
+    "rights": RightsTable,
+    "ros": RosTable,
+}
+"""The core's tables with one schema each; ``[skills.NAME]`` and ``[robots.NAME]`` hold many."""
+
+
+@dataclass(frozen=True, slots=True)
+class Config:
+    """The configuration the core uses, and the adapters' sections (:meth:`section`)."""
+
+    site: str
+    base_iri_template: str
+    store_path: Path
+    import_: ImportConfig
+    margin_m: float
+    maps_out: Path
+    skills: Mapping[str, SkillProfile]
+    limits: Limits = field(default_factory=Limits)
+    default_rights: frozenset[Right] = frozenset({"create", "dynamic", "doors"})
+    robots: Mapping[str, RobotConfig] = field(default_factory=dict)
+    frame_id: str = "map"
+    store_flush_every_s: float = 60.0
+    """``[store] flush_every_s``: how often the daemon flushes the embedded store's buffers."""
+    tables: Mapping[str, Any] = field(default_factory=dict, repr=False)
+    """The merged file as written (defaults under the user's file)."""
+    sections: Mapping[type[ConfigSection], ConfigSection] = field(default_factory=dict, repr=False)
+    """The adapters' sections validated at load time."""
+
+    def section(self, kind: type[S]) -> S:
+        """The adapter table ``kind`` (e.g. ``ZenohSettings``): validated at load time if the loader
+        was given it, else parsed now from the file (a :class:`ConfigError` naming the key if bad;
+        in a table shared with the core, keys that ``kind`` does not know are left to their owners)."""
+        found = self.sections.get(kind)
+        if isinstance(found, kind):
+            return found
+        alone = create_model("SectionFile", **{kind.table: (kind, Field(default_factory=kind))})  # type: ignore[call-overload]
+        table = self.tables.get(kind.table, {})
+        if kind.table in CORE_TABLES and isinstance(table, Mapping):  # other sections' keys are theirs
+            table = {k: v for k, v in table.items() if k in kind.model_fields}
+        try:
+            checked = alone.model_validate({kind.table: table})
+        except ValidationError as err:
+            raise config_error(err, alone) from None
+        section: S = getattr(checked, kind.table)
+        return section
+
+    def rights_of(self, robot: str) -> frozenset[Right]:
+        """What ``robot`` may change: its own ``rights`` if configured, else ``[rights] default``."""
+        configured = self.robots.get(robot)
+        return configured.rights if configured is not None else self.default_rights
+
+    def base_iri(self, site: str | None = None) -> str:
+        return self.base_iri_template.replace("{site}", site or self.site)
+
+    def skill(self, name: str) -> SkillProfile:
+        try:
+            return self.skills[name]
+        except KeyError:
+            known = ", ".join(sorted(self.skills)) or "none"
+            msg = f"Unknown skill {name!r}; configured skills: {known}."
+            raise SkillError(msg) from None
+
+
+def load_config(
+    path: Path | None = None,
+    *,
+    sections: Sequence[type[ConfigSection]] | None = None,
+    defaults: Path = DEFAULT_CONFIG,
+) -> Config:
+    """Load ``defaults`` (``config/default.toml``), then ``path`` on top of them (if given), validated.
+
+    ``sections``: the adapters' tables to validate too; given (even empty), a table or key that
+    neither the core nor a section knows is an error.
+    """
+    raw = _read(defaults)
+    if path is not None:
+        raw = _merge(raw, _read(Path(path)))
+    skills = _skills(raw.get("skills", {}))
+    model = file_model(sections or (), strict=sections is not None)
+    data = raw if sections is not None else _core_keys(raw)
+    try:
+        checked: Any = model.model_validate(data, context={"skills": set(skills)})
+    except ValidationError as err:
+        raise config_error(err, model) from None
+    default_rights = frozenset(checked.rights.default)
+    return Config(
+        site=checked.site.name,
+        base_iri_template=checked.site.base_iri,
+        store_path=checked.store.path,
+        import_=checked.import_,
+        margin_m=checked.maps.margin_m,
+        maps_out=checked.maps.out,
+        skills=skills,
+        limits=checked.limits,
+        default_rights=default_rights,
+        robots={name: table.record(name, default_rights) for name, table in checked.robots.items()},
+        frame_id=checked.ros.frame_id,
+        store_flush_every_s=checked.store.flush_every_s,
+        tables=raw,
+        sections={s: s.model_validate(_section_keys(s, raw.get(s.table, {}))) for s in sections or ()},
+    )
+
+
+def file_model(sections: Sequence[type[ConfigSection]] = (), *, strict: bool = True) -> type[BaseModel]:
+    """The schema of a whole configuration file: the core's tables and ``sections``; a table that a
+    section shares with the core (``[store]``) accepts the keys of both."""
+    tables: dict[str, list[type[ConfigTable]]] = {name: [model] for name, model in CORE_TABLES.items()}
+    for section in sections:
+        tables.setdefault(section.table, []).append(section)
+    fields: dict[str, Any] = {}
+    for name, owners in tables.items():
+        model = owners[0] if len(owners) == 1 else create_model(f"{name.title()}File", __base__=tuple(owners))
+        fields[f"{name}_" if name == "import" else name] = (model, Field(default_factory=model, alias=name))
+    fields["skills"] = (
+        dict[str, dict[str, Any]],
+        Field(default_factory=dict, description="Skill profiles: [skills.NAME] (README, 'Skills')."),
+    )
+    fields["robots"] = (dict[RobotName, RobotTable], Field(default_factory=dict))
+    return create_model(
+        "BuildingTwinConfig",
+        __config__=ConfigDict(extra="forbid" if strict else "ignore", frozen=True, populate_by_name=True),
+        **fields,
+    )
+
+
+def config_schema(sections: Sequence[type[ConfigSection]] = ()) -> dict[str, Any]:
+    """The JSON Schema of ``config/*.toml`` (for editors: Taplo, Even Better TOML)."""
+    schema = file_model(sections).model_json_schema(by_alias=True)
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": "building-twin configuration",
+        "description": "config/default.toml and the files given with 'twin --config FILE'.",
+        **{k: v for k, v in schema.items() if k != "title"},
+    }
+
+
+def _core_keys(raw: Mapping[str, Any]) -> dict[str, Any]:
+    """The file without the keys that sections add to the core's tables (checked when asked for)."""
+    out = dict(raw)
+    for name, model in CORE_TABLES.items():
+        table = raw.get(name)
+        if getattr(model, "extended_by_sections", False) and isinstance(table, Mapping):
+            out[name] = {k: v for k, v in table.items() if k in model.model_fields}
+    return out
+
+
+def _section_keys(kind: type[ConfigSection], table: Any) -> Any:
+    """A section's keys of its table (all of them unless it shares the table with the core)."""
+    core = CORE_TABLES.get(kind.table)
+    if core is None or not isinstance(table, Mapping):
+        return table
+    return {k: v for k, v in table.items() if k not in core.model_fields}
+
+
+def _skills(raw: Any) -> dict[str, SkillProfile]:
+    if not isinstance(raw, Mapping):
+        msg = f"Configuration [skills]: expected a table of skill profiles, got {raw!r}."
+        raise ConfigError(msg)
+    try:
+        return {name: parse_skill(name, table) for name, table in raw.items()}
+    except SkillError as err:
+        msg = f"Configuration [skills]: {err}"
+        raise ConfigError(msg) from err
+
+
+def _read(path: Path) -> dict[str, Any]:
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        msg = f"No configuration file at {path}."
+        raise ConfigError(msg) from None
+    except OSError as err:
+        msg = f"Cannot read the configuration file {path}: {err.strerror or err}."
+        raise ConfigError(msg) from err
+    except tomllib.TOMLDecodeError as err:
+        msg = f"Configuration file {path} is not valid TOML: {err}."
+        raise ConfigError(msg) from err
+
+
+def _merge(base: dict[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in over.items():
+        if key == "skills" and isinstance(value, Mapping):
+            out[key] = {**out.get(key, {}), **value}  # a skill table replaces that skill whole
+        elif isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out

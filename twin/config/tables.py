@@ -1,0 +1,109 @@
+"""The core's tables: ``[site]``, ``[store]``, ``[import]``, ``[maps]``, ``[limits]``, ``[rights]``
+and ``[ros]`` (``[robots.NAME]`` is in :mod:`twin.config.robots`, ``[skills.NAME]`` is parsed by
+:func:`twin.skills.parse_skill`). Each field's default is the value ``config/default.toml`` shows.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, ClassVar, Literal
+
+from pydantic import Field
+
+from twin.config.base import ConfigTable, Number, PathSetting, Text, Whole, check, list_of
+
+Right = Literal["create", "dynamic", "doors", "static", "zones"]
+RIGHTS: tuple[Right, ...] = ("create", "dynamic", "doors", "static", "zones")
+Kernel = Literal["manifold", "opencascade", "cgal", "cgal-simple", "hybrid-cgal-simple-opencascade"]
+KERNELS: tuple[Kernel, ...] = (
+    "manifold", "opencascade", "cgal", "cgal-simple", "hybrid-cgal-simple-opencascade"
+)  # fmt: skip
+NAME_PATTERN = r"^[A-Za-z0-9_-]{1,64}$"
+"""Site, robot and operator names: they become parts of key expressions and user names."""
+
+STATIC_TYPES = (
+    "IfcWall", "IfcSlab", "IfcColumn", "IfcBeam", "IfcCurtainWall", "IfcPlate", "IfcMember",
+    "IfcStair", "IfcStairFlight", "IfcRamp", "IfcRampFlight", "IfcRoof", "IfcRailing", "IfcCovering",
+    "IfcDoor", "IfcWindow", "IfcFooting", "IfcPile", "IfcChimney", "IfcOpeningElement",
+)  # fmt: skip
+
+SiteName = Annotated[Text, Field(pattern=NAME_PATTERN)]
+IfcClassName = Annotated[
+    Text, check(lambda v: isinstance(v, str) and v.startswith("Ifc"), "an IFC class name")
+]
+Positive = Annotated[Number, Field(gt=0)]
+PositiveWhole = Annotated[Whole, Field(gt=0)]
+
+
+class SiteTable(ConfigTable):
+    """``[site]``: the site's name and the base of its elements' IRIs."""
+
+    name: SiteName = Field("lab", description="Site name: 1-64 of [A-Za-z0-9_-]; replaces {site}.")
+    base_iri: Text = Field(
+        "https://example.org/building-twin/{site}#",
+        description='Elements are <base_iri><ifc type>_<uuid> (IFCtoLBD); "{site}" is the site name.',
+    )
+
+
+class StoreTable(ConfigTable):
+    """``[store]``: the embedded graph store. A remote store's keys (``url``, ...) are added to this
+    table by the SPARQL adapter (``adapters/sparql/settings.py``)."""
+
+    extended_by_sections: ClassVar[bool] = True
+
+    path: PathSetting = Field(Path("var/store"), description="The embedded pyoxigraph store (a directory).")
+    flush_every_s: Annotated[Number, Field(ge=1.0, le=3600.0)] = Field(
+        60.0, description="How often 'twin serve' flushes the embedded store's write buffers, seconds."
+    )
+
+
+class ImportConfig(ConfigTable):
+    """``[import]``: how an IFC model becomes the graph."""
+
+    kernels: Annotated[tuple[Kernel, ...], list_of("geometry kernels"), Field(min_length=1)] = Field(
+        ("manifold", "opencascade"),
+        description="Geometry kernels, tried in order: each meshes only what the previous ones could not.",
+    )
+    threads: Annotated[Whole, Field(ge=1)] = 2
+    static_types: Annotated[tuple[IfcClassName, ...], list_of("IFC class names")] = Field(
+        STATIC_TYPES,
+        description="IFC classes (and subtypes) of the fixed structure (twin:isStatic true).",
+    )
+
+
+class MapsTable(ConfigTable):
+    """``[maps]``: the map frame's margin and where ``twin map`` writes files."""
+
+    margin_m: Annotated[Number, Field(ge=0.0, le=100.0)] = Field(
+        1.0, description="Free space around a storey's extent, metres (the origin snaps to the resolution)."
+    )
+    out: PathSetting = Field(Path("var/maps"), description="Where 'twin map' writes its files.")
+
+
+class Limits(ConfigTable):
+    """``[limits]``: bounds on what one message may ask of the daemon."""
+
+    payload_bytes: PositiveWhole = Field(1 << 20, description="Largest observation (bytes of Turtle).")
+    elements_per_observation: PositiveWhole = 256
+    triangles_per_mesh: PositiveWhole = 200_000
+    box_size_m: Positive = Field(50.0, description="Largest side of an observed box, metres.")
+    site_margin_m: Positive = Field(
+        20.0, description="Observed geometry lies within the site's extent grown by this, metres."
+    )
+    sparql_timeout_s: Positive = 5.0
+    sparql_result_bytes: PositiveWhole = 16 << 20
+    full_map_interval_s: Positive = Field(
+        0.2, description="A changed map's full version is published this long after its first change."
+    )
+
+
+class RightsTable(ConfigTable):
+    """``[rights]``: what a robot may do unless its ``[robots.NAME]`` table says otherwise."""
+
+    default: Annotated[tuple[Right, ...], list_of("rights")] = ("create", "dynamic", "doors")
+
+
+class RosTable(ConfigTable):
+    """``[ros]``: what ROS 2 robots see of the maps."""
+
+    frame_id: Text = Field("map", description="header.frame_id of the OccupancyGrid messages.")
