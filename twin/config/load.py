@@ -10,6 +10,7 @@ as they were written and parsed when first asked for (:meth:`Config.section`).
 
 from __future__ import annotations
 
+import re
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -36,6 +37,7 @@ from twin.skills import SkillProfile, parse_skill
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "default.toml"  # package data: installs with twin
 S = TypeVar("S", bound=ConfigSection)
+_ROLE = re.compile(r":\w+:`~?([^`]+)`")
 
 CORE_TABLES: dict[str, type[ConfigTable]] = {
     "site": SiteTable,
@@ -170,13 +172,25 @@ def file_model(sections: Sequence[type[ConfigSection]] = (), *, strict: bool = T
 
 def config_schema(sections: Sequence[type[ConfigSection]] = ()) -> dict[str, Any]:
     """The JSON Schema of ``config/*.toml`` (for editors: Taplo, Even Better TOML)."""
-    schema = file_model(sections).model_json_schema(by_alias=True)
+    schema = _plain(file_model(sections).model_json_schema(by_alias=True))
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": "building-twin configuration",
         "description": "config/default.toml and the files given with 'twin --config FILE'.",
         **{k: v for k, v in schema.items() if k != "title"},
     }
+
+
+def _plain(node: Any) -> Any:
+    """Descriptions as editors show them: ``:mod:`x``` and ````x```` -> ```x```."""
+    if isinstance(node, dict):
+        return {
+            k: _ROLE.sub(r"`\1`", v.replace("``", "`")) if k == "description" else _plain(v)
+            for k, v in node.items()
+        }
+    if isinstance(node, list):
+        return [_plain(v) for v in node]
+    return node
 
 
 def _core_keys(raw: Mapping[str, Any]) -> dict[str, Any]:
