@@ -174,6 +174,9 @@ def test_the_json_schema_describes_every_table_and_refuses_unknown_ones() -> Non
         "robots",
         "lights",
     } <= set(schema["properties"])
+    skill = schema["properties"]["skills"]["additionalProperties"]
+    assert (skill["required"], skill["additionalProperties"]) == (["kind"], False)
+    assert {"lidar_height_m", "robot_height_m", "exclude_materials", "sparql"} <= set(skill["properties"])
     store = schema["$defs"][schema["properties"]["store"]["$ref"].split("/")[-1]]
     assert {"path", "flush_every_s", "archive_every_s"} == set(store["properties"])
     assert store["properties"]["flush_every_s"] == {

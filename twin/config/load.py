@@ -15,9 +15,9 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Annotated, Any, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, WithJsonSchema, create_model
 
 from twin.config.base import ConfigSection, ConfigTable
 from twin.config.messages import config_error
@@ -159,7 +159,7 @@ def file_model(sections: Sequence[type[ConfigSection]] = (), *, strict: bool = T
         model = owners[0] if len(owners) == 1 else create_model(f"{name.title()}File", __base__=tuple(owners))
         fields[f"{name}_" if name == "import" else name] = (model, Field(default_factory=model, alias=name))
     fields["skills"] = (
-        dict[str, dict[str, Any]],
+        dict[str, Annotated[dict[str, Any], WithJsonSchema(_skill_schema())]],
         Field(default_factory=dict, description="Skill profiles: [skills.NAME] (README, 'Skills')."),
     )
     fields["robots"] = (dict[RobotName, RobotTable], Field(default_factory=dict))
@@ -181,11 +181,28 @@ def config_schema(sections: Sequence[type[ConfigSection]] = ()) -> dict[str, Any
     }
 
 
+def _skill_schema() -> dict[str, Any]:
+    """A skill table's keys for editors, from :class:`SkillProfile`'s fields (checked by
+    :func:`~twin.skills.parse_skill`, which also refuses keys that do not belong to the kind)."""
+    schema = TypeAdapter(SkillProfile).json_schema()
+    properties = {k: v for k, v in schema["properties"].items() if k != "name"}
+    properties["sparql"] = {"type": "string", "description": "A group graph pattern binding ?element."}
+    return {
+        "type": "object",
+        "properties": properties,
+        "required": ["kind"],
+        "additionalProperties": False,
+        "description": schema.get("description", ""),
+    }
+
+
 def _plain(node: Any) -> Any:
     """Descriptions as editors show them: ``:mod:`x``` and ````x```` -> ```x```."""
     if isinstance(node, dict):
         return {
-            k: _ROLE.sub(r"`\1`", v.replace("``", "`")) if k == "description" else _plain(v)
+            k: _ROLE.sub(r"`\1`", v.replace("``", "`"))
+            if isinstance(v, str) and k == "description"
+            else _plain(v)
             for k, v in node.items()
         }
     if isinstance(node, list):
