@@ -58,6 +58,7 @@ _GEOMETRY: Final = f"<{vocab.OMG_GEOMETRY}>"
 _PLACEMENT: Final = f"<{vocab.TWIN_PLACEMENT}>"
 _CLOSED: Final = f"<{vocab.TWIN_CLOSED}>"
 _TRIANGLES: Final = f"<{vocab.TWIN_TRIANGLES}>"
+_SOLID: Final = f"<{vocab.TWIN_SOLID}>"
 _BOT_ELEMENT: Final = f"<{vocab.BOT_ELEMENT}>"
 _IFC_CLASS: Final = f"<{vocab.TWIN_IFC_CLASS}>"
 _IFC_TYPE: Final = f"<{vocab.TWIN_IFC_TYPE}>"
@@ -104,7 +105,7 @@ class _Triples:
         self.lines.append(f"{subject} {predicate} {obj} .\n")
 
     def geometry(self, node: str, geometry: Geometry) -> None:
-        """The geometry node of ``node`` (an IRI): mesh, placement, closedness, triangle count."""
+        """The geometry node of ``node`` (an IRI): mesh, placement, closedness, solidity, triangle count."""
         g = vocab.geometry_iri(node)
         key = id(geometry.mesh)
         ply = self._ply.get(key)
@@ -117,6 +118,8 @@ class _Triples:
         self.add(g, _PLACEMENT, _typed(encode_placement(geometry.placement), vocab.TWIN_MATRIX4))
         self.add(g, _CLOSED, _boolean(geometry.mesh.closed))
         self.add(g, _TRIANGLES, _integer(geometry.mesh.triangle_count))
+        if geometry.mesh.solid:
+            self.add(g, _SOLID, _boolean(True))
 
     def data(self, source: str) -> bytes:
         """The N-Triples text (UTF-8); ModelError if some text cannot be encoded (a lone surrogate)."""

@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from twin.errors import MapError
 from twin.grid import FREE, UNKNOWN, GridData, GridFrame, OccupancyGrid, Window
-from twin.raster import SlabGeometry, rasterize, rasterize_slab, slab_geometry
+from twin.raster import SlabGeometry, closed_sections, rasterize, rasterize_slab, slab_geometry
 from twin.scene import IndexArray, MeshSet, Scene, SlabBox, StoreyInfo
 from twin.skills import SkillProfile
 
@@ -100,12 +100,29 @@ class PreparedSlab:
     geometry: SlabGeometry
 
 
+def filled(meshes: MeshSet, ids: IndexArray, plan: MapPlan) -> npt.NDArray[np.bool_]:
+    """``(len(ids),) bool``: which elements ``ids`` are filled in the plan's slab, not only outlined.
+
+    A watertight mesh is; so is a solid's mesh that is not watertight (T-junctions, touching bodies,
+    vertex copies) where its section at the slab's mid-height is made of closed loops
+    (:func:`twin.raster.closed_sections`). Decided per element from all of its triangles, so every
+    window of a map agrees. Only solids with open meshes cost anything here.
+    """
+    fill = meshes.closed[ids]
+    maybe = np.flatnonzero(meshes.solid[ids] & ~fill)
+    if len(maybe):
+        triangles, owner = meshes.triangles_of(ids[maybe])
+        fill = fill.copy()
+        fill[maybe] = closed_sections(triangles, owner, len(maybe), 0.5 * (plan.z_lo + plan.z_hi))
+    return fill
+
+
 def prepare_slab(scene: Scene, plan: MapPlan, ids: IndexArray | None = None) -> PreparedSlab:
     """Clip ``ids`` (default: every element the plan selects) to the plan's slab, once."""
     chosen = plan.selected if ids is None else np.intersect1d(ids, plan.selected)
     triangles, owner = scene.elements.triangles_of(chosen)
-    closed = scene.elements.closed[chosen]
-    return PreparedSlab(chosen, slab_geometry(triangles, owner, closed, plan.z_lo, plan.z_hi))
+    fill = filled(scene.elements, chosen, plan)
+    return PreparedSlab(chosen, slab_geometry(triangles, owner, fill, plan.z_lo, plan.z_hi))
 
 
 def occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -> BoolGrid:
@@ -123,11 +140,12 @@ def occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -
     near = meshes.overlapping(ids, box)
     if len(near) == 0:
         return np.zeros(window.shape, dtype=np.bool_)
+    fill = filled(meshes, near, plan)
     if window == f.full:
         triangles, owner = meshes.triangles_of(near)
     else:
-        triangles, owner = meshes.triangles_for_window(near, box)
-    return rasterize_slab(triangles, owner, meshes.closed[near], plan.z_lo, plan.z_hi, f, window)
+        triangles, owner = meshes.triangles_for_window(near, box, filled=fill)
+    return rasterize_slab(triangles, owner, fill, plan.z_lo, plan.z_hi, f, window)
 
 
 def dilate_disk(occupied: BoolGrid, radius_cells: float) -> BoolGrid:

@@ -23,11 +23,12 @@ from twin.records import FloatArray, Mesh, check_placement
 _FACE_DTYPE = np.dtype([("n", "u1"), ("v", "<i4", (3,))])
 
 
-def _header(n_vertices: int, n_faces: int, closed: bool) -> bytes:
+def _header(n_vertices: int, n_faces: int, closed: bool, solid: bool) -> bytes:
     return (
         "ply\nformat binary_little_endian 1.0\n"
         f"comment closed {int(closed)}\n"
-        f"element vertex {n_vertices}\n"
+        + ("comment solid 1\n" if solid else "")  # only when set: older literals stay byte-identical
+        + f"element vertex {n_vertices}\n"
         "property double x\nproperty double y\nproperty double z\n"
         f"element face {n_faces}\n"
         "property list uchar int vertex_indices\n"
@@ -41,7 +42,7 @@ def encode_mesh(mesh: Mesh) -> str:
     faces["n"] = 3
     faces["v"] = mesh.faces
     body = (
-        _header(len(mesh.vertices), len(mesh.faces), mesh.closed)
+        _header(len(mesh.vertices), len(mesh.faces), mesh.closed, mesh.solid)
         + np.ascontiguousarray(mesh.vertices, dtype="<f8").tobytes()
         + faces.tobytes()
     )
@@ -61,13 +62,15 @@ def decode_mesh(text: str) -> Mesh:
         raise ModelError(msg)
     header = raw[:end].decode("ascii", errors="replace").splitlines()
     counts: dict[str, int] = {}
-    closed = False
+    closed = solid = False
     for line in header:
         parts = line.split()
         if parts[:1] == ["element"] and len(parts) == 3:
             counts[parts[1]] = int(parts[2])
         elif parts[:2] == ["comment", "closed"] and len(parts) == 3:
             closed = parts[2] == "1"
+        elif parts[:2] == ["comment", "solid"] and len(parts) == 3:
+            solid = parts[2] == "1"
     if "binary_little_endian" not in raw[:end].decode("ascii", errors="replace"):
         msg = "Mesh literal must be a binary_little_endian PLY."
         raise ModelError(msg)
@@ -87,7 +90,7 @@ def decode_mesh(text: str) -> Mesh:
     if nf and not (faces_rec["n"] == 3).all():
         msg = "Mesh literal has faces that are not triangles."
         raise ModelError(msg)
-    return Mesh(vertices, faces_rec["v"].astype(np.int32), closed)
+    return Mesh(vertices, faces_rec["v"].astype(np.int32), closed, solid)
 
 
 def encode_placement(matrix: FloatArray) -> str:

@@ -33,11 +33,16 @@ class Mesh:
         faces: ``(m, 3) int32`` vertex indices, one row a triangle.
         closed: True when every edge is shared by exactly two faces (a watertight solid): such
             meshes are filled when sliced; open meshes contribute their surfaces only.
+        solid: True when the source model says the body is a solid (an extrusion, a B-rep, a CSG or
+            boolean result, ...), whatever its mesh: an open mesh of a solid (T-junctions, seams a
+            kernel left unstitched) is still filled where its section is made of closed loops. False
+            for surfaces and when unknown (older stores, meshes robots send).
     """
 
     vertices: FloatArray
     faces: IntArray
     closed: bool
+    solid: bool = False
 
     def __post_init__(self) -> None:
         if self.vertices.dtype != np.float64 or self.faces.dtype != np.int32:

@@ -53,6 +53,8 @@ class MeshSet:
         triangles: ``(n, 3, 3) float64`` world xyz, grouped by node.
         start: ``(k + 1,) intp``: node ``i`` owns ``triangles[start[i]:start[i+1]]``.
         closed: ``(k,) bool`` watertight meshes (filled when sliced).
+        solid: ``(k,) bool`` bodies the source model calls solid (their open meshes are filled where
+            the section is made of closed loops; see :func:`twin.maps.filled`).
         bounds: ``(k, 6) float64`` world AABB ``xmin, ymin, zmin, xmax, ymax, zmax`` (NaN if empty).
         triangle_bounds: ``(n, 6) float32`` each triangle's AABB, rounded outwards (a superset filter).
     """
@@ -62,6 +64,7 @@ class MeshSet:
     triangles: npt.NDArray[np.float64]
     start: IndexArray
     closed: npt.NDArray[np.bool_]
+    solid: npt.NDArray[np.bool_]
     bounds: npt.NDArray[np.float64]
     triangle_bounds: npt.NDArray[np.float32]
 
@@ -82,11 +85,12 @@ class MeshSet:
                 bounds[i, :3] = used.min(axis=0)
                 bounds[i, 3:] = used.max(axis=0)
         closed = np.array([m.closed for _, m, _ in items], dtype=np.bool_)
+        solid = np.array([m.solid for _, m, _ in items], dtype=np.bool_)
         lo, hi = triangles.min(axis=1), triangles.max(axis=1)
         pad = 1e-3 + 1e-6 * np.abs(np.concatenate([lo, hi], axis=1)).max(initial=0.0)
         triangle_bounds = np.concatenate([lo - pad, hi + pad], axis=1).astype(np.float32)
         index = {iri: i for i, iri in enumerate(iris)}
-        return cls(iris, index, triangles, start, closed, bounds, triangle_bounds)
+        return cls(iris, index, triangles, start, closed, solid, bounds, triangle_bounds)
 
     def __len__(self) -> int:
         return len(self.iris)
@@ -124,13 +128,14 @@ class MeshSet:
         return self.triangles[rows], owner
 
     def triangles_for_window(
-        self, ids: IndexArray, box: SlabBox
+        self, ids: IndexArray, box: SlabBox, *, filled: npt.NDArray[np.bool_] | None = None
     ) -> tuple[npt.NDArray[np.float64], IndexArray]:
         """Like :meth:`triangles_of`, but only the triangles a slab map of the box can depend on.
 
-        Kept: triangles meeting the box and the slab, and, of closed elements, triangles in the box's
-        y-range that cross the slab's mid-height (their section crossings set the fill's winding
-        number inside the box, wherever they lie in x).
+        Kept: triangles meeting the box and the slab, and, of filled elements (``filled``, one flag
+        per ``ids``; default: the closed ones), triangles in the box's y-range that cross the slab's
+        mid-height (their section crossings set the fill's winding number inside the box, wherever
+        they lie in x).
         """
         rows, owner = self._rows_of(ids)
         tb = self.triangle_bounds[rows]
@@ -139,7 +144,8 @@ class MeshSet:
             (tb[:, 1] <= box.ymax) & (tb[:, 4] >= box.ymin) & (tb[:, 2] <= box.z_hi) & (tb[:, 5] >= box.z_lo)
         )
         in_box = (tb[:, 0] <= box.xmax) & (tb[:, 3] >= box.xmin)
-        crosses_fill = self.closed[ids][owner] & (tb[:, 2] <= z_f) & (tb[:, 5] >= z_f)
+        fill = self.closed[ids] if filled is None else filled
+        crosses_fill = fill[owner] & (tb[:, 2] <= z_f) & (tb[:, 5] >= z_f)
         keep = in_rows & (in_box | crosses_fill)
         return self.triangles[rows[keep]], owner[keep]
 

@@ -86,6 +86,10 @@ TWIN_STOREY_KEY: Final = TWIN + "storeyKey"
 TWIN_PLACEMENT: Final = TWIN + "placement"
 TWIN_MATRIX4: Final = TWIN + "Matrix4x4"
 TWIN_CLOSED: Final = TWIN + "closedMesh"
+TWIN_SOLID: Final = TWIN + "solid"
+"""On a geometry node, ``true`` when the source model says the body is a solid (not a surface): its
+section is filled where it is made of closed loops even if the mesh is not watertight. Absent: unknown
+(treated as a surface, as before the term existed)."""
 TWIN_TRIANGLES: Final = TWIN + "triangleCount"
 TWIN_MODEL: Final = TWIN + "Model"
 TWIN_SOURCE: Final = TWIN + "sourceFile"

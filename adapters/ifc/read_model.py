@@ -15,6 +15,7 @@ import math
 import uuid
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -24,11 +25,12 @@ import ifcopenshell.util.element
 import ifcopenshell.util.placement
 import ifcopenshell.util.unit
 
+from adapters.ifc.body_kind import BodyKind
 from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
 from adapters.ifc.kernel_choice import KernelChoice
 from adapters.ifc.open_file import open_ifc_checked
-from twin.records import Building, BuildingModel, Element, Relation, Site, Space, Storey
+from twin.records import Building, BuildingModel, Element, Geometry, Mesh, Relation, Site, Space, Storey
 
 log = logging.getLogger(__name__)
 
@@ -262,6 +264,28 @@ def _routed(elements: Sequence[Any]) -> list[Any]:
     return routed
 
 
+def _solid_bodies(products: Iterable[Any], geometry: dict[int, Geometry]) -> dict[int, Geometry]:
+    """``geometry`` with the meshes of the products whose body is a solid (:mod:`adapters.ifc.body_kind`)
+    marked ``solid``; instances sharing a mesh keep sharing one."""
+    kind, out = BodyKind(), dict(geometry)
+    marked: dict[int, Mesh] = {}
+    for p in products:
+        g = geometry.get(p.id())
+        if g is None:
+            continue
+        try:
+            solid = kind.is_solid(p)
+        except _ENTITY_ERRORS as err:
+            log.warning("%s: its body cannot be inspected (%s: %s)", _entity_name(p), type(err).__name__, err)
+            continue
+        if solid:
+            mesh = marked.get(id(g.mesh))
+            if mesh is None:
+                mesh = marked[id(g.mesh)] = replace(g.mesh, solid=True)
+            out[p.id()] = Geometry(mesh, g.placement)
+    return out
+
+
 def _safe_material_sets(e: Any) -> tuple[list[Any], list[Any]]:
     try:
         return _material_sets(e)
@@ -333,6 +357,7 @@ def read_model(
                 infos.append((e, chain, _names(every), _names(facing), any(t in chain for t in statics)))
             relations = _relations(f, elements, spaces=spaces, zones=[*storeys, *buildings, *sites])
             meshed = job.result()
+        solid_geometry = _solid_bodies([*elements, *spaces], meshed.geometry)
         kernel_fallbacks = tuple(
             f.by_id(pid).GlobalId for pid in sorted(meshed.fallbacks) if f.by_id(pid).is_a("IfcElement")
         )
@@ -345,7 +370,7 @@ def read_model(
                 name=str(e.Name or ""),
                 materials=materials,
                 is_static=is_static,
-                geometry=meshed.geometry.get(e.id()),
+                geometry=solid_geometry.get(e.id()),
                 ifc_types=chain,
                 mesh_kernel=meshed.kernel_of.get(e.id(), ""),
                 facing_materials=facing,
@@ -377,7 +402,7 @@ def read_model(
                     str(s.GlobalId),
                     str(s.Name or ""),
                     guid_of(_ancestor(s, up, "IfcBuildingStorey")),
-                    meshed.geometry.get(s.id()),
+                    solid_geometry.get(s.id()),
                 )
                 for s in spaces
             ),

@@ -92,6 +92,42 @@ class Generated:
         )
         return element
 
+    def faceted_brep(self, faces: list[list[XYZ]]) -> Any:
+        """An ``IfcFacetedBrep`` of polygonal ``faces`` (each a loop of local points, m, counter-clockwise
+        seen from outside); equal points are one ``IfcCartesianPoint``."""
+        f, points = self.file, {}
+        for face in faces:
+            for p in face:
+                if p not in points:
+                    points[p] = f.createIfcCartesianPoint([float(c) for c in p])
+        shell = f.createIfcClosedShell(
+            [
+                f.createIfcFace([f.createIfcFaceOuterBound(f.createIfcPolyLoop([points[p] for p in face]), True)])
+                for face in faces
+            ]
+        )
+        return f.createIfcFacetedBrep(shell)
+
+    def brep_element(
+        self, ifc_class: str, name: str, origin: XYZ, items: list[Any], *, container: Any, mapped: bool = False
+    ) -> Any:
+        """An element whose body is the B-rep ``items`` (``Brep``), or with ``mapped`` an ``IfcMappedItem``
+        of a representation map holding them (``MappedRepresentation``), placed at ``origin``."""
+        f = self.file
+        element = ifcopenshell.api.root.create_entity(f, ifc_class=ifc_class, name=name)
+        ifcopenshell.api.spatial.assign_container(f, products=[element], relating_structure=container)
+        self._place(element, origin)
+        body = f.createIfcShapeRepresentation(self.body, "Body", "Brep", items)
+        if mapped:
+            zero = f.createIfcCartesianPoint([0.0, 0.0, 0.0])
+            source = f.createIfcRepresentationMap(f.createIfcAxis2Placement3D(zero), body)
+            operator = f.createIfcCartesianTransformationOperator3D(None, None, zero, None, None)
+            body = f.createIfcShapeRepresentation(
+                self.body, "Body", "MappedRepresentation", [f.createIfcMappedItem(source, operator)]
+            )
+        ifcopenshell.api.geometry.assign_representation(f, product=element, representation=body)
+        return element
+
     def material(self, name: str) -> Any:
         if name not in self._materials:
             self._materials[name] = ifcopenshell.api.material.add_material(self.file, name=name)
@@ -157,3 +193,34 @@ class Generated:
         matrix = np.eye(4)
         matrix[:3, 3] = origin
         ifcopenshell.api.geometry.edit_object_placement(self.file, product=product, matrix=matrix, is_si=True)
+
+
+def box_faces(lo: XYZ, hi: XYZ, *, split: dict[str, tuple[float, ...]] | None = None) -> list[list[XYZ]]:
+    """The six faces of the box ``lo``-``hi`` for :meth:`Generated.faceted_brep`, outward loops.
+
+    ``split`` cuts named faces (``"-x"``, ``"+x"``, ``"-y"``, ``"+y"``, ``"-z"``, ``"+z"``) into strips
+    at the given coordinates: the x and z faces at values of y, the y faces at values of z. The
+    neighbours are not split, so every cut leaves T-junctions: the mesh of the B-rep is open though
+    the solid is closed, as a kernel that triangulates face by face delivers it.
+    """
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    cuts = split or {}
+
+    def strips(name: str, a0: float, a1: float) -> list[tuple[float, float]]:
+        at = [a0, *sorted(c for c in cuts.get(name, ()) if a0 < c < a1), a1]
+        return list(zip(at[:-1], at[1:], strict=True))
+
+    faces: list[list[XYZ]] = []
+    for a, b in strips("-z", y0, y1):
+        faces.append([(x0, a, z0), (x0, b, z0), (x1, b, z0), (x1, a, z0)])
+    for a, b in strips("+z", y0, y1):
+        faces.append([(x0, a, z1), (x1, a, z1), (x1, b, z1), (x0, b, z1)])
+    for a, b in strips("-x", y0, y1):
+        faces.append([(x0, a, z0), (x0, a, z1), (x0, b, z1), (x0, b, z0)])
+    for a, b in strips("+x", y0, y1):
+        faces.append([(x1, a, z0), (x1, b, z0), (x1, b, z1), (x1, a, z1)])
+    for a, b in strips("-y", z0, z1):
+        faces.append([(x0, y0, a), (x1, y0, a), (x1, y0, b), (x0, y0, b)])
+    for a, b in strips("+y", z0, z1):
+        faces.append([(x0, y1, a), (x0, y1, b), (x1, y1, b), (x1, y1, a)])
+    return faces

@@ -20,9 +20,10 @@ from twin.tolerances import SAME_ANGLE_RAD, SAME_POSITION_M
 
 
 def same_mesh(a: Mesh, b: Mesh) -> bool:
-    """The same mesh exactly (vertices, faces, closedness)."""
+    """The same mesh exactly (vertices, faces, closedness, solidity)."""
     return a is b or (
         a.closed == b.closed
+        and a.solid == b.solid
         and a.vertices.shape == b.vertices.shape
         and a.faces.shape == b.faces.shape
         and bool(np.array_equal(a.faces, b.faces))
@@ -35,7 +36,12 @@ def same_shape(a: Shape, b: Shape) -> bool:
     within :data:`~twin.tolerances.SAME_POSITION_M`, the orientation within
     :data:`~twin.tolerances.SAME_ANGLE_RAD`."""
     (ma, pa), (mb, pb) = a, b
-    if ma.closed != mb.closed or ma.faces.shape != mb.faces.shape or ma.vertices.shape != mb.vertices.shape:
+    if (ma.closed, ma.solid, ma.faces.shape, ma.vertices.shape) != (
+        mb.closed,
+        mb.solid,
+        mb.faces.shape,
+        mb.vertices.shape,
+    ):
         return False
     if ma is not mb and not np.array_equal(ma.faces, mb.faces):
         return False

@@ -87,4 +87,5 @@ def geometry_triples(iri: str, mesh: Mesh, placement: FloatArray) -> list[Triple
         Triple(g, vocab.TWIN_PLACEMENT, literal(encode_placement(placement), vocab.TWIN_MATRIX4)),
         Triple(g, vocab.TWIN_CLOSED, boolean(mesh.closed)),
         Triple(g, vocab.TWIN_TRIANGLES, literal(str(mesh.triangle_count), vocab.XSD_INTEGER)),
+        *([Triple(g, vocab.TWIN_SOLID, boolean(True))] if mesh.solid else []),
     ]

@@ -35,6 +35,7 @@ Example::
 
 from twin.raster.api import rasterize, rasterize_slab, slab_geometry
 from twin.raster.clip import SlabGeometry
+from twin.raster.loops import closed_sections
 from twin.raster.settings import (
     MAX_VERTICES,
     RASTER_SETTINGS,
@@ -60,6 +61,7 @@ __all__ = [
     "SlabGeometry",
     "Spans",
     "Tolerances",
+    "closed_sections",
     "rasterize",
     "rasterize_slab",
     "slab_geometry",

@@ -8,6 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.errors import MapError
+from twin.tolerances import SECTION_JOIN_M
 
 FloatArray = npt.NDArray[np.float64]
 IndexArray = npt.NDArray[np.intp]
@@ -26,9 +27,12 @@ class Tolerances:
     Attributes:
         cell_m: cells are shrunk (solid geometry) or grown (degenerate open surfaces) by this many
             metres; an open polygon is degenerate when its area is at most ``cell_m`` times its extent.
+        join_m: section endpoints closer than this are one joint when deciding whether a solid's
+            open mesh has a section made of closed loops (:func:`twin.raster.closed_sections`).
     """
 
     cell_m: float = 1e-9
+    join_m: float = SECTION_JOIN_M
 
 
 TOLERANCES = Tolerances()
