@@ -12,6 +12,7 @@ Example::
 from __future__ import annotations
 
 from collections.abc import Callable
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -100,16 +101,21 @@ class Generated:
             for p in face:
                 if p not in points:
                     points[p] = f.createIfcCartesianPoint([float(c) for c in p])
-        shell = f.createIfcClosedShell(
-            [
-                f.createIfcFace([f.createIfcFaceOuterBound(f.createIfcPolyLoop([points[p] for p in face]), True)])
-                for face in faces
-            ]
-        )
+        bounds = [
+            f.createIfcFaceOuterBound(f.createIfcPolyLoop([points[p] for p in face]), True) for face in faces
+        ]
+        shell = f.createIfcClosedShell([f.createIfcFace([b]) for b in bounds])
         return f.createIfcFacetedBrep(shell)
 
     def brep_element(
-        self, ifc_class: str, name: str, origin: XYZ, items: list[Any], *, container: Any, mapped: bool = False
+        self,
+        ifc_class: str,
+        name: str,
+        origin: XYZ,
+        items: list[Any],
+        *,
+        container: Any,
+        mapped: bool = False,
     ) -> Any:
         """An element whose body is the B-rep ``items`` (``Brep``), or with ``mapped`` an ``IfcMappedItem``
         of a representation map holding them (``MappedRepresentation``), placed at ``origin``."""
@@ -208,7 +214,7 @@ def box_faces(lo: XYZ, hi: XYZ, *, split: dict[str, tuple[float, ...]] | None = 
 
     def strips(name: str, a0: float, a1: float) -> list[tuple[float, float]]:
         at = [a0, *sorted(c for c in cuts.get(name, ()) if a0 < c < a1), a1]
-        return list(zip(at[:-1], at[1:], strict=True))
+        return list(pairwise(at))
 
     faces: list[list[XYZ]] = []
     for a, b in strips("-z", y0, y1):

@@ -4,12 +4,14 @@ OpenCASCADE reference meshed from the IFC file, and window recompute."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from adapters.ifc.sample_lab import DOOR_HOST, Box
+from tests.adapters.generated import Generated, box_faces
 from tests.adapters.map_reference import (
     compare_map,
     compare_model,
@@ -415,3 +417,59 @@ def test_an_inflated_skill_matches_the_opencascade_reference_dilated_by_the_same
     ]
     assert all(c.agrees for c in checks)
     assert checks[1].check.certain > checks[0].check.certain
+
+
+def _solid_defects(path: Path) -> None:
+    """The two shapes of solid whose mesh is not watertight seen on real exports, small: a layered
+    exterior wall whose B-rep carries its layer seams on its end faces only (OpenCASCADE meshes it
+    with T-junctions), and a lift modelled as a mapped representation of three B-rep bodies touching
+    along faces, each with a face split where its neighbour is not."""
+    g = Generated("IFC4")
+    storey = g.storey("Ground", 0.0)
+    g.box("IfcSlab", "Floor", (0.0, 0.0, -0.2), (10.0, 4.0, 0.2), container=storey)
+    seams = {"-x": (0.1, 0.25), "+x": (0.1, 0.25)}
+    wall = g.brep_element(
+        "IfcWall",
+        "Exterior wall",
+        (4.0, 0.0, 0.0),
+        [g.faceted_brep(box_faces((0.0, 0.0, 0.0), (5.0, 0.35, 3.0), split=seams))],
+        container=storey,
+    )
+    g.layers(wall, ["Brick", "Fiberglass Batt", "Plaster"])
+    bodies = [
+        box_faces((0.0, 0.0, 0.0), (1.6, 0.2, 3.0), split={"-y": (1.0,)}),
+        box_faces((0.0, 0.2, 0.0), (0.2, 1.8, 3.0), split={"-x": (0.9,)}),
+        box_faces((1.4, 0.2, 0.0), (1.6, 1.8, 3.0), split={"+z": (1.0,)}),
+    ]
+    g.brep_element(
+        "IfcTransportElement",
+        "Lift",
+        (1.0, 1.0, 0.0),
+        [g.faceted_brep(b) for b in bodies],
+        container=storey,
+        mapped=True,
+    )
+    g.write(path)
+
+
+def test_solids_with_open_meshes_are_filled_like_the_opencascade_reference(
+    tmp_path: Path, read_cached: Callable[[Path], BuildingModel], config: Config
+) -> None:
+    path = tmp_path / "solid-defects.ifc"
+    _solid_defects(path)
+    model = read_cached(path)
+    meshes = {e.name: e.geometry.mesh for e in model.elements if e.geometry is not None}
+    for name in ("Exterior wall", "Lift"):
+        assert meshes[name].solid and not meshes[name].closed, f"{name}: a solid with an open mesh"
+    store = imported(model)
+    scene = load_scene(store)
+    skills = [config.skill(s) for s in DEFAULT_SKILLS]
+    result = compare_model(path, store, scene, skills)
+    assert (result.lost, result.invented) == ([], [])
+    assert [m.describe() for m in result.maps if not m.agrees] == []
+    # the same meshes taken for surfaces (what the maps did before): their insides are missed
+    surfaces = [(i, replace(m, solid=False), p) for i, (m, p) in scene.shapes.items()]
+    outlined = Scene(MeshSet.build(surfaces), scene.spaces, scene.storeys, scene.space_storey, scene.shapes)
+    before = compare_model(path, store, outlined, skills)
+    culprits = {(c.ifc_class, c.side) for m in before.maps for c in m.culprits}
+    assert culprits == {("IfcWall", "missed"), ("IfcTransportElement", "missed")}
