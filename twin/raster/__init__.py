@@ -1,8 +1,9 @@
 """Slab rasterising: which grid cells the elements' geometry between two heights touches.
 
 The geometry of a height slab ``z_lo <= z <= z_hi`` is, for every triangle, its part inside the slab
-(a convex polygon of up to 5 vertices) projected to XY, plus, for closed (watertight) elements, the
-solid's interior inside the slab. A cell is occupied iff that geometry touches the cell, where
+(a convex polygon of up to 5 vertices) projected to XY, plus, for closed elements (watertight, or
+solids whose section is made of closed loops: :func:`closed_sections`), the interior inside the
+slab. A cell is occupied iff that geometry touches the cell, where
 
 - cells are closed squares *shrunk* by ``Tolerances.cell_m`` for every projected polygon of positive
   area and for every polygon of a closed element (a wall face lying exactly on a grid line does not

@@ -35,8 +35,9 @@ def rasterize_slab(  # noqa: PLR0917 (the map generator's established call)
     Args:
         triangles: ``(n, 3, 3) float64`` world xyz of each triangle's vertices, metres.
         element: ``(n,)`` integer index of the element each triangle belongs to, in ``[0, k)``.
-        closed: ``(k,) bool`` per element: True if its mesh is a watertight solid (then it is filled;
-            faces should be consistently oriented, as a solid's are).
+        closed: ``(k,) bool`` per element: True to fill it, for a watertight mesh or a solid's mesh
+            whose section is made of closed loops (:func:`twin.raster.closed_sections`); faces should
+            be consistently oriented, as a solid's are.
         z_lo, z_hi: the slab, world z, ``z_lo <= z_hi``.
         frame: the grid.
         window: compute only these cells; equal bit for bit to the same window of the full result.
