@@ -474,11 +474,14 @@ class _Builder:
 
     def _stable_ids(self) -> None:
         """GlobalIds from the seed and the creation order (the API mints random ones), and the
-        relationships' lists in creation order (the API builds some through sets)."""
+        relationships' and unit assignment's lists in creation order (the API builds some through
+        sets)."""
         for rel in self.f.by_type("IfcRelationship"):
             for i, value in enumerate(rel):
                 if isinstance(value, tuple) and value and isinstance(value[0], ifcopenshell.entity_instance):
                     rel[i] = sorted(value, key=lambda e: e.id())
+        for units in self.f.by_type("IfcUnitAssignment"):  # the API assigns the units through a set too
+            units.Units = sorted(units.Units, key=lambda e: e.id())
         for i, root in enumerate(sorted(self.f.by_type("IfcRoot"), key=lambda e: e.id())):
             root.GlobalId = ifcopenshell.guid.compress(uuid.uuid5(_NAMESPACE, f"{self.o.seed}/{i}").hex)
 
