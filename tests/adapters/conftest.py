@@ -9,9 +9,10 @@ from pathlib import Path
 import pytest
 
 from adapters.ifc import read_model
-from adapters.ifc.sample_lab import LabLayout, write_lab
+from adapters.ifc.sample_lab import write_lab
 from tests.conftest import imported
 from twin.config import Config
+from twin.lab_layout import LabLayout
 from twin.records import BuildingModel
 from twin.store import GraphStore
 

@@ -14,9 +14,10 @@ import pytest
 
 from adapters.ifc import IfcFileError, read_model
 from adapters.ifc.geometry import _make_mesh
-from adapters.ifc.sample_lab import LabLayout, write_lab
+from adapters.ifc.sample_lab import write_lab
 from tests.conftest import SHARED_MODELS, imported, shared_model
 from twin import vocab
+from twin.lab_layout import LabLayout
 from twin.meshcodec import decode_mesh, decode_placement
 from twin.records import BuildingModel
 from twin.shapes import box_mesh

@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from adapters.ifc.sample_lab import DOOR_HOST, Box
 from tests.adapters.generated import Generated, box_faces
 from tests.adapters.map_reference import (
     compare_map,
@@ -25,6 +24,7 @@ from tests.conftest import imported, shared_model
 from tests.twin.reference import rasterize_reference, slab_geometry
 from twin.config import Config
 from twin.grid import OCCUPIED, OccupancyGrid, Window
+from twin.lab_plan import DOOR_HOST, Box
 from twin.maps import build_map, dilate_disk, plan_map, prepare_slab, render_window
 from twin.records import BuildingModel
 from twin.scene import MeshSet, Scene, SlabBox, load_scene

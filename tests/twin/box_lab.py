@@ -1,131 +1,103 @@
 """The paper's lab as core records built from boxes: no IFC, no ifcopenshell (the core's own tests).
 
-Same layout as ``adapters.ifc.sample_lab`` (world frame: the building at x 10.., y 5..), ground floor only
-unless ``storeys=2``: rooms A and B joined by a corridor, an arch across the corridor, a glass wall on
-room B's east side, Door A in the gap of Wall A south (x 1.55..2.45, a header above 2.1 m), and a
-table in room A.
+The lab is ``twin.lab_layout`` (the layout ``adapters.ifc.sample_lab`` writes as IFC), so the core's
+tests and the IFC tests see the same building: same names, classes, materials, GlobalIds and world
+boxes (the building at x 10.., y 5..), ground floor only unless ``storeys=2``. Each element's mesh is
+its box, or the boxes left of it once its openings are cut (Wall A south, with Door A's opening); a
+slab is its bounding box (the ground floor's is H-shaped in the IFC file, under the map heights
+either way). Relations are the file's: space boundaries, containment (the table in Room A, the
+opening in no spatial structure) and decomposition (wall -> opening -> door).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import numpy as np
 
-from twin.records import Building, BuildingModel, Element, Geometry, Relation, Site, Space, Storey
+from twin.ifc_classes import supertypes
+from twin.lab_layout import LabElement, LabLayout, lab_layout
+from twin.lab_plan import BUILDING, BUILDING_OFFSET, SITE, Box
+from twin.records import Building, BuildingModel, Element, Geometry, Mesh, Relation, Site, Space, Storey
 from twin.shapes import box_mesh, box_placement
+from twin.vocab import entity_iri
 
-OX, OY = 10.0, 5.0
+OX, OY = BUILDING_OFFSET[0], BUILDING_OFFSET[1]
 BASE = "https://example.org/test#"
+STATIC = ("IfcWall", "IfcDoor", "IfcOpeningElement", "IfcSlab")
+"""The classes of the lab that ``[import] static_types`` of the default configuration lists."""
 
-_WALL_TYPES = ("IfcWall", "IfcBuildingElement", "IfcBuiltElement", "IfcElement", "IfcProduct")
-_TYPES = {
-    "IfcWall": _WALL_TYPES,
-    "IfcDoor": ("IfcDoor", "IfcBuildingElement", "IfcBuiltElement", "IfcElement", "IfcProduct"),
-    "IfcOpeningElement": (
-        "IfcOpeningElement", "IfcFeatureElementSubtraction", "IfcFeatureElement", "IfcElement", "IfcProduct"
-    ),
-    "IfcFurniture": ("IfcFurniture", "IfcFurnishingElement", "IfcElement", "IfcProduct"),
-    "IfcBeam": ("IfcBeam", "IfcBuildingElement", "IfcBuiltElement", "IfcElement", "IfcProduct"),
-    "IfcSlab": ("IfcSlab", "IfcBuildingElement", "IfcBuiltElement", "IfcElement", "IfcProduct"),
-}  # fmt: skip
-STATIC = ("IfcWall", "IfcDoor", "IfcOpeningElement", "IfcBeam", "IfcSlab")
+LAB: LabLayout = lab_layout(storeys=2)
+GROUND: tuple[LabElement, ...] = tuple(e for e in LAB.elements if e.storey == LAB.storeys[0].name)
+FIRST: tuple[LabElement, ...] = tuple(e for e in LAB.elements if e.storey == LAB.storeys[1].name)
 
 
-@dataclass(frozen=True, slots=True)
-class BoxSpec:
-    name: str
-    guid: str
-    ifc_class: str
-    material: str
-    box: tuple[float, float, float, float, float, float]  # storey frame: xmin ymin zmin xmax ymax zmax
+def element_iri(element: LabElement) -> str:
+    return entity_iri(BASE, element.ifc_class, element.global_id)
 
 
-def _guid(n: int) -> str:
-    return "0" + f"{n:021d}"
+def spec(name: str) -> LabElement:
+    """The lab's element ``name`` (world box, GlobalId, class, material)."""
+    return LAB.element(name)
 
 
-# Ground floor, storey frame (add OX, OY for world).
-GROUND: tuple[BoxSpec, ...] = (
-    BoxSpec("Wall A west", _guid(1), "IfcWall", "Brick", (-0.2, -0.2, 0.0, 0.0, 4.2, 2.7)),
-    BoxSpec("Wall A north", _guid(2), "IfcWall", "Brick", (-0.2, 4.0, 0.0, 4.2, 4.2, 2.7)),
-    BoxSpec("Wall A south", _guid(3), "IfcWall", "Brick", (-0.2, -0.2, 0.0, 1.55, 0.0, 2.7)),
-    BoxSpec("Wall A south right", _guid(17), "IfcWall", "Brick", (2.45, -0.2, 0.0, 4.2, 0.0, 2.7)),
-    BoxSpec("Wall A south header", _guid(18), "IfcWall", "Brick", (1.55, -0.2, 2.1, 2.45, 0.0, 2.7)),
-    BoxSpec("Wall A east low", _guid(4), "IfcWall", "Brick", (4.0, -0.2, 0.0, 4.2, 1.4, 2.7)),
-    BoxSpec("Wall A east high", _guid(5), "IfcWall", "Brick", (4.0, 2.6, 0.0, 4.2, 4.2, 2.7)),
-    BoxSpec("Corridor north", _guid(6), "IfcWall", "Brick", (4.2, 2.6, 0.0, 7.8, 2.8, 2.7)),
-    BoxSpec("Corridor south", _guid(7), "IfcWall", "Brick", (4.2, 1.2, 0.0, 7.8, 1.4, 2.7)),
-    BoxSpec("Wall B west low", _guid(8), "IfcWall", "Brick", (7.8, -0.2, 0.0, 8.0, 1.4, 2.7)),
-    BoxSpec("Wall B west high", _guid(9), "IfcWall", "Brick", (7.8, 2.6, 0.0, 8.0, 4.2, 2.7)),
-    BoxSpec("Wall B north", _guid(10), "IfcWall", "Brick", (7.8, 4.0, 0.0, 12.1, 4.2, 2.7)),
-    BoxSpec("Wall B south", _guid(11), "IfcWall", "Brick", (7.8, -0.2, 0.0, 12.1, 0.0, 2.7)),
-    BoxSpec("Glass wall", _guid(12), "IfcWall", "Glass", (12.0, 0.0, 0.0, 12.1, 4.0, 2.7)),
-    BoxSpec("Arch", _guid(13), "IfcBeam", "Steel", (5.9, 1.4, 0.3, 6.1, 2.6, 1.0)),
-    BoxSpec("Door A", _guid(14), "IfcDoor", "Wood", (1.55, -0.125, 0.0, 2.45, -0.075, 2.1)),
-    BoxSpec("Table", _guid(15), "IfcFurniture", "Wood", (1.4, 2.6, 0.0, 2.6, 3.4, 0.75)),
-    BoxSpec("Floor", _guid(16), "IfcSlab", "Concrete", (-0.2, -0.2, -0.2, 12.1, 4.2, 0.0)),
-)
-FIRST: tuple[BoxSpec, ...] = (
-    BoxSpec("Hall west", _guid(21), "IfcWall", "Brick", (-0.2, -0.2, 0.0, 0.0, 4.2, 2.7)),
-    BoxSpec("Hall east", _guid(22), "IfcWall", "Brick", (12.0, -0.2, 0.0, 12.2, 4.2, 2.7)),
-    BoxSpec("Hall inner", _guid(23), "IfcWall", "Brick", (5.9, 0.0, 0.0, 6.1, 1.0, 2.7)),
-)
-STOREY_HEIGHT = 3.0
+def _boxes_geometry(boxes: tuple[Box, ...]) -> Geometry:
+    """One closed mesh of the disjoint world ``boxes``, its local origin at the first box's centre (as
+    ``twin.shapes`` places a box: a single box's mesh is centred)."""
+    centres = np.array([[(b[i] + b[i + 3]) / 2 for i in range(3)] for b in boxes])
+    vertices, faces, count = [], [], 0
+    for b, centre in zip(boxes, centres - centres[0], strict=True):
+        mesh = box_mesh(b.xmax - b.xmin, b.ymax - b.ymin, b.zmax - b.zmin)
+        vertices.append(mesh.vertices + centre)
+        faces.append(mesh.faces + count)
+        count += len(mesh.vertices)
+    mesh = Mesh(np.concatenate(vertices), np.concatenate(faces).astype(np.int32), closed=True)
+    return Geometry(mesh, box_placement(*centres[0]))
 
 
-def element_iri(spec: BoxSpec) -> str:
-    from twin.vocab import entity_iri
-
-    return entity_iri(BASE, spec.ifc_class, spec.guid)
-
-
-def spec(name: str) -> BoxSpec:
-    return next(s for s in (*GROUND, *FIRST) if s.name == name)
-
-
-def world_box(s: BoxSpec, *, elevation: float = 0.0) -> tuple[float, float, float, float, float, float]:
-    x0, y0, z0, x1, y1, z1 = s.box
-    return (x0 + OX, y0 + OY, z0 + elevation, x1 + OX, y1 + OY, z1 + elevation)
-
-
-def _element(s: BoxSpec, elevation: float) -> Element:
-    x0, y0, z0, x1, y1, z1 = world_box(s, elevation=elevation)
-    geometry = Geometry(
-        box_mesh(x1 - x0, y1 - y0, z1 - z0), box_placement((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2)
-    )
+def _element(e: LabElement) -> Element:
+    materials = () if e.material is None else (e.material,)
+    types = supertypes("IFC4", e.ifc_class)
+    assert types is not None, e.ifc_class
     return Element(
-        guid=s.guid,
-        ifc_class=s.ifc_class,
-        name=s.name,
-        materials=(s.material,),
-        facing_materials=(s.material,),
-        is_static=s.ifc_class in STATIC,
-        geometry=geometry,
-        ifc_types=_TYPES[s.ifc_class],
+        guid=e.global_id,
+        ifc_class=e.ifc_class,
+        name=e.name,
+        materials=materials,
+        facing_materials=materials,
+        is_static=e.ifc_class in STATIC,
+        geometry=_boxes_geometry(LAB.solid(e.name)),
+        ifc_types=types,
     )
 
 
 def box_lab(*, storeys: int = 1) -> BuildingModel:
     """The lab as a :class:`BuildingModel` (one or two storeys), ready for ``import_model``."""
-    site, building = Site(_guid(900), "Site"), Building(_guid(901), "Lab", _guid(900))
-    floors = [(Storey(_guid(902), "Ground floor", 0.0, building.guid), GROUND)]
-    if storeys == 2:
-        floors.append((Storey(_guid(903), "First floor", STOREY_HEIGHT, building.guid), FIRST))
-    elements, contained = [], set()
-    for storey, specs in floors:
-        for s in specs:
-            elements.append(_element(s, storey.elevation_m))
-            contained.add(Relation(storey.guid, s.guid))
-    corridor = Space(_guid(904), "Corridor", floors[0][0].guid)
+    lab = lab_layout(storeys=2 if storeys == 2 else 1)
+    site = Site(lab.site_guid, SITE)
+    building = Building(lab.building_guid, BUILDING, site.guid)
+    storey_of = {s.name: Storey(s.global_id, s.name, s.elevation_m, building.guid) for s in lab.storeys}
+    spaces = {
+        s.name: Space(s.global_id, s.name, storey_of[s.storey].guid, _boxes_geometry((s.box,)))
+        for s in lab.spaces
+    }
+    by_name = {e.name: e for e in lab.elements}
+    structure = {name: s.guid for name, s in (*storey_of.items(), *spaces.items())}
+    contained = {
+        Relation(structure[e.container], e.global_id) for e in lab.elements if e.container in structure
+    }
+    decomposed = {
+        Relation(by_name[e.container].global_id, e.global_id) for e in lab.elements if e.container in by_name
+    } | {Relation(by_name[e.fills].global_id, e.global_id) for e in lab.elements if e.fills is not None}
+    adjacent = {Relation(spaces[s.name].guid, by_name[n].global_id) for s in lab.spaces for n in s.bounded_by}
     return BuildingModel(
         source_name="box-lab",
         schema="IFC4",
         source_lines=0,
         sites=(site,),
         buildings=(building,),
-        storeys=tuple(st for st, _ in floors),
-        spaces=(corridor,),
-        elements=tuple(elements),
-        adjacent=frozenset({Relation(corridor.guid, spec("Corridor north").guid)}),
+        storeys=tuple(storey_of.values()),
+        spaces=tuple(spaces.values()),
+        elements=tuple(_element(e) for e in lab.elements),
+        adjacent=frozenset(adjacent),
         contained=frozenset(contained),
-        decomposed=frozenset(),
+        decomposed=frozenset(decomposed),
     )

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import imported
-from tests.twin.box_lab import OX, OY, box_lab, element_iri, spec, world_box
+from tests.twin.box_lab import OX, OY, box_lab, element_iri, spec
 from tests.twin.live_helpers import PREFIX, TWIN, box_turtle, observe, started
 from twin.config import load_config
 from twin.errors import QueryError
@@ -90,7 +90,7 @@ def test_opening_the_door_frees_its_cells_and_closing_it_blocks_them_again() -> 
 def test_moving_an_imported_element_moves_it_in_the_maps() -> None:
     service, _ = started()
     table = element_iri(spec("Table"))
-    x0, y0, _, x1, y1, _ = world_box(spec("Table"))
+    x0, y0, _, x1, y1, _ = spec("Table").box
     placement = np.eye(4)
     placement[:3, 3] = ((x0 + x1) / 2 + 0.8, (y0 + y1) / 2 - 1.0, 0.375)
     text = " ".join(repr(float(v)) for v in placement.ravel())
@@ -145,7 +145,7 @@ def test_a_robot_with_the_static_right_may_change_structure() -> None:
         }
     )
     service, _ = started(config=cfg)
-    wall = element_iri(spec("Corridor south"))
+    wall = element_iri(spec("Wall corridor south"))
     assert observe(service, "builder", f"<{wall}> <{TWIN}removed> true .".encode()).ok
     assert not (cells(service, "navigation", 4.5, 1.25, 7.5, 1.35) == OCCUPIED).any()
 

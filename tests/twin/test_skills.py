@@ -60,8 +60,8 @@ def test_selection_by_type_includes_subtypes_and_excludes_glass(box_store: Graph
     got = {literal_value(r["element"]) for r in box_store.select(selection_query(skill))}
     rows = box_store.select("SELECT ?e ?g WHERE { ?e props:globalIdIfcRoot_attribute_simple ?g }")
     guid = {literal_value(r["e"]): literal_value(r["g"]) for r in rows}
-    walls = {s.guid for s in GROUND if s.ifc_class == "IfcWall"}
-    assert {guid[e] for e in got} == walls - {spec("Glass wall").guid}
+    walls = {s.global_id for s in GROUND if s.ifc_class == "IfcWall"}
+    assert {guid[e] for e in got} == walls - {spec("Glass wall").global_id}
 
 
 def test_a_raw_sparql_pattern_narrows_the_selection(box_store: GraphStore) -> None:
@@ -113,7 +113,7 @@ def test_a_user_pattern_cannot_undo_the_material_filter(box_store: GraphStore) -
     rows = box_store.select("SELECT ?e ?g WHERE { ?e props:globalIdIfcRoot_attribute_simple ?g }")
     guid = {literal_value(r["e"]): literal_value(r["g"]) for r in rows}
     got = {guid[literal_value(r["element"])] for r in box_store.select(selection_query(skill))}
-    assert spec("Glass wall").guid not in got
+    assert spec("Glass wall").global_id not in got
     assert got
 
 

@@ -47,7 +47,7 @@ def test_a_free_cell_beside_the_glass_wall_says_the_glass_is_excluded_and_the_wa
     assert answer["state"] == "free" and answer["occupied_by"] == []
     near = {e["name"]: e for e in answer["near"]}  # type: ignore[attr-defined]
     assert near["Glass wall"]["why_not"] == "made of glass (Glass)"
-    assert near["Glass wall"]["global_id"] == spec("Glass wall").guid
+    assert near["Glass wall"]["global_id"] == spec("Glass wall").global_id
     on_glass = explain(service, "navigation", 12.05, 2.0).body  # the navigation skill draws glass
     assert names(on_glass["occupied_by"]) == ["Glass wall"]
 
