@@ -22,11 +22,11 @@ from typing import Any, Self
 
 import rdflib
 import zenoh
-import zenoh.ext
 
 from adapters.ros import apply_update, decode_occupancy_grid, decode_occupancy_grid_update
 from adapters.zenoh.errors import DaemonTimeoutError, RemoteError, TransportError
 from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.latched import LatchedSubscription
 from adapters.zenoh.session import client_config
 from adapters.zenoh.settings import ZenohSettings
 from twin.grid import OccupancyGrid
@@ -85,12 +85,12 @@ class MapWatcher:
         """How many versions the copy went through (only the latest is kept: a watcher runs all day)."""
         self._cond = threading.Condition()
         self._pending: list[tuple[int, int, Any, Any]] = []  # updates that came before their base
-        self._updates = session.declare_subscriber(keys.map_updates(storey, skill), self._on_update)
-        self._maps = zenoh.ext.declare_advanced_subscriber(
+        self._follow = LatchedSubscription(
             session,
             keys.map(storey, skill),
-            self._on_map,
-            history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
+            keys.map_updates(storey, skill),
+            on_map=self._on_map,
+            on_update=self._on_update,
         )
         # also ask whoever holds the map now: the daemon, or a router's map storage while it restarts
         session.get(keys.map(storey, skill), self._on_reply, timeout=10.0)
@@ -155,11 +155,7 @@ class MapWatcher:
             return self.latest
 
     def close(self) -> None:
-        for entity in (self._maps, self._updates):
-            try:
-                entity.undeclare()
-            except Exception:
-                log.debug("undeclare failed", exc_info=True)
+        self._follow.close()
 
     def __enter__(self) -> Self:
         return self

@@ -35,10 +35,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import zenoh
-import zenoh.ext
 
 from adapters.ros import encode_occupancy_grid, encode_update_cells
 from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.latched import CDR, declare_latched_publisher
 from adapters.zenoh.outbox import Outbox
 from twin.errors import TwinError
 from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
@@ -46,7 +46,6 @@ from twin.live import Reply, TwinService
 
 log = logging.getLogger(__name__)
 
-CDR = zenoh.Encoding.APPLICATION_CDR
 JSON = zenoh.Encoding.APPLICATION_JSON
 
 
@@ -114,15 +113,7 @@ class ZenohDaemon:
         payload = encode_occupancy_grid(grid, stamp_ns=event.stamp_ns, frame_id=self.frame_id)
         out = self._maps.get(key)
         if out is None:
-            latched = zenoh.ext.declare_advanced_publisher(
-                self.session,
-                self.keys.map(*key),
-                encoding=CDR,
-                congestion_control=zenoh.CongestionControl.BLOCK,
-                reliability=zenoh.Reliability.RELIABLE,
-                cache=zenoh.ext.CacheConfig(max_samples=1),
-                publisher_detection=True,
-            )
+            latched = declare_latched_publisher(self.session, self.keys.map(*key))
             updates = self.session.declare_publisher(
                 self.keys.map_updates(*key),
                 encoding=CDR,

@@ -46,7 +46,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import zenoh
-import zenoh.ext
 
 from adapters.ros import encode_occupancy_grid, encode_update_cells
 from adapters.ros.cdr import (
@@ -70,6 +69,7 @@ from adapters.ros.rmw_zenoh import (
 )
 from adapters.zenoh.errors import StoreySwitchError
 from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.latched import CDR, declare_latched_publisher, declare_latched_subscriber
 from twin.config import Config, RobotConfig
 from twin.errors import TwinError
 from twin.events import MapPublished, MapUpdated, RobotStoreyChanged, TwinEvent, TwinSink, TwinStarted
@@ -79,7 +79,8 @@ log = logging.getLogger(__name__)
 
 NODE_NAME = "twin_map_server"
 STOREY_TOPIC = "storey"
-CDR = zenoh.Encoding.APPLICATION_CDR
+RMW_HEARTBEAT_S = 0.5
+"""The sporadic heartbeat of rmw_zenoh's latched (TRANSIENT_LOCAL) publishers, seconds."""
 TEXT = zenoh.Encoding.TEXT_PLAIN
 Source = str  # "zenoh" or "ros"
 
@@ -133,19 +134,9 @@ class _Latest:
     payload: bytes | None
 
 
-def _latched(session: zenoh.Session, key: str, *, heartbeat: bool) -> Any:
-    return zenoh.ext.declare_advanced_publisher(
-        session,
-        key,
-        encoding=CDR,
-        congestion_control=zenoh.CongestionControl.BLOCK,
-        reliability=zenoh.Reliability.RELIABLE,
-        cache=zenoh.ext.CacheConfig(max_samples=1),
-        publisher_detection=True,
-        sample_miss_detection=(
-            zenoh.ext.MissDetectionConfig(heartbeat=None, sporadic_heartbeat=0.5) if heartbeat else None
-        ),
-    )
+def _latched(session: zenoh.Session, key: str, *, rmw: bool) -> Any:
+    """The latched publisher of a map (or filter info) topic; rmw_zenoh's with its heartbeat."""
+    return declare_latched_publisher(session, key, heartbeat_s=RMW_HEARTBEAT_S if rmw else None)
 
 
 class RosMapPublisher:
@@ -198,7 +189,7 @@ class RosMapPublisher:
                     robot.domain_id, robot.namespace, f"{name}_updates", OCCUPANCY_GRID_UPDATE
                 )
                 if "bridge" in robot.ros:
-                    t.maps.append(_Out(_latched(session, map_topic.bridge_key, heartbeat=False)))
+                    t.maps.append(_Out(_latched(session, map_topic.bridge_key, rmw=False)))
                     t.updates.append(_Out(session.declare_publisher(upd_topic.bridge_key, encoding=CDR)))
                 if rmw:
                     for topic, qos, outs, latched in (
@@ -208,7 +199,7 @@ class RosMapPublisher:
                         token = node.publisher_token(topic, entity, qos)
                         entity += 1
                         pub = (
-                            _latched(session, topic.data_key, heartbeat=True)
+                            _latched(session, topic.data_key, rmw=True)
                             if latched
                             else session.declare_publisher(
                                 topic.data_key, encoding=CDR, reliability=zenoh.Reliability.RELIABLE
@@ -225,14 +216,7 @@ class RosMapPublisher:
             on_storey = self._ros_storey_handler(robot.name)
             for layout, key in (("bridge", storey_topic.bridge_key), ("rmw_zenoh", storey_topic.data_key)):
                 if layout in robot.ros:
-                    r.entities.append(
-                        zenoh.ext.declare_advanced_subscriber(
-                            session,
-                            key,
-                            on_storey,
-                            history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
-                        )
-                    )
+                    r.entities.append(declare_latched_subscriber(session, key, on_storey, max_samples=None))
             if rmw:
                 token = node.subscriber_token(storey_topic, entity, STATE_QOS)
                 entity += 1
@@ -255,10 +239,10 @@ class RosMapPublisher:
         topic = RosTopic(robot.domain_id, robot.namespace, f"{t.name}_info", COSTMAP_FILTER_INFO)
         kind = KEEPOUT_FILTER if self._kinds.get(t.skill) == "keepout" else SPEED_FILTER_PERCENT
         if "bridge" in robot.ros:
-            t.info.append(_Out(_latched(self.session, topic.bridge_key, heartbeat=False)))
+            t.info.append(_Out(_latched(self.session, topic.bridge_key, rmw=False)))
         if "rmw_zenoh" in robot.ros:
             token = node.publisher_token(topic, entity, LATCHED_QOS)
-            t.info.append(_Out(_latched(self.session, topic.data_key, heartbeat=True), gid=gid_of(token)))
+            t.info.append(_Out(_latched(self.session, topic.data_key, rmw=True), gid=gid_of(token)))
             tokens.append(self.session.liveliness().declare_token(token))
         stamp = self.clock()
         payload = encode_costmap_filter_info(kind, mask.fqn, stamp_ns=stamp, frame_id=self.frame_id)

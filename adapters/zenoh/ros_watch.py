@@ -1,10 +1,10 @@
 """Subscribe to a robot's map topic (``/<ns>/map`` by default) as a ROS 2 node would (for
 ``twin watch --ros NAMESPACE [--topic NAME]``).
 
-``rmw_zenoh``: an AdvancedSubscriber with history and late-publisher detection on rmw_zenoh's data key
-(as rmw_zenoh_cpp subscribes to TRANSIENT_LOCAL topics), and a subscriber on ``<topic>_updates``; every
-sample's attachment must have rmw's 33-byte layout. ``bridge``: the same on zenoh-bridge-ros2dds's keys
-``<ns>/<topic>`` and ``<ns>/<topic>_updates``.
+``rmw_zenoh``: a :class:`~adapters.zenoh.latched.LatchedSubscription` (history and late-publisher
+detection, as rmw_zenoh_cpp subscribes to TRANSIENT_LOCAL topics) on rmw_zenoh's data keys of the
+topic and of ``<topic>_updates``; every sample's attachment must have rmw's 33-byte layout.
+``bridge``: the same on zenoh-bridge-ros2dds's keys ``<ns>/<topic>`` and ``<ns>/<topic>_updates``.
 """
 
 from __future__ import annotations
@@ -12,14 +12,13 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import zenoh
-import zenoh.ext
 
 from adapters.ros import apply_update, decode_occupancy_grid, decode_occupancy_grid_update
 from adapters.ros.cdr import OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE
 from adapters.ros.rmw_zenoh import RosTopic, parse_attachment
+from adapters.zenoh.latched import LatchedSubscription
 from twin.grid import OccupancyGrid
 
 log = logging.getLogger(__name__)
@@ -49,15 +48,9 @@ class RosMapWatcher:
         updates = RosTopic(domain_id, namespace, f"{topic}_updates", OCCUPANCY_GRID_UPDATE)
         rmw = layout == "rmw_zenoh"
         self.keys = (maps.data_key, updates.data_key) if rmw else (maps.bridge_key, updates.bridge_key)
-        self._subs: list[Any] = [
-            zenoh.ext.declare_advanced_subscriber(
-                session,
-                self.keys[0],
-                self._on_map,
-                history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
-            ),
-            session.declare_subscriber(self.keys[1], self._on_update),
-        ]
+        self._follow = LatchedSubscription(
+            session, self.keys[0], self.keys[1], on_map=self._on_map, on_update=self._on_update
+        )
 
     def _sequence(self, sample: zenoh.Sample) -> int | None:
         if self.layout != "rmw_zenoh":
@@ -83,5 +76,4 @@ class RosMapWatcher:
         self._emit("update", apply_update(self.latest, window, cells), stamp, self._sequence(sample))
 
     def close(self) -> None:
-        for s in self._subs:
-            s.undeclare()
+        self._follow.close()
