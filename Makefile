@@ -28,7 +28,7 @@ test-fast: $(STAMP)
 
 ## lint: ruff and mypy on the library code
 lint: $(STAMP)
-	$(BIN)/ruff check twin adapters tests benchmarks
+	$(BIN)/ruff check twin adapters tests benchmarks references
 	$(BIN)/mypy
 
 ## bench: the performance harness (prints a table, writes JSON)

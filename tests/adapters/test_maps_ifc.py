@@ -10,8 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.adapters.generated import Generated, box_faces
-from tests.adapters.map_reference import (
+from references.opencascade_maps import (
     compare_map,
     compare_model,
     element_ids,
@@ -20,8 +19,9 @@ from tests.adapters.map_reference import (
     pinned,
     selected,
 )
+from references.slab_maps import rasterize_reference, slab_geometry
+from tests.adapters.generated import Generated, box_faces
 from tests.conftest import imported, shared_model
-from tests.twin.reference import rasterize_reference, slab_geometry
 from twin.config import Config
 from twin.grid import OCCUPIED, OccupancyGrid, Window
 from twin.lab_plan import DOOR_HOST, Box

@@ -1,4 +1,4 @@
-"""The map reference itself (tests/twin/reference.py): what it fills and what it calls a solid."""
+"""The map reference itself (references/slab_maps.py): what it fills and what it calls a solid."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 import shapely
 import trimesh
 
-from tests.twin.reference import is_solid, slab_geometry
+from references.slab_maps import is_solid, slab_geometry
 
 CUBE = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)])  # 4x + 2y + z
 
