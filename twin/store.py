@@ -150,7 +150,32 @@ def changes_to_sparql(*changes: ChangeSet) -> str:
     return " ;\n".join(parts)
 
 
-class _CountingWriter(io.RawIOBase):
+def reject_service(sparql: str) -> None:
+    """QueryError if ``sparql`` uses SERVICE: every store answers from its own graph only."""
+    if _SERVICE.search(sparql):
+        msg = "SPARQL queries may not use SERVICE: the store answers from its own graph only."
+        raise QueryError(msg)
+
+
+def solution_rows(result: object) -> Iterator[Row]:
+    """The plain rows (:data:`Row`) of a SELECT's ``ox.QuerySolutions``, lazily; QueryError for any
+    other result. Every :class:`GraphStore` turns its solutions into rows here."""
+    if not isinstance(result, ox.QuerySolutions):
+        msg = "Expected a SELECT query."
+        raise QueryError(msg)
+    names = [v.value for v in result.variables]
+    return ({n: _term(s[n]) for n in names} for s in result)
+
+
+def boolean_answer(result: object) -> bool:
+    """The answer of an ASK's ``ox.QueryBoolean``; QueryError for any other result."""
+    if not isinstance(result, ox.QueryBoolean):
+        msg = "Expected an ASK query."
+        raise QueryError(msg)
+    return bool(result)
+
+
+class ByteCounter(io.RawIOBase):
     """A binary sink that only counts bytes (to measure a dump without keeping it)."""
 
     def __init__(self) -> None:
@@ -282,9 +307,7 @@ class EmbeddedStore:
         return next(iter(self._store.quads_for_pattern(None, None, None)), None) is None
 
     def _query(self, sparql: str) -> ox.QuerySolutions | ox.QueryBoolean | ox.QueryTriples:
-        if _SERVICE.search(sparql):
-            msg = "SPARQL queries may not use SERVICE: the store answers from its own graph only."
-            raise QueryError(msg)
+        reject_service(sparql)
         try:
             return self._store.query(sparql, prefixes=vocab.PREFIXES)
         except SyntaxError as err:
@@ -300,19 +323,10 @@ class EmbeddedStore:
 
     def iter_select(self, sparql: str) -> Iterator[Row]:
         """Like :meth:`select`, lazily."""
-        result = self._query(sparql)
-        if not isinstance(result, ox.QuerySolutions):
-            msg = "Expected a SELECT query."
-            raise QueryError(msg)
-        names = [v.value for v in result.variables]
-        return ({n: _term(s[n]) for n in names} for s in result)
+        return solution_rows(self._query(sparql))
 
     def ask(self, sparql: str) -> bool:
-        result = self._query(sparql)
-        if not isinstance(result, ox.QueryBoolean):
-            msg = "Expected an ASK query."
-            raise QueryError(msg)
-        return bool(result)
+        return boolean_answer(self._query(sparql))
 
     def query_serialized(self, sparql: str) -> tuple[str, bytes]:
         """Run any read-only query; return (media type, bytes): SPARQL JSON results, or Turtle for graphs."""
@@ -342,7 +356,7 @@ class EmbeddedStore:
 
     def turtle_size(self) -> int:
         """Bytes of :meth:`dump_turtle` output, without keeping it in memory."""
-        sink = _CountingWriter()
+        sink = ByteCounter()
         self._store.dump(
             sink,  # type: ignore[arg-type]  # any binary writer works
             format=ox.RdfFormat.TURTLE,

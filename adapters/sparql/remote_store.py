@@ -22,7 +22,6 @@ Example::
 from __future__ import annotations
 
 import http.client
-import io
 import logging
 import re
 import select
@@ -39,11 +38,18 @@ import pyoxigraph as ox
 
 from twin import vocab
 from twin.errors import QueryError, StoreError, StoreUnavailableError
-from twin.store import ChangeSet, Row, changes_to_sparql, literal_value
+from twin.store import (
+    ByteCounter,
+    ChangeSet,
+    Row,
+    boolean_answer,
+    changes_to_sparql,
+    reject_service,
+    solution_rows,
+)
 
 log = logging.getLogger(__name__)
 
-_SERVICE = re.compile(r"\bSERVICE\b", re.IGNORECASE)
 _JSON = "application/sparql-results+json"
 _TURTLE = "text/turtle"
 _N_TRIPLES = "application/n-triples"
@@ -262,9 +268,7 @@ class RemoteStore:
             pool.give_back(parts.scheme, parts.netloc, conn)
 
     def _query(self, sparql: str) -> tuple[str, bytes]:
-        if _SERVICE.search(sparql):
-            msg = "SPARQL queries may not use SERVICE: the store answers from its own graph only."
-            raise QueryError(msg)
+        reject_service(sparql)
         headers = {"Content-Type": "application/sparql-query; charset=utf-8", "Accept": _ACCEPT}
         body = (self._prefixes + sparql).encode()
         with self._request(
@@ -369,23 +373,14 @@ class RemoteStore:
 
     def select(self, sparql: str) -> list[Row]:
         """Run a SELECT query; one plain row per solution (see :data:`~twin.store.Row`)."""
-        result = self._results(sparql)
-        if not isinstance(result, ox.QuerySolutions):
-            msg = "Expected a SELECT query."
-            raise QueryError(msg)
-        names = [v.value for v in result.variables]
-        return [{n: literal_value(s[n]) for n in names} for s in result]
+        return list(solution_rows(self._results(sparql)))
 
     def iter_select(self, sparql: str) -> Iterator[Row]:
         """Like :meth:`select` (the whole answer is read first: a connection is not held open)."""
         return iter(self.select(sparql))
 
     def ask(self, sparql: str) -> bool:
-        result = self._results(sparql)
-        if not isinstance(result, ox.QueryBoolean):
-            msg = "Expected an ASK query."
-            raise QueryError(msg)
-        return bool(result)
+        return boolean_answer(self._results(sparql))
 
     def query_serialized(self, sparql: str) -> tuple[str, bytes]:
         """Run any read-only query; return (media type, bytes): SPARQL JSON results, or Turtle for graphs
@@ -418,25 +413,13 @@ class RemoteStore:
 
     def turtle_size(self) -> int:
         """Bytes of :meth:`dump_turtle` output, without keeping it in memory."""
-        sink = _Counter()
+        sink = ByteCounter()
         self._dump(sink)  # type: ignore[arg-type]  # any binary writer works
         return sink.count
 
 
 def _n_triples(triples: list[ox.Triple]) -> bytes:
     return ox.serialize(triples, format=ox.RdfFormat.N_TRIPLES) or b""
-
-
-class _Counter(io.RawIOBase):
-    def __init__(self) -> None:
-        self.count = 0
-
-    def writable(self) -> bool:
-        return True
-
-    def write(self, b: bytes | bytearray | memoryview) -> int:  # type: ignore[override]
-        self.count += len(b)
-        return len(b)
 
 
 _POSITION = re.compile(r"(error at |line )(\d+)")
