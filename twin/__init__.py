@@ -2,12 +2,16 @@
 
 The core is a one-way stack of small modules::
 
-    errors, records, meshops, vocab, grid      shared records and vocabulary (numpy only)
-      <- meshcodec, store, config, skills      the graph store and what is read from it
-      <- import_model, stats, scene            use cases on the graph
+    errors, records, meshops, vocab, grid,     shared records and vocabulary (numpy only)
+    ifc_classes, tolerances, lab_plan
+      <- meshcodec, shapes, extents, store,    the graph store and what is read from it
+         skills, config, lab_layout
+      <- import_model, stats, scene,           use cases on the graph; observations in, events out
+         observations, events
       <- raster <- maps                        slicing and rasterising skill maps
-      <- cli, cli_map                          the ``twin`` command (wires in adapters)
+      <- live                                  the single writer: observations applied, maps patched
 
+The ``twin`` command, the Zenoh daemon, the IFC reader and the Rerun recorder live in ``adapters``.
 ``twin`` never imports ifcopenshell, Zenoh or Rerun: ``adapters`` translate between those and the
 core's records. See ``README.md`` for the data flow.
 """

@@ -1,7 +1,10 @@
-"""The graph store: an embedded pyoxigraph store behind one small interface.
+"""The graph store: the :class:`GraphStore` interface, its embedded pyoxigraph implementation, and
+what every implementation shares (changes as SPARQL updates, solutions as plain rows); the other
+implementation, on a remote SPARQL server, is ``adapters.sparql.remote_store``.
 
-On disk by default (a directory, RocksDB), in memory when no path is given (tests). Only one process
-can open an on-disk store for writing: the daemon owns it, others query through the daemon.
+The embedded store is on disk by default (a directory, RocksDB), in memory when no path is given
+(tests). Only one process can open an on-disk store for writing: the daemon owns it, others query
+through the daemon.
 
 Example::
 
