@@ -258,9 +258,10 @@ def storey_maps(store_dir: Path, repeat: int) -> dict[str, Any]:
     """Full-map time of every (storey, skill) of an imported store, as the daemon builds them at start."""
     from twin.config import load_config
     from twin.maps import build_map, plan_map
+    from twin.rdf import literal_value
     from twin.scene import load_scene
     from twin.skills import selection_query
-    from twin.store import EmbeddedStore, literal_value
+    from twin.store import EmbeddedStore
 
     cfg = load_config()
     t0 = time.perf_counter()
@@ -321,9 +322,10 @@ def map_setup(path: Path, skill_name: str) -> MapSetup:
     from twin.config import load_config
     from twin.import_model import import_model
     from twin.maps import plan_map
+    from twin.rdf import literal_value
     from twin.scene import load_scene
     from twin.skills import selection_query
-    from twin.store import EmbeddedStore, literal_value
+    from twin.store import EmbeddedStore
 
     cfg = load_config()
     skill = cfg.skill(skill_name)

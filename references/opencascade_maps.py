@@ -37,9 +37,10 @@ from references.slab_maps import (
 )
 from twin.grid import OCCUPIED, Window
 from twin.maps import MapPlan, build_map, dilate_disk, plan_map, render_window
+from twin.rdf import literal_value
 from twin.scene import Scene, SlabBox
 from twin.skills import SkillProfile, selection_query
-from twin.store import GraphStore, literal_value
+from twin.store import GraphStore
 
 TOLERANCE_M = 0.01
 """How far our map may legitimately be from the reference, in metres: a cell must be ours if its

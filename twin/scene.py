@@ -24,8 +24,9 @@ import numpy.typing as npt
 from twin.errors import MapError
 from twin.extents import parse_extent
 from twin.meshcodec import decode_mesh, decode_placement
+from twin.rdf import literal_value
 from twin.records import Mesh
-from twin.store import GraphStore, literal_value
+from twin.store import GraphStore
 
 log = logging.getLogger(__name__)
 

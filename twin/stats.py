@@ -11,8 +11,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from twin.rdf import literal_value
 from twin.scene import STOREY_MEMBER
-from twin.store import GraphStore, literal_value
+from twin.store import GraphStore
 
 
 @dataclass(frozen=True, slots=True)

@@ -12,9 +12,9 @@ from adapters.ros import write_map_files
 from twin.config import Config
 from twin.errors import MapError, SkillError
 from twin.maps import build_map, plan_map
+from twin.rdf import literal_value
 from twin.scene import load_scene
 from twin.skills import selection_query
-from twin.store import literal_value
 
 
 def cmd_map(args: argparse.Namespace, cfg: Config) -> int:

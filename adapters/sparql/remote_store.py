@@ -38,7 +38,7 @@ import pyoxigraph as ox
 
 from twin import vocab
 from twin.errors import QueryError, StoreError, StoreUnavailableError
-from twin.store import (
+from twin.rdf import (
     ByteCounter,
     ChangeSet,
     Row,

@@ -19,9 +19,10 @@ from tests.conftest import SHARED_MODELS, imported, shared_model
 from twin import vocab
 from twin.lab_layout import LabLayout
 from twin.meshcodec import decode_mesh, decode_placement
+from twin.rdf import literal_value
 from twin.records import BuildingModel
 from twin.shapes import box_mesh
-from twin.store import GraphStore, literal_value
+from twin.store import GraphStore
 
 MODELS = ["lab", *SHARED_MODELS]
 

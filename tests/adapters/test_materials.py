@@ -12,9 +12,10 @@ from tests.adapters.generated import Generated
 from tests.conftest import imported
 from twin.grid import OCCUPIED
 from twin.maps import build_map, plan_map
+from twin.rdf import literal_value
 from twin.scene import load_scene
 from twin.skills import parse_skill, selection_query
-from twin.store import GraphStore, literal_value
+from twin.store import GraphStore
 
 KEPT = {"brick-fiberglass-plaster", "brick-glasswool-brick", "typed-brick-fiberglass", "glass-in-the-middle"}
 GONE = {"glass-outer-layer", "glass-inner-face", "glass-plate", "window", "listed-window", "typed-glass"}

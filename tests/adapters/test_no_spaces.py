@@ -14,9 +14,10 @@ from twin.config import Config
 from twin.errors import MapError
 from twin.grid import OCCUPIED, OccupancyGrid
 from twin.maps import build_map, plan_map
+from twin.rdf import literal_value
 from twin.scene import Scene, load_scene
 from twin.skills import SkillProfile, parse_skill, selection_query
-from twin.store import GraphStore, literal_value
+from twin.store import GraphStore
 
 COLUMNS = [(float(x), float(y)) for x in (0, 10) for y in (0, 8)]
 

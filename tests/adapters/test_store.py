@@ -15,7 +15,8 @@ from adapters.sparql.remote_store import RemoteStore
 from tests.sparql_server import SparqlServer
 from twin import vocab
 from twin.errors import QueryError, StoreError
-from twin.store import ChangeSet, EmbeddedStore, RdfLiteral, Triple
+from twin.rdf import ChangeSet, RdfLiteral, Triple
+from twin.store import EmbeddedStore
 
 Q = ox.Quad(ox.NamedNode("https://ex.org/a"), ox.NamedNode("https://ex.org/p"), ox.Literal("x"))
 EX = "https://ex.org/"

@@ -8,8 +8,9 @@ import pytest
 from tests.twin.box_lab import GROUND, spec
 from twin.config import load_config
 from twin.errors import ConfigError, QueryError, SkillError
+from twin.rdf import literal_value
 from twin.skills import parse_skill, parse_skill_json, selection_query
-from twin.store import GraphStore, literal_value
+from twin.store import GraphStore
 
 
 def test_shipped_profiles_reproduce_the_paper() -> None:
