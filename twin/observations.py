@@ -21,7 +21,6 @@ from __future__ import annotations
 import math
 import re
 from collections import defaultdict
-from dataclasses import dataclass
 
 import pyoxigraph as ox
 
@@ -29,55 +28,12 @@ from twin import vocab
 from twin.config import Limits
 from twin.errors import ModelError, ObservationError
 from twin.meshcodec import decode_mesh, decode_placement
-from twin.records import FloatArray, Geometry
+from twin.records import ElementReport, FloatArray, Geometry, ObservedBox
+
+__all__ = ["ElementReport", "ObservedBox", "parse_observation"]  # the records' home is twin.records
 
 _IRI = re.compile(r'^[A-Za-z][A-Za-z0-9+.-]*:[^<>"{}|^`\\\s]*$')
 _CLASS_NAMESPACES = (vocab.BEO, vocab.FURN)
-
-
-@dataclass(frozen=True, slots=True)
-class ObservedBox:
-    """An oriented box: centre (x, y in the building's XY frame, z above the storey's elevation),
-    sizes and yaw about +z; metres and radians."""
-
-    cx: float
-    cy: float
-    cz: float
-    sx: float
-    sy: float
-    sz: float
-    yaw: float
-
-    def text(self) -> str:
-        return " ".join(repr(v) for v in (self.cx, self.cy, self.cz, self.sx, self.sy, self.sz, self.yaw))
-
-
-@dataclass(frozen=True, eq=False, slots=True)
-class ElementReport:
-    """What one observation says about one element. Unset fields are left as they are in the twin."""
-
-    iri: str
-    ifc_class: str | None = None
-    storey: str | None = None
-    box: ObservedBox | None = None
-    geometry: Geometry | None = None
-    """A full mesh and its placement (``omg:hasGeometry``)."""
-    placement: FloatArray | None = None
-    """A new placement only (a move): same mesh."""
-    is_open: bool | None = None
-    removed: bool = False
-    keepout: bool | None = None
-    """A keepout zone mark (``twin:keepout``), None: left as it is."""
-    speed_limit: int | None = None
-    """A speed zone mark (``twin:speedLimit``, percent; 0 lifts it), None: left as it is."""
-    labels: tuple[str, ...] = ()
-    materials: tuple[str, ...] = ()
-    classes: tuple[str, ...] = ()
-    """Extra ``rdf:type`` IRIs (BEO or FURN classes such as ``furn:Table``)."""
-
-    @property
-    def changes_geometry(self) -> bool:
-        return self.box is not None or self.geometry is not None or self.placement is not None
 
 
 def _fail(message: str) -> ObservationError:

@@ -1,8 +1,9 @@
 """Typed records at the boundaries of the core.
 
-Adapters turn foreign data (IFC files, wire payloads) into these records; the store turns them into
-triples and back. They import nothing but numpy. All lengths are metres, in the building's world frame
-unless a field says ``local``.
+Adapters turn foreign data (IFC files, wire payloads) into these records: a building model to import
+(:class:`BuildingModel`), what robots report about elements (:class:`ElementReport`, parsed by
+``twin.observations``); the import turns them into triples, the scene reads them back. They import
+nothing but numpy. All lengths are metres, in the building's world frame unless a field says ``local``.
 
 Arrays follow trimesh's conventions:
 
@@ -208,3 +209,48 @@ class GeometryChange:
 
     iri: str
     new: Shape | None
+
+
+@dataclass(frozen=True, slots=True)
+class ObservedBox:
+    """An oriented box: centre (x, y in the building's XY frame, z above the storey's elevation),
+    sizes and yaw about +z; metres and radians."""
+
+    cx: float
+    cy: float
+    cz: float
+    sx: float
+    sy: float
+    sz: float
+    yaw: float
+
+    def text(self) -> str:
+        return " ".join(repr(v) for v in (self.cx, self.cy, self.cz, self.sx, self.sy, self.sz, self.yaw))
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class ElementReport:
+    """What one observation says about one element. Unset fields are left as they are in the twin."""
+
+    iri: str
+    ifc_class: str | None = None
+    storey: str | None = None
+    box: ObservedBox | None = None
+    geometry: Geometry | None = None
+    """A full mesh and its placement (``omg:hasGeometry``)."""
+    placement: FloatArray | None = None
+    """A new placement only (a move): same mesh."""
+    is_open: bool | None = None
+    removed: bool = False
+    keepout: bool | None = None
+    """A keepout zone mark (``twin:keepout``), None: left as it is."""
+    speed_limit: int | None = None
+    """A speed zone mark (``twin:speedLimit``, percent; 0 lifts it), None: left as it is."""
+    labels: tuple[str, ...] = ()
+    materials: tuple[str, ...] = ()
+    classes: tuple[str, ...] = ()
+    """Extra ``rdf:type`` IRIs (BEO or FURN classes such as ``furn:Table``)."""
+
+    @property
+    def changes_geometry(self) -> bool:
+        return self.box is not None or self.geometry is not None or self.placement is not None
