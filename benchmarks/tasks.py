@@ -260,7 +260,7 @@ def storey_maps(store_dir: Path, repeat: int) -> dict[str, Any]:
     from twin.maps import build_map, plan_map
     from twin.rdf import literal_value
     from twin.scene import load_scene
-    from twin.skills import selection_query
+    from twin.skill_selection import selection_query
     from twin.store import EmbeddedStore
 
     cfg = load_config()
@@ -324,7 +324,7 @@ def map_setup(path: Path, skill_name: str) -> MapSetup:
     from twin.maps import plan_map
     from twin.rdf import literal_value
     from twin.scene import load_scene
-    from twin.skills import selection_query
+    from twin.skill_selection import selection_query
     from twin.store import EmbeddedStore
 
     cfg = load_config()

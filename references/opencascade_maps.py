@@ -39,7 +39,8 @@ from twin.grid import OCCUPIED, Window
 from twin.maps import MapPlan, build_map, dilate_disk, plan_map, render_window
 from twin.rdf import literal_value
 from twin.scene import Scene, SlabBox
-from twin.skills import SkillProfile, selection_query
+from twin.skill_selection import selection_query
+from twin.skills import SkillProfile
 from twin.store import GraphStore
 
 TOLERANCE_M = 0.01

@@ -5,7 +5,7 @@ The core is a one-way stack of small modules::
     errors, records, meshops, vocab, grid,     shared records and vocabulary (numpy only)
     ifc_classes, tolerances, lab_plan
       <- meshcodec, shapes, extents, rdf,      the graph store and what is read from it
-         store, skills, config, lab_layout
+         store, skill_selection, skills, config, lab_layout
       <- import_model, stats, scene,           use cases on the graph; observations in, events out
          observations, events
       <- raster <- maps                        slicing and rasterising skill maps

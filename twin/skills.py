@@ -16,7 +16,8 @@ Virtual elements (``IfcVirtualElement``, e.g. a zone an operator drew) are in ma
 localization or navigation maps.
 
 Heights are relative to the storey's elevation. The element selection becomes one SPARQL query over
-the graph (IFC types with their subtypes, BEO/FURN classes, materials, or a raw pattern on ``?element``).
+the graph (IFC types with their subtypes, BEO/FURN classes, materials, or a raw pattern on ``?element``):
+see ``twin.skill_selection``.
 
 Example::
 
@@ -29,7 +30,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -37,16 +38,26 @@ import pyoxigraph as ox
 
 from twin import vocab
 from twin.errors import SkillError
+from twin.skill_selection import VIRTUAL_TYPE, class_iri, material_word_pattern, selection_query
+
+# twin.live imports the selection from here; its home is twin.skill_selection.
+__all__ = [
+    "MASK_KINDS",
+    "VIRTUAL_TYPE",
+    "Kind",
+    "SkillProfile",
+    "class_iri",
+    "material_word_pattern",
+    "parse_skill",
+    "parse_skill_json",
+    "selection_query",
+]
 
 Kind = Literal["localization", "navigation", "keepout", "speed"]
 MASK_KINDS: tuple[Kind, ...] = ("keepout", "speed")
-VIRTUAL_TYPE = "IfcVirtualElement"
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
 _IFC_NAME = re.compile(r"^Ifc[A-Za-z0-9]+$")
 _SERVICE = re.compile(r"\bSERVICE\b", re.IGNORECASE)
-_IRI = re.compile(r'^[^<>"{}|^`\\\s]+:[^<>"{}|^`\\\s]*$')
-_REGEX_SPECIAL = frozenset("\\.^$|?*+()[]{}")
-_CURIE = re.compile(r"^(?P<prefix>[a-z]+):(?P<local>[A-Za-z0-9_-]+)$")
 
 _COMMON = {
     "kind",
@@ -142,16 +153,6 @@ def _strings(name: str, key: str, value: Any, pattern: re.Pattern[str] | None = 
             )
             raise SkillError(msg)
     return tuple(value)
-
-
-def class_iri(value: str) -> str | None:
-    """The class IRI a CURIE (``beo:Wall``) or ``<IRI>`` names, None for anything else (an IFC name)."""
-    m = _CURIE.match(value)
-    if m and m["prefix"] in vocab.PREFIXES:
-        return vocab.PREFIXES[m["prefix"]] + m["local"]
-    if value.startswith("<") and value.endswith(">") and "://" in value and " " not in value:
-        return value[1:-1]
-    return None
 
 
 def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
@@ -262,64 +263,3 @@ def _check_query(skill: SkillProfile) -> None:
         first = str(err).splitlines()[0] if str(err) else "syntax error"
         msg = f"Skill {skill.name!r}: field 'sparql' does not parse: {first}"
         raise SkillError(msg) from err
-
-
-def _type_test(types: tuple[str, ...]) -> str:
-    """A pattern true when ?element has one of ``types`` (IFC names with subtypes, or class IRIs)."""
-    alternatives = []
-    for t in types:
-        iri = class_iri(t)
-        if iri is not None:
-            alternatives.append(f"{{ ?element a <{iri}> }}")
-        else:
-            alternatives.append(f"{{ ?element twin:ifcType {json.dumps(t)} }}")
-    return " UNION ".join(alternatives)
-
-
-def material_word_pattern(word: str) -> str:
-    """A regular expression matching material names that contain ``word`` as a whole word.
-
-    Words are separated by anything but letters and digits ("Glass - Clear", "glazing_glass" contain
-    the word "glass"; "Fiberglass Batt" does not). Match it case-insensitively.
-    """
-    escaped = "".join(f"\\{c}" if c in _REGEX_SPECIAL else c for c in word)
-    return f"(^|[^\\p{{L}}\\p{{N}}]){escaped}($|[^\\p{{L}}\\p{{N}}])"
-
-
-def selection_query(skill: SkillProfile, only: Sequence[str] | None = None) -> str:
-    """The SPARQL SELECT of the ``?element`` IRIs the skill's maps are made of (with geometry only).
-
-    The user's pattern runs as a sub-select that projects only ``?element``: its other variables can
-    neither bind nor undo the type and material filters. ``exclude_materials`` drops an element when a
-    material a sensor faces (``twin:facingMaterial``) contains one of the words, case-insensitively.
-    Doors observed open (``twin:isOpen true``) are never selected: they are passable, and a sensor
-    sees through their doorway. With ``only``, just those IRIs are tested (what the daemon does after
-    a change: cheap on any graph).
-    """
-    lines = ["SELECT DISTINCT ?element WHERE {"]
-    if only is not None:
-        values = " ".join(f"<{iri}>" for iri in only if _IRI.match(iri))
-        lines.append(f"  VALUES ?element {{ {values} }}")
-    lines += [
-        "  ?element a bot:Element ; omg:hasGeometry ?twin_geometry .",
-        "  FILTER NOT EXISTS { ?element twin:isOpen true }",
-    ]
-    if skill.kind == "keepout":
-        lines.append("  ?element twin:keepout true .")
-    elif skill.kind == "speed":
-        lines.append(f"  ?element twin:speedLimit {skill.limit_percent} .")
-    else:
-        lines.append(f'  FILTER NOT EXISTS {{ ?element twin:ifcType "{VIRTUAL_TYPE}" }}')
-    if skill.include_types:
-        lines.append(f"  {_type_test(skill.include_types)}")
-    if skill.exclude_types:
-        lines.append(f"  FILTER NOT EXISTS {{ {_type_test(skill.exclude_types)} }}")
-    for mat in skill.exclude_materials:
-        lines.append(
-            "  FILTER NOT EXISTS { ?element twin:facingMaterial ?twin_material . "
-            f'FILTER(REGEX(STR(?twin_material), {json.dumps(material_word_pattern(mat))}, "i")) }}'
-        )
-    if skill.sparql:
-        lines.append("  { SELECT DISTINCT ?element WHERE {\n" + skill.sparql + "\n  } }")
-    lines.append("}")
-    return "\n".join(lines)

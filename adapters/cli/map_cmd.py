@@ -14,7 +14,7 @@ from twin.errors import MapError, SkillError
 from twin.maps import build_map, plan_map
 from twin.rdf import literal_value
 from twin.scene import load_scene
-from twin.skills import selection_query
+from twin.skill_selection import selection_query
 
 
 def cmd_map(args: argparse.Namespace, cfg: Config) -> int:

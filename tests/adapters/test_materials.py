@@ -14,7 +14,8 @@ from twin.grid import OCCUPIED
 from twin.maps import build_map, plan_map
 from twin.rdf import literal_value
 from twin.scene import load_scene
-from twin.skills import parse_skill, selection_query
+from twin.skill_selection import selection_query
+from twin.skills import parse_skill
 from twin.store import GraphStore
 
 KEPT = {"brick-fiberglass-plaster", "brick-glasswool-brick", "typed-brick-fiberglass", "glass-in-the-middle"}

@@ -16,7 +16,8 @@ from twin.grid import OCCUPIED, OccupancyGrid
 from twin.maps import build_map, plan_map
 from twin.rdf import literal_value
 from twin.scene import Scene, load_scene
-from twin.skills import SkillProfile, parse_skill, selection_query
+from twin.skill_selection import selection_query
+from twin.skills import SkillProfile, parse_skill
 from twin.store import GraphStore
 
 COLUMNS = [(float(x), float(y)) for x in (0, 10) for y in (0, 8)]

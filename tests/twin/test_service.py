@@ -16,7 +16,7 @@ from twin.events import MapPublished, MapRemoved, MapUpdated, ObservationAccepte
 from twin.grid import OCCUPIED
 from twin.live import TwinService
 from twin.live.selection import selects
-from twin.skills import selection_query
+from twin.skill_selection import selection_query
 
 TABLE = "urn:robot1:table-1"
 

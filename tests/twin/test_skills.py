@@ -9,7 +9,8 @@ from tests.twin.box_lab import GROUND, spec
 from twin.config import load_config
 from twin.errors import ConfigError, QueryError, SkillError
 from twin.rdf import literal_value
-from twin.skills import parse_skill, parse_skill_json, selection_query
+from twin.skill_selection import selection_query
+from twin.skills import parse_skill, parse_skill_json
 from twin.store import GraphStore
 
 

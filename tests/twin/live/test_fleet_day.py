@@ -17,7 +17,8 @@ from twin.events import MapPublished, MapUpdated, ObservationAccepted
 from twin.live import TwinService
 from twin.live.selection import needs_store, selects
 from twin.meshcodec import encode_placement
-from twin.skills import parse_skill, selection_query
+from twin.skill_selection import selection_query
+from twin.skills import parse_skill
 
 TABLE = "urn:robot1:table-1"
 
