@@ -109,9 +109,14 @@ def changes_to_sparql(*changes: ChangeSet) -> str:
     return " ;\n".join(parts)
 
 
+def uses_service(sparql: str) -> bool:
+    """True if ``sparql`` mentions the SERVICE keyword (a federated, remote query)."""
+    return _SERVICE.search(sparql) is not None
+
+
 def reject_service(sparql: str) -> None:
     """QueryError if ``sparql`` uses SERVICE: every store answers from its own graph only."""
-    if _SERVICE.search(sparql):
+    if uses_service(sparql):
         msg = "SPARQL queries may not use SERVICE: the store answers from its own graph only."
         raise QueryError(msg)
 

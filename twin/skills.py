@@ -38,6 +38,7 @@ import pyoxigraph as ox
 
 from twin import vocab
 from twin.errors import SkillError
+from twin.rdf import uses_service
 from twin.skill_selection import VIRTUAL_TYPE, class_iri, material_word_pattern, selection_query
 
 # twin.live imports the selection from here; its home is twin.skill_selection.
@@ -57,7 +58,6 @@ Kind = Literal["localization", "navigation", "keepout", "speed"]
 MASK_KINDS: tuple[Kind, ...] = ("keepout", "speed")
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
 _IFC_NAME = re.compile(r"^Ifc[A-Za-z0-9]+$")
-_SERVICE = re.compile(r"\bSERVICE\b", re.IGNORECASE)
 
 _COMMON = {
     "kind",
@@ -219,7 +219,7 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
         if not isinstance(data["sparql"], str) or not data["sparql"].strip():
             msg = f"Skill {name!r}: field 'sparql' must be a non-empty SPARQL group graph pattern."
             raise SkillError(msg)
-        if _SERVICE.search(data["sparql"]):
+        if uses_service(data["sparql"]):
             msg = f"Skill {name!r}: field 'sparql' may not use SERVICE (no remote queries)."
             raise SkillError(msg)
         args["sparql"] = data["sparql"]
