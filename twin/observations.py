@@ -30,7 +30,7 @@ from twin.errors import ModelError, ObservationError
 from twin.meshcodec import decode_mesh, decode_placement
 from twin.records import ElementReport, FloatArray, Geometry, ObservedBox
 
-__all__ = ["ElementReport", "ObservedBox", "parse_observation"]  # the records' home is twin.records
+__all__ = ["parse_observation"]
 
 _IRI = re.compile(r'^[A-Za-z][A-Za-z0-9+.-]*:[^<>"{}|^`\\\s]*$')
 _CLASS_NAMESPACES = (vocab.BEO, vocab.FURN)

@@ -39,20 +39,9 @@ import pyoxigraph as ox
 from twin import vocab
 from twin.errors import SkillError
 from twin.rdf import uses_service
-from twin.skill_selection import VIRTUAL_TYPE, class_iri, material_word_pattern, selection_query
+from twin.skill_selection import class_iri, selection_query
 
-# twin.live imports the selection from here; its home is twin.skill_selection.
-__all__ = [
-    "MASK_KINDS",
-    "VIRTUAL_TYPE",
-    "Kind",
-    "SkillProfile",
-    "class_iri",
-    "material_word_pattern",
-    "parse_skill",
-    "parse_skill_json",
-    "selection_query",
-]
+__all__ = ["MASK_KINDS", "Kind", "SkillProfile", "parse_skill", "parse_skill_json"]
 
 Kind = Literal["localization", "navigation", "keepout", "speed"]
 MASK_KINDS: tuple[Kind, ...] = ("keepout", "speed")

@@ -31,10 +31,7 @@ from twin.errors import QueryError, StoreError, StoreNotFoundError
 from twin.rdf import (
     ByteCounter,
     ChangeSet,
-    Object,
-    RdfLiteral,
     Row,
-    Triple,
     boolean_answer,
     changes_to_sparql,
     reject_service,
@@ -44,16 +41,7 @@ from twin.rdf import (
 log = logging.getLogger(__name__)
 
 # twin.live still imports these records from here; their home is twin.rdf.
-__all__ = [
-    "ChangeSet",
-    "EmbeddedStore",
-    "GraphStore",
-    "Object",
-    "RdfLiteral",
-    "StoreInfo",
-    "TextLoader",
-    "Triple",
-]
+__all__ = ["EmbeddedStore", "GraphStore", "StoreInfo", "TextLoader"]
 
 
 class GraphStore(Protocol):

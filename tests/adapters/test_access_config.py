@@ -61,9 +61,7 @@ def test_access_by_user_name_without_a_users_file_is_refused(tmp_path: Path) -> 
 
 
 def test_access_by_certificate_without_mutual_tls_is_refused(tmp_path: Path) -> None:
-    cfg = load(
-        config(tmp_path, '[zenoh.access]\nenabled = true\nidentity = "certificate"\n[robots.r1]\n')
-    )
+    cfg = load(config(tmp_path, '[zenoh.access]\nenabled = true\nidentity = "certificate"\n[robots.r1]\n'))
     with pytest.raises(TransportError, match="mutual TLS"):
         site_access_control(cfg, SiteKeys("twin/lab"))
 

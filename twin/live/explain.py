@@ -23,7 +23,8 @@ from twin.errors import ExplainError
 from twin.grid import Window
 from twin.live.selection import _material_word, needs_store, selects
 from twin.live.state import ElementState, LiveState
-from twin.skills import VIRTUAL_TYPE, SkillProfile, class_iri
+from twin.skill_selection import VIRTUAL_TYPE, class_iri
+from twin.skills import SkillProfile
 from twin.store import GraphStore
 
 NEAR_M = 1.0

@@ -39,10 +39,12 @@ from twin.live.publication import Publication
 from twin.live.requests import ObserveRequest, Reply
 from twin.live.selection import needs_store, selects
 from twin.live.state import ElementState, LiveState, Sighting
-from twin.observations import ElementReport, parse_observation
-from twin.records import GeometryChange, Shape
-from twin.skills import SkillProfile, selection_query
-from twin.store import GraphStore, Object
+from twin.observations import parse_observation
+from twin.rdf import Object
+from twin.records import ElementReport, GeometryChange, Shape
+from twin.skill_selection import selection_query
+from twin.skills import SkillProfile
+from twin.store import GraphStore
 
 log = logging.getLogger(__name__)
 

@@ -36,10 +36,9 @@ from twin.live.same import quantised, same_mesh, same_shape
 from twin.live.state import ElementState, SiteFrame
 from twin.live.writes import Held, TripleWriter, boolean, geometry_triples, literal
 from twin.meshcodec import encode_placement
-from twin.observations import ElementReport
-from twin.records import GeometryChange, Shape
+from twin.rdf import ChangeSet, Object, Triple
+from twin.records import ElementReport, GeometryChange, Shape
 from twin.shapes import box_mesh, box_placement
-from twin.store import ChangeSet, Object, Triple
 
 
 @dataclass(frozen=True, eq=False, slots=True)

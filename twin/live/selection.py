@@ -17,7 +17,8 @@ import functools
 import re
 
 from twin.live.state import ElementState
-from twin.skills import VIRTUAL_TYPE, SkillProfile, class_iri
+from twin.skill_selection import VIRTUAL_TYPE, class_iri
+from twin.skills import SkillProfile
 
 
 def needs_store(skill: SkillProfile) -> bool:

@@ -22,8 +22,10 @@ from twin.live.live_map import LiveMap
 from twin.live.publication import Publication
 from twin.live.requests import Reply, SkillRequest
 from twin.live.state import LiveState
-from twin.skills import SkillProfile, parse_skill_json, selection_query
-from twin.store import ChangeSet, GraphStore, RdfLiteral, Triple
+from twin.rdf import ChangeSet, RdfLiteral, Triple
+from twin.skill_selection import selection_query
+from twin.skills import SkillProfile, parse_skill_json
+from twin.store import GraphStore
 
 log = logging.getLogger(__name__)
 

@@ -14,8 +14,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from twin.live.live_maps import LiveMaps
+from twin.rdf import Object
 from twin.skills import SkillProfile
-from twin.store import GraphStore, Object
+from twin.store import GraphStore
 
 
 @dataclass(frozen=True, slots=True)

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 from twin import vocab
 from twin.meshcodec import encode_mesh, encode_placement
+from twin.rdf import Object, RdfLiteral, Triple
 from twin.records import FloatArray, Mesh
-from twin.store import Object, RdfLiteral, Triple
 
 Held = Mapping[str, Mapping[str, Object | None]]
 """Subject -> predicate -> the exact object of the single-valued triples the writer last wrote."""
