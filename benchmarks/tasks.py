@@ -1,11 +1,12 @@
 """One measurement per process: the tasks ``run.py --child`` runs (each returns a JSON-able dict).
 
 Tasks:
-    bare      ifcopenshell.open + geometry iterator (manifold kernel, 2 threads, our settings) over every
-              IfcElement and IfcSpace with a representation, pulling vertices, faces and matrix of each.
+    bare      ifcopenshell.open + a single-threaded geometry iterator (manifold kernel, the default
+              settings, which are ours) over every IfcElement and IfcSpace with a representation,
+              pulling vertices, faces and matrix of each.
     bare-routed  the same with our kernel routing: the products ``adapters.ifc.kernel_choice`` sends to
-              OpenCASCADE meshed by it (1 thread) while manifold (2 threads) meshes the rest, in two
-              threads of one process: the geometry our import must compute, without anything else.
+              OpenCASCADE meshed by it while manifold meshes the rest (one single-threaded iterator
+              each, in two threads of one process): the geometry our import must compute, nothing else.
     import    ``adapters.ifc.read_model`` + ``twin.import_model.import_model`` into an on-disk store.
     stats     ``twin.stats.model_stats`` of the store an ``import`` child left behind (the paper's Table 1).
     map       setup (in-memory import, scene, selection, plan), then one method: ``twin-full``,
@@ -32,7 +33,8 @@ import numpy as np
 
 BASE_IRI = "https://example.org/b#"
 SITE = "b"
-THREADS = 2
+THREADS = 1
+"""The bare iterator is single-threaded (the issue's baseline); the import may use both cores."""
 REGION_M = 5.0
 REGION_WINDOWS = 20
 REGION_SEED = 20261122
@@ -121,7 +123,7 @@ def summary(times: list[float]) -> dict[str, Any]:
 
 
 def bare_iterator(path: Path) -> dict[str, Any]:
-    """The geometry iterator alone, same kernel and settings as ``adapters.ifc.geometry``."""
+    """The geometry iterator alone (one thread), same kernel and settings as ``adapters.ifc.geometry``."""
     import ifcopenshell
 
     t0 = time.perf_counter()
@@ -183,7 +185,7 @@ def bare_routed_iterator(path: Path) -> dict[str, Any]:
 
     runs = [
         threading.Thread(target=run, args=("manifold", rest, THREADS)),
-        threading.Thread(target=run, args=(REFERENCE_KERNEL, routed, 1)),
+        threading.Thread(target=run, args=(REFERENCE_KERNEL, routed, THREADS)),
     ]
     for t in runs:
         t.start()

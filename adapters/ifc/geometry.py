@@ -6,6 +6,12 @@ given to the next kernel, so no geometry is lost and no product is meshed twice.
 in a child process forked from the calling thread, which streams shapes back over a pipe that a
 thread drains: if the child dies or stalls, what it had not delivered goes to the next kernel.
 
+Parallelism is by processes, not by the iterator's own threads: each child runs a single-threaded
+iterator (with two threads, ifcopenshell 0.9's iterator spends 35 % more CPU on Janesville and 5x
+more on a generated 12,000-element building), and the products are spread over ``threads`` children
+(:func:`_shard_counts`). A child also makes the :class:`~twin.records.Mesh` (closedness, welding,
+orientation), so the calling process only collects.
+
 Meshes are local (``use-world-coords`` off) with the placement as a separate matrix; instances that
 share a representation share one :class:`~twin.records.Mesh` (decoded once).
 
@@ -43,10 +49,14 @@ from twin.records import Geometry, Mesh, check_placement
 log = logging.getLogger(__name__)
 
 Progress = Callable[[int, int], None]
-Shape = tuple[int, str, Any, Any, Any]  # product id, geometry id, vertices | None, faces | None, matrix
+Shape = tuple[int, str, Mesh | None, float, Any]  # product, geometry id, new mesh | None, its reach, matrix
 DEFAULT_KERNELS = ("manifold", "opencascade")
 _BATCH_SHAPES = 8  # small: what a crashing kernel had meshed is kept
 _BATCH_SECONDS = 0.05
+_SMALL_ROUTE = 20
+"""A route this many times smaller (in products) than the other gets no child of its own when cores
+are short: its children share the cores with the other route's (the reference kernel costs about 2
+to 70 times manifold per product, so the count alone cannot balance them)."""
 STALL_SECONDS = 300.0
 MAX_COORDINATE_M = 1e8
 """A body farther than this from the origin (or not finite) is refused: the bad placement or
@@ -136,6 +146,20 @@ def _settings() -> Any:
     return s
 
 
+def _child_mesh(geom: Any) -> tuple[Mesh | None, float]:
+    """(the Mesh of an iterator geometry, its largest absolute coordinate); (None, 0) if it has no
+    triangles or invalid coordinates, so that the next kernel tries."""
+    verts = np.asarray(ifcopenshell.util.shape.get_vertices(geom), dtype=np.float64).reshape(-1, 3)
+    faces = np.asarray(ifcopenshell.util.shape.get_faces(geom), dtype=np.int32).reshape(-1, 3)
+    if not len(faces):
+        return None, 0.0
+    try:
+        mesh = _make_mesh(verts, faces)
+    except ModelError:  # NaN or infinite coordinates
+        return None, 0.0
+    return mesh, float(np.abs(mesh.vertices).max(initial=0.0))
+
+
 def _run_kernel(f: Any, ids: list[int], kernel: str, threads: int, conn: Connection) -> None:
     """Child process: mesh ``ids`` with ``kernel``; send batches of shapes, then None."""
     faulthandler.disable()  # a kernel crash is expected and handled by the parent: no dump on stderr
@@ -154,15 +178,12 @@ def _run_kernel(f: Any, ids: list[int], kernel: str, threads: int, conn: Connect
         while more:
             shape = it.get()
             geom = shape.geometry
-            verts = faces = None
+            mesh, reach = None, 0.0
             if geom.id not in seen:  # instances sharing a representation: send the mesh once
                 seen.add(geom.id)
-                verts = np.asarray(ifcopenshell.util.shape.get_vertices(geom), dtype=np.float64).reshape(
-                    -1, 3
-                )
-                faces = np.asarray(ifcopenshell.util.shape.get_faces(geom), dtype=np.int32).reshape(-1, 3)
+                mesh, reach = _child_mesh(geom)
             matrix = np.asarray(ifcopenshell.util.shape.get_shape_matrix(shape), dtype=np.float64)
-            batch.append((int(shape.id), str(geom.id), verts, faces, matrix))
+            batch.append((int(shape.id), str(geom.id), mesh, reach, matrix))
             if len(batch) >= _BATCH_SHAPES or time.monotonic() - sent > _BATCH_SECONDS:
                 conn.send(batch)
                 batch, sent = [], time.monotonic()
@@ -188,7 +209,7 @@ class _KernelRun:
         self._child.start()
         sender.close()
         self._on_shapes = on_shapes
-        self.meshed: list[tuple[int, str, Mesh | None, Any]] = []  # product, geometry id, new mesh, matrix
+        self.meshed: list[Shape] = []
         self.finished = False
         self.error: str | None = None
         self._thread = threading.Thread(target=self._drain, name=f"twin-mesh-{kernel}", daemon=True)
@@ -210,9 +231,7 @@ class _KernelRun:
             if isinstance(message, str):
                 self.error = message
                 break
-            for pid, geom_id, verts, faces, matrix in message:
-                mesh = _make_mesh(verts, faces) if verts is not None and len(faces) else None
-                self.meshed.append((pid, geom_id, mesh, matrix))
+            self.meshed.extend(message)
             self._on_shapes(len(message))
         self._receiver.close()
 
@@ -242,11 +261,36 @@ class _Route:
         self.run: _KernelRun | None = None
 
 
+def _shard_counts(routed: int, rest: int, threads: int) -> tuple[int, int]:
+    """How many children mesh the routed products and the rest, given ``threads`` cores.
+
+    Every non-empty route gets at least one child; the cores go to the routes in proportion, except
+    that a route ``_SMALL_ROUTE`` times smaller than the other shares its children's cores with it.
+    """
+    cores = max(threads, 1)
+    if not routed or not rest:
+        return (cores if routed else 0), (cores if rest else 0)
+    if cores < 3 and _SMALL_ROUTE * routed < rest:
+        return 1, cores
+    if cores < 3 and _SMALL_ROUTE * rest < routed:
+        return cores, 1
+    n_routed = max(1, min(cores - 1, round(cores * routed / (routed + rest))))
+    return n_routed, max(1, cores - n_routed)
+
+
+def _shards(ids: set[int], n: int) -> list[set[int]]:
+    """``ids`` dealt round-robin in id order into ``n`` sets (contiguous ranges are unequal work: the
+    file groups products by kind)."""
+    ordered = sorted(ids)
+    return [set(ordered[i :: max(n, 1)]) for i in range(max(n, 1))]
+
+
 class MeshingJob:
     """Meshing in progress: each route's first kernel starts at once; :meth:`result` finishes the rest.
 
     Products whose body the fast kernel gets wrong (:func:`~adapters.ifc.kernel_choice.reference_reason`)
-    go to the reference kernel first, in a child of their own that runs beside the fast one.
+    go to the reference kernel first, in children of their own that run beside the fast one's; each
+    route is dealt into shards, one single-threaded child each (:func:`_shard_counts`).
     Use it as a context manager: leaving it on an error (or Ctrl-C) kills the kernel processes.
     """
 
@@ -273,13 +317,13 @@ class MeshingJob:
         self._result = MeshResult()
         self._refused: set[int] = set()
         reference_first = [REFERENCE_KERNEL, *(k for k in kernels if k != REFERENCE_KERNEL)]
+        rest_ids = with_body - routed_ids
+        n_routed, n_rest = _shard_counts(len(routed_ids), len(rest_ids), threads)
         self._routes = [
-            r
-            for r in (
-                _Route(routed_ids, reference_first, 1),
-                _Route(with_body - routed_ids, kernels, threads),
-            )
-            if r.pending
+            _Route(shard, chain, 1)
+            for ids, chain, n in ((routed_ids, reference_first, n_routed), (rest_ids, kernels, n_rest))
+            for shard in _shards(ids, n)
+            if shard
         ]
         for route in self._routes:
             self._next_kernel(route)
@@ -304,10 +348,10 @@ class MeshingJob:
         meshes: dict[str, Mesh] = {}
         reach: dict[str, float] = {}
         result = self._result
-        for pid, geom_id, mesh, matrix in run.meshed:
+        for pid, geom_id, mesh, mesh_reach, matrix in run.meshed:
             if mesh is not None:  # an empty mesh is no mesh: the next kernel tries
                 meshes[geom_id] = mesh
-                reach[geom_id] = float(np.abs(mesh.vertices).max(initial=0.0))
+                reach[geom_id] = mesh_reach
             if pid in route.pending and geom_id in meshes:
                 try:
                     result.geometry[pid] = _geometry(meshes[geom_id], matrix, reach[geom_id])
@@ -388,7 +432,8 @@ def start_meshing(
     """Start meshing ``products`` (ifcopenshell entities) in the background; see :class:`MeshingJob`.
 
     ``routed`` products (a subset) go to the reference kernel first, when it is among ``kernels``.
-    Products whose id is in ``skip`` are not meshed: they are listed as unmeshed.
+    Products whose id is in ``skip`` are not meshed: they are listed as unmeshed. ``threads`` is the
+    number of cores to use: the number of kernel children, or more when both routes need one.
     """
     return MeshingJob(
         f, products, kernels=kernels, threads=threads, progress=progress, routed=routed, skip=skip
