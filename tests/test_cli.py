@@ -222,3 +222,44 @@ def test_two_different_config_files_before_and_after_the_command_are_refused(tmp
     r = twin("--config", tmp_path / "a.toml", "stats", "--config", tmp_path / "b.toml")
     assert r.returncode == 2
     assert "--config given twice" in r.stderr and "a.toml" in r.stderr and "b.toml" in r.stderr
+
+
+def _site_of(store: Path) -> tuple[str, str]:
+    """(the site label of the store's model node, the IRI of one storey)."""
+    from twin import vocab
+    from twin.rdf import literal_value
+    from twin.store import EmbeddedStore
+
+    with EmbeddedStore.open(store, read_only=True) as s:
+        site = s.select(f"SELECT ?s WHERE {{ ?m a <{vocab.TWIN_MODEL}> ; <{vocab.RDFS_LABEL}> ?s }}")
+        storey = s.select(f"SELECT ?st WHERE {{ ?st a <{vocab.BOT_STOREY}> }} LIMIT 1")
+    return str(literal_value(site[0]["s"])), str(storey[0]["st"]).strip("<>")
+
+
+def test_an_import_without_site_names_the_site_and_its_iris_after_the_file(tmp_path: Path) -> None:
+    model = tmp_path / "North_Wing (v2).ifc"
+    assert twin("sample", "lab", model).returncode == 0
+    r = twin("import", model, "--store", tmp_path / "store")
+    assert r.returncode == 0, r.stderr
+    base = "https://example.org/building-twin/north-wing-v2#"
+    assert f"as site 'north-wing-v2' (from the file name; --site to choose) under {base}" in r.stdout
+    site, storey = _site_of(tmp_path / "store")
+    assert site == "north-wing-v2"
+    assert storey.startswith(base)
+
+
+def test_site_and_a_configured_site_name_win_over_the_file_name(tmp_path: Path) -> None:
+    model = tmp_path / "North_Wing.ifc"
+    assert twin("sample", "lab", model).returncode == 0
+    r = twin("import", model, "--store", tmp_path / "a", "--site", "east")
+    assert r.returncode == 0, r.stderr
+    assert "as site 'east' (--site)" in r.stdout
+    assert _site_of(tmp_path / "a")[0] == "east"
+    config = tmp_path / "site.toml"
+    config.write_text('[site]\nname = "west"\n')
+    r = twin("--config", config, "import", model, "--store", tmp_path / "b")
+    assert r.returncode == 0, r.stderr
+    assert "as site 'west' (site.name of the configuration)" in r.stdout
+    site, storey = _site_of(tmp_path / "b")
+    assert site == "west"
+    assert storey.startswith("https://example.org/building-twin/west#")

@@ -269,3 +269,21 @@ def storey_key(name: str, used: set[str] | None = None) -> str:
         n += 1
     used.add(candidate)
     return candidate
+
+
+SITE_SLUG_MAX: Final = 64
+"""A site name is at most this long (``site.name`` of the configuration)."""
+
+
+def site_slug(file_name: str) -> str:
+    """The default site name of a model file: its stem, lower-case, runs of anything but ``[a-z0-9]``
+    as one ``-``, at most 64 characters; ``"site"`` if nothing is left.
+
+    ``"revit2012_janesville_restaurant.ifc"`` gives ``"revit2012-janesville-restaurant"``.
+    """
+    stem = file_name.rsplit("/", 1)[-1]
+    if "." in stem.lstrip("."):
+        stem = stem[: stem.rindex(".")]
+    out = "".join(c if c.isascii() and c.isalnum() else "-" for c in stem.lower())
+    slug = "-".join(filter(None, out.split("-")))[:SITE_SLUG_MAX].strip("-")
+    return slug or "site"

@@ -42,7 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("import", help="build the graph world model of an IFC file into a store")
     sp.add_argument("model", help="the IFC file")
     _store_arg(sp)
-    sp.add_argument("--site", help="site name (default: site.name of the configuration)")
+    sp.add_argument(
+        "--site", help="site name (default: site.name if configured, else the file's name: A_b.ifc -> a-b)"
+    )
     sp.add_argument("--base-iri", help="base IRI of the site's nodes (default from the configuration)")
     sp.add_argument("--replace", action="store_true", help="replace the contents of a non-empty store")
     sp.set_defaults(func=model_cmds.cmd_import)

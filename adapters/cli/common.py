@@ -8,8 +8,10 @@ from pathlib import Path
 from adapters.sparql.remote_store import RemoteStore
 from adapters.sparql.settings import RemoteStoreSettings, remote_store_settings
 from adapters.zenoh.settings import ZenohSettings
+from twin import vocab
 from twin.config import Config
-from twin.store import EmbeddedStore
+from twin.rdf import literal_value
+from twin.store import EmbeddedStore, GraphStore
 
 AnyStore = EmbeddedStore | RemoteStore
 
@@ -78,6 +80,29 @@ def add_store_args(sp: argparse.ArgumentParser) -> None:
         metavar="URL",
         help="a SPARQL 1.1 server holding the graph instead, e.g. http://127.0.0.1:7878 (oxigraph serve)",
     )
+
+
+_SITE_CHARS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
+
+
+def stored_site(store: GraphStore) -> str | None:
+    """The site name the store's model was imported as (its ``twin:Model``'s label), or None."""
+    rows = store.select(
+        f"SELECT ?site WHERE {{ ?m a <{vocab.TWIN_MODEL}> ; <{vocab.RDFS_LABEL}> ?site }} LIMIT 1"
+    )
+    site = str(literal_value(rows[0]["site"]) or "") if rows else ""
+    ok = 0 < len(site) <= vocab.SITE_SLUG_MAX and set(site) <= _SITE_CHARS
+    return site if ok else None
+
+
+SITE_HELP = "site name (key prefix twin/<site>; default: site.name if set, else the one daemon running)"
+
+
+def client_prefix(args: argparse.Namespace, cfg: Config) -> str | None:
+    """The key prefix a client command talks to: of ``--site`` or of a configured ``site.name``;
+    None (no site given): the client talks to the one daemon alive, whatever its site."""
+    site = getattr(args, "site", None)
+    return key_prefix(cfg, site) if site or cfg.site_set else None
 
 
 def human_size(n: int) -> str:

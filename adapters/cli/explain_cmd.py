@@ -12,7 +12,7 @@ import argparse
 import json
 from typing import Any
 
-from adapters.cli.common import key_prefix, zenoh_of
+from adapters.cli.common import SITE_HELP, client_prefix, zenoh_of
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import RemoteError
 from twin.config import Config
@@ -51,7 +51,7 @@ def cmd_explain(args: argparse.Namespace, cfg: Config) -> int:
         raise ExplainError(msg) from err
     endpoints = list(args.connect or zenoh_of(cfg).connect or zenoh_of(cfg).listen)
     with TwinClient.connect(
-        endpoints, prefix=key_prefix(cfg, args.site), timeout_s=args.timeout, settings=zenoh_of(cfg)
+        endpoints, prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         try:
             answer = twin.explain(args.storey, args.skill, x, y)
@@ -67,7 +67,7 @@ def add_parser(sub: Any) -> None:
     sp.add_argument(
         "--connect", action="append", metavar="ENDPOINT", help="the daemon's endpoint (repeatable)"
     )
-    sp.add_argument("--site", help="site name (key prefix twin/<site>; default: site.name)")
+    sp.add_argument("--site", help=SITE_HELP)
     sp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the daemon")
     sp.add_argument("--storey", required=True, help="the storey key (see 'twin stats')")
     sp.add_argument("--skill", required=True, help="the skill whose map to explain")

@@ -15,14 +15,26 @@ from twin.errors import ModelError
 
 
 # --- commands ---------------------------------------------------------------------------------------
+def import_site(args: argparse.Namespace, cfg: Config, model_path: Path) -> tuple[str, str]:
+    """(the site an import names its model, where that name comes from): ``--site``, else the
+    configuration's ``site.name`` if a configuration file sets it, else the model file's name."""
+    from twin.vocab import site_slug
+
+    if args.site:
+        return args.site, "--site"
+    if cfg.site_set:
+        return cfg.site, "site.name of the configuration"
+    return site_slug(model_path.name), "from the file name; --site to choose"
+
+
 def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     from adapters.ifc import read_model
     from twin.import_model import ensure_importable, import_model
     from twin.vocab import check_base
 
-    site = args.site or cfg.site
-    base_iri = check_base(args.base_iri or cfg.base_iri(site))
     model_path = Path(args.model)
+    site, site_from = import_site(args, cfg, model_path)
+    base_iri = check_base(args.base_iri or cfg.base_iri(site))
     if not model_path.is_file():
         kind = "a directory" if model_path.is_dir() else "not a regular file"
         msg = (
@@ -49,7 +61,8 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
         summary = import_model(store, model, base_iri=base_iri, site=site, replace=args.replace)
     t2 = time.perf_counter()
     print(
-        f"imported {model_path} into {store_label(args, cfg)}: {summary.elements} elements "
+        f"imported {model_path} into {store_label(args, cfg)} as site {site!r} ({site_from}) under "
+        f"{base_iri}: {summary.elements} elements "
         f"({summary.meshes} with meshes), {summary.spaces} spaces, {summary.storeys} storeys, "
         f"{summary.triples} triples in {t2 - t0:.1f} s (read+mesh {t1 - t0:.1f} s, store {t2 - t1:.1f} s)"
     )

@@ -11,7 +11,7 @@ import uuid
 from pathlib import Path
 from typing import Any
 
-from adapters.cli.common import key_prefix, zenoh_of
+from adapters.cli.common import SITE_HELP, client_prefix, key_prefix, zenoh_of
 from adapters.ros import write_map_files
 from adapters.zenoh.client import MapVersion, MapWatcher, TwinClient
 from adapters.zenoh.errors import RemoteError
@@ -23,10 +23,6 @@ from twin.grid import OccupancyGrid
 
 def _endpoints(args: argparse.Namespace, cfg: Config) -> list[str]:
     return list(args.connect or zenoh_of(cfg).connect or zenoh_of(cfg).listen)
-
-
-def _prefix(args: argparse.Namespace, cfg: Config) -> str:
-    return key_prefix(cfg, args.site)
 
 
 def box_turtle(iri: str, box: list[float], *, ifc_class: str, storey: str, label: str | None = None) -> str:
@@ -82,7 +78,7 @@ def observation_turtle(args: argparse.Namespace) -> bytes:
 def cmd_observe(args: argparse.Namespace, cfg: Config) -> int:
     payload = observation_turtle(args)
     with TwinClient.connect(
-        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
+        _endpoints(args, cfg), prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         if args.no_ack:
             twin.publish_observation(args.robot, payload)
@@ -101,7 +97,7 @@ def cmd_observe(args: argparse.Namespace, cfg: Config) -> int:
 def cmd_storey(args: argparse.Namespace, cfg: Config) -> int:
     """``twin storey --robot NAME [KEY]``: print the robot's storey, after switching it to KEY if given."""
     with TwinClient.connect(
-        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
+        _endpoints(args, cfg), prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         try:
             storey = twin.robot_storey(args.robot, args.storey)
@@ -151,8 +147,9 @@ def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
         print(f"{args.ros}/{args.topic} via {s.kind}{seq}: {size}, {occupied} occupied", flush=True)
         seen.release()
 
+    prefix = key_prefix(cfg, args.site)  # ROS 2 keys: no site to look for
     with TwinClient.connect(
-        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
+        _endpoints(args, cfg), prefix=prefix, timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         watcher = RosMapWatcher(
             twin.session,
@@ -188,7 +185,7 @@ def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
         msg = "Give --skill NAME (or --ros NAMESPACE to watch a ROS 2 robot's /map)."
         raise ObservationError(msg)
     with TwinClient.connect(
-        _endpoints(args, cfg), prefix=_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
+        _endpoints(args, cfg), prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         storeys = [args.storey] if args.storey else [s for s, k in twin.list_maps() if k == args.skill]
         if not storeys:
@@ -223,7 +220,7 @@ def add_parsers(sub: Any) -> None:
         sp.add_argument(
             "--connect", action="append", metavar="ENDPOINT", help="the daemon or a router (repeatable)"
         )
-        sp.add_argument("--site", help="site name (key prefix twin/<site>; default: site.name)")
+        sp.add_argument("--site", help=SITE_HELP)
         sp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the daemon")
 
     sp = sub.add_parser("observe", help="send a robot's observation to the daemon and print the ack")

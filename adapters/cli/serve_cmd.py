@@ -15,7 +15,15 @@ from typing import Any
 
 import zenoh
 
-from adapters.cli.common import add_store_args, key_prefix, open_store, store_exists, store_label, zenoh_of
+from adapters.cli.common import (
+    add_store_args,
+    key_prefix,
+    open_store,
+    store_exists,
+    store_label,
+    stored_site,
+    zenoh_of,
+)
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.rerun import RerunRecorder
 from adapters.rerun.settings import RerunSettings
@@ -60,7 +68,7 @@ def _recorder(args: argparse.Namespace, cfg: Config, site: str) -> RerunRecorder
 
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
     if args.site:
-        cfg = dataclasses.replace(cfg, site=args.site)
+        cfg = dataclasses.replace(cfg, site=args.site, site_set=True)
     if args.ifc and _needs_import(args, cfg):
         from adapters.cli.model_cmds import cmd_import
 
@@ -68,19 +76,11 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             model=args.ifc,
             store=args.store,
             store_url=args.store_url,
-            site=cfg.site,
+            site=cfg.site if cfg.site_set else None,  # None: named after the file
             base_iri=None,
             replace=False,
         )
         cmd_import(ns, cfg)  # before any Zenoh or store thread exists: meshing forks a child
-    keys = SiteKeys(key_prefix(cfg))
-    conf = session_config(
-        zenoh_of(cfg),
-        mode=args.mode,
-        listen=args.listen or None,
-        connect=args.connect or None,
-        access_control=site_access_control(cfg, keys),
-    )
     fix_heap_thresholds()  # before the store and Zenoh allocate: RSS stays flat all day
     stop = threading.Event()
 
@@ -93,6 +93,16 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         if store.is_empty():
             msg = f"The store at {store_label(args, cfg)} is empty."
             raise StoreNotFoundError(msg)
+        if not cfg.site_set:  # no --site, no site.name: the site the model was imported as
+            cfg = dataclasses.replace(cfg, site=stored_site(store) or cfg.site)
+        keys = SiteKeys(key_prefix(cfg))
+        conf = session_config(
+            zenoh_of(cfg),
+            mode=args.mode,
+            listen=args.listen or None,
+            connect=args.connect or None,
+            access_control=site_access_control(cfg, keys),
+        )
         try:
             session = zenoh.open(conf)
         except Exception as err:
@@ -141,7 +151,11 @@ def add_parser(sub: Any) -> None:
     sp = sub.add_parser("serve", help="run the live twin daemon: serve maps, take observations (Zenoh)")
     add_store_args(sp)
     sp.add_argument("--ifc", help="an IFC file to import first when the store is empty")
-    sp.add_argument("--site", help="site name (default: site.name; the key prefix is twin/<site>)")
+    sp.add_argument(
+        "--site",
+        help="site name (default: site.name if configured, else the site the store was imported as; "
+        "the key prefix is twin/<site>)",
+    )
     sp.add_argument(
         "--listen", action="append", metavar="ENDPOINT", help="e.g. tcp/127.0.0.1:7447 (repeatable)"
     )

@@ -21,7 +21,7 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from adapters.cli.common import key_prefix, zenoh_of
+from adapters.cli.common import SITE_HELP, client_prefix, zenoh_of
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import RemoteError
 from twin import vocab
@@ -103,7 +103,7 @@ def cmd_zone(args: argparse.Namespace, cfg: Config) -> int:
         raise ObservationError(msg)
     endpoints = list(args.connect or zenoh_of(cfg).connect or zenoh_of(cfg).listen)
     with TwinClient.connect(
-        endpoints, prefix=key_prefix(cfg, args.site), timeout_s=args.timeout, settings=zenoh_of(cfg)
+        endpoints, prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
     ) as twin:
         room = find_room(twin, args.space)
         payload = zone_turtle(room, keepout=args.keepout, speed_limit=args.speed_limit, lift=args.lift)
@@ -121,7 +121,7 @@ def add_parsers(sub: Any) -> None:
     sp.add_argument(
         "--connect", action="append", metavar="ENDPOINT", help="the daemon's endpoint (repeatable)"
     )
-    sp.add_argument("--site", help="site name (key prefix twin/<site>; default: site.name)")
+    sp.add_argument("--site", help=SITE_HELP)
     sp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the daemon")
     sp.add_argument("--robot", required=True, help="who marks the zone (needs the 'zones' right)")
     sp.add_argument("--space", required=True, help="the room: an IfcSpace's name or IRI")

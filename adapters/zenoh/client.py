@@ -166,6 +166,45 @@ class MapWatcher:
         self.close()
 
 
+DISCOVERY_S = 3.0
+"""How long a client waits for daemons' liveliness tokens when it looks for the site to talk to."""
+FALLBACK_SITE = "lab"
+"""The site a client looking for a daemon talks to when none answers yet (the packaged default)."""
+
+
+def daemon_prefixes(session: zenoh.Session, template: str, timeout_s: float = DISCOVERY_S) -> list[str]:
+    """The key prefixes of the daemons alive on ``session``'s network: ``template`` (the configured
+    prefix, ``twin/{site}``) with any site, answering for ``<prefix>/daemon`` (their liveliness token)."""
+    pattern = template.replace("{site}", "*").strip("/")
+    found: set[str] = set()
+    for reply in session.liveliness().get(f"{pattern}/daemon", timeout=timeout_s):
+        if reply.ok is not None:
+            found.add(str(reply.ok.key_expr).removesuffix("/daemon"))
+    return sorted(found)
+
+
+def site_of(prefix: str, template: str) -> str:
+    """The site name in ``prefix`` (``twin/lab`` -> ``lab`` for the template ``twin/{site}``)."""
+    parts, names = prefix.split("/"), template.strip("/").split("/")
+    return parts[names.index("{site}")] if "{site}" in names and len(parts) == len(names) else prefix
+
+
+def _discovered_prefix(session: zenoh.Session, template: str, timeout_s: float) -> str:
+    """The prefix of the one daemon alive (see :meth:`TwinClient.connect`)."""
+    fallback = template.replace("{site}", FALLBACK_SITE).strip("/")
+    if "{site}" not in template:
+        return fallback
+    found = daemon_prefixes(session, template, timeout_s)
+    if len(found) > 1:
+        sites = ", ".join(site_of(p, template) for p in found)
+        msg = f"{len(found)} daemons are running, for the sites {sites}: choose one with --site."
+        raise TransportError(msg)
+    if not found:
+        return fallback
+    log.info("talking to the daemon of site %r", site_of(found[0], template))
+    return found[0]
+
+
 class TwinClient:
     """Requests to one site's daemon over an open Zenoh session."""
 
@@ -182,12 +221,18 @@ class TwinClient:
         cls,
         connect: Sequence[str],
         *,
-        prefix: str = "twin/lab",
+        prefix: str | None = None,
         timeout_s: float = 10.0,
         settings: ZenohSettings | None = None,
         mode: str = "peer",
     ) -> TwinClient:
-        """Open a session to ``connect`` (the daemon's or a router's endpoints); close the client after."""
+        """Open a session to ``connect`` (the daemon's or a router's endpoints); close the client after.
+
+        Without ``prefix`` (``twin/<site>``), the client talks to the one daemon alive on the network,
+        whatever its site (found by its liveliness token ``<prefix>/daemon``, the prefix being
+        ``settings.prefix`` with any site); to site ``lab`` when none answers; several answering is a
+        TransportError naming their sites.
+        """
         if not connect:
             msg = "Give the daemon's endpoint to connect to, e.g. tcp/127.0.0.1:7447."
             raise TransportError(msg)
@@ -196,6 +241,13 @@ class TwinClient:
         except Exception as err:
             msg = f"Cannot open a Zenoh session to {', '.join(connect)}: {err}"
             raise TransportError(msg) from err
+        if prefix is None:
+            template = settings.prefix if settings is not None else ZenohSettings().prefix
+            try:
+                prefix = _discovered_prefix(session, template, min(timeout_s, DISCOVERY_S))
+            except BaseException:
+                session.close()
+                raise
         return cls(session, prefix=prefix, timeout_s=timeout_s, own=True)
 
     def close(self) -> None:

@@ -194,3 +194,14 @@ def test_a_file_that_is_not_toml_or_not_there_is_named(tmp_path: Path) -> None:
         load_config(write(tmp_path, "not toml ==="))
     with pytest.raises(ConfigError, match=r"No configuration file at .*nope.toml"):
         load_config(tmp_path / "nope.toml")
+
+
+def test_the_site_counts_as_chosen_only_when_a_configuration_file_names_it(tmp_path: Path) -> None:
+    assert load_config().site == "lab"
+    assert not load_config().site_set
+    other = tmp_path / "other.toml"
+    other.write_text("[store]\nflush_every_s = 15\n")
+    assert not load_config(other).site_set
+    named = tmp_path / "named.toml"
+    named.write_text('[site]\nname = "north"\n')
+    assert (load_config(named).site, load_config(named).site_set) == ("north", True)

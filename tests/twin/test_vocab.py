@@ -43,3 +43,21 @@ def test_storey_keys_are_safe_and_unique() -> None:
 def test_a_bad_base_iri_is_rejected(base: str) -> None:
     with pytest.raises(ModelError, match="Base IRI"):
         vocab.check_base(base)
+
+
+@pytest.mark.parametrize(
+    ("file_name", "site"),
+    [
+        ("revit2012_janesville_restaurant.ifc", "revit2012-janesville-restaurant"),
+        ("AC20-FZK-Haus.ifc", "ac20-fzk-haus"),
+        ("Duplex_A_20110907.ifc", "duplex-a-20110907"),
+        ("lab.ifc", "lab"),
+        ("/some/dir/Büro Nord (v2).IFC", "b-ro-nord-v2"),
+        ("___.ifc", "site"),
+        ("x" * 100 + ".ifc", "x" * 64),
+    ],
+)
+def test_a_site_is_named_after_its_file_in_lower_case_letters_digits_and_dashes(
+    file_name: str, site: str
+) -> None:
+    assert vocab.site_slug(file_name) == site

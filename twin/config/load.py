@@ -68,6 +68,9 @@ class Config:
     frame_id: str = "map"
     store_flush_every_s: float = 60.0
     """``[store] flush_every_s``: how often the daemon flushes the embedded store's buffers."""
+    site_set: bool = False
+    """True when the configuration file sets ``site.name``; otherwise ``site`` is the packaged default
+    (``lab``) and commands name the site after the model file, the store or the running daemon."""
     tables: Mapping[str, Any] = field(default_factory=dict, repr=False)
     """The merged file as written (defaults under the user's file)."""
     sections: Mapping[type[ConfigSection], ConfigSection] = field(default_factory=dict, repr=False)
@@ -120,8 +123,12 @@ def load_config(
     neither the core nor a section knows is an error.
     """
     raw = _read(defaults)
+    site_set = False
     if path is not None:
-        raw = _merge(raw, _read(Path(path)))
+        own = _read(Path(path))
+        site_table = own.get("site")
+        site_set = isinstance(site_table, Mapping) and "name" in site_table
+        raw = _merge(raw, own)
     skills = _skills(raw.get("skills", {}))
     model = file_model(sections or (), strict=sections is not None)
     data = raw if sections is not None else _core_keys(raw)
@@ -132,6 +139,7 @@ def load_config(
     default_rights = frozenset(checked.rights.default)
     return Config(
         site=checked.site.name,
+        site_set=site_set,
         base_iri_template=checked.site.base_iri,
         store_path=checked.store.path,
         import_=checked.import_,
