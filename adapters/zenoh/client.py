@@ -176,10 +176,12 @@ def daemon_prefixes(session: zenoh.Session, template: str, timeout_s: float = DI
     """The key prefixes of the daemons alive on ``session``'s network: ``template`` (the configured
     prefix, ``twin/{site}``) with any site, answering for ``<prefix>/daemon`` (their liveliness token)."""
     pattern = template.replace("{site}", "*").strip("/")
+    tokens = SiteKeys(pattern).daemon  # every site's token
+    suffix = tokens.removeprefix(pattern)
     found: set[str] = set()
-    for reply in session.liveliness().get(f"{pattern}/daemon", timeout=timeout_s):
+    for reply in session.liveliness().get(tokens, timeout=timeout_s):
         if reply.ok is not None:
-            found.add(str(reply.ok.key_expr).removesuffix("/daemon"))
+            found.add(str(reply.ok.key_expr).removesuffix(suffix))
     return sorted(found)
 
 
