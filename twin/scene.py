@@ -77,19 +77,23 @@ class MeshSet:
         start = np.zeros(len(items) + 1, dtype=np.intp)
         np.cumsum(counts, out=start[1:])
         triangles = np.empty((int(start[-1]), 3, 3), dtype=np.float64)
-        bounds = np.full((len(items), 6), np.nan)  # NaN bounds never overlap: empty meshes drop out
         for i, (_, mesh, placement) in enumerate(items):
             world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]
             triangles[start[i] : start[i + 1]] = world[mesh.faces]
-            if mesh.triangle_count:
-                used = world[mesh.faces.ravel()]
-                bounds[i, :3] = used.min(axis=0)
-                bounds[i, 3:] = used.max(axis=0)
         closed = np.array([m.closed for _, m, _ in items], dtype=np.bool_)
         solid = np.array([m.solid for _, m, _ in items], dtype=np.bool_)
-        lo, hi = triangles.min(axis=1), triangles.max(axis=1)
-        pad = 1e-3 + 1e-6 * np.abs(np.concatenate([lo, hi], axis=1)).max(initial=0.0)
-        triangle_bounds = np.concatenate([lo - pad, hi + pad], axis=1).astype(np.float32)
+        # whole arrays at once: a triangle's bounds, then each node's as the reduction over its rows
+        lo = np.minimum(np.minimum(triangles[:, 0], triangles[:, 1]), triangles[:, 2])
+        hi = np.maximum(np.maximum(triangles[:, 0], triangles[:, 1]), triangles[:, 2])
+        bounds = np.full((len(items), 6), np.nan)  # NaN bounds never overlap: empty meshes drop out
+        nonempty = np.flatnonzero(counts > 0)
+        if len(nonempty):
+            bounds[nonempty, :3] = np.minimum.reduceat(lo, start[nonempty], axis=0)
+            bounds[nonempty, 3:] = np.maximum.reduceat(hi, start[nonempty], axis=0)
+        pad = 1e-3 + 1e-6 * max(float(np.abs(lo).max(initial=0.0)), float(np.abs(hi).max(initial=0.0)))
+        triangle_bounds = np.empty((len(triangles), 6), dtype=np.float32)
+        triangle_bounds[:, :3] = lo - pad
+        triangle_bounds[:, 3:] = hi + pad
         index = {iri: i for i, iri in enumerate(iris)}
         return cls(iris, index, triangles, start, closed, solid, bounds, triangle_bounds)
 
