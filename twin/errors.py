@@ -49,3 +49,7 @@ class ObservationError(TwinError):
 
 class ExplainError(TwinError):
     """A map cell that cannot be explained: an unknown map, or a point outside it."""
+
+
+class SnapshotError(TwinError):
+    """A derived-state snapshot is missing, damaged, of another format, or does not match the store."""

@@ -66,6 +66,28 @@ class LiveMaps:
         self._rasters = RasterCache()
         self.maps: dict[MapKey, LiveMap] = {}
 
+    @classmethod
+    def restored(
+        cls,
+        scene: Scene,
+        *,
+        margin_m: float,
+        hidden: BoolGrid,
+        overlay: Mapping[str, Shape],
+        maps: Iterable[LiveMap],
+    ) -> LiveMaps:
+        """Live maps as they were saved (:mod:`twin.live.snapshots`): which base elements are hidden,
+        the overlay elements' shapes, and maps whose cells are already rendered."""
+        out = cls(scene, margin_m=margin_m)
+        out.hidden = hidden
+        out._overlay = {iri: OverlayElement.of(shape) for iri, shape in overlay.items()}
+        out.maps = {m.key: m for m in maps}
+        return out
+
+    def overlay_shapes(self) -> dict[str, Shape]:
+        """Every overlay element's shape (what robots added, moved or reshaped since the base)."""
+        return {iri: el.shape for iri, el in self._overlay.items()}
+
     # --- geometry ----------------------------------------------------------------------------------
     def bounds_of(self, iri: str) -> FloatArray | None:
         """``(6,)`` world AABB of the element's current geometry, None if it has none."""

@@ -1,21 +1,32 @@
-"""Load the live twin from the graph: the model node, the scene, the site frame and every state.
+"""Load the live twin from the graph: the model node, the scene, the site frame and every state, or
+from the snapshot of them that the daemon kept (:mod:`twin.live.snapshots`) when it matches the store.
 
 Example::
 
     live, base_iri = load_live(store, config)   # TwinError if the store holds no imported model
+    live, base_iri, restored = load_live_or_restore(store, config, snapshots)
 """
 
 from __future__ import annotations
 
+import logging
+import time
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from twin.config import Config
-from twin.errors import TwinError
+from twin.errors import SnapshotError, TwinError
 from twin.live.live_maps import LiveMaps
 from twin.live.skill_changes import stored_skills
+from twin.live.snapshots import Restored, Snapshots, code_digest, config_digest, restore, store_identity
 from twin.live.state import LiveState, SiteFrame, StoreyFrame, load_states
+from twin.rdf import Row
 from twin.scene import Scene, load_scene
+from twin.skills import SkillProfile
 from twin.store import GraphStore
+
+log = logging.getLogger(__name__)
 
 
 def site_box(scene: Scene, margin: float) -> tuple[float, float, float, float, float, float]:
@@ -32,8 +43,7 @@ def site_box(scene: Scene, margin: float) -> tuple[float, float, float, float, f
     )
 
 
-def load_live(store: GraphStore, config: Config) -> tuple[LiveState, str]:
-    """The live state of the twin in ``store`` (maps not built yet) and the model's base IRI."""
+def _model(store: GraphStore) -> list[Row]:
     model = store.select(
         "SELECT ?m ?schema ?rev WHERE { ?m a twin:Model . OPTIONAL { ?m twin:ifcSchema ?schema } "
         "OPTIONAL { ?m twin:revision ?rev } }"
@@ -41,8 +51,33 @@ def load_live(store: GraphStore, config: Config) -> tuple[LiveState, str]:
     if not model:
         msg = "The store holds no imported model (no twin:Model node): import one first."
         raise TwinError(msg)
+    return model
+
+
+def load_live(store: GraphStore, config: Config) -> tuple[LiveState, str]:
+    """The live state of the twin in ``store`` (maps not built yet) and the model's base IRI."""
+    live, base_iri, _ = load_live_or_restore(store, config, None)
+    return live, base_iri
+
+
+def load_live_or_restore(
+    store: GraphStore, config: Config, snapshots: Snapshots | None
+) -> tuple[LiveState, str, Restored | None]:
+    """Like :func:`load_live`, from the snapshot when it matches the store (then the maps of its
+    matching skills are there already, at the snapshot's revision: see :class:`Restored`)."""
+    model = _model(store)
     model_iri = model[0]["m"] or ""
-    scene = load_scene(store)
+    revision = max(int(r["rev"] or 0) for r in model)
+    skills = stored_skills(store, dict(config.skills))
+    restored = _restore(store, config, snapshots, revision, skills) if snapshots is not None else None
+    if restored is not None:
+        scene, states = restored.maps.scene, restored.states
+    else:
+        with ThreadPoolExecutor(1, thread_name_prefix="twin-load") as pool:
+            # the store answers on its own threads: read the states while the meshes are decoded
+            loading = pool.submit(load_states, store)
+            scene = load_scene(store)
+            states = loading.result()
     site = SiteFrame(
         storeys={s.key: StoreyFrame(s.key, s.iri, s.elevation_m) for s in scene.storeys},
         schema=(model[0]["schema"] or "IFC4"),
@@ -52,11 +87,35 @@ def load_live(store: GraphStore, config: Config) -> tuple[LiveState, str]:
     )
     live = LiveState(
         site=site,
-        maps=LiveMaps(scene, margin_m=config.margin_m),
-        states=load_states(store),
-        skills=stored_skills(store, dict(config.skills)),
-        revision=max(int(r["rev"] or 0) for r in model),
+        maps=restored.maps if restored is not None else LiveMaps(scene, margin_m=config.margin_m),
+        states=states,
+        skills=skills,
+        revision=revision,
         last_seen={},
         held={},
     )
-    return live, model_iri.removesuffix("model")
+    return live, model_iri.removesuffix("model"), restored
+
+
+def _restore(
+    store: GraphStore, config: Config, snapshots: Snapshots, revision: int, skills: dict[str, SkillProfile]
+) -> Restored | None:
+    """The live maps of the snapshot, if it matches the store (else log why not)."""
+    t = time.perf_counter()
+    snapshots.keys = {"store": store_identity(store), "code": code_digest(), "config": config_digest(config)}
+    try:
+        restored = restore(
+            snapshots.path, keys=snapshots.keys, revision=revision, skills=skills, margin_m=config.margin_m
+        )
+    except SnapshotError as err:
+        log.info("Rebuilding the maps from the store: %s", err)
+        return None
+    log.info(
+        "Restored %d maps from the snapshot of revision %d (store at %d) in %.2f s",
+        len(restored.maps.maps),
+        restored.revision,
+        revision,
+        time.perf_counter() - t,
+    )
+    snapshots.saved_revision = restored.revision
+    return restored

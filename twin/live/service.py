@@ -30,12 +30,13 @@ from twin.errors import TwinError
 from twin.events import ElementShape, TwinEvent, TwinSink, TwinStarted
 from twin.live.explain import explain_cell
 from twin.live.live_maps import LiveMaps
-from twin.live.loading import load_live
+from twin.live.loading import load_live_or_restore
 from twin.live.observe import Observer, element_shapes
 from twin.live.publication import Publication, PublishedMap
 from twin.live.query import run_query
 from twin.live.requests import ExplainRequest, ObserveRequest, Reply, ReplyFn, Request, SkillRequest
 from twin.live.skill_changes import add_skill_maps, apply_skill
+from twin.live.snapshots import Snapshots, replay
 from twin.live.state import ElementState, LiveState
 from twin.skills import SkillProfile
 from twin.store import GraphStore
@@ -58,11 +59,13 @@ class TwinService:
         max_batch: int = 64,
         flush_every_s: float | None = None,
         housekeeping: Sequence[Callable[[], None]] = (),
+        snapshot: Snapshots | None = None,
     ) -> None:
         """``max_batch``: at most this many queued observations share one commit and one map pass
         (group commit). ``flush_every_s``: flush the store's buffers this often (if anything changed;
         default ``[store] flush_every_s``), then run each of ``housekeeping`` (e.g. give freed memory
-        back to the system)."""
+        back to the system). ``snapshot``: where the derived state is kept between runs (read by
+        :meth:`start`, written on a clean stop and in the background; see :mod:`twin.live.snapshots`)."""
         self.store = store
         self.max_batch = max(1, max_batch)
         self.config = config
@@ -70,6 +73,9 @@ class TwinService:
         self.clock = clock
         self.flush_every_s = config.store_flush_every_s if flush_every_s is None else flush_every_s
         self.housekeeping = list(housekeeping)
+        self.snapshot = snapshot
+        self.restored_from: int | None = None
+        """The revision of the snapshot :meth:`start` restored the maps from (None: built from the store)."""
         self._queue: queue.Queue[Request] = queue.Queue()
         self.publication = Publication(
             emit=self._emit, clock=clock, interval_s=config.limits.full_map_interval_s
@@ -85,9 +91,22 @@ class TwinService:
         """Load the twin, build every map, and emit TwinStarted then MapPublished for each map."""
         t0 = time.perf_counter()
         self._started_ns = self.clock()
-        live, self._base_iri = load_live(self.store, self.config)
+        live, self._base_iri, restored = load_live_or_restore(self.store, self.config, self.snapshot)
+        self.restored_from = None if restored is None else restored.revision
         scene = live.maps.scene
         self._live = live
+        if restored is not None and restored.revision < live.revision:
+            t = time.perf_counter()
+            n = replay(self.store, live, restored.revision, before_base=restored.fill_near)
+            log.info(
+                "Replayed %d elements changed since the snapshot's revision %d in %.2f s",
+                n,
+                restored.revision,
+                time.perf_counter() - t,
+            )
+        if restored is not None:
+            for m in live.maps.maps.values():
+                m.version = 1  # as after a rebuild: map versions count from 1 in each run of the daemon
         self._observer = Observer(
             self.store,
             self.config,
@@ -109,9 +128,17 @@ class TwinService:
                 skills=dict(live.skills),
             )
         )
+        if restored is not None:  # the maps first, then the triangles they were drawn from
+            for skill in live.skills.values():
+                if skill.name in restored.skills:
+                    for s in scene.storeys:
+                        self.publication.publish(live.maps.maps[(s.key, skill.name)], live.revision, stamp)
+            restored.complete()
+            scene = live.maps.scene
         for skill in live.skills.values():
-            for m in add_skill_maps(self.store, live, skill):
-                self.publication.publish(m, live.revision, stamp)
+            if restored is None or skill.name not in restored.skills:
+                for m in add_skill_maps(self.store, live, skill):
+                    self.publication.publish(m, live.revision, stamp)
         log.info(
             "Twin started at revision %d: %d maps of %d skills on %d storeys in %.2f s",
             live.revision,
@@ -120,6 +147,18 @@ class TwinService:
             len(scene.storeys),
             time.perf_counter() - t0,
         )
+        if self.snapshot is not None and (
+            restored is None or restored.skills != frozenset(live.skills) or restored.revision < live.revision
+        ):
+            self.snapshot.save_in_background(live)  # rebuilt or replayed: keep the result
+
+    def save_snapshot(self) -> None:
+        """Write the snapshot now (a clean stop); a failure is logged, never raised."""
+        if self.snapshot is not None and self._live is not None:
+            try:
+                self.snapshot.save(self._live)
+            except Exception:  # an optimisation: never worth a failed stop
+                log.exception("Could not save the snapshot %s", self.snapshot.path)
 
     @property
     def live(self) -> LiveState:
@@ -257,9 +296,12 @@ class TwinService:
         while not stop.is_set():
             self.process(timeout_s=poll_s)
             self.flush_store(due_only=True)
+            if self.snapshot is not None and self.snapshot.due(self.revision):
+                self.snapshot.save_in_background(self.live)
         self.process()
         self.flush_full_maps()
         self.flush_store()
+        self.save_snapshot()
 
     def _observe(self, batch: Sequence[ObserveRequest]) -> None:
         try:

@@ -11,6 +11,7 @@ Example::
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from twin.live.live_maps import LiveMaps
@@ -73,8 +74,10 @@ def _set(value: str | None) -> frozenset[str]:
     return frozenset(v for v in (value or "").split(_SEP) if v)
 
 
-def load_states(store: GraphStore) -> dict[str, ElementState]:
-    """Every element's classes, static flag, names, materials, storey, door state and removal."""
+def load_states(store: GraphStore, iris: Sequence[str] | None = None) -> dict[str, ElementState]:
+    """Every element's (or only those of ``iris``) classes, static flag, names, materials, storey, door
+    state and removal."""
+    values = "" if iris is None else "VALUES ?e { " + " ".join(f"<{i}>" for i in iris) + " }"
     rows = store.select(
         f"""SELECT ?e ?cls ?static (SAMPLE(?key) AS ?storey) (SAMPLE(?open) AS ?isOpen)
                   (SAMPLE(?gone) AS ?removed) (SAMPLE(?keep) AS ?keepout) (SAMPLE(?speed) AS ?speedLimit)
@@ -83,6 +86,7 @@ def load_states(store: GraphStore) -> dict[str, ElementState]:
                   (GROUP_CONCAT(DISTINCT ?n; separator="{_SEP}") AS ?labels)
                   (GROUP_CONCAT(DISTINCT ?m; separator="{_SEP}") AS ?materials)
                   (GROUP_CONCAT(DISTINCT ?f; separator="{_SEP}") AS ?facing) WHERE {{
+             {values}
              ?e a bot:Element ; twin:ifcClass ?cls .
              OPTIONAL {{ ?e a ?c }}
              OPTIONAL {{ ?e twin:isStatic ?static }}

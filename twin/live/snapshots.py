@@ -1,0 +1,580 @@
+"""The live twin's derived state kept in a snapshot file, so that a restart neither decodes every mesh
+nor renders every map.
+
+What :meth:`~twin.live.service.TwinService.start` derives from the store (the scene: every element's
+local mesh and placement, the spaces and storeys; and every map: its cells, its static occupancy, its
+selection of base elements, its overlay) is written to one file (:mod:`twin.snapshot`) next to the
+store: on a clean stop, after a start that had to rebuild, and in the background while the daemon
+runs (captured by the writer between two commits, compressed and written on another thread).
+
+On start the file is used only when it verifies (its checksum) and every key matches: the store's
+identity (the model node's IRI, source file, line count and schema), the code and configuration
+that shape maps, and a revision not ahead of the store's. Maps are taken per skill, only for skill
+profiles equal to the stored ones; others are built anew. A snapshot older than the store (after a
+``kill -9``, or another writer) is brought up to date by replaying only the elements whose
+``twin:revision`` is newer, through the same incremental path observations take, so the maps equal
+a full rebuild. Anything else (missing, damaged, foreign, ahead) is logged and rebuilt from the store.
+
+Example::
+
+    snapshots = Snapshots(Path("var/store.snapshot"))
+    service = TwinService(store, cfg, snapshot=snapshots)
+    service.start()                                 # restored, or rebuilt and then saved
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import json
+import logging
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from twin.config import Config
+from twin.errors import SnapshotError, TwinError
+from twin.live.live_map import LiveMap
+from twin.live.live_maps import LiveMaps
+from twin.live.selection import needs_store, selects
+from twin.live.state import ElementState, LiveState, load_states
+from twin.maps import plan_map
+from twin.meshcodec import decode_mesh, decode_placement
+from twin.records import FloatArray, GeometryChange, Mesh, Shape
+from twin.scene import MeshSet, Scene, StoreyInfo
+from twin.skill_selection import selection_query
+from twin.skills import SkillProfile
+from twin.snapshot import AnyArray, read_snapshot, write_snapshot
+from twin.store import GraphStore
+
+log = logging.getLogger(__name__)
+
+_SHAPING_MODULES = (
+    "twin.grid",
+    "twin.maps",
+    "twin.meshcodec",
+    "twin.scene",
+    "twin.skills",
+    "twin.snapshot",
+    "twin.live.live_map",
+    "twin.live.live_maps",
+    "twin.live.overlay",
+    "twin.live.snapshots",
+)
+"""The code that decides what a map holds: a snapshot written by other code is rebuilt."""
+
+
+def code_digest() -> str:
+    """SHA-256 of the source of every module that shapes maps (and of the raster package)."""
+    h = hashlib.sha256()
+    files: list[Path] = []
+    for name in _SHAPING_MODULES:
+        files.append(Path(str(importlib.import_module(name).__file__)))
+    raster = importlib.import_module("twin.raster")
+    files += sorted(Path(str(raster.__file__)).parent.glob("*.py"))
+    for f in files:
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:32]
+
+
+def skill_digest(skill: SkillProfile) -> str:
+    return hashlib.sha256(json.dumps(skill.to_json(), sort_keys=True).encode()).hexdigest()[:32]
+
+
+def config_digest(config: Config) -> str:
+    """What of the configuration shapes maps besides the skills."""
+    shaping = {"margin_m": config.margin_m, "static_types": list(config.import_.static_types)}
+    return hashlib.sha256(json.dumps(shaping, sort_keys=True).encode()).hexdigest()[:32]
+
+
+def store_identity(store: GraphStore) -> dict[str, str]:
+    """The imported model the store holds (its IRI, source file, line count and schema)."""
+    rows = store.select(
+        "SELECT ?m ?src ?lines ?schema WHERE { ?m a twin:Model . OPTIONAL { ?m twin:sourceFile ?src } "
+        "OPTIONAL { ?m twin:sourceLines ?lines } OPTIONAL { ?m twin:ifcSchema ?schema } } ORDER BY ?m"
+    )
+    return {
+        "model": ",".join(r["m"] or "" for r in rows),
+        "source": ",".join(r["src"] or "" for r in rows),
+        "lines": ",".join(r["lines"] or "" for r in rows),
+        "schema": ",".join(r["schema"] or "" for r in rows),
+    }
+
+
+# --- capture (writer thread) and write (any thread) ------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class _MapCopy:
+    storey: str
+    skill: str
+    skill_digest: str
+    version: int
+    overlay: tuple[str, ...]
+    base_mask: AnyArray
+    static: AnyArray
+    data: AnyArray
+    inside: AnyArray | None
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class Captured:
+    """The live maps at one revision, copied (what changes) or shared (what never does: the scene)."""
+
+    revision: int
+    keys: dict[str, Any]
+    scene: Scene
+    hidden: AnyArray
+    overlay: dict[str, Shape]
+    maps: tuple[_MapCopy, ...]
+    states: dict[str, ElementState]
+
+
+def capture(live: LiveState, keys: dict[str, Any]) -> Captured:
+    """Copy what the writer changes (on the writer's thread, between two commits: a few memcpys)."""
+    maps = tuple(
+        _MapCopy(
+            m.plan.storey.key,
+            m.plan.skill.name,
+            skill_digest(m.plan.skill),
+            m.version,
+            tuple(sorted(m.overlay)),
+            m.base_mask.copy(),
+            m.static.copy(),
+            m.data.copy(),
+            None if m.inside is None else m.inside.copy(),
+        )
+        for m in live.maps.maps.values()
+    )
+    return Captured(
+        live.revision,
+        keys,
+        live.maps.scene,
+        live.maps.hidden.copy(),
+        live.maps.overlay_shapes(),
+        maps,
+        dict(live.states),  # the states themselves are immutable
+    )
+
+
+def _state_json(s: ElementState) -> list[Any]:
+    sets = (s.classes, s.labels, s.materials, s.facing_materials)
+    head = [s.iri, s.ifc_class, list(s.ifc_types), s.is_static, s.name, s.storey, s.is_open, s.removed]
+    return [*head, s.keepout, s.speed_limit, *(sorted(x) for x in sets)]
+
+
+def _state(row: list[Any]) -> ElementState:
+    iri, cls, types, static, name, storey, is_open, removed, keepout, speed, *sets = row
+    classes, labels, materials, facing = (frozenset(str(v) for v in x) for x in sets)
+    return ElementState(
+        iri=str(iri),
+        ifc_class=str(cls),
+        ifc_types=tuple(str(t) for t in types),
+        is_static=bool(static),
+        name=str(name),
+        storey=None if storey is None else str(storey),
+        is_open=None if is_open is None else bool(is_open),
+        removed=bool(removed),
+        keepout=bool(keepout),
+        speed_limit=int(speed),
+        classes=classes,
+        labels=labels,
+        materials=materials,
+        facing_materials=facing,
+    )
+
+
+def _pool(shapes: Sequence[Shape]) -> tuple[dict[str, AnyArray], AnyArray, AnyArray]:
+    """Distinct meshes (shared ones once) packed into arrays; each shape's mesh index and placement."""
+    ids: dict[int, int] = {}
+    meshes: list[Mesh] = []
+    which = np.empty(len(shapes), dtype=np.int64)
+    for i, (mesh, _) in enumerate(shapes):
+        k = ids.get(id(mesh))
+        if k is None:
+            k = ids[id(mesh)] = len(meshes)
+            meshes.append(mesh)
+        which[i] = k
+    vstart = np.zeros(len(meshes) + 1, dtype=np.int64)
+    np.cumsum([len(m.vertices) for m in meshes], out=vstart[1:])
+    fstart = np.zeros(len(meshes) + 1, dtype=np.int64)
+    np.cumsum([len(m.faces) for m in meshes], out=fstart[1:])
+    pool = {
+        "vertices": np.concatenate([m.vertices for m in meshes]) if meshes else np.empty((0, 3)),
+        "faces": np.concatenate([m.faces for m in meshes]) if meshes else np.empty((0, 3), np.int32),
+        "vstart": vstart,
+        "fstart": fstart,
+        "closed": np.array([m.closed for m in meshes], dtype=np.bool_),
+        "solid": np.array([m.solid for m in meshes], dtype=np.bool_),
+    }
+    placements = np.array([p for _, p in shapes], dtype=np.float64).reshape(len(shapes), 4, 4)
+    return pool, which, placements
+
+
+def _unpool(arrays: dict[str, AnyArray], prefix: str) -> list[Mesh]:
+    v, f = arrays[f"{prefix}vertices"], arrays[f"{prefix}faces"]
+    vs, fs, closed = arrays[f"{prefix}vstart"], arrays[f"{prefix}fstart"], arrays[f"{prefix}closed"]
+    solid = arrays[f"{prefix}solid"]
+    return [
+        Mesh(v[vs[k] : vs[k + 1]], f[fs[k] : fs[k + 1]], bool(closed[k]), bool(solid[k]))
+        for k in range(len(closed))
+    ]
+
+
+def save(path: Path, snap: Captured) -> int:
+    """Write ``snap`` to ``path`` (atomically); the file's size in bytes."""
+    scene = snap.scene
+    els = scene.elements
+    shapes = [scene.shapes[iri] for iri in els.iris]
+    over = sorted(snap.overlay)
+    pool, which, placements = _pool([*shapes, *(snap.overlay[i] for i in over)])
+    arrays: dict[str, AnyArray] = {f"pool_{k}": a for k, a in pool.items()}
+    arrays["el_mesh"], arrays["el_placement"] = which[: len(shapes)], placements[: len(shapes)]
+    arrays["el_bounds"] = els.bounds
+    arrays["ov_mesh"], arrays["ov_placement"] = which[len(shapes) :], placements[len(shapes) :]
+    sp = scene.spaces
+    arrays |= {
+        "sp_triangles": sp.triangles,
+        "sp_start": sp.start.astype(np.int64),
+        "sp_closed": sp.closed,
+        "sp_solid": sp.solid,
+        "sp_bounds": sp.bounds,
+        "sp_triangle_bounds": sp.triangle_bounds,
+        "hidden": snap.hidden,
+    }
+    maps = []
+    for j, m in enumerate(snap.maps):
+        arrays |= {f"m{j}_mask": m.base_mask, f"m{j}_static": m.static, f"m{j}_data": m.data}
+        if m.inside is not None:
+            arrays[f"m{j}_inside"] = m.inside
+        maps.append(
+            {
+                "storey": m.storey,
+                "skill": m.skill,
+                "skill_digest": m.skill_digest,
+                "version": m.version,
+                "overlay": list(m.overlay),
+            }
+        )
+    header = {
+        "kind": "building-twin live maps",
+        "revision": snap.revision,
+        "keys": snap.keys,
+        "written_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "elements": list(els.iris),
+        "spaces": list(sp.iris),
+        "storeys": [[s.iri, s.key, s.name, s.elevation_m, list(s.extent)] for s in scene.storeys],
+        "space_storey": scene.space_storey,
+        "overlay": over,
+        "maps": maps,
+        "states": [_state_json(st) for st in snap.states.values()],
+    }
+    return write_snapshot(path, header, arrays)
+
+
+# --- restore -----------------------------------------------------------------------------------------
+
+
+@dataclass(eq=False, slots=True)
+class Restored:
+    """Live maps read from a snapshot taken at ``revision``, with the maps of ``skills`` (by name).
+
+    Their scene starts without the elements' world triangles (their arrays allocated but not written:
+    the bounds are enough to publish maps). :meth:`fill_near` computes those of the elements around
+    some boxes (what a replay re-renders), :meth:`complete` all of them, bit for bit as
+    :meth:`MeshSet.build` would."""
+
+    maps: LiveMaps
+    revision: int
+    skills: frozenset[str]
+    items: list[tuple[str, Mesh, FloatArray]]
+    states: dict[str, ElementState]
+    filled: AnyArray = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
+
+    def _fill(self, ids: AnyArray) -> None:
+        els = self.maps.scene.elements
+        b = els.bounds[~np.isnan(els.bounds).any(axis=1)]
+        pad = 1e-3 + 1e-6 * float(np.abs(b).max(initial=0.0))  # as MeshSet.build: the largest coordinate
+        for i in ids:
+            lo_row, hi_row = int(els.start[i]), int(els.start[i + 1])
+            self.filled[i] = True
+            if lo_row == hi_row:
+                continue
+            _, mesh, placement = self.items[i]
+            world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]
+            t = els.triangles[lo_row:hi_row]
+            t[...] = world[mesh.faces]
+            lo = np.minimum(np.minimum(t[:, 0], t[:, 1]), t[:, 2])
+            hi = np.maximum(np.maximum(t[:, 0], t[:, 1]), t[:, 2])
+            els.triangle_bounds[lo_row:hi_row, :3] = lo - pad
+            els.triangle_bounds[lo_row:hi_row, 3:] = hi + pad
+
+    def fill_near(self, boxes: Sequence[FloatArray]) -> None:
+        """Compute the triangles of every element whose XY bounds come within two cells (and half a
+        metre) of one of ``boxes`` (world AABBs): all that re-rendering their cells reads."""
+        b = self.maps.scene.elements.bounds
+        res = max((m.plan.frame.resolution_m for m in self.maps.maps.values()), default=0.05)
+        margin = 0.5 + 2 * res
+        need = np.zeros(len(b), dtype=np.bool_)
+        for box in boxes:
+            need |= (
+                (b[:, 0] <= box[3] + margin)
+                & (b[:, 3] >= box[0] - margin)
+                & (b[:, 1] <= box[4] + margin)
+                & (b[:, 4] >= box[1] - margin)
+            )
+        self._fill(np.flatnonzero(need & ~self.filled))
+
+    def complete(self) -> None:
+        """Compute the triangles of every element not computed yet (then the scene is whole)."""
+        if not self.items:
+            return
+        if not self.filled.any():  # nothing yet: all at once
+            self.maps.scene = replace(self.maps.scene, elements=MeshSet.build(self.items))
+        else:
+            self._fill(np.flatnonzero(~self.filled))
+        self.items = []
+
+
+def _extent(e: Sequence[float]) -> tuple[float, float, float, float]:
+    return (float(e[0]), float(e[1]), float(e[2]), float(e[3]))
+
+
+def _skeleton(items: list[tuple[str, Mesh, FloatArray]], bounds: AnyArray) -> MeshSet:
+    """The mesh set of ``items`` with its triangle arrays zeroed, not computed (see :class:`Restored`):
+    zeroed pages cost nothing until written."""
+    iris = tuple(i for i, _, _ in items)
+    start = np.zeros(len(items) + 1, dtype=np.intp)
+    np.cumsum([m.triangle_count for _, m, _ in items], out=start[1:])
+    closed = np.array([m.closed for _, m, _ in items], dtype=np.bool_)
+    solid = np.array([m.solid for _, m, _ in items], dtype=np.bool_)
+    if bounds.shape != (len(items), 6):
+        msg = f"its element bounds are {bounds.shape} for {len(items)} elements"
+        raise SnapshotError(msg)
+    n = int(start[-1])
+    triangles, triangle_bounds = np.zeros((n, 3, 3)), np.zeros((n, 6), dtype=np.float32)
+    return MeshSet(
+        iris, {iri: i for i, iri in enumerate(iris)}, triangles, start, closed, solid, bounds, triangle_bounds
+    )
+
+
+def _scene(
+    header: dict[str, Any], arrays: dict[str, AnyArray]
+) -> tuple[Scene, dict[str, Shape], list[tuple[str, Mesh, FloatArray]]]:
+    meshes = _unpool(arrays, "pool_")
+    iris = [str(i) for i in header["elements"]]
+    which, placements = arrays["el_mesh"], arrays["el_placement"]
+    items = [(iri, meshes[int(which[i])], placements[i]) for i, iri in enumerate(iris)]
+    elements = _skeleton(items, arrays["el_bounds"])
+    sp_iris = tuple(str(i) for i in header["spaces"])
+    spaces = MeshSet(
+        sp_iris,
+        {iri: i for i, iri in enumerate(sp_iris)},
+        arrays["sp_triangles"],
+        arrays["sp_start"].astype(np.intp),
+        arrays["sp_closed"],
+        arrays["sp_solid"],
+        arrays["sp_bounds"],
+        arrays["sp_triangle_bounds"],
+    )
+    if len(spaces.start) != len(sp_iris) + 1 or len(elements) != len(arrays["hidden"]):
+        msg = "its spaces or elements do not match their arrays"
+        raise SnapshotError(msg)
+    storeys = tuple(
+        StoreyInfo(str(iri), str(key), str(name), float(elev), _extent(e))
+        for iri, key, name, elev, e in header["storeys"]
+    )
+    scene = Scene(elements, spaces, storeys, dict(header["space_storey"]), {i: (m, p) for i, m, p in items})
+    ov_which, ov_place = arrays["ov_mesh"], arrays["ov_placement"]
+    overlay = {str(iri): (meshes[int(ov_which[i])], ov_place[i]) for i, iri in enumerate(header["overlay"])}
+    return scene, overlay, items
+
+
+def restore(
+    path: Path, *, keys: dict[str, Any], revision: int, skills: dict[str, SkillProfile], margin_m: float
+) -> Restored:
+    """The live maps of the snapshot at ``path`` if it verifies and matches ``keys`` and is not ahead of
+    ``revision``; SnapshotError says why not (missing, damaged, stale keys, ahead of the store)."""
+    header, arrays = read_snapshot(path)
+    if header.get("kind") != "building-twin live maps":
+        msg = f"The snapshot {path} is not of the live maps ({header.get('kind')!r})."
+        raise SnapshotError(msg)
+    theirs = header.get("keys", {})
+    for name, ours in keys.items():
+        if theirs.get(name) != ours:
+            msg = f"The snapshot {path} is of another {name}: {theirs.get(name)!r}, the store's is {ours!r}."
+            raise SnapshotError(msg)
+    at = int(header["revision"])
+    if at > revision:
+        msg = f"The snapshot {path} is ahead of the store (revision {at} > {revision}): was it replaced?"
+        raise SnapshotError(msg)
+    try:
+        scene, overlay, items = _scene(header, arrays)
+        states = {st.iri: st for st in map(_state, header["states"])}
+        maps: list[LiveMap] = []
+        for j, entry in enumerate(header["maps"]):
+            skill = skills.get(str(entry["skill"]))
+            if skill is None or skill_digest(skill) != entry["skill_digest"]:
+                continue
+            plan = plan_map(scene, skill, str(entry["storey"]), (), margin_m=margin_m)
+            static, data = arrays[f"m{j}_static"], arrays[f"m{j}_data"]
+            inside = arrays.get(f"m{j}_inside")
+            shape = (plan.frame.height, plan.frame.width)
+            if static.shape != shape or data.shape != shape or (inside is None) == skill.unknown_outside:
+                msg = f"its map {entry['storey']}/{entry['skill']} is {static.shape}, the grid {shape}"
+                raise SnapshotError(msg)
+            maps.append(
+                LiveMap(
+                    plan,
+                    arrays[f"m{j}_mask"],
+                    {str(i) for i in entry["overlay"]},
+                    static,
+                    inside,
+                    data,
+                    int(entry["version"]),
+                )
+            )
+    except SnapshotError as err:
+        msg = f"The snapshot {path} is inconsistent: {err}."
+        raise SnapshotError(msg) from err
+    except (KeyError, TypeError, ValueError, IndexError, TwinError) as err:
+        msg = f"The snapshot {path} is inconsistent: {type(err).__name__}: {err}."
+        raise SnapshotError(msg) from err
+    live = LiveMaps.restored(scene, margin_m=margin_m, hidden=arrays["hidden"], overlay=overlay, maps=maps)
+    filled = np.zeros(len(items), dtype=np.bool_)
+    return Restored(live, at, frozenset(m.plan.skill.name for m in maps), items, states, filled)
+
+
+# --- replay ------------------------------------------------------------------------------------------
+
+_SHAPES = """SELECT ?node ?ply ?placement WHERE {{
+  VALUES ?node {{ {iris} }}
+  ?node omg:hasGeometry ?g .
+  ?g fog:asPly_v1.0-binaryLE ?ply ; twin:placement ?placement ; twin:closedMesh ?closed .
+}}"""
+
+
+def _same(a: Shape | None, b: Shape | None) -> bool:
+    if a is None or b is None:
+        return a is b
+    return (
+        a[0].closed == b[0].closed
+        and a[0].solid == b[0].solid
+        and np.array_equal(a[0].vertices, b[0].vertices)
+        and np.array_equal(a[0].faces, b[0].faces)
+        and np.array_equal(a[1], b[1])
+    )
+
+
+def replay(
+    store: GraphStore,
+    live: LiveState,
+    since: int,
+    *,
+    before_base: Callable[[list[FloatArray]], None] = lambda boxes: None,
+) -> int:
+    """Bring maps restored at revision ``since`` up to the store's: every element whose
+    ``twin:revision`` is newer takes its stored geometry and selection through
+    :meth:`LiveMaps.redraw`, and its state is read again from the store. ``before_base`` runs first
+    with the old and new bounds of the imported elements among them, if any (the static rasters are
+    patched around them: :meth:`Restored.fill_near`).
+    Returns how many."""
+    rows = store.select(f"SELECT DISTINCT ?e WHERE {{ ?e twin:revision ?r . FILTER(?r > {int(since)}) }}")
+    changed = [i for r in rows if (i := r["e"] or "") != live.site.model_iri]
+    if not changed:
+        return 0
+    fresh = load_states(store, changed)
+    live.states.update(fresh)
+    iris = sorted(fresh)
+    stored: dict[str, Shape | None] = dict.fromkeys(iris)
+    for k in range(0, len(iris), 500):
+        values = " ".join(f"<{i}>" for i in iris[k : k + 500])
+        for r in store.select(_SHAPES.format(iris=values)):
+            stored[r["node"] or ""] = (decode_mesh(r["ply"] or ""), decode_placement(r["placement"] or ""))
+    geometry = [GeometryChange(i, stored[i]) for i in iris if not _same(live.maps.shape_of(i), stored[i])]
+    base = live.maps.scene.elements
+    boxes = [base.bounds[base.index[i]] for i in iris if i in base.index]
+    for g in geometry:
+        if g.iri in base.index and g.new is not None and len(g.new[0].faces):
+            mesh, placement = g.new
+            world = (mesh.vertices @ placement[:3, :3].T + placement[:3, 3])[mesh.faces.ravel()]
+            boxes.append(np.concatenate([world.min(axis=0), world.max(axis=0)]))
+    boxes = [b for b in boxes if not np.isnan(b).any()]
+    if boxes:
+        before_base(boxes)
+    membership: dict[str, dict[str, bool]] = {}
+    for name, skill in live.skills.items():
+        if needs_store(skill):
+            chosen = {r["element"] or "" for r in store.select(selection_query(skill, iris))}
+            membership[name] = {i: i in chosen for i in iris}
+        else:
+            membership[name] = {
+                i: selects(skill, live.states[i], has_geometry=stored[i] is not None) for i in iris
+            }
+    live.maps.redraw(geometry, membership)
+    return len(iris)
+
+
+# --- when and where ---------------------------------------------------------------------------------
+
+
+def snapshot_path(store: Path) -> Path:
+    """Where the snapshot of the embedded store at ``store`` (a directory) lives: ``<store>.snapshot``."""
+    return store.with_name(f"{store.name}.snapshot")
+
+
+class Snapshots:
+    """The snapshot file of one store, and when to write it: :meth:`save` (a clean stop),
+    :meth:`save_in_background` (every ``every_s`` while anything changed, and after a rebuild)."""
+
+    def __init__(self, path: Path, *, every_s: float = 300.0) -> None:
+        self.path = path
+        self.every_s = every_s
+        self.saved_revision = -1
+        self._saved_at = time.monotonic()
+        self._thread: threading.Thread | None = None
+        self.keys: dict[str, Any] = {}
+
+    def due(self, revision: int) -> bool:
+        return revision != self.saved_revision and time.monotonic() - self._saved_at >= self.every_s
+
+    def _write(self, snap: Captured) -> None:
+        t0 = time.perf_counter()
+        try:
+            size = save(self.path, snap)
+        except Exception:  # a snapshot is an optimisation: never worth the daemon
+            log.exception("Could not write the snapshot %s", self.path)
+            return
+        log.info(
+            "Snapshot of revision %d written to %s (%.1f MB) in %.2f s",
+            snap.revision,
+            self.path,
+            size / 1e6,
+            time.perf_counter() - t0,
+        )
+
+    def save(self, live: LiveState) -> None:
+        """Write the snapshot of ``live`` now (waiting for a background write first)."""
+        self.join()
+        self._write(capture(live, self.keys))
+        self.saved_revision, self._saved_at = live.revision, time.monotonic()
+
+    def save_in_background(self, live: LiveState) -> None:
+        """Copy ``live`` now (the caller is the writer), write it on a thread; skipped while one runs."""
+        if self._thread is not None and self._thread.is_alive():
+            return
+        snap = capture(live, self.keys)
+        self.saved_revision, self._saved_at = live.revision, time.monotonic()
+        self._thread = threading.Thread(target=self._write, args=(snap,), name="twin-snapshot", daemon=True)
+        self._thread.start()
+
+    def join(self) -> None:
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
