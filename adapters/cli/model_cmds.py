@@ -8,10 +8,18 @@ import sys
 import time
 from pathlib import Path
 
-from adapters.cli.common import human_size, open_store, store_exists, store_label
+from adapters.cli.common import (
+    human_size,
+    open_store,
+    remote_store_of,
+    store_exists,
+    store_label,
+    store_path_of,
+)
 from adapters.cli.progress import progress_bar
 from twin.config import Config
 from twin.errors import ModelError
+from twin.live.snapshots import snapshot_path
 
 
 # --- commands ---------------------------------------------------------------------------------------
@@ -59,6 +67,8 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     t1 = time.perf_counter()
     with open_store(args, cfg) as store:
         summary = import_model(store, model, base_iri=base_iri, site=site, replace=args.replace)
+    if remote_store_of(args, cfg) is None:  # the daemon's derived state is of the store's old contents
+        snapshot_path(store_path_of(args, cfg)).unlink(missing_ok=True)
     t2 = time.perf_counter()
     print(
         f"imported {model_path} into {store_label(args, cfg)} as site {site!r} ({site_from}) under "

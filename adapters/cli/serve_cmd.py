@@ -11,7 +11,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import zenoh
 
@@ -19,13 +19,14 @@ from adapters.cli.common import (
     add_store_args,
     key_prefix,
     open_store,
+    remote_store_of,
     store_exists,
     store_label,
+    store_path_of,
     stored_site,
     zenoh_of,
 )
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
-from adapters.rerun import RerunRecorder
 from adapters.rerun.settings import RerunSettings
 from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
@@ -37,6 +38,10 @@ from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.errors import StoreNotFoundError
 from twin.live import TwinService
+from twin.live.snapshots import Snapshots, snapshot_path
+
+if TYPE_CHECKING:
+    from adapters.rerun import RerunRecorder
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +62,8 @@ def _recorder(args: argparse.Namespace, cfg: Config, site: str) -> RerunRecorder
     path = Path(args.record) if args.record else None
     if path is None and rerun.record:
         path = rerun.directory / f"{site}-{time.strftime('%Y%m%d-%H%M%S')}.rrd"
+    from adapters.rerun import RerunRecorder  # here: a daemon that records nothing starts without Rerun
+
     return RerunRecorder(
         path=path,
         connect_url=rerun.connect_url,
@@ -64,6 +71,16 @@ def _recorder(args: argparse.Namespace, cfg: Config, site: str) -> RerunRecorder
         rotate_every_s=rerun.rotate_every_s,
         max_bytes=rerun.max_bytes,
     )
+
+
+def _snapshots(args: argparse.Namespace, cfg: Config) -> Snapshots | None:
+    """Where the daemon keeps its derived state: ``<store>.snapshot`` next to the embedded store."""
+    if args.no_snapshot or not cfg.store_snapshot:
+        return None
+    if remote_store_of(args, cfg) is not None:
+        log.info("No snapshot of the derived state: the graph is on a SPARQL server (rebuilt on each start)")
+        return None
+    return Snapshots(snapshot_path(store_path_of(args, cfg)), every_s=cfg.store_snapshot_every_s)
 
 
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
@@ -111,7 +128,12 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             raise TransportError(msg) from err
         recorder = _recorder(args, cfg, cfg.site)
         release = free_memory_releaser()
-        service = TwinService(store, cfg, housekeeping=[release] if release is not None else [])
+        service = TwinService(
+            store,
+            cfg,
+            housekeeping=[release] if release is not None else [],
+            snapshot=_snapshots(args, cfg),
+        )
         daemon: ZenohDaemon | None = None
         ros: RosMapPublisher | None = None
         try:
@@ -130,7 +152,12 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             endpoints = ", ".join(args.listen or zenoh_of(cfg).listen) or "(no listener)"
             print(
                 f"serving site {cfg.site!r} at revision {service.revision} on {endpoints} "
-                f"under {keys.prefix}/: {len(maps)} maps published in {time.perf_counter() - t0:.2f} s",
+                f"under {keys.prefix}/: {len(maps)} maps published in {time.perf_counter() - t0:.2f} s "
+                + (
+                    "(built from the store)"
+                    if service.restored_from is None
+                    else f"(from the snapshot of revision {service.restored_from})"
+                ),
                 flush=True,
             )
             service.serve_forever(stop)
@@ -161,6 +188,11 @@ def add_parser(sub: Any) -> None:
     )
     sp.add_argument("--connect", action="append", metavar="ENDPOINT", help="a router or peer to connect to")
     sp.add_argument("--mode", choices=["peer", "client", "router"], help="Zenoh mode (default: zenoh.mode)")
+    sp.add_argument(
+        "--no-snapshot",
+        action="store_true",
+        help="neither read nor write the derived-state snapshot (<store>.snapshot): rebuild every map",
+    )
     rec = sp.add_mutually_exclusive_group()
     rec.add_argument("--record", metavar="FILE.rrd", help="record the run to this Rerun file")
     rec.add_argument("--no-record", action="store_true", help="do not record the run")

@@ -178,7 +178,9 @@ def test_the_json_schema_describes_every_table_and_refuses_unknown_ones() -> Non
     assert (skill["required"], skill["additionalProperties"]) == (["kind"], False)
     assert {"lidar_height_m", "robot_height_m", "exclude_materials", "sparql"} <= set(skill["properties"])
     store = schema["$defs"][schema["properties"]["store"]["$ref"].split("/")[-1]]
-    assert {"path", "flush_every_s", "archive_every_s"} == set(store["properties"])
+    assert {"path", "flush_every_s", "snapshot", "snapshot_every_s", "archive_every_s"} == set(
+        store["properties"]
+    )
     assert store["properties"]["flush_every_s"] == {
         "default": 60.0,
         "description": "How often 'twin serve' flushes the embedded store's write buffers, seconds.",
@@ -205,3 +207,22 @@ def test_the_site_counts_as_chosen_only_when_a_configuration_file_names_it(tmp_p
     named = tmp_path / "named.toml"
     named.write_text('[site]\nname = "north"\n')
     assert (load_config(named).site, load_config(named).site_set) == ("north", True)
+
+
+def test_the_snapshot_is_on_and_rewritten_every_five_minutes_unless_configured(tmp_path: Path) -> None:
+    cfg = load_config()
+    assert cfg.store_snapshot and cfg.store_snapshot_every_s == 300.0
+    cfg = load_config(write(tmp_path, "[store]\nsnapshot = false\nsnapshot_every_s = 60\n"))
+    assert not cfg.store_snapshot and cfg.store_snapshot_every_s == 60.0
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("snapshot = 1", "[store] snapshot: expected true or false, got 1."),
+        ("snapshot_every_s = 0", "[store] snapshot_every_s:"),
+    ],
+)
+def test_a_bad_snapshot_setting_is_refused_by_name(tmp_path: Path, text: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        load_config(write(tmp_path, f"[store]\n{text}\n"))

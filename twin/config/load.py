@@ -71,6 +71,10 @@ class Config:
     site_set: bool = False
     """True when the configuration file sets ``site.name``; otherwise ``site`` is the packaged default
     (``lab``) and commands name the site after the model file, the store or the running daemon."""
+    store_snapshot: bool = True
+    """``[store] snapshot``: keep the daemon's derived state (scene, maps) in ``<store>.snapshot``."""
+    store_snapshot_every_s: float = 300.0
+    """``[store] snapshot_every_s``: how often the daemon rewrites it while anything changes."""
     tables: Mapping[str, Any] = field(default_factory=dict, repr=False)
     """The merged file as written (defaults under the user's file)."""
     sections: Mapping[type[ConfigSection], ConfigSection] = field(default_factory=dict, repr=False)
@@ -151,6 +155,8 @@ def load_config(
         robots={name: table.record(name, default_rights) for name, table in checked.robots.items()},
         frame_id=checked.ros.frame_id,
         store_flush_every_s=checked.store.flush_every_s,
+        store_snapshot=checked.store.snapshot,
+        store_snapshot_every_s=checked.store.snapshot_every_s,
         tables=raw,
         sections={s: s.model_validate(_section_keys(s, raw.get(s.table, {}))) for s in sections or ()},
     )

@@ -10,7 +10,7 @@ from typing import Annotated, ClassVar, Literal
 
 from pydantic import Field
 
-from twin.config.base import ConfigTable, Number, PathSetting, Text, Whole, check, list_of
+from twin.config.base import ConfigTable, Flag, Number, PathSetting, Text, Whole, check, list_of
 
 Right = Literal["create", "dynamic", "doors", "static", "zones"]
 RIGHTS: tuple[Right, ...] = ("create", "dynamic", "doors", "static", "zones")
@@ -54,6 +54,13 @@ class StoreTable(ConfigTable):
     path: PathSetting = Field(Path("var/store"), description="The embedded pyoxigraph store (a directory).")
     flush_every_s: Annotated[Number, Field(ge=1.0, le=3600.0)] = Field(
         60.0, description="How often 'twin serve' flushes the embedded store's write buffers, seconds."
+    )
+    snapshot: Flag = Field(
+        True,
+        description="Keep 'twin serve's derived state (meshes, maps) in <path>.snapshot: restarts read it.",
+    )
+    snapshot_every_s: Annotated[Number, Field(ge=1.0, le=86400.0)] = Field(
+        300.0, description="How often 'twin serve' rewrites the snapshot while anything changes, seconds."
     )
 
 
