@@ -8,13 +8,14 @@ from pathlib import Path
 from typing import Any
 
 from adapters.cli.common import add_store_args, human_size, open_store
-from adapters.rerun import RerunRecorder
 from twin.config import Config
 from twin.live import TwinService
 
 
 def cmd_record(args: argparse.Namespace, cfg: Config) -> int:
     out = Path(args.out)
+    from adapters.rerun import RerunRecorder  # here: importing Rerun costs every other command 0.3 s
+
     recorder = RerunRecorder(path=out, application=f"twin {cfg.site}")
     try:
         with open_store(args, cfg, read_only=True) as store:
