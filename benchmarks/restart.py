@@ -8,6 +8,11 @@ own process, with a map subscriber in another process (listening; the daemon con
   table moved around the busiest storey), so the store opens through its recovery path, ``--repeat``
   times. The revision at serving must include every acked observation.
 
+Both kinds run twice: without the derived-state snapshot (``--no-snapshot``: the scene decoded and
+every map rendered from the store) and with it (a first, unmeasured start writes it; after a clean
+stop it is current, after ``kill -9`` it is older than the store and the changes since are replayed).
+``from`` says where the daemon took its maps from (``store`` or ``snapshot rN``).
+
 Measured from the process start (``Popen``): the daemon's "serving" line (store opened, scene loaded,
 every map built and published; ``maps_published_s`` is the part the daemon reports), the first full
 map received by the subscriber, and the last of the N maps. Nothing is re-imported: the IFC file is
@@ -113,20 +118,29 @@ class Subscriber:
         self.proc.wait(timeout=30)
 
 
-def start_daemon(store: Path, connect: str | None) -> tuple[subprocess.Popen[str], float, str, str]:
+def start_daemon(
+    store: Path, connect: str | None, *flags: str
+) -> tuple[subprocess.Popen[str], float, str, str]:
     """Start ``twin serve``; return it, its start time (``time.time()``), its serving line, endpoint."""
     endpoint = f"tcp/127.0.0.1:{live._free_port()}"
     extra = ["--connect", connect] if connect else []
     t0 = time.time()
-    daemon, line = live.serve("--store", str(store), "--listen", endpoint, "--no-record", *extra)
+    daemon, line = live.serve("--store", str(store), "--listen", endpoint, "--no-record", *extra, *flags)
     return daemon, t0, line, endpoint
 
 
-def measured_start(store: Path) -> tuple[subprocess.Popen[str], dict[str, Any], str]:
+def _source(serving: str) -> str:
+    """Where the maps came from, as the serving line says: ``store`` or ``snapshot rN``."""
+    if "(from the snapshot of revision " not in serving:
+        return "store"
+    return "snapshot r" + serving.rsplit("revision ", 1)[1].split(")", maxsplit=1)[0]
+
+
+def measured_start(store: Path, *flags: str) -> tuple[subprocess.Popen[str], dict[str, Any], str]:
     """Start the daemon with a fresh subscriber; the times to serving, first and last map."""
     sub = Subscriber()
     try:
-        daemon, t0, line, endpoint = start_daemon(store, sub.endpoint)
+        daemon, t0, line, endpoint = start_daemon(store, sub.endpoint, *flags)
         t_serving = time.time()
         n_maps = int(line.rsplit(":", 1)[1].split()[0])
         arrivals = sub.wait(n_maps)
@@ -134,6 +148,9 @@ def measured_start(store: Path) -> tuple[subprocess.Popen[str], dict[str, Any], 
         sub.close()
     times = sorted(arrivals.values())
     row = {
+        "from": "snapshot r" + line.rsplit("revision ", 1)[1].split(")")[0]
+        if "(from the snapshot" in line
+        else "store",
         "to_serving_s": round(t_serving - t0, 2),
         "maps_published_s": float(line.rsplit(" in ", 1)[1].split()[0]),
         "to_first_map_s": round(times[0] - t0, 2) if times else float("nan"),
@@ -168,24 +185,32 @@ def run_model(name: str, repeat: int, observations: int) -> list[dict[str, Any]]
         store = live.prepare_store(name, work)
         import_s = round(time.perf_counter() - t, 2)
         print(f"  imported in {import_s} s", file=sys.stderr, flush=True)
-        for i in range(repeat):
-            daemon, row, _ = measured_start(store)
-            daemon.send_signal(signal.SIGTERM)
-            daemon.wait(timeout=60)
-            rows.append({"model": live.model_label(name), "after": "clean stop", "run": i + 1, **row})
-            print(f"  {rows[-1]}", file=sys.stderr, flush=True)
-        acked = -1
-        for i in range(repeat + 1):  # the first start follows the clean stops: not a recovery
-            daemon, row, endpoint = measured_start(store)
-            if i > 0:
-                row["acked_revision_before_kill"] = acked
-                rows.append({"model": live.model_label(name), "after": "kill -9", "run": i, **row})
+        for snapshot in (False, True):
+            flags = () if snapshot else ("--no-snapshot",)
+            label = {"model": live.model_label(name), "snapshot": "yes" if snapshot else "no"}
+            for i in range(repeat + snapshot):  # with a snapshot, the first start writes it: not measured
+                daemon, row, _ = measured_start(store, *flags)
+                daemon.send_signal(signal.SIGTERM)
+                daemon.wait(timeout=60)
+                if snapshot and i == 0:
+                    continue
+                rows.append({**label, "after": "clean stop", "run": i + 1 - snapshot, **row})
                 print(f"  {rows[-1]}", file=sys.stderr, flush=True)
-                if row["revision"] < acked:
-                    print(f"  LOST: revision {row['revision']} < acked {acked}", file=sys.stderr)
-            acked = observe(endpoint, store, observations)
-            daemon.kill()
-            daemon.wait(timeout=60)
+            acked = -1
+            for i in range(repeat + 1):  # the first start follows the clean stops: not a recovery
+                daemon, row, endpoint = measured_start(store, *flags)
+                if i > 0:
+                    row["acked_revision_before_kill"] = acked
+                    rows.append({**label, "after": "kill -9", "run": i, **row})
+                    print(f"  {rows[-1]}", file=sys.stderr, flush=True)
+                    if row["revision"] < acked:
+                        print(f"  LOST: revision {row['revision']} < acked {acked}", file=sys.stderr)
+                acked = observe(endpoint, store, observations)
+                time.sleep(
+                    1.0
+                )  # let a background snapshot (after a replay) finish: kill -9 may still cut one
+                daemon.kill()
+                daemon.wait(timeout=60)
         for r in rows:
             r["import_s"] = import_s
     finally:
@@ -196,11 +221,12 @@ def run_model(name: str, repeat: int, observations: int) -> list[dict[str, Any]]
 def summary(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Median and max per (model, after) of each time."""
     out = []
-    for key in dict.fromkeys((r["model"], r["after"]) for r in rows):
-        group = [r for r in rows if (r["model"], r["after"]) == key]
+    for key in dict.fromkeys((r["model"], r["snapshot"], r["after"]) for r in rows):
+        group = [r for r in rows if (r["model"], r["snapshot"], r["after"]) == key]
         entry: dict[str, Any] = {
             "model": key[0],
-            "after": key[1],
+            "snapshot": key[1],
+            "after": key[2],
             "runs": len(group),
             "maps": group[0]["maps"],
         }
