@@ -36,7 +36,7 @@ from twin.live.publication import Publication, PublishedMap
 from twin.live.query import run_query
 from twin.live.requests import ExplainRequest, ObserveRequest, Reply, ReplyFn, Request, SkillRequest
 from twin.live.skill_changes import add_skill_maps, apply_skill
-from twin.live.snapshots import Snapshots, replay
+from twin.live.snapshots import Restored, Snapshots, replay
 from twin.live.state import ElementState, LiveState
 from twin.skills import SkillProfile
 from twin.store import GraphStore
@@ -75,6 +75,7 @@ class TwinService:
         self.housekeeping = list(housekeeping)
         self.snapshot = snapshot
         self.restored_from: int | None = None
+        self._completing: Restored | None = None
         """The revision of the snapshot :meth:`start` restored the maps from (None: built from the store)."""
         self._queue: queue.Queue[Request] = queue.Queue()
         self.publication = Publication(
@@ -133,8 +134,10 @@ class TwinService:
                 if skill.name in restored.skills:
                     for s in scene.storeys:
                         self.publication.publish(live.maps.maps[(s.key, skill.name)], live.revision, stamp)
-            restored.complete()
-            scene = live.maps.scene
+            if not restored.skills >= frozenset(live.skills):
+                restored.complete()  # the other skills' maps are rendered now
+            else:
+                self._completing = restored  # before the first request (after the maps went out)
         for skill in live.skills.values():
             if restored is None or skill.name not in restored.skills:
                 for m in add_skill_maps(self.store, live, skill):
@@ -177,6 +180,7 @@ class TwinService:
     @property
     def engine(self) -> LiveMaps:
         """The live maps (every (storey, skill) map and the geometry they are drawn from)."""
+        self.complete_scene()
         return self.live.maps
 
     @property
@@ -246,6 +250,14 @@ class TwinService:
         return self._queue.qsize()
 
     # --- the worker -----------------------------------------------------------------------------------
+    def complete_scene(self) -> None:
+        """Compute the world triangles a start from the snapshot left for later (once)."""
+        if self._completing is not None:
+            t = time.perf_counter()
+            self._completing.complete()
+            self._completing = None
+            log.info("The restored scene's triangles computed in %.2f s", time.perf_counter() - t)
+
     def process(self, *, timeout_s: float = 0.0) -> int:
         """Handle queued requests until the queue is empty (waiting up to ``timeout_s`` for the first),
         publishing the full maps that are due. Returns the number handled.
@@ -253,6 +265,7 @@ class TwinService:
         Updates go out at once; a changed map's full version follows ``full_map_interval_s`` after its
         first unpublished change (so it comes after its updates, and a burst is coalesced).
         """
+        self.complete_scene()
         handled = 0
         try:
             request: Request | None = (
