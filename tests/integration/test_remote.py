@@ -43,7 +43,7 @@ def test_the_lab_imported_into_a_server_gives_the_same_stats_queries_and_maps_ce
     lab = lab_store_dir.parent / "lab.ifc"
     r = twin("import", lab, "--store-url", url)
     assert r.returncode == 0, r.stderr
-    assert f"into {url}:" in r.stdout
+    assert f"into {url} as site 'lab'" in r.stdout
     r = twin("import", lab, "--store-url", url)
     assert r.returncode == 1 and "already holds a model" in r.stderr
 
