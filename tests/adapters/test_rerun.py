@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +15,7 @@ import pytest
 import rerun.chunk as rc
 
 from adapters.rerun import RerunRecorder, map_at, map_history
-from adapters.rerun.recorder import TILE, tiles_of
+from adapters.rerun.tiles import TILE, tiles_of
 from tests.twin.box_lab import element_iri, spec
 from tests.twin.live_helpers import TWIN, box_turtle, observe, started
 from twin.events import MapPublished, MapUpdated, TwinEvent
@@ -37,9 +39,20 @@ def record(path: Path) -> tuple[list[TwinEvent], int]:
     return kept.events, len(service.element_shapes())
 
 
+def alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, exited but not reaped, counts as gone)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(") ", 1)[1][0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
 def chunks_by_entity(path: Path) -> dict[str, list]:  # type: ignore[type-arg]
     out: dict[str, list] = {}  # type: ignore[type-arg]
-    for chunk in rc.RrdReader(str(path)).stream().to_chunks():
+    with warnings.catch_warnings():  # the recorder writes no footer
+        warnings.simplefilter("ignore")
+        reader = rc.RrdReader(str(path))
+    for chunk in reader.stream().to_chunks():
         out.setdefault(str(chunk.entity_path), []).append(chunk.to_record_batch())
     return out
 
@@ -88,13 +101,22 @@ def test_every_map_version_reads_back_cell_for_cell_at_its_revision(tmp_path: Pa
 def test_a_change_logs_only_the_tiles_it_touches(tmp_path: Path) -> None:
     path = tmp_path / "twin.rrd"
     events, _ = record(path)
-    tiles = {e for e in chunks_by_entity(path) if "/tiles/" in e}
-    logs = {e: sum(b.num_rows for b in bs) for e, bs in chunks_by_entity(path).items() if e in tiles}
+    entities = chunks_by_entity(path)
+    tiles = {e: bs for e, bs in entities.items() if "/tiles/" in e}
+    logs = {
+        e: sum(len(column(b, "GridMap:data")) for b in bs if "revision" in b.schema.names)
+        for e, bs in tiles.items()
+    }
+    placements = [b for bs in tiles.values() for b in bs if "revision" not in b.schema.names]
     updates = [e for e in events if isinstance(e, MapUpdated)]
     touched = sum(len(tiles_of(u.window)) for u in updates)
     published = {(e.grid.storey, e.grid.skill): e.grid for e in events if isinstance(e, MapPublished)}
     initial = sum(len(tiles_of(g.frame.full)) for g in published.values())
     assert sum(logs.values()) == initial + touched  # the first version whole, then only changed tiles
+    # each tile's placement once, static; the revisions carry only the cells
+    assert sum(b.num_rows for b in placements) == initial
+    assert all(b.schema.names.count("GridMap:translation") == 0 for bs in tiles.values() for b in bs
+               if "revision" in b.schema.names)  # fmt: skip
 
 
 def test_observations_rejections_and_the_building_are_recorded(tmp_path: Path) -> None:
@@ -120,14 +142,29 @@ def test_observations_rejections_and_the_building_are_recorded(tmp_path: Path) -
 
 def test_a_stalled_recorder_never_delays_the_service(tmp_path: Path) -> None:
     recorder = RerunRecorder(path=tmp_path / "slow.rrd", max_queue=5)
-    recorder._record = lambda event: time.sleep(1.0)  # type: ignore[method-assign]
-    service, _ = started()
-    service.sinks.append(recorder)
-    t0 = time.perf_counter()
-    for i in range(20):
-        assert observe(service, "robot1", box_turtle(f"urn:r:{i}", 6.6, 2.0)).ok
-    assert time.perf_counter() - t0 < 5.0
-    assert recorder.dropped > 0
+    os.kill(recorder.pid, signal.SIGSTOP)  # the recorder process stops reading its pipe
+    try:
+        service, kept = started()
+        for event in kept.events:  # the building and every map: more than the pipe holds
+            recorder.emit(event)
+        service.sinks.append(recorder)
+        t0 = time.perf_counter()
+        for i in range(20):
+            assert observe(service, "robot1", box_turtle(f"urn:r:{i}", 6.6, 2.0)).ok
+        assert time.perf_counter() - t0 < 5.0
+        assert recorder.dropped > 0
+    finally:
+        os.kill(recorder.pid, signal.SIGCONT)
+        recorder.close()
+
+
+def test_the_recorder_process_writes_the_file_and_exits_on_close(tmp_path: Path) -> None:
+    path = tmp_path / "twin.rrd"
+    recorder = RerunRecorder(path=path)
+    child = alive(recorder.pid)
+    assert child
+    recorder.close()
+    assert not alive(recorder.pid) and path.exists()
 
 
 @pytest.mark.skipif(not SCREENSHOT.exists(), reason=f"{SCREENSHOT} not found (../shared is absent)")
