@@ -14,11 +14,14 @@ import numpy as np
 import pytest
 import rerun.chunk as rc
 
+from adapters.cli.app import main
 from adapters.rerun import RerunRecorder, map_at, map_history
+from adapters.rerun.cut import cut
 from adapters.rerun.tiles import TILE, tiles_of
 from tests.twin.box_lab import element_iri, spec
 from tests.twin.live_helpers import TWIN, box_turtle, observe, started
-from twin.events import MapPublished, MapUpdated, TwinEvent
+from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
+from twin.grid import GridFrame, OccupancyGrid
 
 SCREENSHOT = Path(__file__).resolve().parents[3] / "shared" / "tools" / "rrd_screenshot.sh"
 
@@ -226,3 +229,73 @@ def test_rotated_files_each_replay_alone_with_the_building_and_every_map(tmp_pat
                 np.testing.assert_array_equal(
                     cells, expected, err_msg=f"{f.name} {storey}/{skill} @{revision}"
                 )
+
+
+def test_a_map_that_comes_back_with_another_frame_reads_back_exact_before_and_after(tmp_path: Path) -> None:
+    path = tmp_path / "frames.rrd"
+    big = OccupancyGrid(GridFrame(0.0, 0.0, 0.05, 300, 200), np.zeros((200, 300), np.int8), "s", "k", 0.0)
+    big.data[50:60, 250:290] = 100
+    small = OccupancyGrid(GridFrame(1.0, 1.0, 0.1, 90, 140), np.full((140, 90), -1, np.int8), "s", "k", 0.0)
+    small.data[130:, :] = 100
+    moved = OccupancyGrid(GridFrame(2.0, 1.0, 0.1, 90, 140), small.data.copy(), "s", "k", 0.0)
+    recorder = RerunRecorder(path=path)
+    recorder.emit(MapPublished(big, 1, 1, 1))
+    recorder.emit(MapRemoved("s", "k", 2, 2))
+    recorder.emit(MapPublished(small, 3, 1, 3))  # back, with another extent and resolution
+    recorder.emit(MapPublished(moved, 4, 2, 4))  # and another origin, without a removal
+    recorder.close()
+    history = dict(map_history(path, "s", "k"))
+    np.testing.assert_array_equal(history[1], big.data)
+    np.testing.assert_array_equal(history[3], small.data)
+    np.testing.assert_array_equal(history[4], moved.data)
+    entities = chunks_by_entity(path)
+    assert "/maps/s/k/tiles/r0_c0" in entities and "/maps/s/k/tiles_2/r0_c0" in entities
+    placement = next(b for b in entities["/maps/s/k/tiles_1/r0_c0"] if "revision" not in b.schema.names)
+    assert column(placement, "GridMap:cell_size")[0] == [pytest.approx(0.1)]  # the first placement stays
+
+
+def test_a_cut_of_a_revision_range_replays_alone_from_the_state_at_its_start(tmp_path: Path) -> None:
+    path = tmp_path / "day.rrd"
+    events, elements = record(path)  # table at 1, door at 2, crate at 3, table removed at 4
+    served = served_versions(events)
+    part = tmp_path / "part.rrd"
+    summary = cut([path], part, start=3, end=3)
+    assert summary.state_rows > 0 and summary.range_rows > 0
+    for (storey, skill), versions in served.items():
+        history = map_history(part, storey, skill)
+        assert history[0][0] == 2, (storey, skill)  # the maps as they were when the range starts
+        for revision, cells in history:
+            assert revision in (2, 3)
+            expected = versions[max(r for r in versions if r <= revision)]
+            np.testing.assert_array_equal(cells, expected, err_msg=f"{storey}/{skill} @{revision}")
+    entities = chunks_by_entity(part)
+    texts = [t for b in entities["/events"] for row in column(b, "TextLog:text") for t in row]
+    assert any("accepted at revision 3" in t for t in texts)
+    assert not any("accepted at revision 1" in t or "revision 4" in t for t in texts)
+    meshes = [e for e, bs in entities.items() if e.startswith("/world/ground-floor/") and any(
+        "Mesh3D:vertex_positions" in b.schema.names for b in bs)]  # fmt: skip
+    assert len(meshes) == elements - 1  # the building
+    table = next(e for e in entities if e.startswith("/world/observations/robot1/") and e.endswith("table"))
+    assert not any("Clear:is_recursive" in b.schema.names for b in entities[table])  # removed after the cut
+    assert any(column(b, "revision") == [2] for b in entities[table])  # standing at the start
+
+
+def test_a_cut_that_ends_before_it_starts_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match=r"ends \(2\) before it starts \(5\)"):
+        cut([tmp_path / "none.rrd"], tmp_path / "out.rrd", start=5, end=2)
+
+
+def test_twin_record_from_recordings_cuts_a_revision_range(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "day.rrd"
+    events, _ = record(path)
+    served = served_versions(events)
+    part = tmp_path / "part.rrd"
+    assert main(["record", str(part), "--from", str(path), "--revisions", "2:"]) == 0
+    assert "the state at the start" in capsys.readouterr().out
+    for (storey, skill), versions in served.items():
+        history = map_history(part, storey, skill)
+        assert [r for r, _ in history] == [1, *sorted(r for r in versions if r >= 2)], (storey, skill)
+    assert main(["record", str(part), "--from", str(path), "--revisions", "4:2"]) != 0
+    assert "ends (2) before it starts (4)" in capsys.readouterr().err
