@@ -1,11 +1,11 @@
 """Soak test of the live twin: a fleet for a long time, memory and the store sampled as it goes.
 
-The daemon (``twin serve`` on an on-disk store of the generated lab, no recording), every robot and
-every subscriber run as separate processes on loopback. Each robot owns one table in the ground
-floor's corridor and sends acked observations at ``--rate / --robots`` per second: a share
-``--reconfirm`` of them re-reports the table where it stands (a re-confirmation: nothing changes),
-the rest move it; every 100th removes it and the next adds it again under the same IRI. Each
-subscriber keeps a copy of every ground-floor map (the latched map, then the updates).
+The daemon (``twin serve`` on an on-disk store of the generated lab; recording only with
+``--record``), every robot and every subscriber run as separate processes on loopback. Each robot
+owns one table in the ground floor's corridor and sends acked observations at ``--rate / --robots``
+per second: a share ``--reconfirm`` of them re-reports the table where it stands (a re-confirmation:
+nothing changes), the rest move it; every 100th removes it and the next adds it again under the same
+IRI. Each subscriber keeps a copy of every ground-floor map (the latched map, then the updates).
 
 Every ``--sample`` seconds it prints a row: daemon RSS, store size on disk, acked observations per
 second, ack p50/p99 over the interval. At the end:
