@@ -5,7 +5,8 @@ for every entity, the last row of each kind (a tile's cells, an observed element
 transform, a clear) logged before the range, stamped one tick before it, in their original order;
 then every row inside the range. So the map an operator sees at any revision of the range is the one
 the daemon served, the observed elements stand where they stood, and nothing after the range is kept.
-Rotated files are read in order, as one recording.
+Rotated files are read in order, as one recording. The cut carries the daemon's layout (a tab per
+storey, a top-down view per skill map), rebuilt from the maps it holds.
 
 Example::
 
@@ -16,6 +17,7 @@ Example::
 from __future__ import annotations
 
 import logging
+import re
 import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -24,7 +26,10 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import rerun as rr
+import rerun.blueprint as rrb
 import rerun.chunk as rc
+
+from adapters.rerun.style import blueprint, looking_down
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +68,36 @@ def _restamped(row: pa.RecordBatch, timeline: str, at: int, entity: str) -> rc.C
     return rc.Chunk.from_record_batch(row, index=indexes, entity_path=entity)[0]
 
 
+class _Layout:
+    """Storeys (elevation, extent) and skills, from the static tile placements: the cut's blueprint."""
+
+    _TILE = re.compile(r"^/maps/([^/]+)/([^/]+)/tiles[^/]*/r\d+_c\d+$")
+
+    def __init__(self) -> None:
+        self.skills: dict[str, None] = {}
+        self.storeys: dict[str, list[float]] = {}  # storey -> [elevation, xmin, ymin, xmax, ymax]
+
+    def add(self, entity: str, batch: pa.RecordBatch) -> None:
+        m = self._TILE.match(entity)
+        names = batch.schema.names
+        if m is None or not {"GridMap:translation", "GridMap:format", "GridMap:cell_size"} <= set(names):
+            return
+        (x, y, z), fmt = (
+            batch.column("GridMap:translation")[0][0].as_py(),
+            batch.column("GridMap:format")[0][0].as_py(),
+        )
+        size = batch.column("GridMap:cell_size")[0][0].as_py()
+        x1, y0 = x + fmt["width"] * size, y - fmt["height"] * size  # the tile is turned about x
+        self.skills[m[2]] = None
+        box = self.storeys.setdefault(m[1], [z, x, y0, x1, y])
+        box[1:] = [min(box[1], x), min(box[2], y0), max(box[3], x1), max(box[4], y)]
+
+    def blueprint(self) -> rrb.Blueprint:
+        storeys = sorted(self.storeys.items(), key=lambda item: item[1][0])
+        cameras = {storey: looking_down(box[1], box[2], box[3], box[4], box[0]) for storey, box in storeys}
+        return blueprint([(storey, box[0]) for storey, box in storeys], list(self.skills), cameras)
+
+
 def cut(
     sources: Sequence[Path],
     out: Path,
@@ -84,9 +119,11 @@ def cut(
     inside: list[rc.Chunk] = []
     latest: dict[tuple[str, frozenset[str]], tuple[tuple[int, bytes], pa.RecordBatch]] = {}
     range_rows = 0
+    layout = _Layout()
     for chunk in _chunks(sources):
         if chunk.is_static:
             static.append(chunk)
+            layout.add(chunk.entity_path, chunk.to_record_batch())
             continue
         batch = chunk.to_record_batch()
         if timeline not in batch.schema.names:
@@ -114,6 +151,7 @@ def cut(
     ] if start is not None else []  # fmt: skip
     stream = rr.RecordingStream(application_id=application)
     stream.set_sinks(rr.FileSink(str(out)))
+    stream.send_blueprint(layout.blueprint())
     rr.send_chunks([*static, *state, *inside], recording=stream)
     stream.flush()
     stream.disconnect()

@@ -5,7 +5,7 @@ log, the time panel on ``revision``)."""
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import rerun.blueprint as rrb
@@ -64,8 +64,15 @@ def top_down(
         return None
     xyz = np.concatenate(points)
     lo, hi = xyz.min(axis=0), xyz.max(axis=0)
-    cx, cy = float(lo[0] + hi[0]) / 2, float(lo[1] + hi[1]) / 2
-    span = float(max(hi[0] - lo[0], hi[1] - lo[1], 1.0))
+    return looking_down(float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]), elevation)
+
+
+def looking_down(
+    xmin: float, ymin: float, xmax: float, ymax: float, elevation: float
+) -> rrb.archetypes.EyeControls3D:
+    """A camera looking straight down on a rectangle at ``elevation``, all of it in sight."""
+    cx, cy = (xmin + xmax) / 2, (ymin + ymax) / 2
+    span = max(xmax - xmin, ymax - ymin, 1.0)
     return rrb.archetypes.EyeControls3D(
         position=[cx, cy - 0.01 * span, elevation + 1.1 * span],
         look_target=[cx, cy, elevation],
@@ -73,7 +80,18 @@ def top_down(
     )
 
 
-def blueprint(event: TwinStarted) -> rrb.Blueprint:
+def blueprint_of(event: TwinStarted) -> rrb.Blueprint:
+    """The layout of a daemon's recording: every storey and skill it started with."""
+    storeys = [(storey, elevation) for storey, _, elevation in event.storeys]
+    cameras = {storey: top_down(event.elements, storey, elevation) for storey, elevation in storeys}
+    return blueprint(storeys, list(event.skills), cameras)
+
+
+def blueprint(
+    storeys: Sequence[tuple[str, float]],
+    skills: Sequence[str],
+    cameras: Mapping[str, rrb.archetypes.EyeControls3D | None],
+) -> rrb.Blueprint:
     """The layout: the building and the event log on the left, a tab per storey on the right holding
     one top-down view per skill map (named by its skill, not stacked); the time panel on ``revision``."""
     maps = [
@@ -83,13 +101,13 @@ def blueprint(event: TwinStarted) -> rrb.Blueprint:
                     name=skill,
                     origin=f"maps/{storey}/{skill}",
                     contents=[f"maps/{storey}/{skill}/**"],
-                    eye_controls=top_down(event.elements, storey, elevation),
+                    eye_controls=cameras.get(storey),
                 )
-                for skill in event.skills
+                for skill in skills
             ),
             name=storey,
         )
-        for storey, _, elevation in event.storeys
+        for storey, _ in storeys
     ]
     return rrb.Blueprint(
         rrb.Horizontal(

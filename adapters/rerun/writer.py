@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
-from adapters.rerun.style import OBSERVED, Rgba, blueprint, colour_of, entity_name
+from adapters.rerun.style import OBSERVED, Rgba, blueprint_of, colour_of, entity_name
 from adapters.rerun.tiles import TILE, MapMark, MapTiles, tiles_of, tiles_path
 from twin.events import (
     ElementShape,
@@ -219,7 +219,7 @@ class RecordingWriter:
             storey = shape.storey or "building"
             path = f"world/{storey}/{shape.ifc_class}/{entity_name(shape.iri)}"
             self._shape(path, shape, colour_of(shape), static=True)
-        self.stream.send_blueprint(blueprint(event))
+        self.stream.send_blueprint(blueprint_of(event))
 
     def _started(self, event: TwinStarted) -> None:
         self._storeys = {key: elevation for key, _, elevation in event.storeys}

@@ -279,6 +279,8 @@ def test_a_cut_of_a_revision_range_replays_alone_from_the_state_at_its_start(tmp
     table = next(e for e in entities if e.startswith("/world/observations/robot1/") and e.endswith("table"))
     assert not any("Clear:is_recursive" in b.schema.names for b in entities[table])  # removed after the cut
     assert any(column(b, "revision") == [2] for b in entities[table])  # standing at the start
+    views = rc.RrdReader(str(part)).blueprints()  # the daemon's layout, rebuilt from the maps
+    assert views, "the cut carries a blueprint"
 
 
 def test_a_cut_that_ends_before_it_starts_is_refused(tmp_path: Path) -> None:
