@@ -54,6 +54,12 @@ Recordable = TwinEvent | MapMark
 Seen = tuple[str, int, int]  # (robot, revision, time ns) of an observation
 
 
+def _same_mesh(a: ElementShape, b: ElementShape) -> bool:
+    return a.mesh is b.mesh or (
+        np.array_equal(a.mesh.vertices, b.mesh.vertices) and np.array_equal(a.mesh.faces, b.mesh.faces)
+    )
+
+
 class RecordingWriter:
     """Writes events to an ``.rrd`` file (rotated) and/or a live viewer, in the order they come."""
 
@@ -191,9 +197,17 @@ class RecordingWriter:
         self.stream.log("events", rr.TextLog(text, level=level))
 
     def _shape(
-        self, path: str, shape: ElementShape, colour: Rgba, *, static: bool, seen: Seen | None = None
+        self,
+        path: str,
+        shape: ElementShape,
+        colour: Rgba,
+        *,
+        static: bool,
+        seen: Seen | None = None,
+        mesh: bool = True,
     ) -> None:
-        """One element's mesh; ``seen`` for what a robot observed, shown when an operator selects it."""
+        """One element's mesh; ``seen`` for what a robot observed, shown when an operator selects it.
+        ``mesh=False``: only its placement and properties (the entity keeps the mesh logged before)."""
         m = shape.placement
         provenance: dict[str, Any] = {}
         if seen is not None:
@@ -201,6 +215,10 @@ class RecordingWriter:
             when = str(np.datetime64(stamp_ns, "ns").astype("datetime64[ms]")) + "Z"
             provenance = {"observed_by": robot, "observed_revision": revision, "observed_at": when}
         self.stream.log(path, rr.Transform3D(translation=m[:3, 3], mat3x3=m[:3, :3]), static=static)
+        properties = rr.AnyValues(iri=shape.iri, ifc_class=shape.ifc_class, name=shape.name, **provenance)
+        if not mesh:
+            self.stream.log(path, properties, static=static)
+            return
         self.stream.log(
             path,
             rr.Mesh3D(
@@ -208,7 +226,7 @@ class RecordingWriter:
                 triangle_indices=shape.mesh.faces.astype(np.uint32),
                 albedo_factor=colour,
             ),
-            rr.AnyValues(iri=shape.iri, ifc_class=shape.ifc_class, name=shape.name, **provenance),
+            properties,
             static=static,
         )
 
@@ -284,7 +302,9 @@ class RecordingWriter:
             if shape.is_open:
                 colour = (colour[0], colour[1], colour[2], 60)
             seen = (event.robot, event.revision, event.stamp_ns)
-            self._shape(path, shape, colour, static=False, seen=seen)
+            known = self._observed.get(path)  # a moved element keeps its mesh: only its placement
+            moved = known is not None and known[1] == colour and _same_mesh(known[0], shape)
+            self._shape(path, shape, colour, static=False, seen=seen, mesh=not moved)
             self._observed[path] = (shape, colour, seen)
         for iri in event.removed:
             path = f"world/observations/{entity_name(event.robot)}/{entity_name(iri)}"

@@ -302,3 +302,24 @@ def test_twin_record_from_recordings_cuts_a_revision_range(
         assert [r for r, _ in history] == [1, *sorted(r for r in versions if r >= 2)], (storey, skill)
     assert main(["record", str(part), "--from", str(path), "--revisions", "4:2"]) != 0
     assert "ends (2) before it starts (4)" in capsys.readouterr().err
+
+
+def test_a_moved_element_logs_its_mesh_once_and_its_placement_at_every_move(tmp_path: Path) -> None:
+    path = tmp_path / "moves.rrd"
+    recorder = RerunRecorder(path=path)
+    service, kept = started()
+    for event in kept.events:
+        recorder.emit(event)
+    service.sinks.append(recorder)
+    for x in (6.6, 5.6, 4.6):
+        assert observe(service, "robot1", box_turtle("urn:robot1:table", x, 2.0)).ok
+    recorder.close()
+    table = next(bs for e, bs in chunks_by_entity(path).items() if e.endswith("robot1/urn_robot1_table"))
+
+    def logged(name: str) -> list[object]:
+        return [v for b in table if name in b.schema.names for v in column(b, name) if v is not None]
+
+    assert len(logged("Mesh3D:vertex_positions")) == 1
+    assert len(logged("Transform3D:translation")) == 3
+    revisions = sorted(r[0] for r in logged("observed_revision"))  # type: ignore[index]
+    assert revisions == [1, 2, 3]  # who saw it when, at every move
