@@ -66,6 +66,7 @@ def serve(source: IO[bytes], replies: IO[str]) -> int:
 
 def main() -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the daemon decides when recording ends
+    os.nice(10)  # on a busy machine the daemon's map updates go first; recording can wait
     replies = os.fdopen(os.dup(1), "w")
     os.dup2(2, 1)  # whatever the SDK prints goes to stderr, not into the replies
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")

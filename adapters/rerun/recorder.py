@@ -27,6 +27,7 @@ import queue
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import IO
 
@@ -38,6 +39,8 @@ from twin.grid import GridFrame
 log = logging.getLogger(__name__)
 
 _END = object()
+BATCH_S = 0.02
+"""How long the feeder lets events gather before it pickles them into the pipe."""
 
 
 class RerunRecorder:
@@ -144,10 +147,19 @@ class RerunRecorder:
         pipe = self._process.stdin
         assert pipe is not None
         try:
-            while (message := self._queue.get()) is not _END:
-                write_message(pipe, message)
-                if self._queue.empty():
-                    pipe.flush()
+            while True:
+                batch = [self._queue.get()]
+                # Let the service finish the observation it is publishing before this thread takes
+                # the GIL: one hand-off per batch, not one per event (that cost ~1 ms of update p50).
+                time.sleep(BATCH_S)
+                with contextlib.suppress(queue.Empty):
+                    while len(batch) < 10_000:
+                        batch.append(self._queue.get_nowait())
+                for message in batch:
+                    if message is _END:
+                        return
+                    write_message(pipe, message)
+                pipe.flush()
         except (BrokenPipeError, OSError):
             self.disabled = True
             log.error("The Rerun recorder process %d exited: recording stopped", self._process.pid)
