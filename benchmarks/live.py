@@ -241,7 +241,8 @@ def run_model(name: str, count: int, *, record: bool = False, remote: bool = Fal
     maps_published_s = float(line.rsplit(" in ", 1)[1].split()[0])
     rss_start = _proc_mb(daemon.pid, "VmRSS")
     time.sleep(1.0)
-    rrd_start = _settled_size(rrd) if record else 0  # the building and first maps are written by then
+    # The building and first maps are written by then: the recorder batches a file's rows for 10 s.
+    rrd_start = _settled_size(rrd, quiet_s=12.0) if record else 0
     received: dict[int, float] = {}
     got = threading.Condition()
     latencies, acks = [], []

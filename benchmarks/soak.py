@@ -1,11 +1,11 @@
 """Soak test of the live twin: a fleet for a long time, memory and the store sampled as it goes.
 
-The daemon (``twin serve`` on an on-disk store of the generated lab, no recording), every robot and
-every subscriber run as separate processes on loopback. Each robot owns one table in the ground
-floor's corridor and sends acked observations at ``--rate / --robots`` per second: a share
-``--reconfirm`` of them re-reports the table where it stands (a re-confirmation: nothing changes),
-the rest move it; every 100th removes it and the next adds it again under the same IRI. Each
-subscriber keeps a copy of every ground-floor map (the latched map, then the updates).
+The daemon (``twin serve`` on an on-disk store of the generated lab; recording only with
+``--record``), every robot and every subscriber run as separate processes on loopback. Each robot
+owns one table in the ground floor's corridor and sends acked observations at ``--rate / --robots``
+per second: a share ``--reconfirm`` of them re-reports the table where it stands (a re-confirmation:
+nothing changes), the rest move it; every 100th removes it and the next adds it again under the same
+IRI. Each subscriber keeps a copy of every ground-floor map (the latched map, then the updates).
 
 Every ``--sample`` seconds it prints a row: daemon RSS, store size on disk, acked observations per
 second, ack p50/p99 over the interval. At the end:
@@ -120,6 +120,7 @@ def run(
     quiet: bool = False,
     flush_every_s: float | None = None,
     model: str = "lab",
+    record: bool = False,
 ) -> dict[str, Any]:
     """One soak on ``model`` (the lab's corridor, or the busiest storey's extent of another model)."""
     work = Path(tempfile.mkdtemp(prefix="soak-"))
@@ -132,14 +133,16 @@ def run(
     endpoint = f"tcp/127.0.0.1:{live._free_port()}"
     config = work / "soak.toml"
     config.write_text(f"[store]\nflush_every_s = {flush_every_s}\n" if flush_every_s else "")
+    rrd = work / "soak.rrd" if record else None
     daemon, _ = live.serve(
-        "--store", str(store), "--listen", endpoint, "--no-record", "--config", str(config)
-    )
+        "--store", str(store), "--listen", endpoint, "--config", str(config),
+        *(["--record", str(rrd)] if rrd is not None else ["--no-record"]),
+    )  # fmt: skip
     children: list[subprocess.Popen[str]] = [daemon]
     try:
         return _run(daemon, children, store, endpoint, robots=robots, rate=rate, duration=duration,
                     subscribers=subscribers, reconfirm=reconfirm, sample_s=sample_s, warmup_s=warmup_s,
-                    quiet=quiet, flush_every_s=flush_every_s, model=model, storey=storey,
+                    quiet=quiet, rrd=rrd, flush_every_s=flush_every_s, model=model, storey=storey,
                     area=area)  # fmt: skip
     finally:  # an interrupted soak (SIGINT, SIGTERM) leaves no process behind
         for c in children:
@@ -166,6 +169,7 @@ def _run(
     model: str,
     storey: str,
     area: tuple[float, float, float, float],
+    rrd: Path | None = None,
 ) -> dict[str, Any]:
     from adapters.zenoh.client import TwinClient
 
@@ -247,6 +251,11 @@ def _run(
             "ack_p99_ms": round(_pct(acks, 99), 2),
             "observations": len(lines),
         }
+        if rrd is not None:  # the recording (rotated files too) and the recorder process
+            row["rrd_mb"] = round(sum(f.stat().st_size for f in rrd.parent.glob("soak*.rrd")) / 1e6, 2)
+            row["recorder_rss_mb"] = round(
+                sum(live._proc_mb(pid, "VmRSS") for pid in _children(daemon.pid)), 1
+            )
         samples.append(row)
         if not quiet:
             print(
@@ -308,9 +317,35 @@ def _run(
         "store_end_minus_start_mb": round(warm[-1]["store_mb"] - warm[0]["store_mb"], 2) if warm else None,
         "growth_window_s": window,
         "observations_after_warmup": obs_after,
+        **(_recording(warm, samples, rrd) if rrd is not None else {}),
         "problems": problems[:10],
         "robot_errors": errors[:10],
         "samples": samples,
+    }
+
+
+def _children(pid: int) -> list[int]:
+    """The child processes of ``pid`` (the daemon's recorder process)."""
+    try:
+        return [
+            int(c) for t in Path(f"/proc/{pid}/task").iterdir() for c in (t / "children").read_text().split()
+        ]
+    except OSError:
+        return []
+
+
+def _recording(warm: list[dict[str, Any]], samples: list[dict[str, Any]], rrd: Path) -> dict[str, Any]:
+    """The recording's growth after warm-up, per changed observation and extrapolated to an hour."""
+    size_mb = sum(f.stat().st_size for f in rrd.parent.glob("soak*.rrd")) / 1e6  # closed: all written
+    span = warm[-1]["t_s"] - warm[0]["t_s"] if len(warm) > 1 else 0.0
+    changed = sum(s["changed_per_s"] for s in warm[1:]) * (span / max(len(warm) - 1, 1))
+    grown = warm[-1]["rrd_mb"] - warm[0]["rrd_mb"] if warm else 0.0
+    return {
+        "rrd_end_mb": round(size_mb, 2),
+        "rrd_growth_after_warmup_mb": round(grown, 2),
+        "rrd_bytes_per_change": round(grown * 1e6 / changed) if changed else None,
+        "rrd_gb_per_hour": round(grown / span * 3600 / 1e3, 2) if span else None,
+        "recorder_rss_end_mb": samples[-1].get("recorder_rss_mb") if samples else None,
     }
 
 
@@ -383,6 +418,7 @@ def main() -> int:
     p.add_argument("--max-store-growth", type=float, default=50.0, help="MB after warm-up")
     p.add_argument("--json", metavar="OUT.json", help="also write the result here")
     p.add_argument("--plot", metavar="OUT.png", help="plot RSS and store size over time")
+    p.add_argument("--record", action="store_true", help="the daemon records (Rerun): the file's growth")
     p.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     args = p.parse_args()
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # run the cleanup in run()'s finally
@@ -407,6 +443,7 @@ def main() -> int:
         warmup_s=min(args.warmup, args.duration / 2),
         flush_every_s=args.flush_every,
         model=args.model,
+        record=args.record,
     )
     for key, value in result.items():
         if key != "samples":

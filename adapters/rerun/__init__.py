@@ -1,6 +1,7 @@
 """The Rerun adapter: records the twin's history (building, every map version, observations) as a
-sink of the twin service, and reads maps back at any revision. See :mod:`adapters.rerun.recorder` and
-:mod:`adapters.rerun.reader`.
+sink of the twin service, in a recorder process of its own, and reads maps back at any revision. See
+:mod:`adapters.rerun.recorder` (the sink), :mod:`adapters.rerun.writer` (what is recorded),
+:mod:`adapters.rerun.tiles` (maps exact at every revision) and :mod:`adapters.rerun.reader`.
 
 The Rerun SDK is imported only when a recorder or reader is first used (about 0.3 s, more on a busy
 machine): the ``[rerun]`` settings (:mod:`adapters.rerun.settings`), which every ``twin`` command
