@@ -69,11 +69,10 @@ def cmd_cut(args: argparse.Namespace, cfg: Config) -> int:
 def cmd_record(args: argparse.Namespace, cfg: Config) -> int:
     if args.sources:
         return cmd_cut(args, cfg)
-    from adapters.rerun import RerunRecorder
+    from adapters.rerun import RerunRecorder  # here: importing Rerun costs every other command 0.3 s
     from twin.live import TwinService
 
     out = Path(args.out)
-    from adapters.rerun import RerunRecorder  # here: importing Rerun costs every other command 0.3 s
 
     recorder = RerunRecorder(path=out, application=f"twin {cfg.site}")
     try:
