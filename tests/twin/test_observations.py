@@ -48,9 +48,9 @@ def test_several_elements_come_back_in_iri_order() -> None:
         ('<urn:t> twin:box "1 2 0.5 1 1" ; twin:storey "g" .', "urn:t"),
         ('<urn:t> twin:box "1 2 0.5 100 1 1 0" ; twin:storey "g" .', "50"),
         ('<urn:t> twin:flavour "sweet" .', "flavour"),
-        ('<urn:t> twin:isOpen true , false .', "isOpen"),
+        ("<urn:t> twin:isOpen true , false .", "isOpen"),
         ("<urn:t> twin:isOpen true", "line 3"),  # no final dot: a syntax error, located
-        ('_:b twin:isOpen true .', "blank node"),
+        ("_:b twin:isOpen true .", "blank node"),
     ],
 )
 def test_a_malformed_observation_is_refused_naming_what_is_wrong(doc: str, named: str) -> None:
