@@ -1,35 +1,15 @@
-"""The live twin's derived state kept in a snapshot file, so that a restart neither decodes every mesh
-nor renders every map.
-
-What :meth:`~twin.live.service.TwinService.start` derives from the store (the scene: every element's
-local mesh and placement, the spaces and storeys; and every map: its cells, its static occupancy, its
-selection of base elements, its overlay) is written to one file (:mod:`twin.snapshot`) next to the
-store: on a clean stop, after a start that had to rebuild, and in the background while the daemon
-runs (captured by the writer between two commits, compressed and written on another thread).
-
-On start the file is used only when it verifies (its checksum) and every key matches: the store's
-identity (the model node's IRI, source file, line count and schema), the code and configuration
-that shape maps, and a revision not ahead of the store's. Maps are taken per skill, only for skill
-profiles equal to the stored ones; others are built anew. A snapshot older than the store (after a
-``kill -9``, or another writer) is brought up to date by replaying only the elements whose
-``twin:revision`` is newer, through the same incremental path observations take, so the maps equal
-a full rebuild. Anything else (missing, damaged, foreign, ahead) is logged and rebuilt from the store.
+"""Reading the snapshot back: the scene and the maps as they were (:func:`restore`), and the elements
+changed since brought up to date through the incremental path (:func:`replay`).
 
 Example::
 
-    snapshots = Snapshots(Path("var/store.snapshot"))
-    service = TwinService(store, cfg, snapshot=snapshots)
-    service.start()                                 # restored, or rebuilt and then saved
+    restored = restore(path, keys=keys, revision=store_revision, skills=skills, margin_m=1.0)
+    replay(store, live, since=restored.revision)
 """
 
 from __future__ import annotations
 
-import hashlib
-import importlib
-import json
 import logging
-import threading
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -37,11 +17,11 @@ from typing import Any
 
 import numpy as np
 
-from twin.config import Config
 from twin.errors import SnapshotError, TwinError
 from twin.live.live_map import LiveMap
 from twin.live.live_maps import LiveMaps
 from twin.live.selection import needs_store, selects
+from twin.live.snapshots.keys import skill_digest
 from twin.live.state import ElementState, LiveState, load_states
 from twin.maps import plan_map
 from twin.meshcodec import decode_mesh, decode_placement
@@ -49,124 +29,10 @@ from twin.records import FloatArray, GeometryChange, Mesh, Shape
 from twin.scene import MeshSet, Scene, StoreyInfo
 from twin.skill_selection import selection_query
 from twin.skills import SkillProfile
-from twin.snapshot import AnyArray, read_snapshot, write_snapshot
+from twin.snapshot import AnyArray, read_snapshot
 from twin.store import GraphStore
 
 log = logging.getLogger(__name__)
-
-_SHAPING_MODULES = (
-    "twin.grid",
-    "twin.maps",
-    "twin.meshcodec",
-    "twin.scene",
-    "twin.skills",
-    "twin.snapshot",
-    "twin.live.live_map",
-    "twin.live.live_maps",
-    "twin.live.overlay",
-    "twin.live.snapshots",
-)
-"""The code that decides what a map holds: a snapshot written by other code is rebuilt."""
-
-
-def code_digest() -> str:
-    """SHA-256 of the source of every module that shapes maps (and of the raster package)."""
-    h = hashlib.sha256()
-    files: list[Path] = []
-    for name in _SHAPING_MODULES:
-        files.append(Path(str(importlib.import_module(name).__file__)))
-    raster = importlib.import_module("twin.raster")
-    files += sorted(Path(str(raster.__file__)).parent.glob("*.py"))
-    for f in files:
-        h.update(f.name.encode())
-        h.update(f.read_bytes())
-    return h.hexdigest()[:32]
-
-
-def skill_digest(skill: SkillProfile) -> str:
-    return hashlib.sha256(json.dumps(skill.to_json(), sort_keys=True).encode()).hexdigest()[:32]
-
-
-def config_digest(config: Config) -> str:
-    """What of the configuration shapes maps besides the skills."""
-    shaping = {"margin_m": config.margin_m, "static_types": list(config.import_.static_types)}
-    return hashlib.sha256(json.dumps(shaping, sort_keys=True).encode()).hexdigest()[:32]
-
-
-def store_identity(store: GraphStore) -> dict[str, str]:
-    """The imported model the store holds (its IRI, source file, line count and schema)."""
-    rows = store.select(
-        "SELECT ?m ?src ?lines ?schema WHERE { ?m a twin:Model . OPTIONAL { ?m twin:sourceFile ?src } "
-        "OPTIONAL { ?m twin:sourceLines ?lines } OPTIONAL { ?m twin:ifcSchema ?schema } } ORDER BY ?m"
-    )
-    return {
-        "model": ",".join(r["m"] or "" for r in rows),
-        "source": ",".join(r["src"] or "" for r in rows),
-        "lines": ",".join(r["lines"] or "" for r in rows),
-        "schema": ",".join(r["schema"] or "" for r in rows),
-    }
-
-
-# --- capture (writer thread) and write (any thread) ------------------------------------------------
-
-
-@dataclass(frozen=True, eq=False, slots=True)
-class _MapCopy:
-    storey: str
-    skill: str
-    skill_digest: str
-    version: int
-    overlay: tuple[str, ...]
-    base_mask: AnyArray
-    static: AnyArray
-    data: AnyArray
-    inside: AnyArray | None
-
-
-@dataclass(frozen=True, eq=False, slots=True)
-class Captured:
-    """The live maps at one revision, copied (what changes) or shared (what never does: the scene)."""
-
-    revision: int
-    keys: dict[str, Any]
-    scene: Scene
-    hidden: AnyArray
-    overlay: dict[str, Shape]
-    maps: tuple[_MapCopy, ...]
-    states: dict[str, ElementState]
-
-
-def capture(live: LiveState, keys: dict[str, Any]) -> Captured:
-    """Copy what the writer changes (on the writer's thread, between two commits: a few memcpys)."""
-    maps = tuple(
-        _MapCopy(
-            m.plan.storey.key,
-            m.plan.skill.name,
-            skill_digest(m.plan.skill),
-            m.version,
-            tuple(sorted(m.overlay)),
-            m.base_mask.copy(),
-            m.static.copy(),
-            m.data.copy(),
-            None if m.inside is None else m.inside.copy(),
-        )
-        for m in live.maps.maps.values()
-    )
-    return Captured(
-        live.revision,
-        keys,
-        live.maps.scene,
-        live.maps.hidden.copy(),
-        live.maps.overlay_shapes(),
-        maps,
-        dict(live.states),  # the states themselves are immutable
-    )
-
-
-def _state_json(s: ElementState) -> list[Any]:
-    sets = (s.classes, s.labels, s.materials, s.facing_materials)
-    head = [s.iri, s.ifc_class, list(s.ifc_types), s.is_static, s.name, s.storey, s.is_open, s.removed]
-    return [*head, s.keepout, s.speed_limit, *(sorted(x) for x in sets)]
 
 
 def _state(row: list[Any]) -> ElementState:
@@ -190,33 +56,6 @@ def _state(row: list[Any]) -> ElementState:
     )
 
 
-def _pool(shapes: Sequence[Shape]) -> tuple[dict[str, AnyArray], AnyArray, AnyArray]:
-    """Distinct meshes (shared ones once) packed into arrays; each shape's mesh index and placement."""
-    ids: dict[int, int] = {}
-    meshes: list[Mesh] = []
-    which = np.empty(len(shapes), dtype=np.int64)
-    for i, (mesh, _) in enumerate(shapes):
-        k = ids.get(id(mesh))
-        if k is None:
-            k = ids[id(mesh)] = len(meshes)
-            meshes.append(mesh)
-        which[i] = k
-    vstart = np.zeros(len(meshes) + 1, dtype=np.int64)
-    np.cumsum([len(m.vertices) for m in meshes], out=vstart[1:])
-    fstart = np.zeros(len(meshes) + 1, dtype=np.int64)
-    np.cumsum([len(m.faces) for m in meshes], out=fstart[1:])
-    pool = {
-        "vertices": np.concatenate([m.vertices for m in meshes]) if meshes else np.empty((0, 3)),
-        "faces": np.concatenate([m.faces for m in meshes]) if meshes else np.empty((0, 3), np.int32),
-        "vstart": vstart,
-        "fstart": fstart,
-        "closed": np.array([m.closed for m in meshes], dtype=np.bool_),
-        "solid": np.array([m.solid for m in meshes], dtype=np.bool_),
-    }
-    placements = np.array([p for _, p in shapes], dtype=np.float64).reshape(len(shapes), 4, 4)
-    return pool, which, placements
-
-
 def _unpool(arrays: dict[str, AnyArray], prefix: str) -> list[Mesh]:
     v, f = arrays[f"{prefix}vertices"], arrays[f"{prefix}faces"]
     vs, fs, closed = arrays[f"{prefix}vstart"], arrays[f"{prefix}fstart"], arrays[f"{prefix}closed"]
@@ -225,60 +64,6 @@ def _unpool(arrays: dict[str, AnyArray], prefix: str) -> list[Mesh]:
         Mesh(v[vs[k] : vs[k + 1]], f[fs[k] : fs[k + 1]], bool(closed[k]), bool(solid[k]))
         for k in range(len(closed))
     ]
-
-
-def save(path: Path, snap: Captured) -> int:
-    """Write ``snap`` to ``path`` (atomically); the file's size in bytes."""
-    scene = snap.scene
-    els = scene.elements
-    shapes = [scene.shapes[iri] for iri in els.iris]
-    over = sorted(snap.overlay)
-    pool, which, placements = _pool([*shapes, *(snap.overlay[i] for i in over)])
-    arrays: dict[str, AnyArray] = {f"pool_{k}": a for k, a in pool.items()}
-    arrays["el_mesh"], arrays["el_placement"] = which[: len(shapes)], placements[: len(shapes)]
-    arrays["el_bounds"] = els.bounds
-    arrays["ov_mesh"], arrays["ov_placement"] = which[len(shapes) :], placements[len(shapes) :]
-    sp = scene.spaces
-    arrays |= {
-        "sp_triangles": sp.triangles,
-        "sp_start": sp.start.astype(np.int64),
-        "sp_closed": sp.closed,
-        "sp_solid": sp.solid,
-        "sp_bounds": sp.bounds,
-        "sp_triangle_bounds": sp.triangle_bounds,
-        "hidden": snap.hidden,
-    }
-    maps = []
-    for j, m in enumerate(snap.maps):
-        arrays |= {f"m{j}_mask": m.base_mask, f"m{j}_static": m.static, f"m{j}_data": m.data}
-        if m.inside is not None:
-            arrays[f"m{j}_inside"] = m.inside
-        maps.append(
-            {
-                "storey": m.storey,
-                "skill": m.skill,
-                "skill_digest": m.skill_digest,
-                "version": m.version,
-                "overlay": list(m.overlay),
-            }
-        )
-    header = {
-        "kind": "building-twin live maps",
-        "revision": snap.revision,
-        "keys": snap.keys,
-        "written_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "elements": list(els.iris),
-        "spaces": list(sp.iris),
-        "storeys": [[s.iri, s.key, s.name, s.elevation_m, list(s.extent)] for s in scene.storeys],
-        "space_storey": scene.space_storey,
-        "overlay": over,
-        "maps": maps,
-        "states": [_state_json(st) for st in snap.states.values()],
-    }
-    return write_snapshot(path, header, arrays)
-
-
-# --- restore -----------------------------------------------------------------------------------------
 
 
 @dataclass(eq=False, slots=True)
@@ -519,62 +304,3 @@ def replay(
             }
     live.maps.redraw(geometry, membership)
     return len(iris)
-
-
-# --- when and where ---------------------------------------------------------------------------------
-
-
-def snapshot_path(store: Path) -> Path:
-    """Where the snapshot of the embedded store at ``store`` (a directory) lives: ``<store>.snapshot``."""
-    return store.with_name(f"{store.name}.snapshot")
-
-
-class Snapshots:
-    """The snapshot file of one store, and when to write it: :meth:`save` (a clean stop),
-    :meth:`save_in_background` (every ``every_s`` while anything changed, and after a rebuild)."""
-
-    def __init__(self, path: Path, *, every_s: float = 300.0) -> None:
-        self.path = path
-        self.every_s = every_s
-        self.saved_revision = -1
-        self._saved_at = time.monotonic()
-        self._thread: threading.Thread | None = None
-        self.keys: dict[str, Any] = {}
-
-    def due(self, revision: int) -> bool:
-        return revision != self.saved_revision and time.monotonic() - self._saved_at >= self.every_s
-
-    def _write(self, snap: Captured) -> None:
-        t0 = time.perf_counter()
-        try:
-            size = save(self.path, snap)
-        except Exception:  # a snapshot is an optimisation: never worth the daemon
-            log.exception("Could not write the snapshot %s", self.path)
-            return
-        log.info(
-            "Snapshot of revision %d written to %s (%.1f MB) in %.2f s",
-            snap.revision,
-            self.path,
-            size / 1e6,
-            time.perf_counter() - t0,
-        )
-
-    def save(self, live: LiveState) -> None:
-        """Write the snapshot of ``live`` now (waiting for a background write first)."""
-        self.join()
-        self._write(capture(live, self.keys))
-        self.saved_revision, self._saved_at = live.revision, time.monotonic()
-
-    def save_in_background(self, live: LiveState) -> None:
-        """Copy ``live`` now (the caller is the writer), write it on a thread; skipped while one runs."""
-        if self._thread is not None and self._thread.is_alive():
-            return
-        snap = capture(live, self.keys)
-        self.saved_revision, self._saved_at = live.revision, time.monotonic()
-        self._thread = threading.Thread(target=self._write, args=(snap,), name="twin-snapshot", daemon=True)
-        self._thread.start()
-
-    def join(self) -> None:
-        if self._thread is not None:
-            self._thread.join()
-            self._thread = None
