@@ -19,7 +19,15 @@ from twin.config import Config
 from twin.errors import SnapshotError, TwinError
 from twin.live.live_maps import LiveMaps
 from twin.live.skill_changes import stored_skills
-from twin.live.snapshots import Restored, Snapshots, code_digest, config_digest, restore, store_identity
+from twin.live.snapshots import (
+    Restored,
+    Snapshots,
+    code_digest,
+    config_digest,
+    replay,
+    restore,
+    store_identity,
+)
 from twin.live.state import LiveState, SiteFrame, StoreyFrame, load_states
 from twin.rdf import Row
 from twin.scene import Scene, load_scene
@@ -119,3 +127,19 @@ def _restore(
     )
     snapshots.saved_revision = restored.revision
     return restored
+
+
+def catch_up(store: GraphStore, live: LiveState, restored: Restored) -> None:
+    """Bring maps restored from a snapshot up to the store: replay the elements changed since its
+    revision (after a ``kill -9``), and count map versions from 1 as after a rebuild."""
+    if restored.revision < live.revision:
+        t = time.perf_counter()
+        n = replay(store, live, restored.revision, before_base=restored.fill_near)
+        log.info(
+            "Replayed %d elements changed since the snapshot's revision %d in %.2f s",
+            n,
+            restored.revision,
+            time.perf_counter() - t,
+        )
+    for m in live.maps.maps.values():
+        m.version = 1  # as after a rebuild: map versions count from 1 in each run of the daemon

@@ -7,6 +7,7 @@ callback its :class:`Reply` goes to.
 from __future__ import annotations
 
 import json
+import queue
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -56,3 +57,45 @@ class ExplainRequest:
 
 
 Request = ObserveRequest | SkillRequest | ExplainRequest
+
+
+class RequestQueue:
+    """The service's queue: any thread puts, the writer takes the next piece of work, where
+    observations queued one behind the other come as one batch (group commit)."""
+
+    def __init__(self, max_batch: int) -> None:
+        self.max_batch = max(1, max_batch)
+        self._queue: queue.Queue[Request] = queue.Queue()
+        self._held: Request | None = None  # taken while batching, handled next
+
+    def put(self, request: Request) -> None:
+        self._queue.put(request)
+
+    @property
+    def depth(self) -> int:
+        return self._queue.qsize() + (self._held is not None)
+
+    def take(self, timeout_s: float = 0.0) -> list[ObserveRequest] | SkillRequest | ExplainRequest | None:
+        """The next work: a batch of up to ``max_batch`` observations queued in a row, or one other
+        request; None if nothing came within ``timeout_s`` (0: do not wait)."""
+        if self._held is not None:
+            request: Request = self._held
+            self._held = None
+        else:
+            try:
+                request = self._queue.get(timeout=timeout_s) if timeout_s > 0 else self._queue.get_nowait()
+            except queue.Empty:
+                return None
+        if not isinstance(request, ObserveRequest):
+            return request
+        batch = [request]
+        while len(batch) < self.max_batch:
+            try:
+                nxt = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            if not isinstance(nxt, ObserveRequest):
+                self._held = nxt
+                break
+            batch.append(nxt)
+        return batch

@@ -20,7 +20,6 @@ Example::
 from __future__ import annotations
 
 import logging
-import queue
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -30,14 +29,23 @@ from twin.errors import TwinError
 from twin.events import ElementShape, TwinEvent, TwinSink, TwinStarted
 from twin.live.explain import explain_cell
 from twin.live.live_maps import LiveMaps
-from twin.live.loading import load_live_or_restore
+from twin.live.loading import catch_up, load_live_or_restore
 from twin.live.observe import Observer, element_shapes
 from twin.live.publication import Publication, PublishedMap
 from twin.live.query import run_query
-from twin.live.requests import ExplainRequest, ObserveRequest, Reply, ReplyFn, Request, SkillRequest
-from twin.live.skill_changes import add_skill_maps, apply_skill
-from twin.live.snapshots import Restored, Snapshots, replay
+from twin.live.requests import (
+    ExplainRequest,
+    ObserveRequest,
+    Reply,
+    ReplyFn,
+    Request,
+    RequestQueue,
+    SkillRequest,
+)
+from twin.live.skill_changes import apply_skill, publish_all_maps
+from twin.live.snapshots import Restored, Snapshots
 from twin.live.state import ElementState, LiveState
+from twin.live.status import service_status
 from twin.skills import SkillProfile
 from twin.store import GraphStore
 
@@ -67,7 +75,6 @@ class TwinService:
         back to the system). ``snapshot``: where the derived state is kept between runs (read by
         :meth:`start`, written on a clean stop and in the background; see :mod:`twin.live.snapshots`)."""
         self.store = store
-        self.max_batch = max(1, max_batch)
         self.config = config
         self.sinks = list(sinks)
         self.clock = clock
@@ -75,15 +82,15 @@ class TwinService:
         self.housekeeping = list(housekeeping)
         self.snapshot = snapshot
         self.restored_from: int | None = None
-        self._completing: Restored | None = None
         """The revision of the snapshot :meth:`start` restored the maps from (None: built from the store)."""
-        self._queue: queue.Queue[Request] = queue.Queue()
+        self._completing: Restored | None = None
+        self._queue = RequestQueue(max_batch)
         self.publication = Publication(
             emit=self._emit, clock=clock, interval_s=config.limits.full_map_interval_s
         )
         self._live: LiveState | None = None
         self._observer: Observer | None = None
-        self._started_ns = 0
+        self.started_ns = 0
         self._flushed_at = (0.0, 0)  # (monotonic time, revision) of the last flush
         self._base_iri = ""
 
@@ -91,23 +98,13 @@ class TwinService:
     def start(self) -> None:
         """Load the twin, build every map, and emit TwinStarted then MapPublished for each map."""
         t0 = time.perf_counter()
-        self._started_ns = self.clock()
+        self.started_ns = self.clock()
         live, self._base_iri, restored = load_live_or_restore(self.store, self.config, self.snapshot)
         self.restored_from = None if restored is None else restored.revision
         scene = live.maps.scene
         self._live = live
-        if restored is not None and restored.revision < live.revision:
-            t = time.perf_counter()
-            n = replay(self.store, live, restored.revision, before_base=restored.fill_near)
-            log.info(
-                "Replayed %d elements changed since the snapshot's revision %d in %.2f s",
-                n,
-                restored.revision,
-                time.perf_counter() - t,
-            )
         if restored is not None:
-            for m in live.maps.maps.values():
-                m.version = 1  # as after a rebuild: map versions count from 1 in each run of the daemon
+            catch_up(self.store, live, restored)
         self._observer = Observer(
             self.store,
             self.config,
@@ -129,19 +126,7 @@ class TwinService:
                 skills=dict(live.skills),
             )
         )
-        if restored is not None:  # the maps first, then the triangles they were drawn from
-            for skill in live.skills.values():
-                if skill.name in restored.skills:
-                    for s in scene.storeys:
-                        self.publication.publish(live.maps.maps[(s.key, skill.name)], live.revision, stamp)
-            if not restored.skills >= frozenset(live.skills):
-                restored.complete()  # the other skills' maps are rendered now
-            else:
-                self._completing = restored  # before the first request (after the maps went out)
-        for skill in live.skills.values():
-            if restored is None or skill.name not in restored.skills:
-                for m in add_skill_maps(self.store, live, skill):
-                    self.publication.publish(m, live.revision, stamp)
+        self._completing = publish_all_maps(self.store, live, self.publication, restored, stamp)
         log.info(
             "Twin started at revision %d: %d maps of %d skills on %d storeys in %.2f s",
             live.revision,
@@ -247,7 +232,7 @@ class TwinService:
 
     @property
     def queue_depth(self) -> int:
-        return self._queue.qsize()
+        return self._queue.depth
 
     # --- the worker -----------------------------------------------------------------------------------
     def complete_scene(self) -> None:
@@ -267,40 +252,19 @@ class TwinService:
         """
         self.complete_scene()
         handled = 0
-        try:
-            request: Request | None = (
-                self._queue.get(timeout=timeout_s) if timeout_s > 0 else self._queue.get_nowait()
-            )
-        except queue.Empty:
-            request = None
-        while request is not None:
-            if isinstance(request, ObserveRequest):  # with the observations queued behind it, as one batch
-                batch, request = [request], None
-                while len(batch) < self.max_batch:
-                    try:
-                        nxt = self._queue.get_nowait()
-                    except queue.Empty:
-                        break
-                    if not isinstance(nxt, ObserveRequest):
-                        request = nxt
-                        break
-                    batch.append(nxt)
-                self._observe(batch)
-                handled += len(batch)
-            elif isinstance(request, ExplainRequest):
-                self._explain(request)
+        work = self._queue.take(timeout_s)
+        while work is not None:
+            if isinstance(work, list):  # observations queued one behind the other: one batch
+                self._observe(work)
+                handled += len(work)
+            elif isinstance(work, ExplainRequest):
+                self._explain(work)
                 handled += 1
-                request = None
             else:
-                self._change_skill(request)
+                self._change_skill(work)
                 handled += 1
-                request = None
             self.flush_full_maps(due_only=True)
-            if request is None:
-                try:
-                    request = self._queue.get_nowait()
-                except queue.Empty:
-                    request = None
+            work = self._queue.take()
         self.flush_full_maps(due_only=True)
         return handled
 
@@ -360,24 +324,8 @@ class TwinService:
         return list(self.publication.latest.values())
 
     def status(self) -> dict[str, object]:
-        live = self.live
-        obs = self.observer
-        now = self.clock()
-        return {
-            "site": self.config.site,
-            "revision": live.revision,
-            "elements": sum(1 for s in list(live.states.values()) if not s.removed),
-            "triples": len(self.store),
-            "skills": sorted(live.skills),
-            "storeys": [s.key for s in live.maps.scene.storeys],
-            "maps": [
-                {"storey": p.grid.storey, "skill": p.grid.skill, "version": p.version, "revision": p.revision}
-                for p in sorted(self.published_maps(), key=lambda p: (p.grid.storey, p.grid.skill))
-            ],
-            "observations": {"accepted": obs.accepted, "unchanged": obs.unchanged, "rejected": obs.rejected},
-            "queue_depth": self.queue_depth,
-            "uptime_s": round((now - self._started_ns) / 1e9, 3),
-        }
+        """What ``twin status`` shows: revision, elements, maps, observation counts, queue, uptime."""
+        return service_status(self)
 
     def query(self, sparql: str) -> tuple[str, bytes]:
         """A read-only SPARQL query, bounded in time and result size; QueryError names the problem."""

@@ -21,6 +21,7 @@ from twin.events import MapRemoved, SkillChanged, TwinEvent
 from twin.live.live_map import LiveMap
 from twin.live.publication import Publication
 from twin.live.requests import Reply, SkillRequest
+from twin.live.snapshots import Restored
 from twin.live.state import LiveState
 from twin.rdf import ChangeSet, RdfLiteral, Triple
 from twin.skill_selection import selection_query
@@ -113,3 +114,26 @@ def apply_skill(
             "maps": [{"storey": m.plan.storey.key, "skill": req.name, "version": m.version} for m in maps],
         },
     )
+
+
+def publish_all_maps(
+    store: GraphStore, live: LiveState, publication: Publication, restored: Restored | None, stamp: int
+) -> Restored | None:
+    """Publish every skill's map of every storey at start: those restored from a snapshot first, then
+    the others built from the store. Returns the restored state whose triangles are still to be
+    computed (before the first request), or None."""
+    completing = None
+    if restored is not None:  # the maps first, then the triangles they were drawn from
+        for skill in live.skills.values():
+            if skill.name in restored.skills:
+                for s in live.maps.scene.storeys:
+                    publication.publish(live.maps.maps[(s.key, skill.name)], live.revision, stamp)
+        if not restored.skills >= frozenset(live.skills):
+            restored.complete()  # the other skills' maps are rendered now
+        else:
+            completing = restored
+    for skill in live.skills.values():
+        if restored is None or skill.name not in restored.skills:
+            for m in add_skill_maps(store, live, skill):
+                publication.publish(m, live.revision, stamp)
+    return completing

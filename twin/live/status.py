@@ -1,0 +1,36 @@
+"""The twin's status: what ``twin status`` and the ``status`` queryable answer.
+
+Example::
+
+    service_status(service)["revision"]     # 7
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from twin.live.service import TwinService
+
+
+def service_status(service: TwinService) -> dict[str, object]:
+    """Site, revision, element and triple counts, skills, storeys, every map's version, observation
+    counts, queue depth and uptime of a started service."""
+    live = service.live
+    obs = service.observer
+    now = service.clock()
+    return {
+        "site": service.config.site,
+        "revision": live.revision,
+        "elements": sum(1 for s in list(live.states.values()) if not s.removed),
+        "triples": len(service.store),
+        "skills": sorted(live.skills),
+        "storeys": [s.key for s in live.maps.scene.storeys],
+        "maps": [
+            {"storey": p.grid.storey, "skill": p.grid.skill, "version": p.version, "revision": p.revision}
+            for p in sorted(service.published_maps(), key=lambda p: (p.grid.storey, p.grid.skill))
+        ],
+        "observations": {"accepted": obs.accepted, "unchanged": obs.unchanged, "rejected": obs.rejected},
+        "queue_depth": service.queue_depth,
+        "uptime_s": round((now - service.started_ns) / 1e9, 3),
+    }
