@@ -15,18 +15,14 @@ Example::
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Final
 
-import pyoxigraph as ox
-
 from twin import vocab
-from twin.errors import ModelError, StoreNotEmptyError
-from twin.extents import format_extent, storey_extents
-from twin.meshcodec import encode_mesh, encode_placement
-from twin.records import BuildingModel, Geometry
+from twin.errors import StoreNotEmptyError
+from twin.model_triples import ModelTriples, checked_iris, geometry_triples, structure_triples
+from twin.records import BuildingModel
 from twin.store import GraphStore, TextLoader
 
 log = logging.getLogger(__name__)
@@ -43,266 +39,24 @@ class ImportSummary:
     kernel_fallbacks: tuple[str, ...]
 
 
-# The graph is written as N-Triples text and parsed by pyoxigraph into quads: about 4x faster than
-# building each term as a Python object (an import has tens of thousands of triples). Only the mesh
-# literals, large and shared by the instances of a representation, are built as objects, once per mesh.
-_ESCAPES: Final = str.maketrans({"\\": "\\\\", '"': '\\"', "\n": "\\n", "\r": "\\r"})
-_TRUE: Final = f'"true"^^<{vocab.XSD_BOOLEAN}>'
-_FALSE: Final = f'"false"^^<{vocab.XSD_BOOLEAN}>'
-_TYPE: Final = f"<{vocab.RDF_TYPE}>"
-_LABEL: Final = f"<{vocab.RDFS_LABEL}>"
-_GLOBAL_ID: Final = f"<{vocab.PROPS_GLOBAL_ID}>"
-_NAME: Final = f"<{vocab.PROPS_NAME}>"
-_HAS_GEOMETRY: Final = f"<{vocab.OMG_HAS_GEOMETRY}>"
-_GEOMETRY: Final = f"<{vocab.OMG_GEOMETRY}>"
-_PLACEMENT: Final = f"<{vocab.TWIN_PLACEMENT}>"
-_CLOSED: Final = f"<{vocab.TWIN_CLOSED}>"
-_TRIANGLES: Final = f"<{vocab.TWIN_TRIANGLES}>"
-_SOLID: Final = f"<{vocab.TWIN_SOLID}>"
-_BOT_ELEMENT: Final = f"<{vocab.BOT_ELEMENT}>"
-_IFC_CLASS: Final = f"<{vocab.TWIN_IFC_CLASS}>"
-_IFC_TYPE: Final = f"<{vocab.TWIN_IFC_TYPE}>"
-_MATERIAL: Final = f"<{vocab.TWIN_MATERIAL}>"
-_FACING_MATERIAL: Final = f"<{vocab.TWIN_FACING_MATERIAL}>"
-_IS_STATIC: Final = f"<{vocab.TWIN_IS_STATIC}>"
-_MESH_KERNEL: Final = f"<{vocab.TWIN_MESH_KERNEL}>"
-_PLY: Final = ox.NamedNode(vocab.FOG_PLY_BINARY_LE)
 _MIN_PART: Final = 5_000  # triples: below this a second bulk load costs more than it saves
-_BASE64: Final = ox.NamedNode(vocab.XSD_BASE64)
 
 
-def _iri(iri: str) -> str:
-    return f"<{iri}>"
-
-
-def _text(value: str) -> str:
-    """An ``xsd:string`` literal in N-Triples."""
-    return f'"{value.translate(_ESCAPES)}"'
-
-
-def _typed(value: str, datatype: str) -> str:
-    return f'"{value.translate(_ESCAPES)}"^^<{datatype}>'
-
-
-def _integer(value: int) -> str:
-    return f'"{int(value)}"^^<{vocab.XSD_INTEGER}>'
-
-
-def _boolean(value: bool) -> str:
-    return _TRUE if value else _FALSE
-
-
-class _Triples:
-    """Triples being collected: N-Triples lines, plus the mesh quads built as objects."""
-
-    def __init__(self) -> None:
-        self.lines: list[str] = []
-        self.meshes: list[tuple[str, ox.Literal]] = []  # (geometry node IRI, mesh literal)
-        self._ply: dict[int, ox.Literal] = {}  # id(mesh) -> its literal: instances share it
-
-    def add(self, subject: str, predicate: str, obj: str) -> None:
-        """Add one triple; each part is already in N-Triples syntax (``<iri>`` or a literal)."""
-        self.lines.append(f"{subject} {predicate} {obj} .\n")
-
-    def geometry(self, node: str, geometry: Geometry) -> None:
-        """The geometry node of ``node`` (an IRI): mesh, placement, closedness, solidity, triangle count."""
-        g = vocab.geometry_iri(node)
-        key = id(geometry.mesh)
-        ply = self._ply.get(key)
-        if ply is None:
-            ply = self._ply[key] = ox.Literal(encode_mesh(geometry.mesh), datatype=_BASE64)
-        self.meshes.append((g, ply))
-        g = _iri(g)
-        self.add(_iri(node), _HAS_GEOMETRY, g)
-        self.add(g, _TYPE, _GEOMETRY)
-        self.add(g, _PLACEMENT, _typed(encode_placement(geometry.placement), vocab.TWIN_MATRIX4))
-        self.add(g, _CLOSED, _boolean(geometry.mesh.closed))
-        self.add(g, _TRIANGLES, _integer(geometry.mesh.triangle_count))
-        if geometry.mesh.solid:
-            self.add(g, _SOLID, _boolean(True))
-
-    def data(self, source: str) -> bytes:
-        """The N-Triples text (UTF-8); ModelError if some text cannot be encoded (a lone surrogate)."""
-        try:
-            return "".join(self.lines).encode("utf-8")
-        except UnicodeEncodeError as err:
-            msg = f"{source}: the model cannot be written as RDF: {err}"
-            raise ModelError(msg) from err
-
-    def quads(self, source: str) -> Iterator[ox.Quad]:
-        """Every triple as a quad in the default graph."""
-        yield from ox.parse(self.data(source), format=ox.RdfFormat.N_QUADS)
-        for node, ply in self.meshes:
-            yield ox.Quad(ox.NamedNode(node), _PLY, ply)
-
-
-def mint_iris(model: BuildingModel, base_iri: str) -> dict[str, str]:
-    """GlobalId -> IRI for every rooted node; ModelError names a bad or duplicated GlobalId."""
-    base = vocab.check_base(base_iri)
-    iri_of: dict[str, str] = {}
-    nodes = [
-        *((s.guid, "IfcSite", s.name) for s in model.sites),
-        *((b.guid, "IfcBuilding", b.name) for b in model.buildings),
-        *((s.guid, "IfcBuildingStorey", s.name) for s in model.storeys),
-        *((s.guid, "IfcSpace", s.name) for s in model.spaces),
-        *((e.guid, e.ifc_class, e.name) for e in model.elements),
-    ]
-    for guid, ifc_class, name in nodes:
-        try:
-            iri = vocab.entity_iri(base, ifc_class, guid)
-        except ModelError as err:
-            msg = f"{model.source_name}: {ifc_class} {name!r} has an invalid GlobalId {guid!r}."
-            raise ModelError(msg) from err
-        if guid in iri_of:
-            msg = (
-                f"{model.source_name}: GlobalId {guid!r} is used twice ({ifc_class} {name!r} and "
-                f"{iri_of[guid]}); GlobalIds must be unique."
-            )
-            raise ModelError(msg)
-        iri_of[guid] = iri
-    return iri_of
-
-
-def _checked_iris(model: BuildingModel, base_iri: str) -> dict[str, str]:
-    """GlobalId -> ``<IRI>`` (N-Triples) of every rooted node, each IRI (and its geometry node's) checked
-    as pyoxigraph checks it, so the text written later always parses."""
-    iri_of = mint_iris(model, base_iri)
-    for iri in (vocab.model_iri(base_iri), *iri_of.values()):
-        try:
-            ox.NamedNode(vocab.geometry_iri(iri))
-        except ValueError as err:
-            msg = f"{model.source_name}: the model cannot be written as RDF: {err} in IRI {iri!r}."
-            raise ModelError(msg) from err
-    return {guid: _iri(iri) for guid, iri in iri_of.items()}
-
-
-def _structure(model: BuildingModel, iri_of: dict[str, str], *, base_iri: str, site: str) -> _Triples:
-    """The triples that need no geometry: the model node, the spatial tree, classes, names, materials,
-    static flags and relations."""
-    out = _Triples()
-    add = out.add
-
-    def names(node: str, guid: str, name: str) -> None:
-        add(node, _GLOBAL_ID, _text(guid))
-        if name:
-            label = _text(name)
-            add(node, _NAME, label)
-            add(node, _LABEL, label)
-
-    m = _iri(vocab.model_iri(base_iri))
-    add(m, _TYPE, _iri(vocab.TWIN_MODEL))
-    add(m, _LABEL, _text(site))
-    add(m, _iri(vocab.TWIN_SOURCE), _text(model.source_name))
-    add(m, _iri(vocab.TWIN_SCHEMA), _text(model.schema))
-    add(m, _iri(vocab.TWIN_SOURCE_LINES), _integer(model.source_lines))
-    add(m, _iri(vocab.TWIN_REVISION), _integer(0))
-
-    for s in model.sites:
-        add(iri_of[s.guid], _TYPE, _iri(vocab.BOT_SITE))
-        names(iri_of[s.guid], s.guid, s.name)
-    for b in model.buildings:
-        node = iri_of[b.guid]
-        add(node, _TYPE, _iri(vocab.BOT_BUILDING))
-        names(node, b.guid, b.name)
-        if b.site_guid in iri_of:
-            add(iri_of[b.site_guid], _iri(vocab.BOT_HAS_BUILDING), node)
-    used_keys: set[str] = set()
-    for st in sorted(model.storeys, key=lambda s: (s.elevation_m, s.name)):
-        node = iri_of[st.guid]
-        add(node, _TYPE, _iri(vocab.BOT_STOREY))
-        names(node, st.guid, st.name)
-        add(node, _iri(vocab.TWIN_ELEVATION), str(ox.Literal(float(st.elevation_m))))  # xsd:double
-        add(node, _iri(vocab.TWIN_STOREY_KEY), _text(vocab.storey_key(st.name, used_keys)))
-        if st.building_guid in iri_of:
-            add(iri_of[st.building_guid], _iri(vocab.BOT_HAS_STOREY), node)
-    for sp in model.spaces:
-        node = iri_of[sp.guid]
-        add(node, _TYPE, _iri(vocab.BOT_SPACE))
-        names(node, sp.guid, sp.name)
-        if sp.storey_guid in iri_of:
-            add(iri_of[sp.storey_guid], _iri(vocab.BOT_HAS_SPACE), node)
-    semantic_of: dict[str, str | None] = {}
-    for el in model.elements:
-        node = iri_of[el.guid]
-        add(node, _TYPE, _BOT_ELEMENT)
-        if el.ifc_class not in semantic_of:
-            semantic = vocab.semantic_class(el.ifc_class)
-            semantic_of[el.ifc_class] = _iri(semantic) if semantic is not None else None
-        if (semantic_iri := semantic_of[el.ifc_class]) is not None:
-            add(node, _TYPE, semantic_iri)
-        add(node, _IFC_CLASS, _text(el.ifc_class))
-        for t in el.ifc_types or (el.ifc_class,):
-            add(node, _IFC_TYPE, _text(t))
-        names(node, el.guid, el.name)
-        for mat in el.materials:
-            add(node, _MATERIAL, _text(mat))
-        for mat in el.facing_materials:
-            add(node, _FACING_MATERIAL, _text(mat))
-        add(node, _IS_STATIC, _boolean(el.is_static))
-    for rel, pred in (
-        (model.adjacent, vocab.BOT_ADJACENT_ELEMENT),
-        (model.contained, vocab.BOT_CONTAINS_ELEMENT),
-        (model.decomposed, vocab.BOT_HAS_SUB_ELEMENT),
-    ):
-        p = _iri(pred)
-        for r in sorted(rel, key=lambda r: (r.subject, r.object)):
-            if r.subject in iri_of and r.object in iri_of:
-                add(iri_of[r.subject], p, iri_of[r.object])
-            else:
-                log.debug(
-                    "Skipping %s relation %s -> %s: an end is not in the model", pred, r.subject, r.object
-                )
-    return out
-
-
-def _geometry(model: BuildingModel, iri_of: dict[str, str]) -> _Triples:
-    """The triples that need the meshes: storey extents, geometry nodes, kernels, failures, fallbacks."""
-    out = _Triples()
-    extents = storey_extents(model)
-    for st in model.storeys:
-        if st.guid in extents:
-            out.add(iri_of[st.guid], _iri(vocab.TWIN_EXTENT), _text(format_extent(extents[st.guid])))
-    for sp in model.spaces:
-        if sp.geometry is not None:
-            out.geometry(iri_of[sp.guid][1:-1], sp.geometry)
-    failed = set(model.mesh_failures)
-    fallbacks = set(model.kernel_fallbacks)
-    for el in model.elements:
-        node = iri_of[el.guid]
-        if el.geometry is not None:
-            out.geometry(node[1:-1], el.geometry)
-            if el.mesh_kernel:
-                out.add(node, _MESH_KERNEL, _text(el.mesh_kernel))
-        if el.guid in failed:
-            out.add(node, _iri(vocab.TWIN_MESH_FAILED), _TRUE)
-        if el.guid in fallbacks:
-            out.add(node, _iri(vocab.TWIN_KERNEL_FALLBACK), _TRUE)
-    return out
-
-
-def model_quads(model: BuildingModel, *, base_iri: str, site: str) -> Iterator[ox.Quad]:
-    """All triples (in the default graph) of ``model``; IRIs minted under ``base_iri``."""
-    base_iri = vocab.check_base(base_iri)
-    iri_of = _checked_iris(model, base_iri)
-    yield from _structure(model, iri_of, base_iri=base_iri, site=site).quads(model.source_name)
-    yield from _geometry(model, iri_of).quads(model.source_name)
-
-
-def _load(store: GraphStore, triples: _Triples, source: str) -> None:
+def _load(store: GraphStore, triples: ModelTriples, source: str) -> None:
     if isinstance(store, TextLoader) and not triples.meshes:
         store.bulk_load_ntriples(triples.data(source))
     else:
         store.bulk_add(triples.quads(source))
 
 
-def _split(triples: _Triples, store: GraphStore) -> list[_Triples]:
+def _split(triples: ModelTriples, store: GraphStore) -> list[ModelTriples]:
     """``triples`` (text only) in parts that load side by side: the store's bulk loader runs one thread
     per call, so a store that loads text gets two halves (on 2 cores, half the time for 250,000
     triples); a store that takes quads gets one part."""
     if not isinstance(store, TextLoader) or len(triples.lines) < 2 * _MIN_PART:
         return [triples]
     half = len(triples.lines) // 2
-    parts = [_Triples(), _Triples()]
+    parts = [ModelTriples(), ModelTriples()]
     parts[0].lines, parts[1].lines = triples.lines[:half], triples.lines[half:]
     return parts
 
@@ -320,10 +74,10 @@ def import_model(
     """Write ``model`` into ``store``. A non-empty store is an error unless ``replace`` is set."""
     ensure_importable(store, replace=replace)
     base_iri = vocab.check_base(base_iri)
-    iri_of = _checked_iris(model, base_iri)
-    structure = _structure(model, iri_of, base_iri=base_iri, site=site)
+    iri_of = checked_iris(model, base_iri)
+    structure = structure_triples(model, iri_of, base_iri=base_iri, site=site)
     if replace:  # every check passes before the old graph goes
-        geometry = _geometry(model, iri_of)
+        geometry = geometry_triples(model, iri_of)
         store.clear()
         _load(store, structure, model.source_name)
     else:
@@ -333,7 +87,7 @@ def import_model(
         with ThreadPoolExecutor(len(parts), thread_name_prefix="twin-import") as pool:
             loading = [pool.submit(_load, store, part, model.source_name) for part in parts]
             try:
-                geometry = _geometry(model, iri_of)
+                geometry = geometry_triples(model, iri_of)
             except BaseException:
                 wait(loading)
                 store.clear()

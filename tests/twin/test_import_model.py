@@ -22,8 +22,9 @@ from tests.twin.box_lab import BASE, box_lab
 from twin import vocab
 from twin.errors import ModelError
 from twin.extents import _bounds, format_extent, storey_extents
-from twin.import_model import import_model, mint_iris
+from twin.import_model import import_model
 from twin.meshcodec import encode_mesh, encode_placement
+from twin.model_triples import mint_iris
 from twin.records import BuildingModel, Geometry, Mesh, Relation, Space, Storey
 from twin.shapes import box_mesh, box_placement
 from twin.store import EmbeddedStore, TextLoader
