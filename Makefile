@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/twin demo --workdir $(VAR)
 
-## test: install, then run the whole test suite on both cores (what CI runs; ~3.5 min on 2 cores)
+## test: install, then run the whole test suite on both cores (what CI runs; ~5 min on 2 cores)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2
 
