@@ -23,7 +23,6 @@ from twin.live.overlay import (
     MapKey,
     OverlayElement,
     RasterCache,
-    crosses,
     grow,
     in_band,
 )
@@ -79,7 +78,8 @@ class Drawing:
         b = el.bounds
         out: tuple[Window, BoolGrid] | None = None
         shared = None
-        if el.footprint is not None and crosses(b, m.plan):
+        footprint = el.footprint_in(m.plan)
+        if footprint is not None:
             shared = (iri, ("upright", m.plan.frame))  # the same cells in every band it crosses
             if shared in self._rasters.shared:
                 out = self._rasters.shared[shared]
@@ -89,8 +89,8 @@ class Drawing:
             frame = m.plan.frame
             win = grow(frame.window_for(b[0], b[1], b[3], b[4]), 1).intersect(frame.full)
             if not win.empty:
-                if shared is not None and el.footprint is not None:
-                    cells = footprint_cells(el.footprint, frame, win)
+                if footprint is not None:
+                    cells = footprint_cells(footprint, frame, win)
                 else:
                     cells = occupancy(el.meshes(iri), _ONE, m.plan, win)
                 out = (win, cells) if cells.any() else None
@@ -136,7 +136,7 @@ class Drawing:
                 continue
             if not (b[0] <= x1 and b[3] >= x0 and b[1] <= y1 and b[4] >= y0):
                 continue
-            if el.footprint is not None and crosses(b, m.plan):
+            if el.footprint_in(m.plan) is not None:  # drawn from its own (cached) raster: cheaper
                 self._or_raster(m, iri, el, occ, window)
             else:
                 items.append((iri, *el.shape))

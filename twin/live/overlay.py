@@ -52,6 +52,11 @@ class OverlayElement:
         footprint = box_footprint(mesh.vertices, placement) if is_upright_box(shape) else None
         return cls(shape, None if np.isnan(b).any() else b, footprint)
 
+    def footprint_in(self, plan: MapPlan) -> FloatArray | None:
+        """The footprint, if this is an upright box that crosses ``plan``'s band (then its cells are the
+        footprint's, the same in every band it crosses); else None (the general rasteriser)."""
+        return self.footprint if self.footprint is not None and crosses(self.bounds, plan) else None
+
     def meshes(self, iri: str) -> MeshSet:
         if self._meshes is None:
             self._meshes = MeshSet.build([(iri, self.shape[0], self.shape[1])])
