@@ -19,7 +19,7 @@ import numpy.typing as npt
 IntArray = npt.NDArray[np.int32]
 
 
-def _edges(faces: IntArray) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+def _edges(faces: npt.NDArray[np.integer]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
     f = faces.astype(np.int64)
     return np.concatenate([f[:, 0], f[:, 1], f[:, 2]]), np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
 
@@ -49,6 +49,29 @@ def is_closed(faces: IntArray) -> bool:
     a, b = _edges(faces)
     n = int(faces.max()) + 1
     return bool(np.array_equal(np.sort(a * n + b), np.sort(b * n + a)))
+
+
+def are_closed(faces: list[IntArray]) -> npt.NDArray[np.bool_]:
+    """:func:`is_closed` of each of many meshes' ``faces``, in one vectorised pass: ``(len(faces),) bool``.
+
+    The meshes' vertex indices are offset apart so that their directed edges never meet; sorted, the
+    edges of each mesh then lie in one block, the same block for the edges and their reverses.
+    """
+    out = np.zeros(len(faces), dtype=bool)
+    sizes = np.array([len(f) for f in faces], dtype=np.int64)
+    if not sizes.any():
+        return out
+    tops = np.array([int(f.max()) + 1 if len(f) else 0 for f in faces], dtype=np.int64)
+    offsets = np.concatenate([[0], np.cumsum(tops)[:-1]])
+    every = np.concatenate([f for f in faces if len(f)]).astype(np.int64)
+    every += np.repeat(offsets[sizes > 0], sizes[sizes > 0])[:, None]
+    a, b = _edges(every)
+    n = int(tops.sum())
+    mismatch = np.nonzero(np.sort(a * n + b) != np.sort(b * n + a))[0]
+    ends = np.cumsum(3 * sizes)  # the edge blocks, in mesh order (a mesh's keys all share its offsets)
+    out[:] = sizes > 0
+    out[np.searchsorted(ends, mismatch, side="right")] = False
+    return out
 
 
 def orient_faces(faces: IntArray) -> IntArray | None:

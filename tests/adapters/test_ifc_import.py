@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from adapters.ifc import IfcFileError, read_model
-from adapters.ifc.geometry import _make_mesh
+from adapters.ifc.kernel_child import make_mesh
 from adapters.ifc.sample_lab import write_lab
 from tests.conftest import SHARED_MODELS, imported, shared_model
 from twin import vocab
@@ -246,7 +246,7 @@ def test_a_solid_whose_vertex_copies_lie_a_hair_apart_is_welded_into_a_closed_me
     copies = box.vertices[box.faces].reshape(-1, 3)  # every triangle with its own vertices
     copies[::2, 0] += 1e-12  # as OpenCASCADE leaves them around a cut-out opening
     faces = np.arange(len(copies), dtype=np.int32).reshape(-1, 3)
-    mesh = _make_mesh(copies, faces)
+    mesh = make_mesh(copies, faces)
     assert mesh.closed
     assert len(mesh.vertices) == 8
     assert len(mesh.faces) == len(box.faces)

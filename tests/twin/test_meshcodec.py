@@ -10,7 +10,7 @@ from hypothesis.extra.numpy import arrays
 
 from twin.errors import ModelError
 from twin.meshcodec import decode_mesh, decode_placement, encode_mesh, encode_placement
-from twin.meshops import is_closed, is_edge_closed, orient_faces
+from twin.meshops import are_closed, is_closed, is_edge_closed, orient_faces
 from twin.records import Mesh
 from twin.shapes import box_mesh
 
@@ -40,6 +40,27 @@ def test_closedness_needs_every_edge_walked_as_often_one_way_as_the_other() -> N
     flipped[0] = flipped[0, ::-1]
     assert not is_closed(flipped)
     assert not is_closed(np.concatenate([TETRA, TETRA[:2]]))
+
+
+def _variants() -> list[np.ndarray]:
+    flipped = TETRA.copy()
+    flipped[0] = flipped[0, ::-1]
+    box = box_mesh(1.0, 2.0, 3.0).faces
+    return [TETRA, TETRA[:3], flipped, np.concatenate([TETRA, TETRA[:2]]), box, box[1:], TETRA + 5]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.sampled_from(range(7)), max_size=12))
+def test_many_meshes_tested_at_once_are_closed_exactly_when_each_one_is(picks: list[int]) -> None:
+    variants = _variants()
+    faces = [variants[i] for i in picks]
+    assert are_closed(faces).tolist() == [is_closed(f) for f in faces]
+
+
+def test_an_empty_mesh_among_many_is_not_closed_and_does_not_disturb_the_others() -> None:
+    empty = np.zeros((0, 3), dtype=np.int32)
+    assert are_closed([empty, TETRA, empty, TETRA[:3], TETRA]).tolist() == [False, True, False, False, True]
+    assert are_closed([]).tolist() == []
 
 
 def test_solids_touching_along_an_edge_are_closed_like_the_steps_of_a_stair() -> None:
