@@ -134,8 +134,8 @@ def report_text(doc: dict[str, Any]) -> str:
             [
                 "import: twin import",
                 f"{report.secs(s.get('twin_s'))} s",
-                f"peak {report.mb(s.get('twin_peak_mb'))} MB; read+mesh {report.secs(s.get('read_s'))} s, "
-                f"store {report.secs(s.get('store_s'))} s",
+                f"peak {report.mb(s.get('twin_peak_mb'))} MB; "
+                f"meshed after {report.secs(s.get('meshed_s'))} s",
                 "",
             ]
         )

@@ -103,11 +103,10 @@ def import_summary(model: str, bare: list[Row], twin: list[Row], routed: Sequenc
         out["bare_error"] = bare[0]["error"] if bare else "not run"
     if ok_twin:
         out["twin_s"] = _median(ok_twin, "seconds")
-        out["read_s"] = _median(ok_twin, "read_s")
-        out["store_s"] = _median(ok_twin, "store_s")
+        out["meshed_s"] = _median(ok_twin, "meshed_s")
         out["twin_peak_mb"] = max(r["peak_mb"] for r in ok_twin)
         out["twin_cpu_s"] = _median(ok_twin, "cpu_s")
-        for key in ("elements", "meshes", "triangles", "kernel_fallbacks", "mesh_failures"):
+        for key in ("elements", "meshes", "kernel_fallbacks", "mesh_failures"):
             out[key] = ok_twin[0][key]
     else:
         out["twin_error"] = twin[0]["error"] if twin else "not run"
@@ -132,8 +131,8 @@ def import_targets(s: Row) -> str:
 
 def import_table(summaries: list[Row]) -> str:
     headers = [
-        "model", "bare s", "bare MB", "shapes", "twin s", "read s", "store s", "twin MB", "cpu s",
-        "elements", "meshes", "triangles", "fallbk", "fail", "routed s", "twin/bare", "twin/routed",
+        "model", "bare s", "bare MB", "shapes", "triangles", "twin s", "meshed s", "twin MB", "cpu s",
+        "elements", "meshes", "fallbk", "fail", "routed s", "twin/bare", "twin/routed",
         "targets",
     ]  # fmt: skip
     rows = []
@@ -143,9 +142,9 @@ def import_table(summaries: list[Row]) -> str:
         rows.append(
             [
                 short(s["model"]), bare_s, mb(s.get("bare_peak_mb")), count(s.get("shapes")),
-                twin_s, secs(s.get("read_s")), secs(s.get("store_s")), mb(s.get("twin_peak_mb")),
+                count(s.get("bare_triangles")), twin_s, secs(s.get("meshed_s")), mb(s.get("twin_peak_mb")),
                 secs(s.get("twin_cpu_s")), count(s.get("elements")), count(s.get("meshes")),
-                count(s.get("triangles")), count(s.get("kernel_fallbacks")), count(s.get("mesh_failures")),
+                count(s.get("kernel_fallbacks")), count(s.get("mesh_failures")),
                 secs(s.get("routed_s")), f"{s['overhead']:.2f}x" if "overhead" in s else "-",
                 f"{s['overhead_routed']:.2f}x" if "overhead_routed" in s else "-", import_targets(s),
             ]

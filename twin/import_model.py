@@ -15,14 +15,24 @@ Example::
 from __future__ import annotations
 
 import logging
-from concurrent.futures import ThreadPoolExecutor, wait
+import threading
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
-from typing import Final
+from types import TracebackType
+from typing import Final, Self
+
+import pyoxigraph as ox
 
 from twin import vocab
-from twin.errors import StoreNotEmptyError
-from twin.model_triples import ModelTriples, checked_iris, geometry_triples, structure_triples
-from twin.records import BuildingModel
+from twin.errors import ModelError, StoreNotEmptyError
+from twin.model_triples import (
+    ModelTriples,
+    checked_iris,
+    element_geometry_triples,
+    geometry_triples,
+    structure_triples,
+)
+from twin.records import BuildingModel, Geometry, Mesh
 from twin.store import GraphStore, TextLoader
 
 log = logging.getLogger(__name__)
@@ -40,13 +50,19 @@ class ImportSummary:
 
 
 _MIN_PART: Final = 5_000  # triples: below this a second bulk load costs more than it saves
+_PART_TRIANGLES: Final = 400_000  # geometry written while meshing goes on: a bulk load per this many
+_PART_LINES: Final = 40_000  # triangles or triples
 
 
-def _load(store: GraphStore, triples: ModelTriples, source: str) -> None:
+def _load(store: GraphStore, triples: ModelTriples, source: str, quads_lock: threading.Lock) -> None:
+    """Load ``triples``: as text when the store parses text (without the GIL) and no mesh literal is
+    among them, else as quads. Loads of quads go one at a time (``quads_lock``): two of them at once can
+    deadlock, each holding what the other needs (the store's bulk loader, the GIL to read its quads)."""
     if isinstance(store, TextLoader) and not triples.meshes:
         store.bulk_load_ntriples(triples.data(source))
     else:
-        store.bulk_add(triples.quads(source))
+        with quads_lock:
+            store.bulk_add(triples.quads(source))
 
 
 def _split(triples: ModelTriples, store: GraphStore) -> list[ModelTriples]:
@@ -68,44 +84,123 @@ def ensure_importable(store: GraphStore, *, replace: bool) -> None:
         raise StoreNotEmptyError(msg)
 
 
+class ModelImport:
+    """An import in two steps, so that the store loads the structure while the geometry is being made.
+
+    :meth:`write_structure` takes the model without geometry (every ``geometry`` None) and starts loading
+    its triples (the store parses text without the GIL); :meth:`finish` takes the same model with its
+    geometry and writes the rest. Leaving the context on an error empties the store again. With
+    ``replace``, nothing is written before every triple is made: the old graph stays if a check fails.
+
+    Example::
+
+        with ModelImport(store, base_iri="https://example.org/lab#", site="lab") as job:
+            job.write_structure(reading.structure())
+            summary = job.finish(reading.model())
+    """
+
+    def __init__(self, store: GraphStore, *, base_iri: str, site: str, replace: bool = False) -> None:
+        ensure_importable(store, replace=replace)
+        self._store = store
+        self._base_iri = vocab.check_base(base_iri)
+        self._site = site
+        self._replace = replace
+        self._pool = ThreadPoolExecutor(2, thread_name_prefix="twin-import")
+        self._quads_lock = threading.Lock()
+        self._loading: list[Future[None]] = []
+        self._structure: ModelTriples | None = None
+        self._guids: tuple[str, ...] = ()
+        self._iri_of: dict[str, str] = {}
+        self._source = ""
+        self._wrote = False
+        self._literals: dict[int, tuple[Mesh, ox.Literal]] = {}  # id(mesh) -> its literal, for every part
+        self._written: dict[str, Geometry] = {}  # GlobalId -> the geometry written by add_geometry
+        self._part = ModelTriples(self._literals)
+        self._part_triangles = 0
+
+    def write_structure(self, model: BuildingModel) -> None:
+        """Make the triples that need no geometry and (unless replacing) start loading them."""
+        self._iri_of = checked_iris(model, self._base_iri)
+        self._guids = tuple(e.guid for e in model.elements)
+        self._source = model.source_name
+        structure = structure_triples(model, self._iri_of, base_iri=self._base_iri, site=self._site)
+        if self._replace:  # loaded in finish(), once every check has passed
+            self._structure = structure
+            return
+        self._wrote = True
+        self._loading = [
+            self._pool.submit(_load, self._store, part, self._source, self._quads_lock)
+            for part in _split(structure, self._store)
+        ]
+
+    def add_geometry(self, guid: str, geometry: Geometry, kernel: str) -> None:
+        """Write the geometry node of one element or space (``kernel`` "" for a space) now, in parts
+        loaded in the background (after :meth:`write_structure`; nothing before :meth:`finish` when
+        replacing). :meth:`finish` checks that the model's geometry is this one."""
+        if self._replace:
+            return
+        node = self._iri_of.get(guid)
+        if node is None:
+            msg = f"{self._source}: no element or space {guid!r} in the structure written."
+            raise ModelError(msg)
+        element_geometry_triples(self._part, node, geometry, kernel)
+        self._written[guid] = geometry
+        self._part_triangles += geometry.mesh.triangle_count
+        if self._part_triangles >= _PART_TRIANGLES or len(self._part.lines) >= _PART_LINES:
+            self._flush_part()
+
+    def _flush_part(self) -> None:
+        if self._part.lines:
+            self._loading.append(
+                self._pool.submit(_load, self._store, self._part, self._source, self._quads_lock)
+            )
+        self._part, self._part_triangles = ModelTriples(self._literals), 0
+
+    def finish(self, model: BuildingModel) -> ImportSummary:
+        """Write the geometry of ``model`` (the model given to :meth:`write_structure`, with its meshes);
+        wait for every load; the import's summary."""
+        if tuple(e.guid for e in model.elements) != self._guids or model.source_name != self._source:
+            msg = f"{model.source_name}: the model to finish is not the one whose structure was written."
+            raise ModelError(msg)
+        self._flush_part()
+        geometry = geometry_triples(model, self._iri_of, written=self._written)
+        if self._replace and self._structure is not None:
+            self._store.clear()
+            self._wrote = True
+            _load(self._store, self._structure, self._source, self._quads_lock)
+        for done in self._loading:
+            done.result()
+        _load(self._store, geometry, self._source, self._quads_lock)
+        if model.mesh_failures:
+            log.info(
+                "%d element(s) are in the graph without geometry (twin:meshFailed)", len(model.mesh_failures)
+            )
+        return ImportSummary(
+            triples=len(self._store),
+            elements=len(model.elements),
+            meshes=sum(1 for e in model.elements if e.geometry is not None),
+            spaces=len(model.spaces),
+            storeys=len(model.storeys),
+            mesh_failures=model.mesh_failures,
+            kernel_fallbacks=model.kernel_fallbacks,
+        )
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        wait(self._loading)
+        self._pool.shutdown()
+        if exc is not None and self._wrote:
+            self._store.clear()
+
+
 def import_model(
     store: GraphStore, model: BuildingModel, *, base_iri: str, site: str, replace: bool = False
 ) -> ImportSummary:
     """Write ``model`` into ``store``. A non-empty store is an error unless ``replace`` is set."""
-    ensure_importable(store, replace=replace)
-    base_iri = vocab.check_base(base_iri)
-    iri_of = checked_iris(model, base_iri)
-    structure = structure_triples(model, iri_of, base_iri=base_iri, site=site)
-    if replace:  # every check passes before the old graph goes
-        geometry = geometry_triples(model, iri_of)
-        store.clear()
-        _load(store, structure, model.source_name)
-    else:
-        # The store loads the structure (no GIL held while it parses text) while this thread builds
-        # the geometry part; if building it fails, the store is emptied again.
-        parts = _split(structure, store)
-        with ThreadPoolExecutor(len(parts), thread_name_prefix="twin-import") as pool:
-            loading = [pool.submit(_load, store, part, model.source_name) for part in parts]
-            try:
-                geometry = geometry_triples(model, iri_of)
-            except BaseException:
-                wait(loading)
-                store.clear()
-                raise
-            for done in loading:
-                done.result()
-    _load(store, geometry, model.source_name)
-    meshes = sum(1 for e in model.elements if e.geometry is not None)
-    if model.mesh_failures:
-        log.info(
-            "%d element(s) are in the graph without geometry (twin:meshFailed)", len(model.mesh_failures)
-        )
-    return ImportSummary(
-        triples=len(store),
-        elements=len(model.elements),
-        meshes=meshes,
-        spaces=len(model.spaces),
-        storeys=len(model.storeys),
-        mesh_failures=model.mesh_failures,
-        kernel_fallbacks=model.kernel_fallbacks,
-    )
+    with ModelImport(store, base_iri=base_iri, site=site, replace=replace) as job:
+        job.write_structure(model)
+        return job.finish(model)

@@ -10,7 +10,7 @@ Example::
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import Final
 
 import pyoxigraph as ox
@@ -19,7 +19,7 @@ from twin import vocab
 from twin.errors import ModelError
 from twin.extents import format_extent, storey_extents
 from twin.meshcodec import encode_mesh, encode_placement
-from twin.records import BuildingModel, Geometry
+from twin.records import BuildingModel, Geometry, Mesh
 
 log = logging.getLogger(__name__)
 
@@ -74,10 +74,11 @@ def _boolean(value: bool) -> str:
 class ModelTriples:
     """Triples being collected: N-Triples lines, plus the mesh quads built as objects."""
 
-    def __init__(self) -> None:
+    def __init__(self, literals: dict[int, tuple[Mesh, ox.Literal]] | None = None) -> None:
         self.lines: list[str] = []
         self.meshes: list[tuple[str, ox.Literal]] = []  # (geometry node IRI, mesh literal)
-        self._ply: dict[int, ox.Literal] = {}  # id(mesh) -> its literal: instances share it
+        # id(mesh) -> (mesh, its literal): instances share it; several parts of one import may share it
+        self._ply = literals if literals is not None else {}
 
     def add(self, subject: str, predicate: str, obj: str) -> None:
         """Add one triple; each part is already in N-Triples syntax (``<iri>`` or a literal)."""
@@ -87,9 +88,10 @@ class ModelTriples:
         """The geometry node of ``node`` (an IRI): mesh, placement, closedness, solidity, triangle count."""
         g = vocab.geometry_iri(node)
         key = id(geometry.mesh)
-        ply = self._ply.get(key)
-        if ply is None:
-            ply = self._ply[key] = ox.Literal(encode_mesh(geometry.mesh), datatype=_BASE64)
+        known = self._ply.get(key)
+        if known is None:
+            known = self._ply[key] = (geometry.mesh, ox.Literal(encode_mesh(geometry.mesh), datatype=_BASE64))
+        ply = known[1]
         self.meshes.append((g, ply))
         g = _iri(g)
         self.add(_iri(node), _HAS_GEOMETRY, g)
@@ -236,24 +238,45 @@ def structure_triples(
     return out
 
 
-def geometry_triples(model: BuildingModel, iri_of: dict[str, str]) -> ModelTriples:
-    """The triples that need the meshes: storey extents, geometry nodes, kernels, failures, fallbacks."""
+def element_geometry_triples(out: ModelTriples, node: str, geometry: Geometry, kernel: str) -> None:
+    """The geometry node of the element ``node`` (``<IRI>``) and the kernel that meshed it ("" for none)."""
+    out.geometry(node[1:-1], geometry)
+    if kernel:
+        out.add(node, _MESH_KERNEL, _text(kernel))
+
+
+def geometry_triples(
+    model: BuildingModel, iri_of: dict[str, str], *, written: Mapping[str, Geometry] | None = None
+) -> ModelTriples:
+    """The triples that need the meshes: storey extents, geometry nodes, kernels, failures, fallbacks.
+
+    The geometry nodes of the GlobalIds in ``written`` (already written with that geometry, by
+    :func:`element_geometry_triples`) are left out; ModelError if the model's geometry is another.
+    """
+    written = written or {}
     out = ModelTriples()
     extents = storey_extents(model)
     for st in model.storeys:
         if st.guid in extents:
             out.add(iri_of[st.guid], _iri(vocab.TWIN_EXTENT), _text(format_extent(extents[st.guid])))
+
+    def unwritten(guid: str, geometry: Geometry | None) -> bool:
+        if guid not in written:
+            return geometry is not None
+        if written[guid] is not geometry:
+            msg = f"{model.source_name}: the geometry of {guid} is not the one written before."
+            raise ModelError(msg)
+        return False
+
     for sp in model.spaces:
-        if sp.geometry is not None:
-            out.geometry(iri_of[sp.guid][1:-1], sp.geometry)
+        if sp.geometry is not None and unwritten(sp.guid, sp.geometry):
+            element_geometry_triples(out, iri_of[sp.guid], sp.geometry, "")
     failed = set(model.mesh_failures)
     fallbacks = set(model.kernel_fallbacks)
     for el in model.elements:
         node = iri_of[el.guid]
-        if el.geometry is not None:
-            out.geometry(node[1:-1], el.geometry)
-            if el.mesh_kernel:
-                out.add(node, _MESH_KERNEL, _text(el.mesh_kernel))
+        if el.geometry is not None and unwritten(el.guid, el.geometry):
+            element_geometry_triples(out, node, el.geometry, el.mesh_kernel)
         if el.guid in failed:
             out.add(node, _iri(vocab.TWIN_MESH_FAILED), _TRUE)
         if el.guid in fallbacks:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -36,8 +37,7 @@ def import_site(args: argparse.Namespace, cfg: Config, model_path: Path) -> tupl
 
 
 def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
-    from adapters.ifc import read_model
-    from twin.import_model import ensure_importable, import_model
+    from adapters.cli.import_file import import_ifc
     from twin.vocab import check_base
 
     model_path = Path(args.model)
@@ -51,30 +51,33 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
             else f"No such file: {model_path}"
         )
         raise ModelError(msg)
-    if store_exists(args, cfg):  # fail before meshing, which dominates the time
-        with open_store(args, cfg) as store:
-            ensure_importable(store, replace=args.replace)
     t0 = time.perf_counter()
-    # Mesh before the store is open: the meshing child is forked, and the store runs threads.
-    with progress_bar("meshing") as advance:
-        model = read_model(
-            model_path,
-            static_types=cfg.import_.static_types,
-            kernels=cfg.import_.kernels,
-            threads=cfg.import_.threads,
-            progress=advance,
-        )
-    t1 = time.perf_counter()
-    with open_store(args, cfg) as store:
-        summary = import_model(store, model, base_iri=base_iri, site=site, replace=args.replace)
+    new_store = not store_exists(args, cfg)
+    try:
+        with progress_bar("meshing") as advance, open_store(args, cfg) as store:
+            summary = import_ifc(
+                model_path,
+                store,
+                base_iri=base_iri,
+                site=site,
+                static_types=cfg.import_.static_types,
+                kernels=cfg.import_.kernels,
+                threads=cfg.import_.threads,
+                replace=args.replace,
+                progress=advance,
+            )
+    except BaseException:
+        if new_store:  # a failed import leaves no empty store behind
+            shutil.rmtree(store_path_of(args, cfg), ignore_errors=True)
+        raise
     if remote_store_of(args, cfg) is None:  # the daemon's derived state is of the store's old contents
         snapshot_path(store_path_of(args, cfg)).unlink(missing_ok=True)
-    t2 = time.perf_counter()
+    seconds = time.perf_counter() - t0
     print(
         f"imported {model_path} into {store_label(args, cfg)} as site {site!r} ({site_from}) under "
         f"{base_iri}: {summary.elements} elements "
         f"({summary.meshes} with meshes), {summary.spaces} spaces, {summary.storeys} storeys, "
-        f"{summary.triples} triples in {t2 - t0:.1f} s (read+mesh {t1 - t0:.1f} s, store {t2 - t1:.1f} s)"
+        f"{summary.triples} triples in {seconds:.1f} s"
     )
     if summary.kernel_fallbacks:
         print(f"{len(summary.kernel_fallbacks)} element(s) meshed by a fallback kernel")

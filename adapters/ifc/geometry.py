@@ -32,20 +32,18 @@ from __future__ import annotations
 import contextlib
 import logging
 import multiprocessing as mp
+import queue
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Collection, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Collection, Iterator, Sequence
+from dataclasses import dataclass, field, replace
 from types import TracebackType
 from typing import Any, Self
 
-import numpy as np
-
 from adapters.ifc.kernel_child import STOP, STOPPED, Shape, run_kernel
 from adapters.ifc.kernel_choice import REFERENCE_KERNEL
-from twin.errors import ModelError
-from twin.records import Geometry, Mesh, check_placement
+from twin.records import Geometry, Mesh
 
 log = logging.getLogger(__name__)
 
@@ -55,9 +53,6 @@ STALL_SECONDS = 300.0
 SPLIT_MIN_SECONDS = 0.25
 """A child is split only when its work left, at its pace so far, would take longer than this."""
 SPLIT_MIN_PRODUCTS = 8
-MAX_COORDINATE_M = 1e8
-"""A body farther than this from the origin (or not finite) is refused: the bad placement or
-coordinates of a broken file, which would stretch a storey's map over the whole planet."""
 
 
 @dataclass(slots=True)
@@ -73,19 +68,6 @@ class MeshResult:
     fallbacks: set[int] = field(default_factory=set)
     children: int = 0
     """How many kernel children ran (splits and fallbacks included)."""
-
-
-def _geometry(mesh: Mesh, matrix: Any, reach: float) -> Geometry:
-    """``mesh`` placed by ``matrix``; raise ModelError when the result is not finite or absurdly far.
-
-    ``reach`` is the largest absolute vertex coordinate of the mesh (NaN if any is NaN).
-    """
-    placement = check_placement(matrix)
-    bound = float(np.abs(placement[:3, :3]).sum(axis=1).max()) * reach + float(np.abs(placement[:3, 3]).max())
-    if not bound <= MAX_COORDINATE_M:  # NaN too
-        msg = f"its body reaches {bound:.3g} m from the origin (limit {MAX_COORDINATE_M:.0e} m)"
-        raise ModelError(msg)
-    return Geometry(mesh, placement)
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,7 +96,7 @@ class _KernelRun:
         self.unit = unit
         self.kernel = unit.kernels[0]
         self.pending = set(unit.ids)  # not meshed (yet) by this run
-        self.meshes: dict[str, tuple[Mesh, float]] = {}  # geometry id -> (mesh, reach), this child's
+        self.meshes: dict[str, Mesh] = {}  # geometry id -> mesh, of this child
         self.delivered = 0
         self.started = time.monotonic()
         self.finished = False  # the child went through all its products
@@ -222,13 +204,14 @@ class MeshingJob:
         with_body -= set(skip)
         self._with_body = with_body
         self._result = MeshResult()
-        self._refused: set[int] = set()
-        self._shared: dict[tuple[str, str], Mesh] = {}  # (kernel, geometry id) -> the mesh all share
+        self._warned: set[tuple[int, str]] = set()
+        self._shared: dict[tuple[str, str, bool], Mesh] = {}  # (kernel, geometry id, solid) -> the mesh
         self._cond = threading.Condition()
         self._queue: deque[_Unit] = deque()
         self._running: list[_KernelRun] = []
         self._failure: BaseException | None = None
         self._cancelled = False
+        self._arrived: queue.SimpleQueue[list[int] | None] = queue.SimpleQueue()
         chain = tuple(kernels)
         routed_ids = {p.id() for p in routed} & with_body if REFERENCE_KERNEL in chain else set()
         rest_ids = with_body - routed_ids
@@ -246,42 +229,54 @@ class MeshingJob:
                 self._queue.extend(_Unit(s, route, route[0]) for s in _shards(ids, n))
         with self._cond:
             self._schedule()
+            if not self._running:
+                self._arrived.put(None)
+
+    def partial(self) -> MeshResult:
+        """The result as it grows: read an entry only once :meth:`arrivals` has named its product."""
+        return self._result
+
+    def arrivals(self) -> Iterator[int]:
+        """The ids of the products as they get their geometry (in :attr:`MeshResult.geometry`), until the
+        meshing ends; read it from one thread only, once."""
+        while (batch := self._arrived.get()) is not None:
+            yield from batch
 
     # --- called from the drain threads, under no lock ---------------------------------------------
     def _take(self, run: _KernelRun, batch: list[Shape]) -> None:
-        result = self._result
+        result, arrived = self._result, []
         with self._cond:
-            for pid, geom_id, mesh, reach, matrix in batch:
+            for pid, geom_id, mesh, placement, solid, refused, note in batch:
+                if note is not None:
+                    self._warn_once(pid, note)
                 if mesh is not None:  # an empty mesh is no mesh: the next kernel tries
-                    shared = self._shared.setdefault((run.kernel, geom_id), mesh)
-                    run.meshes[geom_id] = (shared, reach)
+                    run.meshes[geom_id] = self._shared.setdefault((run.kernel, geom_id, mesh.solid), mesh)
                 known = run.meshes.get(geom_id)
                 if pid not in run.pending or known is None:
                     continue
-                try:
-                    result.geometry[pid] = _geometry(known[0], matrix, known[1])
-                except ModelError as err:  # left pending: the next kernel tries, then it is unmeshed
-                    self._refuse(pid, err)
+                if placement is None:  # left pending: the next kernel tries, then it is unmeshed
+                    self._warn_once(pid, f"{refused}; its geometry is refused")
                     continue
+                if known.solid != solid:  # instances of one representation told apart by their products
+                    key = (run.kernel, geom_id, solid)
+                    known = self._shared.setdefault(key, replace(known, solid=solid))
+                result.geometry[pid] = Geometry(known, placement)
+                arrived.append(pid)
                 result.kernel_of[pid] = run.kernel
                 if run.kernel != run.unit.first:
                     result.fallbacks.add(pid)
                 run.pending.discard(pid)
             done, total = len(result.geometry), len(self._with_body)
+        if arrived:
+            self._arrived.put(arrived)
         if self._progress is not None:
             self._progress(done, total)
 
-    def _refuse(self, pid: int, err: ModelError) -> None:
-        if pid not in self._refused:
-            self._refused.add(pid)
+    def _warn_once(self, pid: int, what: str) -> None:
+        if (pid, what) not in self._warned:
+            self._warned.add((pid, what))
             product = self._f.by_id(pid)
-            log.warning(
-                "%s %s %s: %s; its geometry is refused",
-                product.is_a(),
-                product.GlobalId,
-                product.Name or "",
-                err,
-            )
+            log.warning("%s %s %s: %s", product.is_a(), product.GlobalId, product.Name or "", what)
 
     def _ended(self, run: _KernelRun) -> None:
         with self._cond:
@@ -298,6 +293,8 @@ class MeshingJob:
                     self._schedule()
             except BaseException as err:  # handed to result()
                 self._failure = err
+            if self._failure is not None or not (self._running or self._queue):
+                self._arrived.put(None)
             self._cond.notify_all()
 
     @staticmethod
@@ -326,10 +323,11 @@ class MeshingJob:
         while self._queue and len(self._running) < self._threads:
             self._running.append(_KernelRun(self._f, self._queue.popleft(), self._take, self._ended))
             self._result.children += 1
-        if self._queue or len(self._running) >= self._threads:
+        busy = [r for r in self._running if len(r.unit.ids) >= SPLIT_MIN_PRODUCTS]  # a few fallbacks: no
+        if self._queue or len(busy) >= self._threads:
             return
         now = time.monotonic()
-        candidates = [r for r in self._running if not r.stopping and len(r.pending) >= SPLIT_MIN_PRODUCTS]
+        candidates = [r for r in busy if not r.stopping and len(r.pending) >= SPLIT_MIN_PRODUCTS]
         if candidates:
             slowest = max(candidates, key=lambda r: r.seconds_left(now))
             if slowest.seconds_left(now) > self._split_min_s:
@@ -340,7 +338,7 @@ class MeshingJob:
         with self._cond:
             while (self._running or self._queue) and self._failure is None:
                 self._cond.wait(0.1)
-                if not self._queue and len(self._running) < self._threads:
+                if not self._queue:
                     self._schedule()  # a child that has now found its pace may be worth splitting
             if self._failure is not None:
                 raise self._failure
@@ -357,6 +355,8 @@ class MeshingJob:
             self._cancelled = True
             self._queue.clear()
             running = list(self._running)
+            if not running:
+                self._arrived.put(None)
         for run in running:
             run.kill()
         for run in running:

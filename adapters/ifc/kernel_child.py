@@ -1,9 +1,9 @@
 """One kernel pass in a child process: mesh a set of products with ifcopenshell's geometry iterator and
 stream the shapes back over a pipe, each as a ready :class:`~twin.records.Mesh`.
 
-The child makes the meshes itself (closedness, welding, orientation), so the calling process only
-collects. A shape is ``(product id, geometry id, mesh | None, the mesh's reach, placement matrix)``;
-instances that share a representation get the mesh once, then ``None`` with the same geometry id.
+The child makes the meshes itself (closedness, welding, orientation, whether the body is a solid:
+:mod:`adapters.ifc.body_kind`) and checks the placements, so the calling process only collects. A
+:data:`Shape` carries a mesh the first time, then ``None`` for the instances sharing it.
 
 The child answers a ``"stop"`` sent on the pipe between two batches of shapes: it has sent what it
 meshed, it sends :data:`STOPPED` and leaves; the parent gives what is left to other children
@@ -27,11 +27,18 @@ import ifcopenshell.geom
 import ifcopenshell.util.shape
 import numpy as np
 
+from adapters.ifc.body_kind import BodyKind
 from twin.errors import ModelError
 from twin.meshops import are_closed, is_closed, orient_faces
-from twin.records import Mesh
+from twin.records import Mesh, check_placement
 
-Shape = tuple[int, str, Mesh | None, float, Any]  # product, geometry id, new mesh | None, its reach, matrix
+Shape = tuple[int, str, Mesh | None, np.ndarray | None, bool, str | None, str | None]
+"""Product id, geometry id, the mesh (the first time this child meshes the geometry, else None), the
+checked placement (None if refused), whether the product's body is a solid, why the placement was
+refused, why the body could not be inspected."""
+MAX_COORDINATE_M = 1e8
+"""A body farther than this from the origin (or not finite) is refused: the bad placement or
+coordinates of a broken file, which would stretch a storey's map over the whole planet."""
 STOP = "stop"
 STOPPED = "stopped"
 _BATCH_SHAPES = 32  # small: what a crashing kernel had meshed is kept; a stop is heard between batches
@@ -66,25 +73,25 @@ def weld(vertices: np.ndarray, faces: np.ndarray, *, near_m: float = 0.0) -> tup
     return vertices[first], f[kept]
 
 
-def _closed_mesh(vertices: np.ndarray, faces: np.ndarray) -> Mesh | None:
+def _closed_mesh(vertices: np.ndarray, faces: np.ndarray, solid: bool) -> Mesh | None:
     """The mesh as a consistently oriented solid (faces flipped where needed), or None if not watertight."""
     if is_closed(faces):
-        return Mesh(vertices, faces, True)
+        return Mesh(vertices, faces, True, solid)
     oriented = orient_faces(faces)
-    return Mesh(vertices, oriented, True) if oriented is not None else None
+    return Mesh(vertices, oriented, True, solid) if oriented is not None else None
 
 
-def make_mesh(vertices: np.ndarray, faces: np.ndarray) -> Mesh:
-    """A Mesh with its closedness. Only when the kernel's output is not a consistently oriented solid
-    are its vertices welded (bitwise, then within ``NEAR_WELD_M``) and, if it is watertight, its faces
-    re-oriented."""
+def make_mesh(vertices: np.ndarray, faces: np.ndarray, *, solid: bool = False) -> Mesh:
+    """A Mesh with its closedness (and ``solid``: what the file says the body is). Only when the
+    kernel's output is not a consistently oriented solid are its vertices welded (bitwise, then within
+    ``NEAR_WELD_M``) and, if it is watertight, its faces re-oriented."""
     if is_closed(faces):
-        return Mesh(vertices, faces, True)
+        return Mesh(vertices, faces, True, solid)
     v, f = weld(vertices, faces)
-    closed = _closed_mesh(v, f)
+    closed = _closed_mesh(v, f, solid)
     if closed is None:
-        closed = _closed_mesh(*weld(v, f, near_m=NEAR_WELD_M))
-    return closed if closed is not None else Mesh(v, f, False)
+        closed = _closed_mesh(*weld(v, f, near_m=NEAR_WELD_M), solid)
+    return closed if closed is not None else Mesh(v, f, False, solid)
 
 
 def iterator_settings() -> Any:
@@ -102,18 +109,21 @@ def _raw(geom: Any) -> tuple[np.ndarray, np.ndarray]:
     return verts, faces
 
 
-def _meshes(raw: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple[Mesh | None, float]]:
-    """(the Mesh, its largest absolute coordinate) of each raw mesh; (None, 0) if it has no triangles or
-    invalid coordinates, so that the next kernel tries. Closedness is tested for all at once (the
-    common case, a closed solid, then needs nothing more)."""
-    closed = are_closed([faces for _, faces in raw])
+_Raw = tuple[np.ndarray, np.ndarray, bool]  # vertices, faces, solid
+
+
+def _meshes(raw: list[_Raw]) -> list[tuple[Mesh | None, float]]:
+    """(the Mesh, its largest absolute coordinate) of each raw ``(vertices, faces, solid)``; (None, 0)
+    if it has no triangles or invalid coordinates, so that the next kernel tries. Closedness is tested
+    for all at once (the common case, a closed solid, then needs nothing more)."""
+    closed = are_closed([faces for _, faces, _ in raw])
     out: list[tuple[Mesh | None, float]] = []
-    for (verts, faces), is_solid in zip(raw, closed, strict=True):
+    for (verts, faces, solid), is_closed_ in zip(raw, closed, strict=True):
         if not len(faces):
             out.append((None, 0.0))
             continue
         try:
-            mesh = Mesh(verts, faces, True) if is_solid else make_mesh(verts, faces)
+            mesh = Mesh(verts, faces, True, solid) if is_closed_ else make_mesh(verts, faces, solid=solid)
         except ModelError:  # NaN or infinite coordinates
             out.append((None, 0.0))
             continue
@@ -121,13 +131,52 @@ def _meshes(raw: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple[Mesh | None,
     return out
 
 
-def _send(conn: Connection, batch: list[tuple[int, str, tuple[np.ndarray, np.ndarray] | None, Any]]) -> None:
-    made = iter(_meshes([raw for _, _, raw, _ in batch if raw is not None]))
-    shapes: list[Shape] = []
-    for pid, geom_id, raw, matrix in batch:
-        mesh, reach = next(made) if raw is not None else (None, 0.0)
-        shapes.append((pid, geom_id, mesh, reach, matrix))
-    conn.send(shapes)
+def placed(matrix: Any, reach: float) -> np.ndarray:
+    """The placement ``matrix`` checked (:func:`~twin.records.check_placement`); ModelError when the body
+    (its largest absolute local coordinate ``reach``, NaN if any is NaN) lands absurdly far."""
+    placement = check_placement(matrix)
+    bound = float(np.abs(placement[:3, :3]).sum(axis=1).max()) * reach + float(np.abs(placement[:3, 3]).max())
+    if not bound <= MAX_COORDINATE_M:  # NaN too
+        msg = f"its body reaches {bound:.3g} m from the origin (limit {MAX_COORDINATE_M:.0e} m)"
+        raise ModelError(msg)
+    return placement
+
+
+class _Batch:
+    """Shapes meshed and not yet sent: made into Meshes, placed and sent together."""
+
+    def __init__(self) -> None:
+        self.items: list[
+            tuple[int, str, tuple[np.ndarray, np.ndarray, bool] | None, Any, bool, str | None]
+        ] = []
+        self.reach: dict[str, float] = {}  # geometry id -> its mesh's largest absolute coordinate
+
+    def send(self, conn: Connection) -> None:
+        made = iter(_meshes([raw for _, _, raw, _, _, _ in self.items if raw is not None]))
+        shapes: list[Shape] = []
+        for pid, geom_id, raw, matrix, solid, note in self.items:
+            mesh = None
+            if raw is not None:
+                mesh, reach = next(made)
+                if mesh is not None:
+                    self.reach[geom_id] = reach
+            placement, refused = None, None
+            if geom_id in self.reach:
+                try:
+                    placement = placed(matrix, self.reach[geom_id])
+                except ModelError as err:
+                    refused = str(err)
+            shapes.append((pid, geom_id, mesh, placement, solid, refused, note))
+        conn.send(shapes)
+        self.items = []
+
+
+def _body_is_solid(kind: BodyKind, product: Any) -> tuple[bool, str | None]:
+    """(whether ``product``'s body is a solid, why it could not be told)."""
+    try:
+        return kind.is_solid(product), None
+    except (RuntimeError, AttributeError, TypeError, ValueError, AssertionError, IndexError, KeyError) as err:
+        return False, f"its body cannot be inspected ({type(err).__name__}: {err})"
 
 
 def _stop_asked(conn: Connection) -> bool:
@@ -139,34 +188,39 @@ def run_kernel(f: Any, ids: list[int], kernel: str, conn: Connection) -> None:
     :data:`STOPPED` when the parent asked it to stop, or a text naming the error."""
     faulthandler.disable()  # a kernel crash is expected and handled by the parent: no dump on stderr
     try:
+        products = {i: f.by_id(i) for i in ids}
         it = ifcopenshell.geom.iterator(
             iterator_settings(),
             f,
             1,
-            include=[f.by_id(i) for i in ids],
+            include=list(products.values()),
             geometry_library=kernel,  # type: ignore[arg-type]  # validated by the iterator itself
         )
+        kind = BodyKind()
         seen: set[str] = set()
-        batch: list[tuple[int, str, tuple[np.ndarray, np.ndarray] | None, Any]] = []
+        batch = _Batch()
         sent = time.monotonic()
         more = bool(it.initialize())
         while more:
             shape = it.get()
-            geom = shape.geometry
+            pid, geom = int(shape.id), shape.geometry
+            geom_id = str(geom.id)
+            product = products.get(pid)
+            solid, note = _body_is_solid(kind, product) if product is not None else (False, None)
             raw = None
-            if geom.id not in seen:  # instances sharing a representation: send the mesh once
-                seen.add(geom.id)
-                raw = _raw(geom)
+            if geom_id not in seen:  # instances sharing a representation: send the mesh once
+                seen.add(geom_id)
+                raw = (*_raw(geom), solid)
             matrix = np.asarray(ifcopenshell.util.shape.get_shape_matrix(shape), dtype=np.float64)
-            batch.append((int(shape.id), str(geom.id), raw, matrix))
-            if len(batch) >= _BATCH_SHAPES or time.monotonic() - sent > _BATCH_SECONDS:
-                _send(conn, batch)
-                batch, sent = [], time.monotonic()
+            batch.items.append((pid, geom_id, raw, matrix, solid, note))
+            if len(batch.items) >= _BATCH_SHAPES or time.monotonic() - sent > _BATCH_SECONDS:
+                batch.send(conn)
+                sent = time.monotonic()
                 if _stop_asked(conn):
                     conn.send(STOPPED)
                     return
             more = bool(it.next())
-        _send(conn, batch)
+        batch.send(conn)
         conn.send(None)
     except Exception as err:  # report, the parent falls back to the next kernel
         conn.send(f"{type(err).__name__}: {err}")

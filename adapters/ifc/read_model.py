@@ -6,6 +6,10 @@ placements, and storey elevations are scaled by the file's length unit.
 Example::
 
     model = read_model(Path("lab.ifc"), static_types=("IfcWall", "IfcSlab"))
+
+    with start_reading(Path("lab.ifc")) as reading:   # the structure while the children mesh
+        structure = reading.structure()               # every geometry None
+        model = reading.model()                       # waits for the meshes
 """
 
 from __future__ import annotations
@@ -17,7 +21,8 @@ from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from types import TracebackType
+from typing import Any, Self
 
 import ifcopenshell
 import ifcopenshell.guid
@@ -25,12 +30,11 @@ import ifcopenshell.util.element
 import ifcopenshell.util.placement
 import ifcopenshell.util.unit
 
-from adapters.ifc.body_kind import BodyKind
 from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
 from adapters.ifc.kernel_choice import KernelChoice
 from adapters.ifc.open_file import open_ifc_checked
-from twin.records import Building, BuildingModel, Element, Geometry, Mesh, Relation, Site, Space, Storey
+from twin.records import Building, BuildingModel, Element, Geometry, Relation, Site, Space, Storey
 
 log = logging.getLogger(__name__)
 
@@ -264,28 +268,6 @@ def _routed(elements: Sequence[Any]) -> list[Any]:
     return routed
 
 
-def _solid_bodies(products: Iterable[Any], geometry: dict[int, Geometry]) -> dict[int, Geometry]:
-    """``geometry`` with the meshes of the products whose body is a solid (:mod:`adapters.ifc.body_kind`)
-    marked ``solid``; instances sharing a mesh keep sharing one."""
-    kind, out = BodyKind(), dict(geometry)
-    marked: dict[int, Mesh] = {}
-    for p in products:
-        g = geometry.get(p.id())
-        if g is None:
-            continue
-        try:
-            solid = kind.is_solid(p)
-        except _ENTITY_ERRORS as err:
-            log.warning("%s: its body cannot be inspected (%s: %s)", _entity_name(p), type(err).__name__, err)
-            continue
-        if solid:
-            mesh = marked.get(id(g.mesh))
-            if mesh is None:
-                mesh = marked[id(g.mesh)] = replace(g.mesh, solid=True)
-            out[p.id()] = Geometry(mesh, g.placement)
-    return out
-
-
 def _safe_material_sets(e: Any) -> tuple[list[Any], list[Any]]:
     try:
         return _material_sets(e)
@@ -299,6 +281,203 @@ def _safe_material_sets(e: Any) -> tuple[list[Any], list[Any]]:
         return [], []
 
 
+class ModelReading:
+    """An IFC file being read: its structure first, while forked children mesh; then the whole model.
+
+    Made by :func:`start_reading`; use it as a context manager (leaving it kills the meshing children).
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        *,
+        static_types: Sequence[str],
+        kernels: Sequence[str],
+        threads: int,
+        progress: Progress | None,
+        routing: bool,
+    ) -> None:
+        self._path = path
+        f, self._lines, unplaceable = open_ifc_checked(path)
+        self._f = f
+        with _as_file_error(path):
+            scale = float(ifcopenshell.util.unit.calculate_unit_scale(f))
+            if not (math.isfinite(scale) and scale > 0):
+                msg = f"{path} has a length unit of {scale!r} m; it must be a positive number"
+                raise IfcFileError(msg)
+            self._scale = scale
+            self._sites = f.by_type("IfcSite")
+            self._buildings = f.by_type("IfcBuilding")
+            self._storeys = f.by_type("IfcBuildingStorey")
+            self._spaces = f.by_type("IfcSpace")
+            self._elements = f.by_type("IfcElement")
+            if not self._spaces:
+                log.warning(
+                    "%s has no IfcSpace: importing elements, storeys and meshes without space adjacency "
+                    "(no bot:adjacentElement); skills with unknown_outside cannot be mapped",
+                    path,
+                )
+            routed = _routed(self._elements) if routing else []
+            self._static_types = tuple(static_types)
+            # Mesh in the background (forked children do the work) while this thread reads the structure.
+            self._job = start_meshing(
+                f,
+                [*self._elements, *self._spaces],
+                kernels=kernels,
+                threads=threads,
+                progress=progress,
+                routed=routed,
+                skip=unplaceable,
+            )
+        self._structure: BuildingModel | None = None
+
+    def structure(self) -> BuildingModel:
+        """The model without geometry: every element's and space's ``geometry`` is None, and no mesh
+        failures or kernel fallbacks yet. Read once; the meshing goes on meanwhile."""
+        if self._structure is not None:
+            return self._structure
+        f, path = self._f, self._path
+        with _as_file_error(path):
+            up = _hierarchy(f)
+
+            def guid_of(node: Any | None) -> str | None:
+                return str(node.GlobalId) if node is not None else None
+
+            schema = ifcopenshell.ifcopenshell_wrapper.schema_by_name(f.schema)
+            type_cache: dict[str, tuple[str, ...]] = {}
+            statics = self._static_types
+            infos = []
+            for e in self._elements:
+                chain = _supertypes(schema, e.is_a(), type_cache)
+                every, facing = _safe_material_sets(e)
+                infos.append((e, chain, _names(every), _names(facing), any(t in chain for t in statics)))
+            adjacent, contained, decomposed = _relations(
+                f,
+                self._elements,
+                spaces=self._spaces,
+                zones=[*self._storeys, *self._buildings, *self._sites],
+            )
+            storey_records = tuple(
+                Storey(
+                    str(s.GlobalId),
+                    str(s.Name or ""),
+                    _elevation_m(s, self._scale),
+                    guid_of(_ancestor(s, up, "IfcBuilding")),
+                )
+                for s in self._storeys
+            ) or _building_wide_storeys(path, self._buildings, self._scale)
+            self._structure = BuildingModel(
+                source_name=Path(path).name,
+                schema=str(f.schema),
+                source_lines=self._lines,
+                sites=tuple(Site(str(s.GlobalId), str(s.Name or "")) for s in self._sites),
+                buildings=tuple(
+                    Building(str(b.GlobalId), str(b.Name or ""), guid_of(_ancestor(b, up, "IfcSite")))
+                    for b in self._buildings
+                ),
+                storeys=storey_records,
+                spaces=tuple(
+                    Space(
+                        str(s.GlobalId),
+                        str(s.Name or ""),
+                        guid_of(_ancestor(s, up, "IfcBuildingStorey")),
+                        None,
+                    )
+                    for s in self._spaces
+                ),
+                elements=tuple(
+                    Element(
+                        guid=str(e.GlobalId),
+                        ifc_class=chain[0],
+                        name=str(e.Name or ""),
+                        materials=materials,
+                        is_static=is_static,
+                        geometry=None,
+                        ifc_types=chain,
+                        facing_materials=facing,
+                    )
+                    for e, chain, materials, facing, is_static in infos
+                ),
+                adjacent=adjacent,
+                contained=contained,
+                decomposed=decomposed,
+            )
+        return self._structure
+
+    def geometries(self) -> Iterator[tuple[str, Geometry, str]]:
+        """``(GlobalId, geometry, kernel)`` of each element (kernel "" for a space) as soon as it is
+        meshed, until the meshing ends: the same geometry :meth:`model` gives it. Read it once."""
+        structure = self.structure()
+        guid_of = {e.id(): (r.guid, True) for e, r in zip(self._elements, structure.elements, strict=True)}
+        guid_of.update((s.id(), (r.guid, False)) for s, r in zip(self._spaces, structure.spaces, strict=True))
+        result = self._job.partial()
+        for pid in self._job.arrivals():
+            guid, is_element = guid_of[pid]
+            yield guid, result.geometry[pid], result.kernel_of[pid] if is_element else ""
+
+    def model(self) -> BuildingModel:
+        """The whole model: :meth:`structure` with every mesh (waits for the meshing)."""
+        structure = self.structure()
+        f = self._f
+        with _as_file_error(self._path):
+            meshed = self._job.result()
+            geometry = meshed.geometry
+            kernel_fallbacks = tuple(
+                f.by_id(pid).GlobalId for pid in sorted(meshed.fallbacks) if f.by_id(pid).is_a("IfcElement")
+            )
+            failures = tuple(
+                f.by_id(pid).GlobalId for pid in meshed.unmeshed if f.by_id(pid).is_a("IfcElement")
+            )
+            _warn_unmeshed(f, meshed.unmeshed)
+            elements = tuple(
+                replace(
+                    record,
+                    geometry=geometry.get(e.id()),
+                    mesh_kernel=meshed.kernel_of.get(e.id(), ""),
+                )
+                for record, e in zip(structure.elements, self._elements, strict=True)
+            )
+            spaces = tuple(
+                replace(record, geometry=geometry.get(s.id()))
+                for record, s in zip(structure.spaces, self._spaces, strict=True)
+            )
+        return replace(
+            structure,
+            elements=elements,
+            spaces=spaces,
+            mesh_failures=failures,
+            kernel_fallbacks=kernel_fallbacks,
+        )
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self._job.cancel()
+
+
+def start_reading(
+    path: Path,
+    *,
+    static_types: Sequence[str] = (),
+    kernels: Sequence[str] = DEFAULT_KERNELS,
+    threads: int = 2,
+    progress: Progress | None = None,
+    routing: bool = True,
+) -> ModelReading:
+    """Open ``path`` and start meshing it in the background; see :class:`ModelReading`. Raise
+    :class:`~adapters.ifc.errors.IfcFileError` on a bad file.
+
+    ``routing=False`` gives every body to the first kernel, even those it gets wrong
+    (:mod:`adapters.ifc.kernel_choice`): only to measure what the routing fixes (``benchmarks/kernels.py``).
+    """
+    return ModelReading(
+        path, static_types=static_types, kernels=kernels, threads=threads, progress=progress, routing=routing
+    )
+
+
 def read_model(
     path: Path,
     *,
@@ -310,106 +489,9 @@ def read_model(
 ) -> BuildingModel:
     """Read ``path`` into records. Raise :class:`~adapters.ifc.errors.IfcFileError` on a bad file.
 
-    ``routing=False`` gives every body to the first kernel, even those it gets wrong
-    (:mod:`adapters.ifc.kernel_choice`): only to measure what the routing fixes (``benchmarks/kernels.py``).
+    ``routing=False``: see :func:`start_reading`.
     """
-    f, lines, unplaceable = open_ifc_checked(path)
-    with _as_file_error(path):
-        scale = float(ifcopenshell.util.unit.calculate_unit_scale(f))
-        if not (math.isfinite(scale) and scale > 0):
-            msg = f"{path} has a length unit of {scale!r} m; it must be a positive number"
-            raise IfcFileError(msg)
-        sites = f.by_type("IfcSite")
-        buildings = f.by_type("IfcBuilding")
-        storeys = f.by_type("IfcBuildingStorey")
-        spaces = f.by_type("IfcSpace")
-        elements = f.by_type("IfcElement")
-
-        if not spaces:
-            log.warning(
-                "%s has no IfcSpace: importing elements, storeys and meshes without space adjacency "
-                "(no bot:adjacentElement); skills with unknown_outside cannot be mapped",
-                path,
-            )
-        routed = _routed(elements) if routing else []
-        # Mesh in the background (forked children do the work) while this thread reads the structure.
-        with start_meshing(
-            f,
-            [*elements, *spaces],
-            kernels=kernels,
-            threads=threads,
-            progress=progress,
-            routed=routed,
-            skip=unplaceable,
-        ) as job:
-            up = _hierarchy(f)
-
-            def guid_of(node: Any | None) -> str | None:
-                return str(node.GlobalId) if node is not None else None
-
-            statics = tuple(static_types)
-            schema = ifcopenshell.ifcopenshell_wrapper.schema_by_name(f.schema)
-            type_cache: dict[str, tuple[str, ...]] = {}
-            infos = []
-            for e in elements:
-                chain = _supertypes(schema, e.is_a(), type_cache)
-                every, facing = _safe_material_sets(e)
-                infos.append((e, chain, _names(every), _names(facing), any(t in chain for t in statics)))
-            relations = _relations(f, elements, spaces=spaces, zones=[*storeys, *buildings, *sites])
-            meshed = job.result()
-        solid_geometry = _solid_bodies([*elements, *spaces], meshed.geometry)
-        kernel_fallbacks = tuple(
-            f.by_id(pid).GlobalId for pid in sorted(meshed.fallbacks) if f.by_id(pid).is_a("IfcElement")
-        )
-        failures = tuple(f.by_id(pid).GlobalId for pid in meshed.unmeshed if f.by_id(pid).is_a("IfcElement"))
-        _warn_unmeshed(f, meshed.unmeshed)
-        element_records = tuple(
-            Element(
-                guid=str(e.GlobalId),
-                ifc_class=chain[0],
-                name=str(e.Name or ""),
-                materials=materials,
-                is_static=is_static,
-                geometry=solid_geometry.get(e.id()),
-                ifc_types=chain,
-                mesh_kernel=meshed.kernel_of.get(e.id(), ""),
-                facing_materials=facing,
-            )
-            for e, chain, materials, facing, is_static in infos
-        )
-        storey_records = tuple(
-            Storey(
-                str(s.GlobalId),
-                str(s.Name or ""),
-                _elevation_m(s, scale),
-                guid_of(_ancestor(s, up, "IfcBuilding")),
-            )
-            for s in storeys
-        ) or _building_wide_storeys(path, buildings, scale)
-        adjacent, contained, decomposed = relations
-        return BuildingModel(
-            source_name=Path(path).name,
-            schema=str(f.schema),
-            source_lines=lines,
-            sites=tuple(Site(str(s.GlobalId), str(s.Name or "")) for s in sites),
-            buildings=tuple(
-                Building(str(b.GlobalId), str(b.Name or ""), guid_of(_ancestor(b, up, "IfcSite")))
-                for b in buildings
-            ),
-            storeys=storey_records,
-            spaces=tuple(
-                Space(
-                    str(s.GlobalId),
-                    str(s.Name or ""),
-                    guid_of(_ancestor(s, up, "IfcBuildingStorey")),
-                    solid_geometry.get(s.id()),
-                )
-                for s in spaces
-            ),
-            elements=element_records,
-            adjacent=adjacent,
-            contained=contained,
-            decomposed=decomposed,
-            mesh_failures=failures,
-            kernel_fallbacks=kernel_fallbacks,
-        )
+    with start_reading(
+        path, static_types=static_types, kernels=kernels, threads=threads, progress=progress, routing=routing
+    ) as reading:
+        return reading.model()

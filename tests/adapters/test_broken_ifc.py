@@ -342,6 +342,7 @@ def test_a_broken_file_gives_a_clear_error_or_warnings_naming_the_element(
     assert_clear_outcome(outcome, ifc)
     assert outcome.code == (1 if kind == "error" else 0), outcome.stderr
     assert re.search(said, outcome.stderr), outcome.stderr
+    assert (tmp_path / "store").exists() == (kind != "error")  # a failed import leaves no store behind
 
 
 @pytest.mark.parametrize("what", ["a directory", "a path below a file", "a missing file"])

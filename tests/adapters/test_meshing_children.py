@@ -12,6 +12,7 @@ import pytest
 
 from adapters.ifc.geometry import MeshResult, _shards, start_meshing
 from adapters.ifc.kernel_choice import KernelChoice
+from adapters.ifc.read_model import start_reading
 from adapters.ifc.sample_lab import LabLayout
 
 
@@ -84,3 +85,20 @@ def test_a_busy_child_is_split_when_a_core_idles_and_the_meshes_are_those_of_one
     assert split.children > alone.children
     assert meshed == sorted(meshed) and meshed[-1] == len(products)
     _assert_same(alone, split)
+
+
+def test_each_geometry_is_handed_over_once_as_it_comes_and_is_the_models(lab: tuple[Path, LabLayout]) -> None:
+    """What ``geometries()`` yields while the children mesh is what ``model()`` holds at the end."""
+    with start_reading(lab[0]) as reading:
+        structure = reading.structure()
+        assert all(e.geometry is None for e in structure.elements)
+        streamed = {guid: (geometry, kernel) for guid, geometry, kernel in reading.geometries()}
+        model = reading.model()
+    with_geometry = [*(e for e in model.elements if e.geometry), *(s for s in model.spaces if s.geometry)]
+    assert set(streamed) == {r.guid for r in with_geometry}
+    for e in model.elements:
+        if e.geometry is not None:
+            assert streamed[e.guid] == (e.geometry, e.mesh_kernel)  # the same objects
+    for s in model.spaces:
+        if s.geometry is not None:
+            assert streamed[s.guid] == (s.geometry, "")

@@ -22,7 +22,7 @@ from tests.twin.box_lab import BASE, box_lab
 from twin import vocab
 from twin.errors import ModelError
 from twin.extents import _bounds, format_extent, storey_extents
-from twin.import_model import import_model
+from twin.import_model import ModelImport, import_model
 from twin.meshcodec import encode_mesh, encode_placement
 from twin.model_triples import mint_iris
 from twin.records import BuildingModel, Geometry, Mesh, Relation, Space, Storey
@@ -254,4 +254,88 @@ def test_a_geometry_that_cannot_be_written_leaves_an_empty_store_empty_and_repla
         before = _nquads(store._store)
         with pytest.raises(ModelError, match="placement"):
             import_model(store, bad, base_iri=BASE, site="lab", replace=True)
+        assert _nquads(store._store) == before
+
+
+@pytest.mark.parametrize("part_triangles", [400_000, 1], ids=["one-part", "a-part-per-mesh"])
+def test_geometry_written_as_it_comes_gives_the_reference_graph(
+    part_triangles: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The structure first, then each geometry on its own (in parts loaded in the background), then the
+    rest: the graph is the reference writer's, term for term."""
+    monkeypatch.setattr(twin.import_model, "_PART_TRIANGLES", part_triangles)
+    model = _awkward_lab()
+    structure = dataclasses.replace(
+        model,
+        elements=tuple(dataclasses.replace(e, geometry=None) for e in model.elements),
+        spaces=tuple(dataclasses.replace(s, geometry=None) for s in model.spaces),
+        mesh_failures=(),
+        kernel_fallbacks=(),
+    )
+    expected = ox.Store()
+    expected.extend(_reference_quads(model, base_iri=BASE, site="lab"))
+    with EmbeddedStore.open(None) as store:
+        with ModelImport(store, base_iri=BASE, site="lab") as job:
+            job.write_structure(structure)
+            for e in reversed(model.elements[::2]):  # some, in any order; the rest come with finish()
+                if e.geometry is not None:
+                    job.add_geometry(e.guid, e.geometry, e.mesh_kernel)
+            for s in model.spaces:
+                if s.geometry is not None:
+                    job.add_geometry(s.guid, s.geometry, "")
+            summary = job.finish(model)
+        assert summary.triples == len(expected)
+        assert _nquads(store._store) == _nquads(expected)
+
+
+def _import_in_steps(
+    store: EmbeddedStore,
+    model: BuildingModel,
+    streamed: list[tuple[str, Geometry]],
+    *,
+    replace: bool = False,
+    fail: str = "",
+) -> None:
+    """Structure, then ``streamed`` geometry, then finish (or raise RuntimeError(fail) before it)."""
+    with ModelImport(store, base_iri=BASE, site="lab", replace=replace) as job:
+        job.write_structure(model)
+        for guid, geometry in streamed:
+            job.add_geometry(guid, geometry, "manifold")
+        if fail:
+            raise RuntimeError(fail)
+        job.finish(model)
+
+
+def test_finishing_with_another_geometry_than_the_one_written_is_an_error_and_empties_the_store() -> None:
+    model = box_lab()
+    first = model.elements[0]
+    assert first.geometry is not None
+    other = Geometry(first.geometry.mesh, box_placement(1, 2, 0))
+    with EmbeddedStore.open(None) as store:
+        with pytest.raises(ModelError, match="not the one written before"):
+            _import_in_steps(store, model, [(first.guid, other)])
+        assert store.is_empty()
+
+
+def test_geometry_for_a_guid_outside_the_structure_is_an_error_naming_it() -> None:
+    model = box_lab()
+    first = model.elements[0]
+    assert first.geometry is not None
+    with EmbeddedStore.open(None) as store:
+        with pytest.raises(ModelError, match="'3nope"):
+            _import_in_steps(store, model, [("3nope", first.geometry)])
+        assert store.is_empty()
+
+
+def test_replacing_writes_nothing_before_finish_and_keeps_the_old_graph_on_an_error() -> None:
+    model = box_lab()
+    first = model.elements[0]
+    assert first.geometry is not None
+    with EmbeddedStore.open(None) as store:
+        import_model(store, model, base_iri=BASE, site="lab")
+        before = _nquads(store._store)
+        with pytest.raises(RuntimeError, match="meshing failed"):
+            _import_in_steps(
+                store, model, [(first.guid, first.geometry)], replace=True, fail="meshing failed"
+            )
         assert _nquads(store._store) == before
