@@ -21,8 +21,6 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import Final, Self
 
-import pyoxigraph as ox
-
 from twin import vocab
 from twin.errors import ModelError, StoreNotEmptyError
 from twin.model_triples import (
@@ -113,9 +111,9 @@ class ModelImport:
         self._iri_of: dict[str, str] = {}
         self._source = ""
         self._wrote = False
-        self._literals: dict[int, tuple[Mesh, ox.Literal]] = {}  # id(mesh) -> its literal, for every part
+        self._encoded: dict[int, tuple[Mesh, str]] = {}  # id(mesh) -> its literal's text, for every part
         self._written: dict[str, Geometry] = {}  # GlobalId -> the geometry written by add_geometry
-        self._part = ModelTriples(self._literals)
+        self._part = self._new_part()
         self._part_triangles = 0
 
     def write_structure(self, model: BuildingModel) -> None:
@@ -154,7 +152,11 @@ class ModelImport:
             self._loading.append(
                 self._pool.submit(_load, self._store, self._part, self._source, self._quads_lock)
             )
-        self._part, self._part_triangles = ModelTriples(self._literals), 0
+        self._part, self._part_triangles = self._new_part(), 0
+
+    def _new_part(self) -> ModelTriples:
+        """A part of the geometry written while meshing goes on: all text, loaded without the GIL."""
+        return ModelTriples(self._encoded, meshes_as_text=True)
 
     def finish(self, model: BuildingModel) -> ImportSummary:
         """Write the geometry of ``model`` (the model given to :meth:`write_structure`, with its meshes);

@@ -47,6 +47,7 @@ _FACING_MATERIAL: Final = f"<{vocab.TWIN_FACING_MATERIAL}>"
 _IS_STATIC: Final = f"<{vocab.TWIN_IS_STATIC}>"
 _MESH_KERNEL: Final = f"<{vocab.TWIN_MESH_KERNEL}>"
 _PLY: Final = ox.NamedNode(vocab.FOG_PLY_BINARY_LE)
+_PLY_TEXT: Final = f"<{vocab.FOG_PLY_BINARY_LE}>"
 _BASE64: Final = ox.NamedNode(vocab.XSD_BASE64)
 
 
@@ -72,13 +73,19 @@ def _boolean(value: bool) -> str:
 
 
 class ModelTriples:
-    """Triples being collected: N-Triples lines, plus the mesh quads built as objects."""
+    """Triples being collected: N-Triples lines, plus the mesh quads built as objects (instances share
+    one literal object) or, with ``meshes_as_text``, mesh literals as lines too (the store then parses
+    every triple without the GIL, at the cost of a copy of the text per instance)."""
 
-    def __init__(self, literals: dict[int, tuple[Mesh, ox.Literal]] | None = None) -> None:
+    def __init__(
+        self, encoded: dict[int, tuple[Mesh, str]] | None = None, *, meshes_as_text: bool = False
+    ) -> None:
         self.lines: list[str] = []
         self.meshes: list[tuple[str, ox.Literal]] = []  # (geometry node IRI, mesh literal)
-        # id(mesh) -> (mesh, its literal): instances share it; several parts of one import may share it
-        self._ply = literals if literals is not None else {}
+        # id(mesh) -> (mesh, its base64 PLY): encoded once, also across the parts of one import
+        self._encoded = encoded if encoded is not None else {}
+        self._literals: dict[int, ox.Literal] = {}
+        self._as_text = meshes_as_text
 
     def add(self, subject: str, predicate: str, obj: str) -> None:
         """Add one triple; each part is already in N-Triples syntax (``<iri>`` or a literal)."""
@@ -88,11 +95,16 @@ class ModelTriples:
         """The geometry node of ``node`` (an IRI): mesh, placement, closedness, solidity, triangle count."""
         g = vocab.geometry_iri(node)
         key = id(geometry.mesh)
-        known = self._ply.get(key)
+        known = self._encoded.get(key)
         if known is None:
-            known = self._ply[key] = (geometry.mesh, ox.Literal(encode_mesh(geometry.mesh), datatype=_BASE64))
-        ply = known[1]
-        self.meshes.append((g, ply))
+            known = self._encoded[key] = (geometry.mesh, encode_mesh(geometry.mesh))
+        if self._as_text:
+            self.add(_iri(g), _PLY_TEXT, f'"{known[1]}"^^<{vocab.XSD_BASE64}>')  # base64: nothing to escape
+        else:
+            ply = self._literals.get(key)
+            if ply is None:
+                ply = self._literals[key] = ox.Literal(known[1], datatype=_BASE64)
+            self.meshes.append((g, ply))
         g = _iri(g)
         self.add(_iri(node), _HAS_GEOMETRY, g)
         self.add(g, _TYPE, _GEOMETRY)

@@ -29,7 +29,6 @@ Example::
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import multiprocessing as mp
 import queue
@@ -41,7 +40,7 @@ from dataclasses import dataclass, field, replace
 from types import TracebackType
 from typing import Any, Self
 
-from adapters.ifc.kernel_child import STOP, STOPPED, Shape, run_kernel
+from adapters.ifc.kernel_child import STOPPED, Shape, run_kernel
 from adapters.ifc.kernel_choice import REFERENCE_KERNEL
 from twin.records import Geometry, Mesh
 
@@ -103,9 +102,10 @@ class _KernelRun:
         self.stopped = False  # the child stopped when asked
         self.stopping = False
         self.error: str | None = None
-        self._conn, child_end = ctx.Pipe(duplex=True)
+        self._conn, child_end = ctx.Pipe(duplex=False)
+        self._stop = ctx.RawValue("b", 0)
         self._child = ctx.Process(
-            target=run_kernel, args=(f, sorted(unit.ids), self.kernel, child_end), daemon=True
+            target=run_kernel, args=(f, sorted(unit.ids), self.kernel, child_end, self._stop), daemon=True
         )
         self._child.start()
         child_end.close()
@@ -148,10 +148,9 @@ class _KernelRun:
         return len(self.pending) * (now - self.started) / self.delivered
 
     def stop(self) -> None:
-        """Ask the child to stop after its current batch of shapes (what it meshed is sent first)."""
+        """Ask the child to stop after its current shape (what it meshed is sent first)."""
         self.stopping = True
-        with contextlib.suppress(OSError):  # it has just ended
-            self._conn.send(STOP)
+        self._stop.value = 1
 
     def kill(self) -> None:
         if self._child.is_alive():

@@ -5,14 +5,16 @@ The child makes the meshes itself (closedness, welding, orientation, whether the
 :mod:`adapters.ifc.body_kind`) and checks the placements, so the calling process only collects. A
 :data:`Shape` carries a mesh the first time, then ``None`` for the instances sharing it.
 
-The child answers a ``"stop"`` sent on the pipe between two batches of shapes: it has sent what it
-meshed, it sends :data:`STOPPED` and leaves; the parent gives what is left to other children
+The child looks at a stop flag it shares with the parent after each shape: once set, it sends what
+it has meshed and :data:`STOPPED`, and leaves; the parent gives what is left to other children
 (:mod:`adapters.ifc.geometry`). A kernel error is sent as a text; a kernel crash closes the pipe.
 
 Example::
 
-    receiver, sender = mp.get_context("fork").Pipe()
-    child = ctx.Process(target=run_kernel, args=(f, ids, "manifold", sender), daemon=True)
+    ctx = mp.get_context("fork")
+    receiver, sender = ctx.Pipe(duplex=False)
+    stop = ctx.RawValue("b", 0)
+    child = ctx.Process(target=run_kernel, args=(f, ids, "manifold", sender, stop), daemon=True)
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from __future__ import annotations
 import faulthandler
 import time
 from multiprocessing.connection import Connection
-from typing import Any
+from typing import Any, Protocol
 
 import ifcopenshell
 import ifcopenshell.geom
@@ -39,9 +41,8 @@ refused, why the body could not be inspected."""
 MAX_COORDINATE_M = 1e8
 """A body farther than this from the origin (or not finite) is refused: the bad placement or
 coordinates of a broken file, which would stretch a storey's map over the whole planet."""
-STOP = "stop"
 STOPPED = "stopped"
-_BATCH_SHAPES = 32  # small: what a crashing kernel had meshed is kept; a stop is heard between batches
+_BATCH_SHAPES = 32  # small: what a crashing kernel had meshed is kept
 _BATCH_SECONDS = 0.05
 
 NEAR_WELD_M = 1e-9
@@ -179,13 +180,15 @@ def _body_is_solid(kind: BodyKind, product: Any) -> tuple[bool, str | None]:
         return False, f"its body cannot be inspected ({type(err).__name__}: {err})"
 
 
-def _stop_asked(conn: Connection) -> bool:
-    return bool(conn.poll()) and conn.recv() == STOP
+class StopFlag(Protocol):
+    """A flag shared with the parent (``multiprocessing.RawValue("b")``): non-zero asks the child to stop."""
+
+    value: int
 
 
-def run_kernel(f: Any, ids: list[int], kernel: str, conn: Connection) -> None:
+def run_kernel(f: Any, ids: list[int], kernel: str, conn: Connection, stop: StopFlag) -> None:
     """Child process: mesh ``ids`` with ``kernel`` (one thread); send batches of shapes, then None, or
-    :data:`STOPPED` when the parent asked it to stop, or a text naming the error."""
+    :data:`STOPPED` when the parent set ``stop`` (read after each shape), or a text naming the error."""
     faulthandler.disable()  # a kernel crash is expected and handled by the parent: no dump on stderr
     try:
         products = {i: f.by_id(i) for i in ids}
@@ -213,12 +216,13 @@ def run_kernel(f: Any, ids: list[int], kernel: str, conn: Connection) -> None:
                 raw = (*_raw(geom), solid)
             matrix = np.asarray(ifcopenshell.util.shape.get_shape_matrix(shape), dtype=np.float64)
             batch.items.append((pid, geom_id, raw, matrix, solid, note))
+            if stop.value:
+                batch.send(conn)
+                conn.send(STOPPED)
+                return
             if len(batch.items) >= _BATCH_SHAPES or time.monotonic() - sent > _BATCH_SECONDS:
                 batch.send(conn)
                 sent = time.monotonic()
-                if _stop_asked(conn):
-                    conn.send(STOPPED)
-                    return
             more = bool(it.next())
         batch.send(conn)
         conn.send(None)
