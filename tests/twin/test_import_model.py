@@ -206,8 +206,7 @@ def test_world_bounds_use_only_the_vertices_some_face_uses() -> None:
         geometry = Geometry(Mesh(vertices, faces, closed=False), placement)
         world = vertices[np.unique(faces)] @ placement[:3, :3].T + placement[:3, 3]
         expected = np.concatenate([world.min(axis=0)[:2], world.max(axis=0)[:2]])
-        got = _bounds(geometry, {})
-        assert got is not None
+        got = _bounds(geometry)
         assert np.array_equal(got, expected)
 
 
