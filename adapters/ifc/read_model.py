@@ -25,6 +25,7 @@ import ifcopenshell.util.element
 import ifcopenshell.util.placement
 import ifcopenshell.util.unit
 
+from adapters.ifc.attributes import Representations
 from adapters.ifc.body_kind import BodyKind
 from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
@@ -252,9 +253,9 @@ def _entity_name(e: Any) -> str:
     return f"{e.is_a()} {e.GlobalId} {e.Name or ''}".strip()
 
 
-def _routed(elements: Sequence[Any]) -> list[Any]:
+def _routed(elements: Sequence[Any], router: KernelChoice) -> list[Any]:
     """The elements the reference kernel meshes first; one whose body cannot be inspected is not."""
-    routed, router = [], KernelChoice()  # one router: it remembers its answers per class and shared item
+    routed = []  # one router: it remembers its answers per class and shared item
     for e in elements:
         try:
             if router.reason(e) is not None:
@@ -264,9 +265,24 @@ def _routed(elements: Sequence[Any]) -> list[Any]:
     return routed
 
 
-def _solid_bodies(products: Iterable[Any], geometry: dict[int, Geometry]) -> dict[int, Geometry]:
+def _body_kinds(products: Iterable[Any], kind: BodyKind) -> dict[int, bool | Exception]:
+    """Whether each product's body is a solid (:mod:`adapters.ifc.body_kind`), or what deciding it raised;
+    read while the children mesh, and used by :func:`_solid_bodies` for the products that got a mesh."""
+    out: dict[int, bool | Exception] = {}
+    for p in products:
+        try:
+            out[p.id()] = kind.is_solid(p)
+        except Exception as err:  # raised, or warned about, if the product gets a mesh
+            out[p.id()] = err
+    return out
+
+
+def _solid_bodies(
+    products: Iterable[Any], geometry: dict[int, Geometry], kinds: dict[int, bool | Exception] | None
+) -> dict[int, Geometry]:
     """``geometry`` with the meshes of the products whose body is a solid (:mod:`adapters.ifc.body_kind`)
-    marked ``solid``; instances sharing a mesh keep sharing one."""
+    marked ``solid``; instances sharing a mesh keep sharing one. ``kinds`` (from :func:`_body_kinds`) holds
+    the answers when they were found beforehand; None decides here."""
     kind, out = BodyKind(), dict(geometry)
     marked: dict[int, Mesh] = {}
     for p in products:
@@ -274,7 +290,10 @@ def _solid_bodies(products: Iterable[Any], geometry: dict[int, Geometry]) -> dic
         if g is None:
             continue
         try:
-            solid = kind.is_solid(p)
+            found = kind.is_solid(p) if kinds is None else kinds[p.id()]
+            if isinstance(found, Exception):
+                raise found
+            solid = found
         except _ENTITY_ERRORS as err:
             log.warning("%s: its body cannot be inspected (%s: %s)", _entity_name(p), type(err).__name__, err)
             continue
@@ -331,7 +350,8 @@ def read_model(
                 "(no bot:adjacentElement); skills with unknown_outside cannot be mapped",
                 path,
             )
-        routed = _routed(elements) if routing else []
+        representations = Representations()  # read once for the routing and the body kinds
+        routed = _routed(elements, KernelChoice(representations)) if routing else []
         # Mesh in the background (forked children do the work) while this thread reads the structure.
         with start_meshing(
             f,
@@ -356,8 +376,12 @@ def read_model(
                 every, facing = _safe_material_sets(e)
                 infos.append((e, chain, _names(every), _names(facing), any(t in chain for t in statics)))
             relations = _relations(f, elements, spaces=spaces, zones=[*storeys, *buildings, *sites])
+            body_kind = BodyKind(representations)
+            kinds: dict[int, bool | Exception] | None = _body_kinds([*elements, *spaces], body_kind)
+            if body_kind.hit_depth_limit:  # answers would depend on the order: decide after meshing
+                kinds = None
             meshed = job.result()
-        solid_geometry = _solid_bodies([*elements, *spaces], meshed.geometry)
+        solid_geometry = _solid_bodies([*elements, *spaces], meshed.geometry, kinds)
         kernel_fallbacks = tuple(
             f.by_id(pid).GlobalId for pid in sorted(meshed.fallbacks) if f.by_id(pid).is_a("IfcElement")
         )
