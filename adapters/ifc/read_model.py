@@ -21,15 +21,15 @@ from typing import Any
 
 import ifcopenshell
 import ifcopenshell.guid
-import ifcopenshell.util.element
 import ifcopenshell.util.placement
 import ifcopenshell.util.unit
 
-from adapters.ifc.attributes import Representations
+from adapters.ifc.attributes import Attributes, Representations
 from adapters.ifc.body_kind import BodyKind
 from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
 from adapters.ifc.kernel_choice import KernelChoice
+from adapters.ifc.materials import Materials, Names
 from adapters.ifc.open_file import open_ifc_checked
 from twin.records import Building, BuildingModel, Element, Geometry, Mesh, Relation, Site, Space, Storey
 
@@ -37,52 +37,6 @@ log = logging.getLogger(__name__)
 
 BUILDING_WIDE_STOREY = "Whole building"
 """Name of the storey made for a building that has none (its key is ``whole-building``)."""
-
-
-def _material_sets(element: Any) -> tuple[list[Any], list[Any]]:
-    """(every IfcMaterial of ``element``, the ones a sensor faces), own or inherited from its type."""
-    mat = ifcopenshell.util.element.get_material(element, should_skip_usage=True)
-    if mat is None:
-        return [], []
-    if mat.is_a("IfcMaterial"):
-        return [mat], [mat]
-    if mat.is_a("IfcMaterialLayerSet"):
-        layers = [layer.Material for layer in mat.MaterialLayers or ()]
-        return layers, [layers[0], layers[-1]] if layers else []
-    if mat.is_a("IfcMaterialList"):
-        found = list(mat.Materials or ())
-    elif mat.is_a("IfcMaterialConstituentSet"):
-        found = [c.Material for c in mat.MaterialConstituents or ()]
-    elif mat.is_a("IfcMaterialProfileSet"):
-        found = [p.Material for p in mat.MaterialProfiles or ()]
-    elif hasattr(mat, "Material"):  # a single layer, profile or constituent assigned directly
-        found = [mat.Material]
-    else:
-        found = []
-    return found, found
-
-
-def _names(materials: list[Any]) -> tuple[str, ...]:
-    names: dict[str, None] = {}
-    for m in materials:
-        if m is not None and m.Name:
-            names[str(m.Name)] = None
-    return tuple(names)
-
-
-def material_names(element: Any) -> tuple[str, ...]:
-    """IfcMaterial names of ``element`` (own or inherited from its type), in order, without duplicates."""
-    return _names(_material_sets(element)[0])
-
-
-def facing_material_names(element: Any) -> tuple[str, ...]:
-    """The names of the materials a sensor sees on ``element``'s faces.
-
-    A single material; every constituent of a constituent set and every member of a material list (a
-    window of glass and frame shows both); only the first and the last layer of a layer set (its two
-    faces: the insulation inside a wall is not seen); every profile of a profile set.
-    """
-    return _names(_material_sets(element)[1])
 
 
 def _hierarchy(f: Any) -> dict[int, Any]:
@@ -305,9 +259,9 @@ def _solid_bodies(
     return out
 
 
-def _safe_material_sets(e: Any) -> tuple[list[Any], list[Any]]:
+def _safe_material_names(e: Any, materials: Materials) -> tuple[Names, Names]:
     try:
-        return _material_sets(e)
+        return materials.names(e)
     except _ENTITY_ERRORS as err:
         log.warning(
             "%s: its materials cannot be read (%s: %s); imported without",
@@ -315,7 +269,7 @@ def _safe_material_sets(e: Any) -> tuple[list[Any], list[Any]]:
             type(err).__name__,
             err,
         )
-        return [], []
+        return (), ()
 
 
 def read_model(
@@ -350,7 +304,8 @@ def read_model(
                 "(no bot:adjacentElement); skills with unknown_outside cannot be mapped",
                 path,
             )
-        representations = Representations()  # read once for the routing and the body kinds
+        attributes = Attributes()
+        representations = Representations(attributes)  # read once for the routing and the body kinds
         routed = _routed(elements, KernelChoice(representations)) if routing else []
         # Mesh in the background (forked children do the work) while this thread reads the structure.
         with start_meshing(
@@ -371,10 +326,11 @@ def read_model(
             schema = ifcopenshell.ifcopenshell_wrapper.schema_by_name(f.schema)
             type_cache: dict[str, tuple[str, ...]] = {}
             infos = []
+            materials = Materials(f, attributes)
             for e in elements:
                 chain = _supertypes(schema, e.is_a(), type_cache)
-                every, facing = _safe_material_sets(e)
-                infos.append((e, chain, _names(every), _names(facing), any(t in chain for t in statics)))
+                every, facing = _safe_material_names(e, materials)
+                infos.append((e, chain, every, facing, any(t in chain for t in statics)))
             relations = _relations(f, elements, spaces=spaces, zones=[*storeys, *buildings, *sites])
             body_kind = BodyKind(representations)
             kinds: dict[int, bool | Exception] | None = _body_kinds([*elements, *spaces], body_kind)
