@@ -130,9 +130,12 @@ def _supertypes(schema: Any, ifc_class: str, cache: dict[str, tuple[str, ...]]) 
     return chain
 
 
-def _pairs(rels: Iterable[tuple[Any, Any]], left: set[int], right: set[int]) -> frozenset[Relation]:
+def _pairs(
+    rels: Iterable[tuple[Any, Any]], left: set[int], right: set[int], guid_of: dict[int, Any]
+) -> frozenset[Relation]:
+    """The GlobalId pairs (``guid_of`` by id) of the ``rels`` from ``left`` to ``right`` (ids)."""
     return frozenset(
-        Relation(a.GlobalId, b.GlobalId)
+        Relation(guid_of[a.id()], guid_of[b.id()])
         for a, b in rels
         if a is not None and b is not None and a.id() in left and b.id() in right
     )
@@ -152,36 +155,60 @@ def _warn_unmeshed(f: Any, ids: list[int]) -> None:
 
 
 def _relations(
-    f: Any, elements: list[Any], *, spaces: list[Any], zones: list[Any]
+    f: Any,
+    elements: list[Any],
+    *,
+    spaces: list[Any],
+    zones: list[Any],
+    attributes: Attributes,
+    guid_of: dict[int, Any],
 ) -> tuple[frozenset[Relation], frozenset[Relation], frozenset[Relation]]:
-    """(adjacent, contained, decomposed) GlobalId pairs; see :class:`twin.records.BuildingModel`."""
+    """(adjacent, contained, decomposed) GlobalId pairs; see :class:`twin.records.BuildingModel`.
+    ``guid_of`` holds the GlobalId of every element, space and zone by id."""
+    get = attributes.get
     element_ids = {e.id() for e in elements}
     space_ids = {s.id() for s in spaces}
     structure_ids = space_ids | {z.id() for z in zones}
     adjacent = _pairs(
-        ((r.RelatingSpace, r.RelatedBuildingElement) for r in f.by_type("IfcRelSpaceBoundary")),
+        (
+            (get(r, "RelatingSpace"), get(r, "RelatedBuildingElement"))
+            for r in f.by_type("IfcRelSpaceBoundary")
+        ),
         space_ids,
         element_ids,
+        guid_of,
     )
     contained = _pairs(
         (
-            (r.RelatingStructure, e)
+            (get(r, "RelatingStructure"), e)
             for r in f.by_type("IfcRelContainedInSpatialStructure")
-            for e in r.RelatedElements or ()
+            for e in get(r, "RelatedElements") or ()
         ),
         structure_ids,
         element_ids,
+        guid_of,
     )
-    decomposed = _pairs(
-        [
-            *((r.RelatingObject, o) for r in f.by_type("IfcRelAggregates") for o in r.RelatedObjects or ()),
-            *((r.RelatingObject, o) for r in f.by_type("IfcRelNests") for o in r.RelatedObjects or ()),
-            *((r.RelatingBuildingElement, r.RelatedOpeningElement) for r in f.by_type("IfcRelVoidsElement")),
-            *((r.RelatingOpeningElement, r.RelatedBuildingElement) for r in f.by_type("IfcRelFillsElement")),
-        ],
-        element_ids,
-        element_ids,
-    )
+    parts = [
+        *(
+            (get(r, "RelatingObject"), o)
+            for r in f.by_type("IfcRelAggregates")
+            for o in get(r, "RelatedObjects") or ()
+        ),
+        *(
+            (get(r, "RelatingObject"), o)
+            for r in f.by_type("IfcRelNests")
+            for o in get(r, "RelatedObjects") or ()
+        ),
+        *(
+            (get(r, "RelatingBuildingElement"), get(r, "RelatedOpeningElement"))
+            for r in f.by_type("IfcRelVoidsElement")
+        ),
+        *(
+            (get(r, "RelatingOpeningElement"), get(r, "RelatedBuildingElement"))
+            for r in f.by_type("IfcRelFillsElement")
+        ),
+    ]
+    decomposed = _pairs(parts, element_ids, element_ids, guid_of)
     return adjacent, contained, decomposed
 
 
@@ -330,8 +357,13 @@ def read_model(
             for e in elements:
                 chain = _supertypes(schema, e.is_a(), type_cache)
                 every, facing = _safe_material_names(e, materials)
-                infos.append((e, chain, every, facing, any(t in chain for t in statics)))
-            relations = _relations(f, elements, spaces=spaces, zones=[*storeys, *buildings, *sites])
+                static = any(t in chain for t in statics)
+                infos.append((e, attributes.get(e, "Name"), chain, every, facing, static))
+            zones = [*storeys, *buildings, *sites]
+            guids = {e.id(): attributes.get(e, "GlobalId") for e in (*elements, *spaces, *zones)}
+            relations = _relations(
+                f, elements, spaces=spaces, zones=zones, attributes=attributes, guid_of=guids
+            )
             body_kind = BodyKind(representations)
             kinds: dict[int, bool | Exception] | None = _body_kinds([*elements, *spaces], body_kind)
             if body_kind.hit_depth_limit:  # answers would depend on the order: decide after meshing
@@ -345,9 +377,9 @@ def read_model(
         _warn_unmeshed(f, meshed.unmeshed)
         element_records = tuple(
             Element(
-                guid=str(e.GlobalId),
+                guid=str(guids[e.id()]),
                 ifc_class=chain[0],
-                name=str(e.Name or ""),
+                name=str(name or ""),
                 materials=materials,
                 is_static=is_static,
                 geometry=solid_geometry.get(e.id()),
@@ -355,7 +387,7 @@ def read_model(
                 mesh_kernel=meshed.kernel_of.get(e.id(), ""),
                 facing_materials=facing,
             )
-            for e, chain, materials, facing, is_static in infos
+            for e, name, chain, materials, facing, is_static in infos
         )
         storey_records = tuple(
             Storey(
