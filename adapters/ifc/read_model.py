@@ -15,7 +15,6 @@ import math
 import uuid
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -281,7 +280,7 @@ def _solid_bodies(
         if solid:
             mesh = marked.get(id(g.mesh))
             if mesh is None:
-                mesh = marked[id(g.mesh)] = replace(g.mesh, solid=True)
+                mesh = marked[id(g.mesh)] = g.mesh.marked_solid()
             out[p.id()] = Geometry(mesh, g.placement)
     return out
 
