@@ -146,13 +146,31 @@ def checked_iris(model: BuildingModel, base_iri: str) -> dict[str, str]:
     """GlobalId -> ``<IRI>`` (N-Triples) of every rooted node, each IRI (and its geometry node's) checked
     as pyoxigraph checks it, so the text written later always parses."""
     iri_of = mint_iris(model, base_iri)
-    for iri in (vocab.model_iri(base_iri), *iri_of.values()):
+    # A minted IRI is a prefix (base, class, "_") and a UUID of hex digits and dashes, characters that
+    # are valid wherever the prefix leaves off: one IRI per prefix decides for all that share it.
+    # Where one fails, every IRI is checked in order, to name the first that fails.
+    one_per_prefix = {iri[:-_UUID_CHARS]: iri for iri in reversed(iri_of.values())}
+    checks = [vocab.model_iri(base_iri), *one_per_prefix.values()]
+    if not all(_parses(vocab.geometry_iri(iri)) for iri in checks):
+        checks = [vocab.model_iri(base_iri), *iri_of.values()]
+    for iri in checks:
         try:
             ox.NamedNode(vocab.geometry_iri(iri))
         except ValueError as err:
             msg = f"{model.source_name}: the model cannot be written as RDF: {err} in IRI {iri!r}."
             raise ModelError(msg) from err
     return {guid: _iri(iri) for guid, iri in iri_of.items()}
+
+
+_UUID_CHARS: Final = 36  # vocab.expand_guid: 32 hex digits and 4 dashes
+
+
+def _parses(iri: str) -> bool:
+    try:
+        ox.NamedNode(iri)
+    except ValueError:
+        return False
+    return True
 
 
 def structure_triples(

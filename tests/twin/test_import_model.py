@@ -24,7 +24,7 @@ from twin.errors import ModelError
 from twin.extents import _bounds, format_extent, storey_extents
 from twin.import_model import import_model
 from twin.meshcodec import encode_mesh, encode_placement
-from twin.model_triples import mint_iris
+from twin.model_triples import checked_iris, mint_iris
 from twin.records import BuildingModel, Geometry, Mesh, Relation, Space, Storey
 from twin.shapes import box_mesh, box_placement
 from twin.store import EmbeddedStore, TextLoader
@@ -254,3 +254,21 @@ def test_a_geometry_that_cannot_be_written_leaves_an_empty_store_empty_and_repla
         with pytest.raises(ModelError, match="placement"):
             import_model(store, bad, base_iri=BASE, site="lab", replace=True)
         assert _nquads(store._store) == before
+
+
+def test_the_first_iri_that_cannot_be_written_is_named_whatever_class_comes_first() -> None:
+    lab = box_lab()
+    first, second, *rest = lab.elements
+    bad = dataclasses.replace(
+        lab,
+        elements=(
+            first,
+            dataclasses.replace(second, ifc_class="IfcWall <x>"),
+            *(dataclasses.replace(e, ifc_class="IfcDoor {y}") for e in rest[:1]),
+            *rest[1:],
+        ),
+    )
+    iri = f"{BASE}wall <x>_{vocab.expand_guid(second.guid)}"
+    with pytest.raises(ModelError, match=f"in IRI '{iri}'"):
+        checked_iris(bad, BASE)
+    assert checked_iris(lab, BASE) == {g: f"<{i}>" for g, i in mint_iris(lab, BASE).items()}
