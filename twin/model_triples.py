@@ -18,7 +18,7 @@ import pyoxigraph as ox
 from twin import vocab
 from twin.errors import ModelError
 from twin.extents import format_extent, storey_extents
-from twin.meshcodec import encode_mesh, encode_placement
+from twin.meshcodec import encode_mesh, encode_placements
 from twin.records import BuildingModel, Geometry
 
 log = logging.getLogger(__name__)
@@ -83,8 +83,9 @@ class ModelTriples:
         """Add one triple; each part is already in N-Triples syntax (``<iri>`` or a literal)."""
         self.lines.append(f"{subject} {predicate} {obj} .\n")
 
-    def geometry(self, node: str, geometry: Geometry) -> None:
-        """The geometry node of ``node`` (an IRI): mesh, placement, closedness, solidity, triangle count."""
+    def geometry(self, node: str, geometry: Geometry, placement: str) -> None:
+        """The geometry node of ``node`` (an IRI): mesh, placement (``placement``, its
+        :func:`~twin.meshcodec.encode_placement` text), closedness, solidity, triangle count."""
         g = vocab.geometry_iri(node)
         key = id(geometry.mesh)
         ply = self._ply.get(key)
@@ -94,7 +95,7 @@ class ModelTriples:
         g = _iri(g)
         self.add(_iri(node), _HAS_GEOMETRY, g)
         self.add(g, _TYPE, _GEOMETRY)
-        self.add(g, _PLACEMENT, _typed(encode_placement(geometry.placement), vocab.TWIN_MATRIX4))
+        self.add(g, _PLACEMENT, _typed(placement, vocab.TWIN_MATRIX4))
         self.add(g, _CLOSED, _boolean(geometry.mesh.closed))
         self.add(g, _TRIANGLES, _integer(geometry.mesh.triangle_count))
         if geometry.mesh.solid:
@@ -261,15 +262,18 @@ def geometry_triples(model: BuildingModel, iri_of: dict[str, str]) -> ModelTripl
     for st in model.storeys:
         if st.guid in extents:
             out.add(iri_of[st.guid], _iri(vocab.TWIN_EXTENT), _text(format_extent(extents[st.guid])))
+    placed = [sp.geometry for sp in model.spaces if sp.geometry is not None]
+    placed += [el.geometry for el in model.elements if el.geometry is not None]
+    placements = iter(encode_placements([g.placement for g in placed]))
     for sp in model.spaces:
         if sp.geometry is not None:
-            out.geometry(iri_of[sp.guid][1:-1], sp.geometry)
+            out.geometry(iri_of[sp.guid][1:-1], sp.geometry, next(placements))
     failed = set(model.mesh_failures)
     fallbacks = set(model.kernel_fallbacks)
     for el in model.elements:
         node = iri_of[el.guid]
         if el.geometry is not None:
-            out.geometry(node[1:-1], el.geometry)
+            out.geometry(node[1:-1], el.geometry, next(placements))
             if el.mesh_kernel:
                 out.add(node, _MESH_KERNEL, _text(el.mesh_kernel))
         if el.guid in failed:
