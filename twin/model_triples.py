@@ -221,23 +221,32 @@ def structure_triples(
         names(node, sp.guid, sp.name)
         if sp.storey_guid in iri_of:
             add(iri_of[sp.storey_guid], _iri(vocab.BOT_HAS_SPACE), node)
-    semantic_of: dict[str, str | None] = {}
+    # Elements of a class share their class triples, elements of a material (set) their material
+    # triples: each such run of ``predicate object .`` endings is written once and kept.
+    classes: dict[tuple[str, tuple[str, ...]], list[str]] = {}
+    materials: dict[tuple[tuple[str, ...], tuple[str, ...]], list[str]] = {}
+    lines = out.lines
     for el in model.elements:
         node = iri_of[el.guid]
-        add(node, _TYPE, _BOT_ELEMENT)
-        if el.ifc_class not in semantic_of:
+        key = (el.ifc_class, el.ifc_types)
+        class_ends = classes.get(key)
+        if class_ends is None:
             semantic = vocab.semantic_class(el.ifc_class)
-            semantic_of[el.ifc_class] = _iri(semantic) if semantic is not None else None
-        if (semantic_iri := semantic_of[el.ifc_class]) is not None:
-            add(node, _TYPE, semantic_iri)
-        add(node, _IFC_CLASS, _text(el.ifc_class))
-        for t in el.ifc_types or (el.ifc_class,):
-            add(node, _IFC_TYPE, _text(t))
+            class_ends = [f" {_TYPE} {_BOT_ELEMENT} .\n"]
+            if semantic is not None:
+                class_ends.append(f" {_TYPE} {_iri(semantic)} .\n")
+            class_ends.append(f" {_IFC_CLASS} {_text(el.ifc_class)} .\n")
+            class_ends += [f" {_IFC_TYPE} {_text(t)} .\n" for t in el.ifc_types or (el.ifc_class,)]
+            classes[key] = class_ends
+        lines += [node + end for end in class_ends]
         names(node, el.guid, el.name)
-        for mat in el.materials:
-            add(node, _MATERIAL, _text(mat))
-        for mat in el.facing_materials:
-            add(node, _FACING_MATERIAL, _text(mat))
+        key_m = (el.materials, el.facing_materials)
+        material_ends = materials.get(key_m)
+        if material_ends is None:
+            material_ends = [f" {_MATERIAL} {_text(m)} .\n" for m in el.materials]
+            material_ends += [f" {_FACING_MATERIAL} {_text(m)} .\n" for m in el.facing_materials]
+            materials[key_m] = material_ends
+        lines += [node + end for end in material_ends]
         add(node, _IS_STATIC, _boolean(el.is_static))
     for rel, pred in (
         (model.adjacent, vocab.BOT_ADJACENT_ELEMENT),
