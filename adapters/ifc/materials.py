@@ -12,7 +12,7 @@ cannot be read), that element is asked with ``get_material``, which also raises 
 Example::
 
     materials = Materials(f)
-    every, facing = materials.names(wall)    # ("Brick", "Fiberglass Batt", "Plaster"), ("Brick", "Plaster")
+    every, facing = materials.names_of(wall)  # ("Brick", "Fiberglass Batt", "Plaster"), ("Brick", "Plaster")
 """
 
 from __future__ import annotations
@@ -88,7 +88,8 @@ class Materials:
         self._attributes = attributes or Attributes()
         self._associated: dict[int, list[Any]] = {}  # object id -> RelatingMaterial of each association
         self._typed_by: dict[int, list[Any]] = {}  # object id -> RelatingType of each type relation
-        self._named: dict[int, tuple[Names, Names]] = {}  # material (set) id -> its names
+        self._sets: dict[int, tuple[list[Any], list[Any]]] = {}  # material (set) id -> its materials
+        self._named: dict[int, tuple[Names, Names]] = {}  # material (set) id -> their names
         self._is_type: dict[str, bool] = {}
         self._usage: dict[str, str | None] = {}
         try:
@@ -155,22 +156,36 @@ class Materials:
         attribute = self._usage[name]
         return mat if attribute is None else self._attributes.get(mat, attribute)
 
-    def names(self, element: Any) -> tuple[Names, Names]:
-        """(:func:`material_names`, :func:`facing_material_names`) of ``element``; raises what they raise."""
+    def sets(self, element: Any) -> tuple[int | None, list[Any], list[Any]]:
+        """(a key for :meth:`names`, then what :func:`material_sets` gives for ``element``); raises what
+        it raises. The key is the id of the material (set) when the one pass found it, else None."""
         mat = self._material(element) if self._whole_file else _ASK
         if mat is None:
-            return (), ()
+            return None, [], []
         if mat is not _ASK and type(mat) is ifcopenshell.entity_instance:
-            named = self._named.get(mat.id())
-            if named is not None:
-                return named
-            try:
-                every, facing = _decompose(mat)
-                named = (_names(every), _names(facing))
-            except Exception:  # asked again below, which raises it where it always did
-                named = None
-            if named is not None:
-                self._named[mat.id()] = named
-                return named
+            key = mat.id()
+            found = self._sets.get(key)
+            if found is None:
+                try:
+                    found = _decompose(mat)
+                except Exception:  # asked again below, which raises it where it always did
+                    found = None
+                else:
+                    self._sets[key] = found
+            if found is not None:
+                return key, found[0], found[1]
         every, facing = material_sets(element)
-        return _names(every), _names(facing)
+        return None, every, facing
+
+    def names(self, key: int | None, every: list[Any], facing: list[Any]) -> tuple[Names, Names]:
+        """The names of :meth:`sets`' materials, kept per material (set); raises what naming raises."""
+        named = self._named.get(key) if key is not None else None
+        if named is None:
+            named = (_names(every), _names(facing))
+            if key is not None:
+                self._named[key] = named
+        return named
+
+    def names_of(self, element: Any) -> tuple[Names, Names]:
+        """(:func:`material_names`, :func:`facing_material_names`) of ``element``."""
+        return self.names(*self.sets(element))

@@ -286,8 +286,10 @@ def _solid_bodies(
 
 
 def _safe_material_names(e: Any, materials: Materials) -> tuple[Names, Names]:
+    """The names of ``e``'s materials, none (with a warning) if they cannot be found; a material
+    whose name cannot be read makes the file unreadable, as it always did."""
     try:
-        return materials.names(e)
+        key, every, facing = materials.sets(e)
     except _ENTITY_ERRORS as err:
         log.warning(
             "%s: its materials cannot be read (%s: %s); imported without",
@@ -296,6 +298,7 @@ def _safe_material_names(e: Any, materials: Materials) -> tuple[Names, Names]:
             err,
         )
         return (), ()
+    return materials.names(key, every, facing)
 
 
 def read_model(

@@ -29,7 +29,7 @@ def _assert_same_as_get_material(f: Any) -> int:
     materials = Materials(f)
     elements = f.by_type("IfcElement")
     for e in elements:
-        fast = _outcome(lambda e=e: materials.names(e))
+        fast = _outcome(lambda e=e: materials.names_of(e))
         slow = _outcome(lambda e=e: (material_names(e), facing_material_names(e)))
         assert fast == slow, (e, fast, slow)
     return len(elements)
@@ -104,7 +104,9 @@ def _awkward(schema: str) -> Any:
 def test_materials_in_one_pass_equal_get_material_element_by_element(schema: str) -> None:
     f = _awkward(schema)
     assert _assert_same_as_get_material(f) >= 14
-    names = {e.Name: Materials(f).names(e) for e in f.by_type("IfcElement") if e.Name != "missing material"}
+    names = {
+        e.Name: Materials(f).names_of(e) for e in f.by_type("IfcElement") if e.Name != "missing material"
+    }
     assert names["typed b"] == (("Stone", "Render"), ("Stone", "Render"))
     assert names["own and typed"] == (("Timber",), ("Timber",))
     assert names["own only"] == (("Steel",), ("Steel",))
@@ -116,7 +118,7 @@ def test_an_association_without_a_material_raises_what_get_material_raises() -> 
     f = _awkward("IFC4")
     e = next(e for e in f.by_type("IfcElement") if e.Name == "missing material")
     with pytest.raises(AttributeError, match="NoneType"):
-        Materials(f).names(e)
+        Materials(f).names_of(e)
 
 
 @pytest.mark.slow
