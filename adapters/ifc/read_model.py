@@ -38,24 +38,27 @@ BUILDING_WIDE_STOREY = "Whole building"
 """Name of the storey made for a building that has none (its key is ``whole-building``)."""
 
 
-def _hierarchy(f: Any) -> dict[int, Any]:
+def _hierarchy(f: Any, attributes: Attributes) -> dict[int, Any]:
     """Map entity id -> the entity it belongs to: spatial container, aggregate, host, or opening filled."""
+    get = attributes.get
     up: dict[int, Any] = {}
     for rel in f.by_type("IfcRelContainedInSpatialStructure"):
-        for e in rel.RelatedElements or ():
-            up.setdefault(e.id(), rel.RelatingStructure)
+        for e in get(rel, "RelatedElements") or ():
+            up.setdefault(e.id(), get(rel, "RelatingStructure"))
     for rel in f.by_type("IfcRelAggregates"):
-        for e in rel.RelatedObjects or ():
-            up.setdefault(e.id(), rel.RelatingObject)
+        for e in get(rel, "RelatedObjects") or ():
+            up.setdefault(e.id(), get(rel, "RelatingObject"))
     for rel in f.by_type("IfcRelNests"):
-        for e in rel.RelatedObjects or ():
-            up.setdefault(e.id(), rel.RelatingObject)
+        for e in get(rel, "RelatedObjects") or ():
+            up.setdefault(e.id(), get(rel, "RelatingObject"))
     for rel in f.by_type("IfcRelVoidsElement"):
-        if rel.RelatedOpeningElement is not None:  # None: a reference the parser could not resolve
-            up.setdefault(rel.RelatedOpeningElement.id(), rel.RelatingBuildingElement)
+        opening = get(rel, "RelatedOpeningElement")
+        if opening is not None:  # None: a reference the parser could not resolve
+            up.setdefault(opening.id(), get(rel, "RelatingBuildingElement"))
     for rel in f.by_type("IfcRelFillsElement"):
-        if rel.RelatedBuildingElement is not None:
-            up.setdefault(rel.RelatedBuildingElement.id(), rel.RelatingOpeningElement)
+        filling = get(rel, "RelatedBuildingElement")
+        if filling is not None:
+            up.setdefault(filling.id(), get(rel, "RelatingOpeningElement"))
     return up
 
 
@@ -346,7 +349,7 @@ def read_model(
             routed=routed,
             skip=unplaceable,
         ) as job:
-            up = _hierarchy(f)
+            up = _hierarchy(f, attributes)
 
             def guid_of(node: Any | None) -> str | None:
                 return str(node.GlobalId) if node is not None else None
