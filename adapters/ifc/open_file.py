@@ -276,23 +276,22 @@ def check_cycles(f: Any, path: Path) -> None:
                 continue
             trail = [root.id()]
             on_trail = {root.id()}
-            stack = [(links(root), 0)]
+            stack = [iter(links(root))]
             while stack:
-                children, at = stack[-1]
-                if at == len(children):
+                child = next(stack[-1], None)
+                if child is None:
                     stack.pop()
                     node = trail.pop()
                     on_trail.discard(node)
                     done.add(node)
                     continue
-                stack[-1] = (children, at + 1)
-                cid = children[at].id()
+                cid = child.id()
                 if cid in on_trail:
                     _raise_cycle(f, path, [*trail[trail.index(cid) :], cid])
                 if cid not in done:
                     trail.append(cid)
                     on_trail.add(cid)
-                    stack.append((links(children[at]), 0))
+                    stack.append(iter(links(child)))
 
 
 def _raise_cycle(f: Any, path: Path, cycle: list[int]) -> None:

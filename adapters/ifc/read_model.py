@@ -38,19 +38,29 @@ BUILDING_WIDE_STOREY = "Whole building"
 """Name of the storey made for a building that has none (its key is ``whole-building``)."""
 
 
+def _each(rels: Iterable[Any], many: str, one: str, attributes: Attributes) -> Iterator[tuple[Any, Any]]:
+    """``(rel.<one>, x)`` for every ``x`` in ``rel.<many>`` of every relation; ``<one>`` is read once a
+    relation, after ``<many>`` and only when that holds something."""
+    get = attributes.get
+    for rel in rels:
+        related = get(rel, many) or ()
+        if related:
+            relating = get(rel, one)
+            for x in related:
+                yield relating, x
+
+
 def _hierarchy(f: Any, attributes: Attributes) -> dict[int, Any]:
     """Map entity id -> the entity it belongs to: spatial container, aggregate, host, or opening filled."""
     get = attributes.get
     up: dict[int, Any] = {}
-    for rel in f.by_type("IfcRelContainedInSpatialStructure"):
-        for e in get(rel, "RelatedElements") or ():
-            up.setdefault(e.id(), get(rel, "RelatingStructure"))
-    for rel in f.by_type("IfcRelAggregates"):
-        for e in get(rel, "RelatedObjects") or ():
-            up.setdefault(e.id(), get(rel, "RelatingObject"))
-    for rel in f.by_type("IfcRelNests"):
-        for e in get(rel, "RelatedObjects") or ():
-            up.setdefault(e.id(), get(rel, "RelatingObject"))
+    for kind, many, one in (
+        ("IfcRelContainedInSpatialStructure", "RelatedElements", "RelatingStructure"),
+        ("IfcRelAggregates", "RelatedObjects", "RelatingObject"),
+        ("IfcRelNests", "RelatedObjects", "RelatingObject"),
+    ):
+        for parent, e in _each(f.by_type(kind), many, one, attributes):
+            up.setdefault(e.id(), parent)
     for rel in f.by_type("IfcRelVoidsElement"):
         opening = get(rel, "RelatedOpeningElement")
         if opening is not None:  # None: a reference the parser could not resolve
@@ -181,26 +191,16 @@ def _relations(
         guid_of,
     )
     contained = _pairs(
-        (
-            (get(r, "RelatingStructure"), e)
-            for r in f.by_type("IfcRelContainedInSpatialStructure")
-            for e in get(r, "RelatedElements") or ()
+        _each(
+            f.by_type("IfcRelContainedInSpatialStructure"), "RelatedElements", "RelatingStructure", attributes
         ),
         structure_ids,
         element_ids,
         guid_of,
     )
     parts = [
-        *(
-            (get(r, "RelatingObject"), o)
-            for r in f.by_type("IfcRelAggregates")
-            for o in get(r, "RelatedObjects") or ()
-        ),
-        *(
-            (get(r, "RelatingObject"), o)
-            for r in f.by_type("IfcRelNests")
-            for o in get(r, "RelatedObjects") or ()
-        ),
+        *_each(f.by_type("IfcRelAggregates"), "RelatedObjects", "RelatingObject", attributes),
+        *_each(f.by_type("IfcRelNests"), "RelatedObjects", "RelatingObject", attributes),
         *(
             (get(r, "RelatingBuildingElement"), get(r, "RelatedOpeningElement"))
             for r in f.by_type("IfcRelVoidsElement")
