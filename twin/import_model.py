@@ -21,6 +21,7 @@ from typing import Final
 
 from twin import vocab
 from twin.errors import StoreNotEmptyError
+from twin.gc_pause import paused_gc
 from twin.model_triples import ModelTriples, checked_iris, geometry_triples, structure_triples
 from twin.records import BuildingModel
 from twin.store import GraphStore, TextLoader
@@ -68,6 +69,7 @@ def ensure_importable(store: GraphStore, *, replace: bool) -> None:
         raise StoreNotEmptyError(msg)
 
 
+@paused_gc()  # few cycles are made: see twin.gc_pause
 def import_model(
     store: GraphStore, model: BuildingModel, *, base_iri: str, site: str, replace: bool = False
 ) -> ImportSummary:

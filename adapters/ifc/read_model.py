@@ -30,6 +30,7 @@ from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
 from adapters.ifc.kernel_choice import KernelChoice
 from adapters.ifc.materials import Materials, Names
 from adapters.ifc.open_file import open_ifc_checked
+from twin.gc_pause import paused_gc
 from twin.records import Building, BuildingModel, Element, Geometry, Mesh, Relation, Site, Space, Storey
 
 log = logging.getLogger(__name__)
@@ -304,6 +305,7 @@ def _safe_material_names(e: Any, materials: Materials) -> tuple[Names, Names]:
     return materials.names(key, every, facing)
 
 
+@paused_gc()  # the import makes few cycles; collecting costs ~0.2 s on 12,000 elements
 def read_model(
     path: Path,
     *,
