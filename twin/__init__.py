@@ -3,6 +3,7 @@
 The core is a one-way stack of small modules::
 
     errors, records, meshops, vocab, grid,     shared records and vocabulary (numpy only)
+    gc_pause,
     ifc_classes, tolerances, lab_plan
       <- meshcodec, shapes, extents, rdf,      the graph store and what is read from it
          store, skill_selection, skills, config, lab_layout

@@ -13,8 +13,11 @@ Example::
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 from twin.records import BuildingModel, FloatArray, Geometry, Mesh
+
+IntArray64 = npt.NDArray[np.int64]
 
 Extent = tuple[float, float, float, float]
 
@@ -26,31 +29,105 @@ def _used_vertices(mesh: Mesh) -> FloatArray:
     return mesh.vertices if used.all() else mesh.vertices[used]
 
 
-def _bounds(geometry: Geometry | None, used_of: dict[int, FloatArray]) -> np.ndarray | None:
-    """``(4,)``: xmin, ymin, xmax, ymax of the world vertices; ``used_of`` caches used vertices per mesh."""
-    if geometry is None or not geometry.mesh.triangle_count:
-        return None
-    used = used_of.get(id(geometry.mesh))
-    if used is None:
-        used = used_of[id(geometry.mesh)] = _used_vertices(geometry.mesh)
-    world = used @ geometry.placement[:3, :3].T + geometry.placement[:3, 3]
+def _bounds(geometry: Geometry) -> FloatArray:
+    """``(4,)``: xmin, ymin, xmax, ymax of the world coordinates of the vertices some face uses."""
+    world = _used_vertices(geometry.mesh) @ geometry.placement[:3, :3].T + geometry.placement[:3, 3]
     xy = np.ascontiguousarray(world[:, :2].T)  # (2, k): reducing along rows is ~4x faster than (k, 2)
     return np.concatenate([xy.min(axis=1), xy.max(axis=1)])
 
 
-def _union(boxes: list[np.ndarray]) -> Extent | None:
-    if not boxes:
+def _ranges(starts: IntArray64, lengths: IntArray64) -> IntArray64:
+    """The indices ``starts[0] .. starts[0]+lengths[0]-1, starts[1] ..``, concatenated (lengths > 0)."""
+    ends = np.cumsum(lengths)
+    return np.repeat(starts - (ends - lengths), lengths) + np.arange(int(ends[-1]))
+
+
+def _used_of(meshes: list[Mesh]) -> tuple[FloatArray, IntArray64, IntArray64]:
+    """The used vertices of every mesh (:func:`_used_vertices`) one after the other, with where each
+    mesh's run starts and how long it is."""
+    counts = np.array([len(m.vertices) for m in meshes], dtype=np.int64)
+    offsets = np.cumsum(counts) - counts
+    faces = np.concatenate([m.faces.ravel() for m in meshes]).astype(np.int64)
+    faces += np.repeat(offsets, [m.faces.size for m in meshes])
+    used = np.zeros(int(counts.sum()), dtype=bool)
+    used[faces] = True
+    lengths = np.add.reduceat(used, offsets).astype(np.int64)  # each mesh has a triangle: no run is empty
+    return np.concatenate([m.vertices for m in meshes])[used], np.cumsum(lengths) - lengths, lengths
+
+
+def _instance_bounds(geometries: list[Geometry]) -> FloatArray:
+    """``(n, 4) float64``: :func:`_bounds` of every geometry (each mesh has a triangle), bit for bit,
+    computed for all at once.
+
+    Each distinct (rotation, mesh) pair is rotated once, the pairs of one rotation in one matrix
+    product (a row of the product does not depend on the other rows); the translation is added after
+    the reduction, which is exact: rounding is monotonic, so ``min(fl(a + t)) == fl(min(a) + t)``.
+    Where that does not fix the bits (a bound of exactly zero, whose sign depends on the order of the
+    reduction), the box is computed instance by instance as :func:`_bounds` does.
+    """
+    n = len(geometries)
+    if n == 0:
+        return np.empty((0, 4))
+    index: dict[int, int] = {}
+    meshes: list[Mesh] = []
+    mesh_of = np.empty(n, dtype=np.int64)
+    for i, g in enumerate(geometries):
+        k = index.get(id(g.mesh))
+        if k is None:
+            k = index[id(g.mesh)] = len(meshes)
+            meshes.append(g.mesh)
+        mesh_of[i] = k
+    used, used_start, used_len = _used_of(meshes)
+    placements = np.stack([g.placement for g in geometries]).astype(np.float64, copy=False)
+    keys = np.ascontiguousarray(placements[:, :3, :3]).reshape(n, 9).view(np.dtype((np.void, 72))).ravel()
+    _, first, rotation_of = np.unique(keys, return_index=True, return_inverse=True)  # bytewise: -0.0 != 0.0
+    pairs, pair_of = np.unique(rotation_of.ravel() * len(meshes) + mesh_of, return_inverse=True)
+    pair_rotation, pair_mesh = np.divmod(pairs, len(meshes))  # sorted by rotation
+    lengths = used_len[pair_mesh]
+    rows = used[_ranges(used_start[pair_mesh], lengths)]
+    row_start = np.cumsum(lengths) - lengths
+    rotated = np.empty((len(rows), 2))
+    groups = np.flatnonzero(np.diff(pair_rotation, prepend=-1, append=-1))
+    for lo, hi in zip(groups[:-1].tolist(), groups[1:].tolist(), strict=True):
+        a = int(row_start[lo])
+        b = int(row_start[hi]) if hi < len(pairs) else len(rows)
+        rotation = geometries[first[pair_rotation[lo]]].placement[:3, :3].T
+        rotated[a:b] = (rows[a:b] @ rotation)[:, :2]
+    x, y = np.ascontiguousarray(rotated[:, 0]), np.ascontiguousarray(rotated[:, 1])
+    boxes = np.stack(
+        [
+            np.minimum.reduceat(x, row_start),
+            np.minimum.reduceat(y, row_start),
+            np.maximum.reduceat(x, row_start),
+            np.maximum.reduceat(y, row_start),
+        ],
+        axis=1,
+    )
+    out: FloatArray = boxes[pair_of.ravel()] + placements[:, [0, 1, 0, 1], 3]
+    for i in np.flatnonzero(~np.isfinite(out).all(axis=1) | (out == 0).any(axis=1)).tolist():
+        out[i] = _bounds(geometries[i])
+    return out
+
+
+def _union(boxes: FloatArray) -> Extent | None:
+    """The box around ``(k, 4)`` boxes, or None when there are none."""
+    if not len(boxes):
         return None
-    b = np.stack(boxes)
-    return (float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 2].max()), float(b[:, 3].max()))
+    return (
+        float(boxes[:, 0].min()),
+        float(boxes[:, 1].min()),
+        float(boxes[:, 2].max()),
+        float(boxes[:, 3].max()),
+    )
 
 
 def storey_extents(model: BuildingModel) -> dict[str, Extent]:
     """``{storey GlobalId: (xmin, ymin, xmax, ymax)}`` in world metres, for every storey of ``model``."""
-    used_of: dict[int, FloatArray] = {}  # instances share a mesh: find its used vertices once
-    bounds = {e.guid: b for e in model.elements if (b := _bounds(e.geometry, used_of)) is not None}
-    bounds.update({s.guid: b for s in model.spaces if (b := _bounds(s.geometry, used_of)) is not None})
-    everything = _union([bounds[e.guid] for e in model.elements if e.guid in bounds])
+    nodes = [(e.guid, e.geometry) for e in model.elements] + [(s.guid, s.geometry) for s in model.spaces]
+    placed = [(guid, g) for guid, g in nodes if g is not None and g.mesh.triangle_count]
+    boxes = _instance_bounds([g for _, g in placed])
+    row_of = {guid: i for i, (guid, _) in enumerate(placed)}  # a space's box wins over an element's
+    everything = _union(boxes[[row_of[e.guid] for e in model.elements if e.guid in row_of]])
     parts: dict[str, list[str]] = {}
     for r in model.decomposed:
         parts.setdefault(r.subject, []).append(r.object)
@@ -67,7 +144,7 @@ def storey_extents(model: BuildingModel) -> dict[str, Extent]:
             if guid not in seen:
                 seen.add(guid)
                 todo.extend(parts.get(guid, []))
-        extent = _union([bounds[g] for g in sorted(seen) if g in bounds]) or everything
+        extent = _union(boxes[[row_of[g] for g in sorted(seen) if g in row_of]]) or everything
         if extent is not None:
             out[storey.guid] = extent
     return out

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import base64
 import binascii
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -97,6 +98,21 @@ def encode_placement(matrix: FloatArray) -> str:
     """A 4x4 matrix as 16 space-separated numbers, row-major, shortest exact repr."""
     m = check_placement(matrix)
     return " ".join(map(repr, m.ravel().tolist()))  # tolist: Python floats, as repr(float(x))
+
+
+def encode_placements(matrices: Sequence[FloatArray]) -> list[str]:
+    """:func:`encode_placement` of each matrix, checked and formatted all at once: the same texts, and
+    the same error for the first matrix that is not a placement."""
+    try:
+        m = np.stack([np.asarray(x, dtype=np.float64) for x in matrices]) if matrices else np.empty((0, 4, 4))
+    except ValueError:  # matrices of different shapes: one by one names the first bad one
+        return [encode_placement(x) for x in matrices]
+    if m.shape[1:] != (4, 4):
+        return [encode_placement(x) for x in matrices]
+    last = np.abs(m[:, 3, 0]) + np.abs(m[:, 3, 1]) + np.abs(m[:, 3, 2]) + np.abs(m[:, 3, 3] - 1.0)
+    if not (np.isfinite(m).all(axis=(1, 2)) & ~(last > 1e-9)).all():
+        return [encode_placement(x) for x in matrices]
+    return [" ".join(map(repr, row)) for row in m.reshape(len(m), 16).tolist()]
 
 
 def decode_placement(text: str) -> FloatArray:

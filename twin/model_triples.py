@@ -10,7 +10,7 @@ Example::
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Final
 
 import pyoxigraph as ox
@@ -18,7 +18,7 @@ import pyoxigraph as ox
 from twin import vocab
 from twin.errors import ModelError
 from twin.extents import format_extent, storey_extents
-from twin.meshcodec import encode_mesh, encode_placement
+from twin.meshcodec import encode_mesh, encode_placements
 from twin.records import BuildingModel, Geometry, Mesh
 
 log = logging.getLogger(__name__)
@@ -91,8 +91,9 @@ class ModelTriples:
         """Add one triple; each part is already in N-Triples syntax (``<iri>`` or a literal)."""
         self.lines.append(f"{subject} {predicate} {obj} .\n")
 
-    def geometry(self, node: str, geometry: Geometry) -> None:
-        """The geometry node of ``node`` (an IRI): mesh, placement, closedness, solidity, triangle count."""
+    def geometry(self, node: str, geometry: Geometry, placement: str) -> None:
+        """The geometry node of ``node`` (an IRI): mesh, placement (``placement``, its
+        :func:`~twin.meshcodec.encode_placement` text), closedness, solidity, triangle count."""
         g = vocab.geometry_iri(node)
         key = id(geometry.mesh)
         known = self._encoded.get(key)
@@ -108,7 +109,7 @@ class ModelTriples:
         g = _iri(g)
         self.add(_iri(node), _HAS_GEOMETRY, g)
         self.add(g, _TYPE, _GEOMETRY)
-        self.add(g, _PLACEMENT, _typed(encode_placement(geometry.placement), vocab.TWIN_MATRIX4))
+        self.add(g, _PLACEMENT, _typed(placement, vocab.TWIN_MATRIX4))
         self.add(g, _CLOSED, _boolean(geometry.mesh.closed))
         self.add(g, _TRIANGLES, _integer(geometry.mesh.triangle_count))
         if geometry.mesh.solid:
@@ -160,13 +161,31 @@ def checked_iris(model: BuildingModel, base_iri: str) -> dict[str, str]:
     """GlobalId -> ``<IRI>`` (N-Triples) of every rooted node, each IRI (and its geometry node's) checked
     as pyoxigraph checks it, so the text written later always parses."""
     iri_of = mint_iris(model, base_iri)
-    for iri in (vocab.model_iri(base_iri), *iri_of.values()):
+    # A minted IRI is a prefix (base, class, "_") and a UUID of hex digits and dashes, characters that
+    # are valid wherever the prefix leaves off: one IRI per prefix decides for all that share it.
+    # Where one fails, every IRI is checked in order, to name the first that fails.
+    one_per_prefix = {iri[:-_UUID_CHARS]: iri for iri in reversed(iri_of.values())}
+    checks = [vocab.model_iri(base_iri), *one_per_prefix.values()]
+    if not all(_parses(vocab.geometry_iri(iri)) for iri in checks):
+        checks = [vocab.model_iri(base_iri), *iri_of.values()]
+    for iri in checks:
         try:
             ox.NamedNode(vocab.geometry_iri(iri))
         except ValueError as err:
             msg = f"{model.source_name}: the model cannot be written as RDF: {err} in IRI {iri!r}."
             raise ModelError(msg) from err
     return {guid: _iri(iri) for guid, iri in iri_of.items()}
+
+
+_UUID_CHARS: Final = 36  # vocab.expand_guid: 32 hex digits and 4 dashes
+
+
+def _parses(iri: str) -> bool:
+    try:
+        ox.NamedNode(iri)
+    except ValueError:
+        return False
+    return True
 
 
 def structure_triples(
@@ -216,23 +235,32 @@ def structure_triples(
         names(node, sp.guid, sp.name)
         if sp.storey_guid in iri_of:
             add(iri_of[sp.storey_guid], _iri(vocab.BOT_HAS_SPACE), node)
-    semantic_of: dict[str, str | None] = {}
+    # Elements of a class share their class triples, elements of a material (set) their material
+    # triples: each such run of ``predicate object .`` endings is written once and kept.
+    classes: dict[tuple[str, tuple[str, ...]], list[str]] = {}
+    materials: dict[tuple[tuple[str, ...], tuple[str, ...]], list[str]] = {}
+    lines = out.lines
     for el in model.elements:
         node = iri_of[el.guid]
-        add(node, _TYPE, _BOT_ELEMENT)
-        if el.ifc_class not in semantic_of:
+        key = (el.ifc_class, el.ifc_types)
+        class_ends = classes.get(key)
+        if class_ends is None:
             semantic = vocab.semantic_class(el.ifc_class)
-            semantic_of[el.ifc_class] = _iri(semantic) if semantic is not None else None
-        if (semantic_iri := semantic_of[el.ifc_class]) is not None:
-            add(node, _TYPE, semantic_iri)
-        add(node, _IFC_CLASS, _text(el.ifc_class))
-        for t in el.ifc_types or (el.ifc_class,):
-            add(node, _IFC_TYPE, _text(t))
+            class_ends = [f" {_TYPE} {_BOT_ELEMENT} .\n"]
+            if semantic is not None:
+                class_ends.append(f" {_TYPE} {_iri(semantic)} .\n")
+            class_ends.append(f" {_IFC_CLASS} {_text(el.ifc_class)} .\n")
+            class_ends += [f" {_IFC_TYPE} {_text(t)} .\n" for t in el.ifc_types or (el.ifc_class,)]
+            classes[key] = class_ends
+        lines += [node + end for end in class_ends]
         names(node, el.guid, el.name)
-        for mat in el.materials:
-            add(node, _MATERIAL, _text(mat))
-        for mat in el.facing_materials:
-            add(node, _FACING_MATERIAL, _text(mat))
+        key_m = (el.materials, el.facing_materials)
+        material_ends = materials.get(key_m)
+        if material_ends is None:
+            material_ends = [f" {_MATERIAL} {_text(m)} .\n" for m in el.materials]
+            material_ends += [f" {_FACING_MATERIAL} {_text(m)} .\n" for m in el.facing_materials]
+            materials[key_m] = material_ends
+        lines += [node + end for end in material_ends]
         add(node, _IS_STATIC, _boolean(el.is_static))
     for rel, pred in (
         (model.adjacent, vocab.BOT_ADJACENT_ELEMENT),
@@ -250,11 +278,14 @@ def structure_triples(
     return out
 
 
-def element_geometry_triples(out: ModelTriples, node: str, geometry: Geometry, kernel: str) -> None:
-    """The geometry node of the element ``node`` (``<IRI>``) and the kernel that meshed it ("" for none)."""
-    out.geometry(node[1:-1], geometry)
-    if kernel:
-        out.add(node, _MESH_KERNEL, _text(kernel))
+def geometry_nodes(out: ModelTriples, items: Sequence[tuple[str, Geometry, str]]) -> None:
+    """The geometry nodes of elements or spaces: ``items`` are ``(<IRI>, geometry, kernel)`` (kernel ""
+    for none, as for spaces); the placements are formatted all at once."""
+    placements = encode_placements([g.placement for _, g, _ in items])
+    for (node, geometry, kernel), placement in zip(items, placements, strict=True):
+        out.geometry(node[1:-1], geometry, placement)
+        if kernel:
+            out.add(node, _MESH_KERNEL, _text(kernel))
 
 
 def geometry_triples(
@@ -263,7 +294,7 @@ def geometry_triples(
     """The triples that need the meshes: storey extents, geometry nodes, kernels, failures, fallbacks.
 
     The geometry nodes of the GlobalIds in ``written`` (already written with that geometry, by
-    :func:`element_geometry_triples`) are left out; ModelError if the model's geometry is another.
+    :func:`geometry_nodes`) are left out; ModelError if the model's geometry is another.
     """
     written = written or {}
     out = ModelTriples()
@@ -273,22 +304,26 @@ def geometry_triples(
             out.add(iri_of[st.guid], _iri(vocab.TWIN_EXTENT), _text(format_extent(extents[st.guid])))
 
     def unwritten(guid: str, geometry: Geometry | None) -> bool:
+        if geometry is None:
+            return False
         if guid not in written:
-            return geometry is not None
+            return True
         if written[guid] is not geometry:
             msg = f"{model.source_name}: the geometry of {guid} is not the one written before."
             raise ModelError(msg)
         return False
 
-    for sp in model.spaces:
-        if sp.geometry is not None and unwritten(sp.guid, sp.geometry):
-            element_geometry_triples(out, iri_of[sp.guid], sp.geometry, "")
+    items = [(iri_of[sp.guid], sp.geometry, "") for sp in model.spaces if unwritten(sp.guid, sp.geometry)]
+    items += [
+        (iri_of[el.guid], el.geometry, el.mesh_kernel)
+        for el in model.elements
+        if unwritten(el.guid, el.geometry)
+    ]
+    geometry_nodes(out, [(node, g, kernel) for node, g, kernel in items if g is not None])
     failed = set(model.mesh_failures)
     fallbacks = set(model.kernel_fallbacks)
     for el in model.elements:
         node = iri_of[el.guid]
-        if el.geometry is not None and unwritten(el.guid, el.geometry):
-            element_geometry_triples(out, node, el.geometry, el.mesh_kernel)
         if el.guid in failed:
             out.add(node, _iri(vocab.TWIN_MESH_FAILED), _TRUE)
         if el.guid in fallbacks:

@@ -12,6 +12,8 @@ Example::
 
 from __future__ import annotations
 
+import binascii
+import re
 from typing import Final
 
 from twin.errors import ModelError
@@ -188,6 +190,10 @@ def semantic_class(ifc_class: str) -> str | None:
 # --- GlobalId -----------------------------------------------------------------------------------
 _GUID_CHARS: Final = "0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_$"
 _GUID_INDEX: Final = {c: i for i, c in enumerate(_GUID_CHARS)}
+_TO_BASE64: Final = bytes.maketrans(
+    _GUID_CHARS.encode(), b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/"
+)  # the same 6-bit digits in the standard base-64 alphabet
+_GUID: Final = re.compile(r"[0-3][0-9A-Za-z_$]{21}")  # _GUID_CHARS after a first character of 0-3
 
 
 def expand_guid(guid: str) -> str:
@@ -196,6 +202,10 @@ def expand_guid(guid: str) -> str:
     >>> expand_guid("0" * 22)
     '00000000-0000-0000-0000-000000000000'
     """
+    if type(guid) is str and _GUID.fullmatch(guid) is not None:
+        # "AA" + 22 digits = 24 digits = 18 bytes: 16 zero bits, then the 128 bits of the GlobalId
+        h = binascii.a2b_base64(b"AA" + guid.encode().translate(_TO_BASE64))[2:].hex()
+        return f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:]}"
     if len(guid) != 22 or guid[0] not in "0123" or any(c not in _GUID_INDEX for c in guid):
         msg = f"Not an IFC GlobalId (22 characters of the IFC base-64 alphabet): {guid!r}."
         raise ModelError(msg)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from adapters.ifc.geometry import DEFAULT_KERNELS
 from adapters.ifc.read_model import start_reading
+from twin.gc_pause import paused_gc
 from twin.import_model import ImportSummary, ModelImport
 from twin.store import GraphStore
 
@@ -34,6 +35,7 @@ def import_ifc(
     """Import ``path`` into ``store``; a non-empty store is an error unless ``replace`` is set (checked
     before the file is opened). ``threads`` is the number of cores the meshing uses."""
     with (
+        paused_gc(),  # the import makes few cycles; collecting costs ~0.2 s on 12,000 elements
         ModelImport(store, base_iri=base_iri, site=site, replace=replace) as job,
         start_reading(
             path, static_types=static_types, kernels=kernels, threads=threads, progress=progress

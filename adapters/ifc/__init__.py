@@ -9,6 +9,7 @@ Example::
 from __future__ import annotations
 
 from adapters.ifc.errors import IfcFileError
-from adapters.ifc.read_model import material_names, read_model
+from adapters.ifc.materials import material_names
+from adapters.ifc.read_model import read_model
 
 __all__ = ["IfcFileError", "material_names", "read_model"]

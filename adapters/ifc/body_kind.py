@@ -21,6 +21,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from adapters.ifc.attributes import Attributes, Representations
+
 _SOLID_ITEMS = (
     "IfcSolidModel",  # swept area / disk solids, B-reps (faceted, advanced), CSG solids
     "IfcBooleanResult",  # and IfcBooleanClippingResult
@@ -33,21 +35,48 @@ _MAX_DEPTH = 8
 class BodyKind:
     """Decides solid or surface per product, remembering the answer per shared (mapped) representation."""
 
-    def __init__(self) -> None:
+    def __init__(
+        self, representations: Representations | None = None, attributes: Attributes | None = None
+    ) -> None:
         self._mapped: dict[int, bool] = {}
+        self.hit_depth_limit = False
+        """True once a chain of mapped items too deep to follow was met: the answer kept for a shared
+        representation then depends on which product reached it first."""
+        self._kinds: dict[str, str] = {}  # item class -> "mapped", "tessellated", "solid" or ""
+        self._shape: dict[str, bool] = {}  # representation class -> is an IfcShapeRepresentation
+        self._attributes = attributes or Attributes()
+        self._representations = representations or Representations(self._attributes)
+
+    def _kind(self, item: Any) -> str:
+        name = item.is_a()
+        kind = self._kinds.get(name)
+        if kind is None:
+            if item.is_a("IfcMappedItem"):
+                kind = "mapped"
+            elif item.is_a("IfcTessellatedFaceSet"):
+                kind = "tessellated"
+            else:
+                kind = "solid" if any(item.is_a(c) for c in _SOLID_ITEMS) else ""
+            self._kinds[name] = kind
+        return kind
 
     def _item_is_solid(self, item: Any, depth: int) -> bool:
-        if item.is_a("IfcMappedItem"):
+        kind = self._kind(item)
+        if kind == "mapped":
             if depth >= _MAX_DEPTH:
+                self.hit_depth_limit = True
                 return False
-            source = item.MappingSource.MappedRepresentation
+            get = self._attributes.get
+            source = get(get(item, "MappingSource"), "MappedRepresentation")
             known = self._mapped.get(source.id())
             if known is None:
-                known = self._mapped[source.id()] = self._items_are_solid(source.Items, depth + 1)
+                known = self._mapped[source.id()] = self._items_are_solid(
+                    self._representations.items(source), depth + 1
+                )
             return known
-        if item.is_a("IfcTessellatedFaceSet"):
-            return bool(getattr(item, "Closed", False))
-        return any(item.is_a(c) for c in _SOLID_ITEMS)
+        if kind == "tessellated":
+            return bool(self._attributes.get_or_none(item, "Closed") or False)
+        return kind == "solid"
 
     def _items_are_solid(self, items: Any, depth: int) -> bool:
         items = tuple(items or ())
@@ -56,9 +85,17 @@ class BodyKind:
     def is_solid(self, product: Any) -> bool:
         """True when ``product``'s body (its ``Body`` representations, or all of them when none is
         named so) is made of solids only."""
-        shape = getattr(product, "Representation", None)
-        if shape is None:
+        get = self._attributes.get
+        every = self._representations.of(product)
+        if every is None:
             return False
-        representations = [r for r in shape.Representations or () if r.is_a("IfcShapeRepresentation")]
-        body = [r for r in representations if r.RepresentationIdentifier == "Body"] or representations
-        return bool(body) and all(self._items_are_solid(r.Items, 0) for r in body)
+        representations = [r for r in every if self._is_shape(r)]
+        body = [r for r in representations if get(r, "RepresentationIdentifier") == "Body"] or representations
+        return bool(body) and all(self._items_are_solid(self._representations.items(r), 0) for r in body)
+
+    def _is_shape(self, representation: Any) -> bool:
+        name = representation.is_a()
+        known = self._shape.get(name)
+        if known is None:
+            known = self._shape[name] = bool(representation.is_a("IfcShapeRepresentation"))
+        return known

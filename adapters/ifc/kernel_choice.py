@@ -26,6 +26,8 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
+from adapters.ifc.attributes import Attributes, Representations
+
 REFERENCE_KERNEL = "opencascade"
 """The kernel whose meshes are taken as correct (tests compare every stored mesh against it)."""
 
@@ -43,22 +45,26 @@ class KernelChoice:
     check about 3x faster on a furnished model.
     """
 
-    def __init__(self) -> None:
-        self._is_a: dict[tuple[str, str], bool] = {}
+    def __init__(
+        self, representations: Representations | None = None, attributes: Attributes | None = None
+    ) -> None:
+        self._is_a: dict[tuple[str, tuple[str, ...]], bool] = {}
         self._mapped: dict[int, str | None] = {}
         self._profiles: dict[int, bool] = {}
+        self._fillets: dict[str, tuple[int, ...]] = {}
+        self._item_kinds: dict[str, str] = {}
+        self._profile_kinds: dict[str, str] = {}
+        self._attributes = attributes or Attributes()
+        self._get = self._attributes.get
+        self._representations = representations or Representations(self._attributes)
 
     def _is(self, entity: Any, *classes: str) -> bool:
         """``entity.is_a(c)`` for any of ``classes`` (subtypes included), cached per entity class."""
-        name = entity.is_a()
-        for c in classes:
-            key = (name, c)
-            hit = self._is_a.get(key)
-            if hit is None:
-                hit = self._is_a[key] = bool(entity.is_a(c))
-            if hit:
-                return True
-        return False
+        key = (entity.is_a(), classes)
+        hit = self._is_a.get(key)
+        if hit is None:
+            hit = self._is_a[key] = any(entity.is_a(c) for c in classes)
+        return hit
 
     def _curve_is_curved(self, curve: Any, depth: int = 0) -> bool:
         """True when ``curve`` has an arc or another non-straight part (polylines and segments are not)."""
@@ -66,10 +72,14 @@ class KernelChoice:
             return False
         if self._is(curve, *_CURVED_CURVES):
             return True
+        get = self._get
         if self._is(curve, "IfcIndexedPolyCurve"):
-            return any(self._is(seg, "IfcArcIndex") for seg in curve.Segments or ())
+            return any(self._is(seg, "IfcArcIndex") for seg in get(curve, "Segments") or ())
         if self._is(curve, "IfcCompositeCurve"):
-            return any(self._curve_is_curved(seg.ParentCurve, depth + 1) for seg in curve.Segments or ())
+            return any(
+                self._curve_is_curved(get(seg, "ParentCurve"), depth + 1)
+                for seg in get(curve, "Segments") or ()
+            )
         return False
 
     def _profile_is_curved(self, profile: Any) -> bool:
@@ -80,46 +90,101 @@ class KernelChoice:
             known = self._profiles[profile.id()] = self._profile_check(profile)
         return known
 
+    def _profile_kind(self, profile: Any) -> str:
+        """What :meth:`_profile_check` does with a profile of this class (the first test that holds)."""
+        name = profile.is_a()
+        kind = self._profile_kinds.get(name)
+        if kind is None:
+            tests = (
+                ("curved", _CURVED_PROFILES),
+                ("voids", ("IfcArbitraryProfileDefWithVoids",)),
+                ("arbitrary", ("IfcArbitraryClosedProfileDef",)),
+                ("composite", ("IfcCompositeProfileDef",)),
+                ("derived", ("IfcDerivedProfileDef",)),
+            )
+            kind = next((k for k, classes in tests if self._is(profile, *classes)), "parametric")
+            self._profile_kinds[name] = kind
+        return kind
+
     def _profile_check(self, profile: Any) -> bool:
-        if self._is(profile, *_CURVED_PROFILES):
+        kind = self._profile_kind(profile)
+        if kind == "curved":
             return True
-        if self._is(profile, "IfcArbitraryClosedProfileDef"):
-            curves = [profile.OuterCurve]
-            if self._is(profile, "IfcArbitraryProfileDefWithVoids"):
-                curves.extend(profile.InnerCurves or ())
+        get = self._get
+        if kind in ("arbitrary", "voids"):
+            curves = [get(profile, "OuterCurve")]
+            if kind == "voids":
+                curves.extend(get(profile, "InnerCurves") or ())
             return any(self._curve_is_curved(c) for c in curves)
-        if self._is(profile, "IfcCompositeProfileDef"):
-            return any(self._profile_is_curved(p) for p in profile.Profiles or ())
-        if self._is(profile, "IfcDerivedProfileDef"):
-            return self._profile_is_curved(profile.ParentProfile)
-        info = profile.get_info(recursive=False)
-        return any(info.get(name) for name in _FILLETS)
+        if kind == "composite":
+            return any(self._profile_is_curved(p) for p in get(profile, "Profiles") or ())
+        if kind == "derived":
+            return self._profile_is_curved(get(profile, "ParentProfile"))
+        return self._has_fillet(profile)
+
+    def _has_fillet(self, profile: Any) -> bool:
+        """``any(profile.get_info().get(name) for name in _FILLETS)``, without building the dict.
+
+        ``get_info`` reads every attribute and logs (and skips) one that cannot be read: every
+        attribute is read here too, and a profile with one that cannot be read goes to ``get_info``."""
+        name = profile.is_a(True)
+        fillets = self._fillets.get(name)
+        if fillets is None:
+            names = profile.get_attribute_names()
+            fillets = self._fillets[name] = tuple(i for i, n in enumerate(names) if n in _FILLETS)
+        try:
+            values = [profile.get_argument(i) for i in range(len(profile))]
+        except Exception:  # get_info reports it (and goes on), as it always did
+            info = profile.get_info(recursive=False)
+            return any(info.get(n) for n in _FILLETS)
+        return any(values[i] for i in fillets)
+
+    def _item_kind(self, item: Any) -> str:
+        """What :meth:`_item_reason` does with an item of this class (the first test that holds)."""
+        name = item.is_a()
+        kind = self._item_kinds.get(name)
+        if kind is None:
+            tests = (
+                ("boolean", ("IfcBooleanResult",)),
+                ("mapped", ("IfcMappedItem",)),
+                ("curved", _CURVED_SOLIDS),
+                ("swept", ("IfcSweptAreaSolid",)),
+            )
+            kind = self._item_kinds[name] = next((k for k, classes in tests if self._is(item, *classes)), "")
+        return kind
 
     def _item_reason(self, item: Any, depth: int = 0) -> str | None:
-        if self._is(item, "IfcBooleanResult"):
+        kind = self._item_kind(item)
+        if kind == "boolean":
             return "boolean result"
-        if self._is(item, "IfcMappedItem"):
+        if kind == "mapped":
             if depth >= 8:
                 return None
-            source = item.MappingSource.MappedRepresentation
+            get = self._get
+            source = get(get(item, "MappingSource"), "MappedRepresentation")
             if source.id() not in self._mapped:
                 self._mapped[source.id()] = next(
-                    (r for inner in source.Items or () if (r := self._item_reason(inner, depth + 1))), None
+                    (
+                        r
+                        for inner in self._representations.items(source)
+                        if (r := self._item_reason(inner, depth + 1))
+                    ),
+                    None,
                 )
             return self._mapped[source.id()]
-        if self._is(item, *_CURVED_SOLIDS):
+        if kind == "curved":
             return "curved solid"
-        if self._is(item, "IfcSweptAreaSolid") and self._profile_is_curved(item.SweptArea):
+        if kind == "swept" and self._profile_is_curved(self._get(item, "SweptArea")):
             return "curved profile"
         return None
 
     def reason(self, product: Any) -> str | None:
         """Why ``product``'s body must be meshed by the reference kernel, or None when manifold is exact."""
-        rep = getattr(product, "Representation", None)
-        if rep is None:
+        representations = self._representations.of(product)
+        if representations is None:
             return None
-        for representation in rep.Representations or ():
-            for item in representation.Items or ():
+        for representation in representations:
+            for item in self._representations.items(representation):
                 reason = self._item_reason(item)
                 if reason is not None:
                     return reason

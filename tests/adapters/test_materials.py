@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from adapters.ifc import read_model
-from adapters.ifc.read_model import facing_material_names, material_names
+from adapters.ifc.materials import facing_material_names, material_names
 from tests.adapters.generated import Generated
 from tests.conftest import imported
 from twin.grid import OCCUPIED

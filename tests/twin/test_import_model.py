@@ -24,7 +24,7 @@ from twin.errors import ModelError
 from twin.extents import _bounds, format_extent, storey_extents
 from twin.import_model import ModelImport, import_model
 from twin.meshcodec import encode_mesh, encode_placement
-from twin.model_triples import mint_iris
+from twin.model_triples import checked_iris, mint_iris
 from twin.records import BuildingModel, Geometry, Mesh, Relation, Space, Storey
 from twin.shapes import box_mesh, box_placement
 from twin.store import EmbeddedStore, TextLoader
@@ -206,8 +206,7 @@ def test_world_bounds_use_only_the_vertices_some_face_uses() -> None:
         geometry = Geometry(Mesh(vertices, faces, closed=False), placement)
         world = vertices[np.unique(faces)] @ placement[:3, :3].T + placement[:3, 3]
         expected = np.concatenate([world.min(axis=0)[:2], world.max(axis=0)[:2]])
-        got = _bounds(geometry, {})
-        assert got is not None
+        got = _bounds(geometry)
         assert np.array_equal(got, expected)
 
 
@@ -339,3 +338,21 @@ def test_replacing_writes_nothing_before_finish_and_keeps_the_old_graph_on_an_er
                 store, model, [(first.guid, first.geometry)], replace=True, fail="meshing failed"
             )
         assert _nquads(store._store) == before
+
+
+def test_the_first_iri_that_cannot_be_written_is_named_whatever_class_comes_first() -> None:
+    lab = box_lab()
+    first, second, *rest = lab.elements
+    bad = dataclasses.replace(
+        lab,
+        elements=(
+            first,
+            dataclasses.replace(second, ifc_class="IfcWall <x>"),
+            *(dataclasses.replace(e, ifc_class="IfcDoor {y}") for e in rest[:1]),
+            *rest[1:],
+        ),
+    )
+    iri = f"{BASE}wall <x>_{vocab.expand_guid(second.guid)}"
+    with pytest.raises(ModelError, match=f"in IRI '{iri}'"):
+        checked_iris(bad, BASE)
+    assert checked_iris(lab, BASE) == {g: f"<{i}>" for g, i in mint_iris(lab, BASE).items()}

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from twin.errors import ModelError
-from twin.meshcodec import decode_mesh, decode_placement, encode_mesh, encode_placement
+from twin.meshcodec import decode_mesh, decode_placement, encode_mesh, encode_placement, encode_placements
 from twin.meshops import are_closed, is_closed, is_edge_closed, orient_faces
 from twin.records import Mesh
 from twin.shapes import box_mesh
@@ -124,3 +124,32 @@ def test_meshes_reject_nan_and_out_of_range_faces() -> None:
         Mesh(np.full((3, 3), np.nan), np.array([[0, 1, 2]], dtype=np.int32), False)
     with pytest.raises(ModelError, match="indices"):
         Mesh(np.zeros((3, 3)), np.array([[0, 1, 5]], dtype=np.int32), False)
+
+
+def _outcome(encode: object, matrices: list[np.ndarray]) -> tuple[str, object]:
+    try:
+        if encode is encode_placements:
+            return "texts", encode_placements(matrices)
+        return "texts", [encode_placement(m) for m in matrices]
+    except ModelError as err:
+        return "error", str(err)
+
+
+def test_placements_encoded_all_at_once_equal_them_one_by_one_errors_included() -> None:
+    rng = np.random.default_rng(3)
+    good = []
+    for _ in range(50):
+        m = np.eye(4)
+        m[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        m[:3, 3] = rng.normal(size=3) * 100
+        good.append(m)
+    good.append(np.eye(4, dtype=np.float32))
+    assert encode_placements(good) == [encode_placement(m) for m in good]
+    assert encode_placements([]) == []
+    nan, skewed = good[3].copy(), good[7].copy()
+    nan[1, 2] = np.nan
+    skewed[3, 0] = 0.5
+    for bad in ([*good[:5], skewed, nan], [*good[:5], nan, skewed], [*good[:2], np.eye(3), nan]):
+        one_by_one = _outcome(encode_placement, bad)
+        assert one_by_one[0] == "error"
+        assert _outcome(encode_placements, bad) == one_by_one

@@ -21,6 +21,25 @@ def test_an_invalid_guid_is_rejected_naming_it() -> None:
         vocab.expand_guid("not-a-guid")
 
 
+_GUID_LIKE = st.text(
+    alphabet="0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_$4 #\n-é", max_size=23
+)
+
+
+@given(st.one_of(_GUID_LIKE, st.from_regex(r"[0-3][0-9A-Za-z_$]{21}", fullmatch=True)))
+def test_a_guid_expands_to_its_value_digit_by_digit_or_is_rejected(guid: str) -> None:
+    digits = "0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_$"
+    if len(guid) == 22 and guid[0] in "0123" and all(c in digits for c in guid):
+        value = 0
+        for c in guid:
+            value = value * 64 + digits.index(c)
+        h = f"{value:032x}"
+        assert vocab.expand_guid(guid) == f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:]}"
+    else:
+        with pytest.raises(ModelError, match="Not an IFC GlobalId"):
+            vocab.expand_guid(guid)
+
+
 def test_element_iri_is_ifctolbd_style() -> None:
     iri = vocab.entity_iri("https://ex.org/b#", "IfcWallStandardCase", "0" * 22)
     assert iri == "https://ex.org/b#wallstandardcase_00000000-0000-0000-0000-000000000000"
