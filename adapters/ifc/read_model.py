@@ -335,10 +335,13 @@ class ModelReading:
             statics = self._static_types
             infos = []
             materials = Materials(f, attributes)
+            static_of: dict[tuple[str, ...], bool] = {}
             for e in self._elements:
                 chain = _supertypes(schema, e.is_a(), type_cache)
                 every, facing = _safe_material_names(e, materials)
-                static = any(t in chain for t in statics)
+                static = static_of.get(chain)
+                if static is None:  # one answer per class
+                    static = static_of[chain] = any(t in chain for t in statics)
                 infos.append((e, attributes.get(e, "Name"), chain, every, facing, static))
             zones = [*self._storeys, *self._buildings, *self._sites]
             guids = {e.id(): attributes.get(e, "GlobalId") for e in (*self._elements, *self._spaces, *zones)}
