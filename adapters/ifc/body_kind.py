@@ -39,9 +39,6 @@ class BodyKind:
         self, representations: Representations | None = None, attributes: Attributes | None = None
     ) -> None:
         self._mapped: dict[int, bool] = {}
-        self.hit_depth_limit = False
-        """True once a chain of mapped items too deep to follow was met: the answer kept for a shared
-        representation then depends on which product reached it first."""
         self._kinds: dict[str, str] = {}  # item class -> "mapped", "tessellated", "solid" or ""
         self._shape: dict[str, bool] = {}  # representation class -> is an IfcShapeRepresentation
         self._attributes = attributes or Attributes()
@@ -64,7 +61,6 @@ class BodyKind:
         kind = self._kind(item)
         if kind == "mapped":
             if depth >= _MAX_DEPTH:
-                self.hit_depth_limit = True
                 return False
             get = self._attributes.get
             source = get(get(item, "MappingSource"), "MappedRepresentation")
