@@ -215,17 +215,19 @@ class MeshingJob:
         routed_ids = {p.id() for p in routed} & with_body if REFERENCE_KERNEL in chain else set()
         rest_ids = with_body - routed_ids
         reference_first = (REFERENCE_KERNEL, *(k for k in chain if k != REFERENCE_KERNEL))
+        n_routed = n_rest = self._threads
+        apart = False
         if routed_ids and rest_ids and self._threads > 1:
             share = round(self._threads * len(routed_ids) / len(with_body))
-            n_routed = max(1, min(self._threads - 1, share))
-        else:
-            n_routed = self._threads
-        for ids, route, n in (
-            (routed_ids, reference_first, n_routed),
-            (rest_ids, chain, max(1, self._threads - n_routed) if routed_ids else self._threads),
-        ):
+            # a route whose share of the cores rounds to none (a few costly products) gets one child
+            # beside a full set for the rest; whichever ends first has the other split
+            apart = share == 0
+            n_routed = 1 if apart else min(self._threads - 1, share)
+            n_rest = self._threads if apart else max(1, self._threads - n_routed)
+        for ids, route, n in ((routed_ids, reference_first, n_routed), (rest_ids, chain, n_rest)):
             if route:
                 self._queue.extend(_Unit(s, route, route[0]) for s in _shards(ids, n))
+        self._first_slots = n_routed + n_rest if apart else 0
         with self._cond:
             self._schedule()
             if not self._running:
@@ -319,7 +321,9 @@ class MeshingJob:
     def _schedule(self) -> None:
         """Start queued units on free cores; with a core free and nothing queued, split the child with
         the most work left."""
-        while self._queue and len(self._running) < self._threads:
+        slots = max(self._threads, self._first_slots)
+        self._first_slots = 0
+        while self._queue and len(self._running) < slots:
             self._running.append(_KernelRun(self._f, self._queue.popleft(), self._take, self._ended))
             self._result.children += 1
         busy = [r for r in self._running if len(r.unit.ids) >= SPLIT_MIN_PRODUCTS]  # a few fallbacks: no

@@ -1,7 +1,8 @@
 """Open an IFC file with clear errors for everything that can be wrong with it.
 
 What is checked before anything is meshed: the file is a regular file, starts and ends like STEP,
-parses, declares a supported schema and holds an ``IfcElement``; entities the parser had to skip or
+has a header that declares its schemas (a malformed one crashes the parser), parses, declares a
+supported schema and holds an ``IfcElement``; entities the parser had to skip or
 references it could not resolve (``#999999``) are warnings naming the entity; reference cycles in
 what geometry kernels recurse into (placements relative to themselves, boolean operands, mapped
 representations, composite curves and profiles) are errors naming the cycle, since a kernel would
@@ -35,6 +36,8 @@ _OFFSET = re.compile(r" at offset (\d+)")
 _DANGLING = re.compile(
     r"Instance reference #(\d+) used by instance #(\d+) at attribute index (\d+) not found"
 )
+_HEAD_BYTES = 1 << 16  # a header is a few hundred bytes
+_FILE_SCHEMA = re.compile(rb"FILE_SCHEMA\s*\(\s*\(\s*'[^']*'(?:\s*,\s*'[^']*')*\s*\)\s*\)\s*;")
 _LEVEL = re.compile(r"^\[(error|warning|notice)\]\s*(?:\[[^\]]*\]\s*)*", re.IGNORECASE)
 
 # Attributes through which placements and geometry nest; the kernels follow them recursively.
@@ -66,7 +69,7 @@ _WALK_FROM = tuple(t for t, _ in _NESTING if t != "IfcRepresentation")  # reache
 
 
 def _scan(path: Path) -> tuple[int, bytes, bytes, int | None]:
-    """``(lines, first KiB, last 4 KiB, line of the first NUL byte or None)`` of the file, read in
+    """``(lines, first 64 KiB, last 4 KiB, line of the first NUL byte or None)`` of the file, read in
     chunks (never the whole file at once)."""
     lines = 0
     head = b""
@@ -76,7 +79,7 @@ def _scan(path: Path) -> tuple[int, bytes, bytes, int | None]:
     with path.open("rb") as fh:
         while chunk := fh.read(_CHUNK):
             if not head:
-                head = chunk[:1024]
+                head = chunk[:_HEAD_BYTES]
             if nul_line is None and (at := chunk.find(b"\0")) >= 0:
                 nul_line = lines + chunk.count(b"\n", 0, at) + 1
             lines += chunk.count(b"\n")
@@ -94,6 +97,20 @@ class CheckedIfc(NamedTuple):
     """Ids of products whose placement or body reaches a reference the parser could not resolve
     (``#999999``): where they are is unknown, and one of them can make the geometry iterator drop
     every product meshed with it. Each is named in a warning."""
+
+
+def _check_header(path: Path, head: bytes) -> None:
+    """Raise IfcFileError unless the HEADER section (``head``: the file's first bytes) declares its
+    schemas as a list of texts: ifcopenshell 0.9's parser crashes the process on some malformed
+    FILE_SCHEMA statements."""
+    end = head.find(b"ENDSEC;")
+    if end < 0:
+        end = len(head)
+    if not _FILE_SCHEMA.search(head[:end]):
+        found = re.search(rb"FILE_SCHEMA[^;]{0,60}", head[:end])
+        said = found.group().decode("ascii", "replace") if found else "no FILE_SCHEMA"
+        msg = f"{path} has a broken header: FILE_SCHEMA must name its schemas as (('IFC4')), found {said!r}"
+        raise IfcFileError(msg)
 
 
 def open_ifc(path: Path) -> tuple[Any, int]:
@@ -121,6 +138,7 @@ def open_ifc_checked(path: Path) -> CheckedIfc:
     if nul_line is not None:
         msg = f"{path} is not a text STEP file: line {nul_line} holds a NUL byte"
         raise IfcFileError(msg)
+    _check_header(path, head)
     ifcopenshell.get_log()  # reading the parser's log empties it: drop what earlier files left there
     try:
         f = ifcopenshell.open(str(path))

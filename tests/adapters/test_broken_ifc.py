@@ -323,6 +323,13 @@ CASES: dict[str, tuple[Make, str, str]] = {
         "error",
         "IfcWall 'Wall A south' has an invalid GlobalId",
     ),
+    "a FILE_SCHEMA that names no list of schemas": (  # crashed ifcopenshell's parser (found by fuzzing)
+        lambda t: t.replace(
+            "FILE_SCHEMA(('IFC4'));\nENDSEC;\nDATA;\n#1=IFCPROJECT(", "FILE_SCHEMA("
+        ).encode(),
+        "error",
+        "broken header: FILE_SCHEMA must name its schemas",
+    ),
     "an entity defined twice": (
         lambda t: edited(t, {}, {114: "IFCLOCALPLACEMENT(#32,#113)"}),
         "warning",
