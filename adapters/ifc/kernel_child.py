@@ -53,6 +53,19 @@ bitwise weld leaves the solid open and its section unfilled in the maps (LargeBu
 frame and curb) at edges that four faces then share, which the bitwise weld keeps apart."""
 
 
+def _unique_rows(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``np.unique(v, axis=0, return_index=True, return_inverse=True)`` for ``(n, 3)`` rows, the same
+    arrays (rows in lexicographic order, the first index of each), about 5x faster: a lexsort of the
+    columns instead of a sort of the rows as records."""
+    order = np.lexsort((v[:, 2], v[:, 1], v[:, 0]))
+    ordered = v[order]
+    new = np.ones(len(v), dtype=bool)
+    new[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
+    inverse = np.empty(len(v), dtype=np.intp)
+    inverse[order] = np.cumsum(new) - 1
+    return ordered[new], order[new], inverse
+
+
 def weld(vertices: np.ndarray, faces: np.ndarray, *, near_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Merge vertices with identical coordinates; positions are unchanged, indices remapped.
 
@@ -62,14 +75,14 @@ def weld(vertices: np.ndarray, faces: np.ndarray, *, near_m: float = 0.0) -> tup
     if len(vertices) == 0:
         return vertices, faces
     if near_m <= 0:
-        unique, inverse = np.unique(vertices, axis=0, return_inverse=True)
+        unique, _, inverse = _unique_rows(vertices)
         if len(unique) == len(vertices):
             return vertices, faces
-        return unique, inverse.reshape(-1)[faces].astype(np.int32)
-    _, first, inverse = np.unique(np.round(vertices / near_m), axis=0, return_index=True, return_inverse=True)
+        return unique, inverse[faces].astype(np.int32)
+    _, first, inverse = _unique_rows(np.round(vertices / near_m))
     if len(first) == len(vertices):
         return vertices, faces
-    f = inverse.reshape(-1)[faces].astype(np.int32)
+    f = inverse[faces].astype(np.int32)
     kept = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
     return vertices[first], f[kept]
 
@@ -82,11 +95,14 @@ def _closed_mesh(vertices: np.ndarray, faces: np.ndarray, solid: bool) -> Mesh |
     return Mesh(vertices, oriented, True, solid) if oriented is not None else None
 
 
-def make_mesh(vertices: np.ndarray, faces: np.ndarray, *, solid: bool = False) -> Mesh:
+def make_mesh(
+    vertices: np.ndarray, faces: np.ndarray, *, solid: bool = False, known_open: bool = False
+) -> Mesh:
     """A Mesh with its closedness (and ``solid``: what the file says the body is). Only when the
-    kernel's output is not a consistently oriented solid are its vertices welded (bitwise, then within
-    ``NEAR_WELD_M``) and, if it is watertight, its faces re-oriented."""
-    if is_closed(faces):
+    kernel's output is not a consistently oriented solid (``known_open``: already found not to be)
+    are its vertices welded (bitwise, then within ``NEAR_WELD_M``) and, if it is watertight, its faces
+    re-oriented."""
+    if not known_open and is_closed(faces):
         return Mesh(vertices, faces, True, solid)
     v, f = weld(vertices, faces)
     closed = _closed_mesh(v, f, solid)
@@ -124,7 +140,11 @@ def _meshes(raw: list[_Raw]) -> list[tuple[Mesh | None, float]]:
             out.append((None, 0.0))
             continue
         try:
-            mesh = Mesh(verts, faces, True, solid) if is_closed_ else make_mesh(verts, faces, solid=solid)
+            mesh = (
+                Mesh(verts, faces, True, solid)
+                if is_closed_
+                else make_mesh(verts, faces, solid=solid, known_open=True)
+            )
         except ModelError:  # NaN or infinite coordinates
             out.append((None, 0.0))
             continue

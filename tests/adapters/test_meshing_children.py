@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from adapters.ifc.geometry import MeshResult, _shards, start_meshing
+from adapters.ifc.kernel_child import _unique_rows
 from adapters.ifc.kernel_choice import KernelChoice
 from adapters.ifc.read_model import start_reading
 from adapters.ifc.sample_lab import LabLayout
@@ -102,3 +103,14 @@ def test_each_geometry_is_handed_over_once_as_it_comes_and_is_the_models(lab: tu
     for s in model.spaces:
         if s.geometry is not None:
             assert streamed[s.guid] == (s.geometry, "")
+
+
+def test_rows_are_made_unique_as_numpy_does_it() -> None:
+    rng = np.random.default_rng(3)
+    for n in (1, 7, 300):
+        rows = rng.integers(-2, 3, size=(n, 3)).astype(np.float64) / 4
+        unique, first, inverse = _unique_rows(rows)
+        expected = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+        assert np.array_equal(unique, expected[0])
+        assert np.array_equal(first, expected[1])
+        assert np.array_equal(inverse, expected[2].reshape(-1))
