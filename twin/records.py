@@ -72,16 +72,6 @@ class Mesh:
     def triangle_count(self) -> int:
         return int(self.faces.shape[0])
 
-    def marked_solid(self) -> Mesh:
-        """This mesh with ``solid=True``, sharing its arrays, without checking them again (they were
-        checked when this mesh was made; ``dataclasses.replace`` would check them again)."""
-        out = object.__new__(Mesh)
-        object.__setattr__(out, "vertices", self.vertices)
-        object.__setattr__(out, "faces", self.faces)
-        object.__setattr__(out, "closed", self.closed)
-        object.__setattr__(out, "solid", True)
-        return out
-
 
 IDENTITY: FloatArray = np.eye(4)
 
