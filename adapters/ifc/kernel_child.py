@@ -20,6 +20,7 @@ Example::
 from __future__ import annotations
 
 import faulthandler
+import gc
 import time
 from multiprocessing.connection import Connection
 from typing import Any, Protocol
@@ -209,6 +210,7 @@ class StopFlag(Protocol):
 def run_kernel(f: Any, ids: list[int], kernel: str, conn: Connection, stop: StopFlag) -> None:
     """Child process: mesh ``ids`` with ``kernel`` (one thread); send batches of shapes, then None, or
     :data:`STOPPED` when the parent set ``stop`` (read after each shape), or a text naming the error."""
+    gc.disable()  # inherited objects: a collection would walk (and copy) every page of them
     faulthandler.disable()  # a kernel crash is expected and handled by the parent: no dump on stderr
     try:
         products = {i: f.by_id(i) for i in ids}
