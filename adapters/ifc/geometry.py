@@ -67,6 +67,8 @@ class MeshResult:
     fallbacks: set[int] = field(default_factory=set)
     children: int = 0
     """How many kernel children ran (splits and fallbacks included)."""
+    splits: int = 0
+    """How many children were stopped to share what they had left."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -227,9 +229,8 @@ class MeshingJob:
         for ids, route, n in ((routed_ids, reference_first, n_routed), (rest_ids, chain, n_rest)):
             if route:
                 self._queue.extend(_Unit(s, route, route[0]) for s in _shards(ids, n))
-        self._first_slots = n_routed + n_rest if apart else 0
         with self._cond:
-            self._schedule()
+            self._schedule(slots=n_routed + n_rest if apart else self._threads)
             if not self._running:
                 self._arrived.put(None)
 
@@ -267,11 +268,10 @@ class MeshingJob:
                 if run.kernel != run.unit.first:
                     result.fallbacks.add(pid)
                 run.pending.discard(pid)
-            done, total = len(result.geometry), len(self._with_body)
+            if self._progress is not None:  # under the lock: the counts reach it in order
+                self._progress(len(result.geometry), len(self._with_body))
         if arrived:
             self._arrived.put(arrived)
-        if self._progress is not None:
-            self._progress(done, total)
 
     def _warn_once(self, pid: int, what: str) -> None:
         if (pid, what) not in self._warned:
@@ -285,6 +285,7 @@ class MeshingJob:
                 self._running.remove(run)
                 left, unit = frozenset(run.pending), run.unit
                 if run.stopped:  # split: what it left goes to two children, with the same kernel
+                    self._result.splits += 1
                     self._queue.extendleft(_Unit(s, unit.kernels, unit.first) for s in _shards(left, 2))
                 else:
                     self._report(run, len(left))
@@ -318,11 +319,10 @@ class MeshingJob:
             log.info("%d product(s) not meshed by %s; trying the next kernel", left, run.kernel)
 
     # --- scheduling (under the condition's lock) --------------------------------------------------
-    def _schedule(self) -> None:
-        """Start queued units on free cores; with a core free and nothing queued, split the child with
-        the most work left."""
-        slots = max(self._threads, self._first_slots)
-        self._first_slots = 0
+    def _schedule(self, slots: int = 0) -> None:
+        """Start queued units on free cores (``slots`` children at most, if more than the cores); with
+        a core free and nothing queued, split the child with the most work left."""
+        slots = max(self._threads, slots)
         while self._queue and len(self._running) < slots:
             self._running.append(_KernelRun(self._f, self._queue.popleft(), self._take, self._ended))
             self._result.children += 1
