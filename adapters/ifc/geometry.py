@@ -40,7 +40,7 @@ from dataclasses import dataclass, field, replace
 from types import TracebackType
 from typing import Any, Self
 
-from adapters.ifc.kernel_child import STOPPED, Shape, run_kernel
+from adapters.ifc.kernel_child import ROUTED, STOPPED, Shape, run_kernel
 from adapters.ifc.kernel_choice import REFERENCE_KERNEL
 from twin.records import Geometry, Mesh
 
@@ -76,11 +76,14 @@ class _Unit:
     """Products for one child: ``kernels[0]`` meshes them, the rest are tried in turn on what it leaves.
 
     ``first`` is the first kernel of the products' route: meshed by another one, a product is a fallback.
+    With ``routing``, the child first names the elements the reference kernel must mesh first and leaves
+    them (:data:`~adapters.ifc.kernel_child.ROUTED`).
     """
 
     ids: frozenset[int]
     kernels: tuple[str, ...]
     first: str
+    routing: bool = False
 
 
 class _KernelRun:
@@ -92,6 +95,7 @@ class _KernelRun:
         unit: _Unit,
         on_batch: Callable[[_KernelRun, list[Shape]], None],
         on_end: Callable[[_KernelRun], None],
+        on_routed: Callable[[_KernelRun, list[int], list[tuple[int, str]]], None],
     ) -> None:
         ctx = mp.get_context("fork")
         self.unit = unit
@@ -103,15 +107,19 @@ class _KernelRun:
         self.finished = False  # the child went through all its products
         self.stopped = False  # the child stopped when asked
         self.stopping = False
+        self.routed: bool | None = None if unit.routing else False  # None: its routing is yet to come
         self.error: str | None = None
         self._conn, child_end = ctx.Pipe(duplex=False)
         self._stop = ctx.RawValue("b", 0)
         self._child = ctx.Process(
-            target=run_kernel, args=(f, sorted(unit.ids), self.kernel, child_end, self._stop), daemon=True
+            target=run_kernel,
+            args=(f, sorted(unit.ids), self.kernel, child_end, self._stop),
+            kwargs={"routing": unit.routing},
+            daemon=True,
         )
         self._child.start()
         child_end.close()
-        self._on_batch, self._on_end = on_batch, on_end
+        self._on_batch, self._on_end, self._on_routed = on_batch, on_end, on_routed
         self._thread = threading.Thread(target=self._drain, name=f"twin-mesh-{self.kernel}", daemon=True)
         self._thread.start()
 
@@ -135,6 +143,9 @@ class _KernelRun:
                 if isinstance(message, str):
                     self.error = message
                     break
+                if isinstance(message, tuple) and message[0] == ROUTED:
+                    self._on_routed(self, message[1], message[2])
+                    continue
                 self.delivered += len(message)
                 self._on_batch(self, message)
         finally:
@@ -178,9 +189,11 @@ class MeshingJob:
     """Meshing in progress, on up to ``threads`` children; :meth:`result` waits for all of it.
 
     Products whose body the fast kernel gets wrong (:func:`~adapters.ifc.kernel_choice.reference_reason`)
-    go to the reference kernel first; the others to ``kernels`` in order. Both routes start at once, each
-    in as many children as its share of the products gives (at least one), and children are split to
-    keep every core busy (see the module's docstring).
+    go to the reference kernel first; the others to ``kernels`` in order. Those products are either
+    given (``routed``) or, with ``route``, named by the first children themselves: each routes its own
+    share while the others start, and what they route goes to reference-kernel children started beside
+    them. Both routes run at once, each in as many children as its share of the products gives (at
+    least one), and children are split to keep every core busy (see the module's docstring).
     Use it as a context manager: leaving it on an error (or Ctrl-C) kills the kernel processes.
     """
 
@@ -193,6 +206,7 @@ class MeshingJob:
         threads: int,
         progress: Progress | None,
         routed: Sequence[Any] = (),
+        route: bool = False,
         skip: Collection[int] = (),
         split_min_s: float = SPLIT_MIN_SECONDS,
     ) -> None:
@@ -214,9 +228,21 @@ class MeshingJob:
         self._cancelled = False
         self._arrived: queue.SimpleQueue[list[int] | None] = queue.SimpleQueue()
         chain = tuple(kernels)
+        self._reference_first = (REFERENCE_KERNEL, *(k for k in chain if k != REFERENCE_KERNEL))
+        self._routes_due = 0  # routing children that have not yet named what they route
+        self._routed_by_children: set[int] = set()
+        if route and not routed and REFERENCE_KERNEL in chain[1:]:
+            units = [_Unit(s, chain, chain[0], routing=True) for s in _shards(with_body, self._threads)]
+            self._routes_due = len(units)
+            self._queue.extend(units)
+            with self._cond:
+                self._schedule()
+                if not self._running:
+                    self._arrived.put(None)
+            return
         routed_ids = {p.id() for p in routed} & with_body if REFERENCE_KERNEL in chain else set()
         rest_ids = with_body - routed_ids
-        reference_first = (REFERENCE_KERNEL, *(k for k in chain if k != REFERENCE_KERNEL))
+        reference_first = self._reference_first
         n_routed = n_rest = self._threads
         apart = False
         if routed_ids and rest_ids and self._threads > 1:
@@ -226,9 +252,9 @@ class MeshingJob:
             apart = share == 0
             n_routed = 1 if apart else min(self._threads - 1, share)
             n_rest = self._threads if apart else max(1, self._threads - n_routed)
-        for ids, route, n in ((routed_ids, reference_first, n_routed), (rest_ids, chain, n_rest)):
-            if route:
-                self._queue.extend(_Unit(s, route, route[0]) for s in _shards(ids, n))
+        for ids, path, n in ((routed_ids, reference_first, n_routed), (rest_ids, chain, n_rest)):
+            if path:
+                self._queue.extend(_Unit(s, path, path[0]) for s in _shards(ids, n))
         with self._cond:
             self._schedule(slots=n_routed + n_rest if apart else self._threads)
             if not self._running:
@@ -273,6 +299,30 @@ class MeshingJob:
         if arrived:
             self._arrived.put(arrived)
 
+    def _routed_by(self, run: _KernelRun, ids: list[int], notes: list[tuple[int, str]]) -> None:
+        """A routing child named the products the reference kernel meshes first: once every routing
+        child has, they go to reference-kernel children started beside the running ones."""
+        with self._cond:
+            for pid, note in notes:
+                self._warn_once(pid, note)
+            run.pending.difference_update(ids)
+            self._routed_by_children.update(ids)
+            run.routed = True
+            self._route_known()
+
+    def _route_known(self) -> None:
+        """One routing child fewer to wait for (under the lock); after the last, start the routed."""
+        self._routes_due -= 1
+        ids = self._routed_by_children
+        if self._routes_due or not ids or self._cancelled:
+            return
+        n = 1
+        if self._threads > 1:  # a share of the cores, at least one child, beside the others
+            n = max(1, min(self._threads - 1, round(self._threads * len(ids) / len(self._with_body))))
+        path = self._reference_first
+        self._queue.extend(_Unit(s, path, path[0]) for s in _shards(ids, n))
+        self._schedule(slots=len(self._running) + n if self._threads > 1 else 0)
+
     def _warn_once(self, pid: int, what: str) -> None:
         if (pid, what) not in self._warned:
             self._warned.add((pid, what))
@@ -283,6 +333,9 @@ class MeshingJob:
         with self._cond:
             try:
                 self._running.remove(run)
+                if run.routed is None:  # ended before naming what it routes: the rest go on without
+                    run.routed = False
+                    self._route_known()
                 left, unit = frozenset(run.pending), run.unit
                 if run.stopped:  # split: what it left goes to two children, with the same kernel
                     self._result.splits += 1
@@ -324,7 +377,9 @@ class MeshingJob:
         a core free and nothing queued, split the child with the most work left."""
         slots = max(self._threads, slots)
         while self._queue and len(self._running) < slots:
-            self._running.append(_KernelRun(self._f, self._queue.popleft(), self._take, self._ended))
+            self._running.append(
+                _KernelRun(self._f, self._queue.popleft(), self._take, self._ended, self._routed_by)
+            )
             self._result.children += 1
         busy = [r for r in self._running if len(r.unit.ids) >= SPLIT_MIN_PRODUCTS]  # a few fallbacks: no
         if self._queue or len(busy) >= self._threads:
@@ -382,12 +437,14 @@ def start_meshing(
     threads: int = 2,
     progress: Progress | None = None,
     routed: Sequence[Any] = (),
+    route: bool = False,
     skip: Collection[int] = (),
     split_min_s: float = SPLIT_MIN_SECONDS,
 ) -> MeshingJob:
     """Start meshing ``products`` (ifcopenshell entities) in the background; see :class:`MeshingJob`.
 
-    ``routed`` products (a subset) go to the reference kernel first, when it is among ``kernels``.
+    ``routed`` products (a subset) go to the reference kernel first, when it is among ``kernels``; with
+    ``route`` (and no ``routed``), the children decide which (:mod:`adapters.ifc.kernel_choice`).
     Products whose id is in ``skip`` are not meshed: they are listed as unmeshed. ``threads`` is the
     number of cores to use: how many kernel children run at once. A child whose work left would take
     longer than ``split_min_s`` is split when a core idles.
@@ -399,6 +456,7 @@ def start_meshing(
         threads=threads,
         progress=progress,
         routed=routed,
+        route=route,
         skip=skip,
         split_min_s=split_min_s,
     )

@@ -5,6 +5,10 @@ The child makes the meshes itself (closedness, welding, orientation, whether the
 :mod:`adapters.ifc.body_kind`) and checks the placements, so the calling process only collects. A
 :data:`Shape` carries a mesh the first time, then ``None`` for the instances sharing it.
 
+With ``route`` set, the child first asks :class:`~adapters.ifc.kernel_choice.KernelChoice` which of its
+elements the reference kernel must mesh, sends their ids (:data:`ROUTED`) and leaves them to other
+children: the routing then costs no time before the children start, and is shared by the cores.
+
 The child looks at a stop flag it shares with the parent after each shape: once set, it sends what
 it has meshed and :data:`STOPPED`, and leaves; the parent gives what is left to other children
 (:mod:`adapters.ifc.geometry`). A kernel error is sent as a text; a kernel crash closes the pipe.
@@ -22,6 +26,7 @@ from __future__ import annotations
 import faulthandler
 import gc
 import time
+from collections.abc import Iterator
 from multiprocessing.connection import Connection
 from typing import Any, Protocol
 
@@ -30,7 +35,9 @@ import ifcopenshell.geom
 import ifcopenshell.util.shape
 import numpy as np
 
+from adapters.ifc.attributes import Attributes, Representations
 from adapters.ifc.body_kind import BodyKind
+from adapters.ifc.kernel_choice import KernelChoice
 from twin.errors import ModelError
 from twin.meshops import are_closed, is_closed, orient_faces
 from twin.records import Mesh, check_placement
@@ -43,6 +50,11 @@ MAX_COORDINATE_M = 1e8
 """A body farther than this from the origin (or not finite) is refused: the bad placement or
 coordinates of a broken file, which would stretch a storey's map over the whole planet."""
 STOPPED = "stopped"
+ROUTED = "routed"
+"""First message of a routing child: ``(ROUTED, ids the reference kernel meshes first, [(id, why its
+body cannot be inspected)])``."""
+_ENTITY_ERRORS = (RuntimeError, AttributeError, TypeError, ValueError, AssertionError, IndexError, KeyError)
+"""What reading a malformed entity raises (ifcopenshell parses lazily)."""
 _BATCH_SHAPES = 32  # small: what a crashing kernel had meshed is kept
 _BATCH_SECONDS = 0.05
 
@@ -175,29 +187,60 @@ class _Batch:
 
     def send(self, conn: Connection) -> None:
         made = iter(_meshes([raw for _, _, raw, _, _, _ in self.items if raw is not None]))
-        shapes: list[Shape] = []
-        for pid, geom_id, raw, matrix, solid, note in self.items:
+        meshes: list[Mesh | None] = []
+        for _, geom_id, raw, _, _, _ in self.items:
             mesh = None
             if raw is not None:
                 mesh, reach = next(made)
                 if mesh is not None:
                     self.reach[geom_id] = reach
-            placement, refused = None, None
-            if geom_id in self.reach:
-                try:
-                    placement = placed(matrix, self.reach[geom_id])
-                except ModelError as err:
-                    refused = str(err)
+            meshes.append(mesh)
+        placements = _placements(
+            [
+                (matrix, self.reach[geom_id])
+                for _, geom_id, _, matrix, _, _ in self.items
+                if geom_id in self.reach
+            ]
+        )
+        shapes: list[Shape] = []
+        for (pid, geom_id, _, _, solid, note), mesh in zip(self.items, meshes, strict=True):
+            placement, refused = next(placements) if geom_id in self.reach else (None, None)
             shapes.append((pid, geom_id, mesh, placement, solid, refused, note))
         conn.send(shapes)
         self.items = []
+
+
+def _placements(placed_: list[tuple[Any, float]]) -> Iterator[tuple[np.ndarray | None, str | None]]:
+    """:func:`placed` of each ``(matrix, reach)`` as (the placement, None) or (None, why it is refused),
+    checked all at once: only a matrix that fails is checked again alone, to name what is wrong."""
+    if not placed_:
+        return iter(())
+    try:
+        m = np.array([matrix for matrix, _ in placed_], dtype=np.float64)
+    except ValueError:  # matrices of different shapes
+        m = np.empty((0, 4, 4))
+    if m.shape != (len(placed_), 4, 4):
+        return (_placed_alone(matrix, reach) for matrix, reach in placed_)
+    reach = np.array([r for _, r in placed_], dtype=np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):
+        last = np.abs(m[:, 3, :3]).sum(axis=1) + np.abs(m[:, 3, 3] - 1.0)
+        bound = np.abs(m[:, :3, :3]).sum(axis=2).max(axis=1) * reach + np.abs(m[:, :3, 3]).max(axis=1)
+        ok = np.isfinite(m).all(axis=(1, 2)) & (last <= 1e-9) & (bound <= MAX_COORDINATE_M)
+    return ((m[i], None) if ok[i] else _placed_alone(matrix, r) for i, (matrix, r) in enumerate(placed_))
+
+
+def _placed_alone(matrix: Any, reach: float) -> tuple[np.ndarray | None, str | None]:
+    try:
+        return placed(matrix, reach), None
+    except ModelError as err:
+        return None, str(err)
 
 
 def _body_is_solid(kind: BodyKind, product: Any) -> tuple[bool, str | None]:
     """(whether ``product``'s body is a solid, why it could not be told)."""
     try:
         return kind.is_solid(product), None
-    except (RuntimeError, AttributeError, TypeError, ValueError, AssertionError, IndexError, KeyError) as err:
+    except _ENTITY_ERRORS as err:
         return False, f"its body cannot be inspected ({type(err).__name__}: {err})"
 
 
@@ -207,13 +250,48 @@ class StopFlag(Protocol):
     value: int
 
 
-def run_kernel(f: Any, ids: list[int], kernel: str, conn: Connection, stop: StopFlag) -> None:
+def route(products: dict[int, Any], router: KernelChoice) -> tuple[list[int], list[tuple[int, str]]]:
+    """(the ids of the elements among ``products`` that the reference kernel meshes first, (id, why)
+    of those whose body cannot be inspected: they are not routed). Spaces are never routed."""
+    routed: list[int] = []
+    notes: list[tuple[int, str]] = []
+    is_element: dict[str, bool] = {}
+    for pid, product in products.items():
+        name = product.is_a()
+        element = is_element.get(name)
+        if element is None:
+            element = is_element[name] = bool(product.is_a("IfcElement"))
+        if not element:
+            continue
+        try:
+            if router.reason(product) is not None:
+                routed.append(pid)
+        except _ENTITY_ERRORS as err:
+            notes.append((pid, f"its body cannot be inspected ({type(err).__name__}: {err})"))
+    return routed, notes
+
+
+def run_kernel(
+    f: Any, ids: list[int], kernel: str, conn: Connection, stop: StopFlag, *, routing: bool = False
+) -> None:
     """Child process: mesh ``ids`` with ``kernel`` (one thread); send batches of shapes, then None, or
-    :data:`STOPPED` when the parent set ``stop`` (read after each shape), or a text naming the error."""
+    :data:`STOPPED` when the parent set ``stop`` (read after each shape), or a text naming the error.
+    With ``routing``, first send :data:`ROUTED` and leave those products out."""
     gc.disable()  # inherited objects: a collection would walk (and copy) every page of them
     faulthandler.disable()  # a kernel crash is expected and handled by the parent: no dump on stderr
     try:
         products = {i: f.by_id(i) for i in ids}
+        attributes = Attributes()
+        representations = Representations(attributes)  # read once for the routing and the body kinds
+        kind = BodyKind(representations, attributes)
+        if routing:
+            routed, notes = route(products, KernelChoice(representations, attributes))
+            conn.send((ROUTED, routed, notes))
+            for pid in routed:
+                del products[pid]
+            if not products:
+                conn.send(None)
+                return
         it = ifcopenshell.geom.iterator(
             iterator_settings(),
             f,
@@ -221,7 +299,6 @@ def run_kernel(f: Any, ids: list[int], kernel: str, conn: Connection, stop: Stop
             include=list(products.values()),
             geometry_library=kernel,  # type: ignore[arg-type]  # validated by the iterator itself
         )
-        kind = BodyKind()
         seen: set[str] = set()
         batch = _Batch()
         sent = time.monotonic()

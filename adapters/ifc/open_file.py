@@ -119,8 +119,9 @@ def open_ifc(path: Path) -> tuple[Any, int]:
     return checked.file, checked.lines
 
 
-def open_ifc_checked(path: Path) -> CheckedIfc:
-    """Open ``path`` as :func:`open_ifc` does, and find the products it cannot place or mesh."""
+def open_ifc_checked(path: Path, *, cycles: bool = True) -> CheckedIfc:
+    """Open ``path`` as :func:`open_ifc` does, and find the products it cannot place or mesh.
+    ``cycles=False`` leaves :func:`check_cycles` to the caller (before any geometry is made to wait)."""
     path = Path(path)
     if not path.exists():
         msg = f"No such file: {path}"
@@ -158,7 +159,8 @@ def open_ifc_checked(path: Path) -> CheckedIfc:
     if not f.by_type("IfcElement"):
         msg = f"{path} is an empty model: it holds no IfcElement"
         raise IfcFileError(msg)
-    check_cycles(f, path)
+    if cycles:
+        check_cycles(f, path)
     return CheckedIfc(f, lines, _unplaceable(f, path, dangling_users))
 
 

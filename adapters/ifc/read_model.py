@@ -25,12 +25,11 @@ import ifcopenshell.guid
 import ifcopenshell.util.placement
 import ifcopenshell.util.unit
 
-from adapters.ifc.attributes import Attributes, Representations
+from adapters.ifc.attributes import Attributes
 from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
-from adapters.ifc.kernel_choice import KernelChoice
 from adapters.ifc.materials import Materials, Names
-from adapters.ifc.open_file import open_ifc_checked
+from adapters.ifc.open_file import check_cycles, open_ifc_checked
 from twin.gc_pause import paused_gc
 from twin.records import Building, BuildingModel, Element, Geometry, Relation, Site, Space, Storey
 
@@ -238,18 +237,6 @@ def _entity_name(e: Any) -> str:
     return f"{e.is_a()} {e.GlobalId} {e.Name or ''}".strip()
 
 
-def _routed(elements: Sequence[Any], router: KernelChoice) -> list[Any]:
-    """The elements the reference kernel meshes first; one whose body cannot be inspected is not."""
-    routed = []  # one router: it remembers its answers per class and shared item
-    for e in elements:
-        try:
-            if router.reason(e) is not None:
-                routed.append(e)
-        except _ENTITY_ERRORS as err:
-            log.warning("%s: its body cannot be inspected (%s: %s)", _entity_name(e), type(err).__name__, err)
-    return routed
-
-
 def _safe_material_names(e: Any, materials: Materials) -> tuple[Names, Names]:
     """The names of ``e``'s materials, none (with a warning) if they cannot be found; a material
     whose name cannot be read makes the file unreadable, as it always did."""
@@ -283,7 +270,7 @@ class ModelReading:
         routing: bool,
     ) -> None:
         self._path = path
-        f, self._lines, unplaceable = open_ifc_checked(path)
+        f, self._lines, unplaceable = open_ifc_checked(path, cycles=False)  # checked while meshing
         self._f = f
         with _as_file_error(path):
             scale = float(ifcopenshell.util.unit.calculate_unit_scale(f))
@@ -302,19 +289,24 @@ class ModelReading:
                     "(no bot:adjacentElement); skills with unknown_outside cannot be mapped",
                     path,
                 )
-            self._attributes = attributes = Attributes()
-            routed = _routed(self._elements, KernelChoice(Representations(attributes))) if routing else []
+            self._attributes = Attributes()
             self._static_types = tuple(static_types)
-            # Mesh in the background (forked children do the work) while this thread reads the structure.
+            # Mesh in the background (forked children do the work, and route what they mesh) while
+            # this thread checks the file for reference cycles and reads the structure.
             self._job = start_meshing(
                 f,
                 [*self._elements, *self._spaces],
                 kernels=kernels,
                 threads=threads,
                 progress=progress,
-                routed=routed,
+                route=routing,
                 skip=unplaceable,
             )
+        try:
+            check_cycles(f, path)  # a kernel on a cycle loops forever: the children are then killed
+        except BaseException:
+            self._job.cancel()
+            raise
         self._structure: BuildingModel | None = None
 
     def structure(self) -> BuildingModel:

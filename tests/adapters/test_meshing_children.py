@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 
 from adapters.ifc.geometry import MeshResult, _shards, start_meshing
-from adapters.ifc.kernel_child import _unique_rows
+from adapters.ifc.kernel_child import _placements, _unique_rows, placed
 from adapters.ifc.kernel_choice import KernelChoice
 from adapters.ifc.read_model import start_reading
 from adapters.ifc.sample_lab import LabLayout
+from tests.adapters.generated import Generated
+from twin.errors import ModelError
 
 
 def test_shards_deal_every_id_exactly_once_in_near_equal_parts() -> None:
@@ -117,3 +119,74 @@ def test_rows_are_made_unique_as_numpy_does_it() -> None:
         assert np.array_equal(unique, expected[0])
         assert np.array_equal(first, expected[1])
         assert np.array_equal(inverse, expected[2].reshape(-1))
+
+
+def _walls_and_round_bars() -> tuple[Any, list[Any], list[Any]]:
+    """A generated storey: six box walls (manifold meshes them) and four round bars (curved profiles,
+    which OpenCASCADE meshes first)."""
+    g = Generated("IFC4")
+    storey = g.storey("Ground", 0.0)
+    walls = [
+        g.box("IfcWall", f"wall {i}", (3.0 * i, 0.0, 0.0), (2.5, 0.2, 2.5), container=storey)
+        for i in range(6)
+    ]
+    bars = []
+    for i in range(4):
+        bar = g.box("IfcMember", f"bar {i}", (3.0 * i, 4.0, 0.0), (1.0, 1.0, 1.0), container=storey)
+        bar.Representation.Representations[0].Items[0].SweptArea = g.file.createIfcCircleProfileDef(
+            "AREA", None, None, 0.1
+        )
+        bars.append(bar)
+    return g.file, [*walls, *bars], bars
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_children_that_route_their_own_share_mesh_as_a_routing_made_beforehand(threads: int) -> None:
+    """``route=True``: the first children name the products OpenCASCADE meshes first and leave them to
+    a child of their own; every product gets the kernel and mesh it gets when the routing is given."""
+    f, products, routed = _walls_and_round_bars()
+    assert [p for p in products if KernelChoice().reason(p) is not None] == routed
+    kernels = ("manifold", "opencascade")
+    no_split = float("inf")
+    with start_meshing(
+        f, products, kernels=kernels, threads=threads, routed=routed, split_min_s=no_split
+    ) as job:
+        given = job.result()
+    with start_meshing(
+        f, products, kernels=kernels, threads=threads, route=True, split_min_s=no_split
+    ) as job:
+        by_children = job.result()
+    _assert_same(given, by_children)
+    assert {pid for pid, k in by_children.kernel_of.items() if k == "opencascade"} == {p.id() for p in routed}
+    assert by_children.children == threads + 1  # the routing children, then one for what they routed
+
+
+def test_placements_checked_together_are_those_checked_one_by_one() -> None:
+    """Every matrix of a batch gets what :func:`placed` gives it alone: the placement, or its refusal."""
+    rng = np.random.default_rng(7)
+    cases: list[tuple[Any, float]] = []
+    for _ in range(40):
+        m = np.eye(4)
+        m[:3, :3] = rng.normal(size=(3, 3))
+        m[:3, 3] = rng.normal(size=3) * 100
+        cases.append((m, float(rng.uniform(0, 50))))
+    bad_row, far, nan, huge = np.eye(4), np.eye(4), np.eye(4), np.eye(4)
+    bad_row[3, 0] = 0.5
+    far[0, 3] = 2e8
+    nan[1, 1] = np.nan
+    cases += [(bad_row, 1.0), (far, 1.0), (nan, 1.0), (huge, 1e9), (np.eye(4), float("nan"))]
+    rng.shuffle(cases)  # type: ignore[arg-type]
+    together = list(_placements(cases))
+    for (matrix, reach), (placement, refused) in zip(cases, together, strict=True):
+        try:
+            alone: np.ndarray | None = placed(matrix, reach)
+            why = None
+        except ModelError as err:
+            alone, why = None, str(err)
+        assert refused == why
+        assert (placement is None) == (alone is None)
+        if alone is not None:
+            assert np.array_equal(placement, alone)
+    assert sum(r is not None for _, r in together) == 5
+    _, why = next(iter(_placements([(np.eye(3), 1.0)])))
+    assert why == "A placement must be a 4x4 matrix, got shape (3, 3)."
