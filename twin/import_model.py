@@ -55,10 +55,10 @@ _PART_NODES: Final = 5_000  # triangles or geometry nodes
 
 def _load(store: GraphStore, triples: ModelTriples, source: str, quads_lock: threading.Lock) -> None:
     """Load ``triples``: as text when the store parses text (without the GIL) and no mesh literal is
-    among them, else as quads. Loads of quads go one at a time (``quads_lock``): two of them at once can
+    among them, else as quads. Their IRIs are checked when they are made (:func:`checked_iris`). Loads of quads go one at a time (``quads_lock``): two of them at once can
     deadlock, each holding what the other needs (the store's bulk loader, the GIL to read its quads)."""
     if isinstance(store, TextLoader) and not triples.meshes:
-        store.bulk_load_ntriples(triples.data(source))
+        store.bulk_load_ntriples(triples.data(source), iris_checked=True)
     else:
         with quads_lock:
             store.bulk_add(triples.quads(source))
