@@ -12,6 +12,8 @@ Example::
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numpy as np
 import numpy.typing as npt
 
@@ -55,7 +57,7 @@ def _used_of(meshes: list[Mesh]) -> tuple[FloatArray, IntArray64, IntArray64]:
     return np.concatenate([m.vertices for m in meshes])[used], np.cumsum(lengths) - lengths, lengths
 
 
-def _instance_bounds(geometries: list[Geometry]) -> FloatArray:
+def _instance_bounds(geometries: Sequence[Geometry]) -> FloatArray:
     """``(n, 4) float64``: :func:`_bounds` of every geometry (each mesh has a triangle), bit for bit,
     computed for all at once.
 
@@ -121,11 +123,28 @@ def _union(boxes: FloatArray) -> Extent | None:
     )
 
 
-def storey_extents(model: BuildingModel) -> dict[str, Extent]:
-    """``{storey GlobalId: (xmin, ymin, xmax, ymax)}`` in world metres, for every storey of ``model``."""
+def geometry_bounds(items: Sequence[tuple[str, Geometry]]) -> dict[str, FloatArray]:
+    """``{GlobalId: (xmin, ymin, xmax, ymax)}`` of each ``(GlobalId, geometry)`` that has a triangle, as
+    :func:`storey_extents` computes them: an import works them out as the meshes come, in parts, and
+    hands them to it (a row does not depend on the other geometries of the part)."""
+    placed = [(guid, g) for guid, g in items if g.mesh.triangle_count]
+    boxes = _instance_bounds([g for _, g in placed])
+    return {guid: boxes[i] for i, (guid, _) in enumerate(placed)}
+
+
+def storey_extents(model: BuildingModel, known: Mapping[str, FloatArray] | None = None) -> dict[str, Extent]:
+    """``{storey GlobalId: (xmin, ymin, xmax, ymax)}`` in world metres, for every storey of ``model``.
+    ``known`` holds :func:`geometry_bounds` of some of its elements and spaces (of their geometry in
+    ``model``): only the others are computed."""
     nodes = [(e.guid, e.geometry) for e in model.elements] + [(s.guid, s.geometry) for s in model.spaces]
     placed = [(guid, g) for guid, g in nodes if g is not None and g.mesh.triangle_count]
-    boxes = _instance_bounds([g for _, g in placed])
+    known = known or {}
+    unknown = [i for i, (guid, _) in enumerate(placed) if guid not in known]
+    boxes = np.empty((len(placed), 4))
+    boxes[unknown] = _instance_bounds([placed[i][1] for i in unknown])
+    for i, (guid, _) in enumerate(placed):
+        if guid in known:
+            boxes[i] = known[guid]
     row_of = {guid: i for i, (guid, _) in enumerate(placed)}  # a space's box wins over an element's
     everything = _union(boxes[[row_of[e.guid] for e in model.elements if e.guid in row_of]])
     parts: dict[str, list[str]] = {}

@@ -23,6 +23,7 @@ from typing import Final, Self
 
 from twin import vocab
 from twin.errors import ModelError, StoreNotEmptyError
+from twin.extents import geometry_bounds
 from twin.gc_pause import paused_gc
 from twin.model_triples import (
     ModelTriples,
@@ -31,7 +32,7 @@ from twin.model_triples import (
     geometry_triples,
     structure_triples,
 )
-from twin.records import BuildingModel, Geometry, Mesh
+from twin.records import BuildingModel, FloatArray, Geometry, Mesh
 from twin.store import GraphStore, TextLoader
 
 log = logging.getLogger(__name__)
@@ -55,8 +56,9 @@ _PART_NODES: Final = 5_000  # triangles or geometry nodes
 
 def _load(store: GraphStore, triples: ModelTriples, source: str, quads_lock: threading.Lock) -> None:
     """Load ``triples``: as text when the store parses text (without the GIL) and no mesh literal is
-    among them, else as quads. Their IRIs are checked when they are made (:func:`checked_iris`). Loads of quads go one at a time (``quads_lock``): two of them at once can
-    deadlock, each holding what the other needs (the store's bulk loader, the GIL to read its quads)."""
+    among them, else as quads; their IRIs were checked when they were made (:func:`checked_iris`).
+    Loads of quads go one at a time (``quads_lock``): two of them at once can deadlock, each holding
+    what the other needs (the store's bulk loader, the GIL to read its quads)."""
     if isinstance(store, TextLoader) and not triples.meshes:
         store.bulk_load_ntriples(triples.data(source), iris_checked=True)
     else:
@@ -115,6 +117,8 @@ class ModelImport:
         self._encoded: dict[int, tuple[Mesh, str]] = {}  # id(mesh) -> its literal's text, for every part
         self._written: dict[str, Geometry] = {}  # GlobalId -> the geometry written by add_geometry
         self._part_items: list[tuple[str, Geometry, str]] = []  # geometry nodes for the next part
+        self._part_guids: list[str] = []
+        self._bounds: dict[str, FloatArray] = {}  # GlobalId -> the box of its written geometry
         self._part_triangles = 0
 
     def write_structure(self, model: BuildingModel) -> None:
@@ -143,18 +147,22 @@ class ModelImport:
             msg = f"{self._source}: no element or space {guid!r} in the structure written."
             raise ModelError(msg)
         self._part_items.append((node, geometry, kernel))
+        self._part_guids.append(guid)
         self._written[guid] = geometry
         self._part_triangles += geometry.mesh.triangle_count
         if self._part_triangles >= _PART_TRIANGLES or len(self._part_items) >= _PART_NODES:
             self._flush_part()
 
     def _flush_part(self) -> None:
-        """Load the geometry nodes added since the last part: all text, parsed without the GIL."""
+        """Load the geometry nodes added since the last part (all text, parsed without the GIL), and
+        work out their boxes for the storey extents meanwhile."""
         if self._part_items:
             part = ModelTriples(self._encoded, meshes_as_text=True)
             geometry_nodes(part, self._part_items)
             self._loading.append(self._pool.submit(_load, self._store, part, self._source, self._quads_lock))
-        self._part_items, self._part_triangles = [], 0
+            geometries = [g for _, g, _ in self._part_items]
+            self._bounds.update(geometry_bounds(list(zip(self._part_guids, geometries, strict=True))))
+        self._part_items, self._part_guids, self._part_triangles = [], [], 0
 
     def finish(self, model: BuildingModel) -> ImportSummary:
         """Write the geometry of ``model`` (the model given to :meth:`write_structure`, with its meshes);
@@ -163,7 +171,7 @@ class ModelImport:
             msg = f"{model.source_name}: the model to finish is not the one whose structure was written."
             raise ModelError(msg)
         self._flush_part()
-        geometry = geometry_triples(model, self._iri_of, written=self._written)
+        geometry = geometry_triples(model, self._iri_of, written=self._written, bounds=self._bounds)
         if self._replace and self._structure is not None:
             self._store.clear()
             self._wrote = True

@@ -19,7 +19,7 @@ from twin import vocab
 from twin.errors import ModelError
 from twin.extents import format_extent, storey_extents
 from twin.meshcodec import encode_mesh, encode_placements
-from twin.records import BuildingModel, Geometry, Mesh
+from twin.records import BuildingModel, FloatArray, Geometry, Mesh
 
 log = logging.getLogger(__name__)
 
@@ -289,16 +289,21 @@ def geometry_nodes(out: ModelTriples, items: Sequence[tuple[str, Geometry, str]]
 
 
 def geometry_triples(
-    model: BuildingModel, iri_of: dict[str, str], *, written: Mapping[str, Geometry] | None = None
+    model: BuildingModel,
+    iri_of: dict[str, str],
+    *,
+    written: Mapping[str, Geometry] | None = None,
+    bounds: Mapping[str, FloatArray] | None = None,
 ) -> ModelTriples:
     """The triples that need the meshes: storey extents, geometry nodes, kernels, failures, fallbacks.
 
     The geometry nodes of the GlobalIds in ``written`` (already written with that geometry, by
-    :func:`geometry_nodes`) are left out; ModelError if the model's geometry is another.
+    :func:`geometry_nodes`) are left out; ModelError if the model's geometry is another. ``bounds``:
+    :func:`~twin.extents.geometry_bounds` of written geometry, for the storey extents.
     """
     written = written or {}
     out = ModelTriples()
-    extents = storey_extents(model)
+    extents = storey_extents(model, bounds)
     for st in model.storeys:
         if st.guid in extents:
             out.add(iri_of[st.guid], _iri(vocab.TWIN_EXTENT), _text(format_extent(extents[st.guid])))

@@ -233,6 +233,23 @@ def _as_file_error(path: Path) -> Iterator[None]:
         raise IfcFileError(msg) from err
 
 
+def with_geometry(record: Element, geometry: Geometry | None, kernel: str) -> Element:
+    """``replace(record, geometry=geometry, mesh_kernel=kernel)``, a few times faster (12,000 elements)."""
+    if geometry is record.geometry and kernel == record.mesh_kernel:
+        return record
+    return Element(
+        record.guid,
+        record.ifc_class,
+        record.name,
+        record.materials,
+        record.is_static,
+        geometry,
+        record.ifc_types,
+        kernel,
+        record.facing_materials,
+    )
+
+
 def _entity_name(e: Any) -> str:
     return f"{e.is_a()} {e.GlobalId} {e.Name or ''}".strip()
 
@@ -412,12 +429,9 @@ class ModelReading:
                 f.by_id(pid).GlobalId for pid in meshed.unmeshed if f.by_id(pid).is_a("IfcElement")
             )
             _warn_unmeshed(f, meshed.unmeshed)
+            kernel_of = meshed.kernel_of
             elements = tuple(
-                replace(
-                    record,
-                    geometry=geometry.get(e.id()),
-                    mesh_kernel=meshed.kernel_of.get(e.id(), ""),
-                )
+                with_geometry(record, geometry.get(e.id()), kernel_of.get(e.id(), ""))
                 for record, e in zip(structure.elements, self._elements, strict=True)
             )
             spaces = tuple(

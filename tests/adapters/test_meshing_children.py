@@ -3,6 +3,7 @@ core idles: every product meshed once, the same meshes however many cores it use
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -13,10 +14,11 @@ import pytest
 from adapters.ifc.geometry import MeshResult, _shards, start_meshing
 from adapters.ifc.kernel_child import _placements, _unique_rows, placed
 from adapters.ifc.kernel_choice import KernelChoice
-from adapters.ifc.read_model import start_reading
+from adapters.ifc.read_model import start_reading, with_geometry
 from adapters.ifc.sample_lab import LabLayout
 from tests.adapters.generated import Generated
 from twin.errors import ModelError
+from twin.records import Element, Geometry, Mesh
 
 
 def test_shards_deal_every_id_exactly_once_in_near_equal_parts() -> None:
@@ -190,3 +192,36 @@ def test_placements_checked_together_are_those_checked_one_by_one() -> None:
     assert sum(r is not None for _, r in together) == 5
     _, why = next(iter(_placements([(np.eye(3), 1.0)])))
     assert why == "A placement must be a 4x4 matrix, got shape (3, 3)."
+
+
+def test_an_element_given_its_geometry_is_the_record_replace_makes() -> None:
+    """``with_geometry`` builds the record field by field: every field must come through (a new field
+    of Element fails here until with_geometry passes it on)."""
+    fields = [f.name for f in dataclasses.fields(Element)]
+    assert fields == [
+        "guid",
+        "ifc_class",
+        "name",
+        "materials",
+        "is_static",
+        "geometry",
+        "ifc_types",
+        "mesh_kernel",
+        "facing_materials",
+    ]
+    record = Element(
+        guid="0abcdefghijklmnopqrstu",
+        ifc_class="IfcWall",
+        name="wall",
+        materials=("brick", "glass"),
+        is_static=True,
+        ifc_types=("IfcWall", "IfcElement"),
+        mesh_kernel="",
+        facing_materials=("brick",),
+    )
+    geometry = Geometry(Mesh(np.zeros((3, 3)), np.array([[0, 1, 2]], dtype=np.int32), closed=False))
+    placed_ = with_geometry(record, geometry, "manifold")
+    replaced = dataclasses.replace(record, geometry=geometry, mesh_kernel="manifold")
+    assert all(getattr(placed_, name) == getattr(replaced, name) for name in fields)
+    assert placed_.geometry is geometry and placed_.mesh_kernel == "manifold"
+    assert with_geometry(record, None, "") is record

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.extents import _bounds, _instance_bounds
-from twin.records import Geometry, Mesh
+from twin.extents import _bounds, _instance_bounds, geometry_bounds, storey_extents
+from twin.records import BuildingModel, Element, Geometry, Mesh, Relation, Storey
 from twin.shapes import box_mesh, box_placement
 
 
@@ -67,3 +67,38 @@ def test_instances_sharing_a_mesh_each_get_their_own_placed_box() -> None:
 
 def test_no_instances_give_no_boxes() -> None:
     assert _instance_bounds([]).shape == (0, 4)
+
+
+def test_boxes_worked_out_in_parts_as_the_meshes_come_give_the_same_extents_bit_for_bit() -> None:
+    """An import computes the boxes part by part while it meshes; the storey extents made from them
+    are those made from the whole model at the end, and a geometry left out of the parts is computed."""
+    geometries = _random_geometries(11)
+    storeys = (Storey("S1", "Ground", 0.0, None), Storey("S2", "First", 3.0, None))
+    elements = tuple(
+        Element(f"E{i}", "IfcWall", f"wall {i}", (), True, geometry=g) for i, g in enumerate(geometries)
+    )
+    contained = frozenset(Relation("S1" if i % 3 else "S2", e.guid) for i, e in enumerate(elements))
+    model = BuildingModel(
+        source_name="parts.ifc",
+        schema="IFC4",
+        source_lines=0,
+        sites=(),
+        buildings=(),
+        storeys=storeys,
+        spaces=(),
+        elements=elements,
+        adjacent=frozenset(),
+        contained=contained,
+        decomposed=frozenset(),
+    )
+    whole = storey_extents(model)
+    known: dict[str, np.ndarray] = {}
+    items = [(e.guid, e.geometry) for e in elements if e.geometry is not None]
+    for lo in range(0, len(items) - 7, 37):  # parts of 37, the last seven left to storey_extents
+        known.update(geometry_bounds(items[lo : lo + 37]))
+    assert 0 < len(known) < len(items)
+    got = storey_extents(model, known)
+    assert got == whole and len(got) == 2
+    assert all(np.array(got[s]).tobytes() == np.array(whole[s]).tobytes() for s in whole)
+    told = dict(known, E0=np.array([-1e6, -1e6, 1e6, 1e6]))  # the boxes given are the ones used
+    assert storey_extents(model, told)["S2"] == (-1e6, -1e6, 1e6, 1e6)
