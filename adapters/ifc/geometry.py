@@ -29,13 +29,14 @@ Example::
 
 from __future__ import annotations
 
+import heapq
 import logging
 import multiprocessing as mp
 import queue
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Collection, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from types import TracebackType
 from typing import Any, Self
@@ -52,6 +53,9 @@ STALL_SECONDS = 300.0
 SPLIT_MIN_SECONDS = 0.25
 """A child is split only when its work left, at its pace so far, would take longer than this."""
 SPLIT_MIN_PRODUCTS = 8
+INSTANCE_WEIGHT = 0.4
+"""What meshing one more instance of a shared representation map costs, against a body of its own
+(62 against 160 us on the generated 12,000-element building): how :func:`_shards` weighs a group."""
 
 
 @dataclass(slots=True)
@@ -177,12 +181,60 @@ class _KernelRun:
         return self._child.exitcode
 
 
-def _shards(ids: Collection[int], n: int) -> list[frozenset[int]]:
-    """``ids`` dealt round-robin in id order into ``n`` sets (contiguous ranges are unequal work: the
-    file groups products by kind); empty sets are left out."""
-    ordered = sorted(ids)
+def _shards(ids: Collection[int], n: int, together: Mapping[int, int] | None = None) -> list[frozenset[int]]:
+    """``ids`` dealt into ``n`` sets of near-equal size; empty sets are left out.
+
+    Ids with the same ``together`` key (products whose bodies map one representation map) go to one
+    set, heaviest group first to the lightest set (a group weighs one body and
+    :data:`INSTANCE_WEIGHT` for each further instance), unless the group weighs more than a set's
+    share (then a mesh more is cheaper than unequal sets): an iterator meshes a shared map once, so two
+    children that each get some of its instances mesh it twice (on Janesville, dealing its 1,139
+    manifold products round-robin cost 2.2 s of CPU in two children against 1.6 s in one). The other
+    ids follow in id order, each to the lightest set (contiguous ranges are unequal work: the file
+    groups products by kind).
+    """
     n = max(n, 1)
-    return [s for i in range(n) if (s := frozenset(ordered[i::n]))]
+    together = together or {}
+    groups: dict[int, list[int]] = {}
+    for i in ids:
+        key = together.get(i)
+        if key is not None:
+            groups.setdefault(key, []).append(i)
+    weight = {k: 1.0 + INSTANCE_WEIGHT * (len(g) - 1) for k, g in groups.items()}
+    share = (len(ids) - sum(len(g) for g in groups.values()) + sum(weight.values())) / n
+    kept = [k for k in groups if weight[k] <= share]  # a heavier group is dealt like the rest
+    sets: list[list[int]] = [[] for _ in range(n)]
+    loads = [(0.0, k) for k in range(n)]  # (weight so far, set): a heap
+    for key in sorted(kept, key=lambda k: (-weight[k], k)):
+        load, k = heapq.heappop(loads)
+        sets[k].extend(sorted(groups[key]))
+        heapq.heappush(loads, (load + weight[key], k))
+    grouped = {i for k in kept for i in groups[k]}
+    for i in sorted(i for i in ids if i not in grouped):
+        load, k = heapq.heappop(loads)
+        sets[k].append(i)
+        heapq.heappush(loads, (load + 1.0, k))
+    return [frozenset(x) for x in sets if x]
+
+
+def shared_maps(f: Any) -> dict[int, int]:
+    """Product id -> the id of the representation map its body maps (``IfcMappedItem``), for the
+    products whose body has one: instances of one type share it. Found from the mapped items up (a few
+    ms on 12,000 elements); {} if the file's references cannot be followed."""
+    out: dict[int, int] = {}
+    try:
+        for item in f.by_type("IfcMappedItem"):
+            source = item[0]
+            if source is None:
+                continue
+            for representation in f.get_inverse(item):
+                for shape in f.get_inverse(representation):
+                    if shape.is_a("IfcProductDefinitionShape"):
+                        for product in f.get_inverse(shape):
+                            out[product.id()] = source.id()
+    except (RuntimeError, AttributeError, TypeError, ValueError, IndexError):  # a malformed file
+        return {}
+    return out
 
 
 class MeshingJob:
@@ -227,12 +279,16 @@ class MeshingJob:
         self._failure: BaseException | None = None
         self._cancelled = False
         self._arrived: queue.SimpleQueue[list[int] | None] = queue.SimpleQueue()
+        self._together = shared_maps(f) if self._threads > 1 else {}
         chain = tuple(kernels)
         self._reference_first = (REFERENCE_KERNEL, *(k for k in chain if k != REFERENCE_KERNEL))
         self._routes_due = 0  # routing children that have not yet named what they route
         self._routed_by_children: set[int] = set()
         if route and not routed and REFERENCE_KERNEL in chain[1:]:
-            units = [_Unit(s, chain, chain[0], routing=True) for s in _shards(with_body, self._threads)]
+            units = [
+                _Unit(s, chain, chain[0], routing=True)
+                for s in _shards(with_body, self._threads, self._together)
+            ]
             self._routes_due = len(units)
             self._queue.extend(units)
             with self._cond:
@@ -254,7 +310,7 @@ class MeshingJob:
             n_rest = self._threads if apart else max(1, self._threads - n_routed)
         for ids, path, n in ((routed_ids, reference_first, n_routed), (rest_ids, chain, n_rest)):
             if path:
-                self._queue.extend(_Unit(s, path, path[0]) for s in _shards(ids, n))
+                self._queue.extend(_Unit(s, path, path[0]) for s in _shards(ids, n, self._together))
         with self._cond:
             self._schedule(slots=n_routed + n_rest if apart else self._threads)
             if not self._running:
@@ -320,7 +376,7 @@ class MeshingJob:
         if self._threads > 1:  # a share of the cores, at least one child, beside the others
             n = max(1, min(self._threads - 1, round(self._threads * len(ids) / len(self._with_body))))
         path = self._reference_first
-        self._queue.extend(_Unit(s, path, path[0]) for s in _shards(ids, n))
+        self._queue.extend(_Unit(s, path, path[0]) for s in _shards(ids, n, self._together))
         self._schedule(slots=len(self._running) + n if self._threads > 1 else 0)
 
     def _warn_once(self, pid: int, what: str) -> None:
@@ -339,7 +395,9 @@ class MeshingJob:
                 left, unit = frozenset(run.pending), run.unit
                 if run.stopped:  # split: what it left goes to two children, with the same kernel
                     self._result.splits += 1
-                    self._queue.extendleft(_Unit(s, unit.kernels, unit.first) for s in _shards(left, 2))
+                    self._queue.extendleft(
+                        _Unit(s, unit.kernels, unit.first) for s in _shards(left, 2, self._together)
+                    )
                 else:
                     self._report(run, len(left))
                     if left and len(unit.kernels) > 1:

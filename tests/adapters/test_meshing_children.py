@@ -11,7 +11,7 @@ import ifcopenshell
 import numpy as np
 import pytest
 
-from adapters.ifc.geometry import MeshResult, _shards, start_meshing
+from adapters.ifc.geometry import INSTANCE_WEIGHT, MeshResult, _shards, shared_maps, start_meshing
 from adapters.ifc.kernel_child import _placements, _unique_rows, placed
 from adapters.ifc.kernel_choice import KernelChoice
 from adapters.ifc.read_model import start_reading, with_geometry
@@ -32,6 +32,53 @@ def test_shards_deal_every_id_exactly_once_in_near_equal_parts() -> None:
 def test_shards_leave_out_empty_parts() -> None:
     assert _shards({5}, 2) == [frozenset({5})]
     assert _shards(set(), 2) == []
+
+
+def test_shards_keep_the_instances_of_a_shared_map_together_and_stay_near_equal() -> None:
+    ids = set(range(100))
+    together = {i: 1000 + i % 3 for i in range(0, 60, 2)}  # three maps, ten instances each
+    shards = _shards(ids, 2, together)
+    assert set().union(*shards) == ids and sum(len(s) for s in shards) == len(ids)
+    for key in set(together.values()):
+        assert sum(1 for s in shards if any(together.get(i) == key for i in s)) == 1, key
+
+    def weight(shard: frozenset[int]) -> float:  # a body, and INSTANCE_WEIGHT for each further instance
+        keys = [together[i] for i in shard if i in together]
+        return len(shard) - len(keys) + sum(1 + INSTANCE_WEIGHT * (keys.count(k) - 1) for k in set(keys))
+
+    assert abs(weight(shards[0]) - weight(shards[1])) <= 1.0
+    assert len(shards[0]) != len(shards[1])  # the instances weigh less: the counts differ
+    huge = {i: 7 for i in range(90)}  # one map for most products: more than a share, dealt apart
+    shards = _shards(ids, 2, huge)
+    assert abs(len(shards[0]) - len(shards[1])) <= 1
+
+
+def test_the_products_sharing_a_representation_map_are_found_from_the_mapped_items() -> None:
+    g = Generated("IFC4")
+    storey = g.storey("Ground", 0.0)
+    f = g.file
+    plain = g.box("IfcWall", "wall", (0.0, 0.0, 0.0), (2.0, 0.2, 2.0), container=storey)
+    source = g.box("IfcFurniture", "model", (9.0, 9.0, 0.0), (0.5, 0.5, 0.5), container=storey)
+    body = source.Representation.Representations[0]
+    origin = f.createIfcAxis2Placement3D(f.createIfcCartesianPoint((0.0, 0.0, 0.0)), None, None)
+    rmap = f.createIfcRepresentationMap(origin, body)
+    chairs = []
+    for i in range(3):
+        chair = g.box("IfcFurniture", f"chair {i}", (float(i), 3.0, 0.0), (0.5, 0.5, 0.5), container=storey)
+        target = f.createIfcCartesianTransformationOperator3D(
+            None, None, f.createIfcCartesianPoint((0.0, 0.0, 0.0)), 1.0, None
+        )
+        rep = chair.Representation.Representations[0]
+        rep.Items = [f.createIfcMappedItem(rmap, target)]
+        chairs.append(chair)
+    found = shared_maps(f)
+    assert {pid: found.get(pid) for pid in (plain.id(), *(c.id() for c in chairs))} == {
+        plain.id(): None,
+        **{c.id(): rmap.id() for c in chairs},
+    }
+    with start_meshing(f, [plain, *chairs], kernels=("manifold",), threads=2) as job:
+        meshed = job.result()
+    assert set(meshed.geometry) == {plain.id(), *(c.id() for c in chairs)}
 
 
 def _lab_products(lab: tuple[Path, LabLayout]) -> tuple[Any, list[Any], list[Any]]:
