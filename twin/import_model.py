@@ -26,13 +26,14 @@ from twin.errors import ModelError, StoreNotEmptyError
 from twin.extents import geometry_bounds
 from twin.gc_pause import paused_gc
 from twin.model_triples import (
+    MeshLiterals,
     ModelTriples,
     checked_iris,
     geometry_nodes,
     geometry_triples,
     structure_triples,
 )
-from twin.records import BuildingModel, FloatArray, Geometry, Mesh
+from twin.records import BuildingModel, FloatArray, Geometry
 from twin.store import GraphStore, TextLoader
 
 log = logging.getLogger(__name__)
@@ -50,17 +51,20 @@ class ImportSummary:
 
 
 _MIN_PART: Final = 5_000  # triples: below this a second bulk load costs more than it saves
-_PART_TRIANGLES: Final = 400_000  # geometry written while meshing goes on: a bulk load per this many
-_PART_NODES: Final = 5_000  # triangles or geometry nodes
+_PART_TRIANGLES: Final = 100_000  # geometry written while meshing goes on: a bulk load per this many
+_PART_NODES: Final = 5_000  # triangles of meshes not written before (an instance's costs little) or nodes
 
 
 def _load(store: GraphStore, triples: ModelTriples, source: str, quads_lock: threading.Lock) -> None:
-    """Load ``triples``: as text when the store parses text (without the GIL) and no mesh literal is
-    among them, else as quads; their IRIs were checked when they were made (:func:`checked_iris`).
-    Loads of quads go one at a time (``quads_lock``): two of them at once can deadlock, each holding
-    what the other needs (the store's bulk loader, the GIL to read its quads)."""
-    if isinstance(store, TextLoader) and not triples.meshes:
+    """Load ``triples``: the lines as text when the store parses text (without the GIL; their IRIs
+    were checked when they were made, :func:`checked_iris`) and the mesh literals kept as objects as
+    quads, else all as quads. Loads of quads go one at a time (``quads_lock``): two of them at once can
+    deadlock, each holding what the other needs (the store's bulk loader, the GIL to read its quads)."""
+    if isinstance(store, TextLoader):
         store.bulk_load_ntriples(triples.data(source), iris_checked=True)
+        if triples.meshes:
+            with quads_lock:
+                store.bulk_add(triples.mesh_quads())
     else:
         with quads_lock:
             store.bulk_add(triples.quads(source))
@@ -114,12 +118,13 @@ class ModelImport:
         self._iri_of: dict[str, str] = {}
         self._source = ""
         self._wrote = False
-        self._encoded: dict[int, tuple[Mesh, str]] = {}  # id(mesh) -> its literal's text, for every part
+        self._literals = MeshLiterals()  # each mesh's literal, encoded once for every part
         self._written: dict[str, Geometry] = {}  # GlobalId -> the geometry written by add_geometry
         self._part_items: list[tuple[str, Geometry, str]] = []  # geometry nodes for the next part
         self._part_guids: list[str] = []
         self._bounds: dict[str, FloatArray] = {}  # GlobalId -> the box of its written geometry
         self._part_triangles = 0
+        self._meshes_seen: set[int] = set()  # id() of the meshes added (each kept by _written)
 
     def write_structure(self, model: BuildingModel) -> None:
         """Make the triples that need no geometry and (unless replacing) start loading them."""
@@ -149,7 +154,9 @@ class ModelImport:
         self._part_items.append((node, geometry, kernel))
         self._part_guids.append(guid)
         self._written[guid] = geometry
-        self._part_triangles += geometry.mesh.triangle_count
+        if id(geometry.mesh) not in self._meshes_seen:
+            self._meshes_seen.add(id(geometry.mesh))
+            self._part_triangles += geometry.mesh.triangle_count
         if self._part_triangles >= _PART_TRIANGLES or len(self._part_items) >= _PART_NODES:
             self._flush_part()
 
@@ -157,7 +164,7 @@ class ModelImport:
         """Load the geometry nodes added since the last part (all text, parsed without the GIL), and
         work out their boxes for the storey extents meanwhile."""
         if self._part_items:
-            part = ModelTriples(self._encoded, meshes_as_text=True)
+            part = ModelTriples(self._literals, meshes_as_text=True)
             geometry_nodes(part, self._part_items)
             self._loading.append(self._pool.submit(_load, self._store, part, self._source, self._quads_lock))
             geometries = [g for _, g, _ in self._part_items]

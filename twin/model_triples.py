@@ -25,7 +25,8 @@ log = logging.getLogger(__name__)
 
 # The graph is written as N-Triples text and parsed by pyoxigraph into quads: about 4x faster than
 # building each term as a Python object (an import has tens of thousands of triples). Only the mesh
-# literals, large and shared by the instances of a representation, are built as objects, once per mesh.
+# literals, large and shared by the instances of a representation, are built as objects, once per mesh
+# (but for the first copy of each, which is text too).
 _ESCAPES: Final = str.maketrans({"\\": "\\\\", '"': '\\"', "\n": "\\n", "\r": "\\r"})
 _TRUE: Final = f'"true"^^<{vocab.XSD_BOOLEAN}>'
 _FALSE: Final = f'"false"^^<{vocab.XSD_BOOLEAN}>'
@@ -72,19 +73,51 @@ def _boolean(value: bool) -> str:
     return _TRUE if value else _FALSE
 
 
-class ModelTriples:
-    """Triples being collected: N-Triples lines, plus the mesh quads built as objects (instances share
-    one literal object) or, with ``meshes_as_text``, mesh literals as lines too (the store then parses
-    every triple without the GIL, at the cost of a copy of the text per instance)."""
+class MeshLiterals:
+    """The mesh literals of one import, each encoded once and shared by all its parts: its base64 PLY
+    text, the literal object (made when first needed), and whether a part has written it as text."""
 
-    def __init__(
-        self, encoded: dict[int, tuple[Mesh, str]] | None = None, *, meshes_as_text: bool = False
-    ) -> None:
+    __slots__ = ("_of",)
+
+    def __init__(self) -> None:
+        self._of: dict[int, tuple[Mesh, str, list[ox.Literal | None], list[bool]]] = {}
+
+    def text(self, mesh: Mesh) -> str:
+        return self._entry(mesh)[1]
+
+    def literal(self, mesh: Mesh) -> ox.Literal:
+        entry = self._entry(mesh)
+        made = entry[2][0]
+        if made is None:
+            made = entry[2][0] = ox.Literal(entry[1], datatype=_BASE64)
+        return made
+
+    def first_text(self, mesh: Mesh) -> bool:
+        """True the first time it is asked for ``mesh``: write its literal as text then, as an object
+        after (the store parses and hashes each copy of a text: Janesville's instances repeat 105 MB
+        of literals that are 7.8 MB once each)."""
+        written = self._entry(mesh)[3]
+        first = not written[0]
+        written[0] = True
+        return first
+
+    def _entry(self, mesh: Mesh) -> tuple[Mesh, str, list[ox.Literal | None], list[bool]]:
+        key = id(mesh)  # the mesh is kept in the entry, so its id is not reused meanwhile
+        entry = self._of.get(key)
+        if entry is None:
+            entry = self._of[key] = (mesh, encode_mesh(mesh), [None], [False])
+        return entry
+
+
+class ModelTriples:
+    """Triples being collected: N-Triples lines, plus the mesh triples as objects (instances share
+    one literal object). With ``meshes_as_text``, the first triple of each mesh literal is a line too,
+    so that the store parses it without the GIL; the instances' copies stay objects."""
+
+    def __init__(self, literals: MeshLiterals | None = None, *, meshes_as_text: bool = False) -> None:
         self.lines: list[str] = []
         self.meshes: list[tuple[str, ox.Literal]] = []  # (geometry node IRI, mesh literal)
-        # id(mesh) -> (mesh, its base64 PLY): encoded once, also across the parts of one import
-        self._encoded = encoded if encoded is not None else {}
-        self._literals: dict[int, ox.Literal] = {}
+        self._literals = literals if literals is not None else MeshLiterals()  # also across parts
         self._as_text = meshes_as_text
 
     def add(self, subject: str, predicate: str, obj: str) -> None:
@@ -95,24 +128,19 @@ class ModelTriples:
         """The geometry node of ``node`` (an IRI): mesh, placement (``placement``, its
         :func:`~twin.meshcodec.encode_placement` text), closedness, solidity, triangle count."""
         g = vocab.geometry_iri(node)
-        key = id(geometry.mesh)
-        known = self._encoded.get(key)
-        if known is None:
-            known = self._encoded[key] = (geometry.mesh, encode_mesh(geometry.mesh))
-        if self._as_text:
-            self.add(_iri(g), _PLY_TEXT, f'"{known[1]}"^^<{vocab.XSD_BASE64}>')  # base64: nothing to escape
+        mesh = geometry.mesh
+        if self._as_text and self._literals.first_text(mesh):
+            text = self._literals.text(mesh)
+            self.add(_iri(g), _PLY_TEXT, f'"{text}"^^<{vocab.XSD_BASE64}>')  # base64: nothing to escape
         else:
-            ply = self._literals.get(key)
-            if ply is None:
-                ply = self._literals[key] = ox.Literal(known[1], datatype=_BASE64)
-            self.meshes.append((g, ply))
+            self.meshes.append((g, self._literals.literal(mesh)))
         g = _iri(g)
         self.add(_iri(node), _HAS_GEOMETRY, g)
         self.add(g, _TYPE, _GEOMETRY)
         self.add(g, _PLACEMENT, _typed(placement, vocab.TWIN_MATRIX4))
-        self.add(g, _CLOSED, _boolean(geometry.mesh.closed))
-        self.add(g, _TRIANGLES, _integer(geometry.mesh.triangle_count))
-        if geometry.mesh.solid:
+        self.add(g, _CLOSED, _boolean(mesh.closed))
+        self.add(g, _TRIANGLES, _integer(mesh.triangle_count))
+        if mesh.solid:
             self.add(g, _SOLID, _boolean(True))
 
     def data(self, source: str) -> bytes:
@@ -126,8 +154,11 @@ class ModelTriples:
     def quads(self, source: str) -> Iterator[ox.Quad]:
         """Every triple as a quad in the default graph."""
         yield from ox.parse(self.data(source), format=ox.RdfFormat.N_QUADS)
-        for node, ply in self.meshes:
-            yield ox.Quad(ox.NamedNode(node), _PLY, ply)
+        yield from self.mesh_quads()
+
+    def mesh_quads(self) -> list[ox.Quad]:
+        """The mesh triples that are objects (not lines), as quads in the default graph."""
+        return [ox.Quad(ox.NamedNode(node), _PLY, ply) for node, ply in self.meshes]
 
 
 def mint_iris(model: BuildingModel, base_iri: str) -> dict[str, str]:
