@@ -37,11 +37,13 @@ def import_ifc(
     with (
         paused_gc(),  # the import makes few cycles; collecting costs ~0.2 s on 12,000 elements
         ModelImport(store, base_iri=base_iri, site=site, replace=replace) as job,
-        start_reading(
-            path, static_types=static_types, kernels=kernels, threads=threads, progress=progress
-        ) as reading,
     ):
-        job.write_structure(reading.structure())
-        for guid, geometry, kernel in reading.geometries():  # each mesh as it comes
-            job.add_geometry(guid, geometry, kernel)
-        return job.finish(reading.model())
+        with start_reading(
+            path, static_types=static_types, kernels=kernels, threads=threads, progress=progress
+        ) as reading:
+            job.write_structure(reading.structure())
+            for guid, geometry, kernel in reading.geometries():  # each mesh as it comes
+                job.add_geometry(guid, geometry, kernel)
+            model = reading.model()
+        # the file is let go of (and freed) here, while the store loads the last geometry
+        return job.finish(model)

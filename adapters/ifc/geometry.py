@@ -478,6 +478,10 @@ class MeshingJob:
         for run in running:
             run.join()
 
+    def release(self) -> None:
+        """Let go of the file, once cancelled or finished (:meth:`partial` and :meth:`result` stay)."""
+        self._f = None
+
     def __enter__(self) -> Self:
         return self
 

@@ -325,6 +325,7 @@ class ModelReading:
             self._job.cancel()
             raise
         self._structure: BuildingModel | None = None
+        self._model: BuildingModel | None = None
 
     def structure(self) -> BuildingModel:
         """The model without geometry: every element's and space's ``geometry`` is None, and no mesh
@@ -332,6 +333,9 @@ class ModelReading:
         if self._structure is not None:
             return self._structure
         f, path = self._f, self._path
+        if f is None:
+            msg = f"{path}: the reading was left before its structure was read"
+            raise IfcFileError(msg)
         with _as_file_error(path):
             up = _hierarchy(f, self._attributes)
 
@@ -416,7 +420,13 @@ class ModelReading:
             yield guid, result.geometry[pid], result.kernel_of[pid] if is_element else ""
 
     def model(self) -> BuildingModel:
-        """The whole model: :meth:`structure` with every mesh (waits for the meshing)."""
+        """The whole model: :meth:`structure` with every mesh (waits for the meshing). Read it before
+        leaving the reading (then it is kept)."""
+        if self._model is not None:
+            return self._model
+        if self._f is None:
+            msg = f"{self._path}: the reading was left before its model was read"
+            raise IfcFileError(msg)
         structure = self.structure()
         f = self._f
         with _as_file_error(self._path):
@@ -438,13 +448,14 @@ class ModelReading:
                 replace(record, geometry=geometry.get(s.id()))
                 for record, s in zip(structure.spaces, self._spaces, strict=True)
             )
-        return replace(
+        self._model = replace(
             structure,
             elements=elements,
             spaces=spaces,
             mesh_failures=failures,
             kernel_fallbacks=kernel_fallbacks,
         )
+        return self._model
 
     def __enter__(self) -> Self:
         return self
@@ -452,7 +463,13 @@ class ModelReading:
     def __exit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
+        """Kill the meshing children that still run and let go of the file: a large model's entities
+        (0.04-0.08 s to free on Janesville) are freed now, while the store may still be loading, not
+        whenever the caller lets go of the reading. Only the records read before stay."""
         self._job.cancel()
+        self._job.release()
+        self._f = None
+        self._sites = self._buildings = self._storeys = self._spaces = self._elements = []
 
 
 def start_reading(

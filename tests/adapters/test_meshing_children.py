@@ -4,6 +4,7 @@ core idles: every product meshed once, the same meshes however many cores it use
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from pathlib import Path
 from typing import Any
 
@@ -11,6 +12,7 @@ import ifcopenshell
 import numpy as np
 import pytest
 
+from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import INSTANCE_WEIGHT, MeshResult, _shards, shared_maps, start_meshing
 from adapters.ifc.kernel_child import _placements, _unique_rows, placed
 from adapters.ifc.kernel_choice import KernelChoice
@@ -272,3 +274,19 @@ def test_an_element_given_its_geometry_is_the_record_replace_makes() -> None:
     assert all(getattr(placed_, name) == getattr(replaced, name) for name in fields)
     assert placed_.geometry is geometry and placed_.mesh_kernel == "manifold"
     assert with_geometry(record, None, "") is record
+
+
+def test_a_reading_lets_go_of_the_file_when_it_is_left_and_keeps_what_it_read(
+    lab: tuple[Path, LabLayout],
+) -> None:
+    """Leaving the reading frees the IFC file's entities at once (while the store may still be loading),
+    not whenever the caller drops the reading; the records read stay."""
+    with start_reading(lab[0]) as reading:
+        model = reading.model()
+        file = weakref.ref(reading._f)
+    assert file() is None, "the file is freed on leaving the reading"
+    assert reading.model() is model and model.elements  # what was read stays
+    with start_reading(lab[0]) as unread:
+        pass
+    with pytest.raises(IfcFileError, match="left before its model was read"):
+        unread.model()
