@@ -62,9 +62,9 @@ def _load(store: GraphStore, triples: ModelTriples, source: str, quads_lock: thr
     deadlock, each holding what the other needs (the store's bulk loader, the GIL to read its quads)."""
     if isinstance(store, TextLoader):
         store.bulk_load_ntriples(triples.data(source), iris_checked=True)
-        if triples.meshes:
+        for quads in triples.mesh_quads():
             with quads_lock:
-                store.bulk_add(triples.mesh_quads())
+                store.bulk_add(quads)
     else:
         with quads_lock:
             store.bulk_add(triples.quads(source))

@@ -50,6 +50,9 @@ _MESH_KERNEL: Final = f"<{vocab.TWIN_MESH_KERNEL}>"
 _PLY: Final = ox.NamedNode(vocab.FOG_PLY_BINARY_LE)
 _PLY_TEXT: Final = f"<{vocab.FOG_PLY_BINARY_LE}>"
 _BASE64: Final = ox.NamedNode(vocab.XSD_BASE64)
+MESH_QUADS_BYTES: Final = 32 << 20
+"""Literal text per load of mesh quads (:meth:`ModelTriples.mesh_quads`): 32 MiB more at the peak, 4
+loads on Janesville (each load costs about 0.01 s more than one)."""
 
 
 def _iri(iri: str) -> str:
@@ -116,7 +119,7 @@ class ModelTriples:
 
     def __init__(self, literals: MeshLiterals | None = None, *, meshes_as_text: bool = False) -> None:
         self.lines: list[str] = []
-        self.meshes: list[tuple[str, ox.Literal]] = []  # (geometry node IRI, mesh literal)
+        self.meshes: list[tuple[str, ox.Literal, int]] = []  # (geometry node IRI, mesh literal, its size)
         self._literals = literals if literals is not None else MeshLiterals()  # also across parts
         self._as_text = meshes_as_text
 
@@ -133,7 +136,7 @@ class ModelTriples:
             text = self._literals.text(mesh)
             self.add(_iri(g), _PLY_TEXT, f'"{text}"^^<{vocab.XSD_BASE64}>')  # base64: nothing to escape
         else:
-            self.meshes.append((g, self._literals.literal(mesh)))
+            self.meshes.append((g, self._literals.literal(mesh), len(self._literals.text(mesh))))
         g = _iri(g)
         self.add(_iri(node), _HAS_GEOMETRY, g)
         self.add(g, _TYPE, _GEOMETRY)
@@ -154,11 +157,23 @@ class ModelTriples:
     def quads(self, source: str) -> Iterator[ox.Quad]:
         """Every triple as a quad in the default graph."""
         yield from ox.parse(self.data(source), format=ox.RdfFormat.N_QUADS)
-        yield from self.mesh_quads()
+        for quads in self.mesh_quads():
+            yield from quads
 
-    def mesh_quads(self) -> list[ox.Quad]:
-        """The mesh triples that are objects (not lines), as quads in the default graph."""
-        return [ox.Quad(ox.NamedNode(node), _PLY, ply) for node, ply in self.meshes]
+    def mesh_quads(self, max_bytes: int = MESH_QUADS_BYTES) -> Iterator[list[ox.Quad]]:
+        """The mesh triples that are objects (not lines), as quads in the default graph, in lists of
+        at most ``max_bytes`` of literal text (or one quad): the store copies every literal of a load
+        at once, which would hold each instance's copy (on Janesville 105 MB) at the same time."""
+        chunk: list[ox.Quad] = []
+        size = 0
+        for node, ply, n in self.meshes:
+            if chunk and size + n > max_bytes:
+                yield chunk
+                chunk, size = [], 0
+            chunk.append(ox.Quad(ox.NamedNode(node), _PLY, ply))
+            size += n
+        if chunk:
+            yield chunk
 
 
 def mint_iris(model: BuildingModel, base_iri: str) -> dict[str, str]:

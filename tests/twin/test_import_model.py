@@ -24,7 +24,7 @@ from twin.errors import ModelError
 from twin.extents import _bounds, format_extent, storey_extents
 from twin.import_model import ModelImport, import_model
 from twin.meshcodec import encode_mesh, encode_placement
-from twin.model_triples import checked_iris, mint_iris
+from twin.model_triples import MeshLiterals, ModelTriples, checked_iris, mint_iris
 from twin.records import BuildingModel, Geometry, Mesh, Relation, Space, Storey
 from twin.shapes import box_mesh, box_placement
 from twin.store import EmbeddedStore, TextLoader
@@ -356,3 +356,30 @@ def test_the_first_iri_that_cannot_be_written_is_named_whatever_class_comes_firs
     with pytest.raises(ModelError, match=f"in IRI '{iri}'"):
         checked_iris(bad, BASE)
     assert checked_iris(lab, BASE) == {g: f"<{i}>" for g, i in mint_iris(lab, BASE).items()}
+
+
+def test_the_copies_of_a_mesh_literal_are_text_once_then_objects_loaded_a_few_at_a_time() -> None:
+    """The first geometry node of a mesh carries its literal as text, its other instances the same
+    literal object; those quads come in lists of at most ``max_bytes`` of literal text (one literal
+    larger than that alone), every one of them once."""
+    literals = MeshLiterals()
+    small, large = box_mesh(1.0, 1.0, 1.0), box_mesh(2.0, 1.0, 1.0)
+    part = ModelTriples(literals, meshes_as_text=True)
+    nodes = [f"https://example.org/e{i}" for i in range(7)]
+    for node, mesh in zip(nodes, [small, small, large, small, large, large, small], strict=True):
+        part.geometry(node, Geometry(mesh), encode_placement(np.eye(4)))
+    text = "".join(part.lines)
+    assert text.count(encode_mesh(small)) == 1 and text.count(encode_mesh(large)) == 1
+    later = ModelTriples(literals, meshes_as_text=True)  # a later part: text already written
+    later.geometry("https://example.org/e7", Geometry(small), encode_placement(np.eye(4)))
+    assert encode_mesh(small) not in "".join(later.lines) and len(later.meshes) == 1
+    size = len(encode_mesh(small))
+    chunks = list(part.mesh_quads(max_bytes=2 * size))
+    quads = [q for chunk in chunks for q in chunk]
+    firsts = {nodes[0], nodes[2]}  # the first node of each mesh has the text
+    assert sorted(q.subject.value for q in quads) == sorted(
+        vocab.geometry_iri(n) for n in nodes if n not in firsts
+    )
+    assert {q.object.value for q in quads} == {encode_mesh(small), encode_mesh(large)}
+    assert all(sum(len(q.object.value) for q in chunk) <= 2 * size or len(chunk) == 1 for chunk in chunks)
+    assert len(chunks) >= 2
