@@ -16,6 +16,11 @@ would idle, the child with the most work left (by its own pace so far) is asked 
 had not meshed is dealt into two new units. Each split costs one more iterator start (10-70 ms),
 so only work that would take longer than :data:`SPLIT_MIN_SECONDS` is split.
 
+The first children also decide which of their products the reference kernel must mesh first
+(:mod:`adapters.ifc.kernel_choice`), so that meshing starts as soon as the file is open; what they
+route goes to reference-kernel children started beside them. Products whose bodies map one
+representation map are dealt to one child (:func:`shared_maps`): an iterator meshes a shared map once.
+
 Meshes are local (``use-world-coords`` off) with the placement as a separate matrix; instances that
 share a representation share one :class:`~twin.records.Mesh` (decoded once per kernel).
 
@@ -182,7 +187,7 @@ class _KernelRun:
 
 
 def _shards(ids: Collection[int], n: int, together: Mapping[int, int] | None = None) -> list[frozenset[int]]:
-    """``ids`` dealt into ``n`` sets of near-equal size; empty sets are left out.
+    """``ids`` dealt into ``n`` sets of near-equal work; empty sets are left out.
 
     Ids with the same ``together`` key (products whose bodies map one representation map) go to one
     set, heaviest group first to the lightest set (a group weighs one body and
