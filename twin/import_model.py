@@ -59,7 +59,8 @@ def _load(store: GraphStore, triples: ModelTriples, source: str, quads_lock: thr
     """Load ``triples``: the lines as text when the store parses text (without the GIL; their IRIs
     were checked when they were made, :func:`checked_iris`) and the mesh literals kept as objects as
     quads, else all as quads. Loads of quads go one at a time (``quads_lock``): two of them at once can
-    deadlock, each holding what the other needs (the store's bulk loader, the GIL to read its quads)."""
+    deadlock, each holding what the other needs (the store's bulk loader, the GIL to read its quads).
+    A load of text needs no GIL, so it may run beside a load of quads."""
     if isinstance(store, TextLoader):
         store.bulk_load_ntriples(triples.data(source), iris_checked=True)
         for quads in triples.mesh_quads():

@@ -5,7 +5,7 @@ The child makes the meshes itself (closedness, welding, orientation, whether the
 :mod:`adapters.ifc.body_kind`) and checks the placements, so the calling process only collects. A
 :data:`Shape` carries a mesh the first time, then ``None`` for the instances sharing it.
 
-With ``route`` set, the child first asks :class:`~adapters.ifc.kernel_choice.KernelChoice` which of its
+With ``routing`` set, the child first asks :class:`~adapters.ifc.kernel_choice.KernelChoice` which of its
 elements the reference kernel must mesh, sends their ids (:data:`ROUTED`) and leaves them to other
 children: the routing then costs no time before the children start, and is shared by the cores.
 

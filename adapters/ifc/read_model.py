@@ -411,6 +411,9 @@ class ModelReading:
     def geometries(self) -> Iterator[tuple[str, Geometry, str]]:
         """``(GlobalId, geometry, kernel)`` of each element (kernel "" for a space) as soon as it is
         meshed, until the meshing ends: the same geometry :meth:`model` gives it. Read it once."""
+        if self._f is None:
+            msg = f"{self._path}: the reading was left before its geometries were read"
+            raise IfcFileError(msg)
         structure = self.structure()
         guid_of = {e.id(): (r.guid, True) for e, r in zip(self._elements, structure.elements, strict=True)}
         guid_of.update((s.id(), (r.guid, False)) for s, r in zip(self._spaces, structure.spaces, strict=True))
@@ -466,8 +469,7 @@ class ModelReading:
         """Kill the meshing children that still run and let go of the file: a large model's entities
         (0.04-0.08 s to free on Janesville) are freed now, while the store may still be loading, not
         whenever the caller lets go of the reading. Only the records read before stay."""
-        self._job.cancel()
-        self._job.release()
+        self._job.release()  # cancels what still runs
         self._f = None
         self._sites = self._buildings = self._storeys = self._spaces = self._elements = []
 

@@ -352,6 +352,21 @@ def test_a_broken_file_gives_a_clear_error_or_warnings_naming_the_element(
     assert (tmp_path / "store").exists() == (kind != "error")  # a failed import leaves no store behind
 
 
+@pytest.mark.parametrize("case", [c for c in CASES if "cycle" in c or "its own operand" in c])
+def test_a_reference_cycle_is_one_error_without_warnings_from_the_children_it_stops(
+    case: str, lab_text: str, tmp_path: Path
+) -> None:
+    """The cycle check runs while the kernel children mesh; the children it kills are not reported as
+    kernels that crashed."""
+    make, kind, said = CASES[case]
+    assert kind == "error"
+    ifc = tmp_path / "cycle.ifc"
+    ifc.write_bytes(make(lab_text))
+    outcome = import_by_command(ifc, tmp_path / "store")
+    assert outcome.code == 1 and re.search(said, outcome.stderr), outcome.stderr
+    assert "crashed" not in outcome.stderr and "failed" not in outcome.stderr, outcome.stderr
+
+
 @pytest.mark.parametrize("what", ["a directory", "a path below a file", "a missing file"])
 def test_a_path_that_is_no_file_gives_a_one_line_error(what: str, tmp_path: Path) -> None:
     (tmp_path / "dir.ifc").mkdir()

@@ -4,6 +4,7 @@ core idles: every product meshed once, the same meshes however many cores it use
 from __future__ import annotations
 
 import dataclasses
+import threading
 import weakref
 from pathlib import Path
 from typing import Any
@@ -29,6 +30,10 @@ def test_shards_deal_every_id_exactly_once_in_near_equal_parts() -> None:
     assert set().union(*shards) == ids
     assert sum(len(s) for s in shards) == len(ids)
     assert max(len(s) for s in shards) - min(len(s) for s in shards) <= 1
+
+
+def test_shards_deal_ids_without_a_shared_map_round_robin_in_id_order() -> None:
+    assert _shards(set(range(10)), 2) == [frozenset(range(0, 10, 2)), frozenset(range(1, 10, 2))]
 
 
 def test_shards_leave_out_empty_parts() -> None:
@@ -191,6 +196,18 @@ def _walls_and_round_bars() -> tuple[Any, list[Any], list[Any]]:
     return g.file, [*walls, *bars], bars
 
 
+def test_a_cancelled_job_hands_nothing_on_and_its_arrivals_end(lab: tuple[Path, LabLayout]) -> None:
+    """Children killed by a cancel leave nothing to a next kernel, and whoever reads the arrivals is
+    told that the meshing is over."""
+    f, products, _ = _lab_products(lab)
+    job = start_meshing(f, products, kernels=("opencascade", "manifold"), threads=2)
+    job.cancel()
+    ended = threading.Event()
+    threading.Thread(target=lambda: (list(job.arrivals()), ended.set()), daemon=True).start()
+    assert ended.wait(30), "arrivals() went on after the cancel"
+    assert job.result().unmeshed  # what the killed children had not meshed is unmeshed, not retried
+
+
 @pytest.mark.parametrize("threads", [1, 2])
 def test_children_that_route_their_own_share_mesh_as_a_routing_made_beforehand(threads: int) -> None:
     """``route=True``: the first children name the products OpenCASCADE meshes first and leave them to
@@ -290,3 +307,5 @@ def test_a_reading_lets_go_of_the_file_when_it_is_left_and_keeps_what_it_read(
         pass
     with pytest.raises(IfcFileError, match="left before its model was read"):
         unread.model()
+    with pytest.raises(IfcFileError, match="left before its geometries were read"):
+        next(iter(unread.geometries()))

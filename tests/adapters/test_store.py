@@ -234,8 +234,8 @@ def test_both_stores_serialise_the_same_graph_to_the_same_bytes(sparql_server: S
 
 
 def test_text_with_an_unchecked_bad_iri_is_refused_naming_it_and_checked_text_loads() -> None:
-    good = b"<https://example.org/a> <https://example.org/p> \"x\" .\n"
-    bad = b"<https://example.org/a b> <https://example.org/p> \"x\" .\n"
+    good = b'<https://example.org/a> <https://example.org/p> "x" .\n'
+    bad = b'<https://example.org/a b> <https://example.org/p> "x" .\n'
     with EmbeddedStore.open(None) as store:
         with pytest.raises(StoreError, match="do not parse"):
             store.bulk_load_ntriples(good + bad)

@@ -102,3 +102,16 @@ def test_boxes_worked_out_in_parts_as_the_meshes_come_give_the_same_extents_bit_
     assert all(np.array(got[s]).tobytes() == np.array(whole[s]).tobytes() for s in whole)
     told = dict(known, E0=np.array([-1e6, -1e6, 1e6, 1e6]))  # the boxes given are the ones used
     assert storey_extents(model, told)["S2"] == (-1e6, -1e6, 1e6, 1e6)
+
+
+def test_a_box_does_not_depend_on_what_else_is_rotated_with_it() -> None:
+    """A mesh whose faces use a single vertex, alone or among others of its rotation: the same box bit
+    for bit (a one-row matrix product rounded otherwise than the same row in a larger product)."""
+    rng = np.random.default_rng(5)
+    point = Mesh(rng.normal(size=(1, 3)) * 7.3, np.array([[0, 0, 0]], dtype=np.int32), closed=False)
+    placement = box_placement(1.25, -3.5, 0.0, yaw=0.7)
+    alone = _instance_bounds([Geometry(point, placement)])
+    for seed in range(20):
+        others = [Geometry(g.mesh, placement) for g in _random_geometries(seed)[:30]]
+        among = _instance_bounds([*others, Geometry(point, placement)])
+        assert among[-1].tobytes() == alone[0].tobytes()
