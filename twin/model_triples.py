@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Final
 
 import pyoxigraph as ox
@@ -76,6 +77,14 @@ def _boolean(value: bool) -> str:
     return _TRUE if value else _FALSE
 
 
+@dataclass(slots=True)
+class _MeshLiteral:
+    mesh: Mesh  # kept, so that its id() is not reused while the import runs
+    text: str  # base64 PLY
+    literal: ox.Literal | None = None  # made when first needed
+    in_text: bool = False  # a part has written it as text
+
+
 class MeshLiterals:
     """The mesh literals of one import, each encoded once and shared by all its parts: its base64 PLY
     text, the literal object (made when first needed), and whether a part has written it as text."""
@@ -83,32 +92,29 @@ class MeshLiterals:
     __slots__ = ("_of",)
 
     def __init__(self) -> None:
-        self._of: dict[int, tuple[Mesh, str, list[ox.Literal | None], list[bool]]] = {}
+        self._of: dict[int, _MeshLiteral] = {}
 
     def text(self, mesh: Mesh) -> str:
-        return self._entry(mesh)[1]
+        return self._entry(mesh).text
 
     def literal(self, mesh: Mesh) -> ox.Literal:
         entry = self._entry(mesh)
-        made = entry[2][0]
-        if made is None:
-            made = entry[2][0] = ox.Literal(entry[1], datatype=_BASE64)
-        return made
+        if entry.literal is None:
+            entry.literal = ox.Literal(entry.text, datatype=_BASE64)
+        return entry.literal
 
     def first_text(self, mesh: Mesh) -> bool:
         """True the first time it is asked for ``mesh``: write its literal as text then, as an object
         after (the store parses and hashes each copy of a text: Janesville's instances repeat 105 MB
         of literals that are 7.8 MB once each)."""
-        written = self._entry(mesh)[3]
-        first = not written[0]
-        written[0] = True
+        entry = self._entry(mesh)
+        first, entry.in_text = not entry.in_text, True
         return first
 
-    def _entry(self, mesh: Mesh) -> tuple[Mesh, str, list[ox.Literal | None], list[bool]]:
-        key = id(mesh)  # the mesh is kept in the entry, so its id is not reused meanwhile
-        entry = self._of.get(key)
+    def _entry(self, mesh: Mesh) -> _MeshLiteral:
+        entry = self._of.get(id(mesh))
         if entry is None:
-            entry = self._of[key] = (mesh, encode_mesh(mesh), [None], [False])
+            entry = self._of[id(mesh)] = _MeshLiteral(mesh, encode_mesh(mesh))
         return entry
 
 

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field, replace
 from types import TracebackType
 from typing import Any, Self
 
+from adapters.ifc.errors import ENTITY_ERRORS
 from adapters.ifc.kernel_child import ROUTED, STOPPED, Shape, run_kernel
 from adapters.ifc.kernel_choice import REFERENCE_KERNEL
 from twin.records import Geometry, Mesh
@@ -245,7 +246,7 @@ def shared_maps(f: Any) -> dict[int, int]:
                         for product in f.get_inverse(shape):
                             if product.is_a("IfcProduct"):  # not a shape aspect
                                 out[product.id()] = source.id()
-    except (RuntimeError, AttributeError, TypeError, ValueError, IndexError):  # a malformed file
+    except ENTITY_ERRORS:  # a malformed file
         return {}
     return out
 
@@ -297,37 +298,36 @@ class MeshingJob:
         self._reference_first = (REFERENCE_KERNEL, *(k for k in chain if k != REFERENCE_KERNEL))
         self._routes_due = 0  # routing children that have not yet named what they route
         self._routed_by_children: set[int] = set()
-        if route and not routed and REFERENCE_KERNEL in chain[1:]:
-            units = [
+        if route and not routed and REFERENCE_KERNEL in chain[1:]:  # the children route
+            self._queue.extend(
                 _Unit(s, chain, chain[0], routing=True)
                 for s in _shards(with_body, self._threads, self._together)
-            ]
-            self._routes_due = len(units)
-            self._queue.extend(units)
-            with self._cond:
-                self._schedule()
-                if not self._running:
-                    self._arrived.put(None)
-            return
-        routed_ids = {p.id() for p in routed} & with_body if REFERENCE_KERNEL in chain else set()
-        rest_ids = with_body - routed_ids
-        reference_first = self._reference_first
-        n_routed = n_rest = self._threads
-        apart = False
-        if routed_ids and rest_ids and self._threads > 1:
-            share = round(self._threads * len(routed_ids) / len(with_body))
-            # a route whose share of the cores rounds to none (a few costly products) gets one child
-            # beside a full set for the rest; whichever ends first has the other split
-            apart = share == 0
-            n_routed = 1 if apart else min(self._threads - 1, share)
-            n_rest = self._threads if apart else max(1, self._threads - n_routed)
-        for ids, path, n in ((routed_ids, reference_first, n_routed), (rest_ids, chain, n_rest)):
-            if path:
-                self._queue.extend(_Unit(s, path, path[0]) for s in _shards(ids, n, self._together))
+            )
+            self._routes_due = slots = len(self._queue)
+        else:
+            routed_ids = {p.id() for p in routed} & with_body if REFERENCE_KERNEL in chain else set()
+            rest_ids = with_body - routed_ids
+            n_routed = n_rest = self._threads
+            apart = False
+            if routed_ids and rest_ids and self._threads > 1:
+                n_routed, apart = self._reference_children(len(routed_ids))
+                n_rest = self._threads if apart else max(1, self._threads - n_routed)
+            for ids, path, n in ((routed_ids, self._reference_first, n_routed), (rest_ids, chain, n_rest)):
+                if path:  # no kernels: nothing is meshed
+                    self._queue.extend(_Unit(s, path, path[0]) for s in _shards(ids, n, self._together))
+            slots = n_routed + n_rest if apart else self._threads
         with self._cond:
-            self._schedule(slots=n_routed + n_rest if apart else self._threads)
+            self._schedule(slots=slots)
             if not self._running:
                 self._arrived.put(None)
+
+    def _reference_children(self, count: int) -> tuple[int, bool]:
+        """(how many children ``count`` products of the reference route get, whether they run apart,
+        beside a full set of children for the rest): their share of the cores, but at least one; a
+        share that rounds to none (a few costly products) runs apart, and whichever ends first has
+        the other split. For more than one core."""
+        share = round(self._threads * count / len(self._with_body))
+        return (1, True) if share == 0 else (min(self._threads - 1, share), False)
 
     def partial(self) -> MeshResult:
         """The result as it grows: read an entry only once :meth:`arrivals` has named its product."""
@@ -390,9 +390,7 @@ class MeshingJob:
         ids = self._routed_by_children
         if self._routes_due or not ids or self._cancelled:
             return
-        n = 1
-        if self._threads > 1:  # a share of the cores, at least one child, beside the others
-            n = max(1, min(self._threads - 1, round(self._threads * len(ids) / len(self._with_body))))
+        n = self._reference_children(len(ids))[0] if self._threads > 1 else 1  # beside the running ones
         path = self._reference_first
         self._queue.extend(_Unit(s, path, path[0]) for s in _shards(ids, n, self._together))
         self._schedule(slots=len(self._running) + n if self._threads > 1 else 0)

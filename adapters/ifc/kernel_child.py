@@ -37,6 +37,7 @@ import numpy as np
 
 from adapters.ifc.attributes import Attributes, Representations
 from adapters.ifc.body_kind import BodyKind
+from adapters.ifc.errors import ENTITY_ERRORS
 from adapters.ifc.kernel_choice import KernelChoice
 from twin.errors import ModelError
 from twin.meshops import are_closed, is_closed, orient_faces
@@ -53,8 +54,6 @@ STOPPED = "stopped"
 ROUTED = "routed"
 """First message of a routing child: ``(ROUTED, ids the reference kernel meshes first, [(id, why its
 body cannot be inspected)])``."""
-_ENTITY_ERRORS = (RuntimeError, AttributeError, TypeError, ValueError, AssertionError, IndexError, KeyError)
-"""What reading a malformed entity raises (ifcopenshell parses lazily)."""
 _BATCH_SHAPES = 32  # small: what a crashing kernel had meshed is kept
 _BATCH_SECONDS = 0.05
 
@@ -240,7 +239,7 @@ def _body_is_solid(kind: BodyKind, product: Any) -> tuple[bool, str | None]:
     """(whether ``product``'s body is a solid, why it could not be told)."""
     try:
         return kind.is_solid(product), None
-    except _ENTITY_ERRORS as err:
+    except ENTITY_ERRORS as err:
         return False, f"its body cannot be inspected ({type(err).__name__}: {err})"
 
 
@@ -266,7 +265,7 @@ def route(products: dict[int, Any], router: KernelChoice) -> tuple[list[int], li
         try:
             if router.reason(product) is not None:
                 routed.append(pid)
-        except _ENTITY_ERRORS as err:
+        except ENTITY_ERRORS as err:
             notes.append((pid, f"its body cannot be inspected ({type(err).__name__}: {err})"))
     return routed, notes
 

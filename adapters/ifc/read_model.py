@@ -26,7 +26,7 @@ import ifcopenshell.util.placement
 import ifcopenshell.util.unit
 
 from adapters.ifc.attributes import Attributes
-from adapters.ifc.errors import IfcFileError
+from adapters.ifc.errors import ENTITY_ERRORS, IfcFileError
 from adapters.ifc.geometry import DEFAULT_KERNELS, Progress, start_meshing
 from adapters.ifc.materials import Materials, Names
 from adapters.ifc.open_file import check_cycles, open_ifc_checked
@@ -215,18 +215,12 @@ def _relations(
     return adjacent, contained, decomposed
 
 
-_ENTITY_ERRORS = (RuntimeError, AttributeError, TypeError, ValueError, AssertionError, IndexError, KeyError)
-"""What reading a malformed entity raises: ifcopenshell parses lazily (RuntimeError wherever a corrupt
-entity is first read), and an attribute of the wrong type or a reference read as empty (None) fails
-in whatever uses it."""
-
-
 @contextmanager
 def _as_file_error(path: Path) -> Iterator[None]:
     """Re-raise what a malformed entity makes fail as IfcFileError (the traceback at debug level)."""
     try:
         yield
-    except (*_ENTITY_ERRORS, RecursionError, OverflowError) as err:
+    except (*ENTITY_ERRORS, RecursionError, OverflowError) as err:
         log.debug("reading %s failed", path, exc_info=True)
         text = str(err).strip().splitlines()[0] if str(err).strip() else ""
         msg = f"{path} cannot be read as IFC: {type(err).__name__}" + (f": {text}" if text else "")
@@ -259,7 +253,7 @@ def _safe_material_names(e: Any, materials: Materials) -> tuple[Names, Names]:
     whose name cannot be read makes the file unreadable, as it always did."""
     try:
         key, every, facing = materials.sets(e)
-    except _ENTITY_ERRORS as err:
+    except ENTITY_ERRORS as err:
         log.warning(
             "%s: its materials cannot be read (%s: %s); imported without",
             _entity_name(e),
@@ -327,15 +321,19 @@ class ModelReading:
         self._structure: BuildingModel | None = None
         self._model: BuildingModel | None = None
 
+    def _file(self, what: str) -> Any:
+        """The open file; IfcFileError when the reading was left before ``what`` ("its model was read")."""
+        if self._f is None:
+            msg = f"{self._path}: the reading was left before {what}"
+            raise IfcFileError(msg)
+        return self._f
+
     def structure(self) -> BuildingModel:
         """The model without geometry: every element's and space's ``geometry`` is None, and no mesh
         failures or kernel fallbacks yet. Read once; the meshing goes on meanwhile."""
         if self._structure is not None:
             return self._structure
-        f, path = self._f, self._path
-        if f is None:
-            msg = f"{path}: the reading was left before its structure was read"
-            raise IfcFileError(msg)
+        f, path = self._file("its structure was read"), self._path
         with _as_file_error(path):
             up = _hierarchy(f, self._attributes)
 
@@ -411,9 +409,7 @@ class ModelReading:
     def geometries(self) -> Iterator[tuple[str, Geometry, str]]:
         """``(GlobalId, geometry, kernel)`` of each element (kernel "" for a space) as soon as it is
         meshed, until the meshing ends: the same geometry :meth:`model` gives it. Read it once."""
-        if self._f is None:
-            msg = f"{self._path}: the reading was left before its geometries were read"
-            raise IfcFileError(msg)
+        self._file("its geometries were read")
         structure = self.structure()
         guid_of = {e.id(): (r.guid, True) for e, r in zip(self._elements, structure.elements, strict=True)}
         guid_of.update((s.id(), (r.guid, False)) for s, r in zip(self._spaces, structure.spaces, strict=True))
@@ -427,11 +423,8 @@ class ModelReading:
         leaving the reading (then it is kept)."""
         if self._model is not None:
             return self._model
-        if self._f is None:
-            msg = f"{self._path}: the reading was left before its model was read"
-            raise IfcFileError(msg)
+        f = self._file("its model was read")
         structure = self.structure()
-        f = self._f
         with _as_file_error(self._path):
             meshed = self._job.result()
             geometry = meshed.geometry

@@ -233,11 +233,11 @@ def test_both_stores_serialise_the_same_graph_to_the_same_bytes(sparql_server: S
         assert remote.turtle_size() == embedded.turtle_size()
 
 
-def test_text_with_an_unchecked_bad_iri_is_refused_naming_it_and_checked_text_loads() -> None:
+def test_text_with_an_unchecked_bad_iri_is_refused_naming_where_and_checked_text_loads() -> None:
     good = b'<https://example.org/a> <https://example.org/p> "x" .\n'
     bad = b'<https://example.org/a b> <https://example.org/p> "x" .\n'
     with EmbeddedStore.open(None) as store:
-        with pytest.raises(StoreError, match="do not parse"):
+        with pytest.raises(StoreError, match=r"do not parse: .*line 2 .*Invalid IRI code point ' '"):
             store.bulk_load_ntriples(good + bad)
         store.bulk_load_ntriples(good, iris_checked=True)
         assert len(store) == 1
