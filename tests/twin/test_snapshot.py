@@ -250,3 +250,16 @@ def test_a_snapshot_ahead_of_the_store_is_not_used(tmp_path: Path, caplog: pytes
         again = start(imported(box_lab()), path)
     assert again.restored_from is None
     assert "ahead of the store (revision 6 > 0)" in caplog.text
+
+
+def test_a_snapshot_written_by_other_core_code_is_rebuilt_not_served(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    store, path = imported(box_lab()), tmp_path / "store.snapshot"
+    stop_cleanly(start(store, path))
+    assert start(store, path).restored_from == 0  # the same code: used
+    # the drawing code changed (any module of twin/ does: tests/twin/live/test_snapshot_code_key.py)
+    monkeypatch.setattr("twin.live.loading.code_digest", lambda: "drawing changed")
+    again = start(store, path)
+    assert again.restored_from is None
+    assert_same_as_a_rebuild(again)

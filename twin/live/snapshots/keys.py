@@ -9,7 +9,6 @@ Example::
 from __future__ import annotations
 
 import hashlib
-import importlib
 import json
 from pathlib import Path
 
@@ -17,32 +16,21 @@ from twin.config import Config
 from twin.skills import SkillProfile
 from twin.store import GraphStore
 
-_SHAPING_MODULES = (
-    "twin.grid",
-    "twin.maps",
-    "twin.meshcodec",
-    "twin.scene",
-    "twin.skills",
-    "twin.snapshot",
-    "twin.live.live_map",
-    "twin.live.live_maps",
-    "twin.live.overlay",
-    "twin.live.snapshots.capture",
-    "twin.live.snapshots.restore",
-)
-"""The code that decides what a map holds: a snapshot written by other code is rebuilt."""
+_CORE = Path(__file__).resolve().parents[2]
+"""The core package (``twin/``): every module in it may shape maps, so every one keys the snapshot."""
 
 
-def code_digest() -> str:
-    """SHA-256 of the source of every module that shapes maps (and of the raster package)."""
+def code_digest(root: Path = _CORE) -> str:
+    """SHA-256 of the source of every module of the core (``twin/**/*.py``, by path relative to it).
+
+    Keyed by the whole core rather than a hand-kept list of modules that shape maps: a list misses the
+    module split out next (drawing, selection), and then an old snapshot's maps would be served as if
+    current. A change anywhere in the core costs one rebuild on the next start; nothing is served stale.
+    """
     h = hashlib.sha256()
-    files: list[Path] = []
-    for name in _SHAPING_MODULES:
-        files.append(Path(str(importlib.import_module(name).__file__)))
-    raster = importlib.import_module("twin.raster")
-    files += sorted(Path(str(raster.__file__)).parent.glob("*.py"))
-    for f in files:
-        h.update(f.name.encode())
+    for f in sorted(root.rglob("*.py")):
+        h.update(f.relative_to(root).as_posix().encode())
+        h.update(b"\0")
         h.update(f.read_bytes())
     return h.hexdigest()[:32]
 
