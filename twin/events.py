@@ -134,6 +134,18 @@ class ObservationAccepted:
     element whose geometry did not change (a door opened) is here too."""
     removed: tuple[str, ...]
     maps: tuple[MapChange, ...]
+    notes: tuple[str, ...] = ()
+    """What fusion decided (merges, refined poses, removals by absence, stale parts), one line each."""
+
+
+@dataclass(frozen=True, slots=True)
+class ObservationNoted:
+    """An observation changed nothing, but fusion has something to say (a stale sighting refused)."""
+
+    robot: str
+    revision: int
+    stamp_ns: int
+    notes: tuple[str, ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -177,6 +189,7 @@ TwinEvent = (
     | MapUpdated
     | MapRemoved
     | ObservationAccepted
+    | ObservationNoted
     | ObservationRejected
     | SkillChanged
     | RobotStoreyChanged

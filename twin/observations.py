@@ -18,22 +18,28 @@ Example::
 
 from __future__ import annotations
 
+import datetime
 import math
 import re
 from collections import defaultdict
 
+import numpy as np
 import pyoxigraph as ox
 
 from twin import vocab
 from twin.config import Limits
 from twin.errors import ModelError, ObservationError
 from twin.meshcodec import decode_mesh, decode_placement
-from twin.records import ElementReport, FloatArray, Geometry, ObservedBox
+from twin.records import ElementReport, FloatArray, Geometry, Observation, ObservedBox, ObservedView
 
-__all__ = ["parse_observation"]
+__all__ = ["parse_observation", "parse_observation_document", "sense_time_ns"]
+
+MAX_VIEW_POINTS = 4096
+"""Vertices of all the polygons of one view together."""
 
 _IRI = re.compile(r'^[A-Za-z][A-Za-z0-9+.-]*:[^<>"{}|^`\\\s]*$')
 _CLASS_NAMESPACES = (vocab.BEO, vocab.FURN)
+_VIEW_CLASS = ox.NamedNode(vocab.TWIN_VIEW)
 
 
 def _fail(message: str) -> ObservationError:
@@ -163,16 +169,58 @@ _ELEMENT_TERMS = {
     vocab.RDFS_LABEL,
     vocab.TWIN_MATERIAL,
     vocab.RDF_TYPE,
+    vocab.TWIN_SENSE_TIME,
+    vocab.TWIN_DISTINCT,
+    vocab.TWIN_UNMERGE,
 }
+_VIEW_TERMS = {
+    vocab.RDF_TYPE,
+    vocab.TWIN_STOREY,
+    vocab.TWIN_POLYGON,
+    vocab.TWIN_DETECTS,
+    vocab.TWIN_SENSE_TIME,
+}
+_FRACTION = re.compile(r"(\.\d{6})\d+")
 
 
-def _strings(subject: str, predicate: str, values: list[object]) -> tuple[str, ...]:
+def sense_time_ns(text: str) -> int:
+    """An ``xsd:dateTime`` as nanoseconds since the epoch (no zone: UTC); ValueError if it is none."""
+    value = text.strip()
+    if value.endswith(("Z", "z")):
+        value = value[:-1] + "+00:00"
+    nanos = 0
+    m = _FRACTION.search(value)
+    if m is not None:  # Python keeps microseconds: the digits past them are added back as ns
+        extra = m.group(0)[7:]
+        nanos = int((extra + "000")[:3]) if extra else 0
+        value = value[: m.start()] + m.group(1) + value[m.end() :]
+    moment = datetime.datetime.fromisoformat(value)
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=datetime.UTC)
+    whole = moment.replace(microsecond=0)
+    return int(whole.timestamp()) * 1_000_000_000 + moment.microsecond * 1000 + nanos
+
+
+def _sense(subject: str, values: list[object]) -> int:
+    text = _literal(subject, vocab.TWIN_SENSE_TIME, values, (vocab.XSD_DATETIME, vocab.XSD_STRING)).value
+    try:
+        return sense_time_ns(text)
+    except (ValueError, OverflowError):
+        raise _fail(f"Element <{subject}>: twin:senseTime {text[:80]!r} is not an xsd:dateTime.") from None
+
+
+def _flag(subject: str, predicate: str, values: list[object]) -> bool:
+    value = _literal(subject, predicate, values, (vocab.XSD_BOOLEAN,)).value
+    return value in ("true", "1")
+
+
+def _strings(subject: str, predicate: str, values: list[object], *, limit: int = 1024) -> tuple[str, ...]:
     out = []
     for v in values:
         if not isinstance(v, ox.Literal):
             raise _fail(f"Element <{subject}>: <{predicate}> must be a literal, got {v}.")
-        if len(v.value) > 1024:
-            raise _fail(f"Element <{subject}>: <{predicate}> is longer than 1024 characters.")
+        if len(v.value) > limit:
+            raise _fail(f"Element <{subject}>: <{predicate}> is longer than {limit} characters.")
         out.append(v.value)
     return tuple(out)
 
@@ -190,7 +238,8 @@ def _report(
             raise _fail(
                 f"Element <{subject}>: unknown term <{predicate}> (known: twin:ifcClass, twin:storey, "
                 "twin:box, omg:hasGeometry, twin:placement, twin:isOpen, twin:removed, twin:keepout, "
-                "twin:speedLimit, rdfs:label, twin:material, rdf:type)."
+                "twin:speedLimit, rdfs:label, twin:material, rdf:type, twin:senseTime, twin:distinct, "
+                "twin:unmerge)."
             )
     args: dict[str, object] = {"iri": subject}
     if vocab.TWIN_IFC_CLASS in props:
@@ -252,13 +301,19 @@ def _report(
         for v in props[vocab.RDF_TYPE]:
             if not isinstance(v, ox.NamedNode) or not (
                 v.value.startswith(_CLASS_NAMESPACES) or v.value == vocab.BOT_ELEMENT
-            ):
+            ):  # (a twin:View is a node of its own: see _view)
                 raise _fail(
                     f"Element <{subject}>: rdf:type {v} is not allowed; only BEO and FURN classes "
                     "(e.g. furn:Table) and bot:Element."
                 )
             classes.append(v.value)
         args["classes"] = tuple(classes)
+    if vocab.TWIN_SENSE_TIME in props:
+        args["sense_ns"] = _sense(subject, props[vocab.TWIN_SENSE_TIME])
+    if vocab.TWIN_DISTINCT in props:
+        args["distinct"] = _flag(subject, vocab.TWIN_DISTINCT, props[vocab.TWIN_DISTINCT])
+    if vocab.TWIN_UNMERGE in props:
+        args["unmerge"] = _flag(subject, vocab.TWIN_UNMERGE, props[vocab.TWIN_UNMERGE])
     report = ElementReport(**args)  # type: ignore[arg-type]
     geometries = [k for k in ("box", "geometry", "placement") if k in args]
     if len(geometries) > 1:
@@ -273,7 +328,48 @@ def _report(
     return report
 
 
+def _view(name: str, props: dict[str, list[object]]) -> ObservedView:
+    where = f"The view {name}"
+    for predicate in props:
+        if predicate not in _VIEW_TERMS:
+            raise _fail(
+                f"{where}: unknown term <{predicate}> (known: twin:storey, twin:polygon, twin:detects, "
+                "twin:senseTime)."
+            )
+    if vocab.TWIN_STOREY not in props:
+        raise _fail(f"{where} has no twin:storey.")
+    storey = _literal(name, vocab.TWIN_STOREY, props[vocab.TWIN_STOREY], (vocab.XSD_STRING,)).value
+    polygons = []
+    points = 0
+    for text in _strings(name, vocab.TWIN_POLYGON, props.get(vocab.TWIN_POLYGON, []), limit=1 << 17):
+        parts = text.split()
+        if len(parts) < 6 or len(parts) % 2:
+            raise _fail(
+                f"{where}: twin:polygon must be x y pairs of at least 3 points, got {len(parts)} numbers."
+            )
+        values = _numbers(name, "twin:polygon", text, len(parts))
+        points += len(values) // 2
+        if points > MAX_VIEW_POINTS:
+            raise _fail(f"{where}: its polygons have more than {MAX_VIEW_POINTS} points.")
+        polygons.append(np.asarray(values, dtype=np.float64).reshape(-1, 2))
+    if not polygons:
+        raise _fail(f"{where} has no twin:polygon (the floor its sensor saw).")
+    detects = _strings(name, vocab.TWIN_DETECTS, props.get(vocab.TWIN_DETECTS, []))
+    for cls in detects:
+        if not re.fullmatch(r"Ifc[A-Za-z0-9]{1,64}", cls):
+            raise _fail(f"{where}: twin:detects {cls!r} is not an IFC class name.")
+    if not detects:
+        raise _fail(f"{where} has no twin:detects (the IFC classes its detector reports).")
+    sense = _sense(name, props[vocab.TWIN_SENSE_TIME]) if vocab.TWIN_SENSE_TIME in props else None
+    return ObservedView(storey, tuple(polygons), tuple(dict.fromkeys(detects)), sense)
+
+
 def parse_observation(payload: bytes | str, *, limits: Limits) -> tuple[ElementReport, ...]:
+    """The element reports of an observation document (see :func:`parse_observation_document`)."""
+    return parse_observation_document(payload, limits=limits).reports
+
+
+def parse_observation_document(payload: bytes | str, *, limits: Limits) -> Observation:
     """Parse and check an observation document; ObservationError names the first problem.
 
     Args:
@@ -281,7 +377,7 @@ def parse_observation(payload: bytes | str, *, limits: Limits) -> tuple[ElementR
         limits: payload size, element count, mesh size and box size limits.
 
     Returns:
-        One report per described element, in IRI order.
+        One report per described element, in IRI order, and the view (``a twin:View``) if it has one.
     """
     data = payload.encode() if isinstance(payload, str) else bytes(payload)
     if len(data) > limits.payload_bytes:
@@ -291,10 +387,16 @@ def parse_observation(payload: bytes | str, *, limits: Limits) -> tuple[ElementR
     triples = _parse_turtle(data)
     by_subject: dict[str, dict[str, list[object]]] = defaultdict(lambda: defaultdict(list))
     objects_of_geometry: set[str] = set()
+    views: list[str] = []
     for t in triples:
         by_subject[_name(t.subject)][t.predicate.value].append(t.object)
         if t.predicate.value == vocab.OMG_HAS_GEOMETRY:
             objects_of_geometry.add(_name(t.object))
+        if t.predicate.value == vocab.RDF_TYPE and t.object == _VIEW_CLASS:
+            views.append(_name(t.subject))
+    if len(set(views)) > 1:
+        raise _fail(f"Observation has {len(set(views))} views; give at most one twin:View.")
+    view = _view(views[0], dict(by_subject.pop(views[0]))) if views else None
     subjects = sorted(s for s in by_subject if s not in objects_of_geometry)
     for s in subjects:
         if not s.startswith("<"):
@@ -304,8 +406,10 @@ def parse_observation(payload: bytes | str, *, limits: Limits) -> tuple[ElementR
             f"Observation describes {len(subjects)} elements, more than the "
             f"{limits.elements_per_observation} allowed."
         )
+    if not subjects and view is None:
+        raise _fail("Observation describes no element.")
     reports = [_report(s[1:-1], dict(by_subject.pop(s)), by_subject, limits) for s in subjects]
     leftover = sorted(by_subject)
     if leftover:
         raise _fail(f"Observation has triples about {leftover[0]} that belong to no element.")
-    return tuple(reports)
+    return Observation(tuple(reports), view)

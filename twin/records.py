@@ -250,7 +250,35 @@ class ElementReport:
     materials: tuple[str, ...] = ()
     classes: tuple[str, ...] = ()
     """Extra ``rdf:type`` IRIs (BEO or FURN classes such as ``furn:Table``)."""
+    sense_ns: int | None = None
+    """When it was seen (``twin:senseTime``, ns since the epoch); None: the view's, else arrival time."""
+    distinct: bool = False
+    """``twin:distinct true``: a new object, never associated with an element the twin holds."""
+    unmerge: bool = False
+    """``twin:unmerge true``: this IRI was merged into another element; make it its own again."""
 
     @property
     def changes_geometry(self) -> bool:
         return self.box is not None or self.geometry is not None or self.placement is not None
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class ObservedView:
+    """What a robot looked at (``a twin:View``): the floor it saw on a storey, when, and which classes
+    its detector reports. Elements of those classes inside ``polygons`` that the observation does not
+    describe were not seen there (a miss)."""
+
+    storey: str
+    polygons: tuple[FloatArray, ...]
+    """``(n, 2) float64`` simple polygons in the map (building XY) frame, metres; their union."""
+    detects: tuple[str, ...]
+    """IFC classes (subtypes included)."""
+    sense_ns: int | None = None
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class Observation:
+    """A parsed observation document: its element reports and, optionally, the view they were seen in."""
+
+    reports: tuple[ElementReport, ...]
+    view: ObservedView | None = None

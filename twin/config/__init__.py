@@ -17,6 +17,7 @@ Example::
 from __future__ import annotations
 
 from twin.config.base import ConfigSection, ConfigTable
+from twin.config.fusion import FusionClassRules, FusionRules
 from twin.config.load import DEFAULT_CONFIG, Config, config_schema, file_model, load_config
 from twin.config.robots import DEFAULT_ROBOT_MAPS, RESERVED_TOPICS, RobotConfig, RosLayout
 from twin.config.tables import KERNELS, RIGHTS, ImportConfig, Limits, Right
@@ -30,6 +31,8 @@ __all__ = [
     "Config",
     "ConfigSection",
     "ConfigTable",
+    "FusionClassRules",
+    "FusionRules",
     "ImportConfig",
     "Limits",
     "Right",

@@ -20,6 +20,7 @@ from typing import Annotated, Any, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, WithJsonSchema, create_model
 
 from twin.config.base import ConfigSection, ConfigTable
+from twin.config.fusion import FusionRules, FusionTable
 from twin.config.messages import config_error
 from twin.config.robots import RobotConfig, RobotName, RobotTable
 from twin.config.tables import (
@@ -47,6 +48,7 @@ CORE_TABLES: dict[str, type[ConfigTable]] = {
     "limits": Limits,
     "rights": RightsTable,
     "ros": RosTable,
+    "fusion": FusionTable,
 }
 """The core's tables with one schema each; ``[skills.NAME]`` and ``[robots.NAME]`` hold many."""
 
@@ -75,6 +77,8 @@ class Config:
     """``[store] snapshot``: keep the daemon's derived state (scene, maps) in ``<store>.snapshot``."""
     store_snapshot_every_s: float = 300.0
     """``[store] snapshot_every_s``: how often the daemon rewrites it while anything changes."""
+    fusion: FusionRules = field(default_factory=FusionRules)
+    """``[fusion]``: association, confirmation, absence and sense time (many robots, one twin)."""
     tables: Mapping[str, Any] = field(default_factory=dict, repr=False)
     """The merged file as written (defaults under the user's file)."""
     sections: Mapping[type[ConfigSection], ConfigSection] = field(default_factory=dict, repr=False)
@@ -157,6 +161,7 @@ def load_config(
         store_flush_every_s=checked.store.flush_every_s,
         store_snapshot=checked.store.snapshot,
         store_snapshot_every_s=checked.store.snapshot_every_s,
+        fusion=checked.fusion.rules(),
         tables=raw,
         sections={s: s.model_validate(_section_keys(s, raw.get(s.table, {}))) for s in sections or ()},
     )

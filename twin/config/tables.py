@@ -12,8 +12,8 @@ from pydantic import Field
 
 from twin.config.base import ConfigTable, Flag, Number, PathSetting, Text, Whole, check, list_of
 
-Right = Literal["create", "dynamic", "doors", "static", "zones"]
-RIGHTS: tuple[Right, ...] = ("create", "dynamic", "doors", "static", "zones")
+Right = Literal["create", "dynamic", "doors", "static", "zones", "merges"]
+RIGHTS: tuple[Right, ...] = ("create", "dynamic", "doors", "static", "zones", "merges")
 Kernel = Literal["manifold", "opencascade", "cgal", "cgal-simple", "hybrid-cgal-simple-opencascade"]
 KERNELS: tuple[Kernel, ...] = (
     "manifold", "opencascade", "cgal", "cgal-simple", "hybrid-cgal-simple-opencascade"

@@ -17,6 +17,7 @@ import numpy as np
 
 from twin.config import Config
 from twin.errors import SnapshotError, TwinError
+from twin.live.fuse import load_fusion
 from twin.live.live_maps import LiveMaps
 from twin.live.skill_changes import stored_skills
 from twin.live.snapshots import (
@@ -101,6 +102,7 @@ def load_live_or_restore(
         revision=revision,
         last_seen={},
         held={},
+        fusion=load_fusion(store, time.time_ns()),
     )
     return live, model_iri.removesuffix("model"), restored
 

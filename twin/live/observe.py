@@ -24,6 +24,7 @@ from collections import ChainMap, OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from twin import vocab
 from twin.config import Config
 from twin.errors import TwinError
 from twin.events import (
@@ -31,17 +32,20 @@ from twin.events import (
     MapChange,
     MapUpdated,
     ObservationAccepted,
+    ObservationNoted,
     ObservationRejected,
     TwinEvent,
 )
+from twin.fusion.footprints import Pose
+from twin.live.fuse import Fused, expire_aliases, fuse, index_element
 from twin.live.plan import ObservationPlan, plan_observation
 from twin.live.publication import Publication
 from twin.live.requests import ObserveRequest, Reply
 from twin.live.selection import needs_store, selects
 from twin.live.state import ElementState, LiveState, Sighting
-from twin.observations import parse_observation
-from twin.rdf import Object
-from twin.records import ElementReport, GeometryChange, Shape
+from twin.observations import parse_observation_document
+from twin.rdf import ChangeSet, Object, Triple
+from twin.records import GeometryChange, Observation, Shape
 from twin.skill_selection import selection_query
 from twin.skills import SkillProfile
 from twin.store import GraphStore
@@ -56,6 +60,7 @@ class _Planned:
     request: ObserveRequest
     plan: ObservationPlan
     revision: int
+    fused: Fused
 
 
 def element_shapes(live: LiveState, iris: Sequence[str]) -> tuple[ElementShape, ...]:
@@ -94,6 +99,7 @@ class Observer:
         send: Callable[[ObserveRequest, Reply], None],
         clock: Callable[[], int],
         publication: Publication,
+        base_iri: str = "",
     ) -> None:
         self.store = store
         self.config = config
@@ -105,18 +111,20 @@ class Observer:
         self.unchanged = 0
         self.rejected = 0
         self.publication = publication
-        self._parsed: OrderedDict[bytes, tuple[ElementReport, ...]] = OrderedDict()
+        self.stale = 0
+        self.base_iri = base_iri
+        self._parsed: OrderedDict[bytes, Observation] = OrderedDict()
 
-    def _parse(self, payload: bytes) -> tuple[ElementReport, ...]:
-        reports = self._parsed.get(payload)
-        if reports is None:
-            reports = parse_observation(payload, limits=self.config.limits)
-            self._parsed[payload] = reports
+    def _parse(self, payload: bytes) -> Observation:
+        parsed = self._parsed.get(payload)
+        if parsed is None:
+            parsed = parse_observation_document(payload, limits=self.config.limits)
+            self._parsed[payload] = parsed
             if len(self._parsed) > _PARSED_CACHE:
                 self._parsed.popitem(last=False)
         else:
             self._parsed.move_to_end(payload)
-        return reports
+        return parsed
 
     def _reject(self, req: ObserveRequest, err: TwinError) -> None:
         self.rejected += 1
@@ -130,16 +138,34 @@ class Observer:
         states: dict[str, ElementState] = {}  # what this batch changed, not yet committed
         shapes: dict[str, Shape | None] = {}
         held: dict[str, dict[str, Object | None]] = {}
+        pending: dict[str, tuple[str, Pose, ElementState]] = {}
         planned: list[_Planned] = []
+        aliases: dict[str, str | None] = {}  # robot IRI -> element (None: forget it), to write
+        now = self.clock()
         for req in batch:
             try:
-                reports = self._parse(req.payload)
+                obs = self._parse(req.payload)
+                current = ChainMap(states, live.states)
+                fused = fuse(
+                    obs,
+                    robot=req.robot,
+                    rights=self.config.rights_of(req.robot),
+                    live=live,
+                    states=current,
+                    shapes=shapes,
+                    pending=dict(pending),
+                    rules=self.config.fusion,
+                    base_iri=self.base_iri,
+                    arrival_ns=req.received_ns,
+                    now_ns=now,
+                )
+                reports = fused.reports
                 plan = plan_observation(
                     reports,
                     robot=req.robot,
                     rights=self.config.rights_of(req.robot),
                     site=live.site,
-                    states=ChainMap(states, live.states),
+                    states=current,
                     shapes={
                         r.iri: shapes[r.iri] if r.iri in shapes else live.maps.shape_of(r.iri)
                         for r in reports
@@ -147,14 +173,27 @@ class Observer:
                     held=ChainMap[str, dict[str, Object | None]](held, live.held),
                     revision=live.revision + len(planned) + 1,
                     stamp_ns=req.received_ns,
+                    sense_ns=fused.sense,
+                    reasons=fused.reasons,
+                    merged=fused.merged,
                 )
             except TwinError as err:  # ObservationError included
                 self._reject(req, err)
                 continue
+            fused.apply(live.fusion)
+            aliases.update(fused.aliases)
+            aliases.update((a, None) for a in fused.unaliased)
+            self.stale += len(fused.stale)
             for r in reports:
                 live.last_seen[r.iri] = Sighting(req.robot, req.received_ns)
             if plan.unchanged:
                 self.unchanged += 1
+                if fused.notes:
+                    self.emit(
+                        ObservationNoted(
+                            req.robot, live.revision + len(planned), self.clock(), tuple(fused.notes)
+                        )
+                    )
                 self.send(
                     req,
                     Reply(
@@ -166,18 +205,38 @@ class Observer:
                             "upserted": [],
                             "removed": [],
                             "maps": [],
+                            **fused.ack(),
                         },
                     ),
                 )
                 continue
             states.update(plan.states)
             shapes.update((g.iri, g.new) for g in plan.geometry)
+            pending.update(fused_pending(fused, plan, states))
             for subject, values in plan.written.items():
                 base = {} if subject in plan.cleared else dict(held.get(subject, live.held.get(subject, {})))
                 held[subject] = base | values
-            planned.append(_Planned(req, plan, live.revision + len(planned) + 1))
+            planned.append(_Planned(req, plan, live.revision + len(planned) + 1, fused))
+        alias_changes = _alias_changes(aliases)
         if planned:
-            self._commit(planned, states, shapes, held)
+            self._commit(planned, states, shapes, held, alias_changes)
+        elif alias_changes:
+            try:
+                self.store.apply(alias_changes)
+            except TwinError as err:  # an alias is found again at the next sighting
+                log.warning("Could not write %d aliases: %s", len(aliases), err)
+
+    def expire_aliases(self) -> int:
+        """Forget the aliases unused for ``[fusion] alias_ttl_s`` (memory and graph); returns how many."""
+        old = expire_aliases(self.live.fusion, self.clock(), self.config.fusion.alias_ttl_ns)
+        if old:
+            changes = _alias_changes(dict.fromkeys(old))
+            try:
+                if changes is not None:
+                    self.store.apply(changes)
+            except TwinError as err:
+                log.warning("Could not forget %d aliases: %s", len(old), err)
+        return len(old)
 
     def _commit(
         self,
@@ -185,16 +244,18 @@ class Observer:
         states: dict[str, ElementState],
         shapes: dict[str, Shape | None],
         held: dict[str, dict[str, Object | None]],
+        alias_changes: ChangeSet | None = None,
     ) -> None:
         live = self.live
         try:
-            self.store.apply(*(p.plan.changes for p in planned))  # durable from here on
+            extra = (alias_changes,) if alias_changes else ()
+            self.store.apply(*(p.plan.changes for p in planned), *extra)  # durable from here on
         except TwinError as err:
             log.error("The store refused a commit of %d observations: %s", len(planned), err)
             for p in planned:
                 self._reject(p.request, err)
             return
-        live.revision = planned[-1].revision
+        live.advance(planned[-1].revision)
         live.states.update(states)
         live.held.update(held)
         self.accepted += len(planned)
@@ -209,6 +270,8 @@ class Observer:
             )
             self.publication.changed((u.storey, u.skill), stamp)
             changes.append(MapChange(u.storey, u.skill, u.version, u.window))
+        for iri in states:  # after the redraw: the poses are those of the shapes the maps now show
+            index_element(live, iri, live.states[iri])
         maps = tuple(changes)
         as_json = [c.as_json() for c in maps]
         for p in planned:
@@ -220,6 +283,7 @@ class Observer:
                     upserted=element_shapes(live, p.plan.upserted),
                     removed=p.plan.removed,
                     maps=maps,
+                    notes=tuple(p.fused.notes),
                 )
             )
             body: dict[str, object] = {
@@ -228,6 +292,7 @@ class Observer:
                 "upserted": list(p.plan.upserted),
                 "removed": list(p.plan.removed),
                 "maps": as_json,
+                **p.fused.ack(),
             }
             self.send(p.request, Reply(True, body))
 
@@ -255,3 +320,27 @@ class Observer:
 
     def _selected_by_store(self, skill: SkillProfile, iris: list[str]) -> set[str]:
         return {r["element"] or "" for r in self.store.select(selection_query(skill, iris))}
+
+
+def fused_pending(
+    fused: Fused, plan: ObservationPlan, states: dict[str, ElementState]
+) -> dict[str, tuple[str, Pose, ElementState]]:
+    """The poses this observation gave elements, for the next observations of the batch to match."""
+    out = {}
+    for g in plan.geometry:
+        state = states.get(g.iri)
+        if g.new is None or state is None or state.storey is None:
+            continue
+        from twin.fusion.footprints import pose_of  # noqa: PLC0415
+
+        out[g.iri] = (state.storey, pose_of(g.new), state)
+    return out
+
+
+def _alias_changes(aliases: dict[str, str | None]) -> ChangeSet | None:
+    if not aliases:
+        return None
+    return ChangeSet(
+        remove=tuple((a, vocab.TWIN_ALIAS_OF) for a in sorted(aliases)),
+        add=tuple(Triple(a, vocab.TWIN_ALIAS_OF, t) for a, t in sorted(aliases.items()) if t is not None),
+    )

@@ -60,6 +60,13 @@ class ObservationPlan:
         return not self.changes
 
 
+def _iso(ns: int) -> str:
+    """An ``xsd:dateTime`` to the nanosecond, UTC."""
+    seconds, nanos = divmod(ns, 1_000_000_000)
+    moment = datetime.datetime.fromtimestamp(seconds, tz=datetime.UTC).strftime("%Y-%m-%dT%H:%M:%S")
+    return f"{moment}.{nanos:09d}Z"
+
+
 def _fail(message: str) -> ObservationError:
     return ObservationError(message)
 
@@ -140,6 +147,9 @@ def plan_observation(
     held: Held,
     revision: int,
     stamp_ns: int,
+    sense_ns: Mapping[str, int] | None = None,
+    reasons: Mapping[str, str] | None = None,
+    merged: Mapping[str, str] | None = None,
 ) -> ObservationPlan:
     """Check ``reports`` against the twin and plan the transaction; ObservationError names a problem.
 
@@ -153,7 +163,13 @@ def plan_observation(
         held: the single-valued triples written before (exact deletes instead of patterns).
         revision: the twin revision this change will be (if it changes anything).
         stamp_ns: when the observation was received.
+        sense_ns: when each element's change was seen (``twin:senseTime``; default ``stamp_ns``).
+        reasons: why fusion removes an element (``twin:removedBecause``: absence, a merge).
+        merged: elements fusion merged into another (``twin:mergedInto``).
     """
+    sense_ns = sense_ns or {}
+    reasons = reasons or {}
+    merged = merged or {}
     w = TripleWriter(held)
     geometry: list[GeometryChange] = []
     new_states: dict[str, ElementState] = {}
@@ -173,13 +189,23 @@ def plan_observation(
             w.set(r.iri, vocab.TWIN_REMOVED, boolean(True))
             if current is not None:
                 geometry.append(GeometryChange(r.iri, None))
+            if r.iri in reasons:
+                w.set(r.iri, vocab.TWIN_REMOVED_BECAUSE, literal(reasons[r.iri]))
+            if r.iri in merged:
+                w.set(r.iri, vocab.TWIN_MERGED_INTO, merged[r.iri])
             state = replace(state, removed=True)
             removed.append(r.iri)
         else:
+            if r.unmerge:
+                _need(rights, "merges", robot, f"undo the merge of <{r.iri}>")
+                if state is not None and not state.removed:
+                    raise _fail(f"Element <{r.iri}> is an element of its own: there is no merge to undo.")
             if state is None or not exists:
                 if state is not None:  # re-created after its removal: start from a clean node
                     w.clear(r.iri)
                 state = _create(r, site, robot, rights, w)
+                if r.distinct or r.unmerge:
+                    w.add.append(Triple(r.iri, vocab.TWIN_DISTINCT, boolean(True)))
                 current = None
             elif r.ifc_class is not None and r.ifc_class.lower() != state.ifc_class.lower():
                 raise _fail(
@@ -264,6 +290,9 @@ def plan_observation(
         w.set(r.iri, vocab.TWIN_OBSERVED_BY, literal(robot))
         w.set(r.iri, vocab.TWIN_OBSERVED_AT, literal(when, vocab.XSD_DATETIME))
         w.set(r.iri, vocab.TWIN_REVISION, literal(str(revision), vocab.XSD_INTEGER))
+        sensed = sense_ns.get(r.iri, stamp_ns)
+        w.set(r.iri, vocab.TWIN_SENSE_TIME, literal(_iso(sensed), vocab.XSD_DATETIME))
+        state = replace(state, sensed_ns=sensed)
         new_states[r.iri] = state
         if not r.removed:
             upserted.append(r.iri)

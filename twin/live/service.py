@@ -52,6 +52,8 @@ from twin.store import GraphStore
 log = logging.getLogger(__name__)
 
 Clock = Callable[[], int]
+_ALIAS_CHECK_S = 10.0
+"""How often the writer looks for aliases unused for ``[fusion] alias_ttl_s``."""
 
 
 class TwinService:
@@ -113,6 +115,7 @@ class TwinService:
             send=_send,
             clock=self.clock,
             publication=self.publication,
+            base_iri=self._base_iri,
         )
         self._flushed_at = (time.monotonic(), live.revision)
         stamp = self.clock()
@@ -270,9 +273,13 @@ class TwinService:
 
     def serve_forever(self, stop: threading.Event, *, poll_s: float = 0.05) -> None:
         """Handle requests until ``stop`` is set, then finish what is queued and publish every map."""
+        aliases_checked = time.monotonic()
         while not stop.is_set():
             self.process(timeout_s=poll_s)
             self.flush_store(due_only=True)
+            if time.monotonic() - aliases_checked > _ALIAS_CHECK_S:
+                aliases_checked = time.monotonic()
+                self.observer.expire_aliases()
             if self.snapshot is not None and self.snapshot.due(self.revision):
                 self.snapshot.save_in_background(self.live)
         self.process()

@@ -92,7 +92,7 @@ def apply_skill(
     except TwinError as err:
         log.info("Refused a skill change for %r: %s", req.name, err)
         return Reply.error(str(err))
-    live.revision += 1
+    live.advance(live.revision + 1)
     for storey, skill in live.maps.remove_skill(req.name):
         publication.drop((storey, skill))
         emit(MapRemoved(storey, skill, live.revision, stamp))

@@ -12,9 +12,11 @@ Example::
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from twin.fusion.memory import FusionMemory
 from twin.live.live_maps import LiveMaps
+from twin.observations import sense_time_ns
 from twin.rdf import Object
 from twin.skills import SkillProfile
 from twin.store import GraphStore
@@ -42,6 +44,8 @@ class ElementState:
     materials: frozenset[str] = frozenset()
     facing_materials: frozenset[str] = frozenset()
     """What a sensor faces (``twin:facingMaterial``): what skills exclude by."""
+    sensed_ns: int = 0
+    """When its last applied change (or removal) was seen (``twin:senseTime``, ns); 0: never observed."""
 
     @property
     def is_door(self) -> bool:
@@ -74,6 +78,15 @@ def _set(value: str | None) -> frozenset[str]:
     return frozenset(v for v in (value or "").split(_SEP) if v)
 
 
+def _sense_ns(text: str | None) -> int:
+    if not text:
+        return 0
+    try:
+        return sense_time_ns(text)
+    except ValueError:
+        return 0
+
+
 def load_states(store: GraphStore, iris: Sequence[str] | None = None) -> dict[str, ElementState]:
     """Every element's (or only those of ``iris``) classes, static flag, names, materials, storey, door
     state and removal."""
@@ -81,6 +94,7 @@ def load_states(store: GraphStore, iris: Sequence[str] | None = None) -> dict[st
     rows = store.select(
         f"""SELECT ?e ?cls ?static (SAMPLE(?key) AS ?storey) (SAMPLE(?open) AS ?isOpen)
                   (SAMPLE(?gone) AS ?removed) (SAMPLE(?keep) AS ?keepout) (SAMPLE(?speed) AS ?speedLimit)
+                  (SAMPLE(?sense) AS ?senseTime)
                   (GROUP_CONCAT(DISTINCT ?t; separator="{_SEP}") AS ?types)
                   (GROUP_CONCAT(DISTINCT STR(?c); separator="{_SEP}") AS ?classes)
                   (GROUP_CONCAT(DISTINCT ?n; separator="{_SEP}") AS ?labels)
@@ -99,6 +113,7 @@ def load_states(store: GraphStore, iris: Sequence[str] | None = None) -> dict[st
              OPTIONAL {{ ?e twin:removed ?gone }}
              OPTIONAL {{ ?e twin:keepout ?keep }}
              OPTIONAL {{ ?e twin:speedLimit ?speed }}
+             OPTIONAL {{ ?e twin:senseTime ?sense }}
            }} GROUP BY ?e ?cls ?static"""
     )
     out = {}
@@ -122,6 +137,7 @@ def load_states(store: GraphStore, iris: Sequence[str] | None = None) -> dict[st
             labels=labels,
             materials=_set(r["materials"]),
             facing_materials=_set(r["facing"]),
+            sensed_ns=_sense_ns(r["senseTime"]),
         )
     return out
 
@@ -149,3 +165,12 @@ class LiveState:
     held: dict[str, dict[str, Object | None]]
     """Subject -> predicate -> the exact object of each single-valued triple the writer last wrote (so
     that the next change deletes that triple exactly instead of by a pattern)."""
+    fusion: FusionMemory = field(default_factory=FusionMemory)
+    """What robots saw and missed of each element, and the robot IRIs that resolved to elements."""
+
+    def advance(self, revision: int) -> None:
+        """The twin is at ``revision`` now: the one place the revision moves (it never goes back)."""
+        if revision < self.revision:
+            msg = f"The twin's revision cannot go back from {self.revision} to {revision}."
+            raise ValueError(msg)
+        self.revision = revision

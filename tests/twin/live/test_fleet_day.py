@@ -12,7 +12,7 @@ import pytest
 from tests.conftest import imported
 from tests.twin.box_lab import box_lab, element_iri, spec
 from tests.twin.live_helpers import PREFIX, TWIN, box_turtle, observe, started
-from twin.config import load_config
+from twin.config import FusionRules, load_config
 from twin.events import MapPublished, MapUpdated, ObservationAccepted
 from twin.live import TwinService
 from twin.live.selection import needs_store, selects
@@ -37,8 +37,9 @@ def test_a_re_confirmation_commits_no_revision_renders_nothing_and_is_acked_unch
     assert service.status()["observations"] == {"accepted": 1, "unchanged": 20, "rejected": 0}
 
 
-def test_noise_within_a_millimetre_and_a_tenth_of_a_milliradian_is_a_re_confirmation() -> None:
-    service, _ = started()
+def test_without_fusion_noise_within_a_millimetre_and_a_tenth_of_a_milliradian_confirms() -> None:
+    # [fusion] enabled = false: every report as robots say it (with fusion: tests/twin/live/test_fusion.py)
+    service, _ = started(config=replace(load_config(), fusion=FusionRules(enabled=False)))
     observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, yaw=0.3))
     assert observe(service, "robot1", box_turtle(TABLE, 6.6004, 1.9996, yaw=0.30005)).body.get("unchanged")
     assert observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, sx=0.8004, yaw=0.3)).body.get("unchanged")

@@ -84,7 +84,7 @@ def capture(live: LiveState, keys: dict[str, Any]) -> Captured:
 def _state_json(s: ElementState) -> list[Any]:
     sets = (s.classes, s.labels, s.materials, s.facing_materials)
     head = [s.iri, s.ifc_class, list(s.ifc_types), s.is_static, s.name, s.storey, s.is_open, s.removed]
-    return [*head, s.keepout, s.speed_limit, *(sorted(x) for x in sets)]
+    return [*head, s.keepout, s.speed_limit, *(sorted(x) for x in sets), s.sensed_ns]
 
 
 def _pool(shapes: Sequence[Shape]) -> tuple[dict[str, AnyArray], AnyArray, AnyArray]:

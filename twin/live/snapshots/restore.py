@@ -36,7 +36,7 @@ log = logging.getLogger(__name__)
 
 
 def _state(row: list[Any]) -> ElementState:
-    iri, cls, types, static, name, storey, is_open, removed, keepout, speed, *sets = row
+    iri, cls, types, static, name, storey, is_open, removed, keepout, speed, *sets, sensed = row
     classes, labels, materials, facing = (frozenset(str(v) for v in x) for x in sets)
     return ElementState(
         iri=str(iri),
@@ -53,6 +53,7 @@ def _state(row: list[Any]) -> ElementState:
         labels=labels,
         materials=materials,
         facing_materials=facing,
+        sensed_ns=int(sensed),
     )
 
 

@@ -1,0 +1,168 @@
+"""``[fusion]``: how observations from many robots become one twin (association, confirmation,
+absence, sense time). See the README, "Many robots, one twin".
+
+Example::
+
+    [fusion]
+    confirm_distance_m = 0.15          # a sighting this close to the held pose confirms it
+    [fusion.classes.IfcChair]           # per IFC class (subtypes included), any key of the table
+    confirm_distance_m = 0.10
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Annotated
+
+from pydantic import Field
+
+from twin.config.base import ConfigTable, Flag, Number, Whole
+
+
+class FusionClassTable(ConfigTable):
+    """``[fusion.classes.<IfcClass>]``: the per-class values that differ from ``[fusion]``'s."""
+
+    confirm_distance_m: Annotated[Number, Field(ge=0.0, le=10.0)] | None = None
+    confirm_angle_deg: Annotated[Number, Field(ge=0.0, le=180.0)] | None = None
+    min_iou: Annotated[Number, Field(gt=0.0, le=1.0)] | None = None
+    small_object_m: Annotated[Number, Field(ge=0.0, le=10.0)] | None = None
+    centre_distance_m: Annotated[Number, Field(ge=0.0, le=10.0)] | None = None
+    misses_to_remove: Annotated[Whole, Field(ge=1, le=1000)] | None = None
+    miss_span_s: Annotated[Number, Field(ge=0.0, le=86400.0)] | None = None
+    ttl_s: Annotated[Number, Field(ge=0.0)] | None = None
+
+
+class FusionTable(ConfigTable):
+    """``[fusion]``: many robots, one twin."""
+
+    enabled: Flag = Field(
+        True, description="Associate, confirm and remove by absence (false: as robots say)."
+    )
+    confirm_distance_m: Annotated[Number, Field(ge=0.0, le=10.0)] = Field(
+        0.15, description="A sighting whose centre is this close (x, y and z) to the held pose confirms it."
+    )
+    confirm_angle_deg: Annotated[Number, Field(ge=0.0, le=180.0)] = Field(
+        10.0, description="... and whose yaw is this close (modulo the footprint's symmetry), degrees."
+    )
+    refine_after: Annotated[Whole, Field(ge=1, le=100000)] = Field(
+        10, description="Confirmations averaged in memory before a refined pose may be committed."
+    )
+    refine_fraction: Annotated[Number, Field(gt=0.0, le=1.0)] = Field(
+        0.5,
+        description="The mean of the confirmations is committed once it is this fraction of the "
+        "confirmation distance (or angle) from the held pose (hysteresis: a still object does not flap).",
+    )
+    min_iou: Annotated[Number, Field(gt=0.0, le=1.0)] = Field(
+        0.25,
+        description="A new robot IRI is an existing element if their footprints overlap this much (IoU).",
+    )
+    small_object_m: Annotated[Number, Field(ge=0.0, le=10.0)] = Field(
+        0.6, description="Footprints whose longer side is below this are matched by centre distance."
+    )
+    centre_distance_m: Annotated[Number, Field(ge=0.0, le=10.0)] = Field(
+        0.3, description="The centre distance that matches small objects, metres."
+    )
+    merge_iou: Annotated[Number, Field(gt=0.0, le=1.0)] = Field(
+        0.5, description="Two elements whose footprints overlap this much after a change are merged."
+    )
+    tentative_sightings: Annotated[Whole, Field(ge=1, le=100)] = Field(
+        1, description="Sightings a new element needs before it is created (1: at once)."
+    )
+    misses_to_remove: Annotated[Whole, Field(ge=1, le=1000)] = Field(
+        3, description="Views that should have seen an element and did not, before it is removed."
+    )
+    miss_span_s: Annotated[Number, Field(ge=0.0, le=86400.0)] = Field(
+        1.0, description="... spread over at least this long (sense time), with no sighting in between."
+    )
+    ttl_s: Annotated[Number, Field(ge=0.0)] = Field(
+        0.0, description="Remove robot-added elements nobody confirmed for this long (0: never)."
+    )
+    alias_ttl_s: Annotated[Number, Field(gt=0.0)] = Field(
+        3600.0, description="A robot IRI that resolved to an element is forgotten when unused this long."
+    )
+    max_clock_skew_s: Annotated[Number, Field(ge=0.0, le=3600.0)] = Field(
+        2.0, description="A sense time later than the daemon's clock plus this is refused."
+    )
+    classes: dict[str, FusionClassTable] = Field(
+        default_factory=dict, description="Per IFC class (subtypes included): values that differ."
+    )
+
+    def rules(self) -> FusionRules:
+        base = FusionClassRules(
+            confirm_distance_m=self.confirm_distance_m,
+            confirm_angle_rad=math.radians(self.confirm_angle_deg),
+            min_iou=self.min_iou,
+            small_object_m=self.small_object_m,
+            centre_distance_m=self.centre_distance_m,
+            misses_to_remove=self.misses_to_remove,
+            miss_span_ns=int(self.miss_span_s * 1e9),
+            ttl_ns=int(self.ttl_s * 1e9),
+        )
+        per_class = {}
+        for name, t in self.classes.items():
+            per_class[name] = FusionClassRules(
+                confirm_distance_m=_or(t.confirm_distance_m, base.confirm_distance_m),
+                confirm_angle_rad=base.confirm_angle_rad
+                if t.confirm_angle_deg is None
+                else math.radians(t.confirm_angle_deg),
+                min_iou=_or(t.min_iou, base.min_iou),
+                small_object_m=_or(t.small_object_m, base.small_object_m),
+                centre_distance_m=_or(t.centre_distance_m, base.centre_distance_m),
+                misses_to_remove=int(_or(t.misses_to_remove, base.misses_to_remove)),
+                miss_span_ns=base.miss_span_ns if t.miss_span_s is None else int(t.miss_span_s * 1e9),
+                ttl_ns=base.ttl_ns if t.ttl_s is None else int(t.ttl_s * 1e9),
+            )
+        return FusionRules(
+            enabled=self.enabled,
+            default=base,
+            per_class=per_class,
+            refine_after=self.refine_after,
+            refine_fraction=self.refine_fraction,
+            merge_iou=self.merge_iou,
+            tentative_sightings=self.tentative_sightings,
+            alias_ttl_ns=int(self.alias_ttl_s * 1e9),
+            max_skew_ns=int(self.max_clock_skew_s * 1e9),
+        )
+
+
+def _or(value: float | None, default: float) -> float:
+    return default if value is None else value
+
+
+@dataclass(frozen=True, slots=True)
+class FusionClassRules:
+    """The thresholds for one IFC class (and its subtypes), in metres, radians and nanoseconds."""
+
+    confirm_distance_m: float
+    confirm_angle_rad: float
+    min_iou: float
+    small_object_m: float
+    centre_distance_m: float
+    misses_to_remove: int
+    miss_span_ns: int
+    ttl_ns: int
+
+
+@dataclass(frozen=True, slots=True)
+class FusionRules:
+    """``[fusion]`` as the core uses it."""
+
+    enabled: bool = True
+    default: FusionClassRules = FusionClassRules(0.15, math.radians(10.0), 0.25, 0.6, 0.3, 3, 10**9, 0)
+    per_class: dict[str, FusionClassRules] | None = None
+    refine_after: int = 10
+    refine_fraction: float = 0.5
+    merge_iou: float = 0.5
+    tentative_sightings: int = 1
+    alias_ttl_ns: int = 3600 * 10**9
+    max_skew_ns: int = 2 * 10**9
+
+    def of(self, ifc_types: tuple[str, ...]) -> FusionClassRules:
+        """The rules of the most specific configured class among ``ifc_types`` (class first)."""
+        if self.per_class:
+            for t in ifc_types:
+                found = self.per_class.get(t)
+                if found is not None:
+                    return found
+        return self.default

@@ -1,0 +1,137 @@
+"""What the writer remembers of robots' sightings: per element, who saw it and when, what views missed
+it, the confirmations not yet committed; and the robot IRIs that resolved to elements (aliases).
+
+In memory only, except aliases (``twin:aliasOf``, written by the writer) and each element's last
+applied sense time (``twin:senseTime``, on the element): it changes many times a second and the graph
+does not grow with how often an element is seen. One writer mutates it.
+
+Example::
+
+    memory = FusionMemory()
+    track = memory.track(iri)
+    track.sighted("robot1", sense_ns)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from twin.fusion.footprints import Pose
+
+
+@dataclass(slots=True)
+class RobotSightings:
+    """One robot's sightings of one element: how many, the first and the last (sense time, ns)."""
+
+    count: int
+    first_ns: int
+    last_ns: int
+
+
+@dataclass(slots=True)
+class Refinement:
+    """The mean of the confirmations since the last committed pose (yaw as a doubled-angle mean, so
+    that a flipped heading averages correctly)."""
+
+    n: int = 0
+    cx: float = 0.0
+    cy: float = 0.0
+    cz: float = 0.0
+    sx: float = 0.0
+    sy: float = 0.0
+    sz: float = 0.0
+    c2: float = 0.0
+    s2: float = 0.0
+
+    def add(self, p: Pose) -> None:
+        self.n += 1
+        self.cx += p.cx
+        self.cy += p.cy
+        self.cz += p.cz
+        self.sx += p.sx
+        self.sy += p.sy
+        self.sz += p.sz
+        period = math.pi / 2 if p.square else math.pi
+        k = 2 * math.pi / period
+        self.c2 += math.cos(k * p.yaw)
+        self.s2 += math.sin(k * p.yaw)
+
+    def mean(self, square: bool) -> Pose:
+        n = self.n
+        period = math.pi / 2 if square else math.pi
+        yaw = (math.atan2(self.s2, self.c2) % (2 * math.pi)) * period / (2 * math.pi)
+        return Pose(self.cx / n, self.cy / n, self.cz / n, self.sx / n, self.sy / n, self.sz / n, yaw)
+
+
+@dataclass(slots=True)
+class Miss:
+    robot: str
+    sense_ns: int
+
+
+@dataclass(slots=True)
+class Track:
+    """What the writer knows of one element's sightings."""
+
+    seen_ns: int = 0
+    """The latest sense time of anything known about it: its last applied change, or any sighting."""
+    robots: dict[str, RobotSightings] = field(default_factory=dict)
+    misses: list[Miss] = field(default_factory=list)
+    """Views that should have seen it and did not, since its last sighting."""
+    refinement: Refinement = field(default_factory=Refinement)
+
+    def sighted(self, robot: str, sense_ns: int) -> None:
+        """A sighting by ``robot`` seen at ``sense_ns``: counted, and misses before it are forgotten."""
+        s = self.robots.get(robot)
+        if s is None:
+            self.robots[robot] = RobotSightings(1, sense_ns, sense_ns)
+        else:
+            s.count += 1
+            s.first_ns = min(s.first_ns, sense_ns)
+            s.last_ns = max(s.last_ns, sense_ns)
+        self.seen_ns = max(self.seen_ns, sense_ns)
+        if self.misses:
+            self.misses = [m for m in self.misses if m.sense_ns > sense_ns]
+
+    def as_json(self) -> dict[str, object]:
+        return {
+            "sightings": {
+                r: {"count": s.count, "first_ns": s.first_ns, "last_ns": s.last_ns}
+                for r, s in sorted(self.robots.items())
+            },
+            "misses": [{"robot": m.robot, "sense_ns": m.sense_ns} for m in self.misses],
+            "seen_ns": self.seen_ns,
+        }
+
+
+@dataclass(slots=True)
+class Alias:
+    """A robot IRI that resolved to ``target``; forgotten when unused for ``alias_ttl_s``."""
+
+    target: str
+    used_ns: int
+
+
+@dataclass(slots=True)
+class FusionMemory:
+    """Every element's :class:`Track`, the aliases, the poses of dynamic elements per storey, and the
+    robot IRIs held tentative until seen often enough."""
+
+    tracks: dict[str, Track] = field(default_factory=dict)
+    aliases: dict[str, Alias] = field(default_factory=dict)
+    poses: dict[str, dict[str, Pose]] | None = None
+    """Storey -> element -> pose of every dynamic element with geometry (None: not built yet)."""
+    tentative: dict[str, int] = field(default_factory=dict)
+    """Robot IRIs of new elements seen fewer than ``tentative_sightings`` times -> sightings so far."""
+    distinct: set[str] = field(default_factory=set)
+    """Elements robots said are distinct objects (never merged into another)."""
+
+    def track(self, iri: str) -> Track:
+        t = self.tracks.get(iri)
+        if t is None:
+            t = self.tracks[iri] = Track()
+        return t
+
+    def aliases_of(self, target: str) -> list[str]:
+        return sorted(a for a, v in self.aliases.items() if v.target == target)
