@@ -38,6 +38,7 @@ from twin.events import (
     MapRemoved,
     MapUpdated,
     ObservationAccepted,
+    ObservationNoted,
     ObservationRejected,
     RobotStoreyChanged,
     SkillChanged,
@@ -181,6 +182,10 @@ class RecordingWriter:
             self._text(f"map {event.storey}/{event.skill} removed", "INFO")
         elif isinstance(event, ObservationAccepted):
             self._accepted(event)
+        elif isinstance(event, ObservationNoted):
+            self._time(event.revision, event.stamp_ns)
+            for note in event.notes:
+                self._text(f"{event.robot}: {note}", "INFO")
         elif isinstance(event, ObservationRejected):
             self.stream.set_time("time", timestamp=np.datetime64(event.stamp_ns, "ns"))
             self._text(f"{event.robot}: observation rejected: {event.error}", "WARN")
@@ -318,3 +323,5 @@ class RecordingWriter:
             f"removed {len(event.removed)}; maps {changed}{extra}",
             "INFO",
         )
+        for note in event.notes:  # what fusion decided: merges, refined poses, removals by absence
+            self._text(f"{event.robot}: {note}", "INFO")

@@ -25,8 +25,9 @@ import numpy.typing as npt
 
 from twin.records import FloatArray, Shape
 
-SQUARE_TOLERANCE_M = 0.02
-"""Footprints whose sides differ by less than this are square: the same every quarter turn."""
+SQUARE_TOLERANCE_M = 0.05
+"""Footprints whose sides differ by less than this are square: the same every quarter turn (a detector's
+noise decides which side of a nearly square box is the longer, and so its canonical yaw)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -137,10 +138,11 @@ def min_area_rectangle(points: FloatArray) -> tuple[float, float, float, float, 
     return float(cx), float(cy), float(du[best]), float(dv[best]), float(angles[best])
 
 
-def corners(p: Pose) -> FloatArray:
-    """``(4, 2)`` the footprint's corners, counter-clockwise."""
+def corners(p: Pose, *, inset: float = 0.0) -> FloatArray:
+    """``(4, 2)`` the footprint's corners, counter-clockwise (moved ``inset`` metres inwards on each
+    side, to at most the centre line)."""
     c, s = math.cos(p.yaw), math.sin(p.yaw)
-    hx, hy = p.sx / 2, p.sy / 2
+    hx, hy = max(p.sx / 2 - inset, 0.0), max(p.sy / 2 - inset, 0.0)
     local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
     return np.asarray(local @ np.array([[c, s], [-s, c]]) + (p.cx, p.cy))
 
@@ -197,8 +199,8 @@ def heights_overlap(a: Pose, b: Pose) -> bool:
 
 
 def yaw_difference(a: Pose, b: Pose) -> float:
-    """The yaw between two poses modulo their footprint's symmetry (pi, or pi/2 when both are square)."""
-    period = math.pi / 2 if a.square and b.square else math.pi
+    """The yaw between two poses modulo their footprint's symmetry (pi, or pi/2 when either is square)."""
+    period = math.pi / 2 if a.square or b.square else math.pi
     d = (a.yaw - b.yaw) % period
     return min(d, period - d)
 

@@ -162,7 +162,7 @@ def explain_cell(
     near.sort(key=lambda t: (t[0], t[1]))
     details = _details(store, [*occupied, *inflated, *(i for _, i, _, _ in near)])
     value = int(m.data[row, col])
-    return {
+    answer = {
         "storey": storey,
         "skill": skill,
         "x": x,
@@ -177,6 +177,25 @@ def explain_cell(
             for d, i, s, r in near[:20]
         ],
     }
+    for key in ("occupied_by", "within_inflation_of", "near"):
+        for entry in answer[key]:  # type: ignore[attr-defined]
+            fused = fusion_of(live, entry["iri"])
+            if fused:
+                entry["fusion"] = fused
+    return answer
 
 
-__all__ = ["NEAR_M", "explain_cell", "why_not"]
+def fusion_of(live: LiveState, iri: str) -> dict[str, Any]:
+    """What fusion knows of an element: the robots that saw it (how often, first and last), the robot
+    IRIs that resolve to it, and the views that missed it since its last sighting."""
+    out: dict[str, Any] = {}
+    track = live.fusion.tracks.get(iri)
+    if track is not None:
+        out.update(track.as_json())
+    aliases = live.fusion.aliases_of(iri)
+    if aliases:
+        out["aliases"] = aliases
+    return out
+
+
+__all__ = ["NEAR_M", "explain_cell", "fusion_of", "why_not"]

@@ -165,6 +165,10 @@ def index_element(live: LiveState, iri: str, state: ElementState | None) -> None
         memory.poses.setdefault(storey, {})[iri] = pose
 
 
+VIEW_INSET_M = 0.1
+"""An element is in a view when its footprint, this much smaller on each side, is: a view's edge stops
+at the walls, so an object against a wall is never wholly inside one."""
+
 STOREY_TOLERANCE_M = 0.3
 """An element contained in a space (not a storey) stands on the highest storey whose elevation is at
 most this far above its lowest point."""
@@ -531,7 +535,7 @@ def _absence(
             continue
         if not any(d in state.ifc_types for d in detects):  # the element is of a class it detects
             continue
-        if not inside(corners(pose), polygons):  # type: ignore[arg-type]
+        if not inside(corners(pose, inset=VIEW_INSET_M), polygons):  # type: ignore[arg-type]
             continue
         track = memory.tracks.get(iri)
         if sense <= max(state.sensed_ns, track.seen_ns if track is not None else 0):

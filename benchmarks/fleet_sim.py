@@ -1,0 +1,684 @@
+"""A fleet against ground truth: simulated robots report what they see to a real daemon, and every second
+the twin is compared with the true world.
+
+The daemon (``twin serve`` on the lab, or ``--model janesville``) runs as a process; each robot is a
+thread with its own Zenoh session. A robot drives random straight paths through the free floor of one
+storey, and at ``--rate`` Hz sends an acked observation: the objects whose centre lies in its view
+(range ``--range``, all around, cut by the building's structure: rays cast over the navigation map of
+the empty building), each as a box with noise (``--sigma-pos``, ``--sigma-yaw``), missed with
+``--p-miss``, with a tracker IRI of its own that it renumbers when it loses an object for 3 s; now and
+then a false detection; and its view (``a twin:View``: the polygon, ``twin:detects "IfcFurniture"``,
+the sense time). Objects move, vanish and appear at scripted times (``--moves``, ``--removals``,
+``--appears``, spread over the middle of the run). The truth is also applied, exactly, to a twin of its
+own in this process (fusion off), whose maps are the maps of the true world.
+
+Every second: the twin's IfcFurniture elements (SPARQL) against the true objects (within 0.5 m):
+duplicates, ghosts (elements where no object is), ghosts whose place a robot viewed 10 s ago or more
+(those fusion should have removed), objects missing, and the navigation map's cells that differ from
+the true world's. At the end: removals (precision and recall within 10 s of the first view without the
+object), the time from a move's first sighting to the ack that shows it, revisions per true change,
+acked sightings per second, and the daemon's CPU per acked observation. ``--saturate S`` adds S seconds
+in which the robots send as fast as acks come back (the acked sightings per second at saturation).
+
+    python benchmarks/fleet_sim.py --robots 10 --objects 30 --duration 600 --moves 20 --removals 10 \\
+        --json fleet.json --plot fleet.png
+    python benchmarks/fleet_sim.py --model janesville --robots 5 --objects 30 --duration 600
+
+Exit code 1 when a duplicate or a viewed ghost remains at the end (the suite runs a short version:
+``tests/integration/test_fleet.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import random
+import shutil
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import live  # benchmarks/ is not a package
+
+TWIN = live.TWIN
+PREFIX = f"@prefix twin: <{TWIN}> .\n@prefix xsd: <http://www.w3.org/2001/XMLSchema#> .\n"
+MATCH_M = 0.5
+"""A twin element within this of an object's centre is that object."""
+GHOST_VIEWED_S = 10.0
+RAYS = 72
+
+
+def _iso(ns: int) -> str:
+    s, n = divmod(ns, 1_000_000_000)
+    return time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(s)) + f".{n:09d}Z"
+
+
+@dataclass
+class Obj:
+    """A true object: an upright box on the storey's floor."""
+
+    key: int
+    x: float
+    y: float
+    yaw: float
+    sx: float
+    sy: float
+    sz: float
+    present: bool = True
+    changed_at: float = 0.0
+    seen_at: float = -1.0
+
+    def corners(self) -> np.ndarray:
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        local = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * (self.sx / 2, self.sy / 2)
+        return np.asarray(local @ np.array([[c, s], [-s, c]]) + (self.x, self.y))
+
+
+@dataclass
+class Event:
+    kind: str  # move | remove | appear
+    obj: int
+    at: float
+    place: tuple[float, float]  # the old place (move, remove) or the new one (appear)
+    corners: np.ndarray
+    first_view: float | None = None
+    detected: float | None = None
+    first_sighting: float | None = None
+    shown: float | None = None
+
+
+@dataclass
+class World:
+    """The free floor, the structure that hides things, the objects, and what happened."""
+
+    free: np.ndarray  # bool grid: a robot or an object may stand here
+    blocked: np.ndarray  # bool grid: the structure (rays stop)
+    origin: tuple[float, float]
+    res: float
+    elevation: float
+    objects: dict[int, Obj] = field(default_factory=dict)
+    events: list[Event] = field(default_factory=list)
+    views: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (time, polygon), recent
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def cell(self, x: float, y: float) -> tuple[int, int]:
+        return int((y - self.origin[1]) / self.res), int((x - self.origin[0]) / self.res)
+
+    def is_free(self, x: float, y: float) -> bool:
+        r, c = self.cell(x, y)
+        return 0 <= r < self.free.shape[0] and 0 <= c < self.free.shape[1] and bool(self.free[r, c])
+
+    def line_free(self, a: tuple[float, float], b: tuple[float, float]) -> bool:
+        n = max(2, int(math.dist(a, b) / (self.res / 2)))
+        return all(
+            self.is_free(a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t) for t in np.linspace(0, 1, n)
+        )
+
+    def random_free(self, rng: random.Random) -> tuple[float, float]:
+        rows, cols = np.nonzero(self.free)
+        i = rng.randrange(len(rows))
+        return (
+            self.origin[0] + (cols[i] + 0.5) * self.res,
+            self.origin[1] + (rows[i] + 0.5) * self.res,
+        )
+
+    def view(self, x: float, y: float, reach: float) -> np.ndarray:
+        """The floor a sensor at (x, y) sees: rays over the structure, to ``reach``."""
+        angles = np.linspace(0, 2 * math.pi, RAYS, endpoint=False)
+        steps = np.arange(0, reach, self.res / 2)[:, None]
+        px = x + steps * np.cos(angles)[None, :]
+        py = y + steps * np.sin(angles)[None, :]
+        rows = ((py - self.origin[1]) / self.res).astype(int)
+        cols = ((px - self.origin[0]) / self.res).astype(int)
+        inside = (rows >= 0) & (rows < self.blocked.shape[0]) & (cols >= 0) & (cols < self.blocked.shape[1])
+        hit = (
+            ~inside
+            | self.blocked[
+                np.clip(rows, 0, self.blocked.shape[0] - 1), np.clip(cols, 0, self.blocked.shape[1] - 1)
+            ]
+        )
+        first = np.where(hit.any(axis=0), hit.argmax(axis=0), len(steps))
+        dist = np.maximum(first - 1, 0) * (self.res / 2)
+        return np.stack([x + dist * np.cos(angles), y + dist * np.sin(angles)], axis=1)
+
+    def place(
+        self, rng: random.Random, near: tuple[float, float] | None = None
+    ) -> tuple[float, float, float] | None:
+        for _ in range(500):
+            if near is None:
+                x, y = self.random_free(rng)
+            else:
+                a, d = rng.uniform(0, 2 * math.pi), rng.uniform(1.0, 4.0)
+                x, y = near[0] + d * math.cos(a), near[1] + d * math.sin(a)
+            yaw = rng.uniform(0, math.pi)
+            probe = Obj(-1, x, y, yaw, 1.2, 0.8, 1.0)
+            if not all(self.is_free(*c) for c in probe.corners()) or not self.is_free(x, y):
+                continue
+            if any(o.present and math.dist((o.x, o.y), (x, y)) < 1.3 for o in self.objects.values()):
+                continue
+            return x, y, yaw
+        return None
+
+
+def _inside(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    from twin.fusion.footprints import points_in_polygon
+
+    return points_in_polygon(points, polygon)
+
+
+# --- the robots ------------------------------------------------------------------------------------------
+
+
+@dataclass
+class RobotStats:
+    sent: int = 0
+    acked: int = 0
+    sightings: int = 0
+    errors: int = 0
+    saturated_sightings: int = 0
+    saturated_s: float = 0.0
+
+
+def robot(  # noqa: PLR0917 (a thread's target)
+    index: int,
+    endpoint: str,
+    prefix: str,
+    world: World,
+    storey: str,
+    args: argparse.Namespace,
+    t_end: float,
+    sat_end: float,
+    stats: RobotStats,
+    stop: threading.Event,
+) -> None:
+    from adapters.zenoh.client import TwinClient
+    from twin.errors import TwinError
+
+    rng = random.Random(1000 + index)
+    world_t0 = time.time()
+    name = f"robot{index}"
+    x, y = world.random_free(rng)
+    goal = (x, y)
+    epochs: dict[int, int] = {}
+    last_seen: dict[int, float] = {}
+    false_count = 0
+    with TwinClient.connect([endpoint], prefix=prefix, timeout_s=30.0) as twin:
+        period = 1.0 / args.rate
+        due = time.time()
+        while not stop.is_set():
+            now = time.time()
+            if now >= sat_end:
+                break
+            saturating = now >= t_end
+            if not saturating:
+                time.sleep(max(0.0, due - now))
+                due += period
+            # drive
+            step = args.speed * period
+            if math.dist((x, y), goal) < step:
+                for _ in range(50):
+                    cand = world.random_free(rng)
+                    if math.dist(cand, (x, y)) > 2.0 and world.line_free((x, y), cand):
+                        goal = cand
+                        break
+            d = math.dist((x, y), goal)
+            if d > 1e-9:
+                x, y = x + (goal[0] - x) * min(1.0, step / d), y + (goal[1] - y) * min(1.0, step / d)
+            polygon = world.view(x, y, args.range)
+            sense = time.time_ns()
+            with world.lock:
+                objs = [o for o in world.objects.values() if o.present]
+                world.views.append((time.time(), polygon))
+                for ev in world.events:
+                    if (
+                        ev.first_view is None
+                        and ev.kind in ("move", "remove")
+                        and _inside(ev.corners, polygon).all()
+                    ):
+                        ev.first_view = time.time()
+            lines = []
+            seen_now = []
+            if objs:
+                centres = np.array([(o.x, o.y) for o in objs])
+                visible = _inside(centres, polygon) & (
+                    np.hypot(centres[:, 0] - x, centres[:, 1] - y) <= args.range
+                )
+                for o, v in zip(objs, visible, strict=True):
+                    if not v or rng.random() < args.p_miss:
+                        continue
+                    if now - last_seen.get(o.key, -1e9) > 3.0:
+                        epochs[o.key] = epochs.get(o.key, -1) + 1
+                    last_seen[o.key] = now
+                    o.seen_at = now
+                    iri = f"urn:sim:{name}:trk-{o.key}-{epochs[o.key]}"
+                    bx = o.x + rng.gauss(0, args.sigma_pos)
+                    by = o.y + rng.gauss(0, args.sigma_pos)
+                    byaw = (
+                        o.yaw
+                        + rng.gauss(0, math.radians(args.sigma_yaw))
+                        + (math.pi if rng.random() < 0.3 else 0)
+                    )
+                    sx, sy, sz = (max(0.05, v + rng.gauss(0, 0.01)) for v in (o.sx, o.sy, o.sz))
+                    lines.append(
+                        f'<{iri}> twin:ifcClass "IfcFurniture" ; twin:storey "{storey}" ; '
+                        f'twin:box "{bx:.4f} {by:.4f} {sz / 2:.4f} {sx:.4f} {sy:.4f} {sz:.4f} {byaw:.4f}" .'
+                    )
+                    seen_now.append(o.key)
+            if rng.random() < args.p_false:
+                fx, fy = polygon[rng.randrange(len(polygon))]
+                fx, fy = x + (fx - x) * 0.5, y + (fy - y) * 0.5
+                if world.is_free(fx, fy):
+                    false_count += 1
+                    lines.append(
+                        f'<urn:sim:{name}:false-{false_count}> twin:ifcClass "IfcFurniture" ; '
+                        f'twin:storey "{storey}" ; twin:box "{fx:.3f} {fy:.3f} 0.3 0.5 0.5 0.6 0" .'
+                    )
+            points = " ".join(f"{px:.3f} {py:.3f}" for px, py in polygon)
+            lines.append(
+                f'[] a twin:View ; twin:storey "{storey}" ; twin:polygon "{points}" ; '
+                f'twin:detects "IfcFurniture" ; twin:senseTime "{_iso(sense)}"^^xsd:dateTime .'
+            )
+            payload = PREFIX + "\n".join(lines)
+            stats.sent += 1
+            sent = time.time()
+            try:
+                ack = twin.observe(name, payload)
+            except TwinError as err:
+                stats.errors += 1
+                print(f"{name}: {err}", file=sys.stderr)
+                continue
+            stats.acked += 1
+            stats.sightings += len(seen_now)
+            if saturating:
+                stats.saturated_sightings += len(seen_now)
+            acked = time.time()
+            changed = not ack.get("unchanged")
+            if changed and args.verbose:
+                brief = {k: ack.get(k) for k in ("revision", "upserted", "removed", "resolved", "stale")}
+                print(f"{name} {sent - world_t0:.1f} {json.dumps(brief)}", flush=True)
+            with world.lock:
+                for ev in world.events:
+                    if ev.kind != "move" or ev.obj not in seen_now or ev.shown is not None:
+                        continue
+                    if ev.first_sighting is None:
+                        ev.first_sighting = sent
+                    if changed:
+                        ev.shown = acked
+
+
+# --- the sampler -----------------------------------------------------------------------------------------
+
+
+def twin_elements(client: Any, storey: str) -> dict[str, tuple[float, float]]:
+    from twin.fusion.footprints import pose_of
+    from twin.meshcodec import decode_mesh, decode_placement
+
+    rows = client.sparql(
+        f"""SELECT ?e ?pl ?ply WHERE {{ ?st twin:storeyKey "{storey}" ; bot:containsElement ?e .
+            ?e twin:ifcType "IfcFurniture" ; omg:hasGeometry ?g . ?g twin:placement ?pl ;
+            fog:asPly_v1.0-binaryLE ?ply . FILTER NOT EXISTS {{ ?e twin:removed true }} }}"""
+    )["results"]["bindings"]
+    out = {}
+    for r in rows:
+        p = pose_of((decode_mesh(r["ply"]["value"]), decode_placement(r["pl"]["value"])))
+        out[r["e"]["value"]] = (p.cx, p.cy)
+    return out
+
+
+def sample(  # noqa: PLR0917
+    client: Any,
+    world: World,
+    storey: str,
+    oracle: Any,
+    skill: str,
+    t0: float,
+    before: dict[str, tuple[float, float]],
+) -> dict[str, Any]:
+    elements = twin_elements(client, storey)
+    now = time.time()
+    with world.lock:
+        present = [o for o in world.objects.values() if o.present]
+        world.views = [(t, p) for t, p in world.views if now - t < 60.0]
+        old_views = [p for t, p in world.views if now - t >= GHOST_VIEWED_S]
+    per_obj: dict[int, int] = {}
+    ghosts, viewed_ghosts = [], 0
+    for iri, (ex, ey) in elements.items():
+        near = [o for o in present if math.dist((o.x, o.y), (ex, ey)) <= MATCH_M]
+        if near:
+            best = min(near, key=lambda o: math.dist((o.x, o.y), (ex, ey)))
+            per_obj[best.key] = per_obj.get(best.key, 0) + 1
+        else:
+            ghosts.append(iri)
+            if any(_inside(np.array([[ex, ey]]), p)[0] for p in old_views):
+                viewed_ghosts += 1
+    duplicates = sum(n - 1 for n in per_obj.values() if n > 1)
+    missing = sum(
+        1
+        for o in present
+        if o.key not in per_obj and o.seen_at > o.changed_at + 1.0 and now - o.changed_at > GHOST_VIEWED_S
+    )
+    false_removals = 0  # elements gone although their object stands there, still, and no element has it
+    for iri, place in before.items():
+        if iri in elements:
+            continue
+        for o in present:
+            if math.dist((o.x, o.y), place) <= MATCH_M and now - o.changed_at > 3.0 and o.key not in per_obj:
+                false_removals += 1
+                break
+    before.clear()
+    before.update(elements)
+    with world.lock:
+        for ev in world.events:
+            pending = ev.kind in ("move", "remove") and ev.detected is None and ev.at <= now
+            if pending and not any(math.dist(ev.place, e) <= MATCH_M for e in elements.values()):
+                ev.detected = now
+    grid, _, _ = client.get_map(storey, skill)
+    truth = oracle.engine.maps[(storey, skill)].data
+    cells = int((grid.data != truth).sum()) if grid.data.shape == truth.shape else -1
+    status = client.status()
+    return {
+        "t": round(now - t0, 1),
+        "elements": len(elements),
+        "objects": len(present),
+        "duplicates": duplicates,
+        "ghosts": len(ghosts),
+        "viewed_ghosts": viewed_ghosts,
+        "missing": missing,
+        "cells_differ": cells,
+        "false_removals": false_removals,
+        "revision": int(status["revision"]),
+    }
+
+
+# --- the run ---------------------------------------------------------------------------------------------
+
+
+def oracle_service(store: Path, work: Path) -> Any:
+    from dataclasses import replace
+
+    from twin.config import FusionRules, load_config
+    from twin.live import TwinService
+    from twin.store import EmbeddedStore
+
+    copy = work / "oracle"
+    shutil.copytree(store, copy)
+    st = EmbeddedStore.open(copy)
+    cfg = replace(
+        load_config(),
+        fusion=FusionRules(enabled=False),
+        default_rights=frozenset({"create", "dynamic", "doors", "static"}),
+    )
+    service = TwinService(st, cfg)
+    service.start()
+    return service
+
+
+def truth_box(o: Obj, storey: str, elevation: float) -> bytes:
+    del elevation
+    return (
+        PREFIX + f'<urn:truth:{o.key}> twin:ifcClass "IfcFurniture" ; twin:storey "{storey}" ; '
+        f'twin:box "{o.x} {o.y} {o.sz / 2} {o.sx} {o.sy} {o.sz} {o.yaw}" .'
+    ).encode()
+
+
+def apply_truth(oracle: Any, payload: bytes) -> None:
+    replies: list[Any] = []
+    oracle.submit_observation("oracle", payload, replies.append)
+    oracle.process()
+    assert replies and replies[0].ok, replies
+
+
+def cpu_seconds(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    import os
+
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    from adapters.zenoh.client import TwinClient
+    from twin.grid import OCCUPIED
+
+    work = Path(tempfile.mkdtemp(prefix="fleet-"))
+    store = live.prepare_store(args.model, work)
+    if args.model == "lab":
+        storey, skill = "ground-floor", "lab-navigation"
+    else:
+        storey, skill = live.busiest(store)[0], "navigation"
+    oracle = oracle_service(store, work)
+    m = oracle.engine.maps[(storey, skill)]
+    f = m.plan.frame
+    data = m.data
+    blocked = data == OCCUPIED
+    free = data == 0
+    for _ in range(math.ceil(0.35 / f.resolution_m)):  # keep off the walls
+        grown = free.copy()
+        grown[1:, :] &= free[:-1, :]
+        grown[:-1, :] &= free[1:, :]
+        grown[:, 1:] &= free[:, :-1]
+        grown[:, :-1] &= free[:, 1:]
+        free = grown
+    elevation = oracle.live.site.storeys[storey].elevation_m
+    world = World(free, blocked, (f.origin_x, f.origin_y), f.resolution_m, elevation)
+    rng = random.Random(args.seed)
+    for k in range(args.objects):
+        spot = world.place(rng)
+        if spot is None:
+            break
+        o = Obj(k, *spot, rng.uniform(0.6, 1.2), rng.uniform(0.4, 0.8), rng.uniform(0.5, 0.9))
+        if o.sy > o.sx:
+            o.sx, o.sy = o.sy, o.sx
+        world.objects[k] = o
+        apply_truth(oracle, truth_box(o, storey, elevation))
+    # the script: moves, removals, appearances over the middle of the run
+    t_first, t_last = args.duration * 0.2, args.duration * 0.75
+    kinds = ["move"] * args.moves + ["remove"] * args.removals + ["appear"] * args.appears
+    rng.shuffle(kinds)
+    script = [(t_first + (t_last - t_first) * i / max(1, len(kinds)), k) for i, k in enumerate(kinds)]
+
+    config = work / "fleet.toml"
+    config.write_text(f"[fusion]\ntentative_sightings = {args.tentative}\n")
+    endpoint = f"tcp/127.0.0.1:{live._free_port()}"
+    daemon, line = live.serve(
+        "--config", str(config), "--store", str(store), "--listen", endpoint, "--no-record"
+    )
+    site = line.split("site '", 1)[1].split("'", 1)[0]
+    prefix = f"twin/{site}"
+    stop = threading.Event()
+    samples: list[dict[str, Any]] = []
+    stats = [RobotStats() for _ in range(args.robots)]
+    try:
+        with TwinClient.connect([endpoint], prefix=prefix, timeout_s=30.0) as client:
+            rev0 = int(client.status()["revision"])
+            t0 = time.time()
+            t_end = t0 + args.duration
+            sat_end = t_end + args.saturate
+            cpu0 = cpu_seconds(daemon.pid)
+            threads = [
+                threading.Thread(
+                    target=robot,
+                    args=(i, endpoint, prefix, world, storey, args, t_end, sat_end, stats[i], stop),
+                    daemon=True,
+                )
+                for i in range(args.robots)
+            ]
+            for t in threads:
+                t.start()
+            next_sample, step = t0 + 1.0, 0
+            previous: dict[str, tuple[float, float]] = {}
+            cpu_main = None
+            while time.time() < sat_end:
+                now = time.time()
+                while step < len(script) and now - t0 >= script[step][0]:
+                    _, kind = script[step]
+                    step += 1
+                    with world.lock:
+                        present = [o for o in world.objects.values() if o.present]
+                        if kind == "appear" or not present:
+                            spot = world.place(rng)
+                            if spot is None:
+                                continue
+                            k = max(world.objects) + 1
+                            o = Obj(k, *spot, 0.8, 0.6, 0.75, changed_at=now)
+                            world.objects[k] = o
+                            world.events.append(Event("appear", k, now, (o.x, o.y), o.corners()))
+                            apply_truth(oracle, truth_box(o, storey, elevation))
+                            continue
+                        o = rng.choice(present)
+                        world.events.append(Event(kind, o.key, now, (o.x, o.y), o.corners()))
+                        if kind == "remove":
+                            o.present = False
+                            apply_truth(oracle, f"{PREFIX}<urn:truth:{o.key}> twin:removed true .".encode())
+                        else:
+                            spot = world.place(rng, near=(o.x, o.y))
+                            if spot is None:
+                                world.events.pop()
+                                continue
+                            o.x, o.y, o.yaw = spot
+                            apply_truth(oracle, truth_box(o, storey, elevation))
+                        o.changed_at = now
+                if now >= next_sample and now < t_end:
+                    samples.append(sample(client, world, storey, oracle, skill, t0, previous))
+                    next_sample += 1.0
+                    if args.verbose:
+                        print(json.dumps(samples[-1]), flush=True)
+                if now >= t_end and cpu_main is None:
+                    cpu_main = cpu_seconds(daemon.pid) - cpu0
+                    acked_main = sum(s.acked for s in stats)
+                time.sleep(0.05)
+            stop.set()
+            for t in threads:
+                t.join(timeout=60)
+            if cpu_main is None:
+                cpu_main, acked_main = cpu_seconds(daemon.pid) - cpu0, sum(s.acked for s in stats)
+            time.sleep(1.0)
+            final = sample(client, world, storey, oracle, skill, t0, previous)
+            rev1 = int(client.status()["revision"])
+    finally:
+        daemon.terminate()
+        daemon.wait(timeout=30)
+        oracle.store.close()
+        shutil.rmtree(work, ignore_errors=True)
+    removals = [e for e in world.events if e.kind in ("move", "remove")]
+    viewed = [e for e in removals if e.first_view is not None]
+    recall_hits = [e for e in viewed if e.detected is not None and e.detected - e.first_view <= 10.0]
+    moves = [
+        e for e in world.events if e.kind == "move" and e.shown is not None and e.first_sighting is not None
+    ]
+    move_latency = [e.shown - e.first_sighting for e in moves]
+    false_removals = _false_removals(samples)
+    true_changes = len(world.events) + args.objects
+    late = [s for s in samples if s["t"] > 10.0]
+    result = {
+        "model": args.model,
+        "robots": args.robots,
+        "objects": args.objects,
+        "duration_s": args.duration,
+        "moves": sum(e.kind == "move" for e in world.events),
+        "removals": sum(e.kind == "remove" for e in world.events),
+        "appears": sum(e.kind == "appear" for e in world.events),
+        "final": final,
+        "max_duplicates": max((s["duplicates"] for s in late), default=0),
+        "max_viewed_ghosts": max((s["viewed_ghosts"] for s in late), default=0),
+        "mean_cells_differ": float(np.mean([s["cells_differ"] for s in late])) if late else 0.0,
+        "removal_recall_10s": len(recall_hits) / len(viewed) if viewed else float("nan"),
+        "removal_viewed": len(viewed),
+        "removal_false": false_removals,
+        "move_shown_p50_s": live._pct(move_latency, 50),
+        "move_shown_max_s": max(move_latency) if move_latency else float("nan"),
+        "moves_measured": len(move_latency),
+        "revisions": rev1 - rev0,
+        "true_changes": true_changes,
+        "revisions_per_change": (rev1 - rev0) / max(1, true_changes),
+        "acked_observations": sum(s.acked for s in stats),
+        "acked_sightings_per_s": sum(s.sightings - s.saturated_sightings for s in stats) / args.duration,
+        "saturated_sightings_per_s": (sum(s.saturated_sightings for s in stats) / args.saturate)
+        if args.saturate
+        else None,
+        "errors": sum(s.errors for s in stats),
+        "daemon_cpu_ms_per_observation": 1e3 * cpu_main / max(1, acked_main),
+        "samples": samples,
+    }
+    result["removal_precision"] = (
+        len(recall_hits) / (len(recall_hits) + false_removals)
+        if recall_hits or false_removals
+        else float("nan")
+    )
+    return result
+
+
+def _false_removals(samples: list[dict[str, Any]]) -> int:
+    """Elements that left the twin although their object stood still where they were, and no other
+    element took it over (a removal fusion should not have made)."""
+    return sum(s["false_removals"] for s in samples)
+
+
+def plot(result: dict[str, Any], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    s = result["samples"]
+    t = [x["t"] for x in s]
+    fig, ax = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    ax[0].plot(t, [x["objects"] for x in s], label="true objects")
+    ax[0].plot(t, [x["elements"] for x in s], label="twin elements")
+    ax[0].plot(t, [x["duplicates"] for x in s], label="duplicates")
+    ax[0].plot(t, [x["ghosts"] for x in s], label="ghosts")
+    ax[0].plot(t, [x["viewed_ghosts"] for x in s], label="ghosts viewed 10 s ago")
+    ax[0].legend(loc="upper right", fontsize=8)
+    ax[1].plot(t, [x["revision"] for x in s], label="revision")
+    ax[1].plot(t, [x["cells_differ"] for x in s], label="navigation cells differing from the truth")
+    ax[1].legend(loc="upper left", fontsize=8)
+    ax[1].set_xlabel("s")
+    fig.suptitle(f"{result['model']}: {result['robots']} robots, {result['objects']} objects")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--model", default="lab")
+    p.add_argument("--robots", type=int, default=4)
+    p.add_argument("--objects", type=int, default=10)
+    p.add_argument("--duration", type=float, default=60.0)
+    p.add_argument("--saturate", type=float, default=0.0)
+    p.add_argument("--rate", type=float, default=5.0)
+    p.add_argument("--range", type=float, default=4.0)
+    p.add_argument("--speed", type=float, default=0.6)
+    p.add_argument("--sigma-pos", type=float, default=0.03)
+    p.add_argument("--sigma-yaw", type=float, default=2.0, help="degrees")
+    p.add_argument("--p-miss", type=float, default=0.05)
+    p.add_argument("--p-false", type=float, default=0.002, help="a false detection per observation")
+    p.add_argument("--tentative", type=int, default=1, help="[fusion] tentative_sightings of the daemon")
+    p.add_argument("--moves", type=int, default=2)
+    p.add_argument("--removals", type=int, default=1)
+    p.add_argument("--appears", type=int, default=0)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--json", type=Path)
+    p.add_argument("--plot", type=Path)
+    p.add_argument("-v", "--verbose", action="store_true")
+    args = p.parse_args()
+    result = run(args)
+    if args.json:
+        args.json.write_text(json.dumps(result, indent=1))
+    if args.plot:
+        plot(result, args.plot)
+    short = {k: v for k, v in result.items() if k != "samples"}
+    for k, v in short.items():
+        print(f"{k:34} {v:.3f}" if isinstance(v, float) else f"{k:34} {v}")
+    bad = result["final"]["duplicates"] or result["final"]["viewed_ghosts"]
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
