@@ -159,10 +159,10 @@ class World:
                 a, d = rng.uniform(0, 2 * math.pi), rng.uniform(1.0, 4.0)
                 x, y = near[0] + d * math.cos(a), near[1] + d * math.sin(a)
             yaw = rng.uniform(0, math.pi)
-            probe = Obj(-1, x, y, yaw, 1.2, 0.8, 1.0)
+            probe = Obj(-1, x, y, yaw, 0.9, 0.6, 1.0)
             if not all(self.is_free(*c) for c in probe.corners()) or not self.is_free(x, y):
                 continue
-            if any(o.present and math.dist((o.x, o.y), (x, y)) < 1.3 for o in self.objects.values()):
+            if any(o.present and math.dist((o.x, o.y), (x, y)) < 1.0 for o in self.objects.values()):
                 continue
             return x, y, yaw
         return None
@@ -473,11 +473,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         spot = world.place(rng)
         if spot is None:
             break
-        o = Obj(k, *spot, rng.uniform(0.6, 1.2), rng.uniform(0.4, 0.8), rng.uniform(0.5, 0.9))
+        o = Obj(k, *spot, rng.uniform(0.5, 0.9), rng.uniform(0.35, 0.6), rng.uniform(0.5, 0.9))
         if o.sy > o.sx:
             o.sx, o.sy = o.sy, o.sx
         world.objects[k] = o
         apply_truth(oracle, truth_box(o, storey, elevation))
+    placed = len(world.objects)
     # the script: moves, removals, appearances over the middle of the run
     t_first, t_last = args.duration * 0.2, args.duration * 0.75
     kinds = ["move"] * args.moves + ["remove"] * args.removals + ["appear"] * args.appears
@@ -575,12 +576,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     ]
     move_latency = [e.shown - e.first_sighting for e in moves]
     false_removals = _false_removals(samples)
-    true_changes = len(world.events) + args.objects
+    true_changes = len(world.events) + placed
     late = [s for s in samples if s["t"] > 10.0]
     result = {
         "model": args.model,
         "robots": args.robots,
         "objects": args.objects,
+        "placed": placed,
         "duration_s": args.duration,
         "moves": sum(e.kind == "move" for e in world.events),
         "removals": sum(e.kind == "remove" for e in world.events),
@@ -645,8 +647,8 @@ def plot(result: dict[str, Any], path: Path) -> None:
     fig.savefig(path, dpi=90)
 
 
-def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
     p.add_argument("--model", default="lab")
     p.add_argument("--robots", type=int, default=4)
     p.add_argument("--objects", type=int, default=10)
@@ -667,7 +669,11 @@ def main() -> int:
     p.add_argument("--json", type=Path)
     p.add_argument("--plot", type=Path)
     p.add_argument("-v", "--verbose", action="store_true")
-    args = p.parse_args()
+    return p
+
+
+def main() -> int:
+    args = parser().parse_args()
     result = run(args)
     if args.json:
         args.json.write_text(json.dumps(result, indent=1))

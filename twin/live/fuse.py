@@ -328,6 +328,7 @@ def fuse(
         alias = memory.aliases.get(r.iri)
         if alias is not None and not r.unmerge:
             target = alias.target
+            out.resolved[r.iri] = target
             out.effects.append(_use_alias(r.iri, arrival_ns))
         state = states.get(target)
         exists = state is not None and not state.removed
@@ -358,9 +359,10 @@ def fuse(
                         out.effects.append(_set_alias(r.iri, match, arrival_ns))
                 r = replace(r, ifc_class=None, classes=())
         if not exists:
-            if alias is not None:
+            if alias is not None and target != r.iri:
                 out.effects.append(_drop_alias(r.iri))
                 out.unaliased.append(r.iri)
+                out.resolved.pop(r.iri, None)
                 target = r.iri
             if rules.tentative_sightings > 1 and (r.box is not None or r.geometry is not None):
                 seen = memory.tentative.get(r.iri, 0) + 1
