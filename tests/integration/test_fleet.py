@@ -8,7 +8,6 @@ import json
 import sys
 from pathlib import Path
 
-
 from adapters.zenoh.client import TwinClient
 from tests.integration.conftest import Daemon, start_daemon, twin
 from twin.grid import OCCUPIED
@@ -53,7 +52,8 @@ def test_three_robots_one_table_one_element_across_a_restart_and_its_move_leaves
             assert "unchanged" not in moved
             assert cell(client, 16.6, 7.0) != OCCUPIED and cell(client, 12.0, 7.0) == OCCUPIED
             rows = client.sparql(
-                'SELECT ?e WHERE { ?e twin:ifcClass "IfcFurniture" . FILTER NOT EXISTS { ?e twin:removed true } }'
+                'SELECT ?e WHERE { ?e twin:ifcClass "IfcFurniture" . '
+                "FILTER NOT EXISTS { ?e twin:removed true } }"
             )
             assert isinstance(rows, dict)
             assert [b["e"]["value"] for b in rows["results"]["bindings"]] == ["urn:robot1:table-1"]
