@@ -37,7 +37,7 @@ from twin.events import (
     TwinEvent,
 )
 from twin.fusion.footprints import Pose
-from twin.live.fuse import Fused, expire_aliases, fuse, index_element
+from twin.live.fuse import Fused, expire_aliases, fuse, index_element, is_candidate
 from twin.live.plan import ObservationPlan, plan_observation
 from twin.live.publication import Publication
 from twin.live.requests import ObserveRequest, Reply
@@ -45,7 +45,7 @@ from twin.live.selection import needs_store, selects
 from twin.live.state import ElementState, LiveState, Sighting
 from twin.observations import parse_observation_document
 from twin.rdf import ChangeSet, Object, Triple
-from twin.records import GeometryChange, Observation, Shape
+from twin.records import ElementReport, GeometryChange, Observation, Shape
 from twin.skill_selection import selection_query
 from twin.skills import SkillProfile
 from twin.store import GraphStore
@@ -237,6 +237,48 @@ class Observer:
             except TwinError as err:
                 log.warning("Could not forget %d aliases: %s", len(old), err)
         return len(old)
+
+    def expire_unconfirmed(self) -> list[str]:
+        """Remove the robot-added elements nobody has seen for their class's ``[fusion] ttl_s`` (off
+        unless set): one commit, by ``fusion``, each with its reason. Returns their IRIs."""
+        live, rules, now = self.live, self.config.fusion, self.clock()
+        if not rules.enabled or (
+            rules.default.ttl_ns <= 0 and not any(r.ttl_ns > 0 for r in (rules.per_class or {}).values())
+        ):
+            return []
+        reasons: dict[str, str] = {}
+        for iri, state in live.states.items():
+            if iri.startswith(self.base_iri) or not is_candidate(state):
+                continue  # imported elements and zones never expire
+            ttl = rules.of(state.ifc_types).ttl_ns
+            track = live.fusion.tracks.get(iri)
+            seen = max(state.sensed_ns, track.seen_ns if track is not None else 0)
+            if ttl > 0 and seen and now - seen > ttl:
+                reasons[iri] = f"expired: nobody saw it for {ttl / 1e9:g} s (last {seen / 1e9:.3f})"
+        if not reasons:
+            return []
+        reports = tuple(ElementReport(iri, removed=True) for iri in sorted(reasons))
+        revision = live.revision + 1
+        plan = plan_observation(
+            reports,
+            robot="fusion",
+            rights=frozenset({"dynamic", "static"}),
+            site=live.site,
+            states=live.states,
+            shapes={r.iri: live.maps.shape_of(r.iri) for r in reports},
+            held=live.held,
+            revision=revision,
+            stamp_ns=now,
+            reasons=reasons,
+        )
+        request = ObserveRequest("fusion", b"", None, now)
+        fused = Fused(
+            reports=reports, reasons=reasons, notes=[f"<{i}> removed: {w}" for i, w in reasons.items()]
+        )
+        held = {s: dict(v) for s, v in plan.written.items()}
+        shapes = {g.iri: g.new for g in plan.geometry}
+        self._commit([_Planned(request, plan, revision, fused)], dict(plan.states), shapes, held)
+        return sorted(reasons)
 
     def _commit(
         self,

@@ -280,6 +280,7 @@ class TwinService:
             if time.monotonic() - aliases_checked > _ALIAS_CHECK_S:
                 aliases_checked = time.monotonic()
                 self.observer.expire_aliases()
+                self.observer.expire_unconfirmed()
             if self.snapshot is not None and self.snapshot.due(self.revision):
                 self.snapshot.save_in_background(self.live)
         self.process()

@@ -347,3 +347,21 @@ def test_without_fusion_every_robot_iri_is_an_element_of_its_own() -> None:
     observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
     reply = observe(service, "robot2", box_turtle("urn:robot2:obj-77", 6.62, 2.0))
     assert "resolved" not in reply.body and reply.body["upserted"] == ["urn:robot2:obj-77"]
+
+
+def test_with_a_time_to_live_an_element_nobody_sees_is_removed_and_imported_ones_stay() -> None:
+    service, _ = started()
+    t = service.clock()
+    observe(service, "robot1", sensed(box_turtle(TABLE, 6.6, 2.0), t - 30 * 10**9))
+    observe(service, "robot1", sensed(box_turtle("urn:robot1:fresh", 2.0, 2.0), t))
+    assert service.observer.expire_unconfirmed() == []  # off by default
+    rules = service.config.fusion
+    service.observer.config = replace(
+        service.config, fusion=replace(rules, default=replace(rules.default, ttl_ns=10 * 10**9))
+    )
+    assert service.observer.expire_unconfirmed() == [TABLE]
+    assert service.states[TABLE].removed and not service.states["urn:robot1:fresh"].removed
+    assert not service.states[element_iri(spec("Table"))].removed
+    reason = service.store.select(f"SELECT ?why WHERE {{ <{TABLE}> twin:removedBecause ?why }}")[0]["why"]
+    assert reason is not None and reason.startswith("expired")
+    assert_maps_equal_a_rebuild(service)
