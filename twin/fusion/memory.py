@@ -19,6 +19,9 @@ from dataclasses import dataclass, field
 
 from twin.fusion.footprints import Pose
 
+TENTATIVE_TTL_NS = 60 * 10**9
+"""A tentative robot IRI not seen often enough within this long is forgotten."""
+
 
 @dataclass(slots=True)
 class RobotSightings:
@@ -122,8 +125,9 @@ class FusionMemory:
     aliases: dict[str, Alias] = field(default_factory=dict)
     poses: dict[str, dict[str, Pose]] | None = None
     """Storey -> element -> pose of every dynamic element with geometry (None: not built yet)."""
-    tentative: dict[str, int] = field(default_factory=dict)
-    """Robot IRIs of new elements seen fewer than ``tentative_sightings`` times -> sightings so far."""
+    tentative: dict[str, tuple[int, int]] = field(default_factory=dict)
+    """Robot IRIs of new elements seen fewer than ``tentative_sightings`` times -> (sightings so far,
+    the first one's time); forgotten after :data:`TENTATIVE_TTL_NS` (a false detection seen once)."""
     distinct: set[str] = field(default_factory=set)
     """Elements robots said are distinct objects (never merged into another)."""
 

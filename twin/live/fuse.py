@@ -46,7 +46,7 @@ from twin.fusion.footprints import (
     pose_of,
     yaw_difference,
 )
-from twin.fusion.memory import Alias, FusionMemory, Miss
+from twin.fusion.memory import TENTATIVE_TTL_NS, Alias, FusionMemory, Miss
 from twin.ifc_classes import supertypes
 from twin.live.state import ElementState, LiveState
 from twin.records import ElementReport, Observation, ObservedBox, Shape
@@ -112,6 +112,8 @@ def expire_aliases(memory: FusionMemory, now_ns: int, ttl_ns: int) -> list[str]:
     old = [a for a, v in memory.aliases.items() if now_ns - v.used_ns > ttl_ns]
     for a in old:
         del memory.aliases[a]
+    for iri in [i for i, (_, since) in memory.tentative.items() if now_ns - since > TENTATIVE_TTL_NS]:
+        del memory.tentative[iri]
     return sorted(old)
 
 
@@ -365,12 +367,12 @@ def fuse(
                 out.resolved.pop(r.iri, None)
                 target = r.iri
             if rules.tentative_sightings > 1 and (r.box is not None or r.geometry is not None):
-                seen = memory.tentative.get(r.iri, 0) + 1
-                if seen < rules.tentative_sightings:
+                seen, since = memory.tentative.get(r.iri, (0, arrival_ns))
+                if seen + 1 < rules.tentative_sightings:
                     out.tentative.append(r.iri)
-                    out.effects.append(_count_tentative(r.iri, seen))
+                    out.effects.append(_count_tentative(r.iri, (seen + 1, since)))
                     continue
-                out.effects.append(_count_tentative(r.iri, 0))
+                out.effects.append(_count_tentative(r.iri, None))
             if r.distinct:
                 out.effects.append(_mark_distinct(r.iri))
             reports.append(replace(r, iri=target))
@@ -627,9 +629,9 @@ def _drop_alias(alias: str) -> Effect:
     return run
 
 
-def _count_tentative(iri: str, seen: int) -> Effect:
+def _count_tentative(iri: str, seen: tuple[int, int] | None) -> Effect:
     def run(m: FusionMemory) -> None:
-        if seen:
+        if seen is not None:
             m.tentative[iri] = seen
         else:
             m.tentative.pop(iri, None)

@@ -314,6 +314,8 @@ class Observer:
             changes.append(MapChange(u.storey, u.skill, u.version, u.window))
         for iri in states:  # after the redraw: the poses are those of the shapes the maps now show
             index_element(live, iri, live.states[iri])
+            if live.states[iri].removed:  # its tombstone keeps the removal's sense time
+                live.fusion.tracks.pop(iri, None)
         maps = tuple(changes)
         as_json = [c.as_json() for c in maps]
         for p in planned:

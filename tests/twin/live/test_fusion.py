@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import datetime
 import math
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -365,3 +366,19 @@ def test_with_a_time_to_live_an_element_nobody_sees_is_removed_and_imported_ones
     reason = service.store.select(f"SELECT ?why WHERE {{ <{TABLE}> twin:removedBecause ?why }}")[0]["why"]
     assert reason is not None and reason.startswith("expired")
     assert_maps_equal_a_rebuild(service)
+
+
+def test_held_tentative_a_one_off_detection_makes_no_element_and_a_second_sighting_does() -> None:
+    service, _ = started()
+    rules = service.config.fusion
+    service.observer.config = replace(service.config, fusion=replace(rules, tentative_sightings=2))
+    first = observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
+    assert first.body["tentative"] == [TABLE] and first.body["unchanged"] is True and TABLE not in service.states
+    second = observe(service, "robot1", box_turtle(TABLE, 6.61, 2.0))
+    assert second.body["upserted"] == [TABLE]
+    observe(service, "robot2", box_turtle("urn:robot2:one-off", 2.0, 2.0))
+    assert "urn:robot2:one-off" in service.live.fusion.tentative
+    service.clock = lambda: time.time_ns() + 120 * 10**9
+    service.observer.clock = service.clock
+    service.observer.expire_aliases()
+    assert "urn:robot2:one-off" not in service.live.fusion.tentative
