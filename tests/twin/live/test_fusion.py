@@ -373,7 +373,9 @@ def test_held_tentative_a_one_off_detection_makes_no_element_and_a_second_sighti
     rules = service.config.fusion
     service.observer.config = replace(service.config, fusion=replace(rules, tentative_sightings=2))
     first = observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
-    assert first.body["tentative"] == [TABLE] and first.body["unchanged"] is True and TABLE not in service.states
+    assert (
+        first.body["tentative"] == [TABLE] and first.body["unchanged"] is True and TABLE not in service.states
+    )
     second = observe(service, "robot1", box_turtle(TABLE, 6.61, 2.0))
     assert second.body["upserted"] == [TABLE]
     observe(service, "robot2", box_turtle("urn:robot2:one-off", 2.0, 2.0))
