@@ -41,13 +41,11 @@ from twin.live.fuse import Fused, expire_aliases, fuse, index_element, is_candid
 from twin.live.plan import ObservationPlan, plan_observation
 from twin.live.publication import Publication
 from twin.live.requests import ObserveRequest, Reply
-from twin.live.selection import needs_store, selects
+from twin.live.selection import membership
 from twin.live.state import ElementState, LiveState, Sighting
 from twin.observations import parse_observation_document
 from twin.rdf import ChangeSet, Object, Triple
 from twin.records import ElementReport, GeometryChange, Observation, Shape
-from twin.skill_selection import selection_query
-from twin.skills import SkillProfile
 from twin.store import GraphStore
 
 log = logging.getLogger(__name__)
@@ -343,27 +341,11 @@ class Observer:
     def _membership(self, iris: list[str], shapes: dict[str, Shape | None]) -> dict[str, dict[str, bool]]:
         """Per skill, whether it now selects each changed element."""
         live = self.live
-        out: dict[str, dict[str, bool]] = {}
-        for name, skill in live.skills.items():
-            if needs_store(skill):
-                chosen = self._selected_by_store(skill, iris)
-                out[name] = {i: i in chosen for i in iris}
-                continue
-            out[name] = {
-                i: selects(
-                    skill,
-                    live.states[i],
-                    has_geometry=(shapes[i] is not None)
-                    if i in shapes
-                    else live.maps.shape_of(i) is not None,
-                )
-                for i in iris
-                if i in live.states
-            }
-        return out
 
-    def _selected_by_store(self, skill: SkillProfile, iris: list[str]) -> set[str]:
-        return {r["element"] or "" for r in self.store.select(selection_query(skill, iris))}
+        def has_geometry(i: str) -> bool:
+            return (shapes[i] is not None) if i in shapes else live.maps.shape_of(i) is not None
+
+        return membership(self.store, live.skills, live.states, iris, has_geometry)
 
 
 def fused_pending(

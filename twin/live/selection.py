@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import functools
 import re
+from collections.abc import Callable, Mapping, Sequence
 
 from twin.live.state import ElementState
-from twin.skill_selection import VIRTUAL_TYPE, class_iri
+from twin.skill_selection import VIRTUAL_TYPE, class_iri, selection_query
 from twin.skills import SkillProfile
+from twin.store import GraphStore
 
 
 def needs_store(skill: SkillProfile) -> bool:
@@ -71,3 +73,25 @@ def selects(skill: SkillProfile, state: ElementState, *, has_geometry: bool) -> 
         if any(pattern.search(m) for m in state.facing_materials):
             return False
     return True
+
+
+def membership(
+    store: GraphStore,
+    skills: Mapping[str, SkillProfile],
+    states: Mapping[str, ElementState],
+    iris: Sequence[str],
+    has_geometry: Callable[[str], bool],
+) -> dict[str, dict[str, bool]]:
+    """Per skill, whether it selects each of ``iris`` now: from memory (:func:`selects`), or from the
+    store for a skill with its own SPARQL pattern. The one place the writer decides membership (after
+    an observation, and when a restart replays what changed since the snapshot)."""
+    out: dict[str, dict[str, bool]] = {}
+    for name, skill in skills.items():
+        if needs_store(skill):
+            chosen = {r["element"] or "" for r in store.select(selection_query(skill, list(iris)))}
+            out[name] = {i: i in chosen for i in iris}
+        else:
+            out[name] = {
+                i: selects(skill, states[i], has_geometry=has_geometry(i)) for i in iris if i in states
+            }
+    return out

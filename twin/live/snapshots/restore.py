@@ -20,14 +20,13 @@ import numpy as np
 from twin.errors import SnapshotError, TwinError
 from twin.live.live_map import LiveMap
 from twin.live.live_maps import LiveMaps
-from twin.live.selection import needs_store, selects
+from twin.live.selection import membership
 from twin.live.snapshots.keys import skill_digest
 from twin.live.state import ElementState, LiveState, load_states
 from twin.maps import plan_map
 from twin.meshcodec import decode_mesh, decode_placement
 from twin.records import FloatArray, GeometryChange, Mesh, Shape
 from twin.scene import MeshSet, Scene, StoreyInfo
-from twin.skill_selection import selection_query
 from twin.skills import SkillProfile
 from twin.snapshot import AnyArray, read_snapshot
 from twin.store import GraphStore
@@ -294,14 +293,6 @@ def replay(
     boxes = [b for b in boxes if not np.isnan(b).any()]
     if boxes:
         before_base(boxes)
-    membership: dict[str, dict[str, bool]] = {}
-    for name, skill in live.skills.items():
-        if needs_store(skill):
-            chosen = {r["element"] or "" for r in store.select(selection_query(skill, iris))}
-            membership[name] = {i: i in chosen for i in iris}
-        else:
-            membership[name] = {
-                i: selects(skill, live.states[i], has_geometry=stored[i] is not None) for i in iris
-            }
-    live.maps.redraw(geometry, membership)
+    chosen = membership(store, live.skills, live.states, iris, lambda i: stored[i] is not None)
+    live.maps.redraw(geometry, chosen)
     return len(iris)
