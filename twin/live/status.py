@@ -31,6 +31,11 @@ def service_status(service: TwinService) -> dict[str, object]:
             for p in sorted(service.published_maps(), key=lambda p: (p.grid.storey, p.grid.skill))
         ],
         "observations": {"accepted": obs.accepted, "unchanged": obs.unchanged, "rejected": obs.rejected},
+        "fusion": {
+            "aliases": len(live.fusion.aliases),
+            "tracked": len(live.fusion.tracks),
+            "stale": obs.stale,
+        },
         "queue_depth": service.queue_depth,
         "uptime_s": round((now - service.started_ns) / 1e9, 3),
     }
