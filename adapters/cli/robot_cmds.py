@@ -11,18 +11,14 @@ import uuid
 from pathlib import Path
 from typing import Any
 
-from adapters.cli.common import SITE_HELP, client_prefix, key_prefix, zenoh_of
+from adapters.cli.common import add_client_args, key_prefix, open_client
 from adapters.ros import write_map_files
-from adapters.zenoh.client import MapVersion, MapWatcher, TwinClient
+from adapters.zenoh.client import MapVersion, MapWatcher
 from adapters.zenoh.errors import RemoteError
 from twin import vocab
 from twin.config import Config
 from twin.errors import ObservationError
 from twin.grid import OccupancyGrid
-
-
-def _endpoints(args: argparse.Namespace, cfg: Config) -> list[str]:
-    return list(args.connect or zenoh_of(cfg).connect or zenoh_of(cfg).listen)
 
 
 def box_turtle(iri: str, box: list[float], *, ifc_class: str, storey: str, label: str | None = None) -> str:
@@ -77,9 +73,7 @@ def observation_turtle(args: argparse.Namespace) -> bytes:
 
 def cmd_observe(args: argparse.Namespace, cfg: Config) -> int:
     payload = observation_turtle(args)
-    with TwinClient.connect(
-        _endpoints(args, cfg), prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
-    ) as twin:
+    with open_client(args, cfg) as twin:
         if args.no_ack:
             twin.publish_observation(args.robot, payload)
             time.sleep(0.2)  # let the put leave before the session closes
@@ -96,9 +90,7 @@ def cmd_observe(args: argparse.Namespace, cfg: Config) -> int:
 
 def cmd_storey(args: argparse.Namespace, cfg: Config) -> int:
     """``twin storey --robot NAME [KEY]``: print the robot's storey, after switching it to KEY if given."""
-    with TwinClient.connect(
-        _endpoints(args, cfg), prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
-    ) as twin:
+    with open_client(args, cfg) as twin:
         try:
             storey = twin.robot_storey(args.robot, args.storey)
         except RemoteError as err:
@@ -148,9 +140,7 @@ def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
         seen.release()
 
     prefix = key_prefix(cfg, args.site)  # ROS 2 keys: no site to look for
-    with TwinClient.connect(
-        _endpoints(args, cfg), prefix=prefix, timeout_s=args.timeout, settings=zenoh_of(cfg)
-    ) as twin:
+    with open_client(args, cfg, prefix=prefix) as twin:
         watcher = RosMapWatcher(
             twin.session,
             namespace=args.ros,
@@ -184,9 +174,7 @@ def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
     if not args.skill:
         msg = "Give --skill NAME (or --ros NAMESPACE to watch a ROS 2 robot's /map)."
         raise ObservationError(msg)
-    with TwinClient.connect(
-        _endpoints(args, cfg), prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
-    ) as twin:
+    with open_client(args, cfg) as twin:
         storeys = [args.storey] if args.storey else [s for s, k in twin.list_maps() if k == args.skill]
         if not storeys:
             print(f"twin: error: the daemon serves no map of skill {args.skill!r}", file=sys.stderr)
@@ -216,12 +204,7 @@ def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
 
 
 def add_parsers(sub: Any) -> None:
-    def common(sp: argparse.ArgumentParser) -> None:
-        sp.add_argument(
-            "--connect", action="append", metavar="ENDPOINT", help="the daemon or a router (repeatable)"
-        )
-        sp.add_argument("--site", help=SITE_HELP)
-        sp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the daemon")
+    common = add_client_args
 
     sp = sub.add_parser("observe", help="send a robot's observation to the daemon and print the ack")
     common(sp)
