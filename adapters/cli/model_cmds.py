@@ -99,7 +99,7 @@ def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
         ("lines in IFC file", f"{stats.ifc_lines:,}"),
         ("triples", f"{stats.triples:,}"),
         ("Turtle size", human_size(stats.turtle_bytes)),
-        ("elements", f"{stats.elements:,}"),
+        ("elements", f"{stats.elements:,}" + (f" (and {stats.removed:,} removed)" if stats.removed else "")),
         ("meshes", f"{stats.meshes:,} ({stats.triangles:,} triangles)"),
         ("spaces", f"{stats.spaces:,}"),
         ("storeys", f"{len(stats.storeys)}"),
