@@ -82,11 +82,50 @@ def test_query_prints_a_table_and_sparql_json(lab_store_dir: Path) -> None:
     assert len(json.loads(r.stdout)["results"]["bindings"]) == 4
 
 
-def test_query_refuses_updates_with_a_one_line_error(lab_store_dir: Path) -> None:
-    r = twin("query", "--store", lab_store_dir, "DELETE WHERE { ?s ?p ?o }")
+def test_query_refuses_updates_saying_so_and_a_typo_as_not_parsing(lab_store_dir: Path) -> None:
+    r = twin("query", "--store", lab_store_dir, "PREFIX x: <urn:x#>\nDELETE WHERE { ?s ?p ?o }")
+    assert r.returncode == 1
+    assert r.stderr.startswith("twin: error: twin query runs read-only queries")
+    assert "this is an update (DELETE), which is not allowed" in r.stderr
+    assert "Traceback" not in r.stderr and len(r.stderr.splitlines()) == 1
+    r = twin("query", "--store", lab_store_dir, "SELCT ?s WHERE { ?s ?p ?o }")
     assert r.returncode == 1
     assert r.stderr.startswith("twin: error: SPARQL query does not parse")
-    assert "Traceback" not in r.stderr
+
+
+def test_query_prints_whole_values_that_open_takes(lab_store_dir: Path) -> None:
+    query = 'SELECT ?door WHERE { ?door twin:ifcClass "IfcDoor" }'
+    table = twin("query", "--store", lab_store_dir, query)
+    assert table.returncode == 0, table.stderr
+    data = json.loads(twin("query", "--store", lab_store_dir, query, "--json").stdout)
+    iris = sorted(b["door"]["value"] for b in data["results"]["bindings"])
+    assert iris and all(len(iri) > 60 for iri in iris)
+    assert sorted(line.strip() for line in table.stdout.splitlines()[2:-1]) == iris
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly(lab_store_dir: Path) -> None:
+    """``twin query ... | head -c 100``: no 'Broken pipe' error, the exit code of a SIGPIPE."""
+    process = subprocess.Popen(
+        [sys.executable, "-m", "adapters.cli", "query", "--store", str(lab_store_dir), "--json",
+         "SELECT * WHERE { ?s ?p ?o }"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )  # fmt: skip
+    assert process.stdout is not None and process.stderr is not None
+    assert len(process.stdout.read(100)) == 100  # more than a pipe holds follows (meshes in base64)
+    process.stdout.close()
+    assert process.wait(timeout=60) == 141
+    assert process.stderr.read() == b""
+
+
+def test_router_acl_without_robots_is_refused_as_twin_acl_refuses_it(tmp_path: Path) -> None:
+    (tmp_path / "users.txt").write_text("robot1:secret\n")
+    config = tmp_path / "site.toml"
+    config.write_text(f'[zenoh.auth]\nusers_file = "{tmp_path / "users.txt"}"\n')
+    acl = twin("acl", "--config", config)
+    router = twin("router", "--acl", "--listen", "tcp/127.0.0.1:0", "--config", config)
+    assert acl.returncode == router.returncode == 1
+    assert router.stderr == acl.stderr
+    assert "Access control needs at least one robot ([robots.NAME]) or operator" in router.stderr
 
 
 @pytest.mark.parametrize(

@@ -32,8 +32,8 @@ class Router:
             env={**os.environ, "PYTHONUNBUFFERED": "1"},
         )  # fmt: skip
         assert self.process.stdout is not None
-        line = self.process.stdout.readline()
-        assert line.startswith("router "), line + self.process.stdout.read()
+        self.line = self.process.stdout.readline()
+        assert self.line.startswith("router "), self.line + self.process.stdout.read()
 
     def stop(self) -> int:
         self.process.send_signal(signal.SIGTERM)
@@ -59,6 +59,21 @@ def router() -> Iterator[Router]:
     if r.process.poll() is None:
         r.process.kill()
         r.process.wait(timeout=10)
+
+
+def test_the_routers_start_line_says_whether_access_control_is_on(tmp_path: Path, router: Router) -> None:
+    assert "access control off" in router.line
+    (tmp_path / "users.txt").write_text("robot1:secret\nops:secret\n")
+    config = tmp_path / "site.toml"
+    config.write_text(
+        f'[zenoh.auth]\nusers_file = "{tmp_path / "users.txt"}"\n'
+        '[zenoh.access]\noperators = ["ops"]\n[robots.robot1]\n'
+    )
+    guarded = Router("--acl", "--config", str(config))
+    try:
+        assert "access control on for twin/lab/** (robots and operators: robot1, ops)" in guarded.line
+    finally:
+        assert guarded.stop() == 0
 
 
 def table(x: float) -> str:
