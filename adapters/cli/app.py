@@ -77,7 +77,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.add_argument("out", help="the IFC file to write")
     sp.add_argument("--unit", choices=["metre", "foot"], default="metre", help="length unit of the file")
-    sp.add_argument("--storeys", type=int, choices=[1, 2], default=1, help="number of storeys")
+    sp.add_argument(
+        "--storeys",
+        type=int,
+        choices=[1, 2],
+        default=2,
+        help="number of storeys (default 2: a first floor above)",
+    )
     sp.set_defaults(func=model_cmds.cmd_sample)
 
     sp = sub.add_parser("map", help="write skill maps (map_server YAML+PGM, PNG, CDR) per storey")
