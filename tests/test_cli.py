@@ -225,7 +225,7 @@ def test_a_bad_config_or_query_file_is_a_one_line_error(lab_store_dir: Path, tmp
     assert "Traceback" not in r.stderr
 
 
-def test_the_progress_bar_draws_on_a_terminal_and_stays_silent_in_a_pipe() -> None:
+def test_the_progress_bar_draws_on_a_terminal_and_prints_a_line_per_phase_in_a_pipe() -> None:
     import io
 
     from rich.console import Console
@@ -238,10 +238,18 @@ def test_the_progress_bar_draws_on_a_terminal_and_stays_silent_in_a_pipe() -> No
             advance(done, 100)
     assert "100/100" in out.getvalue()
     assert "meshing" in out.getvalue()
-    quiet = io.StringIO()
-    with progress_bar("meshing", console=Console(file=quiet, force_terminal=False)) as advance:
-        advance(1, 2)
-    assert quiet.getvalue() == ""
+    piped = io.StringIO()
+    console = Console(file=piped, force_terminal=False)
+    with progress_bar("meshing", unit="elements", console=console) as advance:
+        for done in range(1, 1661):
+            advance(done, 1660)
+    lines = piped.getvalue().splitlines()
+    assert len(lines) == 2 and lines[0] == "meshing: 1,660 elements ..."
+    assert lines[1].startswith("meshing: 1,660 of 1,660 elements in ") and lines[1].endswith(" s")
+    idle = io.StringIO()
+    with progress_bar("meshing", console=Console(file=idle, force_terminal=False)):
+        pass
+    assert idle.getvalue() == ""
 
 
 @pytest.mark.parametrize("where", ["before", "after"])

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from typing import Any
 
 from adapters.cli.common import add_client_args, open_client
@@ -52,7 +53,10 @@ def cmd_explain(args: argparse.Namespace, cfg: Config) -> int:
         try:
             answer = twin.explain(args.storey, args.skill, x, y)
         except RemoteError as err:
-            print(json.dumps({"ok": False, "error": str(err)}) if args.json else f"error: {err}")
+            if args.json:
+                print(json.dumps({"ok": False, "error": str(err)}))
+            else:
+                print(f"twin: error: {err}", file=sys.stderr)
             return 1
     print(json.dumps(answer, indent=2) if args.json else describe(answer))
     return 0

@@ -55,7 +55,7 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     t0 = time.perf_counter()
     new_store = not store_exists(args, cfg)
     try:
-        with progress_bar("meshing") as advance, open_store(args, cfg) as store:
+        with progress_bar("meshing", unit="elements") as advance, open_store(args, cfg) as store:
             summary = import_ifc(
                 model_path,
                 store,
@@ -76,15 +76,25 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     seconds = time.perf_counter() - t0
     print(
         f"imported {model_path} into {store_label(args, cfg)} as site {site!r} ({site_from}) under "
-        f"{base_iri}: {summary.elements} elements "
-        f"({summary.meshes} with meshes), {summary.spaces} spaces, {summary.storeys} storeys, "
-        f"{summary.triples} triples in {seconds:.1f} s"
+        f"{base_iri}: {plural(summary.elements, 'element')} "
+        f"({summary.meshes:,} with meshes), {plural(summary.spaces, 'space')}, "
+        f"{plural(summary.storeys, 'storey')}, {plural(summary.triples, 'triple')} in {seconds:.1f} s"
     )
     if summary.kernel_fallbacks:
-        print(f"{len(summary.kernel_fallbacks)} element(s) meshed by a fallback kernel")
-    if summary.mesh_failures:
-        print(f"{len(summary.mesh_failures)} element(s) without geometry ('twin stats --json' lists them)")
+        print(f"{plural(len(summary.kernel_fallbacks), 'element')} meshed by a fallback kernel")
+    failed = len(summary.mesh_failures)
+    without = summary.elements - summary.meshes
+    if without > 0 or failed:
+        parts = [f"{failed:,} that no kernel could mesh ('twin stats --json' lists them)"] if failed else []
+        if without - failed > 0:
+            parts.append(f"{without - failed:,} with no body in the file (nothing to mesh)")
+        print(f"{plural(without, 'element')} without geometry: {'; '.join(parts)}")
     return 0
+
+
+def plural(n: int, word: str) -> str:
+    """``1 storey``, ``2 storeys``, ``1,660 elements``."""
+    return f"{n:,} {word}{'' if n == 1 else 's'}"
 
 
 def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
