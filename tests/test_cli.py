@@ -310,3 +310,23 @@ def test_site_and_a_configured_site_name_win_over_the_file_name(tmp_path: Path) 
     site, storey = _site_of(tmp_path / "b")
     assert site == "west"
     assert storey.startswith("https://example.org/building-twin/west#")
+
+
+def test_the_import_line_counts_in_agreeing_words(tmp_path: Path) -> None:
+    assert twin("sample", "lab", tmp_path / "one.ifc", "--storeys", "1").returncode == 0
+    r = twin("import", tmp_path / "one.ifc", "--store", tmp_path / "store")
+    assert r.returncode == 0, r.stderr
+    assert ", 1 storey, " in r.stdout and "17 elements (17 with meshes)" in r.stdout
+    assert "without geometry" not in r.stdout  # every element of the lab has a mesh
+
+
+def test_watch_counts_a_speed_masks_cells_by_their_limit() -> None:
+    import numpy as np
+
+    from adapters.cli.robot_cmds import cell_counts
+
+    mask = np.zeros((10, 10), np.int8)
+    mask[:3, :10] = 30
+    mask[9, 9] = 100
+    assert cell_counts(mask) == "1 occupied, 30 at 30"
+    assert cell_counts(np.full((2, 2), -1, np.int8)) == "0 occupied"

@@ -80,3 +80,12 @@ def test_watch_out_stopped_by_sigterm_writes_the_maps_it_watched(daemon: Daemon,
         "ground-floor__lab-navigation.yaml",
     ]
     assert f"wrote {out / 'ground-floor__lab-navigation.yaml'}" in rest
+
+
+def test_explain_errors_are_one_line_starting_twin_error(daemon: Daemon) -> None:
+    r = twin("explain", "--connect", daemon.endpoint, "--storey", "ground_floor", "--skill", "navigation",
+             "--at", "16.6,7.0", timeout=60)  # fmt: skip
+    assert r.returncode == 1 and r.stdout == ""
+    assert (
+        r.stderr.startswith("twin: error: No map ground_floor/navigation") and len(r.stderr.splitlines()) == 1
+    )
