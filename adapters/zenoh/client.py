@@ -205,7 +205,9 @@ def daemon_prefixes(
     try:
         with cond:
             if cond.wait_for(lambda: bool(found), timeout_s):
-                cond.wait(settle_s)
+                settled = time.monotonic() + settle_s
+                while (left := settled - time.monotonic()) > 0:
+                    cond.wait(left)  # woken by each further token: wait out the rest
             return sorted(found)
     finally:
         subscriber.undeclare()
