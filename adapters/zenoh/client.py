@@ -315,8 +315,17 @@ class TwinClient:
         return cls(session, prefix=prefix, timeout_s=timeout_s, own=True, endpoints=connect)
 
     def close(self) -> None:
+        with self._queriers_lock:
+            queriers = list(self._queriers.values())
+            self._queriers.clear()
         if self._own:
-            self.session.close()
+            self.session.close()  # undeclares them too
+            return
+        for querier in queriers:  # a shared session lives on
+            try:
+                querier.undeclare()
+            except Exception as err:  # the session closed first
+                log.debug("querier undeclare: %s", err)
 
     def __enter__(self) -> Self:
         return self
@@ -364,6 +373,7 @@ class TwinClient:
                 )
             raise DaemonTimeoutError(msg)
         left = max(deadline - time.monotonic(), MIN_QUERY_S)
+        sent = time.monotonic()
         replies = self.session.get(selector, payload=payload, timeout=left)
         samples = []
         for reply in replies:
@@ -372,7 +382,14 @@ class TwinClient:
             elif reply.err is not None:
                 raise RemoteError(_error_text(reply.err.payload.to_bytes()))
         if not samples:
-            msg = f"No answer to {what} at {selector} ({where}) within {self.timeout_s} s."
+            took = time.monotonic() - sent
+            if took < left - MIN_QUERY_S:  # ended early: nobody answered at all
+                msg = (
+                    f"No answer to {what} at {selector} ({where}): the query ended after {took:.1f} s "
+                    "without a reply (refused by access control, or the daemon went away)."
+                )
+            else:
+                msg = f"No answer to {what} at {selector} ({where}) within {self.timeout_s} s."
             raise DaemonTimeoutError(msg)
         return samples
 
