@@ -82,11 +82,50 @@ def test_query_prints_a_table_and_sparql_json(lab_store_dir: Path) -> None:
     assert len(json.loads(r.stdout)["results"]["bindings"]) == 4
 
 
-def test_query_refuses_updates_with_a_one_line_error(lab_store_dir: Path) -> None:
-    r = twin("query", "--store", lab_store_dir, "DELETE WHERE { ?s ?p ?o }")
+def test_query_refuses_updates_saying_so_and_a_typo_as_not_parsing(lab_store_dir: Path) -> None:
+    r = twin("query", "--store", lab_store_dir, "PREFIX x: <urn:x#>\nDELETE WHERE { ?s ?p ?o }")
+    assert r.returncode == 1
+    assert r.stderr.startswith("twin: error: twin query runs read-only queries")
+    assert "this is an update (DELETE), which is not allowed" in r.stderr
+    assert "Traceback" not in r.stderr and len(r.stderr.splitlines()) == 1
+    r = twin("query", "--store", lab_store_dir, "SELCT ?s WHERE { ?s ?p ?o }")
     assert r.returncode == 1
     assert r.stderr.startswith("twin: error: SPARQL query does not parse")
-    assert "Traceback" not in r.stderr
+
+
+def test_query_prints_whole_values_that_open_takes(lab_store_dir: Path) -> None:
+    query = 'SELECT ?door WHERE { ?door twin:ifcClass "IfcDoor" }'
+    table = twin("query", "--store", lab_store_dir, query)
+    assert table.returncode == 0, table.stderr
+    data = json.loads(twin("query", "--store", lab_store_dir, query, "--json").stdout)
+    iris = sorted(b["door"]["value"] for b in data["results"]["bindings"])
+    assert iris and all(len(iri) > 60 for iri in iris)
+    assert sorted(line.strip() for line in table.stdout.splitlines()[2:-1]) == iris
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly(lab_store_dir: Path) -> None:
+    """``twin query ... | head -c 100``: no 'Broken pipe' error, the exit code of a SIGPIPE."""
+    process = subprocess.Popen(
+        [sys.executable, "-m", "adapters.cli", "query", "--store", str(lab_store_dir), "--json",
+         "SELECT * WHERE { ?s ?p ?o }"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )  # fmt: skip
+    assert process.stdout is not None and process.stderr is not None
+    assert len(process.stdout.read(100)) == 100  # more than a pipe holds follows (meshes in base64)
+    process.stdout.close()
+    assert process.wait(timeout=60) == 141
+    assert process.stderr.read() == b""
+
+
+def test_router_acl_without_robots_is_refused_as_twin_acl_refuses_it(tmp_path: Path) -> None:
+    (tmp_path / "users.txt").write_text("robot1:secret\n")
+    config = tmp_path / "site.toml"
+    config.write_text(f'[zenoh.auth]\nusers_file = "{tmp_path / "users.txt"}"\n')
+    acl = twin("acl", "--config", config)
+    router = twin("router", "--acl", "--listen", "tcp/127.0.0.1:0", "--config", config)
+    assert acl.returncode == router.returncode == 1
+    assert router.stderr == acl.stderr
+    assert "Access control needs at least one robot ([robots.NAME]) or operator" in router.stderr
 
 
 @pytest.mark.parametrize(
@@ -186,7 +225,7 @@ def test_a_bad_config_or_query_file_is_a_one_line_error(lab_store_dir: Path, tmp
     assert "Traceback" not in r.stderr
 
 
-def test_the_progress_bar_draws_on_a_terminal_and_stays_silent_in_a_pipe() -> None:
+def test_the_progress_bar_draws_on_a_terminal_and_prints_a_line_per_phase_in_a_pipe() -> None:
     import io
 
     from rich.console import Console
@@ -199,10 +238,18 @@ def test_the_progress_bar_draws_on_a_terminal_and_stays_silent_in_a_pipe() -> No
             advance(done, 100)
     assert "100/100" in out.getvalue()
     assert "meshing" in out.getvalue()
-    quiet = io.StringIO()
-    with progress_bar("meshing", console=Console(file=quiet, force_terminal=False)) as advance:
-        advance(1, 2)
-    assert quiet.getvalue() == ""
+    piped = io.StringIO()
+    console = Console(file=piped, force_terminal=False)
+    with progress_bar("meshing", unit="elements", console=console) as advance:
+        for done in range(1, 1661):
+            advance(done, 1660)
+    lines = piped.getvalue().splitlines()
+    assert len(lines) == 2 and lines[0] == "meshing: 1,660 elements ..."
+    assert lines[1].startswith("meshing: 1,660 of 1,660 elements in ") and lines[1].endswith(" s")
+    idle = io.StringIO()
+    with progress_bar("meshing", console=Console(file=idle, force_terminal=False)):
+        pass
+    assert idle.getvalue() == ""
 
 
 @pytest.mark.parametrize("where", ["before", "after"])
@@ -263,3 +310,23 @@ def test_site_and_a_configured_site_name_win_over_the_file_name(tmp_path: Path) 
     site, storey = _site_of(tmp_path / "b")
     assert site == "west"
     assert storey.startswith("https://example.org/building-twin/west#")
+
+
+def test_the_import_line_counts_in_agreeing_words(tmp_path: Path) -> None:
+    assert twin("sample", "lab", tmp_path / "one.ifc", "--storeys", "1").returncode == 0
+    r = twin("import", tmp_path / "one.ifc", "--store", tmp_path / "store")
+    assert r.returncode == 0, r.stderr
+    assert ", 1 storey, " in r.stdout and "17 elements (17 with meshes)" in r.stdout
+    assert "without geometry" not in r.stdout  # every element of the lab has a mesh
+
+
+def test_watch_counts_a_speed_masks_cells_by_their_limit() -> None:
+    import numpy as np
+
+    from adapters.cli.robot_cmds import cell_counts
+
+    mask = np.zeros((10, 10), np.int8)
+    mask[:3, :10] = 30
+    mask[9, 9] = 100
+    assert cell_counts(mask) == "1 occupied, 30 at 30"
+    assert cell_counts(np.full((2, 2), -1, np.int8)) == "0 occupied"

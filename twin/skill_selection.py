@@ -70,7 +70,8 @@ def selection_query(skill: SkillProfile, only: Sequence[str] | None = None) -> s
     neither bind nor undo the type and material filters. ``exclude_materials`` drops an element when a
     material a sensor faces (``twin:facingMaterial``) contains one of the words, case-insensitively.
     Doors observed open (``twin:isOpen true``) are never selected: they are passable, and a sensor
-    sees through their doorway. With ``only``, just those IRIs are tested (what the daemon does after
+    sees through their doorway. Removed elements (tombstones, ``twin:removed true``) are never selected.
+    With ``only``, just those IRIs are tested (what the daemon does after
     a change: cheap on any graph).
     """
     lines = ["SELECT DISTINCT ?element WHERE {"]
@@ -80,6 +81,7 @@ def selection_query(skill: SkillProfile, only: Sequence[str] | None = None) -> s
     lines += [
         "  ?element a bot:Element ; omg:hasGeometry ?twin_geometry .",
         "  FILTER NOT EXISTS { ?element twin:isOpen true }",
+        "  FILTER NOT EXISTS { ?element twin:removed true }",
     ]
     if skill.kind == "keepout":
         lines.append("  ?element twin:keepout true .")

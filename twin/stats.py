@@ -46,9 +46,16 @@ class ModelStats:
     meshes_per_kernel: dict[str, int] = field(default_factory=dict)
     """Elements meshed by each geometry kernel (``twin:meshKernel``): OpenCASCADE meshes what manifold
     gets wrong (boolean results, curved profiles), manifold the rest."""
+    removed: int = 0
+    """Elements a robot removed: kept in the graph as tombstones (``twin:removed true``, no geometry), so
+    that the removal's time stays known, and left out of every other count."""
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+
+CURRENT = "FILTER NOT EXISTS { ?e twin:removed true }"
+"""Keeps ``?e`` to the elements the twin holds now (not the tombstones of removed ones)."""
 
 
 def _count(store: GraphStore, pattern: str) -> int:
@@ -81,19 +88,20 @@ def model_stats(store: GraphStore, *, turtle: bool = True) -> ModelStats:
                  ?st a bot:Storey ; twin:storeyKey ?key ; twin:elevation ?elev .
                  OPTIONAL {{ ?st rdfs:label ?name }}
                  OPTIONAL {{ ?st bot:hasSpace ?sp }}
-                 OPTIONAL {{ ?st {STOREY_MEMBER} ?el }}
+                 OPTIONAL {{ ?st {STOREY_MEMBER} ?el FILTER NOT EXISTS {{ ?el twin:removed true }} }}
                }} GROUP BY ?key ?name ?elev ORDER BY ?elev ?key"""
         )
     )
     per_class = {
         literal_value(r["cls"]) or "": int(literal_value(r["n"]) or 0)
         for r in store.select(
-            "SELECT ?cls (COUNT(?e) AS ?n) WHERE { ?e a bot:Element ; twin:ifcClass ?cls } "
+            f"SELECT ?cls (COUNT(?e) AS ?n) WHERE {{ ?e a bot:Element ; twin:ifcClass ?cls {CURRENT} }} "
             "GROUP BY ?cls ORDER BY DESC(?n) ?cls"
         )
     }
     tri_rows = store.select(
-        "SELECT (SUM(?t) AS ?n) WHERE { ?e a bot:Element ; omg:hasGeometry ?g . ?g twin:triangleCount ?t }"
+        "SELECT (SUM(?t) AS ?n) WHERE { ?e a bot:Element ; omg:hasGeometry ?g . ?g twin:triangleCount ?t "
+        f"{CURRENT} }}"
     )
     return ModelStats(
         source=src,
@@ -102,7 +110,7 @@ def model_stats(store: GraphStore, *, turtle: bool = True) -> ModelStats:
         triples=len(store),
         turtle_bytes=store.turtle_size() if turtle else -1,
         elements=sum(per_class.values()),
-        meshes=_count(store, "?e a bot:Element ; omg:hasGeometry ?g"),
+        meshes=_count(store, f"?e a bot:Element ; omg:hasGeometry ?g {CURRENT}"),
         triangles=int(literal_value(tri_rows[0]["n"]) or 0) if tri_rows else 0,
         spaces=_count(store, "?s a bot:Space"),
         storeys=storeys,
@@ -113,10 +121,11 @@ def model_stats(store: GraphStore, *, turtle: bool = True) -> ModelStats:
             for r in store.select("SELECT ?e WHERE { ?e twin:meshFailed true } ORDER BY ?e")
         ),
         kernel_fallbacks=_count(store, "?e twin:kernelFallback true"),
+        removed=_count(store, "?e a bot:Element ; twin:removed true"),
         meshes_per_kernel={
             literal_value(r["k"]) or "": int(literal_value(r["n"]) or 0)
             for r in store.select(
-                "SELECT ?k (COUNT(?e) AS ?n) WHERE { ?e a bot:Element ; twin:meshKernel ?k } "
+                f"SELECT ?k (COUNT(?e) AS ?n) WHERE {{ ?e a bot:Element ; twin:meshKernel ?k {CURRENT} }} "
                 "GROUP BY ?k ORDER BY ?k"
             )
         },

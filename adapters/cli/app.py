@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -26,6 +27,9 @@ from adapters.cli import (
 )
 from adapters.cli.common import add_store_args
 from twin.errors import StoreNotEmptyError, StoreNotFoundError, TwinError
+
+BROKEN_PIPE = 128 + 13
+"""The exit code of a command whose output's reader went away (as if killed by SIGPIPE, like ``cat``)."""
 
 
 def _store_arg(sp: argparse.ArgumentParser) -> None:
@@ -73,7 +77,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.add_argument("out", help="the IFC file to write")
     sp.add_argument("--unit", choices=["metre", "foot"], default="metre", help="length unit of the file")
-    sp.add_argument("--storeys", type=int, choices=[1, 2], default=1, help="number of storeys")
+    sp.add_argument(
+        "--storeys",
+        type=int,
+        choices=[1, 2],
+        default=2,
+        help="number of storeys (default 2: a first floor above)",
+    )
     sp.set_defaults(func=model_cmds.cmd_sample)
 
     sp = sub.add_parser("map", help="write skill maps (map_server YAML+PGM, PNG, CDR) per storey")
@@ -140,6 +150,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except TwinError as err:
         print(f"twin: error: {_hint(err, args)}", file=sys.stderr)
         return 1
+    except BrokenPipeError:  # `twin stats | head`: the reader has gone; end quietly, as cat would
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # nothing more to flush at exit
+        os.close(devnull)
+        return BROKEN_PIPE
     except OSError as err:  # files the user named: unreadable, missing, a directory, disk full ...
         where = f" {err.filename}" if getattr(err, "filename", None) else ""
         print(f"twin: error:{where} {err.strerror or err}", file=sys.stderr)

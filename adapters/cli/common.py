@@ -7,6 +7,7 @@ from pathlib import Path
 
 from adapters.sparql.remote_store import RemoteStore
 from adapters.sparql.settings import RemoteStoreSettings, remote_store_settings
+from adapters.zenoh.client import TwinClient
 from adapters.zenoh.settings import ZenohSettings
 from twin import vocab
 from twin.config import Config
@@ -103,6 +104,40 @@ def client_prefix(args: argparse.Namespace, cfg: Config) -> str | None:
     None (no site given): the client talks to the one daemon alive, whatever its site."""
     site = getattr(args, "site", None)
     return key_prefix(cfg, site) if site or cfg.site_set else None
+
+
+def add_client_args(sp: argparse.ArgumentParser) -> None:
+    """What every command that talks to a running daemon takes: where, which site, how long, how."""
+    sp.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="the daemon or a router (repeatable; default: zenoh.connect, else zenoh.listen)",
+    )
+    sp.add_argument("--site", help=SITE_HELP)
+    sp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the daemon (default 10)")
+    sp.add_argument(
+        "--mode", choices=["peer", "client"], help="the Zenoh session's mode (default: zenoh.mode, peer)"
+    )
+
+
+def client_endpoints(args: argparse.Namespace, cfg: Config) -> list[str]:
+    """Where a client command connects: ``--connect``, else ``[zenoh] connect``, else ``[zenoh] listen``
+    (the daemon's own endpoint on this machine)."""
+    zenoh = zenoh_of(cfg)
+    return list(getattr(args, "connect", None) or zenoh.connect or zenoh.listen)
+
+
+def open_client(args: argparse.Namespace, cfg: Config, *, prefix: str | None = None) -> TwinClient:
+    """A :class:`TwinClient` as the command's options and the ``[zenoh]`` table say (mode, TLS,
+    authentication, prefix); the site of ``--site``/``site.name``, else of the one daemon alive."""
+    return TwinClient.connect(
+        client_endpoints(args, cfg),
+        prefix=prefix if prefix is not None else client_prefix(args, cfg),
+        timeout_s=args.timeout,
+        settings=zenoh_of(cfg),
+        mode=getattr(args, "mode", None),
+    )
 
 
 def human_size(n: int) -> str:

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from typing import Any
 
-from adapters.cli.common import SITE_HELP, client_prefix, zenoh_of
-from adapters.zenoh.client import TwinClient
+from adapters.cli.common import add_client_args, open_client
 from adapters.zenoh.errors import RemoteError
 from twin.config import Config
 from twin.errors import ExplainError
@@ -49,14 +49,14 @@ def cmd_explain(args: argparse.Namespace, cfg: Config) -> int:
     except ValueError as err:
         msg = f"--at takes the point as X,Y in metres (the map's frame), got {args.at!r}."
         raise ExplainError(msg) from err
-    endpoints = list(args.connect or zenoh_of(cfg).connect or zenoh_of(cfg).listen)
-    with TwinClient.connect(
-        endpoints, prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
-    ) as twin:
+    with open_client(args, cfg) as twin:
         try:
             answer = twin.explain(args.storey, args.skill, x, y)
         except RemoteError as err:
-            print(json.dumps({"ok": False, "error": str(err)}) if args.json else f"error: {err}")
+            if args.json:
+                print(json.dumps({"ok": False, "error": str(err)}))
+            else:
+                print(f"twin: error: {err}", file=sys.stderr)
             return 1
     print(json.dumps(answer, indent=2) if args.json else describe(answer))
     return 0
@@ -64,11 +64,7 @@ def cmd_explain(args: argparse.Namespace, cfg: Config) -> int:
 
 def add_parser(sub: Any) -> None:
     sp = sub.add_parser("explain", help="why a map cell is occupied or free (asks the daemon)")
-    sp.add_argument(
-        "--connect", action="append", metavar="ENDPOINT", help="the daemon's endpoint (repeatable)"
-    )
-    sp.add_argument("--site", help=SITE_HELP)
-    sp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the daemon")
+    add_client_args(sp)
     sp.add_argument("--storey", required=True, help="the storey key (see 'twin stats')")
     sp.add_argument("--skill", required=True, help="the skill whose map to explain")
     sp.add_argument("--at", required=True, metavar="X,Y", help="the point, metres in the map's frame")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import shutil
 import sys
 import time
@@ -19,7 +20,7 @@ from adapters.cli.common import (
 )
 from adapters.cli.progress import progress_bar
 from twin.config import Config
-from twin.errors import ModelError
+from twin.errors import ModelError, QueryError
 from twin.live.snapshots import snapshot_path
 
 
@@ -54,7 +55,7 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     t0 = time.perf_counter()
     new_store = not store_exists(args, cfg)
     try:
-        with progress_bar("meshing") as advance, open_store(args, cfg) as store:
+        with progress_bar("meshing", unit="elements") as advance, open_store(args, cfg) as store:
             summary = import_ifc(
                 model_path,
                 store,
@@ -75,15 +76,25 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     seconds = time.perf_counter() - t0
     print(
         f"imported {model_path} into {store_label(args, cfg)} as site {site!r} ({site_from}) under "
-        f"{base_iri}: {summary.elements} elements "
-        f"({summary.meshes} with meshes), {summary.spaces} spaces, {summary.storeys} storeys, "
-        f"{summary.triples} triples in {seconds:.1f} s"
+        f"{base_iri}: {plural(summary.elements, 'element')} "
+        f"({summary.meshes:,} with meshes), {plural(summary.spaces, 'space')}, "
+        f"{plural(summary.storeys, 'storey')}, {plural(summary.triples, 'triple')} in {seconds:.1f} s"
     )
     if summary.kernel_fallbacks:
-        print(f"{len(summary.kernel_fallbacks)} element(s) meshed by a fallback kernel")
-    if summary.mesh_failures:
-        print(f"{len(summary.mesh_failures)} element(s) without geometry ('twin stats --json' lists them)")
+        print(f"{plural(len(summary.kernel_fallbacks), 'element')} meshed by a fallback kernel")
+    failed = len(summary.mesh_failures)
+    without = summary.elements - summary.meshes
+    if without > 0 or failed:
+        parts = [f"{failed:,} that no kernel could mesh ('twin stats --json' lists them)"] if failed else []
+        if without - failed > 0:
+            parts.append(f"{without - failed:,} with no body in the file (nothing to mesh)")
+        print(f"{plural(without, 'element')} without geometry: {'; '.join(parts)}")
     return 0
+
+
+def plural(n: int, word: str) -> str:
+    """``1 storey``, ``2 storeys``, ``1,660 elements``."""
+    return f"{n:,} {word}{'' if n == 1 else 's'}"
 
 
 def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
@@ -99,7 +110,7 @@ def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
         ("lines in IFC file", f"{stats.ifc_lines:,}"),
         ("triples", f"{stats.triples:,}"),
         ("Turtle size", human_size(stats.turtle_bytes)),
-        ("elements", f"{stats.elements:,}"),
+        ("elements", f"{stats.elements:,}" + (f" (and {stats.removed:,} removed)" if stats.removed else "")),
         ("meshes", f"{stats.meshes:,} ({stats.triangles:,} triangles)"),
         ("spaces", f"{stats.spaces:,}"),
         ("storeys", f"{len(stats.storeys)}"),
@@ -132,8 +143,29 @@ def cmd_export(args: argparse.Namespace, cfg: Config) -> int:
     return 0
 
 
+_UPDATE_WORDS = ("INSERT", "DELETE", "LOAD", "CLEAR", "CREATE", "DROP", "COPY", "MOVE", "ADD", "WITH")
+_PROLOGUE = re.compile(r"\s*(?:#[^\n]*\n|PREFIX\s+[^:\s]*:\s*<[^>]*>|BASE\s*<[^>]*>)", re.IGNORECASE)
+
+
+def update_keyword(sparql: str) -> str | None:
+    """The keyword that makes ``sparql`` an update (``INSERT``, ``DELETE``, ``LOAD``, ...), or None."""
+    pos = 0
+    while (m := _PROLOGUE.match(sparql, pos)) is not None and m.end() > pos:
+        pos = m.end()
+    word = re.match(r"\s*([A-Za-z]+)", sparql[pos:])
+    keyword = word.group(1).upper() if word else ""
+    return keyword if keyword in _UPDATE_WORDS else None
+
+
 def cmd_query(args: argparse.Namespace, cfg: Config) -> int:
     sparql = Path(args.sparql[1:]).read_text() if args.sparql.startswith("@") else args.sparql
+    keyword = update_keyword(sparql)
+    if keyword is not None:
+        msg = (
+            f"twin query runs read-only queries (SELECT, ASK, CONSTRUCT, DESCRIBE); this is an update "
+            f"({keyword}), which is not allowed: robots change the twin through observations."
+        )
+        raise QueryError(msg)
     with open_store(args, cfg, read_only=True) as store:
         media, body = store.query_serialized(sparql)
         if args.json or media == "text/turtle":
@@ -147,11 +179,12 @@ def cmd_query(args: argparse.Namespace, cfg: Config) -> int:
             return 0
         names = data["head"]["vars"]
         rows = [[b.get(n, {}).get("value", "") for n in names] for b in data["results"]["bindings"]]
+    # columns line up up to 60 characters; a longer value is printed whole and pushes the rest along
     widths = [min(60, max([len(n), *(len(r[i]) for r in rows)])) for i, n in enumerate(names)]
-    print("  ".join(n.ljust(w) for n, w in zip(names, widths, strict=True)))
+    print("  ".join(n.ljust(w) for n, w in zip(names, widths, strict=True)).rstrip())
     print("  ".join("-" * w for w in widths))
     for r in rows:
-        print("  ".join(v[:60].ljust(w) for v, w in zip(r, widths, strict=True)))
+        print("  ".join(v.ljust(w) for v, w in zip(r, widths, strict=True)).rstrip())
     print(f"({len(rows)} row{'s' if len(rows) != 1 else ''})")
     return 0
 

@@ -34,7 +34,8 @@ def cmd_acl(args: argparse.Namespace, cfg: Config) -> int:
 def cmd_router(args: argparse.Namespace, cfg: Config) -> int:
     """Run a Zenoh router that daemons and robots connect to; optionally keep every site's maps."""
     listen = args.listen or list(zenoh_of(cfg).listen)
-    acl = site_access_control(cfg, SiteKeys(key_prefix(cfg))) if args.acl else None
+    keys = SiteKeys(key_prefix(cfg, args.site))
+    acl = site_access_control(cfg, keys, enforce=True) if args.acl else None
     stop = threading.Event()
 
     def on_signal(signum: int, frame: Any) -> None:
@@ -48,7 +49,9 @@ def cmd_router(args: argparse.Namespace, cfg: Config) -> int:
         if args.store_maps:
             storage = MapStorage(session, zenoh_of(cfg).prefix.replace("{site}", "*").strip("/") + "/map/**")
         what = f"; keeping the latest maps of {storage.key_expr}" if storage else ""
-        print(f"router {session.info.zid()} on {', '.join(listen)}{what}", flush=True)
+        print(
+            f"router {session.info.zid()} on {', '.join(listen)}{what}; {_access_line(acl, keys)}", flush=True
+        )
         stop.wait()
     finally:
         if storage is not None:
@@ -56,6 +59,14 @@ def cmd_router(args: argparse.Namespace, cfg: Config) -> int:
         session.close()
     print("router stopped", flush=True)
     return 0
+
+
+def _access_line(acl: dict[str, Any] | None, keys: SiteKeys) -> str:
+    """What the router's start line says of access control."""
+    if acl is None:
+        return "access control off (anyone who connects may read and write everything; --acl to enforce it)"
+    names = [str(n) for s in acl["subjects"] for k, v in s.items() if k != "id" for n in v]
+    return f"access control on for {keys.prefix}/** (robots and operators: {', '.join(names)})"
 
 
 def add_parsers(sub: Any) -> None:
@@ -69,7 +80,14 @@ def add_parsers(sub: Any) -> None:
         action="store_true",
         help="keep the latest map of every site (twin/*/map/**) and answer for it while its daemon restarts",
     )
-    sp.add_argument("--acl", action="store_true", help="enforce [zenoh.access] of the configured site here")
+    sp.add_argument(
+        "--acl",
+        action="store_true",
+        help="enforce the access control of the configured robots and [zenoh.access] here (as 'twin acl')",
+    )
+    sp.add_argument(
+        "--site", help="with --acl: the site whose keys the access control guards (default: site.name)"
+    )
     sp.set_defaults(func=cmd_router)
 
     sp = sub.add_parser(

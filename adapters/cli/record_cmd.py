@@ -59,6 +59,19 @@ def cmd_cut(args: argparse.Namespace, cfg: Config) -> int:
         msg = f"The range to cut ends ({end}) before it starts ({start})."
         raise ConfigError(msg)
     summary = cut(sources, out, timeline=timeline, start=start, end=end, application=f"twin {cfg.site}")
+    if summary.range_rows == 0:
+        out.unlink(missing_ok=True)
+        wanted = args.revisions or f"{args.since or '...'} to {args.until or '...'}"
+        held = (
+            f"{_show(summary.first, timeline)} to {_show(summary.last, timeline)}"
+            if summary.first is not None and summary.last is not None
+            else "nothing"
+        )
+        msg = (
+            f"Nothing to cut: {', '.join(map(str, sources))} hold {timeline}s {held}, none in {wanted} "
+            "(no file written)."
+        )
+        raise ConfigError(msg)
     print(
         f"wrote {out} ({human_size(out.stat().st_size)}): the building, the state at the start "
         f"({summary.state_rows} rows) and {summary.range_rows} rows of the range; replay: rerun {out}"
@@ -66,9 +79,21 @@ def cmd_cut(args: argparse.Namespace, cfg: Config) -> int:
     return 0
 
 
+def _show(value: int | None, timeline: str) -> str:
+    if value is None or timeline != "time":
+        return str(value)
+    return str(np.datetime64(value, "ns").astype("datetime64[s]")) + "Z"
+
+
 def cmd_record(args: argparse.Namespace, cfg: Config) -> int:
     if args.sources:
         return cmd_cut(args, cfg)
+    if args.revisions or args.since or args.until:
+        msg = (
+            "--revisions, --since and --until cut the daemon's recordings: name them with --from FILE.rrd "
+            "(e.g. var/recordings/lab-*.rrd)."
+        )
+        raise ConfigError(msg)
     from adapters.rerun import RerunRecorder  # here: importing Rerun costs every other command 0.3 s
     from twin.live import TwinService
 

@@ -4,25 +4,26 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import threading
 import time
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from adapters.cli.common import SITE_HELP, client_prefix, key_prefix, zenoh_of
+import numpy as np
+
+from adapters.cli.common import add_client_args, key_prefix, open_client
 from adapters.ros import write_map_files
-from adapters.zenoh.client import MapVersion, MapWatcher, TwinClient
-from adapters.zenoh.errors import RemoteError
+from adapters.zenoh.client import MapVersion, MapWatcher
+from adapters.zenoh.errors import RemoteError, StoreySwitchError
 from twin import vocab
 from twin.config import Config
-from twin.errors import ObservationError
+from twin.errors import ObservationError, SkillError
 from twin.grid import OccupancyGrid
-
-
-def _endpoints(args: argparse.Namespace, cfg: Config) -> list[str]:
-    return list(args.connect or zenoh_of(cfg).connect or zenoh_of(cfg).listen)
 
 
 def box_turtle(iri: str, box: list[float], *, ifc_class: str, storey: str, label: str | None = None) -> str:
@@ -77,9 +78,7 @@ def observation_turtle(args: argparse.Namespace) -> bytes:
 
 def cmd_observe(args: argparse.Namespace, cfg: Config) -> int:
     payload = observation_turtle(args)
-    with TwinClient.connect(
-        _endpoints(args, cfg), prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
-    ) as twin:
+    with open_client(args, cfg) as twin:
         if args.no_ack:
             twin.publish_observation(args.robot, payload)
             time.sleep(0.2)  # let the put leave before the session closes
@@ -96,9 +95,17 @@ def cmd_observe(args: argparse.Namespace, cfg: Config) -> int:
 
 def cmd_storey(args: argparse.Namespace, cfg: Config) -> int:
     """``twin storey --robot NAME [KEY]``: print the robot's storey, after switching it to KEY if given."""
-    with TwinClient.connect(
-        _endpoints(args, cfg), prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
-    ) as twin:
+    with open_client(args, cfg) as twin:
+        robots = twin.status().get("robots") or {}
+        if args.robot not in robots:
+            site = twin.keys.prefix
+            known = (
+                f"the robots configured at {site} ([robots.NAME]) are {', '.join(sorted(robots))}"
+                if robots
+                else f"the daemon of {site} has no robots configured (no [robots.NAME] table)"
+            )
+            msg = f"Unknown robot {args.robot!r}: {known}."
+            raise StoreySwitchError(msg)
         try:
             storey = twin.robot_storey(args.robot, args.storey)
         except RemoteError as err:
@@ -108,12 +115,39 @@ def cmd_storey(args: argparse.Namespace, cfg: Config) -> int:
     return 0
 
 
+def cell_counts(data: np.ndarray[Any, Any]) -> str:
+    """``"1534 occupied"``, and the cells of any other value (a speed mask's percent): ``", 30 at 30"``."""
+    values, counts = np.unique(data, return_counts=True)
+    text = f"{int(counts[values == 100].sum())} occupied"
+    for value, n in zip(values.tolist(), counts.tolist(), strict=True):
+        if 0 < value < 100:
+            text += f", {n} at {value}"
+    return text
+
+
 def _describe(v: MapVersion) -> str:
-    occupied = int((v.grid.data == 100).sum())
     return (
         f"{v.grid.storey}/{v.grid.skill} version {v.version} (revision {v.revision}) via {v.via}: "
-        f"{v.grid.frame.width}x{v.grid.frame.height} cells, {occupied} occupied"
+        f"{v.grid.frame.width}x{v.grid.frame.height} cells, {cell_counts(v.grid.data)}"
     )
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM ends a watch as Ctrl-C does (the final maps are still written)."""
+
+    def on_term(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, on_term)
+    except ValueError:  # not the main thread (the command run in-process): leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _await(seen: threading.Semaphore, count: int | None, timeout_s: float, what: str) -> bool:
@@ -141,16 +175,13 @@ def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
     seen = threading.Semaphore(0)
 
     def on_sample(s: RosSample) -> None:
-        occupied = int((s.grid.data == 100).sum())
         seq = f", rmw sequence {s.sequence}" if s.sequence is not None else ""
         size = f"{s.grid.frame.width}x{s.grid.frame.height}"
-        print(f"{args.ros}/{args.topic} via {s.kind}{seq}: {size}, {occupied} occupied", flush=True)
+        print(f"{args.ros}/{args.topic} via {s.kind}{seq}: {size}, {cell_counts(s.grid.data)}", flush=True)
         seen.release()
 
     prefix = key_prefix(cfg, args.site)  # ROS 2 keys: no site to look for
-    with TwinClient.connect(
-        _endpoints(args, cfg), prefix=prefix, timeout_s=args.timeout, settings=zenoh_of(cfg)
-    ) as twin:
+    with open_client(args, cfg, prefix=prefix) as twin:
         watcher = RosMapWatcher(
             twin.session,
             namespace=args.ros,
@@ -160,8 +191,9 @@ def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
             on_sample=on_sample,
         )
         try:
-            if not _await(seen, args.count, args.timeout, f"samples on {watcher.keys[0]}"):
-                return 1
+            with _sigterm_as_interrupt():
+                if not _await(seen, args.count, args.timeout, f"samples on {watcher.keys[0]}"):
+                    return 1
         finally:
             watcher.close()
         if args.out and watcher.latest is not None:
@@ -174,8 +206,21 @@ def cmd_watch_ros(args: argparse.Namespace, cfg: Config) -> int:
                 g.elevation_m,
             )
             files = write_map_files(named, Path(args.out), stamp_ns=time.time_ns())
+            _label_ros_yaml(files.yaml, f"{args.ros.rstrip('/')}/{args.topic}")
             print(f"wrote {files.yaml}")
     return 0
+
+
+META = "# building-twin map:"
+"""The start of the comment line of a map_server YAML that names the map's storey and skill
+(``adapters.ros.map_server``)."""
+
+
+def _label_ros_yaml(yaml: Path, topic: str) -> None:
+    """A ROS map names no storey or skill: its YAML's building-twin comment names the topic instead."""
+    lines = yaml.read_text().splitlines(keepends=True)
+    lines = [f"# ROS 2 topic {topic} (twin watch --ros)\n" if ln.startswith(META) else ln for ln in lines]
+    yaml.write_text("".join(lines))
 
 
 def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
@@ -184,13 +229,22 @@ def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
     if not args.skill:
         msg = "Give --skill NAME (or --ros NAMESPACE to watch a ROS 2 robot's /map)."
         raise ObservationError(msg)
-    with TwinClient.connect(
-        _endpoints(args, cfg), prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
-    ) as twin:
-        storeys = [args.storey] if args.storey else [s for s, k in twin.list_maps() if k == args.skill]
+    with open_client(args, cfg) as twin:
+        maps = twin.list_maps()
+        skills = sorted({k for _, k in maps})
+        storeys = [s for s, k in maps if k == args.skill]
         if not storeys:
-            print(f"twin: error: the daemon serves no map of skill {args.skill!r}", file=sys.stderr)
-            return 1
+            known = ", ".join(skills) or "none"
+            msg = f"Unknown skill {args.skill!r}: {twin.keys.prefix} serves maps of the skills {known}."
+            raise SkillError(msg)
+        if args.storey:
+            if args.storey not in storeys:
+                msg = (
+                    f"Unknown storey {args.storey!r}: {twin.keys.prefix} serves {args.skill} maps of the "
+                    f"storeys {', '.join(storeys)}."
+                )
+                raise SkillError(msg)
+            storeys = [args.storey]
         seen = threading.Semaphore(0)
         lock = threading.Lock()
 
@@ -201,8 +255,9 @@ def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
 
         watchers: list[MapWatcher] = [twin.watch(s, args.skill, on_version) for s in storeys]
         try:
-            if not _await(seen, args.count, args.timeout, "map versions"):
-                return 1
+            with _sigterm_as_interrupt():
+                if not _await(seen, args.count, args.timeout, "map versions"):
+                    return 1
         finally:
             for w in watchers:
                 w.close()
@@ -216,12 +271,7 @@ def cmd_watch(args: argparse.Namespace, cfg: Config) -> int:
 
 
 def add_parsers(sub: Any) -> None:
-    def common(sp: argparse.ArgumentParser) -> None:
-        sp.add_argument(
-            "--connect", action="append", metavar="ENDPOINT", help="the daemon or a router (repeatable)"
-        )
-        sp.add_argument("--site", help=SITE_HELP)
-        sp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the daemon")
+    common = add_client_args
 
     sp = sub.add_parser("observe", help="send a robot's observation to the daemon and print the ack")
     common(sp)
@@ -257,8 +307,52 @@ def add_parsers(sub: Any) -> None:
     sp.add_argument("--out", help="write the final maps as map_server files into this directory")
     sp.set_defaults(func=cmd_watch)
 
+    sp = sub.add_parser("status", help="the running daemon's status: revision, elements, maps, robots, ...")
+    common(sp)
+    sp.add_argument("--json", action="store_true", help="print the daemon's JSON as it is")
+    sp.set_defaults(func=cmd_status)
+
     sp = sub.add_parser("storey", help="print a robot's current storey, or switch it (the lift)")
     common(sp)
     sp.add_argument("--robot", required=True, help="the robot's name ([robots.NAME])")
     sp.add_argument("storey", nargs="?", help="the storey key to switch to (see 'twin stats')")
     sp.set_defaults(func=cmd_storey)
+
+
+def _status_value(value: Any) -> str:
+    if isinstance(value, list) and all(not isinstance(v, dict | list) for v in value):
+        return ", ".join(str(v) for v in value) or "none"
+    if isinstance(value, dict) and all(not isinstance(v, dict | list) for v in value.values()):
+        return ", ".join(f"{k} {v}" for k, v in value.items()) or "none"
+    if isinstance(value, dict | list):
+        return json.dumps(value)
+    return str(value)
+
+
+def describe_status(status: dict[str, Any]) -> str:
+    """The daemon's status as lines: one a key, one a map, one a robot (any other section as JSON)."""
+    out: list[str] = []
+    maps = status.get("maps")
+    for key, value in status.items():
+        if key == "maps" and isinstance(maps, list):
+            out.append(f"maps ({len(maps)}):")
+            out += [
+                f"  {m.get('storey')}/{m.get('skill')} version {m.get('version')} "
+                f"(revision {m.get('revision')})"
+                for m in maps
+                if isinstance(m, dict)
+            ]
+        elif isinstance(value, dict) and value and all(isinstance(v, dict) for v in value.values()):
+            out.append(f"{key} ({len(value)}):")  # robots: one line each
+            out += [f"  {name}: {_status_value(entry)}" for name, entry in value.items()]
+        else:
+            out.append(f"{key}: {_status_value(value)}")
+    return "\n".join(out)
+
+
+def cmd_status(args: argparse.Namespace, cfg: Config) -> int:
+    """``twin status``: what the daemon answers on ``<prefix>/status``."""
+    with open_client(args, cfg) as twin:
+        status = twin.status()
+    print(json.dumps(status, indent=2) if args.json else describe_status(status))
+    return 0

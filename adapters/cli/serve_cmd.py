@@ -27,6 +27,7 @@ from adapters.cli.common import (
     zenoh_of,
 )
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
+from adapters.cli.progress import Advance, progress_bar
 from adapters.rerun.settings import RerunSettings
 from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
@@ -37,6 +38,7 @@ from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.errors import StoreNotFoundError
+from twin.events import MapPublished, TwinEvent, TwinStarted
 from twin.live import TwinService
 from twin.live.snapshots import Snapshots, snapshot_path
 
@@ -81,6 +83,24 @@ def _snapshots(args: argparse.Namespace, cfg: Config) -> Snapshots | None:
         log.info("No snapshot of the derived state: the graph is on a SPARQL server (rebuilt on each start)")
         return None
     return Snapshots(snapshot_path(store_path_of(args, cfg)), every_s=cfg.store_snapshot_every_s)
+
+
+class _StartProgress:
+    """A sink that reports the start's maps: TwinStarted says how many, each MapPublished is one more."""
+
+    def __init__(self, advance: Advance) -> None:
+        self.advance = advance
+        self.total = 0
+        self.published = 0
+
+    def emit(self, event: TwinEvent) -> None:
+        if isinstance(event, TwinStarted):
+            self.total = len(event.storeys) * len(event.skills)
+            self.advance(0, self.total)
+        elif isinstance(event, MapPublished):
+            self.published += 1
+            self.total = max(self.total, self.published)
+            self.advance(self.published, self.total)
 
 
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
@@ -146,7 +166,15 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             ros_sink = OutboxSink(ros, daemon.outbox) if ros is not None else None  # off the writer too
             service.sinks += [sink for sink in (daemon, ros_sink, recorder) if sink is not None]
             t0 = time.perf_counter()
-            service.start()
+            source = store_label(args, cfg)
+            print(f"loading site {cfg.site!r} from {source} ...", file=sys.stderr, flush=True)
+            with progress_bar("preparing maps") as advance:
+                progress = _StartProgress(advance)
+                service.sinks.insert(0, progress)
+                try:
+                    service.start()
+                finally:
+                    service.sinks.remove(progress)
             daemon.drain()  # every map is declared and sent before we say so
             maps = service.published_maps()
             endpoints = ", ".join(args.listen or zenoh_of(cfg).listen) or "(no listener)"

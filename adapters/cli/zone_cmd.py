@@ -21,7 +21,7 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from adapters.cli.common import SITE_HELP, client_prefix, zenoh_of
+from adapters.cli.common import add_client_args, open_client
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import RemoteError
 from twin import vocab
@@ -101,10 +101,7 @@ def cmd_zone(args: argparse.Namespace, cfg: Config) -> int:
     if args.speed_limit is not None and not 1 <= args.speed_limit <= 100:
         msg = f"--speed-limit takes a percent from 1 to 100 (--lift removes a zone), got {args.speed_limit}."
         raise ObservationError(msg)
-    endpoints = list(args.connect or zenoh_of(cfg).connect or zenoh_of(cfg).listen)
-    with TwinClient.connect(
-        endpoints, prefix=client_prefix(args, cfg), timeout_s=args.timeout, settings=zenoh_of(cfg)
-    ) as twin:
+    with open_client(args, cfg) as twin:
         room = find_room(twin, args.space)
         payload = zone_turtle(room, keepout=args.keepout, speed_limit=args.speed_limit, lift=args.lift)
         try:
@@ -118,11 +115,7 @@ def cmd_zone(args: argparse.Namespace, cfg: Config) -> int:
 
 def add_parsers(sub: Any) -> None:
     sp = sub.add_parser("zone", help="keep robots out of a room, or slow them down in it (nav2 filter masks)")
-    sp.add_argument(
-        "--connect", action="append", metavar="ENDPOINT", help="the daemon's endpoint (repeatable)"
-    )
-    sp.add_argument("--site", help=SITE_HELP)
-    sp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the daemon")
+    add_client_args(sp)
     sp.add_argument("--robot", required=True, help="who marks the zone (needs the 'zones' right)")
     sp.add_argument("--space", required=True, help="the room: an IfcSpace's name or IRI")
     what = sp.add_mutually_exclusive_group(required=True)

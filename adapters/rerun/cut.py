@@ -43,6 +43,9 @@ class CutSummary:
     state_rows: int
     range_rows: int
     static_chunks: int
+    first: int | None = None
+    """The sources' first and last value on the cut's timeline (None: no row has one)."""
+    last: int | None = None
 
 
 def _chunks(sources: Sequence[Path]) -> Iterator[rc.Chunk]:
@@ -119,6 +122,8 @@ def cut(
     inside: list[rc.Chunk] = []
     latest: dict[tuple[str, frozenset[str]], tuple[tuple[int, bytes], pa.RecordBatch]] = {}
     range_rows = 0
+    first: int | None = None
+    last: int | None = None
     layout = _Layout()
     for chunk in _chunks(sources):
         if chunk.is_static:
@@ -131,6 +136,10 @@ def cut(
         times = np.asarray(batch.column(timeline).cast(pa.int64()).fill_null(lo - 1))
         within = (times >= lo) & (times <= hi)
         range_rows += int(within.sum())
+        stamped = times[batch.column(timeline).is_valid().to_numpy(zero_copy_only=False)]
+        if stamped.size:
+            first = int(stamped.min()) if first is None else min(first, int(stamped.min()))
+            last = int(stamped.max()) if last is None else max(last, int(stamped.max()))
         if within.all():
             inside.append(chunk)
         elif within.any():  # the rows inside keep their row ids and the chunk its id
@@ -156,4 +165,4 @@ def cut(
     stream.flush()
     stream.disconnect()
     log.info("Cut %d state rows and %d rows in range into %s", len(state), range_rows, out)
-    return CutSummary(len(state), range_rows, len(static))
+    return CutSummary(len(state), range_rows, len(static), first, last)

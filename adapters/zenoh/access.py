@@ -173,15 +173,16 @@ def access_control(
     }
 
 
-def site_access_control(cfg: Config, keys: SiteKeys) -> dict[str, Any] | None:
-    """The daemon's (or a router's) ``access_control`` from ``[zenoh.access]``, or None when off.
+def site_access_control(cfg: Config, keys: SiteKeys, *, enforce: bool = False) -> dict[str, Any] | None:
+    """The daemon's (or a router's) ``access_control`` from ``[zenoh.access]``, or None when off
+    (``enforce``: on whatever ``enabled`` says, as ``twin router --acl`` asks).
 
     Checks that robots can be told apart: a users file for ``identity = "username"``, mutual TLS
     for ``identity = "certificate"``.
     """
     z = cfg.section(ZenohSettings)
     access = z.access
-    if not access.enabled:
+    if not access.enabled and not enforce:
         return None
     if access.identity == "username" and z.auth.users_file is None:
         msg = (

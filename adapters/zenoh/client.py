@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import logging
 import threading
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import TracebackType
@@ -28,10 +29,13 @@ from adapters.zenoh.errors import DaemonTimeoutError, RemoteError, TransportErro
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.latched import LatchedSubscription
 from adapters.zenoh.session import client_config
-from adapters.zenoh.settings import ZenohSettings
+from adapters.zenoh.settings import ZenohMode, ZenohSettings
 from twin.grid import OccupancyGrid
 
 log = logging.getLogger(__name__)
+
+MIN_QUERY_S = 0.5
+"""A query found its daemon: it gets at least this long to answer, even at the end of the timeout."""
 
 
 def _meta(sample: zenoh.Sample) -> tuple[int, int]:
@@ -166,23 +170,47 @@ class MapWatcher:
         self.close()
 
 
-DISCOVERY_S = 3.0
-"""How long a client waits for daemons' liveliness tokens when it looks for the site to talk to."""
-FALLBACK_SITE = "lab"
-"""The site a client looking for a daemon talks to when none answers yet (the packaged default)."""
+SETTLE_S = 0.25
+"""After the first daemon's liveliness token, how long a client looking for the site to talk to waits for
+others (a router sends the tokens it knows within milliseconds of each other)."""
 
 
-def daemon_prefixes(session: zenoh.Session, template: str, timeout_s: float = DISCOVERY_S) -> list[str]:
+def _endpoint_text(endpoints: Sequence[str]) -> str:
+    return ", ".join(endpoints) if endpoints else "the configured endpoints"
+
+
+def daemon_prefixes(
+    session: zenoh.Session, template: str, timeout_s: float, *, settle_s: float = SETTLE_S
+) -> list[str]:
     """The key prefixes of the daemons alive on ``session``'s network: ``template`` (the configured
-    prefix, ``twin/{site}``) with any site, answering for ``<prefix>/daemon`` (their liveliness token)."""
+    prefix, ``twin/{site}``) with any site, having the liveliness token ``<prefix>/daemon``.
+
+    Listens for the tokens (those present and those declared later) until the first arrives, within
+    ``timeout_s``, then ``settle_s`` more for the others; [] when none arrived in time. (A liveliness
+    ``get`` sent at once can leave before a router has told a fresh session where the tokens are.)
+    """
     pattern = template.replace("{site}", "*").strip("/")
     tokens = SiteKeys(pattern).daemon  # every site's token
     suffix = tokens.removeprefix(pattern)
     found: set[str] = set()
-    for reply in session.liveliness().get(tokens, timeout=timeout_s):
-        if reply.ok is not None:
-            found.add(str(reply.ok.key_expr).removesuffix(suffix))
-    return sorted(found)
+    cond = threading.Condition()
+
+    def on_token(sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            with cond:
+                found.add(str(sample.key_expr).removesuffix(suffix))
+                cond.notify_all()
+
+    subscriber = session.liveliness().declare_subscriber(tokens, on_token, history=True)
+    try:
+        with cond:
+            if cond.wait_for(lambda: bool(found), timeout_s):
+                settled = time.monotonic() + settle_s
+                while (left := settled - time.monotonic()) > 0:
+                    cond.wait(left)  # woken by each further token: wait out the rest
+            return sorted(found)
+    finally:
+        subscriber.undeclare()
 
 
 def site_of(prefix: str, template: str) -> str:
@@ -191,32 +219,61 @@ def site_of(prefix: str, template: str) -> str:
     return parts[names.index("{site}")] if "{site}" in names and len(parts) == len(names) else prefix
 
 
-def _discovered_prefix(session: zenoh.Session, template: str, timeout_s: float) -> str:
+def _discovered_prefix(
+    session: zenoh.Session, template: str, timeout_s: float, endpoints: Sequence[str]
+) -> str:
     """The prefix of the one daemon alive (see :meth:`TwinClient.connect`)."""
-    fallback = template.replace("{site}", FALLBACK_SITE).strip("/")
     if "{site}" not in template:
-        return fallback
+        return template.strip("/")
     found = daemon_prefixes(session, template, timeout_s)
     if len(found) > 1:
         sites = ", ".join(site_of(p, template) for p in found)
         msg = f"{len(found)} daemons are running, for the sites {sites}: choose one with --site."
         raise TransportError(msg)
     if not found:
-        return fallback
+        tokens = SiteKeys(template.replace("{site}", "*").strip("/")).daemon
+        msg = (
+            f"No daemon found at {_endpoint_text(endpoints)} within {timeout_s} s (no liveliness token "
+            f"{tokens}): is 'twin serve' running and reachable there? (Under access control a robot sees "
+            "only its own site: give --site.)"
+        )
+        raise DaemonTimeoutError(msg)
     log.info("talking to the daemon of site %r", site_of(found[0], template))
     return found[0]
 
 
+def _matching(querier: zenoh.Querier) -> bool:
+    """Whether a queryable matching the querier's key expression is known (zenoh 1.10 returns a
+    ``MatchingStatus`` here, whose truth value is always true, although its stub says ``bool``)."""
+    status: object = querier.matching_status
+    return bool(getattr(status, "matching", status))
+
+
 class TwinClient:
-    """Requests to one site's daemon over an open Zenoh session."""
+    """Requests to one site's daemon over an open Zenoh session.
+
+    Each request waits, within the client's timeout, until a queryable for its key is known (the
+    matching status of a querier on the key) before it is sent: a fresh session learns where the daemon
+    is from the peer or router it connects to only after it opened, and a query sent before that finds
+    nobody to answer it.
+    """
 
     def __init__(
-        self, session: zenoh.Session, *, prefix: str = "twin/lab", timeout_s: float = 10.0, own: bool = False
+        self,
+        session: zenoh.Session,
+        *,
+        prefix: str = "twin/lab",
+        timeout_s: float = 10.0,
+        own: bool = False,
+        endpoints: Sequence[str] = (),
     ) -> None:
         self.session = session
         self.keys = SiteKeys(prefix.strip("/"))
         self.timeout_s = timeout_s
+        self.endpoints = tuple(endpoints)
         self._own = own
+        self._queriers: dict[str, zenoh.Querier] = {}
+        self._queriers_lock = threading.Lock()
 
     @classmethod
     def connect(
@@ -226,35 +283,49 @@ class TwinClient:
         prefix: str | None = None,
         timeout_s: float = 10.0,
         settings: ZenohSettings | None = None,
-        mode: str = "peer",
+        mode: ZenohMode | None = None,
     ) -> TwinClient:
         """Open a session to ``connect`` (the daemon's or a router's endpoints); close the client after.
 
-        Without ``prefix`` (``twin/<site>``), the client talks to the one daemon alive on the network,
-        whatever its site (found by its liveliness token ``<prefix>/daemon``, the prefix being
-        ``settings.prefix`` with any site); to site ``lab`` when none answers; several answering is a
-        TransportError naming their sites.
+        ``mode`` defaults to ``settings.mode`` (``[zenoh] mode``, ``peer`` unless configured). Without
+        ``prefix`` (``twin/<site>``), the client talks to the one daemon alive on the network, whatever
+        its site (found by its liveliness token ``<prefix>/daemon``, the prefix being ``settings.prefix``
+        with any site), waiting up to ``timeout_s`` for one; none is a DaemonTimeoutError naming the
+        endpoints, several a TransportError naming their sites.
         """
         if not connect:
             msg = "Give the daemon's endpoint to connect to, e.g. tcp/127.0.0.1:7447."
             raise TransportError(msg)
+        settings = settings or ZenohSettings()
         try:
-            session = zenoh.open(client_config(connect, settings=settings, mode=mode))  # type: ignore[arg-type]
+            session = zenoh.open(client_config(connect, settings=settings, mode=mode or settings.mode))
+        except TransportError:
+            raise
         except Exception as err:
-            msg = f"Cannot open a Zenoh session to {', '.join(connect)}: {err}"
+            why = str(err).split("  at /")[0].strip()  # zenoh adds the Rust source location
+            msg = f"Cannot open a Zenoh session to {', '.join(connect)}: {why}"
             raise TransportError(msg) from err
+        log.info("zenoh session in %s mode to %s", mode or settings.mode, ", ".join(connect))
         if prefix is None:
-            template = settings.prefix if settings is not None else ZenohSettings().prefix
             try:
-                prefix = _discovered_prefix(session, template, min(timeout_s, DISCOVERY_S))
+                prefix = _discovered_prefix(session, settings.prefix, timeout_s, connect)
             except BaseException:
                 session.close()
                 raise
-        return cls(session, prefix=prefix, timeout_s=timeout_s, own=True)
+        return cls(session, prefix=prefix, timeout_s=timeout_s, own=True, endpoints=connect)
 
     def close(self) -> None:
+        with self._queriers_lock:
+            queriers = list(self._queriers.values())
+            self._queriers.clear()
         if self._own:
-            self.session.close()
+            self.session.close()  # undeclares them too
+            return
+        for querier in queriers:  # a shared session lives on
+            try:
+                querier.undeclare()
+            except Exception as err:  # the session closed first
+                log.debug("querier undeclare: %s", err)
 
     def __enter__(self) -> Self:
         return self
@@ -265,8 +336,45 @@ class TwinClient:
         self.close()
 
     # --- requests ---------------------------------------------------------------------------------
+    def _querier(self, key: str) -> zenoh.Querier:
+        with self._queriers_lock:
+            querier = self._queriers.get(key)
+            if querier is None:
+                querier = self._queriers[key] = self.session.declare_querier(key)
+            return querier
+
+    def wait_for_route(self, key: str, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` until a queryable matching ``key`` is known; False if none is."""
+        querier = self._querier(key)
+        if _matching(querier):
+            return True
+        matched = threading.Event()
+        listener = querier.declare_matching_listener(lambda s: matched.set() if s.matching else None)
+        try:
+            return _matching(querier) or matched.wait(timeout_s)
+        finally:
+            listener.undeclare()
+
+    def connected(self) -> bool:
+        """Whether the session is linked to any peer or router."""
+        info = self.session.info
+        return any(True for _ in info.peers_zid()) or any(True for _ in info.routers_zid())
+
     def _get(self, selector: str, payload: bytes | None = None, *, what: str) -> list[zenoh.Sample]:
-        replies = self.session.get(selector, payload=payload, timeout=self.timeout_s)
+        deadline = time.monotonic() + self.timeout_s
+        where = _endpoint_text(self.endpoints)
+        if not self.wait_for_route(selector, self.timeout_s):
+            if not self.connected():
+                msg = f"No answer to {what}: nothing could be reached at {where} within {self.timeout_s} s."
+            else:
+                msg = (
+                    f"No answer to {what}: nothing serves {selector} at {where} within {self.timeout_s} s "
+                    "(is the daemon of this site running and connected there?)."
+                )
+            raise DaemonTimeoutError(msg)
+        left = max(deadline - time.monotonic(), MIN_QUERY_S)
+        sent = time.monotonic()
+        replies = self.session.get(selector, payload=payload, timeout=left)
         samples = []
         for reply in replies:
             if reply.ok is not None:
@@ -274,7 +382,14 @@ class TwinClient:
             elif reply.err is not None:
                 raise RemoteError(_error_text(reply.err.payload.to_bytes()))
         if not samples:
-            msg = f"No answer to {what} at {selector} within {self.timeout_s} s (is the daemon running?)."
+            took = time.monotonic() - sent
+            if took < left - MIN_QUERY_S:  # ended early: nobody answered at all
+                msg = (
+                    f"No answer to {what} at {selector} ({where}): the query ended after {took:.1f} s "
+                    "without a reply (refused by access control, or the daemon went away)."
+                )
+            else:
+                msg = f"No answer to {what} at {selector} ({where}) within {self.timeout_s} s."
             raise DaemonTimeoutError(msg)
         return samples
 

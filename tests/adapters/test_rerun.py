@@ -304,6 +304,20 @@ def test_twin_record_from_recordings_cuts_a_revision_range(
     assert "ends (2) before it starts (4)" in capsys.readouterr().err
 
 
+def test_twin_record_refuses_a_range_past_the_recording_and_a_range_without_recordings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "day.rrd"
+    record(path)  # revisions 1 to 4
+    part = tmp_path / "part.rrd"
+    assert main(["record", str(part), "--from", str(path), "--revisions", "7:9"]) == 1
+    err = capsys.readouterr().err
+    assert f"Nothing to cut: {path} hold revisions 0 to 4, none in 7:9 (no file written)." in err
+    assert not part.exists()
+    assert main(["record", str(part), "--revisions", "1:2"]) == 1
+    assert "cut the daemon's recordings: name them with --from FILE.rrd" in capsys.readouterr().err
+
+
 def test_a_moved_element_logs_its_mesh_once_and_its_placement_at_every_move(tmp_path: Path) -> None:
     path = tmp_path / "moves.rrd"
     recorder = RerunRecorder(path=path)

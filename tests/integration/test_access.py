@@ -19,6 +19,7 @@ from tests.integration.certs import CertificateAuthority
 from tests.integration.conftest import Daemon, start_daemon
 
 TWIN = "https://w3id.org/building-twin#"
+LAB = "twin/lab"  # under access control a robot sees only its site's keys: no discovery, the site is given
 MAP = "twin/lab/map/ground-floor/lab-navigation"
 UPDATES = "twin/lab/map_updates/ground-floor/lab-navigation"
 ROBOTS = {"robot1": "pw-robot1", "robot2": "pw-robot2", "operator": "pw-operator"}
@@ -56,7 +57,9 @@ def secrets(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def as_robot(d: Daemon, secrets: Path, user: str, *, password: str | None = None) -> TwinClient:
     auth = AuthSettings(user=user, password_file=secrets / f"{password or user}.password")
-    return TwinClient.connect([d.endpoint], settings=ZenohSettings(auth=auth), mode="client", timeout_s=3.0)
+    return TwinClient.connect(
+        [d.endpoint], settings=ZenohSettings(auth=auth), mode="client", timeout_s=3.0, prefix=LAB
+    )
 
 
 @pytest.fixture(scope="module")
@@ -155,8 +158,8 @@ def test_a_wrong_password_or_an_unknown_robot_cannot_connect(guarded: Daemon, se
 def test_without_access_control_a_clients_forged_map_would_reach_other_robots(daemon: Daemon) -> None:
     """The reason for the ACL: the daemon routes its clients' puts to each other."""
     with (
-        TwinClient.connect([daemon.endpoint], mode="client") as robot1,
-        TwinClient.connect([daemon.endpoint], mode="client") as robot2,
+        TwinClient.connect([daemon.endpoint], mode="client", prefix=LAB) as robot1,
+        TwinClient.connect([daemon.endpoint], mode="client", prefix=LAB) as robot2,
     ):
         maps, sub = _collect(robot1.session, "twin/lab/map/ground-floor/navigation")
         time.sleep(0.3)
@@ -207,7 +210,7 @@ def test_robots_reach_the_daemon_over_tls_and_a_foreign_authority_is_refused(
     d = tls_daemon(lab_store_dir, tmp_path, pki, mutual=False)
     try:
         assert d.endpoint.startswith("tls/")
-        with TwinClient.connect([d.endpoint], settings=tls_settings(pki), mode="client") as robot:
+        with TwinClient.connect([d.endpoint], settings=tls_settings(pki), mode="client", prefix=LAB) as robot:
             assert robot.observe("robot1", table("urn:test:tls-table"))["ok"]
         other = CertificateAuthority.create(tmp_path / "other", "someone else's CA")
         with pytest.raises(TransportError, match="Cannot open a Zenoh session"):
@@ -225,7 +228,7 @@ def test_with_mutual_tls_a_robot_is_its_certificate(
     d = tls_daemon(lab_store_dir, tmp_path, pki, mutual=True)
     try:
         with TwinClient.connect(
-            [d.endpoint], settings=tls_settings(pki, "robot1"), mode="client", timeout_s=3.0
+            [d.endpoint], settings=tls_settings(pki, "robot1"), mode="client", timeout_s=3.0, prefix=LAB
         ) as robot1:
             assert robot1.observe("robot1", table("urn:test:mtls-table"))["ok"]
             with pytest.raises(DaemonTimeoutError):

@@ -158,7 +158,8 @@ def test_twin_watch_ros_receives_the_latched_map_like_a_ros_node(ros_daemon: Dae
                  "--count", "1", "--out", tmp_path / layout, timeout=60)  # fmt: skip
         assert r.returncode == 0, r.stderr
         assert "/robot1/map via map" in r.stdout
-        assert (tmp_path / layout / "robot1__map.yaml").exists()
+        yaml = (tmp_path / layout / "robot1__map.yaml").read_text()
+        assert "# ROS 2 topic /robot1/map" in yaml and 'storey="robot1"' not in yaml  # no storey to name
 
 
 class StoreyPublisher(JsonLinesProcess):

@@ -3,19 +3,21 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from adapters.zenoh.client import TwinClient
-from tests.integration.conftest import ROOT, Daemon, free_port, start_daemon
+from tests.integration.conftest import ROOT, Daemon, free_port, start_daemon, twin
 
 TWIN = "https://w3id.org/building-twin#"
 NAV = ("ground-floor", "lab-navigation")
@@ -30,8 +32,8 @@ class Router:
             env={**os.environ, "PYTHONUNBUFFERED": "1"},
         )  # fmt: skip
         assert self.process.stdout is not None
-        line = self.process.stdout.readline()
-        assert line.startswith("router "), line + self.process.stdout.read()
+        self.line = self.process.stdout.readline()
+        assert self.line.startswith("router "), self.line + self.process.stdout.read()
 
     def stop(self) -> int:
         self.process.send_signal(signal.SIGTERM)
@@ -57,6 +59,21 @@ def router() -> Iterator[Router]:
     if r.process.poll() is None:
         r.process.kill()
         r.process.wait(timeout=10)
+
+
+def test_the_routers_start_line_says_whether_access_control_is_on(tmp_path: Path, router: Router) -> None:
+    assert "access control off" in router.line
+    (tmp_path / "users.txt").write_text("robot1:secret\nops:secret\n")
+    config = tmp_path / "site.toml"
+    config.write_text(
+        f'[zenoh.auth]\nusers_file = "{tmp_path / "users.txt"}"\n'
+        '[zenoh.access]\noperators = ["ops"]\n[robots.robot1]\n'
+    )
+    guarded = Router("--acl", "--config", str(config))
+    try:
+        assert "access control on for twin/lab/** (robots and operators: robot1, ops)" in guarded.line
+    finally:
+        assert guarded.stop() == 0
 
 
 def table(x: float) -> str:
@@ -123,3 +140,58 @@ def test_the_routers_map_storage_serves_a_site_while_its_daemon_is_down(
         seen = watcher.wait_for(lambda v: True, timeout_s=10)
         assert seen.version == latest[2]
         watcher.close()
+
+
+BOX = ("--box", "16.6,7.0,0.375,0.6,0.6,0.75,0.0", "--class", "IfcFurniture", "--storey", "ground-floor")
+
+
+def observe_process(
+    router: Router, *args: str, before: Sequence[str | Path] = ()
+) -> subprocess.CompletedProcess[str]:
+    """``twin observe`` through the router as a fresh process, as a robot's script runs it."""
+    return twin(
+        *before, "observe", "--connect", router.endpoint, "--robot", "robot1", *BOX, *args, timeout=60
+    )
+
+
+def readme_robot_snippet(site: str, endpoint: str) -> str:
+    """The README's "A robot in a few lines", for ``site`` at ``endpoint``."""
+    readme = (ROOT / "README.md").read_text()
+    found = re.search(r"### A robot in a few lines.*?```python\n(.*?)```", readme, re.S)
+    assert found, "the README's robot snippet is gone"
+    code = found.group(1)
+    assert 'site = "lab"' in code and "tcp/127.0.0.1:7447" in code
+    return code.replace('site = "lab"', f'site = "{site}"').replace("tcp/127.0.0.1:7447", endpoint)
+
+
+def test_robot_commands_through_a_router_get_their_ack_every_time_and_honour_the_zenoh_mode(
+    lab_store_dir: Path, tmp_path: Path, router: Router
+) -> None:
+    north = site_daemon(lab_store_dir, tmp_path, "north", router)
+    south = site_daemon(lab_store_dir, tmp_path, "south", router)
+    client_toml = tmp_path / "robot.toml"
+    client_toml.write_text('[zenoh]\nmode = "client"\n')
+    try:
+        runs = [
+            (["--config", client_toml, "-v"] if i % 2 else [], "north" if i % 4 < 2 else "south")
+            for i in range(20)
+        ]  # half in the default (peer) mode, half with the robot's [zenoh] mode = "client"
+        with ThreadPoolExecutor(max_workers=4) as pool:
+            results = list(pool.map(lambda r: observe_process(router, "--site", r[1], before=r[0]), runs))
+        acked = [r for r in results if r.returncode == 0 and '"ok": true' in r.stdout]
+        assert len(acked) == 20, [r.stdout + r.stderr for r in results if r not in acked]
+        for (config, _), r in zip(runs, results, strict=True):
+            assert ("zenoh session in client mode" in r.stderr) == bool(config), r.stderr
+
+        nameless = observe_process(router)
+        assert nameless.returncode != 0
+        assert "2 daemons are running, for the sites north, south: choose one with --site" in nameless.stderr
+
+        snippet = subprocess.run(
+            [sys.executable, "-c", readme_robot_snippet("south", router.endpoint)],
+            capture_output=True, text=True, cwd=ROOT, timeout=60, check=False,
+        )  # fmt: skip
+        assert snippet.returncode == 0 and "'ok': True" in snippet.stdout, snippet.stdout + snippet.stderr
+    finally:
+        kill(north)
+        kill(south)

@@ -1,0 +1,228 @@
+"""Run the README's ``twin`` command lines in order, as typed, in a fresh directory.
+
+    python -m tests.readme_commands [--workdir DIR]
+
+Every line of a README ``sh`` block that starts with ``twin`` runs as a real process, in the order of
+the README, in an empty directory (the lines build on each other: ``twin sample lab lab.ifc``, then
+``twin import lab.ifc --store lab.store``, ...). What the runner changes, and only this:
+
+- optional parts in brackets (``[--json]``) are left out; a line that still holds a placeholder
+  (``IRI``, ``FILE.ttl``, ``a | b``, ``...``) is a synopsis, not a command: it is listed as skipped;
+- the README's Zenoh ports (7447, 7450, 7451) become free ports, so that the run does not meet a
+  daemon already on the machine: the lines' endpoints are rewritten, and each command gets
+  ``--config`` of a file whose ``[zenoh] listen`` is the free port that stands for 7447;
+- ``twin serve`` and ``twin router`` run in the background (until a later block starts its own, or the
+  end); ``twin watch`` without ``--count`` is stopped after a few seconds with SIGTERM, as a user
+  stops it; blocks that need another tool first (``pip install``, ``oxigraph serve``) are skipped.
+
+Each command must exit 0, or give the refusal listed for it in ``EXPECTED`` (one line on stderr).
+Exits 1 and names the commands that did not.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import re
+import shlex
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+PORTS = (7447, 7450, 7451)
+OTHER_TOOLS = ("pip ", "oxigraph ", "ros2 ", "rerun ", "make ")
+EXPECTED = {
+    # the daemon of the README's sequence configures no robots: the refusal the README promises
+    "twin storey --robot robot1": "Unknown robot 'robot1'",
+}
+WATCH_S = 4.0
+
+log = logging.getLogger("readme_commands")
+
+
+@dataclass
+class Outcome:
+    line: str
+    status: str  # "ok", "skipped", "failed"
+    detail: str = ""
+
+
+@dataclass
+class Runner:
+    workdir: Path
+    config: Path
+    ports: dict[int, int]
+    background: list[subprocess.Popen[str]] = field(default_factory=list)
+
+    def argv(self, line: str) -> list[str]:
+        for readme_port, port in self.ports.items():
+            line = line.replace(f"127.0.0.1:{readme_port}", f"127.0.0.1:{port}")
+        words = shlex.split(line)
+        return [sys.executable, "-m", "adapters.cli", "--config", str(self.config), *words[1:]]
+
+    def run(self, line: str) -> Outcome:
+        words = shlex.split(line)
+        command = words[1] if len(words) > 1 else ""
+        env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": str(ROOT)}
+        if command in ("serve", "router"):
+            return self.start(line, env)
+        if command == "watch" and "--count" not in words:
+            return self.watch(line, env)
+        r = subprocess.run(
+            self.argv(line),
+            cwd=self.workdir,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+            check=False,
+        )
+        return self.judge(line, r.returncode, r.stdout, r.stderr)
+
+    def judge(self, line: str, code: int, out: str, err: str) -> Outcome:
+        expected = EXPECTED.get(line)
+        if expected is not None:
+            ok = code == 1 and expected in err and len(err.strip().splitlines()) == 1
+            return Outcome(line, "ok" if ok else "failed", err.strip() if ok else f"exit {code}: {err}{out}")
+        if code != 0:
+            return Outcome(line, "failed", f"exit {code}: {err.strip()}")
+        return Outcome(line, "ok", (out.strip().splitlines() or [""])[-1])
+
+    def start(self, line: str, env: dict[str, str]) -> Outcome:
+        process = subprocess.Popen(
+            self.argv(line), cwd=self.workdir, env=env, text=True,
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        )  # fmt: skip
+        assert process.stdout is not None
+        deadline = time.monotonic() + 120
+        seen: list[str] = []
+        while time.monotonic() < deadline:
+            text = process.stdout.readline()
+            if not text:
+                break
+            seen.append(text.rstrip())
+            if text.startswith(("serving site", "router ")):
+                self.background.append(process)
+                return Outcome(line, "ok", text.strip())
+        process.kill()
+        process.wait(timeout=10)
+        return Outcome(line, "failed", "did not start: " + " | ".join(seen[-5:]))
+
+    def watch(self, line: str, env: dict[str, str]) -> Outcome:
+        process = subprocess.Popen(
+            self.argv(line), cwd=self.workdir, env=env, text=True,
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        )  # fmt: skip
+        time.sleep(WATCH_S)
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=30)
+        outcome = self.judge(line, process.returncode, out, err)
+        if outcome.status == "ok" and not out.strip():
+            return Outcome(line, "failed", "printed no map version")
+        return outcome
+
+    def stop_background(self) -> None:
+        for process in self.background:
+            if process.poll() is None:
+                process.send_signal(signal.SIGTERM)
+                try:
+                    process.communicate(timeout=30)
+                except subprocess.TimeoutExpired:
+                    process.kill()
+                    process.communicate(timeout=10)
+        self.background.clear()
+
+
+def readme_blocks(text: str) -> list[list[str]]:
+    """The README's ``sh`` blocks, each as its lines (continuation lines joined)."""
+    blocks = re.findall(r"^```sh\n(.*?)^```", text, re.S | re.M)
+    return [block.replace("\\\n", " ").splitlines() for block in blocks]
+
+
+_PLACEHOLDER = re.compile(r"^[A-Z][A-Z0-9_]*(\.\w+)?$|\.\.\.")
+
+
+def as_typed(line: str) -> str | None:
+    """The command ``line`` of the README without its comment and optional parts; None for a synopsis."""
+    line = re.sub(r"\s+#.*$", "", line.strip())
+    kept: list[str] = []
+    depth = 0
+    for word in shlex.split(line):
+        if depth > 0 or word.startswith("["):
+            depth += word.count("[") - word.count("]")
+            continue
+        kept.append(word)
+    if any(w == "|" or _PLACEHOLDER.search(w) for w in kept) or kept == ["twin", "serve"]:
+        return None
+    return shlex.join(kept)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def run_readme(workdir: Path) -> list[Outcome]:
+    """Run every ``twin`` line of the README in ``workdir`` (empty); the outcome of each."""
+    ports = {p: free_port() for p in PORTS}
+    config = workdir / "readme-run.toml"
+    config.write_text(f'[zenoh]\nlisten = ["tcp/127.0.0.1:{ports[7447]}"]\n')
+    runner = Runner(workdir, config, ports)
+    outcomes: list[Outcome] = []
+    try:
+        for block in readme_blocks(README.read_text()):
+            lines = [ln for ln in block if ln.strip().startswith("twin ")]
+            if not lines:
+                continue
+            if any(ln.strip().startswith(OTHER_TOOLS) for ln in block):
+                outcomes += [Outcome(ln.strip(), "skipped", "needs another tool first") for ln in lines]
+                continue
+            typed = [(ln.strip(), as_typed(ln)) for ln in lines]
+            if any(t is not None and t.split()[1:2] in (["serve"], ["router"]) for _, t in typed):
+                runner.stop_background()  # a new topology: the previous daemons stop
+            for original, command in typed:
+                if command is None:
+                    outcomes.append(Outcome(original, "skipped", "a synopsis with placeholders"))
+                    continue
+                outcome = runner.run(command)
+                log.info("%s %s: %s", outcome.status, command, outcome.detail)
+                outcomes.append(outcome)
+    finally:
+        runner.stop_background()
+    return outcomes
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--workdir", type=Path, help="an empty directory to run in (default: a temporary one)")
+    args = p.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    if args.workdir is not None:
+        args.workdir.mkdir(parents=True, exist_ok=True)
+        outcomes = run_readme(args.workdir)
+    else:
+        with tempfile.TemporaryDirectory(prefix="readme-") as tmp:
+            outcomes = run_readme(Path(tmp))
+    failed = [o for o in outcomes if o.status == "failed"]
+    ran = sum(1 for o in outcomes if o.status == "ok")
+    skipped = sum(1 for o in outcomes if o.status == "skipped")
+    print(
+        f"{ran} README commands ran as typed, {len(failed)} failed, {skipped} skipped (synopses, other tools)"
+    )
+    for o in failed:
+        print(f"FAILED {o.line}\n  {o.detail}")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
