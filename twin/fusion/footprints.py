@@ -205,6 +205,16 @@ def yaw_difference(a: Pose, b: Pose) -> float:
     return min(d, period - d)
 
 
+def aligned(seen: Pose, held: Pose) -> Pose:
+    """``seen`` turned by the multiple of its symmetry period that brings its yaw nearest ``held``'s
+    (sizes swapped for a quarter turn), so that sightings of one object average without wrapping."""
+    period = math.pi / 2 if seen.square or held.square else math.pi
+    d = (seen.yaw - held.yaw + period / 2) % period - period / 2
+    quarter = round((seen.yaw - held.yaw - d) / (math.pi / 2)) % 2 == 1
+    sx, sy = (seen.sy, seen.sx) if quarter else (seen.sx, seen.sy)
+    return Pose(seen.cx, seen.cy, seen.cz, sx, sy, seen.sz, held.yaw + d)
+
+
 def inside(points: FloatArray, polygons: Sequence[FloatArray]) -> bool:
     """Whether every point lies inside the union of ``polygons`` (each point in at least one)."""
     left = np.ones(len(points), dtype=bool)

@@ -14,10 +14,9 @@ Example::
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
-from twin.fusion.footprints import Pose
+from twin.fusion.footprints import Pose, box_pose
 
 TENTATIVE_TTL_NS = 60 * 10**9
 """A tentative robot IRI not seen often enough within this long is forgotten."""
@@ -34,8 +33,9 @@ class RobotSightings:
 
 @dataclass(slots=True)
 class Refinement:
-    """The mean of the confirmations since the last committed pose (yaw as a doubled-angle mean, so
-    that a flipped heading averages correctly)."""
+    """The sum of the confirmations since the last committed pose, each first aligned with the held
+    pose (:func:`~twin.fusion.footprints.aligned`: a flipped heading or a quarter turn of a square
+    footprint averages as the same yaw)."""
 
     n: int = 0
     cx: float = 0.0
@@ -44,10 +44,10 @@ class Refinement:
     sx: float = 0.0
     sy: float = 0.0
     sz: float = 0.0
-    c2: float = 0.0
-    s2: float = 0.0
+    yaw: float = 0.0
 
     def add(self, p: Pose) -> None:
+        """Add a sighting already aligned with the held pose."""
         self.n += 1
         self.cx += p.cx
         self.cy += p.cy
@@ -55,16 +55,16 @@ class Refinement:
         self.sx += p.sx
         self.sy += p.sy
         self.sz += p.sz
-        period = math.pi / 2 if p.square else math.pi
-        k = 2 * math.pi / period
-        self.c2 += math.cos(k * p.yaw)
-        self.s2 += math.sin(k * p.yaw)
+        self.yaw += p.yaw
 
-    def mean(self, square: bool) -> Pose:
+    def copy(self) -> Refinement:
+        return Refinement(self.n, self.cx, self.cy, self.cz, self.sx, self.sy, self.sz, self.yaw)
+
+    def mean(self) -> Pose:
         n = self.n
-        period = math.pi / 2 if square else math.pi
-        yaw = (math.atan2(self.s2, self.c2) % (2 * math.pi)) * period / (2 * math.pi)
-        return Pose(self.cx / n, self.cy / n, self.cz / n, self.sx / n, self.sy / n, self.sz / n, yaw)
+        return box_pose(
+            self.cx / n, self.cy / n, self.cz / n, self.sx / n, self.sy / n, self.sz / n, yaw=self.yaw / n
+        )
 
 
 @dataclass(slots=True)

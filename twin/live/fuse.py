@@ -37,6 +37,7 @@ from twin.config.fusion import FusionClassRules
 from twin.errors import ObservationError
 from twin.fusion.footprints import (
     Pose,
+    aligned,
     box_pose,
     centre_distance,
     corners,
@@ -46,7 +47,7 @@ from twin.fusion.footprints import (
     pose_of,
     yaw_difference,
 )
-from twin.fusion.memory import TENTATIVE_TTL_NS, Alias, FusionMemory, Miss
+from twin.fusion.memory import TENTATIVE_TTL_NS, Alias, FusionMemory, Miss, Refinement
 from twin.ifc_classes import supertypes
 from twin.live.state import ElementState, LiveState
 from twin.records import ElementReport, Observation, ObservedBox, Shape
@@ -403,9 +404,10 @@ def fuse(
                 sizes = _is_box_element(ctx, target)
                 if _confirms(class_rules, pose, held, sizes=sizes):
                     refinement = track.refinement if track is not None else None
+                    sighted = aligned(pose, held)
                     mean = None
                     if refinement is not None and refinement.n + 1 >= rules.refine_after:
-                        mean = _mean_with(refinement, pose, held.square)
+                        mean = _mean_with(refinement, sighted)
                     if mean is not None and not _confirms(
                         class_rules, mean, held, sizes=sizes, fraction=rules.refine_fraction
                     ):
@@ -418,7 +420,7 @@ def fuse(
                         _pend(ctx, target, storey.key, mean, r=r, live=live)
                     else:
                         r = replace(r, box=None, storey=None)  # where it stood: on its storey too
-                        out.effects.append(_refine(target, pose))
+                        out.effects.append(_refine(target, sighted))
                 else:
                     out.effects.append(_reset_refinement(target))
                     other = _merge_target(ctx, target, state, pose, storey.key)
@@ -474,23 +476,10 @@ def _seen(memory: FusionMemory, iri: str) -> int:
     return 0 if t is None else t.seen_ns
 
 
-def _mean_with(refinement: object, pose: Pose, square: bool) -> Pose:
-    from twin.fusion.memory import Refinement  # noqa: PLC0415 (a copy, not the track's own)
-
-    assert isinstance(refinement, Refinement)
-    copy = Refinement(
-        refinement.n,
-        refinement.cx,
-        refinement.cy,
-        refinement.cz,
-        refinement.sx,
-        refinement.sy,
-        refinement.sz,
-        refinement.c2,
-        refinement.s2,
-    )
+def _mean_with(refinement: Refinement, pose: Pose) -> Pose:
+    copy = refinement.copy()
     copy.add(pose)
-    return copy.mean(square)
+    return copy.mean()
 
 
 def _pend(ctx: _Context, iri: str, storey: str, pose: Pose, *, r: ElementReport, live: LiveState) -> None:
@@ -599,8 +588,6 @@ def _reset_refinement(iri: str) -> Effect:
     def run(m: FusionMemory) -> None:
         t = m.tracks.get(iri)
         if t is not None:
-            from twin.fusion.memory import Refinement  # noqa: PLC0415
-
             t.refinement = Refinement()
 
     return run

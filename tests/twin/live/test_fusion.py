@@ -384,3 +384,20 @@ def test_held_tentative_a_one_off_detection_makes_no_element_and_a_second_sighti
     service.observer.clock = service.clock
     service.observer.expire_aliases()
     assert "urn:robot2:one-off" not in service.live.fusion.tentative
+
+
+def test_a_nearly_square_table_seen_at_every_quarter_turn_never_flaps() -> None:
+    service, _ = started()
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, sx=0.62, sy=0.6, yaw=0.2))
+    rng = np.random.default_rng(3)
+    for i in range(300):
+        dx, dy = rng.normal(0, 0.03, 2)
+        turn = (i % 4) * math.pi / 2 + rng.normal(0, math.radians(2))
+        sx, sy = (0.6, 0.62) if i % 3 else (0.62, 0.6)
+        reply = observe(
+            service,
+            f"robot{i % 3}",
+            box_turtle(f"urn:r{i % 3}:t", 6.6 + dx, 2.0 + dy, sx=sx, sy=sy, yaw=0.2 + turn),
+        )
+        assert reply.ok
+    assert service.revision <= 2
