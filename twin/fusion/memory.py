@@ -15,8 +15,9 @@ Example::
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
-from twin.fusion.footprints import Pose, box_pose
+from twin.fusion.footprints import Pose, box_pose, pose_of
 
 TENTATIVE_TTL_NS = 60 * 10**9
 """A tentative robot IRI not seen often enough within this long is forgotten."""
@@ -130,6 +131,17 @@ class FusionMemory:
     the first one's time); forgotten after :data:`TENTATIVE_TTL_NS` (a false detection seen once)."""
     distinct: set[str] = field(default_factory=set)
     """Elements robots said are distinct objects (never merged into another)."""
+    shape_poses: dict[str, tuple[object, object, Pose]] = field(default_factory=dict)
+    """Element -> (mesh, placement, pose): the pose of the shape it has, computed once per shape."""
+
+    def pose(self, iri: str, shape: tuple[Any, Any]) -> Pose:
+        """The pose of ``iri``'s current ``shape`` (cached while the shape's objects stay the same)."""
+        cached = self.shape_poses.get(iri)
+        if cached is not None and cached[0] is shape[0] and cached[1] is shape[1]:
+            return cached[2]
+        pose = pose_of(shape)
+        self.shape_poses[iri] = (shape[0], shape[1], pose)
+        return pose
 
     def track(self, iri: str) -> Track:
         t = self.tracks.get(iri)

@@ -44,7 +44,6 @@ from twin.fusion.footprints import (
     heights_overlap,
     inside,
     iou,
-    pose_of,
     yaw_difference,
 )
 from twin.fusion.memory import TENTATIVE_TTL_NS, Alias, FusionMemory, Miss, Refinement
@@ -77,6 +76,8 @@ class Fused:
     unaliased: list[str] = field(default_factory=list)
     """Aliases to forget (the IRI is an element of its own now)."""
     refined: list[str] = field(default_factory=list)
+    seen: list[str] = field(default_factory=list)
+    """Elements confirmed where they stand (no report left to plan for them)."""
     notes: list[str] = field(default_factory=list)
     """What fusion decided, for the event log (merges, refinements, removals by absence, stale)."""
     effects: list[Effect] = field(default_factory=list)
@@ -161,8 +162,9 @@ def index_element(live: LiveState, iri: str, state: ElementState | None) -> None
         return
     shape = live.maps.shape_of(iri)
     if shape is None:
+        memory.shape_poses.pop(iri, None)
         return
-    pose = pose_of(shape)
+    pose = memory.pose(iri, shape)
     storey = state.storey or storey_at(live, pose.zmin)
     if storey is not None:
         memory.poses.setdefault(storey, {})[iri] = pose
@@ -212,7 +214,7 @@ def _held_pose(ctx: _Context, iri: str) -> Pose | None:
     if pending is not None:
         return pending[1]
     shape = ctx.shapes[iri] if iri in ctx.shapes else ctx.live.maps.shape_of(iri)
-    return None if shape is None else pose_of(shape)
+    return None if shape is None else ctx.live.fusion.pose(iri, shape)
 
 
 def _candidates(ctx: _Context, storey: str) -> dict[str, Pose]:
@@ -421,6 +423,9 @@ def fuse(
                     else:
                         r = replace(r, box=None, storey=None)  # where it stood: on its storey too
                         out.effects.append(_refine(target, sighted))
+                        if _only_sighting(r, state):
+                            out.seen.append(target)
+                            continue  # a confirmation: nothing to plan
                 else:
                     out.effects.append(_reset_refinement(target))
                     other = _merge_target(ctx, target, state, pose, storey.key)
@@ -459,6 +464,23 @@ def fuse(
         )
     out.reports = tuple(reports)
     return out
+
+
+def _only_sighting(r: ElementReport, state: ElementState) -> bool:
+    """Nothing in ``r`` but what the element already is (its class), once its box confirmed it."""
+    return (
+        not _changes_something(r)
+        and not r.labels
+        and not r.materials
+        and not r.classes
+        and r.storey is None
+        and not r.unmerge
+        and (
+            r.ifc_class is None
+            or r.ifc_class in state.ifc_types
+            or r.ifc_class.lower() == state.ifc_class.lower()
+        )
+    )
 
 
 def _changes_something(r: ElementReport) -> bool:

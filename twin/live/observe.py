@@ -182,8 +182,8 @@ class Observer:
             aliases.update(fused.aliases)
             aliases.update((a, None) for a in fused.unaliased)
             self.stale += len(fused.stale)
-            for r in reports:
-                live.last_seen[r.iri] = Sighting(req.robot, req.received_ns)
+            for iri in (*(r.iri for r in reports), *fused.seen):
+                live.last_seen[iri] = Sighting(req.robot, req.received_ns)
             if plan.unchanged:
                 self.unchanged += 1
                 if fused.notes:
