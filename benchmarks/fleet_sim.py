@@ -576,7 +576,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             if e.detected is None or e.detected - (e.first_view or 0) > 10.0:
                 print(
                     f"late removal: {e.kind} of {e.obj} at {e.at - t0:.1f} s, place {e.place}, "
-                    f"first view {e.first_view and e.first_view - t0}, detected {e.detected and e.detected - t0}"
+                    f"first view {e.first_view and e.first_view - t0}, "
+                    f"detected {e.detected and e.detected - t0}"
                 )
     recall_hits = [e for e in viewed if e.detected is not None and e.detected - e.first_view <= 10.0]
     moves = [
