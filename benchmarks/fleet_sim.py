@@ -276,7 +276,10 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 fx, fy = polygon[rng.randrange(len(polygon))]
                 fx, fy = x + (fx - x) * 0.5, y + (fy - y) * 0.5
                 ghost = Obj(-1, fx, fy, 0.0, 0.5, 0.5, 0.6)
-                if all(world.is_free(*c) for c in ghost.corners()) and _inside(ghost.corners(), polygon).all():
+                if (
+                    all(world.is_free(*c) for c in ghost.corners())
+                    and _inside(ghost.corners(), polygon).all()
+                ):
                     false_count += 1
                     lines.append(
                         f'<urn:sim:{name}:false-{false_count}> twin:ifcClass "IfcFurniture" ; '
