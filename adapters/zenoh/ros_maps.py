@@ -387,14 +387,18 @@ class RosMapPublisher:
             return
         robot = str(sample.key_expr).split("/")[-2]
         try:
-            self.switch(robot, sample.payload.to_string().strip(), source="zenoh")
-        except (TwinError, UnicodeDecodeError) as err:
+            self.switch(robot, _storey_text(sample.payload.to_bytes()), source="zenoh")
+        except TwinError as err:  # a put has no reply: a warning, never a traceback
             log.warning("Refused a storey put on %s: %s", sample.key_expr, err)
 
     def _on_storey_get(self, query: zenoh.Query) -> None:
         assert self.keys is not None
-        wanted = query.payload.to_string().strip() if query.payload is not None else ""
         key = str(query.key_expr)
+        try:
+            wanted = _storey_text(query.payload.to_bytes()) if query.payload is not None else ""
+        except TwinError as err:
+            query.reply_err(str(err).encode(), encoding=TEXT)
+            return
         if "*" in key:  # a listing: every configured robot the selector matches
             if wanted:
                 query.reply_err(f"Name one robot to switch its storey, not {key}.".encode(), encoding=TEXT)
@@ -447,6 +451,21 @@ class RosMapPublisher:
             except Exception:
                 log.debug("undeclare failed", exc_info=True)
         self._latest.clear()
+
+
+def _storey_text(payload: bytes) -> str:
+    """The storey key a put or get on ``robots/<name>/storey`` carries (UTF-8 text, trimmed);
+    StoreySwitchError naming the bytes when they are not UTF-8 (zenoh's ``to_string`` would raise a
+    ValueError)."""
+    try:
+        return payload.decode("utf-8").strip()
+    except UnicodeDecodeError as err:
+        shown = payload[:32]
+        msg = (
+            f"A storey key is UTF-8 text; got {len(payload)} bytes that are not "
+            f"({err.reason} at byte {err.start}): {shown!r}{'...' if len(payload) > 32 else ''}."
+        )
+        raise StoreySwitchError(msg) from None
 
 
 __all__ = ["NODE_NAME", "STOREY_TOPIC", "RosMapPublisher"]
