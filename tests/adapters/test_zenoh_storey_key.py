@@ -99,7 +99,9 @@ def test_a_put_whose_payload_is_not_utf8_is_refused_with_a_warning_and_no_traceb
     assert _get(robot, None) == [(True, b"ground-floor")]
 
 
-@settings(max_examples=examples(40), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=examples(40), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(payload=st.binary(max_size=64))
 def test_any_bytes_on_the_storey_key_get_a_reply_and_leave_no_traceback(
     served: tuple[zenoh.Session, RosMapPublisher], caplog: pytest.LogCaptureFixture, payload: bytes
