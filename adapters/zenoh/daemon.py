@@ -157,7 +157,7 @@ class ZenohDaemon:
             out = self._outs[key] = _MapOut(latched, updates)
         now = self._answer(key)
         if now is not None:
-            out.latched.put(now[0], attachment=now[1])
+            out.latched.put(now[0], attachment=now[1], timestamp=now[2])
 
     def _update(self, event: MapUpdated) -> None:
         out = self._outs.get((event.storey, event.skill))
@@ -225,7 +225,8 @@ class ZenohDaemon:
                 name = self.keys.map(*key)
                 if zenoh.KeyExpr(name).intersects(query.key_expr) and (now := self._answer(key)) is not None:
                     query.reply(
-                        name, now[0], encoding=CDR, attachment=now[1], congestion_control=BLOCK,
+                        name, now[0], encoding=CDR, attachment=now[1], timestamp=now[2],
+                        congestion_control=BLOCK,
                         priority=MAP_PRIORITY,
                     )  # fmt: skip
         finally:

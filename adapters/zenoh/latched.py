@@ -100,8 +100,9 @@ class LatchedPublisher:
         self.queryable = session.declare_queryable(self.history_key, self._on_query)
         self.answered = 0
 
-    def put(self, payload: bytes, *, attachment: bytes | None = None) -> None:
-        self.publisher.put(payload, attachment=attachment)
+    def put(self, payload: bytes, *, attachment: bytes | None = None, timestamp: Any = None) -> None:
+        """Publish a full map; ``timestamp``: its version's (what a history reply of it carries too)."""
+        self.publisher.put(payload, attachment=attachment, timestamp=timestamp)
 
     def delete(self) -> None:
         self.publisher.delete()

@@ -123,12 +123,14 @@ class _Out:
     gid: bytes | None = None
     sequence: int = 0
 
-    def put(self, payload: bytes, stamp_ns: int) -> None:
+    def put(self, payload: bytes, stamp_ns: int, timestamp: Any = None) -> None:
+        """Publish ``payload``; ``timestamp``: the Zenoh timestamp of a full map's version."""
+        extra = {} if timestamp is None else {"timestamp": timestamp}
         if self.gid is None:
-            self.publisher.put(payload)
+            self.publisher.put(payload, **extra)
             return
         self.sequence += 1
-        self.publisher.put(payload, attachment=attachment(self.sequence, stamp_ns, self.gid))
+        self.publisher.put(payload, attachment=attachment(self.sequence, stamp_ns, self.gid), **extra)
 
     def reply_attachment(self, stamp_ns: int) -> bytes | None:
         """A history reply's attachment: the sequence number of the last map put (rmw_zenoh counts a
@@ -300,10 +302,7 @@ class RosMapPublisher:
         now = None if storey is None else self.maps.current((storey, t.skill))
         if now is None:
             return None
-        timestamp = now.timestamp
-        if t.shown is not None and (timestamp is None or t.shown > timestamp):
-            timestamp = t.shown  # the switch made this map the topic's map: never older than that
-        return now.payload, out.reply_attachment(now.stamp_ns), timestamp
+        return now.payload, out.reply_attachment(now.stamp_ns), _newer(now.timestamp, t.shown)
 
     # --- the sink (the daemon's dispatcher, or the service's thread when standalone) -----------------
     def emit(self, event: TwinEvent) -> None:
@@ -365,8 +364,9 @@ class RosMapPublisher:
         if now is None:
             return
         t.fulls += 1
+        timestamp = _newer(now.timestamp, t.shown)
         for out in t.maps:
-            out.put(now.payload, now.stamp_ns)
+            out.put(now.payload, now.stamp_ns, timestamp)
 
     def _update(self, event: MapUpdated) -> None:
         targets = self._on(event.storey, event.skill)
@@ -559,6 +559,14 @@ def _updates_publisher(session: zenoh.Session, key: str) -> zenoh.Publisher:
         congestion_control=BLOCK,
         priority=MAP_PRIORITY,
     )
+
+
+def _newer(version: Any, shown: Any) -> Any:
+    """The timestamp a topic's full map carries: its version's, or the storey switch that made it the
+    topic's map if that is later (a late joiner keeps one sample per timestamp, the newest)."""
+    if shown is not None and (version is None or shown > version):
+        return shown
+    return version
 
 
 def _put_all(outs: list[_Out], payload: bytes, stamp_ns: int) -> None:
