@@ -48,7 +48,9 @@ def _kind(key: str) -> str | None:
         return None
     if parts[0] == "twin":  # twin/<site>/map[_updates]/<storey>/<skill>
         return {"map": "full", "map_updates": "update"}.get(parts[2]) if len(parts) == 5 else None
-    topic = parts[2] if parts[0].isdigit() else parts[1]  # rmw: <domain>/<ns>/<topic>/..; bridge: <ns>/<topic>
+    topic = (
+        parts[2] if parts[0].isdigit() else parts[1]
+    )  # rmw: <domain>/<ns>/<topic>/..; bridge: <ns>/<topic>
     if topic.endswith("_updates"):
         return "update"
     return None if topic in ("storey",) or topic.endswith("_info") else "full"
@@ -64,24 +66,23 @@ def _topic(key: str) -> str:
     return f"bridge /{parts[0]}/{parts[1].removesuffix('_updates')}"
 
 
-def run_model(name: str, rate: float, duration: float, link_mbit: float, link_ms: float,
-              code: Path | None) -> dict[str, Any]:  # fmt: skip
-    import numpy as np
+def run_model(name: str, args: argparse.Namespace) -> dict[str, Any]:
+    rate, duration, code = args.rate, args.duration, args.code
     import zenoh
     import zenoh.ext
 
-    from adapters.ros import decode_occupancy_grid_update
-    from adapters.ros.cdr import OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE
-    from adapters.ros.rmw_zenoh import RosTopic
     from adapters.zenoh.client import TwinClient
     from adapters.zenoh.session import client_config
-    from tests.integration.throttle import ThrottlingProxy
 
     work = Path(tempfile.mkdtemp(prefix="twin-wifi-"))
     store = live.prepare_store(name, work)
     storey, (x0, y0, x1, y1), _ = live.busiest(store)
     config = work / "robot.toml"
-    config.write_text(f'[robots.robot1]\nnamespace = "/robot1"\nstorey = "{storey}"\n')
+    config.write_text(
+        f'[robots.robot1]\nnamespace = "/robot1"\nstorey = "{storey}"\n'
+        f'[robots.robot2]\nnamespace = "/robot2"\nstorey = "{storey}"\nros = ["rmw_zenoh"]\n'
+        '[robots.robot2.maps]\nnavigation_map = "navigation"\n'
+    )
     port = live._free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
     env = dict(os.environ)
@@ -105,6 +106,13 @@ def run_model(name: str, rate: float, duration: float, link_mbit: float, link_ms
     lock = threading.Lock()
     counting = threading.Event()
 
+    delays: list[tuple[float, float]] = []  # robot2's updates: (arrival, arrival - commit stamp in ms)
+
+    def on_robot2(sample: zenoh.Sample) -> None:
+        if counting.is_set() and _kind(str(sample.key_expr)) == "update" and sample.attachment is not None:
+            stamp = int.from_bytes(sample.attachment.to_bytes()[8:16], "little")
+            delays.append((time.monotonic(), (time.time_ns() - stamp) / 1e6))
+
     def on_sample(sample: zenoh.Sample) -> None:
         key = str(sample.key_expr)
         kind = _kind(key)
@@ -117,6 +125,7 @@ def run_model(name: str, rate: float, duration: float, link_mbit: float, link_ms
 
     session = zenoh.open(client_config([endpoint]))
     subs = [session.declare_subscriber(k, on_sample) for k in ("twin/**", "robot1/**", "0/robot1/**")]
+    subs.append(session.declare_subscriber("0/robot2/**", on_robot2))
     time.sleep(1.0)
     rng = random.Random(7)
     slow: dict[str, Any] = {}
@@ -135,12 +144,8 @@ def run_model(name: str, rate: float, duration: float, link_mbit: float, link_ms
                 sent += 1
                 if joiner is None and time.monotonic() - t0 >= duration / 2:
                     joiner = threading.Thread(
-                        target=_slow_joiner,
-                        args=(port, link_mbit, link_ms, slow, np, zenoh, client_config, ThrottlingProxy,
-                              RosTopic, OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE, decode_occupancy_grid_update,
-                              t0 + duration + 3.0),
-                        daemon=True,
-                    )  # fmt: skip
+                        target=_slow_joiner, args=(port, args, slow, t0 + duration + 3.0), daemon=True
+                    )
                     joiner.start()
             elapsed = time.monotonic() - t0
             time.sleep(1.0)  # the last samples
@@ -164,18 +169,33 @@ def run_model(name: str, rate: float, duration: float, link_mbit: float, link_ms
             "update_kb": round(c["update_bytes"] / 1024, 1),
             "kb_per_s": round(total / 1024 / window, 1),
         }
+    joined = slow.pop("joined", None)
+    during = [d for t, d in delays if joined is not None and joined[0] <= t <= joined[1]]
+    others = [d for t, d in delays if joined is None or not joined[0] <= t <= joined[1]]
+    slow["robot2_update_ms"] = {
+        "while_joining": [len(during), round(max(during, default=float("nan")), 1)],
+        "otherwise_p50_p99_max": [round(live._pct(others, 50), 1), round(live._pct(others, 99), 1),
+                                  round(max(others, default=float("nan")), 1)],
+    }  # fmt: skip
     return {"model": live.model_label(name), "storey": storey, "moves": sent, "seconds": round(elapsed, 2),
             "rate": round(sent / elapsed, 1), "topics": topics, "slow_link": slow}  # fmt: skip
 
 
-def _slow_joiner(port: int, mbit: float, ms: float, out: dict[str, Any], np: Any, zenoh: Any,
-                 client_config: Any, proxy_type: Any, topic_type: Any, grid_type: str, update_type: str,
-                 decode_update: Any, until: float) -> None:  # fmt: skip
+def _slow_joiner(port: int, args: argparse.Namespace, out: dict[str, Any], until: float) -> None:
     """Join late through the emulated link: time to the navigation map, updates in order after it."""
-    maps = topic_type(0, "/robot1", "navigation_map", grid_type)
-    updates = topic_type(0, "/robot1", "navigation_map_updates", update_type)
+    import zenoh
+    import zenoh.ext
+
+    from adapters.ros.cdr import OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE
+    from adapters.ros.rmw_zenoh import RosTopic
+    from adapters.zenoh.session import client_config
+    from tests.integration.throttle import ThrottlingProxy
+
+    mbit, ms = args.link_mbit, args.link_ms
+    maps = RosTopic(0, "/robot1", "navigation_map", OCCUPANCY_GRID)
+    updates = RosTopic(0, "/robot1", "navigation_map_updates", OCCUPANCY_GRID_UPDATE)
     got: dict[str, Any] = {"map_at": None, "maps": 0, "updates": 0, "seqs": []}
-    with proxy_type(("127.0.0.1", port), rate_bps=mbit * 1e6, latency_s=ms / 1000) as proxy:
+    with ThrottlingProxy(("127.0.0.1", port), rate_bps=mbit * 1e6, latency_s=ms / 1000) as proxy:
         t0 = time.monotonic()
         session = zenoh.open(client_config([f"tcp/127.0.0.1:{proxy.port}"]))
 
@@ -183,6 +203,7 @@ def _slow_joiner(port: int, mbit: float, ms: float, out: dict[str, Any], np: Any
             got["maps"] += 1
             if got["map_at"] is None:
                 got["map_at"] = time.monotonic() - t0
+                out["joined"] = (t0, time.monotonic())
                 got["map_bytes"] = len(sample.payload)
 
         def on_update(sample: Any) -> None:
@@ -219,7 +240,7 @@ def main() -> int:
             print("Janesville is not in the shared corpus here: skipped", file=sys.stderr)
             continue
         print(f"{name}: measuring ...", file=sys.stderr, flush=True)
-        rows.append(run_model(name, args.rate, args.duration, args.link_mbit, args.link_ms, args.code))
+        rows.append(run_model(name, args))
     print("| model | topic | full maps | full KB | updates | update KB | KB/s |")
     print("|---|---|---|---|---|---|---|")
     for r in rows:
@@ -227,7 +248,8 @@ def main() -> int:
             print(f"| {r['model']} | {topic} | {t['full_maps']} | {t['full_kb']} | {t['updates']} | "
                   f"{t['update_kb']} | {t['kb_per_s']} |")  # fmt: skip
     for r in rows:
-        print(f"{r['model']}: {r['moves']} moves in {r['seconds']} s ({r['rate']}/s); slow link: {r['slow_link']}")
+        moves = f"{r['moves']} moves in {r['seconds']} s ({r['rate']}/s)"
+        print(f"{r['model']}: {moves}; slow link: {r['slow_link']}")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
     return 0

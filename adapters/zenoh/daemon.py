@@ -224,11 +224,7 @@ class ZenohDaemon:
             for key in self.maps.held():
                 name = self.keys.map(*key)
                 if zenoh.KeyExpr(name).intersects(query.key_expr) and (now := self._answer(key)) is not None:
-                    query.reply(
-                        name, now[0], encoding=CDR, attachment=now[1], timestamp=now[2],
-                        congestion_control=BLOCK,
-                        priority=MAP_PRIORITY,
-                    )  # fmt: skip
+                    query.reply(name, now[0], encoding=CDR, attachment=now[1], timestamp=now[2])
         finally:
             query.drop()
 

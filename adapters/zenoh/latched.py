@@ -14,8 +14,10 @@ declares the ``AdvancedPublisher`` with publisher detection and **no cache**, an
 protocol itself: a queryable on exactly the suffix the stock cache would use
 (``<key>/@adv/pub/<zid>/<eid or uhlc>/**``) replies with the *current* map (what ``answer`` returns:
 the latest version, updates applied), on the topic's own key, on the caller's send lane (so the reply is
-ordered with the topic's updates), with congestion control BLOCK. A reply cannot carry zenoh-ext's
-source info from Python, so it carries the version's Zenoh timestamp instead: zenoh-ext's subscriber
+ordered with the topic's updates). A reply travels with its query's QoS (zenoh 1.x ignores the
+replier's): zenoh-ext's history queries are congestion BLOCK at DATA priority, as the live samples.
+A reply cannot carry zenoh-ext's source info from Python, so it carries the version's Zenoh timestamp
+instead: zenoh-ext's subscriber
 keeps one sample per timestamp, so the same version answered to its history query, its late-publisher
 query and a heartbeat's recovery query (``_sn=..``) is delivered once. Live samples keep the sequence
 numbers of the ``AdvancedPublisher`` (with the sporadic heartbeat for rmw_zenoh), which its miss
@@ -115,15 +117,9 @@ class LatchedPublisher:
             now = self.answer()
             if now is not None:
                 payload, attachment, timestamp = now
-                query.reply(
-                    self.key,
-                    payload,
-                    encoding=CDR,
-                    attachment=attachment,
-                    timestamp=timestamp,
-                    congestion_control=BLOCK,
-                    priority=MAP_PRIORITY,
-                )
+                # a reply travels with the query's QoS: zenoh-ext's history queries (and a get) are
+                # BLOCK at DATA priority by default, as the map's live samples
+                query.reply(self.key, payload, encoding=CDR, attachment=attachment, timestamp=timestamp)
                 self.answered += 1
         finally:
             query.drop()

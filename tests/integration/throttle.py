@@ -18,6 +18,7 @@ Example::
 from __future__ import annotations
 
 import collections
+import contextlib
 import socket
 import threading
 import time
@@ -77,10 +78,8 @@ class _Pipe:
         except OSError:
             pass
         for s in (self.dst, self.src):
-            try:
+            with contextlib.suppress(OSError):
                 s.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
 
 
 class ThrottlingProxy:
@@ -121,13 +120,13 @@ class ThrottlingProxy:
     def close(self) -> None:
         self._server.close()
         for s in self._sockets:
-            try:
+            with contextlib.suppress(OSError):
                 s.close()
-            except OSError:
-                pass
 
     def __enter__(self) -> ThrottlingProxy:
         return self
 
-    def __exit__(self, kind: type[BaseException] | None, err: BaseException | None, tb: TracebackType | None) -> None:
+    def __exit__(
+        self, kind: type[BaseException] | None, err: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()
