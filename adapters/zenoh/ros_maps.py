@@ -34,10 +34,11 @@ changes nothing; the same storey again is a no-op (robots re-report it often).
 **What goes out.** After a topic's first map, a change goes out as its update only; the topic's map
 goes out in full on a storey switch, on the twin's keyframes (:mod:`twin.live.publication`) and, for a
 topic with a ``full_every_s`` policy (``[robots.NAME] full_every_s = { map = 10 }``, for subscribers
-that do not apply updates: AMCL, a static layer with ``subscribe_to_updates: false``), at most every
-that many seconds while its map changes (after the update; never for a change that leaves the topic's
-map unchanged). A late joiner (rmw_zenoh's ``TRANSIENT_LOCAL`` history query, the bridge's route) is
-answered with the current map by :class:`~adapters.zenoh.latched.LatchedPublisher`.
+that do not apply updates: AMCL, a static layer with ``subscribe_to_updates: false``; a mask topic
+defaults to 1 s, as nav2's costmap filters read only full masks), at most every that many seconds
+while its map changes (after the update; never for a change that leaves the topic's map unchanged).
+A late joiner (rmw_zenoh's ``TRANSIENT_LOCAL`` history query, the bridge's route) is answered with
+the current map by :class:`~adapters.zenoh.latched.LatchedPublisher`.
 
 **One holder, one lane per robot.** Every full map sent (switch, keyframe, policy, history reply) is
 read from :class:`~adapters.zenoh.latest.LatestMaps`, the daemon's one holder of each map's latest
@@ -110,6 +111,9 @@ NODE_NAME = "twin_map_server"
 STOREY_TOPIC = "storey"
 RMW_HEARTBEAT_S = 0.5
 """The sporadic heartbeat of rmw_zenoh's latched (TRANSIENT_LOCAL) publishers, seconds."""
+MASK_FULL_EVERY_S = 1.0
+"""The ``full_every_s`` of a mask topic (keepout, speed) unless configured: nav2's costmap filters read
+only full masks, never ``_updates``, and a zone must reach them within a second, not a keyframe later."""
 TEXT = zenoh.Encoding.TEXT_PLAIN
 Source = str  # "zenoh" or "ros"
 
@@ -228,7 +232,9 @@ class RosMapPublisher:
             if rmw:
                 r.entities.append(session.liveliness().declare_token(node.node_token()))
             for name, skill in robot.maps:
-                t = _Topic(name, skill, policy.get(name))
+                mask = config.skills.get(skill)
+                every = policy.get(name, MASK_FULL_EVERY_S if mask is not None and mask.is_mask else None)
+                t = _Topic(name, skill, every)
                 map_topic = RosTopic(robot.domain_id, robot.namespace, name, OCCUPANCY_GRID)
                 upd_topic = RosTopic(
                     robot.domain_id, robot.namespace, f"{name}_updates", OCCUPANCY_GRID_UPDATE
@@ -244,7 +250,6 @@ class RosMapPublisher:
                     t.updates.append(_Out(_updates_publisher(session, upd_topic.data_key), gid=gid_of(token)))
                     r.entities.append(session.liveliness().declare_token(token))
                     entity += 2
-                mask = config.skills.get(skill)
                 if mask is not None and mask.is_mask:
                     self._declare_info(t, robot, node, mask=map_topic, entity=entity, tokens=r.entities)
                     entity += 1
