@@ -106,11 +106,13 @@ class Follower:
         self.session = zenoh.open(client_config([endpoint]))
         self.entities: list[Any] = [
             self.session.declare_subscriber(updates.data_key if rmw else updates.bridge_key, self._on_update),
-            zenoh.ext.declare_advanced_subscriber(
+            zenoh.ext.declare_advanced_subscriber(  # rmw_zenoh: also recovery by heartbeat (RELIABLE)
                 self.session,
                 maps.data_key if rmw else maps.bridge_key,
                 self._on_map,
-                history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
+                recovery=zenoh.ext.RecoveryConfig(heartbeat=True) if rmw else None,
+                subscriber_detection=rmw,
             ),
         ]
 

@@ -68,11 +68,13 @@ class RosFollower:
         self.early_updates = 0
         self.session = zenoh.open(client_config([endpoint]))
         self._upd = self.session.declare_subscriber(updates.data_key, self._on_update)
-        self._map = zenoh.ext.declare_advanced_subscriber(
+        self._map = zenoh.ext.declare_advanced_subscriber(  # as rmw_subscription_data.cpp: depth 1, RELIABLE
             self.session,
             maps.data_key,
             self._on_map,
-            history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
+            history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
+            recovery=zenoh.ext.RecoveryConfig(heartbeat=True),
+            subscriber_detection=True,
         )
 
     def _on_map(self, sample: zenoh.Sample) -> None:
