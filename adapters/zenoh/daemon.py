@@ -121,8 +121,9 @@ class ZenohDaemon:
             key = (event.grid.storey, event.grid.skill)
             self.site.put(lambda: self._publish(key))
         elif isinstance(event, MapUpdated):
-            if not self.maps.update(event):
-                log.warning("An update of %s/%s came before its map: ignored", event.storey, event.skill)
+            if not self.maps.update(event):  # its full map follows (first map, or a new extent)
+                log.debug("An update of %s/%s without its map (of that extent) held: its full map follows",
+                          event.storey, event.skill)  # fmt: skip
                 return
             self.site.put(lambda: self._update(event))
         elif isinstance(event, MapRemoved):
