@@ -37,7 +37,7 @@ navigation_map = "navigation"
 [robots.robot2]
 namespace = "/robot2"
 storey = "ground-floor"
-ros = ["rmw_zenoh"]
+ros = ["rmw_zenoh", "bridge"]
 [robots.robot2.maps]
 navigation_map = "navigation"
 """
@@ -56,37 +56,44 @@ def two_robots(fresh_store: Path, tmp_path: Path) -> Iterator[Daemon]:
 
 
 class RosFollower:
-    """A robot's copy of ``/<ns>/navigation_map``: the latched map, then every update in order."""
+    """A robot's copy of ``/<ns>/navigation_map``: the latched map, then every update in order (rmw_zenoh
+    layout; ``bridge``: the keys a zenoh-bridge-ros2dds route follows, without attachment)."""
 
-    def __init__(self, endpoint: str, ns: str) -> None:
+    def __init__(self, endpoint: str, ns: str, *, bridge: bool = False) -> None:
         maps = RosTopic(0, ns, "navigation_map", OCCUPANCY_GRID)
         updates = RosTopic(0, ns, "navigation_map_updates", OCCUPANCY_GRID_UPDATE)
+        self.bridge = bridge
         self.lock = threading.Lock()
         self.grid: np.ndarray | None = None
         self.maps = 0
         self.updates: list[int] = []  # rmw sequence numbers of the updates applied after the first map
         self.early_updates = 0
         self.session = zenoh.open(client_config([endpoint]))
-        self._upd = self.session.declare_subscriber(updates.data_key, self._on_update)
+        self._upd = self.session.declare_subscriber(
+            updates.bridge_key if bridge else updates.data_key, self._on_update
+        )
         self._map = zenoh.ext.declare_advanced_subscriber(  # as rmw_subscription_data.cpp: depth 1, RELIABLE
             self.session,
-            maps.data_key,
+            maps.bridge_key if bridge else maps.data_key,
             self._on_map,
             history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
-            recovery=zenoh.ext.RecoveryConfig(heartbeat=True),
-            subscriber_detection=True,
+            recovery=None if bridge else zenoh.ext.RecoveryConfig(heartbeat=True),
+            subscriber_detection=not bridge,
         )
 
     def _on_map(self, sample: zenoh.Sample) -> None:
-        assert sample.attachment is not None
+        assert self.bridge or sample.attachment is not None
         msg = deserialize_message(sample.payload.to_bytes(), RosOccupancyGrid)  # as rclpy reads it
         grid = np.asarray(msg.data, dtype=np.int8).reshape(msg.info.height, msg.info.width)
         with self.lock:
             self.grid, self.maps = grid.copy(), self.maps + 1
 
     def _on_update(self, sample: zenoh.Sample) -> None:
-        assert sample.attachment is not None
-        seq, _, _ = parse_attachment(sample.attachment.to_bytes())
+        if self.bridge:
+            seq = len(self.updates) + 1  # no attachment on the bridge's keys: count them
+        else:
+            assert sample.attachment is not None
+            seq, _, _ = parse_attachment(sample.attachment.to_bytes())
         window, cells, _ = decode_occupancy_grid_update(sample.payload.to_bytes())
         with self.lock:
             if self.grid is None:
@@ -138,17 +145,26 @@ def test_a_robot_joining_late_over_a_slow_link_gets_the_map_then_every_update_in
         time.sleep(0.5)
         slow = RosFollower(f"tcp/127.0.0.1:{proxy.port}", "/robot1")  # joins while the table moves
         slow.wait_for_map()
+        bridge = RosFollower(d.endpoint, "/robot2", bridge=True)  # late too, in the other layouts
+        watcher_client = TwinClient.connect([d.endpoint])
+        watcher = watcher_client.watch("ground-floor", "navigation")
+        bridge.wait_for_map()
         time.sleep(1.5)
         stop.set()
         thread.join(timeout=30)
         time.sleep(1.0)  # the last updates over the slow link
         with TwinClient.connect([d.endpoint]) as client:
-            current, _, _ = client.get_map("ground-floor", "navigation")
+            current, _, version = client.get_map("ground-floor", "navigation")
+        native = watcher.wait_for(lambda v: v.version == version, timeout_s=10)
+        watcher.close()
+        watcher_client.close()
+        np.testing.assert_array_equal(native.grid.data, current.data)  # the native layout (twin watch)
         slow.close()
+        bridge.close()
         assert proxy.accepted == 1  # its transport was never closed (a reconnection would be a second)
     fast.close()
     assert moves[0] >= 30
-    for robot in (slow, fast):
+    for robot in (slow, fast, bridge):
         assert robot.grid is not None
         np.testing.assert_array_equal(robot.grid, current.data)  # bit for bit, every change in it
         assert robot.maps == 1  # the late joiner's one map, then updates only
