@@ -286,6 +286,7 @@ class ZenohDaemon:
 
     def _on_status(self, query: zenoh.Query) -> None:
         status = self.service.status()
+        status["maps"] = self.maps.versions()  # the latest versions, updates included
         for source in self.status_sources:
             status.update(source())
         query.reply(self.keys.status, json.dumps(status).encode(), encoding=JSON)

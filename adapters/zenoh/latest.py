@@ -96,6 +96,14 @@ class LatestMaps:
         with self._lock:
             return sorted(self._maps)
 
+    def versions(self) -> list[dict[str, object]]:
+        """``{"storey", "skill", "version", "revision"}`` of every map held (its latest version), sorted."""
+        with self._lock:
+            return [
+                {"storey": s, "skill": k, "version": h.version, "revision": h.revision}
+                for (s, k), h in sorted(self._maps.items())
+            ]
+
     def version(self, key: MapKey) -> int | None:
         with self._lock:
             held = self._maps.get(key)

@@ -155,6 +155,9 @@ def test_a_robot_joining_late_over_a_slow_link_gets_the_map_then_every_update_in
         time.sleep(1.0)  # the last updates over the slow link
         with TwinClient.connect([d.endpoint]) as client:
             current, _, version = client.get_map("ground-floor", "navigation")
+            status = client.status()
+        listed = [m for m in status["maps"] if (m["storey"], m["skill"]) == ("ground-floor", "navigation")]
+        assert [m["version"] for m in listed] == [version]  # the latest version, not the last full map's
         native = watcher.wait_for(lambda v: v.version == version, timeout_s=10)
         watcher.close()
         watcher_client.close()

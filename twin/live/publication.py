@@ -1,4 +1,4 @@
-"""Full maps out: when a map goes out in full, and the latest full version of every map.
+"""Full maps out: when a map goes out in full, and when each map last did.
 
 A change costs its changed cells: its updates (the changed rectangles) go out at once and nothing else.
 A map goes out in full (:class:`~twin.events.MapPublished`) only
@@ -27,23 +27,26 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from twin.events import MapPublished, TwinEvent
-from twin.grid import OccupancyGrid
+from twin.grid import GridFrame
 from twin.live.live_map import LiveMap
 from twin.live.overlay import MapKey
 
 
 @dataclass(frozen=True, slots=True)
 class PublishedMap:
-    """The latest full version of a map that was published."""
+    """What went out with a map's latest full publication (not the cells: the live map holds those,
+    and the adapters hold what they sent)."""
 
-    grid: OccupancyGrid
+    storey: str
+    skill: str
+    frame: GridFrame
     revision: int
     version: int
     stamp_ns: int
 
 
 class Publication:
-    """Which full map versions went out, and which changed maps owe a keyframe. One writer."""
+    """When each map last went out in full, and which changed maps owe a keyframe. One writer."""
 
     def __init__(
         self, *, emit: Callable[[TwinEvent], None], clock: Callable[[], int], keyframe_s: float
@@ -59,7 +62,7 @@ class Publication:
         """Publish the full current version of ``m``."""
         stamp = self.clock() if stamp is None else stamp
         grid = m.grid()
-        self.latest[m.key] = PublishedMap(grid, revision, m.version, stamp)
+        self.latest[m.key] = PublishedMap(grid.storey, grid.skill, grid.frame, revision, m.version, stamp)
         self.pending.pop(m.key, None)
         self.emit(MapPublished(grid, revision, m.version, stamp))
 
@@ -75,7 +78,7 @@ class Publication:
     def due(self, key: MapKey, m: LiveMap, now: int) -> bool:
         """Whether changed map ``key`` goes out in full now: its keyframe is due, or its extent changed."""
         last = self.latest.get(key)
-        return last is None or now - last.stamp_ns >= self.keyframe_ns or last.grid.frame != m.plan.frame
+        return last is None or now - last.stamp_ns >= self.keyframe_ns or last.frame != m.plan.frame
 
     def flush(self, maps: Mapping[MapKey, LiveMap], revision: int, *, due_only: bool = False) -> None:
         """Publish the full version of every map changed since its last full publication; with
