@@ -8,11 +8,12 @@ navigation for the costmap's static layer) carries that skill's map of the robot
 (``map_msgs/OccupancyGridUpdate``), in the layouts the robot asks for:
 
 - ``bridge``: keys ``<ns>/<topic>`` and ``<ns>/<topic>_updates`` as zenoh-bridge-ros2dds routes them to
-  DDS; the map from an AdvancedPublisher with a cache and publisher detection (the bridge's route is an
-  AdvancedSubscriber with history);
+  DDS; the map from a :class:`~adapters.zenoh.latched.LatchedPublisher` (publisher detection, late
+  joiners answered with the current map: the bridge's route is an AdvancedSubscriber with history);
 - ``rmw_zenoh``: rmw_zenoh_cpp's data keys with domain, DDS type name and RIHS01 hash, every sample
   with the 33-byte rmw attachment (sequence number per publisher from 1, source time, gid); the map
-  from an AdvancedPublisher with a cache of 1, publisher detection and a 500 ms sporadic heartbeat;
+  from a LatchedPublisher with publisher detection and a 500 ms sporadic heartbeat, as rmw_zenoh's
+  TRANSIENT_LOCAL publishers (whose subscriptions query history and recover by heartbeat);
   and liveliness tokens (one per publisher and subscriber) that put the daemon in the ROS graph as
   node ``<ns>/twin_map_server``.
 
