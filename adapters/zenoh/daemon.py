@@ -125,7 +125,8 @@ class ZenohDaemon:
                 log.debug("An update of %s/%s without its map (of that extent) held: its full map follows",
                           event.storey, event.skill)  # fmt: skip
                 return
-            self.site.put(lambda: self._update(event))
+            timestamp = self.maps.timestamp_of((event.storey, event.skill))
+            self.site.put(lambda: self._update(event, timestamp))
         elif isinstance(event, MapRemoved):
             self.maps.remove((event.storey, event.skill))
             self.site.put(lambda: self._remove(event.storey, event.skill))
@@ -160,14 +161,18 @@ class ZenohDaemon:
         if now is not None:
             out.latched.put(now[0], attachment=now[1], timestamp=now[2])
 
-    def _update(self, event: MapUpdated) -> None:
+    def _update(self, event: MapUpdated, timestamp: Any) -> None:
+        """On the site lane: the update, with its version's timestamp (so a router's storage that
+        applies it never looks newer than the daemon's later versions)."""
         out = self._outs.get((event.storey, event.skill))
         if out is None:
             return
         payload = encode_update_cells(
             event.frame, event.window, event.data, stamp_ns=event.stamp_ns, frame_id=self.frame_id
         )
-        out.updates.put(payload, attachment=revision_attachment(event.revision, event.version))
+        out.updates.put(
+            payload, attachment=revision_attachment(event.revision, event.version), timestamp=timestamp
+        )
 
     def _remove(self, storey: str, skill: str) -> None:
         out = self._outs.pop((storey, skill), None)

@@ -96,6 +96,12 @@ class LatestMaps:
         with self._lock:
             return sorted(self._maps)
 
+    def timestamp_of(self, key: MapKey) -> Any:
+        """The Zenoh timestamp of map ``key``'s latest version (None: not held, or no timestamps)."""
+        with self._lock:
+            held = self._maps.get(key)
+            return None if held is None else held.timestamp
+
     def versions(self) -> list[dict[str, object]]:
         """``{"storey", "skill", "version", "revision"}`` of every map held (its latest version), sorted."""
         with self._lock:
