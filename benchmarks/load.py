@@ -206,7 +206,7 @@ def run(
     for out, err in outputs:
         attempts += [json.loads(ln) for ln in out if ln.startswith("{")]
         errors += [ln.strip() for ln in err if ln.strip()][:3]
-    time.sleep(1.0)  # the last full maps follow their updates by full_map_interval_s
+    time.sleep(1.0)  # the last updates reach every subscriber
     with TwinClient.connect([endpoint], timeout_s=30.0) as twin:
         daemon_final = {}
         for skill in SKILLS:

@@ -266,7 +266,7 @@ def _run(
         next_at += sample_s
     for r in readers:
         r.join(timeout=60)
-    time.sleep(1.0)  # the last full maps follow their updates by full_map_interval_s
+    time.sleep(1.0)  # the last updates reach every subscriber
     with TwinClient.connect([endpoint], timeout_s=30.0) as twin:
         daemon_final = {}
         for skill in load.SKILLS:

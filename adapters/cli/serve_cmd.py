@@ -33,7 +33,6 @@ from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
-from adapters.zenoh.outbox import OutboxSink
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
@@ -160,11 +159,12 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=cfg.frame_id)
             if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
                 ros = RosMapPublisher(
-                    session, cfg, keys=keys, sinks=service.sinks, revision=lambda: service.revision
-                )
+                    session, cfg, keys=keys, sinks=service.sinks, revision=lambda: service.revision,
+                    maps=daemon.maps,
+                )  # fmt: skip
                 daemon.status_sources.append(ros.status)
-            ros_sink = OutboxSink(ros, daemon.outbox) if ros is not None else None  # off the writer too
-            service.sinks += [sink for sink in (daemon, ros_sink, recorder) if sink is not None]
+                daemon.followers.append(ros)  # on the daemon's dispatcher, a lane per robot
+            service.sinks += [sink for sink in (daemon, recorder) if sink is not None]
             t0 = time.perf_counter()
             source = store_label(args, cfg)
             print(f"loading site {cfg.site!r} from {source} ...", file=sys.stderr, flush=True)

@@ -70,8 +70,9 @@ class MapVersion:
 class MapWatcher:
     """Keeps a copy of one map current: the latched full map, then updates applied in order.
 
-    An update applies when it brings the copy from version V to V+1; otherwise (a missed update) the
-    copy waits for the next full map, which the daemon publishes within a second of any change.
+    An update applies when it brings the copy from version V to V+1; after a missed update (a gap) the
+    watcher asks for the current map (a ``get``, at most once a second) and goes on from it; the
+    daemon's keyframes (at most every ``keyframe_interval_s``) would heal it too.
     """
 
     def __init__(
@@ -89,6 +90,8 @@ class MapWatcher:
         """How many versions the copy went through (only the latest is kept: a watcher runs all day)."""
         self._cond = threading.Condition()
         self._pending: list[tuple[int, int, Any, Any]] = []  # updates that came before their base
+        self._ask = lambda: session.get(keys.map(storey, skill), self._on_reply, timeout=10.0)
+        self._asked = 0.0  # when the current map was last asked for after a gap (monotonic s)
         self._follow = LatchedSubscription(
             session,
             keys.map(storey, skill),
@@ -143,6 +146,12 @@ class MapWatcher:
                 self._pending = [p for p in self._pending if p[0] > base.version]
                 nxt = next((p for p in self._pending if p[0] == base.version + 1), None)
                 if nxt is None:
+                    gap = bool(self._pending) and time.monotonic() - self._asked >= 1.0
+                    if gap:
+                        self._asked = time.monotonic()
+                if nxt is None:
+                    if gap:  # an update was missed: ask for the current map
+                        self._ask()
                     return
                 self._pending.remove(nxt)
             version, revision, window, cells = nxt

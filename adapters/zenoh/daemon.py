@@ -2,18 +2,24 @@
 
 Declares, under the site's prefix (see :class:`~adapters.zenoh.keys.SiteKeys`):
 
-- per map, an advanced publisher on ``map/<storey>/<skill>`` (cache of one, publisher detection:
-  latched) and a publisher on ``map_updates/<storey>/<skill>``; both reliable, congestion BLOCK;
-  samples carry the attachment ``{"revision": R, "version": V}`` (JSON);
-- a queryable on ``map/**`` answering ``get`` with the latest full maps (CDR ``OccupancyGrid``);
+- per map, a latched publisher on ``map/<storey>/<skill>`` (:class:`~adapters.zenoh.latched.LatchedPublisher`:
+  full maps, and late joiners answered with the current map) and a publisher on
+  ``map_updates/<storey>/<skill>``; both reliable, congestion BLOCK, one priority; samples carry the
+  attachment ``{"revision": R, "version": V}`` (JSON);
+- a queryable on ``map/**`` answering ``get`` with the current maps (CDR ``OccupancyGrid``, every
+  committed change in it; to the asker alone);
 - a subscriber on ``observations/*`` (best effort: errors are logged) and a queryable on
   ``observe/*`` (the JSON ack once the change is durable, or ``reply_err`` with the error);
 - a subscriber on ``skills/*`` (put a JSON profile, delete to remove) and a queryable listing them;
 - queryables ``sparql`` (read-only) and ``status``; the liveliness token ``daemon``.
 
-Zenoh callbacks only enqueue work for the service's thread or read immutable snapshots. What the
-service's thread sends (map samples, acks) goes through the :class:`~adapters.zenoh.outbox.Outbox`, in
-order, so the writer never waits for Zenoh.
+Zenoh callbacks only enqueue work for the service's thread or read immutable snapshots. The one way off
+the writer's thread is the daemon's dispatcher (:attr:`ZenohDaemon.outbox`): in the order the writer
+emitted, it brings :attr:`ZenohDaemon.maps` (the one holder of each map's latest version) up to date,
+then hands the sends to *lanes*, one thread each: the site's keys and acks on :attr:`ZenohDaemon.site`,
+and each ROS 2 robot's topics on that robot's own lane (the ``followers``, e.g.
+:class:`~adapters.zenoh.ros_maps.RosMapPublisher`). A blocking send (a big map on a slow link) holds only
+its lane: the writer never waits for Zenoh, and one robot never waits for another.
 
 Example::
 
@@ -29,19 +35,19 @@ from __future__ import annotations
 
 import json
 import logging
-import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import zenoh
 
-from adapters.ros import encode_occupancy_grid, encode_update_cells
+from adapters.ros import encode_update_cells
 from adapters.zenoh.keys import SiteKeys
-from adapters.zenoh.latched import CDR, declare_latched_publisher
+from adapters.zenoh.latched import BLOCK, CDR, MAP_PRIORITY, Answer, LatchedPublisher
+from adapters.zenoh.latest import LatestMaps
 from adapters.zenoh.outbox import Outbox
 from twin.errors import TwinError
-from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
+from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent, TwinSink, TwinStarted
 from twin.live import Reply, TwinService
 
 log = logging.getLogger(__name__)
@@ -56,11 +62,8 @@ def revision_attachment(revision: int, version: int) -> bytes:
 
 @dataclass(slots=True)
 class _MapOut:
-    latched: Any  # zenoh.ext.AdvancedPublisher
+    latched: LatchedPublisher
     updates: zenoh.Publisher
-    full: bytes  # the CDR of the last full map published
-    revision: int
-    version: int
 
 
 class ZenohDaemon:
@@ -73,9 +76,16 @@ class ZenohDaemon:
         self.service = service
         self.keys = keys
         self.frame_id = frame_id
-        self._maps: dict[tuple[str, str], _MapOut] = {}
-        self._lock = threading.Lock()
+        self.maps = LatestMaps(frame_id=frame_id, timestamp=session.new_timestamp)
+        """Each map's latest version, updates applied: what a get and a late joiner are answered with."""
+        self._outs: dict[tuple[str, str], _MapOut] = {}
         self.outbox = Outbox("twin-zenoh-out")
+        """The dispatcher: the writer's events, in order, off its thread."""
+        self.site = Outbox("twin-zenoh-site")
+        """The lane of the site's keys (maps, updates) and of the replies to requests."""
+        self.followers: list[TwinSink] = []
+        """Sinks that publish maps too (the ROS 2 topics): called on the dispatcher after :attr:`maps`
+        is up to date; they make their sends on lanes of their own."""
         self.status_sources: list[Callable[[], dict[str, object]]] = []
         """More sections of the status reply (e.g. the ROS robots' storeys), merged over the service's."""
         self._declared: list[Any] = [
@@ -92,54 +102,80 @@ class ZenohDaemon:
 
     # --- sink ---------------------------------------------------------------------------------------
     def emit(self, event: TwinEvent) -> None:
-        if isinstance(event, MapPublished | MapUpdated | MapRemoved):
-            self.outbox.put(lambda: self._send(event))
+        if isinstance(event, MapPublished | MapUpdated | MapRemoved | TwinStarted):
+            self.outbox.put(lambda: self._dispatch(event))
 
     def drain(self) -> None:
-        """Wait until every map sample and reply queued so far was sent."""
+        """Wait until every map sample and reply queued so far was sent (on every lane)."""
         self.outbox.drain()
+        self.site.drain()
+        for follower in self.followers:
+            drain = getattr(follower, "drain", None)
+            if drain is not None:
+                drain()
 
-    def _send(self, event: TwinEvent) -> None:
+    def _dispatch(self, event: TwinEvent) -> None:
+        """On the dispatcher: the holder first, then the sends, each on its lane."""
         if isinstance(event, MapPublished):
-            self._publish(event)
+            self.maps.publish(event)
+            key = (event.grid.storey, event.grid.skill)
+            self.site.put(lambda: self._publish(key))
         elif isinstance(event, MapUpdated):
-            self._update(event)
+            if not self.maps.update(event):  # its full map follows (first map, or a new extent)
+                log.debug("An update of %s/%s without its map (of that extent) held: its full map follows",
+                          event.storey, event.skill)  # fmt: skip
+                return
+            timestamp = self.maps.timestamp_of((event.storey, event.skill))
+            self.site.put(lambda: self._update(event, timestamp))
         elif isinstance(event, MapRemoved):
-            self._remove(event.storey, event.skill)
+            self.maps.remove((event.storey, event.skill))
+            self.site.put(lambda: self._remove(event.storey, event.skill))
+        for follower in self.followers:
+            try:
+                follower.emit(event)
+            except Exception:  # a layout must never stop the others
+                log.exception("%s failed on %s", type(follower).__name__, type(event).__name__)
 
-    def _publish(self, event: MapPublished) -> None:
-        grid = event.grid
-        key = (grid.storey, grid.skill)
-        payload = encode_occupancy_grid(grid, stamp_ns=event.stamp_ns, frame_id=self.frame_id)
-        out = self._maps.get(key)
+    def _answer(self, key: tuple[str, str]) -> Answer | None:
+        now = self.maps.current(key)
+        if now is None:
+            return None
+        return now.payload, revision_attachment(now.revision, now.version), now.timestamp
+
+    def _publish(self, key: tuple[str, str]) -> None:
+        """On the site lane: the current full map of ``key`` (declaring its publishers first)."""
+        out = self._outs.get(key)
         if out is None:
-            latched = declare_latched_publisher(self.session, self.keys.map(*key))
+            latched = LatchedPublisher(
+                self.session, self.keys.map(*key), answer=lambda: self._answer(key), lane=self.site
+            )
             updates = self.session.declare_publisher(
                 self.keys.map_updates(*key),
                 encoding=CDR,
-                congestion_control=zenoh.CongestionControl.BLOCK,
+                congestion_control=BLOCK,
+                priority=MAP_PRIORITY,
                 reliability=zenoh.Reliability.RELIABLE,
             )
-            out = _MapOut(latched, updates, payload, event.revision, event.version)
-        else:
-            out.full, out.revision, out.version = payload, event.revision, event.version
-        with self._lock:
-            self._maps[key] = out
-        out.latched.put(payload, attachment=revision_attachment(event.revision, event.version))
+            out = self._outs[key] = _MapOut(latched, updates)
+        now = self._answer(key)
+        if now is not None:
+            out.latched.put(now[0], attachment=now[1], timestamp=now[2])
 
-    def _update(self, event: MapUpdated) -> None:
-        out = self._maps.get((event.storey, event.skill))
+    def _update(self, event: MapUpdated, timestamp: Any) -> None:
+        """On the site lane: the update, with its version's timestamp (so a router's storage that
+        applies it never looks newer than the daemon's later versions)."""
+        out = self._outs.get((event.storey, event.skill))
         if out is None:
-            log.warning("An update of %s/%s came before its map: ignored", event.storey, event.skill)
             return
         payload = encode_update_cells(
             event.frame, event.window, event.data, stamp_ns=event.stamp_ns, frame_id=self.frame_id
         )
-        out.updates.put(payload, attachment=revision_attachment(event.revision, event.version))
+        out.updates.put(
+            payload, attachment=revision_attachment(event.revision, event.version), timestamp=timestamp
+        )
 
     def _remove(self, storey: str, skill: str) -> None:
-        with self._lock:
-            out = self._maps.pop((storey, skill), None)
+        out = self._outs.pop((storey, skill), None)
         if out is None:
             return
         try:
@@ -168,7 +204,7 @@ class ZenohDaemon:
                 query.drop()  # finalise now: the robot's get returns at once, not when Python frees it
 
         def reply(r: Reply) -> None:  # on the writer's thread: after the map updates, off the thread
-            self.outbox.put(lambda: send(r))
+            self.outbox.put(lambda: self.site.put(lambda: send(r)))
 
         self.service.submit_observation(robot, payload, reply=reply)
 
@@ -187,14 +223,16 @@ class ZenohDaemon:
                 query.reply(key, json.dumps(profile.to_json()).encode(), encoding=JSON)
 
     def _on_get_map(self, query: zenoh.Query) -> None:
-        with self._lock:
-            maps = list(self._maps.items())
-        for (storey, skill), out in maps:
-            key = self.keys.map(storey, skill)
-            if zenoh.KeyExpr(key).intersects(query.key_expr):
-                query.reply(
-                    key, out.full, encoding=CDR, attachment=revision_attachment(out.revision, out.version)
-                )
+        self.site.put(lambda: self._reply_maps(query))  # ordered with the updates already sent
+
+    def _reply_maps(self, query: zenoh.Query) -> None:
+        try:
+            for key in self.maps.held():
+                name = self.keys.map(*key)
+                if zenoh.KeyExpr(name).intersects(query.key_expr) and (now := self._answer(key)) is not None:
+                    query.reply(name, now[0], encoding=CDR, attachment=now[1], timestamp=now[2])
+        finally:
+            query.drop()
 
     def _on_sparql(self, query: zenoh.Query) -> None:
         text = query.payload.to_string() if query.payload is not None else ""
@@ -244,11 +282,16 @@ class ZenohDaemon:
                 query.drop()
 
         self.service.submit_explain(
-            storey, skill, float(x), float(y), lambda r: self.outbox.put(lambda: send(r))
+            storey,
+            skill,
+            float(x),
+            float(y),
+            lambda r: self.outbox.put(lambda: self.site.put(lambda: send(r))),
         )
 
     def _on_status(self, query: zenoh.Query) -> None:
         status = self.service.status()
+        status["maps"] = self.maps.versions()  # the latest versions, updates included
         for source in self.status_sources:
             status.update(source())
         query.reply(self.keys.status, json.dumps(status).encode(), encoding=JSON)
@@ -257,10 +300,10 @@ class ZenohDaemon:
     def close(self) -> None:
         """Send what is queued, then undeclare everything (the session stays open; its owner closes it)."""
         self.outbox.close()
-        with self._lock:
-            maps = list(self._maps.values())
-            self._maps.clear()
-        for out in maps:
+        self.site.close()
+        outs = list(self._outs.values())
+        self._outs.clear()
+        for out in outs:
             out.latched.undeclare()
             out.updates.undeclare()
         for entity in self._declared:
@@ -269,6 +312,7 @@ class ZenohDaemon:
             except Exception:  # already gone with the session
                 log.debug("Undeclaring %s failed", entity, exc_info=True)
         self._declared.clear()
+        self.maps.clear()
 
 
 def _log_reply(what: str) -> Any:

@@ -1,27 +1,48 @@
-"""Latched maps on Zenoh: the publisher that keeps its last map for late joiners, and the subscription
-that follows one (the latched full map, then its updates).
+"""Latched maps on Zenoh: the publisher that answers late joiners with the current map, and the
+subscription that follows one (the latched full map, then its updates).
 
 A map is *latched* as a ROS 2 ``TRANSIENT_LOCAL`` topic is: a subscriber that joins late still gets
-the last map. On Zenoh that is an ``AdvancedPublisher`` with a cache of one sample and publisher
-detection, followed by an ``AdvancedSubscriber`` with history and late-publisher detection. The
-daemon's own keys (``map/<storey>/<skill>``, :mod:`adapters.zenoh.daemon`), the ROS 2 layouts
+the map. On Zenoh a late joiner is an ``AdvancedSubscriber`` with history and late-publisher detection
+(the project's watchers, rmw_zenoh's ``TRANSIENT_LOCAL`` subscriptions, zenoh-bridge-ros2dds's routes):
+it queries ``<key>/@adv/**`` when it starts and the publisher's ``<key>/@adv/pub/<zid>/<eid>/_`` when
+it sees the publisher's liveliness token.
+
+zenoh-ext's ``AdvancedPublisher`` answers those queries from its cache, which holds only what was
+*published*; a map goes out in full only now and then (:mod:`twin.live.publication`) and changes by its
+updates in between, so that cache would replay a stale map. :class:`LatchedPublisher` therefore
+declares the ``AdvancedPublisher`` with publisher detection and **no cache**, and answers the history
+protocol itself: a queryable on exactly the suffix the stock cache would use
+(``<key>/@adv/pub/<zid>/<eid or uhlc>/**``) replies with the *current* map (what ``answer`` returns:
+the latest version, updates applied), on the topic's own key, on the caller's send lane (so the reply is
+ordered with the topic's updates). A reply travels with its query's QoS (zenoh 1.x ignores the
+replier's): zenoh-ext's history queries are congestion BLOCK at DATA priority, as the live samples.
+A reply cannot carry zenoh-ext's source info from Python, so it carries the version's Zenoh timestamp
+instead: zenoh-ext's subscriber
+keeps one sample per timestamp, so the same version answered to its history query, its late-publisher
+query and a heartbeat's recovery query (``_sn=..``) is delivered once. Live samples keep the sequence
+numbers of the ``AdvancedPublisher`` (with the sporadic heartbeat for rmw_zenoh), which its miss
+detection tracks as before.
+
+The daemon's own keys (``map/<storey>/<skill>``, :mod:`adapters.zenoh.daemon`), the ROS 2 layouts
 (:mod:`adapters.zenoh.ros_maps`) and the watchers (:mod:`adapters.zenoh.client`,
 :mod:`adapters.zenoh.ros_watch`) all declare them here, so they cannot drift apart.
 
 Example::
 
-    latched = declare_latched_publisher(session, "twin/lab/map/ground-floor/navigation")
+    latched = LatchedPublisher(session, "twin/lab/map/ground-floor/navigation",
+                               answer=lambda: (cdr_now, meta_now, timestamp_now), lane=outbox)
     latched.put(cdr_map, attachment=meta)
     follow = LatchedSubscription(session, map_key, updates_key, on_map=..., on_update=...)
     ...
     follow.close()
+    latched.undeclare()
 """
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 import zenoh
 import zenoh.ext
@@ -29,10 +50,91 @@ import zenoh.ext
 log = logging.getLogger(__name__)
 
 CDR = zenoh.Encoding.APPLICATION_CDR
+BLOCK = zenoh.CongestionControl.BLOCK
+MAP_PRIORITY = zenoh.Priority.DATA
+"""One priority for a map topic and its updates: Zenoh queues each priority apart, and an update that
+overtook the full map it follows would be overwritten by it (nav2 cannot tell)."""
+
+Answer = tuple[bytes, bytes | None, Any]
+"""What a history query is answered with: the current full CDR, its attachment, its Zenoh timestamp."""
+
+
+class Lane(Protocol):
+    """Where sends are made, in order (an :class:`~adapters.zenoh.outbox.Outbox`)."""
+
+    def put(self, job: Callable[[], None]) -> None: ...
+
+
+class LatchedPublisher:
+    """A latched map topic on ``key``: live samples from an ``AdvancedPublisher`` (publisher detection,
+    no cache; reliable, BLOCK), late joiners answered with ``answer()`` (None: nothing to answer yet) on
+    ``lane``. ``heartbeat_s`` adds rmw_zenoh's sporadic heartbeat (and with it sequence numbers)."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        key: str,
+        *,
+        answer: Callable[[], Answer | None],
+        lane: Lane,
+        heartbeat_s: float | None = None,
+    ) -> None:
+        self.key = key
+        self.answer = answer
+        self.lane = lane
+        self.publisher: Any = zenoh.ext.declare_advanced_publisher(
+            session,
+            key,
+            encoding=CDR,
+            congestion_control=BLOCK,
+            priority=MAP_PRIORITY,
+            reliability=zenoh.Reliability.RELIABLE,
+            publisher_detection=True,
+            sample_miss_detection=(
+                None
+                if heartbeat_s is None
+                else zenoh.ext.MissDetectionConfig(heartbeat=None, sporadic_heartbeat=heartbeat_s)
+            ),
+        )
+        pid = self.publisher.id
+        source = str(pid.eid) if heartbeat_s is not None else "uhlc"  # zenoh-ext's suffix (KE_UHLC)
+        self.history_key = f"{key}/@adv/pub/{pid.zid}/{source}/**"
+        self.queryable = session.declare_queryable(self.history_key, self._on_query)
+        self.answered = 0
+
+    def put(self, payload: bytes, *, attachment: bytes | None = None, timestamp: Any = None) -> None:
+        """Publish a full map; ``timestamp``: its version's (what a history reply of it carries too)."""
+        self.publisher.put(payload, attachment=attachment, timestamp=timestamp)
+
+    def delete(self) -> None:
+        self.publisher.delete()
+
+    def _on_query(self, query: zenoh.Query) -> None:  # a Zenoh thread: hand it to the lane
+        self.lane.put(lambda: self._reply(query))
+
+    def _reply(self, query: zenoh.Query) -> None:
+        try:
+            now = self.answer()
+            if now is not None:
+                payload, attachment, timestamp = now
+                # a reply travels with the query's QoS: zenoh-ext's history queries (and a get) are
+                # BLOCK at DATA priority by default, as the map's live samples
+                query.reply(self.key, payload, encoding=CDR, attachment=attachment, timestamp=timestamp)
+                self.answered += 1
+        finally:
+            query.drop()
+
+    def undeclare(self) -> None:
+        for entity in (self.queryable, self.publisher):
+            try:
+                entity.undeclare()
+            except Exception:
+                log.debug("undeclare on %s failed", self.key, exc_info=True)
 
 
 def declare_latched_publisher(session: zenoh.Session, key: str, *, heartbeat_s: float | None = None) -> Any:
-    """An ``AdvancedPublisher`` of CDR on ``key`` that keeps its last sample for late joiners.
+    """An ``AdvancedPublisher`` of CDR on ``key`` that keeps its last sample for late joiners: for a
+    topic published once and never changed (a costmap filter's info); maps use :class:`LatchedPublisher`.
 
     Reliable, congestion control BLOCK (a map is never dropped), a cache of one sample and publisher
     detection (so an ``AdvancedSubscriber`` with late-publisher detection asks it for that sample).

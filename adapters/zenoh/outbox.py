@@ -2,8 +2,10 @@
 
 The twin's single writer must not wait for Zenoh: a reply, a put or a query's final message takes
 0.1-0.5 ms of waiting in Zenoh (with the GIL released), a third of the writer's time under load. The
-writer hands each send to the outbox instead, and the outbox's one thread makes them in order, so an
-ack still follows the map updates of its change and the full map its updates.
+writer hands each send to an outbox instead, and the outbox's one thread makes them in order, so an
+ack still follows the map updates of its change. The daemon runs several (:mod:`adapters.zenoh.daemon`):
+its dispatcher, and one *lane* per link (the site's keys, each ROS 2 robot), so that a send blocked by a
+slow link holds only that link's lane.
 
 Example::
 
@@ -19,8 +21,6 @@ import logging
 import queue
 import threading
 from collections.abc import Callable
-
-from twin.events import TwinEvent, TwinSink
 
 log = logging.getLogger(__name__)
 
@@ -76,15 +76,3 @@ def _run_one(job: Job) -> None:
         job()
     except Exception:  # a send must never stop the others
         log.exception("A Zenoh send failed")
-
-
-class OutboxSink:
-    """A :class:`~twin.events.TwinSink` whose events are handled on an outbox's thread, in order (e.g.
-    the ROS 2 map topics, which publish on Zenoh too)."""
-
-    def __init__(self, sink: TwinSink, outbox: Outbox) -> None:
-        self.sink = sink
-        self.outbox = outbox
-
-    def emit(self, event: TwinEvent) -> None:
-        self.outbox.put(lambda: self.sink.emit(event))

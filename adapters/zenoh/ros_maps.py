@@ -8,11 +8,12 @@ navigation for the costmap's static layer) carries that skill's map of the robot
 (``map_msgs/OccupancyGridUpdate``), in the layouts the robot asks for:
 
 - ``bridge``: keys ``<ns>/<topic>`` and ``<ns>/<topic>_updates`` as zenoh-bridge-ros2dds routes them to
-  DDS; the map from an AdvancedPublisher with a cache and publisher detection (the bridge's route is an
-  AdvancedSubscriber with history);
+  DDS; the map from a :class:`~adapters.zenoh.latched.LatchedPublisher` (publisher detection, late
+  joiners answered with the current map: the bridge's route is an AdvancedSubscriber with history);
 - ``rmw_zenoh``: rmw_zenoh_cpp's data keys with domain, DDS type name and RIHS01 hash, every sample
   with the 33-byte rmw attachment (sequence number per publisher from 1, source time, gid); the map
-  from an AdvancedPublisher with a cache of 1, publisher detection and a 500 ms sporadic heartbeat;
+  from a LatchedPublisher with publisher detection and a 500 ms sporadic heartbeat, as rmw_zenoh's
+  TRANSIENT_LOCAL publishers (whose subscriptions query history and recover by heartbeat);
   and liveliness tokens (one per publisher and subscriber) that put the daemon in the ROS graph as
   node ``<ns>/twin_map_server``.
 
@@ -31,13 +32,26 @@ status (:meth:`RosMapPublisher.status`) and emitted as :class:`~twin.events.Robo
 other sinks (the Rerun recording). An unknown robot or storey is refused with an error naming it and
 changes nothing; the same storey again is a no-op (robots re-report it often).
 
-The publisher keeps its own copy of the latest version of every map a robot may need (updates
-applied), so a switch publishes exactly what the twin holds, even between a change's update and the
-next full map. A map shared by several robots is encoded once per version.
+**What goes out.** After a topic's first map, a change goes out as its update only; the topic's map
+goes out in full on a storey switch, on the twin's keyframes (:mod:`twin.live.publication`) and, for a
+topic with a ``full_every_s`` policy (``[robots.NAME] full_every_s = { map = 10 }``, for subscribers
+that do not apply updates: AMCL, a static layer with ``subscribe_to_updates: false``; a mask topic
+defaults to 1 s, as nav2's costmap filters read only full masks), at most every that many seconds
+while its map changes (after the update; never for a change that leaves the topic's map unchanged).
+A late joiner (rmw_zenoh's ``TRANSIENT_LOCAL`` history query, the bridge's route) is answered with
+the current map by :class:`~adapters.zenoh.latched.LatchedPublisher`.
+
+**One holder, one lane per robot.** Every full map sent (switch, keyframe, policy, history reply) is
+read from :class:`~adapters.zenoh.latest.LatestMaps`, the daemon's one holder of each map's latest
+version (updates applied; a standalone publisher keeps its own), encoded once per version. Each robot's
+sends are made on that robot's own lane (an :class:`~adapters.zenoh.outbox.Outbox`): reliable,
+congestion BLOCK, one priority for a map and its updates, so a robot on a slow link holds only its own
+lane; the order on a lane is the order of the twin's changes, history replies included.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import threading
 import time
@@ -47,7 +61,7 @@ from typing import Any
 
 import zenoh
 
-from adapters.ros import encode_occupancy_grid, encode_update_cells
+from adapters.ros import encode_update_cells
 from adapters.ros.cdr import (
     COSTMAP_FILTER_INFO,
     KEEPOUT_FILTER,
@@ -69,11 +83,28 @@ from adapters.ros.rmw_zenoh import (
 )
 from adapters.zenoh.errors import StoreySwitchError
 from adapters.zenoh.keys import SiteKeys
-from adapters.zenoh.latched import CDR, declare_latched_publisher, declare_latched_subscriber
+from adapters.zenoh.latched import (
+    BLOCK,
+    CDR,
+    MAP_PRIORITY,
+    Answer,
+    LatchedPublisher,
+    declare_latched_publisher,
+    declare_latched_subscriber,
+)
+from adapters.zenoh.latest import LatestMaps
+from adapters.zenoh.outbox import Outbox
 from twin.config import Config, RobotConfig
 from twin.errors import TwinError
-from twin.events import MapPublished, MapUpdated, RobotStoreyChanged, TwinEvent, TwinSink, TwinStarted
-from twin.grid import OccupancyGrid
+from twin.events import (
+    MapPublished,
+    MapRemoved,
+    MapUpdated,
+    RobotStoreyChanged,
+    TwinEvent,
+    TwinSink,
+    TwinStarted,
+)
 
 log = logging.getLogger(__name__)
 
@@ -81,24 +112,35 @@ NODE_NAME = "twin_map_server"
 STOREY_TOPIC = "storey"
 RMW_HEARTBEAT_S = 0.5
 """The sporadic heartbeat of rmw_zenoh's latched (TRANSIENT_LOCAL) publishers, seconds."""
+MASK_FULL_EVERY_S = 1.0
+"""The ``full_every_s`` of a mask topic (keepout, speed) unless configured: nav2's costmap filters read
+only full masks, never ``_updates``, and a zone must reach them within a second, not a keyframe later."""
 TEXT = zenoh.Encoding.TEXT_PLAIN
 Source = str  # "zenoh" or "ros"
 
 
 @dataclass(eq=False, slots=True)
 class _Out:
-    """One publisher: its Zenoh entity, and for rmw_zenoh its gid and sequence counter."""
+    """One publisher: its Zenoh entity (a LatchedPublisher for a map), and for rmw_zenoh its gid and
+    sequence counter."""
 
     publisher: Any
     gid: bytes | None = None
     sequence: int = 0
 
-    def put(self, payload: bytes, stamp_ns: int) -> None:
+    def put(self, payload: bytes, stamp_ns: int, timestamp: Any = None) -> None:
+        """Publish ``payload``; ``timestamp``: the Zenoh timestamp of a full map's version."""
+        extra = {} if timestamp is None else {"timestamp": timestamp}
         if self.gid is None:
-            self.publisher.put(payload)
+            self.publisher.put(payload, **extra)
             return
         self.sequence += 1
-        self.publisher.put(payload, attachment=attachment(self.sequence, stamp_ns, self.gid))
+        self.publisher.put(payload, attachment=attachment(self.sequence, stamp_ns, self.gid), **extra)
+
+    def reply_attachment(self, stamp_ns: int) -> bytes | None:
+        """A history reply's attachment: the sequence number of the last map put (rmw_zenoh counts a
+        jump as lost messages), the version's stamp and the gid."""
+        return None if self.gid is None else attachment(max(self.sequence, 1), stamp_ns, self.gid)
 
 
 @dataclass(eq=False, slots=True)
@@ -107,42 +149,42 @@ class _Topic:
 
     name: str
     skill: str
+    full_every_s: float | None = None
+    """The topic's policy for subscribers that do not apply updates (None: keyframes only)."""
     maps: list[_Out] = field(default_factory=list)
     updates: list[_Out] = field(default_factory=list)
     info: list[_Out] = field(default_factory=list)
     """``/<ns>/<name>_info`` (CostmapFilterInfo) when the skill is a mask."""
+    shown: Any = None
+    """The Zenoh timestamp of the last storey switch: a history reply is never older than it."""
+    last_full: float = float("-inf")
+    """When the topic's map last went out in full (monotonic s)."""
+    owed: bool = False
+    """A change went out as an update since then, and the policy owes a full map."""
+    fulls: int = 0
 
 
 @dataclass(eq=False, slots=True)
 class _Robot:
     config: RobotConfig
     storey: str | None
+    lane: Outbox | None = None
     topics: list[_Topic] = field(default_factory=list)
     entities: list[Any] = field(default_factory=list)
     """Liveliness tokens and subscribers, undeclared on close."""
     switches: int = 0
     switched_ns: int | None = None
     refused: str | None = None
-
-
-@dataclass(eq=False, slots=True)
-class _Latest:
-    """The latest version of a map (updates applied in place) and the CDR of its last full version."""
-
-    grid: OccupancyGrid
-    stamp_ns: int
-    payload: bytes | None
-
-
-def _latched(session: zenoh.Session, key: str, *, rmw: bool) -> Any:
-    """The latched publisher of a map (or filter info) topic; rmw_zenoh's with its heartbeat."""
-    return declare_latched_publisher(session, key, heartbeat_s=RMW_HEARTBEAT_S if rmw else None)
+    timers: set[threading.Timer] = field(default_factory=set)
 
 
 class RosMapPublisher:
     """Publishes configured robots' maps in the ROS 2 layouts and follows their storeys.
 
-    Create once the session is open and add it to the service's sinks before the service starts.
+    Create once the session is open. In the daemon, pass the daemon's holder (``maps=daemon.maps``) and
+    add it to ``daemon.followers``: it is then called on the daemon's dispatcher, after the holder is up
+    to date, and never on the writer's thread. Standalone (no ``maps``), it keeps its own holder and may
+    be a sink of the service itself. Either way its sends are made on one lane per robot.
     ``keys`` enables ``robots/<name>/storey`` (every configured robot); ``sinks`` receive the
     :class:`RobotStoreyChanged` events (pass the service's own list: ``service.sinks``); ``revision``
     tells the twin revision at a switch.
@@ -157,8 +199,15 @@ class RosMapPublisher:
         sinks: Sequence[TwinSink] = (),
         revision: Callable[[], int] = lambda: 0,
         clock: Callable[[], int] | None = None,
+        maps: LatestMaps | None = None,
     ) -> None:
         self.session = session
+        self._own_maps = maps is None
+        self.maps = (
+            maps
+            if maps is not None
+            else LatestMaps(frame_id=config.frame_id, timestamp=session.new_timestamp)
+        )
         self.frame_id = config.frame_id
         self.keys = keys
         self.sinks = sinks
@@ -166,7 +215,6 @@ class RosMapPublisher:
         self.clock = clock or time.time_ns
         self._lock = threading.RLock()
         self._storeys: tuple[str, ...] | None = None
-        self._latest: dict[tuple[str, str], _Latest] = {}
         self._robots: dict[str, _Robot] = {}
         self._declared: list[Any] = []
         self._kinds = {name: skill.kind for name, skill in config.skills.items()}
@@ -177,37 +225,32 @@ class RosMapPublisher:
             self._robots[robot.name] = r
             if robot.namespace is None:
                 continue
+            r.lane = lane = Outbox(f"twin-ros-{robot.name}")
+            policy = dict(robot.full_every_s)
             node = RosNode(robot.domain_id, robot.namespace, NODE_NAME, zid, entity)
             entity += 1
             rmw = "rmw_zenoh" in robot.ros
             if rmw:
                 r.entities.append(session.liveliness().declare_token(node.node_token()))
             for name, skill in robot.maps:
-                t = _Topic(name, skill)
+                mask = config.skills.get(skill)
+                every = policy.get(name, MASK_FULL_EVERY_S if mask is not None and mask.is_mask else None)
+                t = _Topic(name, skill, every)
                 map_topic = RosTopic(robot.domain_id, robot.namespace, name, OCCUPANCY_GRID)
                 upd_topic = RosTopic(
                     robot.domain_id, robot.namespace, f"{name}_updates", OCCUPANCY_GRID_UPDATE
                 )
                 if "bridge" in robot.ros:
-                    t.maps.append(_Out(_latched(session, map_topic.bridge_key, rmw=False)))
-                    t.updates.append(_Out(session.declare_publisher(upd_topic.bridge_key, encoding=CDR)))
+                    t.maps.append(self._map_out(r, t, map_topic.bridge_key, lane, gid=None))
+                    t.updates.append(_Out(_updates_publisher(session, upd_topic.bridge_key)))
                 if rmw:
-                    for topic, qos, outs, latched in (
-                        (map_topic, LATCHED_QOS, t.maps, True),
-                        (upd_topic, DEFAULT_QOS, t.updates, False),
-                    ):
-                        token = node.publisher_token(topic, entity, qos)
-                        entity += 1
-                        pub = (
-                            _latched(session, topic.data_key, rmw=True)
-                            if latched
-                            else session.declare_publisher(
-                                topic.data_key, encoding=CDR, reliability=zenoh.Reliability.RELIABLE
-                            )
-                        )
-                        outs.append(_Out(pub, gid=gid_of(token)))
-                        r.entities.append(session.liveliness().declare_token(token))
-                mask = config.skills.get(skill)
+                    token = node.publisher_token(map_topic, entity, LATCHED_QOS)
+                    t.maps.append(self._map_out(r, t, map_topic.data_key, lane, gid=gid_of(token)))
+                    r.entities.append(session.liveliness().declare_token(token))
+                    token = node.publisher_token(upd_topic, entity + 1, DEFAULT_QOS)
+                    t.updates.append(_Out(_updates_publisher(session, upd_topic.data_key), gid=gid_of(token)))
+                    r.entities.append(session.liveliness().declare_token(token))
+                    entity += 2
                 if mask is not None and mask.is_mask:
                     self._declare_info(t, robot, node, mask=map_topic, entity=entity, tokens=r.entities)
                     entity += 1
@@ -239,28 +282,58 @@ class RosMapPublisher:
         topic = RosTopic(robot.domain_id, robot.namespace, f"{t.name}_info", COSTMAP_FILTER_INFO)
         kind = KEEPOUT_FILTER if self._kinds.get(t.skill) == "keepout" else SPEED_FILTER_PERCENT
         if "bridge" in robot.ros:
-            t.info.append(_Out(_latched(self.session, topic.bridge_key, rmw=False)))
+            t.info.append(_Out(declare_latched_publisher(self.session, topic.bridge_key)))
         if "rmw_zenoh" in robot.ros:
             token = node.publisher_token(topic, entity, LATCHED_QOS)
-            t.info.append(_Out(_latched(self.session, topic.data_key, rmw=True), gid=gid_of(token)))
+            info = declare_latched_publisher(self.session, topic.data_key, heartbeat_s=RMW_HEARTBEAT_S)
+            t.info.append(_Out(info, gid=gid_of(token)))
             tokens.append(self.session.liveliness().declare_token(token))
         stamp = self.clock()
         payload = encode_costmap_filter_info(kind, mask.fqn, stamp_ns=stamp, frame_id=self.frame_id)
         for out in t.info:
             out.put(payload, stamp)
 
-    # --- the sink (service thread) ------------------------------------------------------------------
+    def _map_out(self, r: _Robot, t: _Topic, key: str, lane: Outbox, *, gid: bytes | None) -> _Out:
+        """A map topic's latched publisher in one layout, late joiners answered on the robot's lane."""
+        out = _Out(None, gid=gid)
+        heartbeat = RMW_HEARTBEAT_S if gid is not None else None
+        out.publisher = LatchedPublisher(
+            self.session, key, answer=lambda: self._answer(r, t, out), lane=lane, heartbeat_s=heartbeat
+        )
+        return out
+
+    def _answer(self, r: _Robot, t: _Topic, out: _Out) -> Answer | None:
+        """A late joiner's map of topic ``t``: the current map of the robot's storey (on its lane)."""
+        storey = r.storey
+        now = None if storey is None else self.maps.current((storey, t.skill))
+        if now is None:
+            return None
+        return now.payload, out.reply_attachment(now.stamp_ns), _newer(now.timestamp, t.shown)
+
+    # --- the sink (the daemon's dispatcher, or the service's thread when standalone) -----------------
     def emit(self, event: TwinEvent) -> None:
         try:
             with self._lock:
                 if isinstance(event, TwinStarted):
                     self._started(event)
                 elif isinstance(event, MapPublished):
-                    self._publish(event)
+                    if self._own_maps:
+                        self.maps.publish(event)
+                    self._publish(event.grid.storey, event.grid.skill)
                 elif isinstance(event, MapUpdated):
+                    if self._own_maps and not self.maps.update(event):
+                        return
                     self._update(event)
+                elif isinstance(event, MapRemoved) and self._own_maps:
+                    self.maps.remove((event.storey, event.skill))
         except Exception:  # a ROS layout must never stop the twin
             log.exception("Publishing %s to ROS 2 robots failed", type(event).__name__)
+
+    def drain(self) -> None:
+        """Wait until every robot's lane made the sends queued so far."""
+        for r in list(self._robots.values()):
+            if r.lane is not None:
+                r.lane.drain()
 
     def _started(self, event: TwinStarted) -> None:
         self._storeys = tuple(key for key, _, _ in event.storeys)
@@ -277,36 +350,62 @@ class RosMapPublisher:
             (r, t) for r in self._robots.values() if r.storey == storey for t in r.topics if t.skill == skill
         ]
 
-    def _publish(self, event: MapPublished) -> None:
-        grid = event.grid
-        if grid.skill not in self._skills:
+    def _publish(self, storey: str, skill: str) -> None:
+        """A full version of (storey, skill) went out (first map, keyframe, skill change): every topic
+        that shows it sends it in full."""
+        if skill in self._skills:
+            for r, t in self._on(storey, skill):
+                self._send_full(r, t)
+
+    def _send_full(self, r: _Robot, t: _Topic) -> None:
+        """Queue topic ``t``'s current map on the robot's lane (read when the lane sends it). Locked."""
+        t.owed, t.last_full = False, time.monotonic()
+        assert r.lane is not None
+        r.lane.put(lambda: self._put_full(r, t))
+
+    def _put_full(self, r: _Robot, t: _Topic) -> None:
+        """On the robot's lane: the topic's map as the holder has it now (its storey's, updates applied)."""
+        storey = r.storey
+        now = None if storey is None else self.maps.current((storey, t.skill))
+        if now is None:
             return
-        own = OccupancyGrid(grid.frame, grid.data.copy(), grid.storey, grid.skill, grid.elevation_m)
-        latest = _Latest(own, event.stamp_ns, None)
-        self._latest[(grid.storey, grid.skill)] = latest
-        targets = self._on(grid.storey, grid.skill)
-        if targets:
-            latest.payload = encode_occupancy_grid(grid, stamp_ns=event.stamp_ns, frame_id=self.frame_id)
-            for _, t in targets:
-                for out in t.maps:
-                    out.put(latest.payload, event.stamp_ns)
+        t.fulls += 1
+        timestamp = _newer(now.timestamp, t.shown)
+        for out in t.maps:
+            out.put(now.payload, now.stamp_ns, timestamp)
 
     def _update(self, event: MapUpdated) -> None:
-        latest = self._latest.get((event.storey, event.skill))
-        if latest is None:
-            return
-        w = event.window
-        latest.grid.data[w.row0 : w.row1, w.col0 : w.col1] = event.data
-        latest.stamp_ns, latest.payload = event.stamp_ns, None
         targets = self._on(event.storey, event.skill)
         if not targets:
             return
         payload = encode_update_cells(
             event.frame, event.window, event.data, stamp_ns=event.stamp_ns, frame_id=self.frame_id
         )
-        for _, t in targets:
-            for out in t.updates:
-                out.put(payload, event.stamp_ns)
+        for r, t in targets:
+            assert r.lane is not None
+            r.lane.put(functools.partial(_put_all, t.updates, payload, event.stamp_ns))
+            if t.full_every_s is not None:
+                self._owe(r, t)
+
+    def _owe(self, r: _Robot, t: _Topic) -> None:
+        """The policy ``full_every_s``: a full map after this update, at most every N s. Locked."""
+        if t.owed or t.full_every_s is None:
+            return
+        t.owed = True
+        delay = t.last_full + t.full_every_s - time.monotonic()
+        if delay <= 0:
+            self._send_full(r, t)
+            return
+        timer = threading.Timer(delay, self._owed_due, args=(r, t))
+        timer.daemon = True
+        r.timers.add(timer)
+        timer.start()
+
+    def _owed_due(self, r: _Robot, t: _Topic) -> None:
+        with self._lock:
+            r.timers.discard(threading.current_thread())  # type: ignore[arg-type, unused-ignore]
+            if t.owed and r.config.name in self._robots:
+                self._send_full(r, t)
 
     # --- storey switching (any thread) --------------------------------------------------------------
     def storey_of(self, robot: str) -> str | None:
@@ -349,17 +448,13 @@ class RosMapPublisher:
             stamp = self.clock()
             r.switches += 1
             r.switched_ns = stamp
+            shown = self.session.new_timestamp()
             for t in r.topics:
-                latest = self._latest.get((storey, t.skill))
-                if latest is None:
+                t.shown = shown
+                if (storey, t.skill) not in self.maps:
                     log.warning("No %s map of storey %s yet for %s/%s", t.skill, storey, robot, t.name)
                     continue
-                if latest.payload is None:
-                    latest.payload = encode_occupancy_grid(
-                        latest.grid, stamp_ns=latest.stamp_ns, frame_id=self.frame_id
-                    )
-                for out in t.maps:
-                    out.put(latest.payload, stamp)
+                self._send_full(r, t)
             event = RobotStoreyChanged(robot, storey, previous, source, self.revision(), stamp)
         log.info("Robot %s is now on storey %s (was %s), via %s: %d topic(s) republished",
                  robot, storey, previous, source, len(r.topics))  # fmt: skip
@@ -387,14 +482,18 @@ class RosMapPublisher:
             return
         robot = str(sample.key_expr).split("/")[-2]
         try:
-            self.switch(robot, sample.payload.to_string().strip(), source="zenoh")
-        except (TwinError, UnicodeDecodeError) as err:
+            self.switch(robot, _storey_text(sample.payload.to_bytes()), source="zenoh")
+        except TwinError as err:  # a put has no reply: a warning, never a traceback
             log.warning("Refused a storey put on %s: %s", sample.key_expr, err)
 
     def _on_storey_get(self, query: zenoh.Query) -> None:
         assert self.keys is not None
-        wanted = query.payload.to_string().strip() if query.payload is not None else ""
         key = str(query.key_expr)
+        try:
+            wanted = _storey_text(query.payload.to_bytes()) if query.payload is not None else ""
+        except TwinError as err:
+            query.reply_err(str(err).encode(), encoding=TEXT)
+            return
         if "*" in key:  # a listing: every configured robot the selector matches
             if wanted:
                 query.reply_err(f"Name one robot to switch its storey, not {key}.".encode(), encoding=TEXT)
@@ -433,12 +532,18 @@ class RosMapPublisher:
         return {"robots": robots}
 
     def close(self) -> None:
+        """Make every robot's queued sends, then undeclare everything."""
         with self._lock:
             robots = list(self._robots.values())
             self._robots.clear()
             entities = [*self._declared]
             self._declared.clear()
+            for r in robots:
+                for timer in r.timers:
+                    timer.cancel()
         for r in robots:
+            if r.lane is not None:
+                r.lane.close()
             outs = [o.publisher for t in r.topics for o in (*t.maps, *t.updates, *t.info)]
             entities += [*outs, *r.entities]
         for entity in entities:
@@ -446,7 +551,48 @@ class RosMapPublisher:
                 entity.undeclare()
             except Exception:
                 log.debug("undeclare failed", exc_info=True)
-        self._latest.clear()
+        if self._own_maps:
+            self.maps.clear()
+
+
+def _updates_publisher(session: zenoh.Session, key: str) -> zenoh.Publisher:
+    """A topic's ``_updates``: reliable, BLOCK (a lost update is not healed before the next keyframe;
+    the block holds only the robot's lane), the priority of its map (never overtakes it)."""
+    return session.declare_publisher(
+        key,
+        encoding=CDR,
+        reliability=zenoh.Reliability.RELIABLE,
+        congestion_control=BLOCK,
+        priority=MAP_PRIORITY,
+    )
+
+
+def _newer(version: Any, shown: Any) -> Any:
+    """The timestamp a topic's full map carries: its version's, or the storey switch that made it the
+    topic's map if that is later (a late joiner keeps one sample per timestamp, the newest)."""
+    if shown is not None and (version is None or shown > version):
+        return shown
+    return version
+
+
+def _put_all(outs: list[_Out], payload: bytes, stamp_ns: int) -> None:
+    for out in outs:
+        out.put(payload, stamp_ns)
+
+
+def _storey_text(payload: bytes) -> str:
+    """The storey key a put or get on ``robots/<name>/storey`` carries (UTF-8 text, trimmed);
+    StoreySwitchError naming the bytes when they are not UTF-8 (zenoh's ``to_string`` would raise a
+    ValueError)."""
+    try:
+        return payload.decode("utf-8").strip()
+    except UnicodeDecodeError as err:
+        shown = payload[:32]
+        msg = (
+            f"A storey key is UTF-8 text; got {len(payload)} bytes that are not "
+            f"({err.reason} at byte {err.start}): {shown!r}{'...' if len(payload) > 32 else ''}."
+        )
+        raise StoreySwitchError(msg) from None
 
 
 __all__ = ["NODE_NAME", "STOREY_TOPIC", "RosMapPublisher"]

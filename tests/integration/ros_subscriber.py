@@ -3,8 +3,9 @@ maps are decoded by real rclpy (``rclpy.serialization.deserialize_message`` with
 
 Usage: python -m tests.integration.ros_subscriber ENDPOINT LAYOUT DOMAIN NAMESPACE OUT_DIR [TOPIC]
 
-LAYOUT ``rmw_zenoh``: an AdvancedSubscriber with history and late-publisher detection on the rmw data
-key of ``<ns>/<topic>`` (as rmw_subscription_data.cpp does for TRANSIENT_LOCAL), and a subscriber on
+LAYOUT ``rmw_zenoh``: an AdvancedSubscriber with history (depth 1), late-publisher detection, recovery
+by heartbeat and subscriber detection on the rmw data key of ``<ns>/<topic>`` (as
+rmw_subscription_data.cpp does for RELIABLE + TRANSIENT_LOCAL), and a subscriber on
 ``<ns>/<topic>_updates``; every sample must carry the 33-byte attachment (checked with zenoh-ext's own
 deserialiser). LAYOUT ``bridge``: the same on ``<ns>/<topic>`` and ``<ns>/<topic>_updates`` without
 attachment. TOPIC defaults to ``map``. Prints a JSON line per sample; on EOF of stdin saves the map copy
@@ -72,8 +73,13 @@ def main() -> int:
             print(json.dumps({"kind": "update", "x": window.col0, "y": window.row0, **info}), flush=True)
 
     with zenoh.open(client_config([endpoint])) as session:
-        sub_map = zenoh.ext.declare_advanced_subscriber(
-            session, key_map, on_map, history=zenoh.ext.HistoryConfig(detect_late_publishers=True)
+        sub_map = zenoh.ext.declare_advanced_subscriber(  # rmw: depth 1, RELIABLE: recovery by heartbeat
+            session,
+            key_map,
+            on_map,
+            history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
+            recovery=zenoh.ext.RecoveryConfig(heartbeat=True) if rmw else None,
+            subscriber_detection=rmw,
         )
         sub_upd = session.declare_subscriber(key_upd, on_update)
         print(json.dumps({"ready": True, "key": key_map}), flush=True)

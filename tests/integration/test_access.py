@@ -129,7 +129,7 @@ def test_no_robot_or_operator_can_publish_a_map_or_an_update(guarded: Daemon, se
         assert updates, "the daemon's update never arrived"
         assert b"forged map" not in maps and b"forged update" not in updates
         grid, revision, version = robot1.get_map("ground-floor", "lab-navigation")
-        while version == version0 and time.monotonic() < deadline:  # the full map follows its update
+        while version == version0 and time.monotonic() < deadline:  # a get answers the current map
             grid, revision, version = robot1.get_map("ground-floor", "lab-navigation")
         assert version > version0 and revision > revision0 and grid.data.shape == grid0.data.shape
 

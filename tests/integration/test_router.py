@@ -125,7 +125,7 @@ def test_the_routers_map_storage_serves_a_site_while_its_daemon_is_down(
         with TwinClient.connect([router.endpoint], prefix="twin/north", mode="client") as robot:
             live = robot.get_map(*NAV)
             robot.observe("robot1", table(18.0))
-            time.sleep(1.0)  # the full map follows the update
+            time.sleep(1.0)  # the update reaches the router's storage (no full map follows it)
             latest = robot.get_map(*NAV)
             assert latest[2] > live[2]
     finally:

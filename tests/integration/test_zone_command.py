@@ -45,8 +45,8 @@ def zone(d: Daemon, robot: str, *args: str) -> tuple[int, dict[str, object]]:
 
 
 def maps(d: Daemon, *acks: dict[str, object]) -> dict[str, np.ndarray]:
-    """The daemon's ground-floor maps, once their full versions include the acked changes (a full map
-    follows its update within ``full_map_interval_s``)."""
+    """The daemon's ground-floor maps, once they include the acked changes (a get answers the current
+    map, updates applied; the loop only guards against a slow machine)."""
     wanted = {m["skill"]: m["version"] for a in acks for m in a["maps"]}  # type: ignore[attr-defined]
     out: dict[str, np.ndarray] = {}
     with TwinClient.connect([d.endpoint]) as client:

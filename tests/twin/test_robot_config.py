@@ -72,3 +72,30 @@ def test_a_robot_name_that_cannot_be_a_key_expression_chunk_is_refused(tmp_path:
 def test_a_robot_without_namespace_has_no_topics(tmp_path: Path) -> None:
     robot = robots(tmp_path, "[robots.r1]\n")["r1"]
     assert (robot.maps, robot.storey, robot.namespace) == ((), None, None)
+
+
+def test_full_every_s_names_topics_of_the_robot_with_seconds(tmp_path: Path) -> None:
+    text = '[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\n[robots.r1.full_every_s]\nmap = 10\n'
+    assert robots(tmp_path, text)["r1"].full_every_s == (("map", 10.0),)
+    assert (
+        robots(tmp_path, '[robots.r2]\nnamespace = "/r2"\nstorey = "ground-floor"\n')["r2"].full_every_s == ()
+    )
+
+
+@pytest.mark.parametrize(
+    ("table", "error"),
+    [
+        (
+            "[robots.r1.full_every_s]\nmapp = 10\n",
+            "'mapp', not a map topic of this robot (its topics: map, navigation_map",
+        ),
+        ("[robots.r1.full_every_s]\nmap = 0\n", "full_every_s"),
+        ('[robots.r1.full_every_s]\nmap = "often"\n', "full_every_s"),
+    ],
+)
+def test_a_bad_full_every_s_is_refused_naming_the_topic_or_value(
+    tmp_path: Path, table: str, error: str
+) -> None:
+    with pytest.raises(ConfigError, match="full_every_s") as err:
+        robots(tmp_path, f'[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\n{table}')
+    assert error in str(err.value)

@@ -8,6 +8,8 @@ Example::
     [robots.robot1.maps]        # topic under the namespace = skill (these two are the defaults)
     map = "localization"
     navigation_map = "navigation"
+    [robots.robot1.full_every_s]  # for subscribers that do not apply updates (AMCL): full maps on
+    map = 10.0                  # this topic at most every 10 s while its map changes
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, StringConstraints, ValidationInfo, field_validator, model_validator
 
-from twin.config.base import ConfigTable, Text, Whole, list_of
+from twin.config.base import ConfigTable, Number, Text, Whole, list_of
 from twin.config.tables import NAME_PATTERN, Right
 
 RosLayout = Literal["bridge", "rmw_zenoh"]
@@ -52,6 +54,9 @@ class RobotConfig:
     storey: str | None = None
     domain_id: int = 0
     ros: tuple[RosLayout, ...] = ("bridge", "rmw_zenoh")
+    full_every_s: tuple[tuple[str, float], ...] = ()
+    """Per topic, a full map at most every that many seconds while the topic's map changes (for
+    subscribers that do not apply updates); topics not named get updates and keyframes only."""
 
     @property
     def skills(self) -> tuple[str, ...]:
@@ -77,6 +82,12 @@ class RobotTable(ConfigTable):
     )
     rights: Annotated[tuple[Right, ...], list_of("rights")] | None = Field(
         None, description="What it may do; default: [rights] default."
+    )
+    full_every_s: dict[str, Annotated[Number, Field(ge=0.1, le=86400.0)]] | None = Field(
+        None,
+        description="Topic = seconds: besides its updates, the topic's map in full at most this often "
+        "while it changes, for subscribers that do not apply updates (AMCL; a static layer with "
+        "subscribe_to_updates false). Default: none (updates, and the twin's keyframes).",
     )
 
     @field_validator("namespace")
@@ -112,6 +123,22 @@ class RobotTable(ConfigTable):
                 "'maps = { map = \"S\" }'; keep only 'maps'"
             )
             raise ValueError(msg)
+        if self.full_every_s:
+            topics = (
+                {"map"}
+                if self.skill is not None
+                else set(self.maps)
+                if self.maps is not None
+                else {t for t, _ in DEFAULT_ROBOT_MAPS}
+            )
+            unknown = sorted(set(self.full_every_s) - topics)
+            if unknown or self.namespace is None:
+                msg = (
+                    f"full_every_s names {', '.join(map(repr, unknown or sorted(self.full_every_s)))}, "
+                    f"not a map topic of this robot (its topics: {', '.join(sorted(topics))}"
+                    f"{'' if self.namespace is not None else '; and it has no namespace'})"
+                )
+                raise ValueError(msg)
         if self.namespace is not None and not self.storey:
             msg = (
                 "a robot with a namespace needs 'storey', the key of the storey it starts on "
@@ -137,6 +164,7 @@ class RobotTable(ConfigTable):
             storey=self.storey if ns is not None else None,
             domain_id=self.domain_id,
             ros=tuple(dict.fromkeys(self.ros)),
+            full_every_s=tuple(sorted((self.full_every_s or {}).items())),
         )
 
 

@@ -6,9 +6,9 @@ and ``[ros]`` (``[robots.NAME]`` is in :mod:`twin.config.robots`, ``[skills.NAME
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, ClassVar, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from twin.config.base import ConfigTable, Flag, Number, PathSetting, Text, Whole, check, list_of
 
@@ -99,9 +99,24 @@ class Limits(ConfigTable):
     )
     sparql_timeout_s: Positive = 5.0
     sparql_result_bytes: PositiveWhole = 16 << 20
-    full_map_interval_s: Positive = Field(
-        0.2, description="A changed map's full version is published this long after its first change."
+    keyframe_interval_s: Annotated[Number, Field(ge=1.0, le=86400.0)] = Field(
+        60.0,
+        description="A map that changed since its last full publication is published in full again "
+        "(a keyframe: heals a lost update, refreshes caches) at most this often, seconds; between "
+        "keyframes a change goes out as its updates only.",
     )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _renamed(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "full_map_interval_s" in data:
+            msg = (
+                f"full_map_interval_s = {data['full_map_interval_s']!r} is gone: a change now goes out "
+                "as its updates only, and a changed map in full at most every keyframe_interval_s "
+                "(default 60); remove the key, or set keyframe_interval_s"
+            )
+            raise ValueError(msg)
+        return data
 
 
 class RightsTable(ConfigTable):

@@ -1,15 +1,24 @@
-"""Full maps out: the latest full version of every map, and the changed maps that still owe one.
+"""Full maps out: when a map goes out in full, and when each map last did.
 
-Updates (the changed rectangles) go out at once; a changed map's full version follows
-``full_map_interval_s`` after its first unpublished change, so it comes after its updates and a burst
-of changes is coalesced into one full map.
+A change costs its changed cells: its updates (the changed rectangles) go out at once and nothing else.
+A map goes out in full (:class:`~twin.events.MapPublished`) only
+
+- on its first publication (start-up, a skill added), on a skill change, and when its extent (grid
+  frame) changed;
+- as a *keyframe*: when it changed since its last full publication and that was at least
+  ``keyframe_interval_s`` ago (a minute by default). The keyframe heals an update a subscriber lost
+  (nav2 cannot detect the gap, nor ask) and refreshes what caches replay to late joiners (a ROS 2
+  bridge's DDS cache); a map that does not change is never sent again.
+
+A storey switch, a ``get`` and a late joiner's history query are answered by the adapters from the
+latest version they hold (updates applied), not from here.
 
 Example::
 
-    pub = Publication(emit=sink.emit, clock=time.time_ns, interval_s=0.2)
+    pub = Publication(emit=sink.emit, clock=time.time_ns, keyframe_s=60.0)
     pub.publish(live_map, revision=0)            # at start: every map
     pub.changed(("ground-floor", "navigation"))  # an update went out
-    pub.flush(maps, revision=7, due_only=True)   # the full versions that are due
+    pub.flush(maps, revision=7, due_only=True)   # the keyframes that are due
 """
 
 from __future__ import annotations
@@ -18,30 +27,33 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from twin.events import MapPublished, TwinEvent
-from twin.grid import OccupancyGrid
+from twin.grid import GridFrame
 from twin.live.live_map import LiveMap
 from twin.live.overlay import MapKey
 
 
 @dataclass(frozen=True, slots=True)
 class PublishedMap:
-    """The latest full version of a map that was published (what a ``get`` answers)."""
+    """What went out with a map's latest full publication (not the cells: the live map holds those,
+    and the adapters hold what they sent)."""
 
-    grid: OccupancyGrid
+    storey: str
+    skill: str
+    frame: GridFrame
     revision: int
     version: int
     stamp_ns: int
 
 
 class Publication:
-    """Which full map versions went out, and which changed maps owe one. One writer."""
+    """When each map last went out in full, and which changed maps owe a keyframe. One writer."""
 
     def __init__(
-        self, *, emit: Callable[[TwinEvent], None], clock: Callable[[], int], interval_s: float
+        self, *, emit: Callable[[TwinEvent], None], clock: Callable[[], int], keyframe_s: float
     ) -> None:
         self.emit = emit
         self.clock = clock
-        self.interval_ns = int(interval_s * 1e9)
+        self.keyframe_ns = int(keyframe_s * 1e9)
         self.latest: dict[MapKey, PublishedMap] = {}
         self.pending: dict[MapKey, int] = {}
         """Maps changed since their last full publication -> when the first such change happened (ns)."""
@@ -50,11 +62,12 @@ class Publication:
         """Publish the full current version of ``m``."""
         stamp = self.clock() if stamp is None else stamp
         grid = m.grid()
-        self.latest[m.key] = PublishedMap(grid, revision, m.version, stamp)
+        self.latest[m.key] = PublishedMap(grid.storey, grid.skill, grid.frame, revision, m.version, stamp)
+        self.pending.pop(m.key, None)
         self.emit(MapPublished(grid, revision, m.version, stamp))
 
     def changed(self, key: MapKey, stamp: int) -> None:
-        """An update of map ``key`` went out at ``stamp``: its full version is owed."""
+        """An update of map ``key`` went out at ``stamp``: a keyframe is owed, in due time."""
         self.pending.setdefault(key, stamp)
 
     def drop(self, key: MapKey) -> None:
@@ -62,14 +75,18 @@ class Publication:
         self.latest.pop(key, None)
         self.pending.pop(key, None)
 
+    def due(self, key: MapKey, m: LiveMap, now: int) -> bool:
+        """Whether changed map ``key`` goes out in full now: its keyframe is due, or its extent changed."""
+        last = self.latest.get(key)
+        return last is None or now - last.stamp_ns >= self.keyframe_ns or last.frame != m.plan.frame
+
     def flush(self, maps: Mapping[MapKey, LiveMap], revision: int, *, due_only: bool = False) -> None:
         """Publish the full version of every map changed since its last full publication; with
-        ``due_only``, only of those whose first unpublished change is ``interval_s`` old."""
+        ``due_only``, only the keyframes that are due (see :meth:`due`)."""
         stamp = self.clock()
-        for key, since in sorted(self.pending.items()):
-            if due_only and stamp - since < self.interval_ns:
-                continue
-            del self.pending[key]
+        for key in sorted(self.pending):
             m = maps.get(key)
-            if m is not None:
+            if m is None:
+                del self.pending[key]
+            elif not due_only or self.due(key, m, stamp):
                 self.publish(m, revision, stamp)

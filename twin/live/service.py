@@ -4,10 +4,11 @@ It loads the graph (:func:`~twin.scene.load_scene`), builds every skill map of e
 handles requests one at a time on its own worker thread: robot observations (:mod:`twin.live.observe`:
 the hot path) and skill profiles added or removed at run time (:mod:`twin.live.skill_changes`). After
 each committed change it bumps the twin's revision and emits events (:mod:`twin.events`) to its sinks:
-the changed rectangle of every affected map at once, the full maps coalesced (at most every
-``limits.full_map_interval_s`` in a burst). Requests come from any thread (e.g. Zenoh callbacks,
-which only enqueue); replies go to the callback given with each request. Every ``flush_every_s`` it
-flushes the store's buffers so that memory and the store's log stay flat all day.
+the changed rectangle of every affected map at once, and a changed map in full only as a keyframe (at
+most every ``limits.keyframe_interval_s``; see :mod:`twin.live.publication`). Requests come from any
+thread (e.g. Zenoh callbacks, which only enqueue); replies go to the callback given with each request.
+Every ``flush_every_s`` it flushes the store's buffers so that memory and the store's log stay flat
+all day.
 
 Example::
 
@@ -88,7 +89,7 @@ class TwinService:
         self._completing: Restored | None = None
         self._queue = RequestQueue(max_batch)
         self.publication = Publication(
-            emit=self._emit, clock=clock, interval_s=config.limits.full_map_interval_s
+            emit=self._emit, clock=clock, keyframe_s=config.limits.keyframe_interval_s
         )
         self._live: LiveState | None = None
         self._observer: Observer | None = None
@@ -198,7 +199,7 @@ class TwinService:
 
     def flush_full_maps(self, *, due_only: bool = False) -> None:
         """Publish the full version of every map changed since its last full publication; with
-        ``due_only``, only of those whose first unpublished change is ``full_map_interval_s`` old."""
+        ``due_only``, only the keyframes that are due (``keyframe_interval_s`` since the last one)."""
         if self._live is not None:
             self.publication.flush(self._live.maps.maps, self._live.revision, due_only=due_only)
 
@@ -250,8 +251,8 @@ class TwinService:
         """Handle queued requests until the queue is empty (waiting up to ``timeout_s`` for the first),
         publishing the full maps that are due. Returns the number handled.
 
-        Updates go out at once; a changed map's full version follows ``full_map_interval_s`` after its
-        first unpublished change (so it comes after its updates, and a burst is coalesced).
+        Updates go out at once; a changed map goes out in full only as a keyframe, at most every
+        ``keyframe_interval_s`` (see :mod:`twin.live.publication`).
         """
         self.complete_scene()
         handled = 0

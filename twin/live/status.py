@@ -27,8 +27,8 @@ def service_status(service: TwinService) -> dict[str, object]:
         "skills": sorted(live.skills),
         "storeys": [s.key for s in live.maps.scene.storeys],
         "maps": [
-            {"storey": p.grid.storey, "skill": p.grid.skill, "version": p.version, "revision": p.revision}
-            for p in sorted(service.published_maps(), key=lambda p: (p.grid.storey, p.grid.skill))
+            {"storey": p.storey, "skill": p.skill, "version": p.version, "revision": p.revision}
+            for p in sorted(service.published_maps(), key=lambda p: (p.storey, p.skill))
         ],
         "observations": {"accepted": obs.accepted, "unchanged": obs.unchanged, "rejected": obs.rejected},
         "fusion": {
