@@ -33,6 +33,7 @@ from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.outbox import OutboxSink
+from adapters.zenoh.ros_ingest import RosIngest
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
@@ -136,6 +137,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         )
         daemon: ZenohDaemon | None = None
         ros: RosMapPublisher | None = None
+        ingest: RosIngest | None = None
         try:
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=cfg.frame_id)
             if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
@@ -144,6 +146,11 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
                 )
                 daemon.status_sources.append(ros.status)
             ros_sink = OutboxSink(ros, daemon.outbox) if ros is not None else None  # off the writer too
+            if cfg.sources or any(r.detections is not None for r in cfg.robots.values()):
+                storey_of = ros.storey_of if ros is not None else (lambda _robot: None)
+                ingest = RosIngest(session, cfg, service.submit_observation, storey_of=storey_of)
+                daemon.status_sources.append(ingest.status)
+                service.sinks.append(ingest)  # storeys, doors and occluding maps: cheap, on the writer
             service.sinks += [sink for sink in (daemon, ros_sink, recorder) if sink is not None]
             t0 = time.perf_counter()
             service.start()
@@ -163,7 +170,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             service.serve_forever(stop)
         finally:
             t1 = time.perf_counter()
-            for closable in (daemon, ros):
+            for closable in (ingest, daemon, ros):
                 if closable is not None:
                     closable.close()
             session.close()

@@ -50,6 +50,8 @@ __all__ = ["DetectionContext", "DetectionSettings", "box_in_map", "decode_detect
 
 log = logging.getLogger(__name__)
 _NS_PER_S = 1_000_000_000
+MIN_SIZE_M = 0.001
+"""A box side shorter than this (1 mm, the precision boxes are written with) is refused."""
 MAX_COORDINATE_M = 100_000.0
 """A pose farther than this from its frame's origin is refused as nonsense (100 km)."""
 
@@ -170,8 +172,8 @@ def box_in_map(
     values = (*position, *orientation)
     if not all(math.isfinite(v) for v in values) or any(abs(v) > MAX_COORDINATE_M for v in position):
         raise RosInputError("pose", f"Box pose is not finite or out of range: {values}.")
-    if not all(math.isfinite(v) and 0 < v <= max_size_m for v in size):
-        raise RosInputError("size", f"Box size {size} is not within (0, {max_size_m}] m.")
+    if not all(math.isfinite(v) and MIN_SIZE_M <= v <= max_size_m for v in size):
+        raise RosInputError("size", f"Box size {size} is not within [{MIN_SIZE_M}, {max_size_m}] m.")
     norm = math.sqrt(sum(v * v for v in orientation))
     if abs(norm - 1.0) > 1e-2:
         raise RosInputError(
