@@ -29,6 +29,7 @@ from adapters.zenoh.keys import SiteKeys, check_chunk
 from adapters.zenoh.ros_maps import STOREY_TOPIC
 from adapters.zenoh.settings import Identity, ZenohSettings
 from twin.config import Config, RobotConfig
+from twin.config.sources import SourceConfig
 
 # zenoh's ACL message kinds (zenoh-config AclMessage)
 READ = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
@@ -65,14 +66,31 @@ def ros_storey_keys(robot: RobotConfig) -> list[str]:
     return _ros_keys(robot, STOREY_TOPIC) if robot.namespace is not None else []
 
 
+def ros_report_keys(robot: RobotConfig) -> list[str]:
+    """The keys of the robot's detections, ``tf`` and ``tf_static`` topics, which only it publishes."""
+    d = robot.detections
+    if d is None or robot.namespace is None:
+        return []
+    return [key for name in (d.topic, d.tf, d.tf_static) for key in _ros_keys(robot, name)]
+
+
+def ros_source_keys(source: SourceConfig) -> list[str]:
+    """The keys of a ``[sources.NAME]`` topic (door states, obstacles), which only that source publishes."""
+    return _topic_keys(source.domain_id, source.namespace, source.topic, source.ros)
+
+
 def _ros_keys(robot: RobotConfig, name: str) -> list[str]:
     assert robot.namespace is not None
-    topic = RosTopic(robot.domain_id, robot.namespace, name, "nav_msgs/msg/OccupancyGrid")
+    return _topic_keys(robot.domain_id, robot.namespace, name, robot.ros)
+
+
+def _topic_keys(domain_id: int, namespace: str, name: str, layouts: Sequence[str]) -> list[str]:
+    topic = RosTopic(domain_id, namespace, name, "nav_msgs/msg/OccupancyGrid")
     keys: list[str] = []
-    if "bridge" in robot.ros:
+    if "bridge" in layouts:
         keys.append(topic.bridge_key)
-    if "rmw_zenoh" in robot.ros:
-        keys.append(f"{robot.domain_id}/{topic.fqn.strip('/')}/**")
+    if "rmw_zenoh" in layouts:
+        keys.append(f"{domain_id}/{topic.fqn.strip('/')}/**")
     return keys
 
 
@@ -195,11 +213,13 @@ def site_access_control(cfg: Config, keys: SiteKeys) -> dict[str, Any] | None:
             "certificate and private_key, and tls/... listen endpoints."
         )
         raise TransportError(msg)
+    robot_keys = {name: ros_storey_keys(robot) + ros_report_keys(robot) for name, robot in cfg.robots.items()}
+    robot_keys |= {name: ros_source_keys(source) for name, source in cfg.sources.items()}  # identities too
     return access_control(
         keys,
-        sorted(cfg.robots),
+        sorted([*cfg.robots, *cfg.sources]),
         identity=access.identity,
         operators=access.operators,
         ros_keys=ros_map_keys(cfg.robots.values()),
-        robot_keys={name: ros_storey_keys(robot) for name, robot in cfg.robots.items()},
+        robot_keys=robot_keys,
     )
