@@ -18,7 +18,9 @@ from twin.grid import GridFrame, OccupancyGrid
 
 NOW = 1_700_000_000_000_000_000
 TWIN = "https://w3id.org/building-twin#"
-SETTINGS = DetectionSettings(robot="robot1", classes={"table": "IfcFurniture", "chair": "IfcChair"})
+SETTINGS = DetectionSettings(
+    robot="robot1", classes={"table": "IfcFurniture", "chair": "IfcSystemFurnitureElement"}
+)
 
 
 def robot_tf(base=(14.0, 7.0), yaw: float = 0.0) -> TfBuffer:
@@ -105,7 +107,7 @@ def test_the_document_carries_the_view_the_sense_time_and_the_classes_it_detects
     t = translate_detections(cdr_detections(NOW, "camera_optical_frame", [TABLE_IN_CAMERA]), SETTINGS, ctx())
     found = triples(t.document)
     (view,) = [s for (s, p), v in found.items() if p.endswith("#type") and TWIN + "View" in v]
-    assert sorted(found[(view, "detects")]) == ["IfcChair", "IfcFurniture"]
+    assert sorted(found[(view, "detects")]) == ["IfcFurniture", "IfcSystemFurnitureElement"]
     assert found[(view, "senseTime")] == ["2023-11-14T22:13:20.000000Z"]
     xy = np.array(found[(view, "polygon")][0].split(), dtype=float).reshape(-1, 2)
     np.testing.assert_allclose(xy[0], [14.2, 7.0], atol=1e-4)  # the sensor: 0.2 m ahead of the base
