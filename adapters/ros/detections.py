@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import logging
 import math
+import struct
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -46,7 +47,14 @@ from adapters.ros.view import polygon_area, visibility_polygon
 from twin.errors import MapError
 from twin.grid import OccupancyGrid
 
-__all__ = ["DetectionContext", "DetectionSettings", "box_in_map", "decode_detections", "translate_detections"]
+__all__ = [
+    "DetectionContext",
+    "DetectionSettings",
+    "array_header",
+    "box_in_map",
+    "decode_detections",
+    "translate_detections",
+]
 
 log = logging.getLogger(__name__)
 _NS_PER_S = 1_000_000_000
@@ -144,6 +152,22 @@ def decode_detections(
             )
         )
     return frame, stamp, out
+
+
+def array_header(payload: bytes | bytearray | memoryview) -> tuple[str, int] | None:
+    """``(frame_id, stamp_ns)`` of a CDR message that starts with a ``std_msgs/Header`` (read without
+    decoding the rest), or None if it does not parse."""
+    raw = bytes(payload[:4096])
+    if len(raw) < 16 or raw[:2] != b"\x00\x01":
+        return None
+    sec, nanosec, length = struct.unpack_from("<iII", raw, 4)
+    if not 0 < length <= len(raw) - 16 or nanosec >= _NS_PER_S:
+        return None
+    try:
+        frame = raw[16 : 16 + length - 1].decode()
+    except UnicodeDecodeError:
+        return None
+    return frame, sec * _NS_PER_S + nanosec
 
 
 def _resolve(tf: TfBuffer, target: str, source: str, stamp_ns: int) -> Matrix:

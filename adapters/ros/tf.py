@@ -39,9 +39,11 @@ class TfError(Exception):
     """A frame that does not resolve; ``cause`` is one of ``unknown_frame``, ``disconnected``,
     ``extrapolation``."""
 
-    def __init__(self, cause: str, message: str) -> None:
+    def __init__(self, cause: str, message: str, *, later: bool = False) -> None:
         super().__init__(message)
         self.cause = cause
+        self.later = later
+        """For ``extrapolation``: the stamp is after the newest sample (it may still come)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -182,7 +184,7 @@ class TfBuffer:
                     f"Transform {edge.parent!r} -> {child!r} at {stamp_ns} ns is {gap / 1e9:.3f} s {side} "
                     f"sample it has (tolerance {self.tolerance_ns / 1e9:.3f} s)."
                 )
-                raise TfError("extrapolation", msg)
+                raise TfError("extrapolation", msg, later=i > 0)
             return matrix(edge.translations[nearest], edge.rotations[nearest])
         t0, t1 = stamps[i - 1], stamps[i]
         f = (stamp_ns - t0) / (t1 - t0)
@@ -202,6 +204,16 @@ class TfBuffer:
             chain.append(edge.parent)
             seen.add(edge.parent)
         return chain, steps
+
+    def waits_for(self, target: str, source: str, stamp_ns: int) -> bool:
+        """True when ``target_from_source`` at ``stamp_ns`` is not known yet but may be once newer
+        transforms arrive (tf2's message filter waits for them too): every frame is known and the stamp
+        is after the newest sample of a dynamic transform on the way."""
+        try:
+            self.lookup(target, source, stamp_ns)
+        except TfError as err:
+            return err.later
+        return False
 
     def lookup(self, target: str, source: str, stamp_ns: int) -> Matrix:
         """``target_from_source`` at ``stamp_ns`` (``(4, 4)``): maps points in ``source`` into ``target``."""

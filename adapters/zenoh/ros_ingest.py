@@ -39,7 +39,7 @@ from typing import Any
 
 import zenoh
 
-from adapters.ros.detections import DetectionContext, DetectionSettings, translate_detections
+from adapters.ros.detections import DetectionContext, DetectionSettings, array_header, translate_detections
 from adapters.ros.interfaces import DETECTION_3D_ARRAY, DOOR_STATE, OBSTACLES, TF_MESSAGE
 from adapters.ros.observation_doc import BoxReport, RosInputError, Translation, ViewReport, observation_turtle
 from adapters.ros.rmf import (
@@ -67,6 +67,10 @@ log = logging.getLogger(__name__)
 INGEST_NODE = "twin_ingest"
 _NODE_ID_BASE = 10_000  # node ids of this session's ingest nodes (the map server's count from 0)
 QUEUE_DEPTH = 1024
+TF_WAIT_S = 0.5
+"""How long an array whose transform is not in yet waits for newer TF (tf2's message filter does so too)."""
+MAX_WAITING = 64
+"""Arrays per robot waiting for TF at most; more are translated at once (and refused if still unresolved)."""
 Submit = Callable[[str, bytes, ReplyFn], None]
 
 
@@ -93,6 +97,8 @@ class Counts:
     """One robot's or source's ingestion, for the status."""
 
     received: int = 0
+    messages: Counter[str] = field(default_factory=Counter)
+    waited: int = 0
     submitted: int = 0
     accepted: int = 0
     unchanged: int = 0
@@ -105,6 +111,8 @@ class Counts:
     def as_dict(self) -> dict[str, object]:
         return {
             "received": self.received,
+            "messages": dict(sorted(self.messages.items())),
+            "waited_for_tf": self.waited,
             "submitted": self.submitted,
             "accepted": self.accepted,
             "unchanged": self.unchanged,
@@ -121,6 +129,8 @@ class _Robot:
     settings: DetectionSettings
     view_skill: str | None
     tf: TfBuffer = field(default_factory=TfBuffer)
+    waiting: list[tuple[float, _Message]] = field(default_factory=list)
+    """Arrays whose transform is not in yet: (monotonic deadline, message), oldest first."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -289,7 +299,7 @@ class RosIngest:
     # --- the worker --------------------------------------------------------------------------------
     def _run(self) -> None:
         while True:
-            timeout = self._next_expiry_s()
+            timeout = 0.05 if any(r.waiting for r in self._robots.values()) else self._next_expiry_s()
             try:
                 message = self._queue.get(timeout=timeout)
             except queue.Empty:
@@ -301,6 +311,7 @@ class RosIngest:
                 if message is not None:
                     self._handle(message)
                 self._expire()
+                self._give_up_waiting()
             except Exception:  # a bad message must never stop ingestion
                 log.exception("ROS 2 ingestion failed on a %s message", message.kind if message else "timer")
 
@@ -317,21 +328,67 @@ class RosIngest:
             if nxt is not None and nxt <= now:
                 self._deliver(name, tracker.expire(now_ns=now))
 
+    def _give_up_waiting(self) -> None:
+        """Translate the arrays that waited for TF too long (refused if it still does not resolve)."""
+        now = time.monotonic()
+        for robot in self._robots.values():
+            while robot.waiting and robot.waiting[0][0] <= now:
+                _, m = robot.waiting.pop(0)
+                self._translate(m)
+
+    def _retry_waiting(self, robot: _Robot) -> None:
+        """After new TF: translate the waiting arrays it resolves, in order."""
+        still: list[tuple[float, _Message]] = []
+        for deadline, m in robot.waiting:
+            if self._must_wait(robot, m):
+                still.append((deadline, m))
+            else:
+                self._translate(m)
+        robot.waiting = still
+
+    def _must_wait(self, robot: _Robot, m: _Message) -> bool:
+        header = array_header(m.payload)
+        if header is None:
+            return False
+        frame, stamp = header
+        target = robot.settings.map_frame
+        frames = {
+            f
+            for f in (frame, robot.settings.sensor_frame or frame)
+            if f and f.lstrip("/") != target.lstrip("/")
+        }
+        return any(robot.tf.waits_for(target, f, stamp) for f in frames)
+
     def _handle(self, m: _Message) -> None:
         with self._lock:
             c = self._counts[m.owner]
             c.received += 1
+            c.messages[m.kind] += 1
             if m.kind == "wrong_type":
                 self._refuse(c, m.owner, "wrong_type", m.note)
                 return
-        try:
-            if m.kind in ("tf", "tf_static"):
-                robot = self._robots[m.owner]
-                try:
-                    robot.tf.add(decode_tf_message(m.payload), static=m.kind == "tf_static")
-                except MapError as err:
-                    raise RosInputError("malformed", str(err)) from err
+        if m.kind in ("tf", "tf_static"):
+            robot = self._robots[m.owner]
+            try:
+                robot.tf.add(decode_tf_message(m.payload), static=m.kind == "tf_static")
+            except MapError as err:
+                with self._lock:
+                    self._refuse(self._counts[m.owner], m.owner, "malformed", str(err))
                 return
+            if robot.waiting:
+                self._retry_waiting(robot)
+            return
+        if m.kind == "detections":
+            robot = self._robots[m.owner]
+            if len(robot.waiting) < MAX_WAITING and (robot.waiting or self._must_wait(robot, m)):
+                robot.waiting.append((time.monotonic() + TF_WAIT_S, m))  # behind the others: in order
+                with self._lock:
+                    self._counts[m.owner].waited += 1
+                return
+        self._translate(m)
+
+    def _translate(self, m: _Message) -> None:
+        try:
             if m.kind == "detections":
                 translation = self._detections(m)
             elif m.kind == "doors":

@@ -9,7 +9,7 @@ import numpy as np
 import pyoxigraph as ox
 import pytest
 
-from adapters.ros.detections import DetectionContext, DetectionSettings, translate_detections
+from adapters.ros.detections import DetectionContext, DetectionSettings, array_header, translate_detections
 from adapters.ros.observation_doc import RosInputError
 from adapters.ros.tf import TfBuffer, TfError, decode_tf_message
 from adapters.ros.view import polygon_area, visibility_polygon
@@ -231,3 +231,19 @@ def test_the_view_stops_at_walls_of_the_structure_grid() -> None:
     assert xy[1:, 0].max() <= 3.0 + 1e-9  # nothing beyond the wall
     assert xy[1:, 0].max() > 2.9
     assert polygon_area(polygon) < 0.5 * 2.0 * 2.0 * math.tan(math.radians(30)) * 2 + 0.1
+
+
+def test_a_transform_not_in_yet_is_one_to_wait_for_and_an_unknown_frame_is_not() -> None:
+    tf = robot_tf()
+    assert tf.waits_for("map", "camera_optical_frame", NOW + 1_000_000_000)  # after the newest sample
+    assert not tf.waits_for("map", "camera_optical_frame", NOW)
+    assert not tf.waits_for("map", "camera_optical_frame", NOW - 1_000_000_000)  # before the oldest: never
+    assert not tf.waits_for("map", "lidar", NOW)
+
+
+def test_the_array_header_is_read_without_decoding_the_rest() -> None:
+    assert array_header(cdr_detections(NOW + 5, "camera_optical_frame", [TABLE_IN_CAMERA])) == (
+        "camera_optical_frame",
+        NOW + 5,
+    )
+    assert array_header(b"\x00\x01\x00\x00\x01") is None
