@@ -148,10 +148,12 @@ def run(
         daemon.wait(timeout=30)
 
     def total(s: dict[str, Any], key: str) -> int:
+        if key == "arrays":
+            return sum(int(c["messages"].get("detections", 0)) for c in s["ros_ingest"]["counts"].values())
         return sum(int(c[key]) for c in s["ros_ingest"]["counts"].values())
 
     window = w1 - w0
-    received = total(s1, "received") - total(s0, "received")
+    received = total(s1, "arrays") - total(s0, "arrays")
     acked = (total(s1, "accepted") + total(s1, "unchanged")) - (
         total(s0, "accepted") + total(s0, "unchanged")
     )
@@ -174,7 +176,8 @@ def run(
         "unchanged_total": total(final, "unchanged"),
         "refused": refused,
         "sent_total": sent["sent"],
-        "received_total": total(final, "received"),
+        "arrays_received_total": total(final, "arrays"),
+        "waited_for_tf": sum(int(c["waited_for_tf"]) for c in final["ros_ingest"]["counts"].values()),
         "queue_depth_max": max((d[0] for d in depths), default=0),
         "service_queue_max": max((d[1] for d in depths), default=0),
         "queue_depth_last": depths[-1] if depths else None,

@@ -206,13 +206,13 @@ class TfBuffer:
         return chain, steps
 
     def waits_for(self, target: str, source: str, stamp_ns: int) -> bool:
-        """True when ``target_from_source`` at ``stamp_ns`` is not known yet but may be once newer
-        transforms arrive (tf2's message filter waits for them too): every frame is known and the stamp
-        is after the newest sample of a dynamic transform on the way."""
+        """True when ``target_from_source`` at ``stamp_ns`` is not known yet but may be once more
+        transforms arrive (tf2's message filter waits for them too): a frame nobody has published yet,
+        or a stamp after the newest sample of a dynamic transform on the way."""
         try:
             self.lookup(target, source, stamp_ns)
         except TfError as err:
-            return err.later
+            return err.later or err.cause == "unknown_frame"
         return False
 
     def lookup(self, target: str, source: str, stamp_ns: int) -> Matrix:

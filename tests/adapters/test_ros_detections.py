@@ -233,12 +233,12 @@ def test_the_view_stops_at_walls_of_the_structure_grid() -> None:
     assert polygon_area(polygon) < 0.5 * 2.0 * 2.0 * math.tan(math.radians(30)) * 2 + 0.1
 
 
-def test_a_transform_not_in_yet_is_one_to_wait_for_and_an_unknown_frame_is_not() -> None:
+def test_a_transform_or_frame_not_in_yet_is_one_to_wait_for_and_an_old_stamp_is_not() -> None:
     tf = robot_tf()
     assert tf.waits_for("map", "camera_optical_frame", NOW + 1_000_000_000)  # after the newest sample
     assert not tf.waits_for("map", "camera_optical_frame", NOW)
     assert not tf.waits_for("map", "camera_optical_frame", NOW - 1_000_000_000)  # before the oldest: never
-    assert not tf.waits_for("map", "lidar", NOW)
+    assert tf.waits_for("map", "lidar", NOW)  # nobody published it yet: it may come
 
 
 def test_the_array_header_is_read_without_decoding_the_rest() -> None:
