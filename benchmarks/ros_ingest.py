@@ -92,6 +92,39 @@ def publisher(
     return 0
 
 
+def translate_only(per_robot: int, repeat: int = 2000) -> dict[str, float]:
+    """In-process cost of translating one array (no daemon): without the fusion terms, and with the
+    view (64 rays over a 30 x 30 m structure grid at 0.05 m) and the sense time."""
+    import numpy as np
+
+    from adapters.ros.detections import DetectionContext, DetectionSettings, translate_detections
+    from adapters.ros.tf import TfBuffer, decode_tf_message
+    from tests.adapters.ros_reports import OPTICAL, Det, Tf, cdr_detections, cdr_tf
+    from twin.grid import GridFrame, OccupancyGrid
+
+    now = time.time_ns()
+    tf = TfBuffer()
+    tf.add(decode_tf_message(cdr_tf([Tf("map", "base_link", (15.0, 7.0, 0.0), stamp_ns=now)])), static=False)
+    tf.add(decode_tf_message(cdr_tf([Tf("base_link", "cam", (0.2, 0, 1.0), OPTICAL)])), static=True)
+    data = np.zeros((600, 600), dtype=np.int8)
+    data[::80, :] = 100
+    data[:, ::100] = 100
+    grid = OccupancyGrid(GridFrame(0.0, 0.0, 0.05, 600, 600), data, "ground-floor", "localization", 0.0)
+    upright = (0.5, -0.5, 0.5, 0.5)
+    dets = [Det((("table", 0.9),), (0.1 * i - 1, 0.6, 2.0 + 0.1 * i), (0.2, 0.2, 0.75), upright, f"t{i}")
+            for i in range(per_robot)]  # fmt: skip
+    payload = cdr_detections(now, "cam", dets)
+    settings = DetectionSettings(robot="r", classes={"table": "IfcFurniture"})
+    out: dict[str, float] = {}
+    for label, fusion in (("elements_ms", False), ("with_view_ms", True)):
+        ctx = DetectionContext("ground-floor", 0.0, now, tf, grid, fusion)
+        t0 = time.perf_counter()
+        for _ in range(repeat):
+            translate_detections(payload, settings, ctx)
+        out[label] = round(1000 * (time.perf_counter() - t0) / repeat, 3)
+    return out
+
+
 def _cpu_s(pid: int) -> float:
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
@@ -215,7 +248,11 @@ def main() -> int:
     p.add_argument("--warmup", type=float, default=8.0)
     p.add_argument("--layout", choices=["bridge", "rmw_zenoh"], default="rmw_zenoh")
     p.add_argument("--json", type=Path)
+    p.add_argument("--translate-only", action="store_true", help="time the translation in-process only")
     a = p.parse_args()
+    if a.translate_only:
+        print(json.dumps(translate_only(a.detections), indent=1))
+        return 0
     result = run(
         robots=a.robots, rate=a.rate, per_robot=a.detections, duration=a.duration, warmup=a.warmup,
         layout=a.layout,

@@ -266,6 +266,7 @@ def translate_detections(
     refused: list[tuple[str, str]] = []
     boxes: list[BoxReport] = []
     seen: set[str] = set()
+    transforms: dict[tuple[str, int], Matrix] = {}
     drop_z = ctx.elevation_m if settings.z_reference == "building" else 0.0
     for index, d in enumerate(detections):
         if d.class_id is None:
@@ -281,7 +282,10 @@ def translate_detections(
         try:
             if d.stamp_ns > ctx.now_ns + settings.future_ns:
                 raise RosInputError("future", f"Detection stamp {d.stamp_ns} ns is in the future.")
-            map_from_frame = _resolve(ctx.tf, settings.map_frame, d.frame_id, d.stamp_ns)
+            key = (d.frame_id, d.stamp_ns)
+            if key not in transforms:  # the detections of an array share their frame: one lookup
+                transforms[key] = _resolve(ctx.tf, settings.map_frame, d.frame_id, d.stamp_ns)
+            map_from_frame = transforms[key]
             cx, cy, cz, sx, sy, sz, yaw = box_in_map(
                 map_from_frame, d.position, d.orientation, d.size,
                 max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m,
