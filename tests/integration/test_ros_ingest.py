@@ -21,11 +21,14 @@ from typing import Any
 
 import numpy as np
 import pytest
+import zenoh
 from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
 from adapters.ros.interfaces import DETECTION_3D_ARRAY, DOOR_STATE, OBSTACLES, TF_MESSAGE
+from adapters.ros.rmw_zenoh import parse_token
 from adapters.zenoh.client import TwinClient
+from adapters.zenoh.session import client_config
 from tests.adapters.ros_reports import (
     OPTICAL,
     Det,
@@ -221,3 +224,16 @@ def test_detections_doors_and_obstacles_from_ros_reach_the_navigation_map(
         status = wait_until(client, lambda s: counts(s, "robot1")["refused"] == expected)
         assert status["revision"] == revision1 + 3  # the door, the obstacle and its expiry: nothing else
     robot.close_stdin_and_wait()
+    if layout == "rmw_zenoh":  # the daemon is a subscriber of these topics in the robot's ROS graph
+        with zenoh.open(client_config([daemon.endpoint])) as session:
+            keys = [str(r.ok.key_expr) for r in session.liveliness().get("@ros2_lv/0/**", timeout=5) if r.ok]
+        tokens = [parse_token(k) for k in keys]
+        assert ("/robot1", "twin_ingest") in {(t.namespace, t.node) for t in tokens if t.kind == "NN"}
+        subscribed = {(t.topic, t.type_name) for t in tokens if t.kind == "MS" and t.node == "twin_ingest"}
+        assert {
+            ("/robot1/detections", "vision_msgs::msg::dds_::Detection3DArray_"),
+            ("/robot1/tf", "tf2_msgs::msg::dds_::TFMessage_"),
+            ("/robot1/tf_static", "tf2_msgs::msg::dds_::TFMessage_"),
+            ("/door_states", "rmf_door_msgs::msg::dds_::DoorState_"),
+            ("/rmf_obstacles", "rmf_obstacle_msgs::msg::dds_::Obstacles_"),
+        } <= subscribed
