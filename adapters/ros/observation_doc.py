@@ -81,6 +81,13 @@ class Translation:
     iris: tuple[str, ...] = ()
     ignored: dict[str, int] = field(default_factory=dict)
     refused: tuple[tuple[str, str], ...] = ()
+    extra: tuple[bytes, ...] = ()
+    """More documents to submit after ``document``, each on its own (e.g. one removal each, so that a
+    removal the twin refuses takes no other change with it)."""
+
+    @property
+    def documents(self) -> tuple[bytes, ...]:
+        return ((self.document,) if self.document is not None else ()) + self.extra
 
 
 def robot_iri(owner: str, kind: str, local: str) -> str:

@@ -161,10 +161,8 @@ class ObstacleTracker:
                 held.pop(iri, None)
         for iri, (rmf_source, expiry) in added.items():
             self._known.setdefault(rmf_source, {})[iri] = expiry
-        document = observation_turtle(
-            boxes=list(boxes.values()), removed=list(removed), fusion_terms=fusion_terms
-        )
-        return Translation(document, tuple(boxes), dict(ignored), tuple(refused))
+        document = observation_turtle(boxes=list(boxes.values()), fusion_terms=fusion_terms)
+        return Translation(document, tuple(boxes), dict(ignored), tuple(refused), _removals(removed))
 
     def next_expiry(self) -> int | None:
         """When the next held obstacle lapses (ns), or None."""
@@ -179,7 +177,12 @@ class ObstacleTracker:
         for held in self._known.values():
             for iri in lapsed:
                 held.pop(iri, None)
-        return Translation(observation_turtle(removed=lapsed), ())
+        return Translation(None, (), extra=_removals(lapsed))
+
+
+def _removals(iris: Iterable[str]) -> tuple[bytes, ...]:
+    """One removal document per element: one the twin does not hold (its ADD was refused) fails alone."""
+    return tuple(doc for iri in iris if (doc := observation_turtle(removed=[iri])) is not None)
 
 
 @dataclass(frozen=True, slots=True)

@@ -410,11 +410,11 @@ class RosIngest:
     def _detections(self, m: _Message) -> Translation:
         robot = self._robots[m.owner]
         storey = self.storey_of(m.owner)
-        with self._lock:
+        with self._lock:  # grids are replaced, never changed in place: this one stays as it is
             elevation = self._elevations.get(storey or "", 0.0)
             grid = self._grids.get((storey, robot.view_skill)) if storey and robot.view_skill else None
-            ctx = DetectionContext(storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms)
-            return translate_detections(m.payload, robot.settings, ctx)  # under the lock: the grid is shared
+        ctx = DetectionContext(storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms)
+        return translate_detections(m.payload, robot.settings, ctx)
 
     def _deliver(self, owner: str, t: Translation) -> None:
         with self._lock:
@@ -422,10 +422,10 @@ class RosIngest:
             c.ignored.update(t.ignored)
             for cause, message in t.refused:
                 self._refuse(c, owner, cause, message)
-            if t.document is None:
-                return
-            c.submitted += 1
-        self.submit(owner, t.document, self._on_reply(owner))
+            documents = t.documents
+            c.submitted += len(documents)
+        for document in documents:
+            self.submit(owner, document, self._on_reply(owner))
 
     def _on_reply(self, owner: str) -> ReplyFn:
         def on_reply(reply: Reply) -> None:
@@ -467,9 +467,13 @@ class RosIngest:
             elif isinstance(event, MapUpdated):
                 with self._lock:
                     grid = self._grids.get((event.storey, event.skill))
-                    if grid is not None and grid.frame == event.frame:
-                        w = event.window
-                        grid.data[w.row0 : w.row1, w.col0 : w.col1] = event.data
+                if grid is not None and grid.frame == event.frame:  # copy on write: the worker may read it
+                    w = event.window
+                    data = grid.data.copy()
+                    data[w.row0 : w.row1, w.col0 : w.col1] = event.data
+                    own = OccupancyGrid(grid.frame, data, grid.storey, grid.skill, grid.elevation_m)
+                    with self._lock:
+                        self._grids[(event.storey, event.skill)] = own
         except Exception:  # a sink must never stop the twin
             log.exception("ROS 2 ingestion failed on %s", type(event).__name__)
 

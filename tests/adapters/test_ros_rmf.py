@@ -46,23 +46,26 @@ def test_an_obstacle_expires_after_its_lifetime() -> None:
     tracker = ObstacleTracker(SETTINGS)
     tracker.translate(cdr_obstacles(NOW, [human(1, lifetime_ns=2_000_000_000), human(2)]), now_ns=NOW)
     assert tracker.next_expiry() == NOW + 2_000_000_000
-    assert tracker.expire(now_ns=NOW + 1_000_000_000).document is None
-    gone = tracker.expire(now_ns=NOW + 2_000_000_000).document or b""
+    assert tracker.expire(now_ns=NOW + 1_000_000_000).documents == ()
+    (gone,) = tracker.expire(now_ns=NOW + 2_000_000_000).documents
     assert b"<urn:twin-ros:rmf:obstacle:cam1%2F1> twin:removed true" in gone and b"cam1%2F2" not in gone
     assert tracker.held == 1 and tracker.next_expiry() is None
 
 
-def test_delete_and_deleteall_remove_only_what_that_rmf_source_added() -> None:
+def test_delete_and_deleteall_remove_only_what_that_rmf_source_added_each_on_its_own() -> None:
     tracker = ObstacleTracker(SETTINGS)
     other = Obstacle(9, "cam2", "L1", "human", (5, 5, 0.9), (0.5, 0.5, 1.8))
     tracker.translate(cdr_obstacles(NOW, [human(1), human(2), other]), now_ns=NOW)
-    deleted = tracker.translate(cdr_obstacles(NOW, [human(1, action=2)]), now_ns=NOW)
-    assert deleted.document is not None and b"cam1%2F1> twin:removed true" in deleted.document
+    (deleted,) = tracker.translate(cdr_obstacles(NOW, [human(1, action=2)]), now_ns=NOW).documents
+    assert b"cam1%2F1> twin:removed true" in deleted
     unknown = tracker.translate(cdr_obstacles(NOW, [human(7, action=2)]), now_ns=NOW)
-    assert unknown.document is None and unknown.ignored == {"unknown_id": 1}
-    everything = tracker.translate(cdr_obstacles(NOW, [human(0, action=3)]), now_ns=NOW).document or b""
-    assert b"cam1%2F2> twin:removed true" in everything and b"cam2" not in everything
-    assert tracker.held == 1
+    assert unknown.documents == () and unknown.ignored == {"unknown_id": 1}
+    everything = tracker.translate(cdr_obstacles(NOW, [human(0, action=3), human(5)]), now_ns=NOW)
+    boxes, removal = everything.documents  # the boxes, then each removal in a document of its own
+    assert b"cam1%2F5> twin:ifcClass" in boxes and b"removed" not in boxes
+    assert removal.endswith(b"<urn:twin-ros:rmf:obstacle:cam1%2F2> twin:removed true .\n")
+    assert b"cam2" not in boxes + removal
+    assert tracker.held == 2
 
 
 def test_unknown_classification_is_ignored_and_an_unknown_level_refused() -> None:
