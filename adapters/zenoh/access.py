@@ -74,6 +74,18 @@ def ros_report_keys(robot: RobotConfig) -> list[str]:
     return [key for name in (d.topic, d.tf, d.tf_static) for key in _ros_keys(robot, name)]
 
 
+def ros_diagnostics_keys(cfg: Config) -> list[str]:
+    """The keys of the ``/<ns>/diagnostics`` topics the daemon publishes (robots and sources that ask)."""
+    keys: list[str] = []
+    for robot in cfg.robots.values():
+        if robot.namespace is not None and robot.detections is not None and robot.detections.diagnostics:
+            keys += _ros_keys(robot, "diagnostics")
+    for source in cfg.sources.values():
+        if source.diagnostics:
+            keys += _topic_keys(source.domain_id, source.namespace, "diagnostics", source.ros)
+    return keys
+
+
 def ros_source_keys(source: SourceConfig) -> list[str]:
     """The keys of a ``[sources.NAME]`` topic (door states, obstacles), which only that source publishes."""
     return _topic_keys(source.domain_id, source.namespace, source.topic, source.ros)
@@ -220,6 +232,6 @@ def site_access_control(cfg: Config, keys: SiteKeys) -> dict[str, Any] | None:
         sorted([*cfg.robots, *cfg.sources]),
         identity=access.identity,
         operators=access.operators,
-        ros_keys=ros_map_keys(cfg.robots.values()),
+        ros_keys=ros_map_keys(cfg.robots.values()) + ros_diagnostics_keys(cfg),
         robot_keys=robot_keys,
     )

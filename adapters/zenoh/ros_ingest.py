@@ -40,7 +40,8 @@ from typing import Any
 import zenoh
 
 from adapters.ros.detections import DetectionContext, DetectionSettings, array_header, translate_detections
-from adapters.ros.interfaces import DETECTION_3D_ARRAY, DOOR_STATE, OBSTACLES, TF_MESSAGE
+from adapters.ros.diagnostics import OK, WARN, IngestDiagnostic, encode_diagnostics
+from adapters.ros.interfaces import DETECTION_3D_ARRAY, DIAGNOSTIC_ARRAY, DOOR_STATE, OBSTACLES, TF_MESSAGE
 from adapters.ros.observation_doc import BoxReport, RosInputError, Translation, ViewReport, observation_turtle
 from adapters.ros.rmf import (
     DoorIndex,
@@ -50,9 +51,18 @@ from adapters.ros.rmf import (
     ObstacleTracker,
     translate_door_state,
 )
-from adapters.ros.rmw_zenoh import DEFAULT_QOS, STATE_QOS, RosNode, RosTopic, dds_type_name, type_hash
+from adapters.ros.rmw_zenoh import (
+    DEFAULT_QOS,
+    STATE_QOS,
+    RosNode,
+    RosTopic,
+    attachment,
+    dds_type_name,
+    gid_of,
+    type_hash,
+)
 from adapters.ros.tf import TfBuffer, decode_tf_message
-from adapters.zenoh.latched import declare_latched_subscriber
+from adapters.zenoh.latched import CDR, declare_latched_subscriber
 from twin.config import Config, Limits
 from twin.errors import MapError, ObservationError
 from twin.events import MapPublished, MapUpdated, TwinEvent, TwinStarted
@@ -67,6 +77,9 @@ log = logging.getLogger(__name__)
 INGEST_NODE = "twin_ingest"
 _NODE_ID_BASE = 10_000  # node ids of this session's ingest nodes (the map server's count from 0)
 QUEUE_DEPTH = 1024
+DIAGNOSTICS_TOPIC = "diagnostics"
+DIAGNOSTICS_S = 1.0
+"""How often the DiagnosticArray of a robot or source that asked for it is published."""
 TF_WAIT_S = 0.5
 """How long an array whose transform is not in yet waits for newer TF (tf2's message filter does so too)."""
 MAX_WAITING = 64
@@ -124,6 +137,22 @@ class Counts:
 
 
 @dataclass(eq=False, slots=True)
+class _Out:
+    """A publisher; on rmw_zenoh with its gid and sequence number for the attachment."""
+
+    publisher: Any
+    gid: bytes | None = None
+    sequence: int = 0
+
+    def put(self, payload: bytes, stamp_ns: int) -> None:
+        if self.gid is None:
+            self.publisher.put(payload)
+            return
+        self.sequence += 1
+        self.publisher.put(payload, attachment=attachment(self.sequence, stamp_ns, self.gid))
+
+
+@dataclass(eq=False, slots=True)
 class _Robot:
     name: str
     settings: DetectionSettings
@@ -174,6 +203,9 @@ class RosIngest:
         self._elevations: dict[str, float] = {}
         self._grids: dict[tuple[str, str], OccupancyGrid] = {}
         self._entities: list[Any] = []
+        self._diagnostics: dict[str, list[_Out]] = {}
+        self._refused_before: dict[str, int] = {}
+        self._next_diagnostics = time.monotonic() + DIAGNOSTICS_S
         zid = str(session.zid())
         node_id = _NODE_ID_BASE
         entity = 0
@@ -208,6 +240,8 @@ class RosIngest:
             entity = self._subscribe(
                 session, owner=robot.name, node=node, layouts=robot.ros, topics=topics, entity=entity
             )
+            if d.diagnostics:
+                entity = self._declare_diagnostics(session, robot.name, node, robot.ros, entity)
         for source in sorted(config.sources.values(), key=lambda s: s.name):
             self._counts[source.name] = Counts()
             if source.kind == "rmf_doors":
@@ -229,6 +263,8 @@ class RosIngest:
                 topics=[(source.topic, type_name, kind, False)],
                 entity=entity,
             )
+            if source.diagnostics:
+                entity = self._declare_diagnostics(session, source.name, node, source.ros, entity)
         self._worker = threading.Thread(target=self._run, name="ros-ingest", daemon=True)
         self._worker.start()
         log.info(
@@ -273,6 +309,52 @@ class RosIngest:
                 self._entities.append(session.liveliness().declare_token(token))
         return entity
 
+    def _declare_diagnostics(
+        self, session: zenoh.Session, owner: str, node: RosNode, layouts: tuple[str, ...], entity: int
+    ) -> int:
+        """Publishers of ``<ns>/diagnostics`` (DiagnosticArray) in ``layouts``."""
+        topic = RosTopic(node.domain_id, node.namespace, DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY)
+        outs = self._diagnostics.setdefault(owner, [])
+        if "bridge" in layouts:
+            outs.append(_Out(session.declare_publisher(topic.bridge_key, encoding=CDR)))
+        if "rmw_zenoh" in layouts:
+            token = node.publisher_token(topic, entity, DEFAULT_QOS)
+            entity += 1
+            self._entities.append(session.liveliness().declare_token(token))
+            pub = session.declare_publisher(
+                topic.data_key, encoding=CDR, reliability=zenoh.Reliability.RELIABLE
+            )
+            outs.append(_Out(pub, gid=gid_of(token)))
+        return entity
+
+    def _publish_diagnostics(self) -> None:
+        """One DiagnosticArray per owner that asked for it: WARN if it had refusals since the last one."""
+        now = time.monotonic()
+        if not self._diagnostics or now < self._next_diagnostics:
+            return
+        self._next_diagnostics = now + DIAGNOSTICS_S
+        stamp = self.clock()
+        for owner, outs in self._diagnostics.items():
+            with self._lock:
+                c = self._counts[owner]
+                refused = sum(c.refused.values())
+                fresh = refused - self._refused_before.get(owner, 0)
+                self._refused_before[owner] = refused
+                values = {
+                    key: str(getattr(c, key)) for key in ("received", "submitted", "accepted", "unchanged")
+                }
+                values |= {f"refused.{k}": str(v) for k, v in sorted(c.refused.items())}
+                values |= {f"ignored.{k}": str(v) for k, v in sorted(c.ignored.items())}
+                if c.last_refusal:
+                    values["last_refusal"] = c.last_refusal
+                message = f"accepted {c.accepted}, unchanged {c.unchanged}, refused {refused}"
+            if fresh:
+                message += f" ({fresh} since the last report; last: {c.last_refusal})"
+            level = WARN if fresh else OK
+            payload = encode_diagnostics([IngestDiagnostic(owner, level, message, values)], stamp_ns=stamp)
+            for out in outs:
+                out.put(payload, stamp)
+
     def _handler(self, owner: str, kind: str, expected: str | None) -> Callable[[zenoh.Sample], None]:
         def on_sample(sample: zenoh.Sample) -> None:
             if sample.kind != zenoh.SampleKind.PUT:
@@ -300,6 +382,8 @@ class RosIngest:
     def _run(self) -> None:
         while True:
             timeout = 0.05 if any(r.waiting for r in self._robots.values()) else self._next_expiry_s()
+            if self._diagnostics:
+                timeout = min(timeout, max(0.0, self._next_diagnostics - time.monotonic()))
             try:
                 message = self._queue.get(timeout=timeout)
             except queue.Empty:
@@ -312,6 +396,7 @@ class RosIngest:
                     self._handle(message)
                 self._expire()
                 self._give_up_waiting()
+                self._publish_diagnostics()
             except Exception:  # a bad message must never stop ingestion
                 log.exception("ROS 2 ingestion failed on a %s message", message.kind if message else "timer")
 
@@ -495,7 +580,7 @@ class RosIngest:
         }
 
     def close(self) -> None:
-        for entity in self._entities:
+        for entity in [*self._entities, *(o.publisher for outs in self._diagnostics.values() for o in outs)]:
             try:
                 entity.undeclare()
             except Exception:

@@ -13,6 +13,8 @@ import numpy as np
 import pyoxigraph as ox
 import pytest
 import zenoh
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.serialization import deserialize_message
 
 from adapters.zenoh.ros_ingest import RosIngest
 from adapters.zenoh.session import client_config
@@ -32,6 +34,7 @@ def ingest(tmp_path: Path) -> Iterator[tuple[RosIngest, zenoh.Session, list[byte
     path.write_text(
         '[robots.robot1]\nnamespace = "/robot1"\nstorey = "ground-floor"\nros = ["bridge"]\n'
         '[robots.robot1.detections]\nclasses = { table = "IfcFurniture" }\nrange_m = 8.0\n'
+        "diagnostics = true\n"
     )
     docs: list[bytes] = []
 
@@ -103,3 +106,23 @@ def test_the_view_stops_at_the_structure_and_follows_its_map_updates(
     wait(lambda: ing.status()["ros_ingest"]["counts"]["robot1"]["unchanged"] == 1)  # type: ignore[index]
     counts = ing.status()["ros_ingest"]["counts"]["robot1"]  # type: ignore[index]
     assert counts["accepted"] == 1 and counts["messages"] == {"detections": 2, "tf": 2, "tf_static": 1}
+
+
+def test_a_diagnostic_array_with_the_counts_is_published_and_warns_after_a_refusal(
+    ingest: tuple[RosIngest, zenoh.Session, list[bytes]],
+) -> None:
+    _, session, _ = ingest
+    got: list[DiagnosticArray] = []
+    sub = session.declare_subscriber(
+        "robot1/diagnostics", lambda s: got.append(deserialize_message(s.payload.to_bytes(), DiagnosticArray))
+    )
+    session.put("robot1/detections", b"\x00\x01\x00\x00not cdr")
+    wait(lambda: any(a.status and a.status[0].level == b"\x01" for a in got), timeout_s=5)
+    warned = next(a for a in got if a.status[0].level == b"\x01").status[0]
+    assert warned.name == "twin_ingest: robot1"
+    values = {kv.key: kv.value for kv in warned.values}
+    assert values["refused.malformed"] == "1" and values["last_refusal"].startswith("malformed: ")
+    count = len(got)
+    wait(lambda: len(got) > count, timeout_s=5)
+    assert got[-1].status[0].level == b"\x00"  # nothing refused since: OK again
+    sub.undeclare()

@@ -19,7 +19,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, StringConstraints, ValidationInfo, field_validator, model_validator
 
-from twin.config.base import ConfigTable, Number, Text, Whole, list_of
+from twin.config.base import ConfigTable, Flag, Number, Text, Whole, list_of
 from twin.config.tables import NAME_PATTERN, IfcClassName, Right
 
 RosLayout = Literal["bridge", "rmw_zenoh"]
@@ -57,6 +57,7 @@ class DetectionConfig:
     view_skill: str | None = "localization"
     tf: str = "tf"
     tf_static: str = "tf_static"
+    diagnostics: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,6 +111,9 @@ class DetectionTable(ConfigTable):
     )
     tf: Text = Field("tf", description="TFMessage topic under the namespace.")
     tf_static: Text = Field("tf_static", description="Static TFMessage topic under the namespace.")
+    diagnostics: Flag = Field(
+        False, description="Publish the ingestion's counts on /<ns>/diagnostics (DiagnosticArray, 1 Hz)."
+    )
 
     @field_validator("topic", "tf", "tf_static")
     @classmethod
@@ -147,6 +151,7 @@ class DetectionTable(ConfigTable):
             view_skill=self.view_skill,
             tf=self.tf,
             tf_static=self.tf_static,
+            diagnostics=self.diagnostics,
         )
 
 
@@ -219,7 +224,7 @@ class RobotTable(ConfigTable):
             topics = self.maps or ({"map": self.skill} if self.skill else dict(DEFAULT_ROBOT_MAPS))
             used = set(topics) | {f"{t}_updates" for t in topics} | {f"{t}_info" for t in topics}
             d = self.detections
-            if {d.topic, d.tf, d.tf_static} & (used | {"storey"}):
+            if {d.topic, d.tf, d.tf_static} & (used | {"storey", "diagnostics"}):
                 names = f"{d.topic!r}, {d.tf!r}, {d.tf_static!r}"
                 msg = f"detection topics {names} clash with its map or storey topics"
                 raise ValueError(msg)

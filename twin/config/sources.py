@@ -26,7 +26,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, field_validator
 
-from twin.config.base import ConfigTable, Number, Text, Whole, list_of
+from twin.config.base import ConfigTable, Flag, Number, Text, Whole, list_of
 from twin.config.robots import RosLayout
 from twin.config.tables import IfcClassName, Right
 
@@ -65,6 +65,7 @@ class SourceConfig:
     classes: tuple[tuple[str, str], ...] = ()
     levels: tuple[tuple[str, LevelConfig], ...] = ()
     max_size_m: float = 20.0
+    diagnostics: bool = False
 
 
 class LevelTable(ConfigTable):
@@ -96,6 +97,10 @@ class SourceTable(ConfigTable):
     )
     levels: dict[str, LevelTable] = Field(default_factory=dict, description="RMF level_name = storey.")
     max_size_m: Annotated[Number, Field(gt=0, le=1000)] = 20.0
+    diagnostics: Flag = Field(
+        False,
+        description="Publish the ingestion's counts on <namespace>/diagnostics (DiagnosticArray, 1 Hz).",
+    )
 
     @field_validator("namespace")
     @classmethod
@@ -129,4 +134,5 @@ class SourceTable(ConfigTable):
                 for level, t in self.levels.items()
             ),
             max_size_m=self.max_size_m,
+            diagnostics=self.diagnostics,
         )
