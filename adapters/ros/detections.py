@@ -61,6 +61,8 @@ _NS_PER_S = 1_000_000_000
 MIN_SIZE_M = 0.001
 """A box side shorter than this (1 mm, the precision boxes are written with) is refused."""
 MAX_COORDINATE_M = 100_000.0
+BYTES_PER_DETECTION = 8192
+"""Larger arrays are refused before they are decoded (a detection with one hypothesis is about 500 bytes)."""
 """A pose farther than this from its frame's origin is refused as nonsense (100 km)."""
 
 
@@ -126,6 +128,10 @@ def decode_detections(
 ) -> tuple[str, int, list[_Detection]]:
     """``(frame_id, stamp_ns, detections)`` of a CDR Detection3DArray; RosInputError if malformed or
     too long."""
+    limit = max_detections * BYTES_PER_DETECTION + 4096
+    if len(payload) > limit:
+        msg = f"Detection3DArray of {len(payload)} bytes: {max_detections} detections fit in {limit}."
+        raise RosInputError("oversized", msg)
     try:
         message = _deserialize(payload, DETECTION_3D_ARRAY)
     except MapError as err:

@@ -47,6 +47,9 @@ __all__ = [
 ]
 
 _NS_PER_S = 1_000_000_000
+MAX_OBSTACLES_BYTES = 16 << 20
+"""Larger Obstacles messages are refused before they are decoded (voxel data included)."""
+MAX_DOOR_STATE_BYTES = 64 << 10
 ACTION_ADD, ACTION_DELETE, ACTION_DELETEALL = 1, 2, 3
 MODE_CLOSED, MODE_MOVING, MODE_OPEN, MODE_OFFLINE, MODE_UNKNOWN = 0, 1, 2, 3, 4
 _MODE_NAMES = {MODE_MOVING: "moving", MODE_OFFLINE: "offline", MODE_UNKNOWN: "unknown"}
@@ -96,6 +99,9 @@ class ObstacleTracker:
     ) -> Translation:
         """One Obstacles message as one observation; RosInputError if malformed or too long."""
         s = self.settings
+        if len(payload) > MAX_OBSTACLES_BYTES:
+            msg = f"Obstacles of {len(payload)} bytes is larger than the limit {MAX_OBSTACLES_BYTES}."
+            raise RosInputError("oversized", msg)
         try:
             message = _deserialize(payload, OBSTACLES)
         except MapError as err:
@@ -223,6 +229,10 @@ def translate_door_state(
     fusion_terms: bool = True,
 ) -> Translation:
     """One DoorState as an observation of the matched door's state (see the module's docstring)."""
+    if len(payload) > MAX_DOOR_STATE_BYTES:
+        raise RosInputError(
+            "oversized", f"A DoorState of {len(payload)} bytes (limit {MAX_DOOR_STATE_BYTES})."
+        )
     try:
         message = _deserialize(payload, DOOR_STATE)
     except MapError as err:

@@ -33,6 +33,8 @@ __all__ = ["TfBuffer", "TfError", "TransformSample", "decode_tf_message", "matri
 
 Matrix = npt.NDArray[np.float64]
 _NS_PER_S = 1_000_000_000
+MAX_TF_BYTES = 1 << 20
+"""Larger TF messages are refused before they are decoded (a transform is about 100 bytes)."""
 
 
 class TfError(Exception):
@@ -65,6 +67,9 @@ def _frame(name: str) -> str:
 def decode_tf_message(payload: bytes | bytearray | memoryview) -> list[TransformSample]:
     """The transforms of a CDR ``tf2_msgs/msg/TFMessage``; MapError if malformed or not finite, or a
     quaternion is not a rotation."""
+    if len(payload) > MAX_TF_BYTES:
+        msg = f"A TFMessage of {len(payload)} bytes is larger than the limit {MAX_TF_BYTES}."
+        raise MapError(msg)
     message = _deserialize(payload, TF_MESSAGE)
     out: list[TransformSample] = []
     for ts in message.transforms:

@@ -190,6 +190,11 @@ def test_a_stamp_outside_the_tf_history_is_refused_as_extrapolation() -> None:
         (b"\x00\x01\x00\x00\xff", ctx(), "malformed"),
         (cdr_detections(NOW + 10_000_000_000, "map", []), ctx(), "future"),
         (cdr_detections(NOW, "map", [TABLE_IN_CAMERA] * 300), ctx(), "oversized"),
+        (
+            cdr_detections(NOW, "map", [TABLE_IN_CAMERA]) + bytes(3 << 20),
+            ctx(),
+            "oversized",
+        ),  # before decoding
         (cdr_detections(NOW, "map", []), ctx(storey=None), "no_storey"),
     ],
 )
