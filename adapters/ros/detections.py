@@ -44,6 +44,8 @@ from adapters.ros.observation_doc import (
 )
 from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
 from adapters.ros.view import polygon_area, visibility_polygon
+from twin.config import Limits
+from twin.config.robots import DetectionConfig
 from twin.errors import MapError
 from twin.grid import OccupancyGrid
 
@@ -93,6 +95,25 @@ class DetectionSettings:
     @property
     def detects(self) -> tuple[str, ...]:
         return tuple(sorted(set(self.classes.values())))
+
+    @classmethod
+    def from_config(cls, robot: str, d: DetectionConfig, limits: Limits) -> DetectionSettings:
+        """A robot's ``[robots.NAME.detections]`` within the site's ``[limits]``."""
+        return cls(
+            robot=robot,
+            classes=dict(d.classes),
+            min_score=d.min_score,
+            fov_rad=math.radians(d.fov_deg),
+            range_m=d.range_m,
+            rays=d.rays,
+            max_tilt_rad=math.radians(d.max_tilt_deg),
+            max_detections=min(d.max_detections, limits.elements_per_observation),
+            max_size_m=limits.box_size_m,
+            future_ns=int(d.future_s * _NS_PER_S),
+            map_frame=d.map_frame,
+            sensor_frame=d.sensor_frame,
+            z_reference=d.z_reference,
+        )
 
 
 @dataclass(frozen=True, slots=True)

@@ -28,11 +28,9 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import queue
 import threading
 import time
-from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -40,7 +38,7 @@ from typing import Any
 import zenoh
 
 from adapters.ros.detections import DetectionContext, DetectionSettings, array_header, translate_detections
-from adapters.ros.diagnostics import OK, WARN, IngestDiagnostic, encode_diagnostics
+from adapters.ros.diagnostics import Counts, encode_diagnostics
 from adapters.ros.interfaces import DETECTION_3D_ARRAY, DIAGNOSTIC_ARRAY, DOOR_STATE, OBSTACLES, TF_MESSAGE
 from adapters.ros.observation_doc import BoxReport, RosInputError, Translation, ViewReport, observation_turtle
 from adapters.ros.rmf import (
@@ -103,37 +101,6 @@ def core_reads_fusion_terms(limits: Limits) -> bool:
         log.debug("Probing the core's fusion terms failed", exc_info=True)
         return False
     return True
-
-
-@dataclass(slots=True)
-class Counts:
-    """One robot's or source's ingestion, for the status."""
-
-    received: int = 0
-    messages: Counter[str] = field(default_factory=Counter)
-    waited: int = 0
-    submitted: int = 0
-    accepted: int = 0
-    unchanged: int = 0
-    refused: Counter[str] = field(default_factory=Counter)
-    ignored: Counter[str] = field(default_factory=Counter)
-    last_refusal: str | None = None
-    last_refusal_ns: int | None = None
-    logged: set[str] = field(default_factory=set)
-
-    def as_dict(self) -> dict[str, object]:
-        return {
-            "received": self.received,
-            "messages": dict(sorted(self.messages.items())),
-            "waited_for_tf": self.waited,
-            "submitted": self.submitted,
-            "accepted": self.accepted,
-            "unchanged": self.unchanged,
-            "refused": dict(sorted(self.refused.items())),
-            "ignored": dict(sorted(self.ignored.items())),
-            "last_refusal": self.last_refusal,
-            "last_refusal_ns": self.last_refusal_ns,
-        }
 
 
 @dataclass(eq=False, slots=True)
@@ -213,21 +180,7 @@ class RosIngest:
             d = robot.detections
             if d is None or robot.namespace is None:
                 continue
-            settings = DetectionSettings(
-                robot=robot.name,
-                classes=dict(d.classes),
-                min_score=d.min_score,
-                fov_rad=math.radians(d.fov_deg),
-                range_m=d.range_m,
-                rays=d.rays,
-                max_tilt_rad=math.radians(d.max_tilt_deg),
-                max_detections=min(d.max_detections, config.limits.elements_per_observation),
-                max_size_m=config.limits.box_size_m,
-                future_ns=int(d.future_s * 1e9),
-                map_frame=d.map_frame,
-                sensor_frame=d.sensor_frame,
-                z_reference=d.z_reference,
-            )
+            settings = DetectionSettings.from_config(robot.name, d, config.limits)
             self._robots[robot.name] = _Robot(robot.name, settings, d.view_skill)
             self._counts[robot.name] = Counts()
             node = RosNode(robot.domain_id, robot.namespace, INGEST_NODE, zid, node_id)
@@ -337,21 +290,9 @@ class RosIngest:
         for owner, outs in self._diagnostics.items():
             with self._lock:
                 c = self._counts[owner]
-                refused = sum(c.refused.values())
-                fresh = refused - self._refused_before.get(owner, 0)
-                self._refused_before[owner] = refused
-                values = {
-                    key: str(getattr(c, key)) for key in ("received", "submitted", "accepted", "unchanged")
-                }
-                values |= {f"refused.{k}": str(v) for k, v in sorted(c.refused.items())}
-                values |= {f"ignored.{k}": str(v) for k, v in sorted(c.ignored.items())}
-                if c.last_refusal:
-                    values["last_refusal"] = c.last_refusal
-                message = f"accepted {c.accepted}, unchanged {c.unchanged}, refused {refused}"
-            if fresh:
-                message += f" ({fresh} since the last report; last: {c.last_refusal})"
-            level = WARN if fresh else OK
-            payload = encode_diagnostics([IngestDiagnostic(owner, level, message, values)], stamp_ns=stamp)
+                report = c.diagnostic(owner, refused_before=self._refused_before.get(owner, 0))
+                self._refused_before[owner] = sum(c.refused.values())
+            payload = encode_diagnostics([report], stamp_ns=stamp)
             for out in outs:
                 out.put(payload, stamp)
 
