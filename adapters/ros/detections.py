@@ -44,8 +44,7 @@ from adapters.ros.observation_doc import (
 )
 from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
 from adapters.ros.view import polygon_area, visibility_polygon
-from twin.config import Limits
-from twin.config.robots import DetectionConfig
+from twin.config import DetectionConfig, Limits
 from twin.errors import MapError
 from twin.grid import OccupancyGrid
 

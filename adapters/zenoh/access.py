@@ -28,8 +28,7 @@ from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys, check_chunk
 from adapters.zenoh.ros_maps import STOREY_TOPIC
 from adapters.zenoh.settings import Identity, ZenohSettings
-from twin.config import Config, RobotConfig
-from twin.config.sources import SourceConfig
+from twin.config import Config, RobotConfig, SourceConfig
 
 # zenoh's ACL message kinds (zenoh-config AclMessage)
 READ = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
