@@ -34,6 +34,9 @@ import live  # benchmarks/ is not a package
 
 ROOT = live.ROOT
 CORRIDOR = (11.2, 20.8, 5.7, 8.3)  # x0, x1, y0, y1 of free floor on the lab's ground floor
+MOVE_EVERY = 20
+"""Every this many ticks (2 s at 10 Hz) robot0 moves one table: a change among the confirmations, whose
+navigation map update is timed from the publisher's send to the update's receipt."""
 
 
 def tables(robots: int, per_robot: int) -> list[list[tuple[float, float]]]:
@@ -70,7 +73,7 @@ def publisher(
             outs.append(keys)
         time.sleep(1.0)
         print(json.dumps({"ready": True}), flush=True)
-        sent, seq = 0, 0
+        sent, seq, shift = 0, 0, 0.0
         gid = bytes(16)
         start = time.monotonic()
         tick = 0
@@ -78,12 +81,22 @@ def publisher(
             stamp = time.time_ns()
             seq += 1
             extra = {"attachment": attachment(seq, stamp, gid)} if layout == "rmw_zenoh" else {}
+            moved = tick > 0 and tick % MOVE_EVERY == 0
+            if moved:
+                shift = 0.0 if shift else 0.3  # robot0's first table moves 0.3 m along x and back
             for r, (tf_pub, det_pub) in enumerate(outs):
                 tf_pub.put(cdr_tf([Tf("map", "base_link", (15.0, 7.0, 0.0), stamp_ns=stamp)]), **extra)
                 dets = [
-                    Det((("table", 0.9),), (x - 15.0, y - 7.0, 0.375), (0.2, 0.2, 0.75), id=f"t{i}")
+                    Det(
+                        (("table", 0.9),),
+                        (x - 15.0 + (shift if r == 0 and i == 0 else 0.0), y - 7.0, 0.375),
+                        (0.2, 0.2, 0.75),
+                        id=f"t{i}",
+                    )
                     for i, (x, y) in enumerate(spots[r])
                 ]
+                if moved and r == 0:
+                    print(json.dumps({"moved": time.time()}), flush=True)
                 det_pub.put(cdr_detections(stamp, "base_link", dets), **extra)
                 sent += 1
             tick += 1
@@ -164,6 +177,29 @@ def run(
         )  # fmt: skip
         assert pub.stdout is not None
         json.loads(pub.stdout.readline())
+        moves: list[float] = []
+        lines: list[dict[str, Any]] = []
+
+        def read_publisher() -> None:
+            assert pub.stdout is not None
+            for line in pub.stdout:
+                item = json.loads(line)
+                if "moved" in item:
+                    moves.append(item["moved"])
+                else:
+                    lines.append(item)
+
+        reader = threading.Thread(target=read_publisher, daemon=True)
+        reader.start()
+        import zenoh
+
+        from adapters.zenoh.session import client_config
+
+        updates: list[float] = []
+        watcher = zenoh.open(client_config([endpoint]))
+        watch = watcher.declare_subscriber(
+            "twin/lab/map_updates/ground-floor/navigation", lambda _: updates.append(time.time())
+        )
         t_start = time.monotonic()
         time.sleep(warmup)
         s0, c0, w0 = _status(endpoint), _cpu_s(daemon.pid), time.monotonic()
@@ -173,8 +209,11 @@ def run(
             s = _status(endpoint)
             depths.append((int(s["ros_ingest"]["queue_depth"]), int(s["queue_depth"])))
         s1, c1, w1 = _status(endpoint), _cpu_s(daemon.pid), time.monotonic()
-        sent = json.loads(pub.stdout.readline())
         pub.wait(timeout=30)
+        reader.join(timeout=10)
+        sent = lines[-1]
+        watch.undeclare()
+        watcher.close()
         time.sleep(1.0)
         final = _status(endpoint)
         daemon.terminate()
@@ -194,6 +233,11 @@ def run(
     for c in final["ros_ingest"]["counts"].values():
         for cause, n in c["refused"].items():
             refused[cause] = refused.get(cause, 0) + int(n)
+    latencies = []
+    for t in moves:
+        after = [u for u in updates if u >= t]
+        if after:
+            latencies.append(1000 * (after[0] - t))
     return {
         "layout": layout,
         "robots": robots,
@@ -215,6 +259,9 @@ def run(
         "service_queue_max": max((d[1] for d in depths), default=0),
         "queue_depth_last": depths[-1] if depths else None,
         "revision": final["revision"],
+        "moves": len(moves),
+        "move_update_ms_p50": round(float(live._pct(latencies, 50)), 1),
+        "move_update_ms_max": round(max(latencies, default=float("nan")), 1),
     }
 
 
