@@ -1,8 +1,9 @@
 """ROS 2 robots and Open-RMF report to the daemon process in their own messages, on both layouts: a
 table detected in a camera frame two TF hops from the map appears in the navigation map at its cells,
 the same array again is a confirmation (no revision), an RMF DoorState OPEN makes the door passable, an
-RMF obstacle expires after its lifetime, and messages of the wrong type or malformed are refused and
-counted while the daemon keeps serving.
+RMF obstacle expires after its lifetime, and messages of the wrong type or malformed (and a burst of
+truncated and random ones on every topic) are refused and counted while the daemon keeps serving and
+the twin does not change.
 
 The robot is its own process (``ros_report_publisher``) publishing on rmw_zenoh's keys with the rmw
 attachment, or on the bridge's keys. Detection3DArray, TFMessage, DoorState and Obstacles have no
@@ -14,6 +15,7 @@ rclpy-serialised ``std_msgs/msg/String``.
 from __future__ import annotations
 
 import json
+import random
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -223,6 +225,32 @@ def test_detections_doors_and_obstacles_from_ros_reach_the_navigation_map(
         )
         status = wait_until(client, lambda s: counts(s, "robot1")["refused"] == expected)
         assert status["revision"] == revision1 + 3  # the door, the obstacle and its expiry: nothing else
+
+        # a burst of broken messages on every topic: truncated and random bytes; none changes the twin
+        rng = random.Random(31)
+        valid = {
+            ("/robot1/detections", DETECTION_3D_ARRAY): array,
+            ("/robot1/tf", TF_MESSAGE): cdr_tf([Tf("map", "base_link", (14.0, 7.0, 0.0), stamp_ns=stamp)]),
+            ("/door_states", DOOR_STATE): cdr_door_state(stamp, "lab_door_a", 0),
+            ("/rmf_obstacles", OBSTACLES): cdr_obstacles(stamp, [person]),
+        }
+        before_burst = {
+            owner: counts(status, owner)["received"] for owner in ("robot1", "doors", "obstacles")
+        }
+        for n in range(60):
+            (topic, type_name), payload = rng.choice(sorted(valid.items()))
+            broken = (
+                payload[: rng.randrange(4, len(payload) - 4)] if n % 2 else rng.randbytes(rng.randrange(64))
+            )
+            robot.send(topic, type_name, broken)
+        status = wait_until(
+            client, lambda s: sum(counts(s, o)["received"] - before_burst[o] for o in before_burst) == 60
+        )
+        assert status["revision"] == revision1 + 3
+        assert all(
+            counts(status, o)["accepted"] == n for o, n in (("robot1", 1), ("doors", 1), ("obstacles", 2))
+        )
+        assert np.array_equal(settled_map(client).data, opened.data)  # still serving, the map unchanged
     robot.close_stdin_and_wait()
     if layout == "rmw_zenoh":  # the daemon is a subscriber of these topics in the robot's ROS graph
         with zenoh.open(client_config([daemon.endpoint])) as session:
