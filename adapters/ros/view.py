@@ -1,10 +1,14 @@
 """The floor a sensor saw: its field of view cut by the building's structure, as a 2D visibility polygon.
 
-``rays`` rays fan out over the horizontal field of view from the sensor's position; each is marched
-over an occupancy grid of the structure (e.g. the localization map: walls at lidar height) at half a
-cell's step and stops at the first occupied cell or the grid's edge, else at ``range_m``. The polygon
-is the sensor's position followed by the rays' ends in angular order (star-shaped around the sensor,
-hence simple; for a full 360° view the ends alone). Everything at once in numpy: ``(rays, samples)``.
+Rays fan out over the horizontal field of view from the sensor's position (at least ``rays``, and
+dense enough that neighbours are a cell apart at full range, so no wall fits between two); each
+is marched over an occupancy grid of the structure (e.g. the localization map: walls at lidar height)
+at half a cell's step and stops at the first occupied cell or the grid's edge, else at ``range_m``.
+Each ray then reaches no farther than its neighbours (conservative: what lies between two rays is
+claimed only as far as both saw), and runs of rays of one reach keep only their ends and a ray every 22.5°
+(the chord lies inside). The polygon is the sensor's position followed by the rays' ends in angular order
+(star-shaped around the sensor, hence simple; for a full 360° view the ends alone). Everything at
+once in numpy: ``(rays, samples)``.
 
 Example::
 
@@ -22,6 +26,10 @@ from twin.grid import OccupancyGrid
 
 __all__ = ["OCCUPIED_AT", "polygon_area", "visibility_polygon"]
 
+MAX_RAYS = 4096
+"""At most this many rays, however wide and long the view."""
+MAX_CHORD_RAD = math.pi / 8
+"""Merged rays span at most this angle (the chord of a 5 m arc over it is 10 cm inside)."""
 OCCUPIED_AT = 50
 """Cells at or above this value block a ray (``nav_msgs/OccupancyGrid``: 100 occupied, 0 free)."""
 
@@ -43,11 +51,13 @@ def visibility_polygon(
     ox, oy = float(origin_xy[0]), float(origin_xy[1])
     full = fov_rad >= 2 * math.pi - 1e-9
     span = 2 * math.pi if full else fov_rad
+    res = grid.frame.resolution_m if grid is not None else 0.05
     count = max(int(rays), 3)
+    if grid is not None:  # dense enough that neighbouring rays are a cell apart at full range
+        count = min(max(count, math.ceil(span * range_m / res) + 1), MAX_RAYS)
     angles = (
         heading_rad - span / 2 + span * (np.arange(count) / count if full else np.linspace(0.0, 1.0, count))
     )
-    res = grid.frame.resolution_m if grid is not None else 0.05
     near = max(res, 0.05)
     if grid is None:
         reach = np.full(count, range_m)
@@ -66,6 +76,18 @@ def visibility_polygon(
         first = blocked.argmax(axis=1)
         reach = np.where(hit, np.maximum(dist[0, first] - step, near), range_m)
         reach = np.minimum(reach, range_m)
+        # conservative between rays: each ray no farther than its neighbours
+        padded = np.concatenate([reach[-1:], reach, reach[:1]]) if full else np.pad(reach, 1, mode="edge")
+        reach = np.minimum(np.minimum(padded[:-2], padded[1:-1]), padded[2:])
+    keep = np.ones(count, dtype=bool)  # runs of one reach: their ends (the chord between is closer),
+    if count > 2:  # and a ray every MAX_CHORD_RAD so that no chord swings round the sensor
+        same = (reach[1:-1] == reach[:-2]) & (reach[1:-1] == reach[2:])
+        keep[1:-1] = ~same
+        keep[:: max(1, int(MAX_CHORD_RAD / (span / count)))] = True
+    angles, reach = angles[keep], reach[keep]
+    if full and len(reach) < 3:  # a full circle of one reach: a triangle inside it is still inside
+        angles = heading_rad + 2 * math.pi * np.arange(3) / 3
+        reach = np.full(3, float(reach.min()) / 2)
     ends = np.stack([ox + np.cos(angles) * reach, oy + np.sin(angles) * reach], axis=1)
     points = [(float(x), float(y)) for x, y in ends]
     return tuple(points) if full else ((ox, oy), *points)

@@ -97,7 +97,14 @@ class DetectionTable(ConfigTable):
         Number, Field(gt=0, le=360, description="Horizontal field of view (view polygon).")
     ] = 90.0
     range_m: Annotated[Number, Field(gt=0, le=100, description="How far the detector sees, m.")] = 5.0
-    rays: Annotated[Whole, Field(ge=8, le=1024, description="Rays cast for the view polygon.")] = 64
+    rays: Annotated[
+        Whole,
+        Field(
+            ge=8,
+            le=1024,
+            description="At least this many rays for the view (more to be a cell apart at full range).",
+        ),
+    ] = 64
     max_tilt_deg: Annotated[Number, Field(ge=0, le=90, description="Boxes tilted more are refused.")] = 15.0
     max_detections: Annotated[Whole, Field(ge=1, le=10_000)] = 256
     future_s: Annotated[Number, Field(ge=0, le=3600, description="Clock skew allowed for stamps.")] = 2.0
