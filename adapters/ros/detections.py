@@ -125,6 +125,9 @@ class DetectionContext:
     tf: TfBuffer
     occluders: OccupancyGrid | None = None
     fusion_terms: bool = True
+    occlusion_known: bool = True
+    """False when the structure that hides parts of the view is not known (its map not yet built):
+    then no view is claimed at all, rather than one that sees through walls."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -330,7 +333,7 @@ def translate_detections(
         seen.add(iri)
         boxes.append(BoxReport(iri, ifc_class, ctx.storey, (cx, cy, cz - drop_z, sx, sy, sz, yaw)))
     view = None
-    if ctx.fusion_terms and not refused:
+    if ctx.fusion_terms and ctx.occlusion_known and not refused:
         view = _view(settings, ctx, frame, stamp, ctx.storey)
     document = observation_turtle(
         boxes=boxes, view=view, sense_ns=stamp or None, fusion_terms=ctx.fusion_terms

@@ -439,7 +439,8 @@ class RosIngest:
         with self._lock:  # grids are replaced, never changed in place: this one stays as it is
             elevation = self._elevations.get(storey or "", 0.0)
             grid = self._grids.get((storey, robot.view_skill)) if storey and robot.view_skill else None
-        ctx = DetectionContext(storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms)
+        known = robot.view_skill is None or grid is not None
+        ctx = DetectionContext(storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known)
         return translate_detections(m.payload, robot.settings, ctx)
 
     def _deliver(self, owner: str, t: Translation) -> None:

@@ -252,3 +252,13 @@ def test_the_array_header_is_read_without_decoding_the_rest() -> None:
         NOW + 5,
     )
     assert array_header(b"\x00\x01\x00\x00\x01") is None
+
+
+def test_no_view_is_claimed_while_the_structure_that_hides_its_parts_is_unknown() -> None:
+    payload = cdr_detections(NOW, "camera_optical_frame", [TABLE_IN_CAMERA])
+    t = translate_detections(payload, SETTINGS, ctx(occlusion_known=False))
+    assert (
+        t.document is not None
+        and b"twin:View" not in t.document
+        and b"<urn:twin-ros:robot1:det:7>" in t.document
+    )
