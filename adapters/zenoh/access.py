@@ -23,7 +23,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
-from adapters.ros.rmw_zenoh import ADMIN_SPACE, RosTopic
+from adapters.ros.rmw_zenoh import ADMIN_SPACE, RosTopic, resolve_name
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys, check_chunk
 from adapters.zenoh.ros_maps import STOREY_TOPIC
@@ -96,7 +96,7 @@ def _ros_keys(robot: RobotConfig, name: str) -> list[str]:
 
 
 def _topic_keys(domain_id: int, namespace: str, name: str, layouts: Sequence[str]) -> list[str]:
-    topic = RosTopic(domain_id, namespace, name, "nav_msgs/msg/OccupancyGrid")
+    topic = RosTopic(domain_id, *resolve_name(namespace, name), "nav_msgs/msg/OccupancyGrid")
     keys: list[str] = []
     if "bridge" in layouts:
         keys.append(topic.bridge_key)

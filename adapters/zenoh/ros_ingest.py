@@ -57,6 +57,7 @@ from adapters.ros.rmw_zenoh import (
     attachment,
     dds_type_name,
     gid_of,
+    resolve_name,
     type_hash,
 )
 from adapters.ros.tf import TfBuffer, decode_tf_message
@@ -240,7 +241,7 @@ class RosIngest:
         if "rmw_zenoh" in layouts:
             self._entities.append(session.liveliness().declare_token(node.node_token()))
         for name, type_name, kind, latched in topics:
-            topic = RosTopic(node.domain_id, node.namespace, name, type_name)
+            topic = RosTopic(node.domain_id, *resolve_name(node.namespace, name), type_name)
             if "bridge" in layouts:
                 handler = self._handler(owner, kind, None)
                 self._entities.append(

@@ -124,13 +124,15 @@ def test_a_robot_alone_publishes_its_detections_and_tf_and_a_source_alone_its_rm
     text = (
         f'[zenoh.auth]\nusers_file = "{users}"\n[zenoh.access]\nenabled = true\n'
         '[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\nros = ["bridge"]\n'
-        '[robots.r1.detections]\nclasses = { table = "IfcFurniture" }\n'
+        '[robots.r1.detections]\nclasses = { table = "IfcFurniture" }\ntf_static = "/tf_static"\n'
         '[sources.doors]\nkind = "rmf_doors"\nros = ["rmw_zenoh"]\ndiagnostics = true\n'
     )
     acl = site_access_control(load(config(tmp_path, text)), SiteKeys("twin/lab"))
     assert acl is not None
     rules = {r["id"]: r for r in acl["rules"]}
-    assert {"r1/detections", "r1/tf", "r1/tf_static"} <= set(rules["publish-r1"]["key_exprs"])
+    assert {"r1/detections", "r1/tf", "tf_static"} <= set(
+        rules["publish-r1"]["key_exprs"]
+    )  # "/tf_static": global
     assert rules["publish-doors"]["key_exprs"] == ["0/door_states/**", "0/door_states/**/@adv/**"]
     assert "0/diagnostics/**" in rules["read"]["key_exprs"]  # the daemon's DiagnosticArray, readable
     assert "0/diagnostics/**" in rules["from-daemon"]["key_exprs"]

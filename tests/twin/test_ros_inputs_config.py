@@ -43,7 +43,7 @@ def test_a_robots_detections_table_gives_its_topic_class_table_camera_and_tf(tmp
         ('classes = { t = "IfcFurniture" }\nmin_score = 1.5', "min_score"),
         ('classes = { t = "IfcFurniture" }\nview_skill = "nope"', "unknown skill 'nope'"),
         ('classes = { t = "IfcFurniture" }\ntopic = "map"', "clash"),
-        ('classes = { t = "IfcFurniture" }\ntopic = "/abs"', "relative ROS topic"),
+        ('classes = { t = "IfcFurniture" }\ntopic = "a b"', "ROS topic name"),
     ],
 )
 def test_a_bad_detections_table_is_refused_naming_the_key(tmp_path: Path, table: str, match: str) -> None:
@@ -81,3 +81,9 @@ def test_a_source_named_like_a_robot_is_refused(tmp_path: Path) -> None:
 def test_an_unknown_source_kind_is_refused(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="kind"):
         config(tmp_path, '[sources.s]\nkind = "rmf_lifts"\n')
+
+
+def test_absolute_tf_topics_are_kept_for_robots_that_publish_the_global_tf(tmp_path: Path) -> None:
+    cfg = config(tmp_path, ROBOT + '[robots.r1.detections]\nclasses = { t = "IfcFurniture" }\ntf = "/tf"\n')
+    d = cfg.robots["r1"].detections
+    assert d is not None and (d.tf, d.tf_static) == ("/tf", "tf_static")

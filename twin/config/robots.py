@@ -87,7 +87,9 @@ class RobotConfig:
 class DetectionTable(ConfigTable):
     """``[robots.NAME.detections]``: subscribe to the robot's detections (needs its ``namespace``)."""
 
-    topic: Text = Field("detections", description="Detection3DArray topic under the namespace.")
+    topic: Text = Field(
+        "detections", description='Detection3DArray topic under the namespace ("/name": absolute).'
+    )
     classes: dict[str, IfcClassName] = Field(
         description='class_id -> IFC class, e.g. { table = "IfcFurniture" }; other classes are ignored.',
         min_length=1,
@@ -116,8 +118,8 @@ class DetectionTable(ConfigTable):
     view_skill: Text | None = Field(
         "localization", description='Skill whose map occludes the view ("" for none).'
     )
-    tf: Text = Field("tf", description="TFMessage topic under the namespace.")
-    tf_static: Text = Field("tf_static", description="Static TFMessage topic under the namespace.")
+    tf: Text = Field("tf", description='TFMessage topic under the namespace ("/tf": the global one).')
+    tf_static: Text = Field("tf_static", description='Static TFMessage topic ("/tf_static": global).')
     diagnostics: Flag = Field(
         False, description="Publish the ingestion's counts on /<ns>/diagnostics (DiagnosticArray, 1 Hz)."
     )
@@ -125,8 +127,11 @@ class DetectionTable(ConfigTable):
     @field_validator("topic", "tf", "tf_static")
     @classmethod
     def _topic(cls, topic: str) -> str:
-        if not _TOPIC.match(topic):
-            msg = f'expected a relative ROS topic name such as "detections", got {topic!r}'
+        if not _TOPIC.match(topic.removeprefix("/")):
+            msg = (
+                f'expected a ROS topic name such as "detections" (under the namespace) or "/tf" '
+                f"(absolute), got {topic!r}"
+            )
             raise ValueError(msg)
         return topic
 
