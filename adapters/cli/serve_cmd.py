@@ -33,6 +33,7 @@ from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.ros_ingest import RosIngest
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
@@ -155,6 +156,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         )
         daemon: ZenohDaemon | None = None
         ros: RosMapPublisher | None = None
+        ingest: RosIngest | None = None
         try:
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=cfg.frame_id)
             if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
@@ -164,6 +166,11 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
                 )  # fmt: skip
                 daemon.status_sources.append(ros.status)
                 daemon.followers.append(ros)  # on the daemon's dispatcher, a lane per robot
+            if cfg.sources or any(r.detections is not None for r in cfg.robots.values()):
+                storey_of = ros.storey_of if ros is not None else (lambda _robot: None)
+                ingest = RosIngest(session, cfg, service.submit_observation, storey_of=storey_of)
+                daemon.status_sources.append(ingest.status)
+                service.sinks.append(ingest)  # storeys, doors and occluding maps: cheap, on the writer
             service.sinks += [sink for sink in (daemon, recorder) if sink is not None]
             t0 = time.perf_counter()
             source = store_label(args, cfg)
@@ -191,7 +198,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             service.serve_forever(stop)
         finally:
             t1 = time.perf_counter()
-            for closable in (daemon, ros):
+            for closable in (ingest, daemon, ros):
                 if closable is not None:
                     closable.close()
             session.close()

@@ -24,6 +24,7 @@ import numpy.typing as npt
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from adapters.ros.interfaces import register_interfaces
 from twin.errors import MapError
 from twin.grid import GridData, GridFrame, OccupancyGrid, Window
 
@@ -86,6 +87,7 @@ def _typestore() -> Any:
     store = get_typestore(Stores.ROS2_HUMBLE)
     store.register(get_types_from_msg(_OCCUPANCY_GRID_UPDATE_MSG, OCCUPANCY_GRID_UPDATE))
     store.register(get_types_from_msg(_COSTMAP_FILTER_INFO_MSG, COSTMAP_FILTER_INFO))
+    register_interfaces(store)  # vision_msgs, rmf_obstacle_msgs, rmf_door_msgs (adapters/ros/interfaces.py)
     return store
 
 

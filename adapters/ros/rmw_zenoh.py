@@ -66,6 +66,14 @@ def _namespace(ns: str) -> str:
     return ns
 
 
+def resolve_name(namespace: str, name: str) -> tuple[str, str]:
+    """``(namespace, relative name)`` of a topic: a relative ``name`` goes under ``namespace``, an
+    absolute one (``/tf``) stays where it is (namespace ``/``), as ROS resolves names."""
+    if name.startswith("/"):
+        return "/", name.lstrip("/")
+    return namespace, name
+
+
 @dataclass(frozen=True, slots=True)
 class RosTopic:
     """A topic in a robot's namespace, e.g. ``/robot1/map``."""

@@ -23,12 +23,12 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
-from adapters.ros.rmw_zenoh import ADMIN_SPACE, RosTopic
+from adapters.ros.rmw_zenoh import ADMIN_SPACE, RosTopic, resolve_name
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys, check_chunk
 from adapters.zenoh.ros_maps import STOREY_TOPIC
 from adapters.zenoh.settings import Identity, ZenohSettings
-from twin.config import Config, RobotConfig
+from twin.config import Config, RobotConfig, SourceConfig
 
 # zenoh's ACL message kinds (zenoh-config AclMessage)
 READ = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
@@ -65,14 +65,43 @@ def ros_storey_keys(robot: RobotConfig) -> list[str]:
     return _ros_keys(robot, STOREY_TOPIC) if robot.namespace is not None else []
 
 
+def ros_report_keys(robot: RobotConfig) -> list[str]:
+    """The keys of the robot's detections, ``tf`` and ``tf_static`` topics, which only it publishes."""
+    d = robot.detections
+    if d is None or robot.namespace is None:
+        return []
+    return [key for name in (d.topic, d.tf, d.tf_static) for key in _ros_keys(robot, name)]
+
+
+def ros_diagnostics_keys(cfg: Config) -> list[str]:
+    """The keys of the ``/<ns>/diagnostics`` topics the daemon publishes (robots and sources that ask)."""
+    keys: list[str] = []
+    for robot in cfg.robots.values():
+        if robot.namespace is not None and robot.detections is not None and robot.detections.diagnostics:
+            keys += _ros_keys(robot, "diagnostics")
+    for source in cfg.sources.values():
+        if source.diagnostics:
+            keys += _topic_keys(source.domain_id, source.namespace, "diagnostics", source.ros)
+    return keys
+
+
+def ros_source_keys(source: SourceConfig) -> list[str]:
+    """The keys of a ``[sources.NAME]`` topic (door states, obstacles), which only that source publishes."""
+    return _topic_keys(source.domain_id, source.namespace, source.topic, source.ros)
+
+
 def _ros_keys(robot: RobotConfig, name: str) -> list[str]:
     assert robot.namespace is not None
-    topic = RosTopic(robot.domain_id, robot.namespace, name, "nav_msgs/msg/OccupancyGrid")
+    return _topic_keys(robot.domain_id, robot.namespace, name, robot.ros)
+
+
+def _topic_keys(domain_id: int, namespace: str, name: str, layouts: Sequence[str]) -> list[str]:
+    topic = RosTopic(domain_id, *resolve_name(namespace, name), "nav_msgs/msg/OccupancyGrid")
     keys: list[str] = []
-    if "bridge" in robot.ros:
+    if "bridge" in layouts:
         keys.append(topic.bridge_key)
-    if "rmw_zenoh" in robot.ros:
-        keys.append(f"{robot.domain_id}/{topic.fqn.strip('/')}/**")
+    if "rmw_zenoh" in layouts:
+        keys.append(f"{domain_id}/{topic.fqn.strip('/')}/**")
     return keys
 
 
@@ -196,11 +225,13 @@ def site_access_control(cfg: Config, keys: SiteKeys, *, enforce: bool = False) -
             "certificate and private_key, and tls/... listen endpoints."
         )
         raise TransportError(msg)
+    robot_keys = {name: ros_storey_keys(robot) + ros_report_keys(robot) for name, robot in cfg.robots.items()}
+    robot_keys |= {name: ros_source_keys(source) for name, source in cfg.sources.items()}  # identities too
     return access_control(
         keys,
-        sorted(cfg.robots),
+        sorted([*cfg.robots, *cfg.sources]),
         identity=access.identity,
         operators=access.operators,
-        ros_keys=ros_map_keys(cfg.robots.values()),
-        robot_keys={name: ros_storey_keys(robot) for name, robot in cfg.robots.items()},
+        ros_keys=ros_map_keys(cfg.robots.values()) + ros_diagnostics_keys(cfg),
+        robot_keys=robot_keys,
     )

@@ -56,3 +56,35 @@ def generated_hash(type_name: str, definition: str, work: Path, depends: tuple[s
     generate_type_hash(str(arguments))
     data = json.loads((out / "msg" / f"{name}.json").read_text())
     return str(data["type_hashes"][0]["hash_string"])
+
+
+def generated_package_hashes(
+    package: str, definitions: dict[str, str], work: Path, depends: tuple[str, ...]
+) -> dict[str, str]:
+    """The RIHS01 hashes of every message of ``package`` (name -> ``.msg`` text), generated together as
+    a ROS 2 build of that package does (its messages may use each other), against the installed
+    packages ``depends``: ``{"pkg/msg/Name": "RIHS01_..."}``."""
+    source = work / package
+    (source / "msg").mkdir(parents=True, exist_ok=True)
+    for name, definition in definitions.items():
+        (source / "msg" / f"{name}.msg").write_text(definition)
+        with contextlib.redirect_stdout(io.StringIO()):
+            convert_msg_to_idl(source, package, Path("msg") / f"{name}.msg", source / "msg")
+    out = work / "generated"
+    arguments = work / "arguments.json"
+    arguments.write_text(
+        json.dumps(
+            {
+                "package_name": package,
+                "output_dir": str(out),
+                "idl_tuples": [f"{source}:msg/{name}.idl" for name in definitions],
+                "include_paths": [f"{dep}:{share(dep)}" for dep in depends],
+            }
+        )
+    )
+    generate_type_hash(str(arguments))
+    hashes: dict[str, str] = {}
+    for name in definitions:
+        data = json.loads((out / "msg" / f"{name}.json").read_text())
+        hashes[f"{package}/msg/{name}"] = str(data["type_hashes"][0]["hash_string"])
+    return hashes

@@ -114,3 +114,27 @@ def test_a_ros_robot_reads_every_map_topic_and_alone_publishes_its_own_storey_to
     policies = {tuple(p["subjects"]): p["rules"] for p in acl["policies"]}
     assert "publish-r1" in policies[("robot-r1",)] and "publish-r1" not in policies[("robot-r2",)]
     assert "twin/lab/robots/r2/storey" not in rules["write-r1"]["key_exprs"]
+
+
+def test_a_robot_alone_publishes_its_detections_and_tf_and_a_source_alone_its_rmf_topic(
+    tmp_path: Path,
+) -> None:
+    users = tmp_path / "users.txt"
+    users.write_text("r1:a\ndoors:b\n")
+    text = (
+        f'[zenoh.auth]\nusers_file = "{users}"\n[zenoh.access]\nenabled = true\n'
+        '[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\nros = ["bridge"]\n'
+        '[robots.r1.detections]\nclasses = { table = "IfcFurniture" }\ntf_static = "/tf_static"\n'
+        '[sources.doors]\nkind = "rmf_doors"\nros = ["rmw_zenoh"]\ndiagnostics = true\n'
+    )
+    acl = site_access_control(load(config(tmp_path, text)), SiteKeys("twin/lab"))
+    assert acl is not None
+    rules = {r["id"]: r for r in acl["rules"]}
+    assert {"r1/detections", "r1/tf", "tf_static"} <= set(
+        rules["publish-r1"]["key_exprs"]
+    )  # "/tf_static": global
+    assert rules["publish-doors"]["key_exprs"] == ["0/door_states/**", "0/door_states/**/@adv/**"]
+    assert "0/diagnostics/**" in rules["read"]["key_exprs"]  # the daemon's DiagnosticArray, readable
+    assert "0/diagnostics/**" in rules["from-daemon"]["key_exprs"]
+    policies = {tuple(p["subjects"]): p["rules"] for p in acl["policies"]}
+    assert "publish-doors" not in policies[("robot-r1",)] and "publish-r1" not in policies[("robot-doors",)]

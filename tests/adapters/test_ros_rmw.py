@@ -14,6 +14,7 @@ from adapters.ros.rmw_zenoh import (
     gid_of,
     parse_attachment,
     parse_token,
+    resolve_name,
     type_hash,
 )
 from twin.errors import MapError
@@ -65,3 +66,9 @@ def test_liveliness_tokens_parse_back_as_rmw_zenohs_graph_cache_reads_them() -> 
     assert parsed.qos == {"reliability": None, "durability": 1, "history": None, "depth": 1}
     with pytest.raises(MapError, match="Not an rmw_zenoh liveliness token"):
         parse_token("@ros2_lv/0/x")
+
+
+def test_a_relative_name_goes_under_the_namespace_and_an_absolute_one_stays() -> None:
+    assert RosTopic(0, *resolve_name("/robot1", "tf"), OCCUPANCY_GRID).bridge_key == "robot1/tf"
+    assert RosTopic(0, *resolve_name("/robot1", "/tf"), OCCUPANCY_GRID).bridge_key == "tf"
+    assert RosTopic(2, *resolve_name("/robot1", "/tf"), OCCUPANCY_GRID).data_key.startswith("2/tf/nav_msgs::")

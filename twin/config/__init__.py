@@ -19,7 +19,8 @@ from __future__ import annotations
 from twin.config.base import ConfigSection, ConfigTable
 from twin.config.fusion import FusionClassRules, FusionRules
 from twin.config.load import DEFAULT_CONFIG, Config, config_schema, file_model, load_config
-from twin.config.robots import DEFAULT_ROBOT_MAPS, RESERVED_TOPICS, RobotConfig, RosLayout
+from twin.config.robots import DEFAULT_ROBOT_MAPS, RESERVED_TOPICS, DetectionConfig, RobotConfig, RosLayout
+from twin.config.sources import LevelConfig, SourceConfig
 from twin.config.tables import KERNELS, RIGHTS, ImportConfig, Limits, Right
 
 __all__ = [
@@ -31,13 +32,16 @@ __all__ = [
     "Config",
     "ConfigSection",
     "ConfigTable",
+    "DetectionConfig",
     "FusionClassRules",
     "FusionRules",
     "ImportConfig",
+    "LevelConfig",
     "Limits",
     "Right",
     "RobotConfig",
     "RosLayout",
+    "SourceConfig",
     "config_schema",
     "file_model",
     "load_config",

@@ -23,6 +23,7 @@ from twin.config.base import ConfigSection, ConfigTable
 from twin.config.fusion import FusionRules, FusionTable
 from twin.config.messages import config_error
 from twin.config.robots import RobotConfig, RobotName, RobotTable
+from twin.config.sources import SourceConfig, SourceTable
 from twin.config.tables import (
     ImportConfig,
     Limits,
@@ -67,6 +68,8 @@ class Config:
     limits: Limits = field(default_factory=Limits)
     default_rights: frozenset[Right] = frozenset({"create", "dynamic", "doors"})
     robots: Mapping[str, RobotConfig] = field(default_factory=dict)
+    sources: Mapping[str, SourceConfig] = field(default_factory=dict)
+    """``[sources.NAME]``: the building's systems that report over ROS 2 (Open-RMF doors, obstacles)."""
     frame_id: str = "map"
     store_flush_every_s: float = 60.0
     """``[store] flush_every_s``: how often the daemon flushes the embedded store's buffers."""
@@ -103,8 +106,11 @@ class Config:
         return section
 
     def rights_of(self, robot: str) -> frozenset[Right]:
-        """What ``robot`` may change: its own ``rights`` if configured, else ``[rights] default``."""
+        """What ``robot`` (or source) may change: its own ``rights`` if configured, else
+        ``[rights] default``."""
         configured = self.robots.get(robot)
+        if configured is None and robot in self.sources:
+            return self.sources[robot].rights
         return configured.rights if configured is not None else self.default_rights
 
     def base_iri(self, site: str | None = None) -> str:
@@ -145,6 +151,10 @@ def load_config(
     except ValidationError as err:
         raise config_error(err, model) from None
     default_rights = frozenset(checked.rights.default)
+    clash = sorted(set(checked.robots) & set(checked.sources))
+    if clash:
+        msg = f"Configuration [sources.{clash[0]}]: a robot has that name too; give the source its own."
+        raise ConfigError(msg)
     return Config(
         site=checked.site.name,
         site_set=site_set,
@@ -157,6 +167,7 @@ def load_config(
         limits=checked.limits,
         default_rights=default_rights,
         robots={name: table.record(name, default_rights) for name, table in checked.robots.items()},
+        sources={name: table.record(name) for name, table in checked.sources.items()},
         frame_id=checked.ros.frame_id,
         store_flush_every_s=checked.store.flush_every_s,
         store_snapshot=checked.store.snapshot,
@@ -182,6 +193,10 @@ def file_model(sections: Sequence[type[ConfigSection]] = (), *, strict: bool = T
         Field(default_factory=dict, description="Skill profiles: [skills.NAME] (README, 'Skills')."),
     )
     fields["robots"] = (dict[RobotName, RobotTable], Field(default_factory=dict))
+    fields["sources"] = (
+        dict[RobotName, SourceTable],
+        Field(default_factory=dict, description="Building systems reporting over ROS 2 (Open-RMF)."),
+    )
     return create_model(
         "BuildingTwinConfig",
         __config__=ConfigDict(extra="forbid" if strict else "ignore", frozen=True, populate_by_name=True),

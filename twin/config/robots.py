@@ -21,8 +21,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, StringConstraints, ValidationInfo, field_validator, model_validator
 
-from twin.config.base import ConfigTable, Number, Text, Whole, list_of
-from twin.config.tables import NAME_PATTERN, Right
+from twin.config.base import ConfigTable, Flag, Number, Text, Whole, list_of
+from twin.config.tables import NAME_PATTERN, IfcClassName, Right
 
 RosLayout = Literal["bridge", "rmw_zenoh"]
 RobotName = Annotated[str, StringConstraints(pattern=NAME_PATTERN)]
@@ -36,6 +36,30 @@ RESERVED_TOPICS = ("storey",)
 
 _NAMESPACE = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*/?$")
 _TOPIC = re.compile(r"^[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
+
+
+@dataclass(frozen=True, slots=True)
+class DetectionConfig:
+    """``[robots.NAME.detections]``: the robot's ``vision_msgs/msg/Detection3DArray`` topic and how its
+    detections become observations (see ``README.md``, "ROS 2 robots report back")."""
+
+    topic: str
+    classes: tuple[tuple[str, str], ...]
+    """``(class_id, IFC class)`` pairs."""
+    min_score: float = 0.5
+    fov_deg: float = 90.0
+    range_m: float = 5.0
+    rays: int = 64
+    max_tilt_deg: float = 15.0
+    max_detections: int = 256
+    future_s: float = 2.0
+    map_frame: str = "map"
+    sensor_frame: str | None = None
+    z_reference: Literal["storey", "building"] = "storey"
+    view_skill: str | None = "localization"
+    tf: str = "tf"
+    tf_static: str = "tf_static"
+    diagnostics: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,11 +81,95 @@ class RobotConfig:
     full_every_s: tuple[tuple[str, float], ...] = ()
     """Per topic, a full map at most every that many seconds while the topic's map changes (for
     subscribers that do not apply updates); topics not named get updates and keyframes only."""
+    detections: DetectionConfig | None = None
 
     @property
     def skills(self) -> tuple[str, ...]:
         """The skills whose maps this robot receives, in topic order, each once."""
         return tuple(dict.fromkeys(skill for _, skill in self.maps))
+
+
+class DetectionTable(ConfigTable):
+    """``[robots.NAME.detections]``: subscribe to the robot's detections (needs its ``namespace``)."""
+
+    topic: Text = Field(
+        "detections", description='Detection3DArray topic under the namespace ("/name": absolute).'
+    )
+    classes: dict[str, IfcClassName] = Field(
+        description='class_id -> IFC class, e.g. { table = "IfcFurniture" }; other classes are ignored.',
+        min_length=1,
+    )
+    min_score: Annotated[Number, Field(ge=0, le=1)] = 0.5
+    fov_deg: Annotated[
+        Number, Field(gt=0, le=360, description="Horizontal field of view (view polygon).")
+    ] = 90.0
+    range_m: Annotated[Number, Field(gt=0, le=100, description="How far the detector sees, m.")] = 5.0
+    rays: Annotated[
+        Whole,
+        Field(
+            ge=8,
+            le=1024,
+            description="At least this many rays for the view (more to be a cell apart at full range).",
+        ),
+    ] = 64
+    max_tilt_deg: Annotated[Number, Field(ge=0, le=90, description="Boxes tilted more are refused.")] = 15.0
+    max_detections: Annotated[Whole, Field(ge=1, le=10_000)] = 256
+    future_s: Annotated[Number, Field(ge=0, le=3600, description="Clock skew allowed for stamps.")] = 2.0
+    map_frame: Text = Field("map", description="The robot's map frame (the twin's building XY).")
+    sensor_frame: Text | None = Field(None, description="Frame of the view (default: the array's frame).")
+    z_reference: Literal["storey", "building"] = Field(
+        "storey", description="z = 0 of the map frame: the storey's floor, or the building's z = 0."
+    )
+    view_skill: Text | None = Field(
+        "localization", description='Skill whose map occludes the view ("" for none).'
+    )
+    tf: Text = Field("tf", description='TFMessage topic under the namespace ("/tf": the global one).')
+    tf_static: Text = Field("tf_static", description='Static TFMessage topic ("/tf_static": global).')
+    diagnostics: Flag = Field(
+        False, description="Publish the ingestion's counts on /<ns>/diagnostics (DiagnosticArray, 1 Hz)."
+    )
+
+    @field_validator("topic", "tf", "tf_static")
+    @classmethod
+    def _topic(cls, topic: str) -> str:
+        if not _TOPIC.match(topic.removeprefix("/")):
+            msg = (
+                f'expected a ROS topic name such as "detections" (under the namespace) or "/tf" '
+                f"(absolute), got {topic!r}"
+            )
+            raise ValueError(msg)
+        return topic
+
+    @field_validator("view_skill")
+    @classmethod
+    def _view_skill(cls, skill: str | None, info: ValidationInfo) -> str | None:
+        if not skill:
+            return None
+        skills = info.context.get("skills") if isinstance(info.context, Mapping) else None
+        if skills is not None and skill not in skills:
+            msg = f"names unknown skill {skill!r}; configured: {', '.join(sorted(skills))}"
+            raise ValueError(msg)
+        return skill
+
+    def record(self) -> DetectionConfig:
+        return DetectionConfig(
+            topic=self.topic,
+            classes=tuple(self.classes.items()),
+            min_score=self.min_score,
+            fov_deg=self.fov_deg,
+            range_m=self.range_m,
+            rays=self.rays,
+            max_tilt_deg=self.max_tilt_deg,
+            max_detections=self.max_detections,
+            future_s=self.future_s,
+            map_frame=self.map_frame,
+            sensor_frame=self.sensor_frame or None,
+            z_reference=self.z_reference,
+            view_skill=self.view_skill,
+            tf=self.tf,
+            tf_static=self.tf_static,
+            diagnostics=self.diagnostics,
+        )
 
 
 class RobotTable(ConfigTable):
@@ -88,6 +196,9 @@ class RobotTable(ConfigTable):
         description="Topic = seconds: besides its updates, the topic's map in full at most this often "
         "while it changes, for subscribers that do not apply updates (AMCL; a static layer with "
         "subscribe_to_updates false). Default: none (updates, and the twin's keyframes).",
+    )
+    detections: DetectionTable | None = Field(
+        None, description="Its vision_msgs/Detection3DArray topic, class table, camera and TF."
     )
 
     @field_validator("namespace")
@@ -145,6 +256,17 @@ class RobotTable(ConfigTable):
                 f"(got {self.storey!r})"
             )
             raise ValueError(msg)
+        if self.detections is not None and self.namespace is None:
+            msg = "'detections' needs the robot's 'namespace' (its topics are under it)"
+            raise ValueError(msg)
+        if self.detections is not None:
+            mapped = self.maps or ({"map": self.skill} if self.skill else dict(DEFAULT_ROBOT_MAPS))
+            used = set(mapped) | {f"{t}_updates" for t in mapped} | {f"{t}_info" for t in mapped}
+            d = self.detections
+            if {d.topic, d.tf, d.tf_static} & (used | {"storey", "diagnostics"}):
+                names = f"{d.topic!r}, {d.tf!r}, {d.tf_static!r}"
+                msg = f"detection topics {names} clash with its map or storey topics"
+                raise ValueError(msg)
         return self
 
     def record(self, name: str, default_rights: frozenset[Right]) -> RobotConfig:
@@ -165,6 +287,7 @@ class RobotTable(ConfigTable):
             domain_id=self.domain_id,
             ros=tuple(dict.fromkeys(self.ros)),
             full_every_s=tuple(sorted((self.full_every_s or {}).items())),
+            detections=self.detections.record() if self.detections is not None else None,
         )
 
 

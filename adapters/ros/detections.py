@@ -1,0 +1,341 @@
+"""``vision_msgs/msg/Detection3DArray`` -> one observation: boxes on the robot's storey and the view its
+sensor had.
+
+For each detection, its best hypothesis (highest ``score``) is looked up in the robot's class table
+(``class_id`` -> IFC class): an unknown class or a score under the threshold is ignored and counted.
+Its ``bbox`` (centre pose, size) is taken to the map frame through the robot's TF at the stamp; a
+small roll and pitch are dropped, a box tilted beyond ``max_tilt_rad`` is refused. ``id`` (a tracker's
+id) makes a stable robot IRI ``urn:twin-ros:<robot>:det:<id>``, so a tracked object is one element;
+an empty ``id`` gets a one-off IRI (``once:<stamp>-<index>``), never reused. The array's
+``header.stamp`` is the sense time, and the sensor's field of view and range cut by the building's
+structure (:func:`~adapters.ros.view.visibility_polygon`) is the view, with the classes of the table
+as what the detector reports.
+
+A view is only claimed when every detection of a known class could be used: if one was refused (a bad
+pose, a tilted box), the boxes go without a view, so nothing the robot did see collects a miss.
+
+Example::
+
+    t = translate_detections(payload, settings, context)
+    t.document   # b"@prefix twin: ... <urn:twin-ros:robot1:det:7> twin:ifcClass ..."
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import struct
+from collections import Counter
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from adapters.ros.cdr import _deserialize
+from adapters.ros.interfaces import DETECTION_3D_ARRAY
+from adapters.ros.observation_doc import (
+    BoxReport,
+    RosInputError,
+    Translation,
+    ViewReport,
+    observation_turtle,
+    robot_iri,
+)
+from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
+from adapters.ros.view import polygon_area, visibility_polygon
+from twin.config import DetectionConfig, Limits
+from twin.errors import MapError
+from twin.grid import OccupancyGrid
+
+__all__ = [
+    "DetectionContext",
+    "DetectionSettings",
+    "array_header",
+    "box_in_map",
+    "decode_detections",
+    "translate_detections",
+]
+
+log = logging.getLogger(__name__)
+_NS_PER_S = 1_000_000_000
+MIN_SIZE_M = 0.001
+"""A box side shorter than this (1 mm, the precision boxes are written with) is refused."""
+MAX_COORDINATE_M = 100_000.0
+BYTES_PER_DETECTION = 8192
+"""Larger arrays are refused before they are decoded (a detection with one hypothesis is about 500 bytes)."""
+"""A pose farther than this from its frame's origin is refused as nonsense (100 km)."""
+
+
+@dataclass(frozen=True, slots=True)
+class DetectionSettings:
+    """How one robot's detections become observations (from ``[robots.NAME.detections]``)."""
+
+    robot: str
+    classes: Mapping[str, str]
+    """``class_id`` -> IFC class."""
+    min_score: float = 0.5
+    fov_rad: float = math.radians(90.0)
+    range_m: float = 5.0
+    rays: int = 64
+    max_tilt_rad: float = math.radians(15.0)
+    max_detections: int = 256
+    max_size_m: float = 20.0
+    future_ns: int = 2 * _NS_PER_S
+    """A stamp later than now + this is refused (clock skew allowed)."""
+    map_frame: str = "map"
+    sensor_frame: str | None = None
+    """The frame whose pose is the view's origin and heading (default: the array's ``frame_id``);
+    its forward axis is +z for an optical frame (name containing ``optical``), else +x."""
+    z_reference: Literal["storey", "building"] = "storey"
+    """What z = 0 of the map frame is: the robot's storey's floor (a per-floor ROS map, the default)
+    or the building's z = 0 (then the storey's elevation is subtracted)."""
+
+    @property
+    def detects(self) -> tuple[str, ...]:
+        return tuple(sorted(set(self.classes.values())))
+
+    @classmethod
+    def from_config(cls, robot: str, d: DetectionConfig, limits: Limits) -> DetectionSettings:
+        """A robot's ``[robots.NAME.detections]`` within the site's ``[limits]``."""
+        return cls(
+            robot=robot,
+            classes=dict(d.classes),
+            min_score=d.min_score,
+            fov_rad=math.radians(d.fov_deg),
+            range_m=d.range_m,
+            rays=d.rays,
+            max_tilt_rad=math.radians(d.max_tilt_deg),
+            max_detections=min(d.max_detections, limits.elements_per_observation),
+            max_size_m=limits.box_size_m,
+            future_ns=int(d.future_s * _NS_PER_S),
+            map_frame=d.map_frame,
+            sensor_frame=d.sensor_frame,
+            z_reference=d.z_reference,
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class DetectionContext:
+    """What the daemon knows when an array arrives."""
+
+    storey: str | None
+    elevation_m: float
+    now_ns: int
+    tf: TfBuffer
+    occluders: OccupancyGrid | None = None
+    fusion_terms: bool = True
+    occlusion_known: bool = True
+    """False when the structure that hides parts of the view is not known (its map not yet built):
+    then no view is claimed at all, rather than one that sees through walls."""
+
+
+@dataclass(frozen=True, slots=True)
+class _Detection:
+    frame_id: str
+    stamp_ns: int
+    class_id: str | None
+    score: float
+    position: tuple[float, float, float]
+    orientation: tuple[float, float, float, float]
+    size: tuple[float, float, float]
+    id: str
+
+
+def _stamp(header: Any) -> int:
+    return int(header.stamp.sec) * _NS_PER_S + int(header.stamp.nanosec)
+
+
+def decode_detections(
+    payload: bytes | bytearray | memoryview, *, max_detections: int
+) -> tuple[str, int, list[_Detection]]:
+    """``(frame_id, stamp_ns, detections)`` of a CDR Detection3DArray; RosInputError if malformed or
+    too long."""
+    limit = max_detections * BYTES_PER_DETECTION + 4096
+    if len(payload) > limit:
+        msg = f"Detection3DArray of {len(payload)} bytes: {max_detections} detections fit in {limit}."
+        raise RosInputError("oversized", msg)
+    try:
+        message = _deserialize(payload, DETECTION_3D_ARRAY)
+    except MapError as err:
+        raise RosInputError("malformed", str(err)) from err
+    if len(message.detections) > max_detections:
+        count = len(message.detections)
+        msg = f"Detection3DArray has {count} detections, more than the limit {max_detections}."
+        raise RosInputError("oversized", msg)
+    frame, stamp = str(message.header.frame_id), _stamp(message.header)
+    out: list[_Detection] = []
+    for d in message.detections:
+        best = max(d.results, key=lambda r: float(r.hypothesis.score), default=None)
+        s, p, q = d.bbox.size, d.bbox.center.position, d.bbox.center.orientation
+        out.append(
+            _Detection(
+                frame_id=str(d.header.frame_id) or frame,
+                stamp_ns=_stamp(d.header) or stamp,
+                class_id=None if best is None else str(best.hypothesis.class_id),
+                score=-math.inf if best is None else float(best.hypothesis.score),
+                position=(float(p.x), float(p.y), float(p.z)),
+                orientation=(float(q.x), float(q.y), float(q.z), float(q.w)),
+                size=(float(s.x), float(s.y), float(s.z)),
+                id=str(d.id),
+            )
+        )
+    return frame, stamp, out
+
+
+def array_header(payload: bytes | bytearray | memoryview) -> tuple[str, int] | None:
+    """``(frame_id, stamp_ns)`` of a CDR message that starts with a ``std_msgs/Header`` (read without
+    decoding the rest), or None if it does not parse."""
+    raw = bytes(payload[:4096])
+    if len(raw) < 16 or raw[:2] != b"\x00\x01":
+        return None
+    sec, nanosec, length = struct.unpack_from("<iII", raw, 4)
+    if not 0 < length <= len(raw) - 16 or nanosec >= _NS_PER_S:
+        return None
+    try:
+        frame = raw[16 : 16 + length - 1].decode()
+    except UnicodeDecodeError:
+        return None
+    return frame, sec * _NS_PER_S + nanosec
+
+
+def _resolve(tf: TfBuffer, target: str, source: str, stamp_ns: int) -> Matrix:
+    if source.lstrip("/") == target.lstrip("/"):
+        return np.eye(4)
+    if not source:
+        raise RosInputError("unknown_frame", "The detection has an empty frame_id.")
+    try:
+        return tf.lookup(target, source, stamp_ns)
+    except TfError as err:
+        raise RosInputError(err.cause, str(err)) from err
+
+
+def box_in_map(
+    map_from_frame: Matrix,
+    position: tuple[float, float, float],
+    orientation: tuple[float, float, float, float],
+    size: tuple[float, float, float],
+    *,
+    max_tilt_rad: float,
+    max_size_m: float,
+) -> tuple[float, float, float, float, float, float, float]:
+    """``(cx, cy, cz, sx, sy, sz, yaw)`` in the map frame of a box posed in another frame; RosInputError for a
+    non-finite or far-away pose, a quaternion that is no rotation, a size out of (0, max_size_m], or a
+    tilt (angle of its z axis to the vertical) beyond ``max_tilt_rad``."""
+    values = (*position, *orientation)
+    if not all(math.isfinite(v) for v in values) or any(abs(v) > MAX_COORDINATE_M for v in position):
+        raise RosInputError("pose", f"Box pose is not finite or out of range: {values}.")
+    if not all(math.isfinite(v) and MIN_SIZE_M <= v <= max_size_m for v in size):
+        raise RosInputError("size", f"Box size {size} is not within [{MIN_SIZE_M}, {max_size_m}] m.")
+    norm = math.sqrt(sum(v * v for v in orientation))
+    if abs(norm - 1.0) > 1e-2:
+        raise RosInputError(
+            "pose", f"Box orientation {orientation} is not a unit quaternion (norm {norm:.4g})."
+        )
+    local = matrix(position, [v / norm for v in orientation])
+    world = map_from_frame @ local
+    r = world[:3, :3]
+    tilt = math.acos(max(-1.0, min(1.0, float(r[2, 2]))))
+    if tilt > max_tilt_rad:
+        msg = (
+            f"Box is tilted {math.degrees(tilt):.1f} deg from upright "
+            f"(tolerance {math.degrees(max_tilt_rad):.1f} deg)."
+        )
+        raise RosInputError("tilt", msg)
+    yaw = math.atan2(float(r[1, 0]), float(r[0, 0]))
+    cx, cy, cz = (float(v) for v in world[:3, 3])
+    if not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE_M for v in (cx, cy, cz)):
+        raise RosInputError("pose", f"Box centre in the map frame is out of range: {(cx, cy, cz)}.")
+    return (cx, cy, cz, size[0], size[1], size[2], yaw)
+
+
+def _view(
+    settings: DetectionSettings, ctx: DetectionContext, frame: str, stamp_ns: int, storey: str
+) -> ViewReport | None:
+    """The view of the sensor (``sensor_frame`` or the array's frame); None if that is the map frame."""
+    sensor = settings.sensor_frame or frame
+    if sensor.lstrip("/") == settings.map_frame.lstrip("/"):
+        return None
+    pose = _resolve(ctx.tf, settings.map_frame, sensor, stamp_ns)
+    forward = pose[:3, 2] if "optical" in sensor else pose[:3, 0]
+    if math.hypot(float(forward[0]), float(forward[1])) < 1e-6:
+        return None  # looking straight up or down: no horizontal heading
+    heading = math.atan2(float(forward[1]), float(forward[0]))
+    polygon = visibility_polygon(
+        ctx.occluders,
+        (float(pose[0, 3]), float(pose[1, 3])),
+        heading_rad=heading,
+        fov_rad=settings.fov_rad,
+        range_m=settings.range_m,
+        rays=settings.rays,
+    )
+    if polygon_area(polygon) < 1e-2:
+        return None
+    return ViewReport(storey, polygon, settings.detects)
+
+
+def translate_detections(
+    payload: bytes | bytearray | memoryview, settings: DetectionSettings, ctx: DetectionContext
+) -> Translation:
+    """One Detection3DArray as one observation (see the module's docstring).
+
+    Raises RosInputError for the whole array: malformed CDR, too many detections, no current storey, a stamp
+    in the future, a frame (of the view) that does not resolve. Single detections that cannot be used
+    are in ``refused`` of the result.
+    """
+    frame, stamp, detections = decode_detections(payload, max_detections=settings.max_detections)
+    if ctx.storey is None:
+        raise RosInputError(
+            "no_storey", f"Robot {settings.robot!r} has no current storey: its detections have no floor."
+        )
+    if stamp > ctx.now_ns + settings.future_ns:
+        msg = f"Detection3DArray stamp {stamp} ns is {(stamp - ctx.now_ns) / 1e9:.3f} s in the future."
+        raise RosInputError("future", msg)
+    ignored: Counter[str] = Counter()
+    refused: list[tuple[str, str]] = []
+    boxes: list[BoxReport] = []
+    seen: set[str] = set()
+    transforms: dict[tuple[str, int], Matrix] = {}
+    drop_z = ctx.elevation_m if settings.z_reference == "building" else 0.0
+    for index, d in enumerate(detections):
+        if d.class_id is None:
+            ignored["no_hypothesis"] += 1
+            continue
+        ifc_class = settings.classes.get(d.class_id)
+        if ifc_class is None:
+            ignored["unknown_class"] += 1
+            continue
+        if not d.score >= settings.min_score:
+            ignored["low_score"] += 1
+            continue
+        try:
+            if d.stamp_ns > ctx.now_ns + settings.future_ns:
+                raise RosInputError("future", f"Detection stamp {d.stamp_ns} ns is in the future.")
+            key = (d.frame_id, d.stamp_ns)
+            if key not in transforms:  # the detections of an array share their frame: one lookup
+                transforms[key] = _resolve(ctx.tf, settings.map_frame, d.frame_id, d.stamp_ns)
+            map_from_frame = transforms[key]
+            cx, cy, cz, sx, sy, sz, yaw = box_in_map(
+                map_from_frame, d.position, d.orientation, d.size,
+                max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m,
+            )  # fmt: skip
+        except RosInputError as err:
+            refused.append((err.cause, str(err)))
+            continue
+        iri = (
+            robot_iri(settings.robot, "det", d.id)
+            if d.id
+            else robot_iri(settings.robot, "once", f"{stamp}-{index}")
+        )
+        if iri in seen:
+            ignored["duplicate_id"] += 1
+            continue
+        seen.add(iri)
+        boxes.append(BoxReport(iri, ifc_class, ctx.storey, (cx, cy, cz - drop_z, sx, sy, sz, yaw)))
+    view = None
+    if ctx.fusion_terms and ctx.occlusion_known and not refused:
+        view = _view(settings, ctx, frame, stamp, ctx.storey)
+    document = observation_turtle(
+        boxes=boxes, view=view, sense_ns=stamp or None, fusion_terms=ctx.fusion_terms
+    )
+    return Translation(document, tuple(b.iri for b in boxes), dict(ignored), tuple(refused))

@@ -1,0 +1,163 @@
+"""Observation documents (Turtle, the wire format of ``README.md``, "Observations") written from what a
+ROS 2 message said: boxes, door states, removals and the view a sensor had (the fusion terms
+``twin:View``, ``twin:polygon``, ``twin:detects``, ``twin:senseTime``).
+
+Pure functions and immutable records. Numbers are written in metres to 0.1 mm and radians to 1 µrad,
+so a message that is sent again gives the same bytes (the core acks a re-confirmation at once).
+
+Example::
+
+    doc = observation_turtle(
+        boxes=[BoxReport("urn:r:7", "IfcFurniture", "ground-floor", (2, 3, 0.4, 1.2, 0.8, 0.75, 0))],
+        view=ViewReport("ground-floor", ((0, 0), (4, -2), (4, 2)), ("IfcFurniture",)),
+        sense_ns=1_700_000_000_000_000_000,
+    )
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from urllib.parse import quote
+
+__all__ = [
+    "BoxReport",
+    "RosInputError",
+    "Translation",
+    "ViewReport",
+    "literal",
+    "observation_turtle",
+    "robot_iri",
+    "sense_time",
+]
+
+PREFIXES = (
+    "@prefix twin: <https://w3id.org/building-twin#> .\n"
+    "@prefix xsd: <http://www.w3.org/2001/XMLSchema#> .\n"
+    "@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .\n"
+)
+
+
+class RosInputError(Exception):
+    """A message (or one detection of it) that cannot become an observation; ``cause`` counts it
+    (``malformed``, ``wrong_type``, ``unknown_frame``, ``extrapolation``, ``disconnected``, ``future``,
+    ``oversized``, ``pose``, ``size``, ``tilt``, ``no_storey``, ``unknown_level``, ``unknown_door``)."""
+
+    def __init__(self, cause: str, message: str) -> None:
+        super().__init__(message)
+        self.cause = cause
+
+
+@dataclass(frozen=True, slots=True)
+class BoxReport:
+    """An element seen as an oriented box: ``(cx, cy, cz, sx, sy, sz, yaw)``, centre in the map frame
+    (cz above the storey's elevation), sizes in metres, yaw in radians."""
+
+    iri: str
+    ifc_class: str
+    storey: str
+    box: tuple[float, float, float, float, float, float, float]
+    label: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class ViewReport:
+    """What a sensor looked at: the floor it saw on ``storey`` (a simple polygon, map frame, metres)
+    and the IFC classes its detector reports."""
+
+    storey: str
+    polygon: tuple[tuple[float, float], ...]
+    detects: tuple[str, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Translation:
+    """A message turned into an observation: ``document`` (None: nothing to tell the twin), the robot
+    IRIs it describes, and what was left out (``ignored``: by cause; ``refused``: (cause, message))."""
+
+    document: bytes | None
+    iris: tuple[str, ...] = ()
+    ignored: dict[str, int] = field(default_factory=dict)
+    refused: tuple[tuple[str, str], ...] = ()
+    extra: tuple[bytes, ...] = ()
+    """More documents to submit after ``document``, each on its own (e.g. one removal each, so that a
+    removal the twin refuses takes no other change with it)."""
+
+    @property
+    def documents(self) -> tuple[bytes, ...]:
+        return ((self.document,) if self.document is not None else ()) + self.extra
+
+
+def robot_iri(owner: str, kind: str, local: str) -> str:
+    """A stable IRI an owner (robot or source) mints, e.g. ``urn:twin-ros:robot1:det:obj%2F7``."""
+    return f"urn:twin-ros:{quote(owner, safe='')}:{kind}:{quote(local, safe='')}"
+
+
+def literal(text: str) -> str:
+    """A Turtle string literal."""
+    escaped = text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n").replace("\r", "\\r")
+    return f'"{escaped}"'
+
+
+def sense_time(stamp_ns: int) -> str:
+    """``"2026-11-27T10:00:01.250000Z"^^xsd:dateTime`` of integer nanoseconds since the epoch (UTC)."""
+    seconds, ns = divmod(stamp_ns, 1_000_000_000)
+    when = dt.datetime.fromtimestamp(seconds, tz=dt.UTC).replace(microsecond=ns // 1000)
+    return f'"{when.strftime("%Y-%m-%dT%H:%M:%S.%f")}Z"^^xsd:dateTime'
+
+
+def _metres(v: float) -> str:
+    text = f"{v:.4f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def _radians(v: float) -> str:
+    v = math.remainder(v, 2 * math.pi)
+    text = f"{v:.6f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def observation_turtle(
+    *,
+    boxes: Sequence[BoxReport] = (),
+    doors: Sequence[tuple[str, bool]] = (),
+    removed: Sequence[str] = (),
+    view: ViewReport | None = None,
+    sense_ns: int | None = None,
+    fusion_terms: bool = True,
+) -> bytes | None:
+    """The Turtle of one observation, or None when it says nothing.
+
+    ``fusion_terms`` False leaves out the view and the sense time (for a core that does not read them
+    yet): the elements alone.
+    """
+    lines: list[str] = []
+    for b in boxes:
+        cx, cy, cz, sx, sy, sz, yaw = b.box
+        numbers = " ".join([*(_metres(v) for v in (cx, cy, cz, sx, sy, sz)), _radians(yaw)])
+        label = f" ;\n    rdfs:label {literal(b.label)}" if b.label else ""
+        lines.append(
+            f"<{b.iri}> twin:ifcClass {literal(b.ifc_class)} ; twin:storey {literal(b.storey)} ;\n"
+            f'    twin:box "{numbers}"{label} .'
+        )
+    lines += [f"<{iri}> twin:isOpen {'true' if is_open else 'false'} ." for iri, is_open in doors]
+    lines += [f"<{iri}> twin:removed true ." for iri in removed]
+    if fusion_terms and view is not None and len(view.polygon) >= 3:
+        points = " ".join(f"{_metres(x)} {_metres(y)}" for x, y in view.polygon)
+        parts = [f"[] a twin:View ;\n    twin:storey {literal(view.storey)}"]
+        if sense_ns is not None:
+            parts.append(f"twin:senseTime {sense_time(sense_ns)}")
+        parts.append(f'twin:polygon "{points}"')
+        if view.detects:
+            parts.append("twin:detects " + " , ".join(literal(c) for c in view.detects))
+        lines.append(" ;\n    ".join(parts) + " .")
+    elif fusion_terms and sense_ns is not None and (boxes or doors):
+        stamp = sense_time(sense_ns)
+        lines += [
+            f"<{iri}> twin:senseTime {stamp} ." for iri in [b.iri for b in boxes] + [d for d, _ in doors]
+        ]
+    if not lines:
+        return None
+    return (PREFIXES + "\n".join(lines) + "\n").encode()

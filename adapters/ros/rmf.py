@@ -1,0 +1,255 @@
+"""Open-RMF's messages as observations: ``rmf_obstacle_msgs/msg/Obstacles`` (boxes that come and go) and
+``rmf_door_msgs/msg/DoorState`` (a door's mode).
+
+**Obstacles.** Each obstacle's ``classification`` is looked up in the source's class table (unknown:
+ignored and counted), its ``level_name`` in the level table (RMF level -> storey key, with the level's
+transform to the twin's frame where the two differ; unknown: refused), ``bbox`` is its box on that
+storey (z above the level's floor). ``action`` works per RMF ``source``: ADD (or modify) upserts the
+obstacle ``urn:twin-ros:<twin source>:obstacle:<rmf source>/<id>``; DELETE removes it; DELETEALL
+removes every obstacle of that RMF source this daemon added. A non-zero ``lifetime`` makes it expire:
+:meth:`ObstacleTracker.expire` removes what has lapsed.
+
+**Door states.** ``door_name`` is matched to a door of the twin by the source's door table (door name
+-> IRI, GlobalId or name of an ``IfcDoor``), else by GlobalId, else by the door's name; OPEN and CLOSED
+become ``twin:isOpen true`` / ``false``; MOVING, OFFLINE and UNKNOWN change nothing (counted).
+
+Example::
+
+    tracker = ObstacleTracker(settings)
+    t = tracker.translate(payload, now_ns=time.time_ns())
+    later = tracker.expire(now_ns=time.time_ns())      # removals of lapsed obstacles
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections import Counter
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from adapters.ros.cdr import _deserialize
+from adapters.ros.detections import box_in_map
+from adapters.ros.interfaces import DOOR_STATE, OBSTACLES
+from adapters.ros.observation_doc import BoxReport, RosInputError, Translation, observation_turtle, robot_iri
+from adapters.ros.tf import matrix
+from twin import vocab
+from twin.errors import MapError, ModelError
+
+__all__ = [
+    "DoorIndex",
+    "DoorSettings",
+    "Level",
+    "ObstacleSettings",
+    "ObstacleTracker",
+    "translate_door_state",
+]
+
+_NS_PER_S = 1_000_000_000
+MAX_OBSTACLES_BYTES = 16 << 20
+"""Larger Obstacles messages are refused before they are decoded (voxel data included)."""
+MAX_DOOR_STATE_BYTES = 64 << 10
+ACTION_ADD, ACTION_DELETE, ACTION_DELETEALL = 1, 2, 3
+MODE_CLOSED, MODE_MOVING, MODE_OPEN, MODE_OFFLINE, MODE_UNKNOWN = 0, 1, 2, 3, 4
+_MODE_NAMES = {MODE_MOVING: "moving", MODE_OFFLINE: "offline", MODE_UNKNOWN: "unknown"}
+
+
+@dataclass(frozen=True, slots=True)
+class Level:
+    """An RMF level: the twin's storey key, and ``twin_from_level`` as x, y (m) and yaw (rad)."""
+
+    storey: str
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0
+
+    def matrix(self) -> Any:
+        half = self.yaw / 2
+        return matrix((self.x, self.y, 0.0), (0.0, 0.0, math.sin(half), math.cos(half)))
+
+
+@dataclass(frozen=True, slots=True)
+class ObstacleSettings:
+    source: str
+    classes: Mapping[str, str]
+    levels: Mapping[str, Level]
+    max_obstacles: int = 256
+    max_size_m: float = 20.0
+    max_tilt_rad: float = math.radians(15.0)
+
+
+class ObstacleTracker:
+    """The obstacles one twin source has added, per RMF ``source``, with their expiry (None: none).
+    One owner (the ingest's worker)."""
+
+    def __init__(self, settings: ObstacleSettings) -> None:
+        self.settings = settings
+        self._known: dict[str, dict[str, int | None]] = {}
+
+    def _iri(self, rmf_source: str, obstacle_id: int) -> str:
+        return robot_iri(self.settings.source, "obstacle", f"{rmf_source}/{obstacle_id}")
+
+    @property
+    def held(self) -> int:
+        return sum(len(v) for v in self._known.values())
+
+    def translate(
+        self, payload: bytes | bytearray | memoryview, *, now_ns: int, fusion_terms: bool = True
+    ) -> Translation:
+        """One Obstacles message as one observation; RosInputError if malformed or too long."""
+        s = self.settings
+        if len(payload) > MAX_OBSTACLES_BYTES:
+            msg = f"Obstacles of {len(payload)} bytes is larger than the limit {MAX_OBSTACLES_BYTES}."
+            raise RosInputError("oversized", msg)
+        try:
+            message = _deserialize(payload, OBSTACLES)
+        except MapError as err:
+            raise RosInputError("malformed", str(err)) from err
+        if len(message.obstacles) > s.max_obstacles:
+            msg = f"Obstacles has {len(message.obstacles)} obstacles, more than the limit {s.max_obstacles}."
+            raise RosInputError("oversized", msg)
+        ignored: Counter[str] = Counter()
+        refused: list[tuple[str, str]] = []
+        boxes: dict[str, BoxReport] = {}
+        removed: dict[str, None] = {}
+        added: dict[str, tuple[str, int | None]] = {}
+        for o in message.obstacles:
+            rmf_source, action = str(o.source), int(o.action)
+            known = self._known.get(rmf_source, {})
+            if action == ACTION_DELETEALL:
+                removed.update(dict.fromkeys(known))
+                for iri in known:
+                    boxes.pop(iri, None)
+                continue
+            iri = self._iri(rmf_source, int(o.id))
+            if action == ACTION_DELETE:
+                if iri in known or iri in boxes:
+                    removed[iri] = None
+                    boxes.pop(iri, None)
+                else:
+                    ignored["unknown_id"] += 1
+                continue
+            if action != ACTION_ADD:
+                refused.append(("action", f"Obstacle {iri}: unknown action {action}."))
+                continue
+            ifc_class = s.classes.get(str(o.classification))
+            if ifc_class is None:
+                ignored["unknown_class"] += 1
+                continue
+            level = s.levels.get(str(o.level_name))
+            if level is None:
+                known_levels = ", ".join(sorted(s.levels)) or "none"
+                refused.append(
+                    ("unknown_level", f"Unknown RMF level {o.level_name!r} (configured: {known_levels}).")
+                )
+                continue
+            c, q, size = o.bbox.center.position, o.bbox.center.orientation, o.bbox.size
+            try:
+                box = box_in_map(
+                    level.matrix(),
+                    (float(c.x), float(c.y), float(c.z)),
+                    (float(q.x), float(q.y), float(q.z), float(q.w)),
+                    (float(size.x), float(size.y), float(size.z)),
+                    max_tilt_rad=s.max_tilt_rad,
+                    max_size_m=s.max_size_m,
+                )
+            except RosInputError as err:
+                refused.append((err.cause, f"Obstacle {iri}: {err}"))
+                continue
+            lifetime_ns = int(o.lifetime.sec) * _NS_PER_S + int(o.lifetime.nanosec)
+            expiry = now_ns + lifetime_ns if lifetime_ns > 0 else None
+            boxes[iri] = BoxReport(iri, ifc_class, level.storey, box, label=str(o.classification) or None)
+            removed.pop(iri, None)
+            added[iri] = (rmf_source, expiry)
+        for iri in removed:
+            for held in self._known.values():
+                held.pop(iri, None)
+        for iri, (rmf_source, expiry) in added.items():
+            self._known.setdefault(rmf_source, {})[iri] = expiry
+        document = observation_turtle(boxes=list(boxes.values()), fusion_terms=fusion_terms)
+        return Translation(document, tuple(boxes), dict(ignored), tuple(refused), _removals(removed))
+
+    def next_expiry(self) -> int | None:
+        """When the next held obstacle lapses (ns), or None."""
+        times = [t for held in self._known.values() for t in held.values() if t is not None]
+        return min(times, default=None)
+
+    def expire(self, *, now_ns: int) -> Translation:
+        """The removal of every held obstacle whose lifetime has lapsed by ``now_ns``."""
+        lapsed = [
+            iri for held in self._known.values() for iri, t in held.items() if t is not None and t <= now_ns
+        ]
+        for held in self._known.values():
+            for iri in lapsed:
+                held.pop(iri, None)
+        return Translation(None, (), extra=_removals(lapsed))
+
+
+def _removals(iris: Iterable[str]) -> tuple[bytes, ...]:
+    """One removal document per element: one the twin does not hold (its ADD was refused) fails alone."""
+    return tuple(doc for iri in iris if (doc := observation_turtle(removed=[iri])) is not None)
+
+
+@dataclass(frozen=True, slots=True)
+class DoorSettings:
+    source: str
+    doors: Mapping[str, str]
+    """RMF ``door_name`` -> the twin door's IRI, GlobalId or name."""
+
+
+class DoorIndex:
+    """The twin's doors by IRI, GlobalId and name (a name shared by several doors matches none)."""
+
+    def __init__(self, doors: Iterable[tuple[str, str]]) -> None:
+        self.iris: set[str] = set()
+        self.by_guid: dict[str, str] = {}
+        names: dict[str, list[str]] = {}
+        for iri, name in doors:
+            self.iris.add(iri)
+            tail = iri.rsplit("_", 1)[-1]
+            with contextlib.suppress(ModelError, ValueError):
+                self.by_guid[vocab.compress_guid(tail)] = iri
+            if name:
+                names.setdefault(name, []).append(iri)
+        self.by_name = {n: iris[0] for n, iris in names.items() if len(iris) == 1}
+        self.ambiguous = {n for n, iris in names.items() if len(iris) > 1}
+
+    def find(self, key: str) -> str | None:
+        if key in self.iris:
+            return key
+        return self.by_guid.get(key) or self.by_name.get(key)
+
+
+def translate_door_state(
+    payload: bytes | bytearray | memoryview,
+    settings: DoorSettings,
+    index: DoorIndex,
+    *,
+    fusion_terms: bool = True,
+) -> Translation:
+    """One DoorState as an observation of the matched door's state (see the module's docstring)."""
+    if len(payload) > MAX_DOOR_STATE_BYTES:
+        raise RosInputError(
+            "oversized", f"A DoorState of {len(payload)} bytes (limit {MAX_DOOR_STATE_BYTES})."
+        )
+    try:
+        message = _deserialize(payload, DOOR_STATE)
+    except MapError as err:
+        raise RosInputError("malformed", str(err)) from err
+    name = str(message.door_name)
+    mode = int(message.current_mode.value)
+    if mode not in (MODE_OPEN, MODE_CLOSED):
+        return Translation(None, (), {f"mode_{_MODE_NAMES.get(mode, 'invalid')}": 1})
+    configured = settings.doors.get(name)
+    iri = index.find(configured if configured is not None else name)
+    if iri is None:
+        why = f" (configured as {configured!r})" if configured is not None else ""
+        extra = " (several doors have that name: configure it)" if name in index.ambiguous else ""
+        msg = f"No door of the twin matches RMF door {name!r}{why}{extra}."
+        raise RosInputError("unknown_door", msg)
+    stamp = int(message.door_time.sec) * _NS_PER_S + int(message.door_time.nanosec)
+    document = observation_turtle(
+        doors=[(iri, mode == MODE_OPEN)], sense_ns=stamp or None, fusion_terms=fusion_terms
+    )
+    return Translation(document, (iri,))

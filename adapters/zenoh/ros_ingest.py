@@ -1,0 +1,539 @@
+"""ROS 2 robots and the building's Open-RMF systems report to the twin in the messages they already
+publish: subscribed in their layouts, translated into observations, submitted on the core's path.
+
+- per robot with ``[robots.NAME.detections]``: ``/<ns>/<topic>`` (``vision_msgs/msg/Detection3DArray``),
+  ``/<ns>/tf`` and ``/<ns>/tf_static`` (``tf2_msgs/msg/TFMessage``, the latter latched);
+- per ``[sources.NAME]``: ``/<ns>/door_states`` (``rmf_door_msgs/msg/DoorState``) or
+  ``/<ns>/rmf_obstacles`` (``rmf_obstacle_msgs/msg/Obstacles``).
+
+Layouts as :mod:`adapters.zenoh.ros_maps` serves maps: ``bridge`` (zenoh-bridge-ros2dds: key ``<ns>/<topic>``,
+payload the CDR bytes) and ``rmw_zenoh`` (``<domain>/<ns>/<topic>/<dds type>/<RIHS01 hash>``, with a
+subscriber liveliness token in the ROS graph). On rmw_zenoh the subscription covers every type on the
+topic, so a publisher of another type (or hash) is refused and counted as ``wrong_type``.
+
+Every message goes through one worker thread (Zenoh's callbacks only queue it; a full queue drops the
+message and counts ``overflow``: ROS topics carry no ack, and a slow twin must not stall Zenoh). Each
+resulting observation is submitted with ``TwinService.submit_observation(owner, turtle)``: the same
+validation, rights, limits, fusion, durability and map updates as any observation; its ack is counted
+per robot or source (accepted, unchanged, refused by cause, last refusal) in the daemon's status
+(``ros_ingest``). Every cause of refusal is logged once per robot or source, then counted silently.
+
+The view of a detection array is cut by the structure in the ``view_skill`` map of the robot's storey,
+which this object keeps as a sink of the service (``MapPublished``/``MapUpdated``). Whether the core
+reads the fusion terms (views, sense times) is probed once: until it does, documents carry the
+elements alone.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import zenoh
+
+from adapters.ros.detections import DetectionContext, DetectionSettings, array_header, translate_detections
+from adapters.ros.diagnostics import Counts, encode_diagnostics
+from adapters.ros.interfaces import DETECTION_3D_ARRAY, DIAGNOSTIC_ARRAY, DOOR_STATE, OBSTACLES, TF_MESSAGE
+from adapters.ros.observation_doc import BoxReport, RosInputError, Translation, ViewReport, observation_turtle
+from adapters.ros.rmf import (
+    DoorIndex,
+    DoorSettings,
+    Level,
+    ObstacleSettings,
+    ObstacleTracker,
+    translate_door_state,
+)
+from adapters.ros.rmw_zenoh import (
+    DEFAULT_QOS,
+    STATE_QOS,
+    RosNode,
+    RosTopic,
+    attachment,
+    dds_type_name,
+    gid_of,
+    resolve_name,
+    type_hash,
+)
+from adapters.ros.tf import TfBuffer, decode_tf_message
+from adapters.zenoh.latched import CDR, declare_latched_subscriber
+from twin.config import Config, Limits
+from twin.errors import MapError, ObservationError
+from twin.events import MapPublished, MapUpdated, TwinEvent, TwinStarted
+from twin.grid import OccupancyGrid
+from twin.live.requests import Reply, ReplyFn
+from twin.observations import parse_observation
+
+__all__ = ["INGEST_NODE", "RosIngest", "core_reads_fusion_terms"]
+
+log = logging.getLogger(__name__)
+
+INGEST_NODE = "twin_ingest"
+_NODE_ID_BASE = 10_000  # node ids of this session's ingest nodes (the map server's count from 0)
+QUEUE_DEPTH = 1024
+DIAGNOSTICS_TOPIC = "diagnostics"
+DIAGNOSTICS_S = 1.0
+"""How often the DiagnosticArray of a robot or source that asked for it is published."""
+TF_WAIT_S = 0.5
+"""How long an array whose transform is not in yet waits for newer TF (tf2's message filter does so too)."""
+MAX_WAITING = 64
+"""Arrays per robot waiting for TF at most; more are translated at once (and refused if still unresolved)."""
+Submit = Callable[[str, bytes, ReplyFn], None]
+
+
+def core_reads_fusion_terms(limits: Limits) -> bool:
+    """Whether the core's observation parser accepts a view and a sense time (issue 28's terms)."""
+    doc = observation_turtle(
+        boxes=[BoxReport("urn:twin-ros:probe:det:1", "IfcFurniture", "s", (0, 0, 0.5, 1, 1, 1, 0))],
+        view=ViewReport("s", ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0)), ("IfcFurniture",)),
+        sense_ns=1_700_000_000_000_000_000,
+    )
+    assert doc is not None
+    try:
+        parse_observation(doc, limits=limits)
+    except ObservationError:
+        return False
+    except Exception:  # a parser of another shape: do not guess
+        log.debug("Probing the core's fusion terms failed", exc_info=True)
+        return False
+    return True
+
+
+@dataclass(eq=False, slots=True)
+class _Out:
+    """A publisher; on rmw_zenoh with its gid and sequence number for the attachment."""
+
+    publisher: Any
+    gid: bytes | None = None
+    sequence: int = 0
+
+    def put(self, payload: bytes, stamp_ns: int) -> None:
+        if self.gid is None:
+            self.publisher.put(payload)
+            return
+        self.sequence += 1
+        self.publisher.put(payload, attachment=attachment(self.sequence, stamp_ns, self.gid))
+
+
+@dataclass(eq=False, slots=True)
+class _Robot:
+    name: str
+    settings: DetectionSettings
+    view_skill: str | None
+    tf: TfBuffer = field(default_factory=TfBuffer)
+    waiting: list[tuple[float, _Message]] = field(default_factory=list)
+    """Arrays whose transform is not in yet: (monotonic deadline, message), oldest first."""
+
+
+@dataclass(frozen=True, slots=True)
+class _Message:
+    owner: str
+    kind: str  # "detections", "tf", "tf_static", "doors", "obstacles", "wrong_type"
+    payload: bytes
+    note: str = ""
+
+
+class RosIngest:
+    """Subscribes to the configured robots' detections and TF and the sources' RMF topics; a TwinSink.
+
+    ``submit`` is ``TwinService.submit_observation``; ``storey_of(robot)`` the robot's current storey
+    (``RosMapPublisher.storey_of``). Add it to the service's sinks before the service starts (it learns
+    the storeys, the doors and the maps that occlude views from the events), and ``close`` it.
+    """
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        config: Config,
+        submit: Submit,
+        *,
+        storey_of: Callable[[str], str | None],
+        clock: Callable[[], int] = time.time_ns,
+        fusion_terms: bool | None = None,
+        queue_depth: int = QUEUE_DEPTH,
+    ) -> None:
+        self.submit = submit
+        self.storey_of = storey_of
+        self.clock = clock
+        self.fusion_terms = core_reads_fusion_terms(config.limits) if fusion_terms is None else fusion_terms
+        self._lock = threading.Lock()
+        self._queue: queue.Queue[_Message | None] = queue.Queue(maxsize=queue_depth)
+        self._counts: dict[str, Counts] = {}
+        self._robots: dict[str, _Robot] = {}
+        self._doors: dict[str, DoorSettings] = {}
+        self._obstacles: dict[str, ObstacleTracker] = {}
+        self._door_index = DoorIndex(())
+        self._elevations: dict[str, float] = {}
+        self._grids: dict[tuple[str, str], OccupancyGrid] = {}
+        self._entities: list[Any] = []
+        self._diagnostics: dict[str, list[_Out]] = {}
+        self._refused_before: dict[str, int] = {}
+        self._next_diagnostics = time.monotonic() + DIAGNOSTICS_S
+        zid = str(session.zid())
+        node_id = _NODE_ID_BASE
+        entity = 0
+        for robot in sorted(config.robots.values(), key=lambda r: r.name):
+            d = robot.detections
+            if d is None or robot.namespace is None:
+                continue
+            settings = DetectionSettings.from_config(robot.name, d, config.limits)
+            self._robots[robot.name] = _Robot(robot.name, settings, d.view_skill)
+            self._counts[robot.name] = Counts()
+            node = RosNode(robot.domain_id, robot.namespace, INGEST_NODE, zid, node_id)
+            node_id += 1
+            topics = [
+                (d.topic, DETECTION_3D_ARRAY, "detections", False),
+                (d.tf, TF_MESSAGE, "tf", False),
+                (d.tf_static, TF_MESSAGE, "tf_static", True),
+            ]
+            entity = self._subscribe(
+                session, owner=robot.name, node=node, layouts=robot.ros, topics=topics, entity=entity
+            )
+            if d.diagnostics:
+                entity = self._declare_diagnostics(session, robot.name, node, robot.ros, entity)
+        for source in sorted(config.sources.values(), key=lambda s: s.name):
+            self._counts[source.name] = Counts()
+            if source.kind == "rmf_doors":
+                self._doors[source.name] = DoorSettings(source.name, dict(source.doors))
+                kind, type_name = "doors", DOOR_STATE
+            else:
+                levels = {n: Level(lv.storey, lv.x, lv.y, lv.yaw_rad) for n, lv in source.levels}
+                self._obstacles[source.name] = ObstacleTracker(
+                    ObstacleSettings(source.name, dict(source.classes), levels, max_size_m=source.max_size_m)
+                )
+                kind, type_name = "obstacles", OBSTACLES
+            node = RosNode(source.domain_id, source.namespace, INGEST_NODE, zid, node_id)
+            node_id += 1
+            entity = self._subscribe(
+                session,
+                owner=source.name,
+                node=node,
+                layouts=source.ros,
+                topics=[(source.topic, type_name, kind, False)],
+                entity=entity,
+            )
+            if source.diagnostics:
+                entity = self._declare_diagnostics(session, source.name, node, source.ros, entity)
+        self._worker = threading.Thread(target=self._run, name="ros-ingest", daemon=True)
+        self._worker.start()
+        log.info(
+            "ROS 2 ingestion: %d robot(s) with detections, %d source(s); views and sense times %s",
+            len(self._robots), len(self._doors) + len(self._obstacles),
+            "on" if self.fusion_terms else "off (the core does not read them yet)",
+        )  # fmt: skip
+
+    # --- subscriptions (Zenoh threads) --------------------------------------------------------------
+    def _subscribe(
+        self,
+        session: zenoh.Session,
+        *,
+        owner: str,
+        node: RosNode,
+        layouts: tuple[str, ...],
+        topics: list[tuple[str, str, str, bool]],
+        entity: int,
+    ) -> int:
+        if "rmw_zenoh" in layouts:
+            self._entities.append(session.liveliness().declare_token(node.node_token()))
+        for name, type_name, kind, latched in topics:
+            topic = RosTopic(node.domain_id, *resolve_name(node.namespace, name), type_name)
+            if "bridge" in layouts:
+                handler = self._handler(owner, kind, None)
+                self._entities.append(
+                    declare_latched_subscriber(session, topic.bridge_key, handler, max_samples=None)
+                    if latched
+                    else session.declare_subscriber(topic.bridge_key, handler)
+                )
+            if "rmw_zenoh" in layouts:
+                expected = f"{dds_type_name(type_name)}/{type_hash(type_name)}"
+                any_type = f"{node.domain_id}/{topic.fqn.strip('/')}/*/*"
+                handler = self._handler(owner, kind, expected)
+                self._entities.append(
+                    declare_latched_subscriber(session, any_type, handler, max_samples=None)
+                    if latched
+                    else session.declare_subscriber(any_type, handler)
+                )
+                token = node.subscriber_token(topic, entity, STATE_QOS if latched else DEFAULT_QOS)
+                entity += 1
+                self._entities.append(session.liveliness().declare_token(token))
+        return entity
+
+    def _declare_diagnostics(
+        self, session: zenoh.Session, owner: str, node: RosNode, layouts: tuple[str, ...], entity: int
+    ) -> int:
+        """Publishers of ``<ns>/diagnostics`` (DiagnosticArray) in ``layouts``."""
+        topic = RosTopic(node.domain_id, node.namespace, DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY)
+        outs = self._diagnostics.setdefault(owner, [])
+        if "bridge" in layouts:
+            outs.append(_Out(session.declare_publisher(topic.bridge_key, encoding=CDR)))
+        if "rmw_zenoh" in layouts:
+            token = node.publisher_token(topic, entity, DEFAULT_QOS)
+            entity += 1
+            self._entities.append(session.liveliness().declare_token(token))
+            pub = session.declare_publisher(
+                topic.data_key, encoding=CDR, reliability=zenoh.Reliability.RELIABLE
+            )
+            outs.append(_Out(pub, gid=gid_of(token)))
+        return entity
+
+    def _publish_diagnostics(self) -> None:
+        """One DiagnosticArray per owner that asked for it: WARN if it had refusals since the last one."""
+        now = time.monotonic()
+        if not self._diagnostics or now < self._next_diagnostics:
+            return
+        self._next_diagnostics = now + DIAGNOSTICS_S
+        stamp = self.clock()
+        for owner, outs in self._diagnostics.items():
+            with self._lock:
+                c = self._counts[owner]
+                report = c.diagnostic(owner, refused_before=self._refused_before.get(owner, 0))
+                self._refused_before[owner] = sum(c.refused.values())
+            payload = encode_diagnostics([report], stamp_ns=stamp)
+            for out in outs:
+                out.put(payload, stamp)
+
+    def _handler(self, owner: str, kind: str, expected: str | None) -> Callable[[zenoh.Sample], None]:
+        def on_sample(sample: zenoh.Sample) -> None:
+            if sample.kind != zenoh.SampleKind.PUT:
+                return
+            note = ""
+            got_kind = kind
+            if expected is not None:
+                key = str(sample.key_expr)
+                got = "/".join(key.split("/")[-2:])
+                if got != expected:
+                    got_kind, note = "wrong_type", f"{key} carries {got}, not {expected}"
+            try:
+                self._queue.put_nowait(_Message(owner, got_kind, sample.payload.to_bytes(), note))
+            except queue.Full:
+                with self._lock:
+                    c = self._counts[owner]
+                    c.received += 1
+                    self._refuse(
+                        c, owner, "overflow", f"The ingestion queue is full ({self._queue.maxsize})."
+                    )
+
+        return on_sample
+
+    # --- the worker --------------------------------------------------------------------------------
+    def _run(self) -> None:
+        while True:
+            timeout = 0.05 if any(r.waiting for r in self._robots.values()) else self._next_expiry_s()
+            if self._diagnostics:
+                timeout = min(timeout, max(0.0, self._next_diagnostics - time.monotonic()))
+            try:
+                message = self._queue.get(timeout=timeout)
+            except queue.Empty:
+                message = None
+            else:
+                if message is None:
+                    return
+            try:
+                if message is not None:
+                    self._handle(message)
+                self._expire()
+                self._give_up_waiting()
+                self._publish_diagnostics()
+            except Exception:  # a bad message must never stop ingestion
+                log.exception("ROS 2 ingestion failed on a %s message", message.kind if message else "timer")
+
+    def _next_expiry_s(self) -> float:
+        times = [t for tr in self._obstacles.values() if (t := tr.next_expiry()) is not None]
+        if not times:
+            return 0.5
+        return min(0.5, max(0.0, (min(times) - self.clock()) / 1e9))
+
+    def _expire(self) -> None:
+        now = self.clock()
+        for name, tracker in self._obstacles.items():
+            nxt = tracker.next_expiry()
+            if nxt is not None and nxt <= now:
+                self._deliver(name, tracker.expire(now_ns=now))
+
+    def _give_up_waiting(self) -> None:
+        """Translate the arrays that waited for TF too long (refused if it still does not resolve)."""
+        now = time.monotonic()
+        for robot in self._robots.values():
+            while robot.waiting and robot.waiting[0][0] <= now:
+                _, m = robot.waiting.pop(0)
+                self._translate(m)
+
+    def _retry_waiting(self, robot: _Robot) -> None:
+        """After new TF: translate the waiting arrays it resolves, in order."""
+        still: list[tuple[float, _Message]] = []
+        for deadline, m in robot.waiting:
+            if self._must_wait(robot, m):
+                still.append((deadline, m))
+            else:
+                self._translate(m)
+        robot.waiting = still
+
+    def _must_wait(self, robot: _Robot, m: _Message) -> bool:
+        header = array_header(m.payload)
+        if header is None:
+            return False
+        frame, stamp = header
+        target = robot.settings.map_frame
+        frames = {
+            f
+            for f in (frame, robot.settings.sensor_frame or frame)
+            if f and f.lstrip("/") != target.lstrip("/")
+        }
+        return any(robot.tf.waits_for(target, f, stamp) for f in frames)
+
+    def _handle(self, m: _Message) -> None:
+        with self._lock:
+            c = self._counts[m.owner]
+            c.received += 1
+            c.messages[m.kind] += 1
+            if m.kind == "wrong_type":
+                self._refuse(c, m.owner, "wrong_type", m.note)
+                return
+        if m.kind in ("tf", "tf_static"):
+            robot = self._robots[m.owner]
+            try:
+                robot.tf.add(decode_tf_message(m.payload), static=m.kind == "tf_static")
+            except MapError as err:
+                with self._lock:
+                    self._refuse(self._counts[m.owner], m.owner, "malformed", str(err))
+                return
+            if robot.waiting:
+                self._retry_waiting(robot)
+            return
+        if m.kind == "detections":
+            robot = self._robots[m.owner]
+            if len(robot.waiting) < MAX_WAITING and (robot.waiting or self._must_wait(robot, m)):
+                robot.waiting.append((time.monotonic() + TF_WAIT_S, m))  # behind the others: in order
+                with self._lock:
+                    self._counts[m.owner].waited += 1
+                return
+        self._translate(m)
+
+    def _translate(self, m: _Message) -> None:
+        try:
+            if m.kind == "detections":
+                translation = self._detections(m)
+            elif m.kind == "doors":
+                with self._lock:
+                    index = self._door_index
+                translation = translate_door_state(
+                    m.payload, self._doors[m.owner], index, fusion_terms=self.fusion_terms
+                )
+            else:
+                translation = self._obstacles[m.owner].translate(
+                    m.payload, now_ns=self.clock(), fusion_terms=self.fusion_terms
+                )
+        except RosInputError as err:
+            with self._lock:
+                self._refuse(self._counts[m.owner], m.owner, err.cause, str(err))
+            return
+        self._deliver(m.owner, translation)
+
+    def _detections(self, m: _Message) -> Translation:
+        robot = self._robots[m.owner]
+        storey = self.storey_of(m.owner)
+        with self._lock:  # grids are replaced, never changed in place: this one stays as it is
+            elevation = self._elevations.get(storey or "", 0.0)
+            grid = self._grids.get((storey, robot.view_skill)) if storey and robot.view_skill else None
+        known = robot.view_skill is None or grid is not None
+        ctx = DetectionContext(storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known)
+        return translate_detections(m.payload, robot.settings, ctx)
+
+    def _deliver(self, owner: str, t: Translation) -> None:
+        with self._lock:
+            c = self._counts[owner]
+            c.ignored.update(t.ignored)
+            for cause, message in t.refused:
+                self._refuse(c, owner, cause, message)
+            documents = t.documents
+            c.submitted += len(documents)
+        for document in documents:
+            self.submit(owner, document, self._on_reply(owner))
+
+    def _on_reply(self, owner: str) -> ReplyFn:
+        def on_reply(reply: Reply) -> None:
+            with self._lock:
+                c = self._counts[owner]
+                if not reply.ok:
+                    self._refuse(c, owner, "twin", str(reply.body.get("error", "refused")))
+                elif reply.body.get("unchanged"):
+                    c.unchanged += 1
+                else:
+                    c.accepted += 1
+
+        return on_reply
+
+    def _refuse(self, c: Counts, owner: str, cause: str, message: str) -> None:
+        """Count a refusal (lock held); log its cause the first time for this owner."""
+        c.refused[cause] += 1
+        c.last_refusal, c.last_refusal_ns = f"{cause}: {message}", self.clock()
+        if cause not in c.logged:
+            c.logged.add(cause)
+            log.warning(
+                "Refused a ROS 2 message of %s (%s): %s (logged once per cause)", owner, cause, message
+            )
+
+    # --- the sink (service thread) ------------------------------------------------------------------
+    def emit(self, event: TwinEvent) -> None:
+        try:
+            if isinstance(event, TwinStarted):
+                doors = [(e.iri, e.name) for e in event.elements if e.ifc_class.startswith("IfcDoor")]
+                with self._lock:
+                    self._elevations = {key: elevation for key, _, elevation in event.storeys}
+                    self._door_index = DoorIndex(doors)
+            elif isinstance(event, MapPublished):
+                g = event.grid
+                if self._wants(g.skill):
+                    own = OccupancyGrid(g.frame, g.data.copy(), g.storey, g.skill, g.elevation_m)
+                    with self._lock:
+                        self._grids[(g.storey, g.skill)] = own
+            elif isinstance(event, MapUpdated):
+                with self._lock:
+                    grid = self._grids.get((event.storey, event.skill))
+                if grid is not None and grid.frame == event.frame:  # copy on write: the worker may read it
+                    w = event.window
+                    data = grid.data.copy()
+                    data[w.row0 : w.row1, w.col0 : w.col1] = event.data
+                    own = OccupancyGrid(grid.frame, data, grid.storey, grid.skill, grid.elevation_m)
+                    with self._lock:
+                        self._grids[(event.storey, event.skill)] = own
+        except Exception:  # a sink must never stop the twin
+            log.exception("ROS 2 ingestion failed on %s", type(event).__name__)
+
+    def _wants(self, skill: str) -> bool:
+        return any(r.view_skill == skill for r in self._robots.values())
+
+    # --- status and lifecycle -----------------------------------------------------------------------
+    def status(self) -> dict[str, object]:
+        """``{"ros_ingest": {"queue_depth": n, "views": bool, "counts": {owner: {...}}}}``."""
+        with self._lock:
+            counts = {name: c.as_dict() for name, c in sorted(self._counts.items())}
+        return {
+            "ros_ingest": {
+                "queue_depth": self._queue.qsize(),
+                "views": self.fusion_terms,
+                "obstacles_held": sum(t.held for t in self._obstacles.values()),
+                "counts": counts,
+            }
+        }
+
+    def close(self) -> None:
+        for entity in [*self._entities, *(o.publisher for outs in self._diagnostics.values() for o in outs)]:
+            try:
+                entity.undeclare()
+            except Exception:
+                log.debug("undeclare failed", exc_info=True)
+        self._entities.clear()
+        while True:
+            try:
+                self._queue.put(None, timeout=0.1)
+                break
+            except queue.Full:
+                with contextlib.suppress(queue.Empty):
+                    self._queue.get_nowait()
+        self._worker.join(timeout=5)

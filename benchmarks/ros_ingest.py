@@ -1,0 +1,314 @@
+"""Cost of ROS 2 ingestion: robots publishing ``vision_msgs/msg/Detection3DArray`` at a fixed rate,
+mostly confirmations, against the daemon process.
+
+The daemon (``twin serve``, on-disk store of the generated lab, no recording) is configured with
+``--robots`` robots, each with a ``[robots.NAME.detections]`` table, on one layout. One publisher
+process plays all robots on loopback: every ``1 / --rate`` s each robot publishes its TF
+(``map -> base_link`` at the array's stamp) and one array of ``--detections`` tables in ``base_link``,
+each with a tracker id and the same pose every time (so after the first array each one is a
+confirmation). The publisher's own CPU is not counted.
+
+Measured over the steady window (after ``--warmup`` s): the daemon's CPU time (utime + stime from
+``/proc``) per published array, the acked rate (accepted + unchanged acks per second, from the
+status's ``ros_ingest`` counts), refusals (``overflow`` = the ingestion queue was full), and the
+ingestion and service queue depths sampled every second (no growth = keeping up).
+
+    python benchmarks/ros_ingest.py --robots 10 --rate 10 --detections 20 --duration 30 --json ros.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import live  # benchmarks/ is not a package
+
+ROOT = live.ROOT
+CORRIDOR = (11.2, 20.8, 5.7, 8.3)  # x0, x1, y0, y1 of free floor on the lab's ground floor
+MOVE_EVERY = 20
+"""Every this many ticks (2 s at 10 Hz) robot0 moves one table: a change among the confirmations, whose
+navigation map update is timed from the publisher's send to the update's receipt."""
+
+
+def tables(robots: int, per_robot: int) -> list[list[tuple[float, float]]]:
+    """``per_robot`` table positions per robot on a grid over the corridor, none shared."""
+    x0, x1, y0, y1 = CORRIDOR
+    total = robots * per_robot
+    cols = max(1, int((x1 - x0) / 0.3))
+    rows = -(-total // cols)
+    pitch_y = (y1 - y0) / max(rows, 1)
+    spots = [(x0 + 0.15 + 0.3 * (i % cols), y0 + pitch_y / 2 + pitch_y * (i // cols)) for i in range(total)]
+    return [spots[r * per_robot : (r + 1) * per_robot] for r in range(robots)]
+
+
+def publisher(
+    endpoint: str, *, robots: int, rate: float, per_robot: int, duration: float, layout: str
+) -> int:
+    """Publish every robot's TF and detections at ``rate`` for ``duration`` seconds."""
+    import zenoh
+
+    from adapters.ros.interfaces import DETECTION_3D_ARRAY, TF_MESSAGE
+    from adapters.ros.rmw_zenoh import RosTopic, attachment
+    from adapters.zenoh.session import client_config
+    from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
+
+    spots = tables(robots, per_robot)
+    with zenoh.open(client_config([endpoint])) as session:
+        outs = []
+        for r in range(robots):
+            keys = []
+            for name, type_name in (("tf", TF_MESSAGE), ("detections", DETECTION_3D_ARRAY)):
+                topic = RosTopic(0, f"/robot{r}", name, type_name)
+                key = topic.data_key if layout == "rmw_zenoh" else topic.bridge_key
+                keys.append(session.declare_publisher(key, reliability=zenoh.Reliability.RELIABLE))
+            outs.append(keys)
+        time.sleep(1.0)
+        print(json.dumps({"ready": True}), flush=True)
+        sent, seq, shift = 0, 0, 0.0
+        gid = bytes(16)
+        start = time.monotonic()
+        tick = 0
+        while time.monotonic() - start < duration:
+            stamp = time.time_ns()
+            seq += 1
+            extra = {"attachment": attachment(seq, stamp, gid)} if layout == "rmw_zenoh" else {}
+            moved = tick > 0 and tick % MOVE_EVERY == 0
+            if moved:
+                shift = 0.0 if shift else 0.3  # robot0's first table moves 0.3 m along x and back
+            for r, (tf_pub, det_pub) in enumerate(outs):
+                tf_pub.put(cdr_tf([Tf("map", "base_link", (15.0, 7.0, 0.0), stamp_ns=stamp)]), **extra)
+                dets = [
+                    Det(
+                        (("table", 0.9),),
+                        (x - 15.0 + (shift if r == 0 and i == 0 else 0.0), y - 7.0, 0.375),
+                        (0.2, 0.2, 0.75),
+                        id=f"t{i}",
+                    )
+                    for i, (x, y) in enumerate(spots[r])
+                ]
+                if moved and r == 0:
+                    print(json.dumps({"moved": time.time()}), flush=True)
+                det_pub.put(cdr_detections(stamp, "base_link", dets), **extra)
+                sent += 1
+            tick += 1
+            time.sleep(max(0.0, start + tick / rate - time.monotonic()))
+        print(json.dumps({"sent": sent, "seconds": time.monotonic() - start}), flush=True)
+    return 0
+
+
+def translate_only(per_robot: int, repeat: int = 2000) -> dict[str, float]:
+    """In-process cost of translating one array (no daemon): without the fusion terms, and with the
+    view (64 rays over a 30 x 30 m structure grid at 0.05 m) and the sense time."""
+    import numpy as np
+
+    from adapters.ros.detections import DetectionContext, DetectionSettings, translate_detections
+    from adapters.ros.tf import TfBuffer, decode_tf_message
+    from tests.adapters.ros_reports import OPTICAL, Det, Tf, cdr_detections, cdr_tf
+    from twin.grid import GridFrame, OccupancyGrid
+
+    now = time.time_ns()
+    tf = TfBuffer()
+    tf.add(decode_tf_message(cdr_tf([Tf("map", "base_link", (15.0, 7.0, 0.0), stamp_ns=now)])), static=False)
+    tf.add(decode_tf_message(cdr_tf([Tf("base_link", "cam", (0.2, 0, 1.0), OPTICAL)])), static=True)
+    data = np.zeros((600, 600), dtype=np.int8)
+    data[::80, :] = 100
+    data[:, ::100] = 100
+    grid = OccupancyGrid(GridFrame(0.0, 0.0, 0.05, 600, 600), data, "ground-floor", "localization", 0.0)
+    upright = (0.5, -0.5, 0.5, 0.5)
+    dets = [Det((("table", 0.9),), (0.1 * i - 1, 0.6, 2.0 + 0.1 * i), (0.2, 0.2, 0.75), upright, f"t{i}")
+            for i in range(per_robot)]  # fmt: skip
+    payload = cdr_detections(now, "cam", dets)
+    settings = DetectionSettings(robot="r", classes={"table": "IfcFurniture"})
+    out: dict[str, float] = {}
+    for label, fusion in (("elements_ms", False), ("with_view_ms", True)):
+        ctx = DetectionContext("ground-floor", 0.0, now, tf, grid, fusion)
+        t0 = time.perf_counter()
+        for _ in range(repeat):
+            translate_detections(payload, settings, ctx)
+        out[label] = round(1000 * (time.perf_counter() - t0) / repeat, 3)
+    return out
+
+
+def _cpu_s(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _status(endpoint: str) -> dict[str, Any]:
+    from adapters.zenoh.client import TwinClient
+
+    with TwinClient.connect([endpoint]) as client:
+        return client.status()
+
+
+def run(
+    *, robots: int, rate: float, per_robot: int, duration: float, warmup: float, layout: str
+) -> dict[str, Any]:
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        store = live.prepare_store("lab", work)
+        cfg = work / "robots.toml"
+        cfg.write_text(
+            "".join(
+                f'[robots.robot{r}]\nnamespace = "/robot{r}"\nstorey = "ground-floor"\nros = ["{layout}"]\n'
+                f'[robots.robot{r}.detections]\nclasses = {{ table = "IfcFurniture" }}\n'
+                f"max_detections = {max(per_robot, 1)}\n"
+                for r in range(robots)
+            )
+        )
+        port = live._free_port()
+        endpoint = f"tcp/127.0.0.1:{port}"
+        daemon = _serve(cfg, store, endpoint)
+        drain = threading.Thread(target=lambda: [None for _ in daemon.stdout or []], daemon=True)
+        drain.start()
+        pub = subprocess.Popen(
+            [sys.executable, __file__, "--child", endpoint, str(robots), str(rate), str(per_robot),
+             str(duration), layout],
+            stdout=subprocess.PIPE, text=True, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
+        )  # fmt: skip
+        assert pub.stdout is not None
+        json.loads(pub.stdout.readline())
+        moves: list[float] = []
+        lines: list[dict[str, Any]] = []
+
+        def read_publisher() -> None:
+            assert pub.stdout is not None
+            for line in pub.stdout:
+                item = json.loads(line)
+                if "moved" in item:
+                    moves.append(item["moved"])
+                else:
+                    lines.append(item)
+
+        reader = threading.Thread(target=read_publisher, daemon=True)
+        reader.start()
+        import zenoh
+
+        from adapters.zenoh.session import client_config
+
+        updates: list[float] = []
+        watcher = zenoh.open(client_config([endpoint]))
+        watch = watcher.declare_subscriber(
+            "twin/lab/map_updates/ground-floor/navigation", lambda _: updates.append(time.time())
+        )
+        t_start = time.monotonic()
+        time.sleep(warmup)
+        s0, c0, w0 = _status(endpoint), _cpu_s(daemon.pid), time.monotonic()
+        depths: list[tuple[int, int]] = []
+        while time.monotonic() - t_start < duration - 0.5:
+            time.sleep(1.0)
+            s = _status(endpoint)
+            depths.append((int(s["ros_ingest"]["queue_depth"]), int(s["queue_depth"])))
+        s1, c1, w1 = _status(endpoint), _cpu_s(daemon.pid), time.monotonic()
+        pub.wait(timeout=30)
+        reader.join(timeout=10)
+        sent = lines[-1]
+        watch.undeclare()
+        watcher.close()
+        time.sleep(1.0)
+        final = _status(endpoint)
+        daemon.terminate()
+        daemon.wait(timeout=30)
+
+    def total(s: dict[str, Any], key: str) -> int:
+        if key == "arrays":
+            return sum(int(c["messages"].get("detections", 0)) for c in s["ros_ingest"]["counts"].values())
+        return sum(int(c[key]) for c in s["ros_ingest"]["counts"].values())
+
+    window = w1 - w0
+    received = total(s1, "arrays") - total(s0, "arrays")
+    acked = (total(s1, "accepted") + total(s1, "unchanged")) - (
+        total(s0, "accepted") + total(s0, "unchanged")
+    )
+    refused: dict[str, int] = {}
+    for c in final["ros_ingest"]["counts"].values():
+        for cause, n in c["refused"].items():
+            refused[cause] = refused.get(cause, 0) + int(n)
+    latencies = []
+    for t in moves:
+        after = [u for u in updates if u >= t]
+        if after:
+            latencies.append(1000 * (after[0] - t))
+    return {
+        "layout": layout,
+        "robots": robots,
+        "rate_hz": rate,
+        "detections": per_robot,
+        "window_s": round(window, 2),
+        "arrays_per_s_offered": round(robots * rate, 1),
+        "arrays_received_per_s": round(received / window, 1),
+        "acked_per_s": round(acked / window, 1),
+        "cpu_ms_per_array": round(1000 * (c1 - c0) / max(received, 1), 3),
+        "daemon_cpu_pct": round(100 * (c1 - c0) / window, 1),
+        "accepted_total": total(final, "accepted"),
+        "unchanged_total": total(final, "unchanged"),
+        "refused": refused,
+        "sent_total": sent["sent"],
+        "arrays_received_total": total(final, "arrays"),
+        "waited_for_tf": sum(int(c["waited_for_tf"]) for c in final["ros_ingest"]["counts"].values()),
+        "queue_depth_max": max((d[0] for d in depths), default=0),
+        "service_queue_max": max((d[1] for d in depths), default=0),
+        "queue_depth_last": depths[-1] if depths else None,
+        "revision": final["revision"],
+        "moves": len(moves),
+        "move_update_ms_p50": round(float(live._pct(latencies, 50)), 1),
+        "move_update_ms_max": round(max(latencies, default=float("nan")), 1),
+    }
+
+
+def _serve(cfg: Path, store: Path, endpoint: str) -> subprocess.Popen[str]:
+    daemon = subprocess.Popen(
+        live._twin("--config", str(cfg), "serve", "--store", str(store), "--listen", endpoint, "--no-record"),
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )  # fmt: skip
+    assert daemon.stdout is not None
+    line = ""
+    while "serving site" not in line:
+        line = daemon.stdout.readline()
+        if not line:
+            raise RuntimeError(f"the daemon did not start: exit code {daemon.wait()}")
+    return daemon
+
+
+def main() -> int:
+    if len(sys.argv) > 1 and sys.argv[1] == "--child":
+        endpoint, robots, rate, per_robot, duration, layout = sys.argv[2:]
+        return publisher(
+            endpoint, robots=int(robots), rate=float(rate), per_robot=int(per_robot),
+            duration=float(duration), layout=layout,
+        )  # fmt: skip
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--robots", type=int, default=10)
+    p.add_argument("--rate", type=float, default=10.0)
+    p.add_argument("--detections", type=int, default=20)
+    p.add_argument("--duration", type=float, default=30.0)
+    p.add_argument("--warmup", type=float, default=8.0)
+    p.add_argument("--layout", choices=["bridge", "rmw_zenoh"], default="rmw_zenoh")
+    p.add_argument("--json", type=Path)
+    p.add_argument("--translate-only", action="store_true", help="time the translation in-process only")
+    a = p.parse_args()
+    if a.translate_only:
+        print(json.dumps(translate_only(a.detections), indent=1))
+        return 0
+    result = run(
+        robots=a.robots, rate=a.rate, per_robot=a.detections, duration=a.duration, warmup=a.warmup,
+        layout=a.layout,
+    )  # fmt: skip
+    print(json.dumps(result, indent=1))
+    if a.json:
+        a.json.write_text(json.dumps(result, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
