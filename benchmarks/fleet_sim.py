@@ -567,7 +567,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 cpu_main, acked_main = cpu_seconds(daemon.pid) - cpu0, sum(s.acked for s in stats)
             time.sleep(1.0)
             final = sample(client, world, storey, oracle, skill, t0, previous)
-            rev1 = int(client.status()["revision"])
+            end_status = client.status()
+            rev1 = int(end_status["revision"])
     finally:
         daemon.terminate()
         daemon.wait(timeout=30)
@@ -613,6 +614,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "revisions": rev1 - rev0,
         "true_changes": true_changes,
         "revisions_per_change": (rev1 - rev0) / max(1, true_changes),
+        "fusion": end_status.get("fusion", {}),
         "acked_observations": sum(s.acked for s in stats),
         "acked_sightings_per_s": sum(s.sightings - s.saturated_sightings for s in stats) / args.duration,
         "saturated_sightings_per_s": (sum(s.saturated_sightings for s in stats) / args.saturate)

@@ -20,7 +20,7 @@ Example::
 from __future__ import annotations
 
 import logging
-from collections import ChainMap, OrderedDict
+from collections import ChainMap, Counter, OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -110,6 +110,9 @@ class Observer:
         self.rejected = 0
         self.publication = publication
         self.stale = 0
+        self.fusion_counts: Counter[str] = Counter()
+        """What fusion decided, counted: resolved IRIs, confirmations, refined poses, merges, removals
+        by absence, creations and moves (the last four of committed observations)."""
         self.base_iri = base_iri
         self._parsed: OrderedDict[bytes, Observation] = OrderedDict()
 
@@ -182,6 +185,8 @@ class Observer:
             aliases.update(fused.aliases)
             aliases.update((a, None) for a in fused.unaliased)
             self.stale += len(fused.stale)
+            self.fusion_counts["resolved"] += len(fused.resolved)
+            self.fusion_counts["confirmed"] += len(fused.seen)
             for iri in (*(r.iri for r in reports), *fused.seen):
                 live.last_seen[iri] = Sighting(req.robot, req.received_ns)
             if plan.unchanged:
@@ -296,6 +301,17 @@ class Observer:
                 self._reject(p.request, err)
             return
         live.advance(planned[-1].revision)
+        for p in planned:
+            self.fusion_counts["refined"] += len(p.fused.refined)
+            self.fusion_counts["merged"] += len(p.fused.merged)
+            self.fusion_counts["removed_absent"] += sum(
+                w.startswith("absent") for w in p.fused.reasons.values()
+            )
+            self.fusion_counts["removed_expired"] += sum(
+                w.startswith("expired") for w in p.fused.reasons.values()
+            )
+            self.fusion_counts["created"] += sum(1 for i in p.plan.upserted if i not in live.states)
+            self.fusion_counts["changed"] += sum(1 for i in p.plan.upserted if i in live.states)
         live.states.update(states)
         live.held.update(held)
         self.accepted += len(planned)

@@ -35,6 +35,7 @@ def service_status(service: TwinService) -> dict[str, object]:
             "aliases": len(live.fusion.aliases),
             "tracked": len(live.fusion.tracks),
             "stale": obs.stale,
+            **{k: obs.fusion_counts[k] for k in sorted(obs.fusion_counts)},
         },
         "queue_depth": service.queue_depth,
         "uptime_s": round((now - service.started_ns) / 1e9, 3),
