@@ -306,7 +306,8 @@ def robot(  # noqa: PLR0917 (a thread's target)
             acked = time.time()
             changed = not ack.get("unchanged")
             if changed and args.verbose:
-                brief = {k: ack.get(k) for k in ("revision", "upserted", "removed", "resolved", "stale")}
+                brief = {k: ack.get(k) for k in ("revision", "upserted", "removed", "refined", "merged")}
+                brief["seen"] = seen_now
                 print(f"{name} {sent - world_t0:.1f} {json.dumps(brief)}", flush=True)
             with world.lock:
                 for ev in world.events:

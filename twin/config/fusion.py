@@ -53,6 +53,14 @@ class FusionTable(ConfigTable):
         description="The mean of the confirmations is committed once it is this fraction of the "
         "confirmation distance (or angle) from the held pose (hysteresis: a still object does not flap).",
     )
+    move_sightings: Annotated[Whole, Field(ge=1, le=100)] = Field(
+        2,
+        description="Sightings that must agree before a move shorter than certain_move_m is applied "
+        "(a detector's outlier is not a move; 1: every sighting beyond the confirmation distance moves).",
+    )
+    certain_move_m: Annotated[Number, Field(ge=0.0, le=100.0)] = Field(
+        0.5, description="A sighting this far from the held pose moves the element at once."
+    )
     min_iou: Annotated[Number, Field(gt=0.0, le=1.0)] = Field(
         0.25,
         description="A new robot IRI is an existing element if their footprints overlap this much (IoU).",
@@ -119,6 +127,8 @@ class FusionTable(ConfigTable):
             per_class=per_class,
             refine_after=self.refine_after,
             refine_fraction=self.refine_fraction,
+            move_sightings=self.move_sightings,
+            certain_move_m=self.certain_move_m,
             merge_iou=self.merge_iou,
             tentative_sightings=self.tentative_sightings,
             alias_ttl_ns=int(self.alias_ttl_s * 1e9),
@@ -153,6 +163,8 @@ class FusionRules:
     per_class: dict[str, FusionClassRules] | None = None
     refine_after: int = 10
     refine_fraction: float = 0.5
+    move_sightings: int = 2
+    certain_move_m: float = 0.5
     merge_iou: float = 0.5
     tentative_sightings: int = 1
     alias_ttl_ns: int = 3600 * 10**9

@@ -84,6 +84,8 @@ class Track:
     misses: list[Miss] = field(default_factory=list)
     """Views that should have seen it and did not, since its last sighting."""
     refinement: Refinement = field(default_factory=Refinement)
+    moving: Refinement | None = None
+    """Sightings of a short move not yet believed (``[fusion] move_sightings``), aligned and summed."""
 
     def sighted(self, robot: str, sense_ns: int) -> None:
         """A sighting by ``robot`` seen at ``sense_ns``: counted, and misses before it are forgotten."""

@@ -46,7 +46,7 @@ from twin.fusion.footprints import (
     iou,
     yaw_difference,
 )
-from twin.fusion.memory import TENTATIVE_TTL_NS, Alias, FusionMemory, Miss, Refinement
+from twin.fusion.memory import TENTATIVE_TTL_NS, Alias, FusionMemory, Miss, Refinement, Track
 from twin.ifc_classes import supertypes
 from twin.live.state import ElementState, LiveState
 from twin.records import ElementReport, Observation, ObservedBox, Shape
@@ -95,6 +95,10 @@ class Fused:
             out["stale"] = list(self.stale)
         if self.tentative:
             out["tentative"] = list(self.tentative)
+        if self.refined:
+            out["refined"] = list(self.refined)
+        if self.merged:
+            out["merged"] = dict(self.merged)
         return out
 
 
@@ -426,8 +430,19 @@ def fuse(
                         if _only_sighting(r, state):
                             out.seen.append(target)
                             continue  # a confirmation: nothing to plan
+                elif _unsure_move(rules, class_rules, pose, held, track, sizes=sizes):
+                    # a short move seen once may be a detector's outlier: held until another agrees
+                    agree = _agreeing(class_rules, pose, held, track, sizes=sizes) > 0
+                    out.effects.append(_hold_move(target, aligned(pose, held), restart=not agree))
+                    r = replace(r, box=None, storey=None)
+                    if _only_sighting(r, state):
+                        out.seen.append(target)
+                        continue
                 else:
                     out.effects.append(_reset_refinement(target))
+                    if track is not None and track.moving is not None and not _far(rules, pose, held):
+                        pose = _mean_of(track.moving, aligned(pose, held))  # the sightings that agreed
+                        r = replace(r, box=_box_of(pose, storey.elevation_m))
                     other = _merge_target(ctx, target, state, pose, storey.key)
                     if other is not None and not (
                         target.startswith(base_iri) and not other.startswith(base_iri)
@@ -464,6 +479,42 @@ def fuse(
         )
     out.reports = tuple(reports)
     return out
+
+
+def _far(rules: FusionRules, seen: Pose, held: Pose) -> bool:
+    return centre_distance(seen, held) > rules.certain_move_m
+
+
+def _unsure_move(
+    rules: FusionRules,
+    class_rules: FusionClassRules,
+    seen: Pose,
+    held: Pose,
+    track: Track | None,
+    *,
+    sizes: bool,
+) -> bool:
+    """A move shorter than ``certain_move_m`` that fewer than ``move_sightings`` sightings agree on
+    (each within the confirmation distance and angle of their mean)."""
+    if rules.move_sightings <= 1 or _far(rules, seen, held):
+        return False
+    return _agreeing(class_rules, seen, held, track, sizes=sizes) + 1 < rules.move_sightings
+
+
+def _agreeing(
+    class_rules: FusionClassRules, seen: Pose, held: Pose, track: Track | None, *, sizes: bool
+) -> int:
+    """How many held sightings of a move ``seen`` agrees with (0: it starts a new one)."""
+    moving = track.moving if track is not None else None
+    if moving is None or moving.n == 0:
+        return 0
+    return moving.n if _confirms(class_rules, aligned(seen, held), moving.mean(), sizes=sizes) else 0
+
+
+def _mean_of(moving: Refinement, pose: Pose) -> Pose:
+    copy = moving.copy()
+    copy.add(pose)
+    return copy.mean()
 
 
 def _only_sighting(r: ElementReport, state: ElementState) -> bool:
@@ -603,7 +654,26 @@ def _forget(iri: str) -> Effect:
 
 
 def _refine(iri: str, pose: Pose) -> Effect:
-    return lambda m: m.track(iri).refinement.add(pose)
+    def run(m: FusionMemory) -> None:
+        t = m.track(iri)
+        t.refinement.add(pose)
+        t.moving = None  # a confirmation: whatever seemed to move did not
+
+    return run
+
+
+def _hold_move(iri: str, pose: Pose, *, restart: bool) -> Effect:
+    """Another sighting of a move not yet believed: added to those it agrees with, or a new start."""
+
+    def run(m: FusionMemory) -> None:
+        t = m.track(iri)
+        moving = t.moving
+        if restart or moving is None:
+            moving = Refinement()
+        moving.add(pose)
+        t.moving = moving
+
+    return run
 
 
 def _reset_refinement(iri: str) -> Effect:
@@ -611,6 +681,7 @@ def _reset_refinement(iri: str) -> Effect:
         t = m.tracks.get(iri)
         if t is not None:
             t.refinement = Refinement()
+            t.moving = None
 
     return run
 

@@ -401,3 +401,35 @@ def test_a_nearly_square_table_seen_at_every_quarter_turn_never_flaps() -> None:
         )
         assert reply.ok
     assert service.revision <= 2
+
+
+def test_a_detector_outlier_is_no_move_and_a_short_move_shows_at_its_second_sighting() -> None:
+    service, _ = started()
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
+    outlier = observe(service, "robot2", box_turtle("urn:robot2:t", 6.8, 2.0))  # 20 cm off, once
+    assert outlier.body["unchanged"] is True
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
+    first = observe(service, "robot1", box_turtle(TABLE, 6.85, 2.0))  # a real 25 cm move
+    assert first.body["unchanged"] is True
+    second = observe(service, "robot2", box_turtle("urn:robot2:t", 6.86, 2.01))
+    assert second.body["upserted"] == [TABLE] and service.revision == 2
+    shape = service.engine.shape_of(TABLE)
+    assert shape is not None and abs(shape[1][0, 3] - (OX + 6.855)) < 0.005  # the two sightings' mean
+
+
+def test_camera_noise_over_thousands_of_sightings_makes_no_revision() -> None:
+    rng = np.random.default_rng(11)
+    for sx, sy in ((0.7, 0.45), (0.6, 0.55), (0.9, 0.6)):
+        service, _ = started()
+        observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, sx=sx, sy=sy, yaw=1.0))
+        for i in range(800):
+            dx, dy = rng.normal(0, 0.03, 2)
+            flip = math.pi if rng.random() < 0.3 else 0.0
+            yaw = 1.0 + rng.normal(0, math.radians(2)) + flip
+            a, b = sx + rng.normal(0, 0.01), sy + rng.normal(0, 0.01)
+            observe(
+                service,
+                f"robot{i % 10}",
+                box_turtle(f"urn:r{i % 10}:t", 6.6 + dx, 2.0 + dy, sx=a, sy=b, yaw=yaw),
+            )
+        assert service.revision <= 2, (sx, sy, service.revision)  # the creation, at most one refinement
