@@ -1,8 +1,10 @@
-"""Mesh topology: watertightness and consistent face orientation.
+"""Mesh topology: watertightness, consistent face orientation, and surfaces that close around a volume.
 
 A closed mesh is filled when sliced, with the winding rule, which needs every face oriented
 consistently (each edge walked once in each direction). Exporters do not always deliver that, so
-:func:`orient_faces` repairs it where the surface allows.
+:func:`orient_faces` repairs it where the surface allows. A mesh that is not watertight may still
+close around a volume up to T-junctions (:func:`closes_around`): a surface model whose faces enclose
+a lift's car is then filled like a solid.
 
 Example::
 
@@ -16,7 +18,10 @@ from collections import deque
 import numpy as np
 import numpy.typing as npt
 
+from twin.tolerances import TOLERANCES, Tolerances
+
 IntArray = npt.NDArray[np.int32]
+_SHIFT = 0.318309886  # rounding grids shifted off round numbers (model coordinates often are)
 
 
 def _edges(faces: npt.NDArray[np.integer]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
@@ -118,3 +123,43 @@ def orient_faces(faces: IntArray) -> IntArray | None:
     flipped = np.array(flip) == 1
     out[flipped] = out[flipped][:, ::-1]
     return out
+
+
+def closes_around(
+    vertices: npt.NDArray[np.float64], faces: IntArray, *, tol: Tolerances = TOLERANCES
+) -> bool:
+    """True if the surface ``faces`` ``(m, 3) int`` over ``vertices`` ``(n, 3) float64`` (welded)
+    closes around a volume: along every line, each point of the mesh's edges is covered by an even
+    number of them.
+
+    A watertight mesh uses each edge twice. A kernel that triangulates face by face leaves
+    T-junctions (one face's edge ``a-c`` split at its neighbour's vertex ``b``): ``a-c``, ``a-b`` and
+    ``b-c`` are used once each, yet cover their line twice. A surface with a border (a railing's ring
+    of faces around a void, a lost face) covers its border once: not closed. Edge ends within
+    ``tol.join_m`` along a line are one point, lines within it (direction and offset) are one line.
+    Orientation is not looked at. Degenerate faces are ignored.
+    """
+    f = faces.astype(np.int64)
+    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])]
+    if not len(f):
+        return False
+    a, b = _edges(f)
+    n = int(f.max()) + 1
+    keys, counts = np.unique(np.minimum(a, b) * n + np.maximum(a, b), return_counts=True)
+    odd = keys[counts % 2 == 1]
+    if not len(odd):
+        return True
+    p, q = vertices[odd // n], vertices[odd % n]
+    d = q - p
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    first = np.argmax(np.abs(d) > tol.join_m, axis=1)  # one direction per line: its first component > 0
+    d *= np.sign(d[np.arange(len(d)), first])[:, None]
+    tp, tq = (p * d).sum(axis=1), (q * d).sum(axis=1)
+    foot = p - tp[:, None] * d  # the line's point nearest the origin
+    line = np.floor(np.hstack([d, foot]) / tol.join_m + _SHIFT).astype(np.int64)
+    _, group = np.unique(line, axis=0, return_inverse=True)
+    # the parity of the cover along a line changes only at points where an odd number of edges end
+    ends = np.floor(np.concatenate([tp, tq]) / tol.join_m + _SHIFT).astype(np.int64)
+    points = np.stack([np.tile(group.reshape(-1), 2), ends], axis=1)
+    _, ends_at = np.unique(points, axis=0, return_counts=True)
+    return bool((ends_at % 2 == 0).all())

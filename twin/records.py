@@ -34,10 +34,12 @@ class Mesh:
         faces: ``(m, 3) int32`` vertex indices, one row a triangle.
         closed: True when every edge is shared by exactly two faces (a watertight solid): such
             meshes are filled when sliced; open meshes contribute their surfaces only.
-        solid: True when the source model says the body is a solid (an extrusion, a B-rep, a CSG or
-            boolean result, ...), whatever its mesh: an open mesh of a solid (T-junctions, seams a
-            kernel left unstitched) is still filled where its section is made of closed loops. False
-            for surfaces and when unknown (older stores, meshes robots send).
+        solid: True when the body bounds a volume although its mesh may be open: the source model
+            says it is a solid (an extrusion, a B-rep, a CSG or boolean result, ...), or it is a
+            surface whose faces close around a volume up to T-junctions (a lift's car modelled as a
+            surface model: :func:`twin.meshops.closes_around`). Such an open mesh (T-junctions, seams
+            a kernel left unstitched) is still filled where its section is made of closed loops.
+            False for open surfaces and when unknown (older stores, meshes robots send).
     """
 
     vertices: FloatArray

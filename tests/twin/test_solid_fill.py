@@ -24,7 +24,7 @@ from tests.twin.live_helpers import box_turtle, observe, started
 from twin.grid import GridFrame, Window
 from twin.maps import MapPlan, occupancy
 from twin.meshcodec import decode_mesh, encode_mesh
-from twin.meshops import is_closed
+from twin.meshops import closes_around, is_closed
 from twin.raster import closed_sections
 from twin.records import BuildingModel, Element, Geometry, Mesh, Relation
 from twin.scene import MeshSet, StoreyInfo
@@ -118,6 +118,22 @@ def test_a_surface_a_lost_face_or_faces_turned_inside_out_do_not_close_the_secti
     tri, owner = as_triangles(lost, no_wall, inside_out, mesh)
     assert closed_sections(tri, owner, 5, 1.5).tolist() == [True, False, False, True, False]
     assert closed_sections(tri, owner, 5, 3.5).tolist() == [False] * 5  # above it: nothing to fill
+
+
+def test_a_face_by_face_mesh_closes_around_a_volume_and_a_ring_of_faces_or_a_lost_face_does_not() -> None:
+    for tilt in (0.0, 0.3):
+        mesh = mesh_of(LIFT, tilt=tilt)
+        assert not is_closed(mesh.faces) and closes_around(mesh.vertices, mesh.faces), tilt
+    watertight = mesh_of(box_faces((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)))
+    assert is_closed(watertight.faces) and closes_around(watertight.vertices, watertight.faces)
+    ring = mesh_of(box_faces((0.0, 0.0, 0.0), (2.0, 1.5, 1.1))[2:])  # sides only: a railing round a void
+    lost = mesh_of(LIFT[1:])  # the bottom face is lost
+    for surface in (ring, lost):
+        assert not closes_around(surface.vertices, surface.faces)
+    a = mesh_of(box_faces((0.0, 0.0, 0.0), (1.0, 1.0, 3.0), split_z=(2.0,)))
+    b = mesh_of(box_faces((1.0, 0.0, 0.0), (2.0, 1.0, 3.0), split_y=(0.5,)))
+    both = np.concatenate([a.vertices, b.vertices])
+    assert closes_around(both, np.concatenate([a.faces, b.faces + len(a.vertices)]))
 
 
 FRAME = GridFrame.around(-0.5, -0.5, 2.5, 2.0, resolution_m=0.05, margin_m=0.0)
