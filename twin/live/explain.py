@@ -135,7 +135,7 @@ def explain_cell(
             f"y {f.origin_y:.2f}..{f.origin_y + f.height * f.resolution_m:.2f})."
         )
         raise ExplainError(msg)
-    pad = math.floor(plan.inflation_cells + 1e-9)
+    pad = plan.inflation_pad
     cell = Window(row, col, row + 1, col + 1)
     occupied = live.maps.elements_at((storey, skill), cell)
     inflated = []
