@@ -93,6 +93,15 @@ def check_placement(matrix: npt.ArrayLike) -> FloatArray:
     return m
 
 
+def to_world(vertices: FloatArray, placement: FloatArray) -> FloatArray:
+    """``(n, 3) float64``: local ``vertices`` ``(n, 3)`` put in the world by ``placement`` ``(4, 4)``.
+
+    The one mesh-to-world transform: every map, bound and comparison goes through it, so the same
+    mesh and placement give the same world coordinates bit for bit wherever they are computed.
+    """
+    return vertices @ placement[:3, :3].T + placement[:3, 3]
+
+
 @dataclass(frozen=True, eq=False, slots=True)
 class Geometry:
     """An element's shape: a local mesh and the placement that puts it in the world."""
@@ -102,8 +111,7 @@ class Geometry:
 
     def world_vertices(self) -> FloatArray:
         """``(n, 3) float64``: the mesh vertices transformed by the placement."""
-        v = self.mesh.vertices
-        return v @ self.placement[:3, :3].T + self.placement[:3, 3]
+        return to_world(self.mesh.vertices, self.placement)
 
 
 @dataclass(frozen=True, slots=True)

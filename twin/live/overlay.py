@@ -23,7 +23,7 @@ from twin.grid import Window
 from twin.maps import MapPlan
 from twin.raster import BoolArray
 from twin.raster.boxes import box_footprint
-from twin.records import FloatArray, Shape
+from twin.records import FloatArray, Shape, to_world
 from twin.scene import MeshSet
 
 MapKey = tuple[str, str]
@@ -47,7 +47,7 @@ class OverlayElement:
         mesh, placement = shape
         if not mesh.triangle_count:
             return cls(shape, None)
-        world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]  # as MeshSet.build, bit for bit
+        world = to_world(mesh.vertices, placement)  # as MeshSet.build, bit for bit
         used = world[mesh.faces.ravel()]
         b = np.concatenate([used.min(axis=0), used.max(axis=0)])
         footprint = box_footprint(mesh.vertices, placement) if is_upright_box(shape) else None

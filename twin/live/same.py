@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.records import FloatArray, Mesh, Shape
+from twin.records import FloatArray, Mesh, Shape, to_world
 from twin.tolerances import TOLERANCES
 
 
@@ -45,8 +45,8 @@ def same_shape(a: Shape, b: Shape) -> bool:
         return False
     if ma is not mb and not np.array_equal(ma.faces, mb.faces):
         return False
-    wa = ma.vertices @ pa[:3, :3].T + pa[:3, 3]
-    wb = mb.vertices @ pb[:3, :3].T + pb[:3, 3]
+    wa = to_world(ma.vertices, pa)
+    wb = to_world(mb.vertices, pb)
     if len(wa) and float(np.abs(wa - wb).max()) > TOLERANCES.same_position_m:
         return False
     # the angle of the relative rotation (orthonormal parts of the placements)
