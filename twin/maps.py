@@ -1,11 +1,11 @@
 """Skill maps: slice the selected elements at a skill's heights and rasterise them on a storey's grid.
 
 A map is planned once (:func:`plan_map`: frame, heights, selected elements) and rendered for any
-window of its grid (:func:`render_window`); the full map is the full window. One renderer turns
-occupancy into cell values (inflation, unknown outside spaces) for every caller, the live twin's
-included (:func:`render_cells`). A window is computed from
-only the elements whose bounds overlap it, and gives exactly the same cells as the full map (the
-daemon re-slices only the regions that observations touch).
+window of its grid (:func:`render_window`); the full map is the full window. A window is computed
+from only the elements whose bounds overlap it, and gives exactly the same cells as the full map (the
+daemon re-slices only the regions that observations touch). One renderer turns occupancy into cell
+values (inflation, unknown outside spaces) for every caller, the live twin's included
+(:func:`render_cells`).
 
 Example::
 

@@ -144,6 +144,19 @@ class Generated:
         ifcopenshell.api.geometry.assign_representation(f, product=element, representation=body)
         return element
 
+    def mapped_copy(self, element: Any, name: str, origin: XYZ, *, container: Any) -> Any:
+        """Another product of ``element``'s class, placed at ``origin``, whose body maps the same
+        representation map as ``element``'s (made with ``mapped=True``)."""
+        f = self.file
+        (item,) = element.Representation.Representations[0].Items
+        copy = ifcopenshell.api.root.create_entity(f, ifc_class=element.is_a(), name=name)
+        ifcopenshell.api.spatial.assign_container(f, products=[copy], relating_structure=container)
+        self._place(copy, origin)
+        mapped = f.createIfcMappedItem(item.MappingSource, item.MappingTarget)
+        body = f.createIfcShapeRepresentation(self.body, "Body", "MappedRepresentation", [mapped])
+        ifcopenshell.api.geometry.assign_representation(f, product=copy, representation=body)
+        return copy
+
     def material(self, name: str) -> Any:
         if name not in self._materials:
             self._materials[name] = ifcopenshell.api.material.add_material(self.file, name=name)

@@ -482,12 +482,13 @@ def _surface_models(path: Path) -> None:
     """The two shapes of surface model seen on real exports, small: a lift modelled as a mapped
     ``IfcFaceBasedSurfaceModel`` (an ``IfcFlowTerminal``, representation type SurfaceModel) whose faces
     close around the car, two of them split where their neighbours are not (T-junctions: the mesh is
-    open); and a railing's ring of faces around a void (no top, no bottom: not a closed shell)."""
+    open), twice (a second lift maps the same representation); and a railing's ring of faces around
+    a void (no top, no bottom: not a closed shell)."""
     g = Generated("IFC4")
     storey = g.storey("Ground", 0.0)
     g.box("IfcSlab", "Floor", (0.0, 0.0, -0.2), (10.0, 4.0, 0.2), container=storey)
     car = box_faces((0.0, 0.0, 0.0), (1.6, 1.8, 3.0), split={"-y": (1.0,), "+z": (0.9,)})
-    g.brep_element(
+    lift = g.brep_element(
         "IfcFlowTerminal",
         "Lift",
         (1.0, 1.0, 0.0),
@@ -496,6 +497,7 @@ def _surface_models(path: Path) -> None:
         mapped=True,
         representation_type="SurfaceModel",
     )
+    g.mapped_copy(lift, "Second lift", (3.0, 1.0, 0.0), container=storey)  # shares the lift's mesh
     size = (RING.xmax - RING.xmin, RING.ymax - RING.ymin, RING.zmax - RING.zmin)
     sides = [face for face in box_faces((0.0, 0.0, 0.0), size) if len({p[2] for p in face}) > 1]
     g.brep_element(
@@ -516,7 +518,8 @@ def test_a_closed_surface_model_is_filled_and_an_open_ring_of_faces_keeps_its_ou
     _surface_models(path)
     model = read_cached(path)
     meshes = {e.name: e.geometry.mesh for e in model.elements if e.geometry is not None}
-    assert meshes["Lift"].solid and not meshes["Lift"].closed, "a closed surface, an open mesh"
+    for name in ("Lift", "Second lift"):
+        assert meshes[name].solid and not meshes[name].closed, f"{name}: a closed surface, an open mesh"
     assert not meshes["Railing"].solid and not meshes["Railing"].closed
     store = imported(model)
     scene = load_scene(store)
