@@ -41,7 +41,14 @@ from adapters.ifc.body_kind import BodyKind
 from adapters.ifc.errors import ENTITY_ERRORS
 from adapters.ifc.kernel_choice import KernelChoice
 from twin.errors import ModelError
-from twin.meshops import are_closed, closes_around, is_closed, orient_faces
+from twin.meshops import (
+    are_closed,
+    closes_around,
+    is_closed,
+    orient_faces,
+    orient_shells,
+    seal_t_junctions,
+)
 from twin.records import Mesh, check_placement
 
 Shape = tuple[int, str, Mesh | None, np.ndarray | None, bool, str | None, str | None]
@@ -111,19 +118,27 @@ def _closed_mesh(vertices: np.ndarray, faces: np.ndarray, solid: bool) -> Mesh |
 def make_mesh(
     vertices: np.ndarray, faces: np.ndarray, *, solid: bool = False, known_open: bool = False
 ) -> Mesh:
-    """A Mesh with its closedness and ``solid``: what the file says the body is, or, for a mesh that
-    stays open, whether its faces close around a volume up to T-junctions
-    (:func:`~twin.meshops.closes_around`: a surface model whose faces enclose a lift's car). Only
-    when the kernel's output is not a consistently oriented solid (``known_open``: already found not
-    to be) are its vertices welded (bitwise, then within ``NEAR_WELD_M``) and, if it is watertight,
-    its faces re-oriented."""
+    """A Mesh with its closedness and ``solid``: what the file says the body is, or whether its faces
+    close around a volume. Only when the kernel's output is not a consistently oriented solid
+    (``known_open``: already found not to be) are its vertices welded (bitwise, then within
+    ``NEAR_WELD_M``) and, if it is watertight, its faces re-oriented.
+
+    A surface (not a solid by the file) whose open mesh closes around a volume up to T-junctions
+    (:func:`~twin.meshops.closes_around`: a surface model whose faces enclose a lift's car) is a solid:
+    its T-junctions are split and the faces of each of its shells oriented alike (a surface model
+    need not orient them), which makes it watertight; failing that it stays open, marked solid."""
     if not known_open and is_closed(faces):
         return Mesh(vertices, faces, True, solid)
     v, f = weld(vertices, faces)
     closed = _closed_mesh(v, f, solid)
     if closed is None:
         closed = _closed_mesh(*weld(v, f, near_m=NEAR_WELD_M), solid)
-    return closed if closed is not None else Mesh(v, f, False, solid or closes_around(v, f))
+    if closed is not None:
+        return closed
+    if solid or not closes_around(v, f):
+        return Mesh(v, f, False, solid)
+    oriented = orient_shells(seal_t_junctions(v, f))
+    return Mesh(v, oriented, True, True) if oriented is not None else Mesh(v, f, False, True)
 
 
 def iterator_settings() -> Any:
