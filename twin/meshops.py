@@ -208,8 +208,12 @@ def seal_t_junctions(
             inner[(u, v)] = ordered if eu < ev else ordered[::-1]
     if not inner:
         return f.astype(np.int32)
-    out: list[list[int]] = []
-    todo = f.tolist()
+    a, b = _edges(f)
+    n = int(f.max()) + 1
+    split = np.array([u * n + v for u, v in inner], dtype=np.int64)
+    at = np.isin(np.minimum(a, b) * n + np.maximum(a, b), split).reshape(3, -1).any(axis=0)
+    out: list[list[int]] = f[~at].tolist()
+    todo = f[at].tolist()
     while todo:
         tri = todo.pop()
         for k in range(3):
