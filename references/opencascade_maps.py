@@ -27,7 +27,7 @@ import ifcopenshell.geom
 import numpy as np
 
 from references.slab_maps import (
-    BoolGrid,
+    BoolArray,
     CellCheck,
     check_cells,
     is_solid,
@@ -182,7 +182,7 @@ def one_sided(
 
 
 def _missed_by(
-    missed: BoolGrid, strict: list[tuple[OccMesh, tuple[Window, BoolGrid] | None]]
+    missed: BoolArray, strict: list[tuple[OccMesh, tuple[Window, BoolArray] | None]]
 ) -> Iterator[Culprit]:
     for mesh, item in strict:
         if item is not None:
@@ -193,7 +193,7 @@ def _missed_by(
 
 
 def _extra_by(
-    extra: BoolGrid, scene: Scene, plan: MapPlan, ids: dict[str, tuple[str, str]]
+    extra: BoolArray, scene: Scene, plan: MapPlan, ids: dict[str, tuple[str, str]]
 ) -> Iterator[Culprit]:
     """Our elements whose own map (alone, same plan) draws some of the ``extra`` cells."""
     rows, cols = np.nonzero(extra)

@@ -21,7 +21,7 @@ import trimesh
 
 from twin.grid import GridFrame, Window
 
-BoolGrid = npt.NDArray[np.bool_]
+BoolArray = npt.NDArray[np.bool_]
 
 
 def is_solid(vertices: np.ndarray, faces: np.ndarray) -> bool:
@@ -120,7 +120,7 @@ def slab_geometry(
     return shapely.geometrycollections(parts) if parts else shapely.Polygon()
 
 
-def _meets(geometry: shapely.Geometry, frame: GridFrame, window: Window, grow: float) -> BoolGrid:
+def _meets(geometry: shapely.Geometry, frame: GridFrame, window: Window, grow: float) -> BoolArray:
     """``(rows, cols) bool``: the cells of ``window`` whose square, grown by ``grow`` metres, meets a
     part of ``geometry`` (an STRtree over the parts: exact, and fast for thousands of small ones)."""
     r = frame.resolution_m
@@ -133,14 +133,14 @@ def _meets(geometry: shapely.Geometry, frame: GridFrame, window: Window, grow: f
     return hit.reshape(window.shape)
 
 
-def rasterize_reference(geometry: shapely.Geometry, frame: GridFrame, *, grow: float) -> BoolGrid:
+def rasterize_reference(geometry: shapely.Geometry, frame: GridFrame, *, grow: float) -> BoolArray:
     """Cells whose square, grown by ``grow`` metres (negative shrinks), intersects ``geometry``."""
     return _meets(geometry, frame, frame.full, grow)
 
 
 def rasterize_element(
     geometry: shapely.Geometry, frame: GridFrame, *, grow: float
-) -> tuple[Window, BoolGrid] | None:
+) -> tuple[Window, BoolArray] | None:
     """Like :func:`rasterize_reference`, only over the cells near ``geometry``'s bounds (fast for one
     element on a large grid): ``(window, (rows, cols) bool)``, or None when no cell meets it."""
     if geometry.is_empty:
@@ -154,7 +154,7 @@ def rasterize_element(
     return (w, hit) if hit.any() else None
 
 
-def paint(shape: tuple[int, int], rasters: Iterable[tuple[Window, BoolGrid] | None]) -> BoolGrid:
+def paint(shape: tuple[int, int], rasters: Iterable[tuple[Window, BoolArray] | None]) -> BoolArray:
     """The union of per-element rasters on a ``shape`` grid (equal to rasterising the union of the
     elements' geometry: a cell meets a union iff it meets one of its parts)."""
     out = np.zeros(shape, dtype=np.bool_)
@@ -174,15 +174,15 @@ class CellCheck:
     cells: int
     occupied: int
     certain: int
-    missed: BoolGrid
-    extra: BoolGrid
+    missed: BoolArray
+    extra: BoolArray
 
     @property
     def agrees(self) -> bool:
         return not (self.missed.any() or self.extra.any())
 
 
-def check_cells(ours: BoolGrid, strict: BoolGrid, loose: BoolGrid) -> CellCheck:
+def check_cells(ours: BoolArray, strict: BoolArray, loose: BoolArray) -> CellCheck:
     """Compare ``ours`` with a reference given as its ``strict`` (cells shrunk) and ``loose`` (cells
     grown) rasters: every strict cell must be ours, every cell of ours must be loose."""
     return CellCheck(int(ours.size), int(ours.sum()), int(strict.sum()), strict & ~ours, ours & ~loose)

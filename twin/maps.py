@@ -1,9 +1,11 @@
 """Skill maps: slice the selected elements at a skill's heights and rasterise them on a storey's grid.
 
 A map is planned once (:func:`plan_map`: frame, heights, selected elements) and rendered for any
-window of its grid (:func:`render_window`); the full map is the full window. A window is computed from
-only the elements whose bounds overlap it, and gives exactly the same cells as the full map (the
-daemon re-slices only the regions that observations touch).
+window of its grid (:func:`render_window`); the full map is the full window. A window is computed
+from only the elements whose bounds overlap it, and gives exactly the same cells as the full map (the
+daemon re-slices only the regions that observations touch). One renderer turns occupancy into cell
+values (inflation, unknown outside spaces) for every caller, the live twin's included
+(:func:`render_cells`).
 
 Example::
 
@@ -20,15 +22,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
 from twin.errors import MapError
 from twin.grid import FREE, UNKNOWN, GridData, GridFrame, OccupancyGrid, Window
-from twin.raster import SlabGeometry, closed_sections, rasterize, rasterize_slab, slab_geometry
+from twin.raster import BoolArray, SlabGeometry, closed_sections, rasterize, rasterize_slab, slab_geometry
 from twin.scene import IndexArray, MeshSet, Scene, SlabBox, StoreyInfo
 from twin.skills import SkillProfile
 
-BoolGrid = npt.NDArray[np.bool_]
 MAX_MAP_CELLS = 50_000_000
 """The largest skill map the twin builds (50 M cells: a 350 m x 350 m storey at 5 cm); any grid frame
 may hold up to :data:`twin.grid.MAX_FRAME_CELLS`."""
@@ -48,11 +48,22 @@ class MapPlan:
 
     @property
     def inflation_cells(self) -> float:
+        """The inflation radius in cells (0 for skills that do not inflate)."""
         return (
             self.skill.inflation_radius_m / self.frame.resolution_m
             if self.skill.kind == "navigation"
             else 0.0
         )
+
+    @property
+    def inflation_pad(self) -> int:
+        """Whole cells the inflation reaches: how far beyond a window its occupancy is needed."""
+        return whole_cells(self.inflation_cells)
+
+
+def whole_cells(cells: float) -> int:
+    """The whole cells within a distance of ``cells`` cells (a rounding error short of a whole counts)."""
+    return math.floor(cells + 1e-9)
 
 
 def plan_map(
@@ -100,7 +111,7 @@ class PreparedSlab:
     geometry: SlabGeometry
 
 
-def filled(meshes: MeshSet, ids: IndexArray, plan: MapPlan) -> npt.NDArray[np.bool_]:
+def filled(meshes: MeshSet, ids: IndexArray, plan: MapPlan) -> BoolArray:
     """``(len(ids),) bool``: which elements ``ids`` are filled in the plan's slab, not only outlined.
 
     A watertight mesh is; so is a solid's mesh that is not watertight (T-junctions, touching bodies,
@@ -125,7 +136,7 @@ def prepare_slab(scene: Scene, plan: MapPlan, ids: IndexArray | None = None) -> 
     return PreparedSlab(chosen, slab_geometry(triangles, owner, fill, plan.z_lo, plan.z_hi))
 
 
-def occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -> BoolGrid:
+def occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -> BoolArray:
     """Which cells of ``window`` the elements ``ids`` of ``meshes`` touch within the plan's slab."""
     f = plan.frame
     res, eps = f.resolution_m, 1e-6
@@ -148,22 +159,22 @@ def occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -
     return rasterize_slab(triangles, owner, fill, plan.z_lo, plan.z_hi, f, window)
 
 
-def dilate_disk(occupied: BoolGrid, radius_cells: float) -> BoolGrid:
+def dilate_disk(occupied: BoolArray, radius_cells: float) -> BoolArray:
     """Grow ``occupied`` by every cell whose centre is within ``radius_cells`` of an occupied centre.
 
     Vectorised as one horizontal run-length dilation (prefix sums) per row offset of the disk.
     """
-    r = math.floor(radius_cells + 1e-9)
+    r = whole_cells(radius_cells)
     if r <= 0 or not occupied.any():
         return occupied.copy()
     h, w = occupied.shape
     prefix = np.zeros((h, w + 1), dtype=np.int32)
     np.cumsum(occupied, axis=1, out=prefix[:, 1:])
     cols = np.arange(w)
-    runs: dict[int, BoolGrid] = {}
+    runs: dict[int, BoolArray] = {}
     out = np.zeros_like(occupied)
     for dy in range(-r, r + 1):
-        half = math.floor(math.sqrt(max(radius_cells * radius_cells - dy * dy, 0.0)) + 1e-9)
+        half = whole_cells(math.sqrt(max(radius_cells * radius_cells - dy * dy, 0.0)))
         run = runs.get(half)
         if run is None:
             hi = np.minimum(cols + half + 1, w)
@@ -181,13 +192,31 @@ Layer = tuple[MeshSet, IndexArray]
 """Elements to draw: a mesh set and the positions of the chosen elements in it."""
 
 
-def _render(
-    occupied_in: Callable[[Window], BoolGrid], plan: MapPlan, window: Window, spaces: MeshSet
+def render_cells(
+    occupied_in: Callable[[Window], BoolArray],
+    plan: MapPlan,
+    window: Window,
+    *,
+    inside_in: Callable[[Window], BoolArray] | None = None,
 ) -> GridData:
+    """The one map renderer: the ``(rows, cols) int8`` values of ``window`` of the plan's map (0 free,
+    the skill's occupied value, -1 unknown), from where its elements' geometry lies.
+
+    Args:
+        occupied_in: the occupancy (before inflation) of a window, ``(rows, cols) bool``; asked once,
+            for ``window`` grown by the plan's inflation pad (within the frame).
+        plan: the map's plan (frame, skill, inflation).
+        window: the cells wanted; clipped to the frame.
+        inside_in: the cells of a window inside a space, for skills with ``unknown_outside`` (free
+            cells outside every space are unknown); None otherwise.
+
+    Every way of drawing a map (a whole map, a window, the live twin's windows) goes through here,
+    so a window equals the same window of the full map bit for bit whoever draws it.
+    """
     window = window.intersect(plan.frame.full)
     if window.empty:
         return np.zeros((max(window.shape[0], 0), max(window.shape[1], 0)), dtype=np.int8)
-    pad = math.floor(plan.inflation_cells + 1e-9)
+    pad = plan.inflation_pad
     padded = Window(window.row0 - pad, window.col0 - pad, window.row1 + pad, window.col1 + pad).intersect(
         plan.frame.full
     )
@@ -197,10 +226,16 @@ def _render(
     r0, c0 = window.row0 - padded.row0, window.col0 - padded.col0
     occupied = occupied[r0 : r0 + window.shape[0], c0 : c0 + window.shape[1]]
     data = np.where(occupied, np.int8(plan.skill.occupied_value), FREE).astype(np.int8)
-    if plan.skill.unknown_outside:
-        inside = occupancy(spaces, plan.spaces, plan, window)
-        data[~inside & ~occupied] = UNKNOWN
+    if inside_in is not None:
+        data[~inside_in(window) & ~occupied] = UNKNOWN
     return data
+
+
+def _inside_spaces(spaces: MeshSet, plan: MapPlan) -> Callable[[Window], BoolArray] | None:
+    """The cells of a window inside the plan's spaces, for skills with ``unknown_outside``."""
+    if not plan.skill.unknown_outside:
+        return None
+    return lambda window: occupancy(spaces, plan.spaces, plan, window)
 
 
 def render_window(
@@ -212,7 +247,7 @@ def render_window(
     only the plan's other elements are sliced from their triangles; the cells are the same.
     """
 
-    def occupied_in(padded: Window) -> BoolGrid:
+    def occupied_in(padded: Window) -> BoolArray:
         if prepared is None:
             return occupancy(scene.elements, plan.selected, plan, padded)
         occupied = rasterize(prepared.geometry, plan.frame, padded)
@@ -221,21 +256,21 @@ def render_window(
             occupied |= occupancy(scene.elements, rest, plan, padded)
         return occupied
 
-    return _render(occupied_in, plan, window, scene.spaces)
+    return render_cells(occupied_in, plan, window, inside_in=_inside_spaces(scene.spaces, plan))
 
 
 def render_layers(layers: Sequence[Layer], plan: MapPlan, window: Window, *, spaces: MeshSet) -> GridData:
     """Like :func:`render_window`, for the union of several layers of elements (ignoring
     ``plan.selected``): what the live twin draws, the imported elements plus those robots changed."""
 
-    def occupied_in(padded: Window) -> BoolGrid:
+    def occupied_in(padded: Window) -> BoolArray:
         occupied = np.zeros(padded.shape, dtype=np.bool_)
         for meshes, ids in layers:
             if len(ids):
                 occupied |= occupancy(meshes, ids, plan, padded)
         return occupied
 
-    return _render(occupied_in, plan, window, spaces)
+    return render_cells(occupied_in, plan, window, inside_in=_inside_spaces(spaces, plan))
 
 
 def build_map(scene: Scene, plan: MapPlan, *, prepared: PreparedSlab | None = None) -> OccupancyGrid:

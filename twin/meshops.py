@@ -1,8 +1,10 @@
-"""Mesh topology: watertightness and consistent face orientation.
+"""Mesh topology: watertightness, consistent face orientation, and surfaces that close around a volume.
 
 A closed mesh is filled when sliced, with the winding rule, which needs every face oriented
 consistently (each edge walked once in each direction). Exporters do not always deliver that, so
-:func:`orient_faces` repairs it where the surface allows.
+:func:`orient_faces` repairs it where the surface allows. A mesh that is not watertight may still
+close around a volume up to T-junctions (:func:`closes_around`): a surface model whose faces enclose
+a lift's car is then filled like a solid.
 
 Example::
 
@@ -12,11 +14,15 @@ Example::
 from __future__ import annotations
 
 from collections import deque
+from itertools import pairwise
 
 import numpy as np
 import numpy.typing as npt
 
+from twin.tolerances import TOLERANCES, Tolerances
+
 IntArray = npt.NDArray[np.int32]
+_SHIFT = 0.318309886  # rounding grids shifted off round numbers (model coordinates often are)
 
 
 def _edges(faces: npt.NDArray[np.integer]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
@@ -117,4 +123,143 @@ def orient_faces(faces: IntArray) -> IntArray | None:
     out = faces.astype(np.int32, copy=True)
     flipped = np.array(flip) == 1
     out[flipped] = out[flipped][:, ::-1]
+    return out
+
+
+def _odd_edges_on_lines(
+    vertices: npt.NDArray[np.float64], faces: npt.NDArray[np.int64], tol: Tolerances
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """The edges of ``faces`` used an odd number of times, ``(k, 2)`` vertex pairs (the smaller index
+    first), with the line each lies on ``(k,)`` and the positions of their two ends along it
+    ``(k, 2)``, in steps of ``tol.join_m``."""
+    a, b = _edges(faces)
+    n = int(faces.max()) + 1
+    keys, counts = np.unique(np.minimum(a, b) * n + np.maximum(a, b), return_counts=True)
+    odd = keys[counts % 2 == 1]
+    pairs = np.stack([odd // n, odd % n], axis=1)
+    p, q = vertices[pairs[:, 0]], vertices[pairs[:, 1]]
+    d = q - p
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    first = np.argmax(np.abs(d) > tol.join_m, axis=1)  # one direction per line: its first component > 0
+    d *= np.sign(d[np.arange(len(d)), first])[:, None]
+    tp, tq = (p * d).sum(axis=1), (q * d).sum(axis=1)
+    foot = p - tp[:, None] * d  # the line's point nearest the origin
+    line = np.floor(np.hstack([d, foot]) / tol.join_m + _SHIFT).astype(np.int64)
+    _, group = np.unique(line, axis=0, return_inverse=True)
+    ends = np.floor(np.stack([tp, tq], axis=1) / tol.join_m + _SHIFT).astype(np.int64)
+    return pairs, group.reshape(-1), ends
+
+
+def _proper(faces: IntArray) -> npt.NDArray[np.int64]:
+    """``faces`` as int64, without those that collapse to a line or a point."""
+    f = faces.astype(np.int64)
+    proper: npt.NDArray[np.int64] = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])]
+    return proper
+
+
+def closes_around(
+    vertices: npt.NDArray[np.float64], faces: IntArray, *, tol: Tolerances = TOLERANCES
+) -> bool:
+    """True if the surface ``faces`` ``(m, 3) int`` over ``vertices`` ``(n, 3) float64`` (welded)
+    closes around a volume: along every line, each point of the mesh's edges is covered by an even
+    number of them.
+
+    A watertight mesh uses each edge twice. A kernel that triangulates face by face leaves
+    T-junctions (one face's edge ``a-c`` split at its neighbour's vertex ``b``): ``a-c``, ``a-b`` and
+    ``b-c`` are used once each, yet cover their line twice. A surface with a border (a railing's ring
+    of faces around a void, a lost face) covers its border once: not closed. Edge ends within
+    ``tol.join_m`` along a line are one point, lines within it (direction and offset) are one line.
+    Orientation is not looked at. Degenerate faces are ignored.
+    """
+    f = _proper(faces)
+    if not len(f):
+        return False
+    _, group, ends = _odd_edges_on_lines(vertices, f, tol)
+    # the parity of the cover along a line changes only at points where an odd number of edges end
+    points = np.stack([np.tile(group, 2), ends.T.reshape(-1)], axis=1)
+    _, ends_at = np.unique(points, axis=0, return_counts=True)
+    return bool((ends_at % 2 == 0).all())
+
+
+def seal_t_junctions(
+    vertices: npt.NDArray[np.float64], faces: IntArray, *, tol: Tolerances = TOLERANCES
+) -> IntArray:
+    """``faces`` ``(m, 3)`` with every T-junction split: a surface that :func:`closes_around` a volume
+    then uses each edge an even number of times (``(m', 3) int32``; degenerate faces dropped).
+
+    A triangle whose edge ``a-c`` passes through vertices ``b1, b2, ...`` of its neighbours (within
+    ``tol.join_m``) is replaced by the fan ``(a, b1, x), (b1, b2, x), ..., (bk, c, x)`` from its third
+    vertex ``x``, in the triangle's own turning sense. The vertices are unchanged. Only the triangles
+    at T-junctions are visited (in Python, one at a time): meant for the few meshes that need it.
+    """
+    f = _proper(faces)
+    if not len(f):
+        return f.astype(np.int32)
+    pairs, group, ends = _odd_edges_on_lines(vertices, f, tol)
+    on_line: dict[int, dict[int, int]] = {}  # line -> vertex -> its position along the line
+    for (u, v), g, (eu, ev) in zip(pairs.tolist(), group.tolist(), ends.tolist(), strict=True):
+        on_line.setdefault(g, {}).update({u: eu, v: ev})
+    inner: dict[tuple[int, int], list[int]] = {}  # edge (u, v), u < v -> the vertices strictly inside, u to v
+    for (u, v), g, (eu, ev) in zip(pairs.tolist(), group.tolist(), ends.tolist(), strict=True):
+        lo, hi = min(eu, ev), max(eu, ev)
+        inside = sorted((e, w) for w, e in on_line[g].items() if lo < e < hi)
+        if inside:
+            ordered = [w for _, w in inside]
+            inner[(u, v)] = ordered if eu < ev else ordered[::-1]
+    if not inner:
+        return f.astype(np.int32)
+    a, b = _edges(f)
+    n = int(f.max()) + 1
+    split = np.array([u * n + v for u, v in inner], dtype=np.int64)
+    at = np.isin(np.minimum(a, b) * n + np.maximum(a, b), split).reshape(3, -1).any(axis=0)
+    out: list[list[int]] = f[~at].tolist()
+    todo = f[at].tolist()
+    while todo:
+        tri = todo.pop()
+        for k in range(3):
+            x, y, apex = tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]
+            mids = inner.get((x, y)) if x < y else (inner.get((y, x)) or [])[::-1]
+            if mids:
+                chain = [x, *mids, y]
+                todo.extend([s, t, apex] for s, t in pairwise(chain))
+                break
+        else:
+            out.append(tri)
+    return np.array(out, dtype=np.int32)
+
+
+def orient_shells(faces: IntArray) -> IntArray | None:
+    """:func:`orient_faces` for meshes whose closed shells touch along edges (more than two faces on
+    an edge: the bodies of a cabinet modelled as one surface model): the faces are split into shells
+    at such edges, and each shell is oriented on its own. None when a shell is not edge-closed or not
+    orientable."""
+    if faces.size == 0:
+        return None
+    a, b = _edges(faces)
+    m, n = len(faces), int(faces.max()) + 1
+    keys = np.minimum(a, b) * n + np.maximum(a, b)
+    order = np.argsort(keys, kind="stable")
+    _, first, counts = np.unique(keys[order], return_index=True, return_counts=True)
+    two = first[counts == 2]
+    f1, f2 = order[two] % m, order[two + 1] % m  # the two faces of each edge used exactly twice
+    shell = list(range(m))  # union-find over those face pairs
+
+    def root(i: int) -> int:
+        while shell[i] != i:
+            shell[i] = shell[shell[i]]
+            i = shell[i]
+        return i
+
+    for i, j in zip(f1.tolist(), f2.tolist(), strict=True):
+        ri, rj = root(i), root(j)
+        if ri != rj:
+            shell[max(ri, rj)] = min(ri, rj)
+    label = np.array([root(i) for i in range(m)])
+    out = faces.astype(np.int32, copy=True)
+    for s in np.unique(label):
+        mine = np.flatnonzero(label == s)
+        oriented = orient_faces(out[mine])
+        if oriented is None:
+            return None
+        out[mine] = oriented
     return out

@@ -34,10 +34,12 @@ class Mesh:
         faces: ``(m, 3) int32`` vertex indices, one row a triangle.
         closed: True when every edge is shared by exactly two faces (a watertight solid): such
             meshes are filled when sliced; open meshes contribute their surfaces only.
-        solid: True when the source model says the body is a solid (an extrusion, a B-rep, a CSG or
-            boolean result, ...), whatever its mesh: an open mesh of a solid (T-junctions, seams a
-            kernel left unstitched) is still filled where its section is made of closed loops. False
-            for surfaces and when unknown (older stores, meshes robots send).
+        solid: True when the body bounds a volume although its mesh may be open: the source model
+            says it is a solid (an extrusion, a B-rep, a CSG or boolean result, ...), or it is a
+            surface whose faces close around a volume up to T-junctions (a lift's car modelled as a
+            surface model: :func:`twin.meshops.closes_around`). Such an open mesh (T-junctions, seams
+            a kernel left unstitched) is still filled where its section is made of closed loops.
+            False for open surfaces and when unknown (older stores, meshes robots send).
     """
 
     vertices: FloatArray
@@ -91,6 +93,15 @@ def check_placement(matrix: npt.ArrayLike) -> FloatArray:
     return m
 
 
+def to_world(vertices: FloatArray, placement: FloatArray) -> FloatArray:
+    """``(n, 3) float64``: local ``vertices`` ``(n, 3)`` put in the world by ``placement`` ``(4, 4)``.
+
+    The one mesh-to-world transform: every map, bound and comparison goes through it, so the same
+    mesh and placement give the same world coordinates bit for bit wherever they are computed.
+    """
+    return vertices @ placement[:3, :3].T + placement[:3, 3]
+
+
 @dataclass(frozen=True, eq=False, slots=True)
 class Geometry:
     """An element's shape: a local mesh and the placement that puts it in the world."""
@@ -100,8 +111,7 @@ class Geometry:
 
     def world_vertices(self) -> FloatArray:
         """``(n, 3) float64``: the mesh vertices transformed by the placement."""
-        v = self.mesh.vertices
-        return v @ self.placement[:3, :3].T + self.placement[:3, 3]
+        return to_world(self.mesh.vertices, self.placement)
 
 
 @dataclass(frozen=True, slots=True)

@@ -25,7 +25,7 @@ from twin.errors import MapError
 from twin.extents import parse_extent
 from twin.meshcodec import decode_mesh, decode_placement
 from twin.rdf import literal_value
-from twin.records import Mesh
+from twin.records import Mesh, to_world
 from twin.store import GraphStore
 
 log = logging.getLogger(__name__)
@@ -78,7 +78,7 @@ class MeshSet:
         np.cumsum(counts, out=start[1:])
         triangles = np.empty((int(start[-1]), 3, 3), dtype=np.float64)
         for i, (_, mesh, placement) in enumerate(items):
-            world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]
+            world = to_world(mesh.vertices, placement)
             triangles[start[i] : start[i + 1]] = world[mesh.faces]
         closed = np.array([m.closed for _, m, _ in items], dtype=np.bool_)
         solid = np.array([m.solid for _, m, _ in items], dtype=np.bool_)

@@ -1,24 +1,47 @@
-"""Tolerances of the live twin, in one place (metres and radians).
+"""The twin's numerical tolerances, in one frozen object (metres and radians).
 
-Maps: a solid's open mesh is filled where its section is made of closed loops, joining section
-endpoints within :data:`SECTION_JOIN_M` (the rasteriser's other tolerances are in
-:class:`twin.raster.Tolerances`).
+Maps (:mod:`twin.raster`, :mod:`twin.meshops`): cells are shrunk or grown by ``cell_m``; points within
+``join_m`` are one point where the geometry must close: the ends of a section's segments, when a
+solid's open mesh is filled where its section is made of closed loops, and the ends of a mesh's
+edges along a line, when a surface is found to close around a volume.
 
-A robot re-reports what it sees many times a second, each time with a little sensor noise. A report
-whose geometry lies within these bounds of what the twin holds is a re-confirmation: it changes
-nothing (no revision, no map work, no store write).
+Live observations (:mod:`twin.live.same`): a robot re-reports what it sees many times a second, each
+time with a little sensor noise. A report whose geometry lies within ``same_position_m`` and
+``same_angle_rad`` of what the twin holds is a re-confirmation: it changes nothing (no revision, no
+map work, no store write).
+
+Example::
+
+    from twin.tolerances import TOLERANCES
+    if np.abs(seen - held).max() <= TOLERANCES.same_position_m: ...
 """
 
 from __future__ import annotations
 
-from typing import Final
+from dataclasses import dataclass
 
-SAME_POSITION_M: Final = 1e-3
-"""Every vertex of the reported geometry within 1 mm of the held one (world frame)."""
 
-SAME_ANGLE_RAD: Final = 1e-4
-"""The reported orientation within 0.1 mrad of the held one."""
+@dataclass(frozen=True, slots=True)
+class Tolerances:
+    """Numerical tolerances of the maps and of the live twin.
 
-SECTION_JOIN_M: Final = 1e-6
-"""Two ends of a solid's section segments this close are one joint (1 um): far above the rounding
-errors of T-junctions and of unwelded vertex copies (1e-12 m), far below any real gap."""
+    Attributes:
+        cell_m: cells are shrunk (solid geometry) or grown (degenerate open surfaces) by this many
+            metres when rasterising; an open polygon is degenerate when its area is at most ``cell_m``
+            times its extent.
+        join_m: two points this close are one (1 um): the ends of section segments
+            (:func:`twin.raster.closed_sections`) and of edges along a line
+            (:func:`twin.meshops.closes_around`). Far above the rounding errors of T-junctions and of
+            unwelded vertex copies (1e-12 m), far below any real gap.
+        same_position_m: a re-reported geometry whose every world vertex is within this of the held
+            one (1 mm) is the same.
+        same_angle_rad: ... and whose orientation is within this of the held one (0.1 mrad).
+    """
+
+    cell_m: float = 1e-9
+    join_m: float = 1e-6
+    same_position_m: float = 1e-3
+    same_angle_rad: float = 1e-4
+
+
+TOLERANCES = Tolerances()

@@ -6,7 +6,9 @@ cannot say whether an element has an inside. The IFC file can: a body is solid w
 its ``Body`` representation (looking through mapped items) is a solid model — an extrusion or other
 swept solid (``SweptSolid``, ``AdvancedSweptSolid``), a B-rep (``Brep``, ``AdvancedBrep``), a CSG
 primitive or boolean result (``CSG``, ``Clipping``) — or a tessellation the file declares closed.
-Surface models, open shells, curves and anything unknown are not: they keep their outline in the maps.
+Surface models, open shells, curves and anything unknown are not solids; their meshes keep their
+outline in the maps unless the mesh itself closes around a volume (a surface model whose faces
+enclose a lift's car: :func:`adapters.ifc.kernel_child.make_mesh`), which is then filled like a solid.
 
 Item classes are trusted over ``IfcShapeRepresentation.RepresentationType``, which exporters often
 leave out or get wrong.

@@ -2,8 +2,9 @@
 stream the shapes back over a pipe, each as a ready :class:`~twin.records.Mesh`.
 
 The child makes the meshes itself (closedness, welding, orientation, whether the body is a solid:
-:mod:`adapters.ifc.body_kind`) and checks the placements, so the calling process only collects. A
-:data:`Shape` carries a mesh the first time, then ``None`` for the instances sharing it.
+:mod:`adapters.ifc.body_kind`, or a surface that closes around a volume: :func:`make_mesh`) and
+checks the placements, so the calling process only collects. A :data:`Shape` carries a mesh the
+first time, then ``None`` for the instances sharing it.
 
 With ``routing`` set, the child first asks :class:`~adapters.ifc.kernel_choice.KernelChoice` which of its
 elements the reference kernel must mesh, sends their ids (:data:`ROUTED`) and leaves them to other
@@ -40,13 +41,20 @@ from adapters.ifc.body_kind import BodyKind
 from adapters.ifc.errors import ENTITY_ERRORS
 from adapters.ifc.kernel_choice import KernelChoice
 from twin.errors import ModelError
-from twin.meshops import are_closed, is_closed, orient_faces
+from twin.meshops import (
+    are_closed,
+    closes_around,
+    is_closed,
+    orient_faces,
+    orient_shells,
+    seal_t_junctions,
+)
 from twin.records import Mesh, check_placement
 
 Shape = tuple[int, str, Mesh | None, np.ndarray | None, bool, str | None, str | None]
 """Product id, geometry id, the mesh (the first time this child meshes the geometry, else None), the
-checked placement (None if refused), whether the product's body is a solid, why the placement was
-refused, why the body could not be inspected."""
+checked placement (None if refused), whether the product's body is a solid (or a surface whose mesh
+closes around a volume), why the placement was refused, why the body could not be inspected."""
 MAX_COORDINATE_M = 1e8
 """A body farther than this from the origin (or not finite) is refused: the bad placement or
 coordinates of a broken file, which would stretch a storey's map over the whole planet."""
@@ -110,17 +118,27 @@ def _closed_mesh(vertices: np.ndarray, faces: np.ndarray, solid: bool) -> Mesh |
 def make_mesh(
     vertices: np.ndarray, faces: np.ndarray, *, solid: bool = False, known_open: bool = False
 ) -> Mesh:
-    """A Mesh with its closedness (and ``solid``: what the file says the body is). Only when the
-    kernel's output is not a consistently oriented solid (``known_open``: already found not to be)
-    are its vertices welded (bitwise, then within ``NEAR_WELD_M``) and, if it is watertight, its faces
-    re-oriented."""
+    """A Mesh with its closedness and ``solid``: what the file says the body is, or whether its faces
+    close around a volume. Only when the kernel's output is not a consistently oriented solid
+    (``known_open``: already found not to be) are its vertices welded (bitwise, then within
+    ``NEAR_WELD_M``) and, if it is watertight, its faces re-oriented.
+
+    A surface (not a solid by the file) whose open mesh closes around a volume up to T-junctions
+    (:func:`~twin.meshops.closes_around`: a surface model whose faces enclose a lift's car) is a solid:
+    its T-junctions are split and the faces of each of its shells oriented alike (a surface model
+    need not orient them), which makes it watertight; failing that it stays open, marked solid."""
     if not known_open and is_closed(faces):
         return Mesh(vertices, faces, True, solid)
     v, f = weld(vertices, faces)
     closed = _closed_mesh(v, f, solid)
     if closed is None:
         closed = _closed_mesh(*weld(v, f, near_m=NEAR_WELD_M), solid)
-    return closed if closed is not None else Mesh(v, f, False, solid)
+    if closed is not None:
+        return closed
+    if solid or not closes_around(v, f):
+        return Mesh(v, f, False, solid)
+    oriented = orient_shells(seal_t_junctions(v, f))
+    return Mesh(v, oriented, True, True) if oriented is not None else Mesh(v, f, False, True)
 
 
 def iterator_settings() -> Any:
@@ -183,6 +201,7 @@ class _Batch:
             tuple[int, str, tuple[np.ndarray, np.ndarray, bool] | None, Any, bool, str | None]
         ] = []
         self.reach: dict[str, float] = {}  # geometry id -> its mesh's largest absolute coordinate
+        self.encloses: set[str] = set()  # geometry ids of surfaces whose open meshes close around a volume
 
     def send(self, conn: Connection) -> None:
         made = iter(_meshes([raw for _, _, raw, _, _, _ in self.items if raw is not None]))
@@ -193,6 +212,8 @@ class _Batch:
                 mesh, reach = next(made)
                 if mesh is not None:
                     self.reach[geom_id] = reach
+                    if mesh.solid and not raw[2]:
+                        self.encloses.add(geom_id)
             meshes.append(mesh)
         placements = _placements(
             [
@@ -204,7 +225,7 @@ class _Batch:
         shapes: list[Shape] = []
         for (pid, geom_id, _, _, solid, note), mesh in zip(self.items, meshes, strict=True):
             placement, refused = next(placements) if geom_id in self.reach else (None, None)
-            shapes.append((pid, geom_id, mesh, placement, solid, refused, note))
+            shapes.append((pid, geom_id, mesh, placement, solid or geom_id in self.encloses, refused, note))
         conn.send(shapes)
         self.items = []
 

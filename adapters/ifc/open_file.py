@@ -144,7 +144,7 @@ def open_ifc_checked(path: Path, *, cycles: bool = True) -> CheckedIfc:
     try:
         f = ifcopenshell.open(str(path))
     except Exception as err:  # ifcopenshell raises bare Exception/RuntimeError/SchemaError subclasses
-        text = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        text = str(err).strip().splitlines()[0].strip() if str(err).strip() else type(err).__name__
         problems, _ = _parse_problems(path, None)
         if problems and "check logs" in text.lower():
             text = f"{text.removesuffix(', check logs')}: {problems[0]}"

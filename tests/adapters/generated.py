@@ -96,16 +96,24 @@ class Generated:
     def faceted_brep(self, faces: list[list[XYZ]]) -> Any:
         """An ``IfcFacetedBrep`` of polygonal ``faces`` (each a loop of local points, m, counter-clockwise
         seen from outside); equal points are one ``IfcCartesianPoint``."""
+        return self.file.createIfcFacetedBrep(self.file.createIfcClosedShell(self._faces(faces)))
+
+    def surface_model(self, faces: list[list[XYZ]]) -> Any:
+        """An ``IfcFaceBasedSurfaceModel`` of polygonal ``faces`` (as in :meth:`faceted_brep`) in one
+        ``IfcConnectedFaceSet``: a surface, whether or not its faces close around a volume."""
+        f = self.file
+        return f.createIfcFaceBasedSurfaceModel([f.createIfcConnectedFaceSet(self._faces(faces))])
+
+    def _faces(self, faces: list[list[XYZ]]) -> list[Any]:
         f, points = self.file, {}
         for face in faces:
             for p in face:
                 if p not in points:
                     points[p] = f.createIfcCartesianPoint([float(c) for c in p])
-        bounds = [
-            f.createIfcFaceOuterBound(f.createIfcPolyLoop([points[p] for p in face]), True) for face in faces
+        return [
+            f.createIfcFace([f.createIfcFaceOuterBound(f.createIfcPolyLoop([points[p] for p in face]), True)])
+            for face in faces
         ]
-        shell = f.createIfcClosedShell([f.createIfcFace([b]) for b in bounds])
-        return f.createIfcFacetedBrep(shell)
 
     def brep_element(
         self,
@@ -116,14 +124,16 @@ class Generated:
         *,
         container: Any,
         mapped: bool = False,
+        representation_type: str = "Brep",
     ) -> Any:
-        """An element whose body is the B-rep ``items`` (``Brep``), or with ``mapped`` an ``IfcMappedItem``
-        of a representation map holding them (``MappedRepresentation``), placed at ``origin``."""
+        """An element whose body is the B-rep ``items`` (``Brep``, or ``representation_type``: e.g.
+        ``SurfaceModel`` for :meth:`surface_model` items), or with ``mapped`` an ``IfcMappedItem`` of a
+        representation map holding them (``MappedRepresentation``), placed at ``origin``."""
         f = self.file
         element = ifcopenshell.api.root.create_entity(f, ifc_class=ifc_class, name=name)
         ifcopenshell.api.spatial.assign_container(f, products=[element], relating_structure=container)
         self._place(element, origin)
-        body = f.createIfcShapeRepresentation(self.body, "Body", "Brep", items)
+        body = f.createIfcShapeRepresentation(self.body, "Body", representation_type, items)
         if mapped:
             zero = f.createIfcCartesianPoint([0.0, 0.0, 0.0])
             source = f.createIfcRepresentationMap(f.createIfcAxis2Placement3D(zero), body)
@@ -133,6 +143,19 @@ class Generated:
             )
         ifcopenshell.api.geometry.assign_representation(f, product=element, representation=body)
         return element
+
+    def mapped_copy(self, element: Any, name: str, origin: XYZ, *, container: Any) -> Any:
+        """Another product of ``element``'s class, placed at ``origin``, whose body maps the same
+        representation map as ``element``'s (made with ``mapped=True``)."""
+        f = self.file
+        (item,) = element.Representation.Representations[0].Items
+        copy = ifcopenshell.api.root.create_entity(f, ifc_class=element.is_a(), name=name)
+        ifcopenshell.api.spatial.assign_container(f, products=[copy], relating_structure=container)
+        self._place(copy, origin)
+        mapped = f.createIfcMappedItem(item.MappingSource, item.MappingTarget)
+        body = f.createIfcShapeRepresentation(self.body, "Body", "MappedRepresentation", [mapped])
+        ifcopenshell.api.geometry.assign_representation(f, product=copy, representation=body)
+        return copy
 
     def material(self, name: str) -> Any:
         if name not in self._materials:

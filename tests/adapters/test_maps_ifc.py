@@ -473,3 +473,69 @@ def test_solids_with_open_meshes_are_filled_like_the_opencascade_reference(
     before = compare_model(path, store, outlined, skills)
     culprits = {(c.ifc_class, c.side) for m in before.maps for c in m.culprits}
     assert culprits == {("IfcWall", "missed"), ("IfcTransportElement", "missed")}
+
+
+RING = Box(6.0, 1.0, 8.0, 2.5, 0.0, 1.1)
+
+
+def _surface_models(path: Path) -> None:
+    """The two shapes of surface model seen on real exports, small: a lift modelled as a mapped
+    ``IfcFaceBasedSurfaceModel`` (an ``IfcFlowTerminal``, representation type SurfaceModel) whose faces
+    close around the car, two of them split where their neighbours are not (T-junctions: the mesh is
+    open) and one turned inwards, twice (a second lift maps the same representation); and a railing's
+    ring of faces around a void (no top, no bottom: not a closed shell)."""
+    g = Generated("IFC4")
+    storey = g.storey("Ground", 0.0)
+    g.box("IfcSlab", "Floor", (0.0, 0.0, -0.2), (10.0, 4.0, 0.2), container=storey)
+    car = box_faces((0.0, 0.0, 0.0), (1.6, 1.8, 3.0), split={"-y": (1.0,), "+z": (0.9,)})
+    car[3] = car[3][::-1]  # a surface model need not orient its faces: the -x side faces inwards
+    lift = g.brep_element(
+        "IfcFlowTerminal",
+        "Lift",
+        (1.0, 1.0, 0.0),
+        [g.surface_model(car)],
+        container=storey,
+        mapped=True,
+        representation_type="SurfaceModel",
+    )
+    g.mapped_copy(lift, "Second lift", (3.0, 1.0, 0.0), container=storey)  # shares the lift's mesh
+    size = (RING.xmax - RING.xmin, RING.ymax - RING.ymin, RING.zmax - RING.zmin)
+    sides = [face for face in box_faces((0.0, 0.0, 0.0), size) if len({p[2] for p in face}) > 1]
+    g.brep_element(
+        "IfcRailing",
+        "Railing",
+        (RING.xmin, RING.ymin, RING.zmin),
+        [g.surface_model(sides)],
+        container=storey,
+        representation_type="SurfaceModel",
+    )
+    g.write(path)
+
+
+def test_a_closed_surface_model_is_filled_and_an_open_ring_of_faces_keeps_its_outline(
+    tmp_path: Path, read_cached: Callable[[Path], BuildingModel], config: Config
+) -> None:
+    path = tmp_path / "surface-models.ifc"
+    _surface_models(path)
+    model = read_cached(path)
+    meshes = {e.name: e.geometry.mesh for e in model.elements if e.geometry is not None}
+    for name in ("Lift", "Second lift"):  # sealed at its T-junctions and oriented: watertight
+        assert meshes[name].solid and meshes[name].closed, f"{name}: a closed surface"
+    assert not meshes["Railing"].solid and not meshes["Railing"].closed
+    store = imported(model)
+    scene = load_scene(store)
+    skills = [config.skill(s) for s in DEFAULT_SKILLS]
+    result = compare_model(path, store, scene, skills)
+    assert (result.lost, result.invented) == ([], [])
+    assert [m.describe() for m in result.maps if not m.agrees] == []
+    navigation = make_map(store, scene, config.skill("navigation"), scene.storeys[0].key)
+    assert (inside(navigation, RING, shrink=0.1) == 0).all(), "the void inside the railing is free"
+    # the lifts taken for open surfaces (what the maps did before): their insides are missed
+    lifts = {i for i, (_, ifc_class) in element_ids(store).items() if ifc_class == "IfcFlowTerminal"}
+    surfaces = [
+        (i, replace(m, solid=False, closed=False) if i in lifts else m, p)
+        for i, (m, p) in scene.shapes.items()
+    ]
+    outlined = Scene(MeshSet.build(surfaces), scene.spaces, scene.storeys, scene.space_storey, scene.shapes)
+    before = compare_model(path, store, outlined, skills)
+    assert {(c.ifc_class, c.side) for m in before.maps for c in m.culprits} == {("IfcFlowTerminal", "missed")}

@@ -24,7 +24,7 @@ from tests.twin.live_helpers import box_turtle, observe, started
 from twin.grid import GridFrame, Window
 from twin.maps import MapPlan, occupancy
 from twin.meshcodec import decode_mesh, encode_mesh
-from twin.meshops import is_closed
+from twin.meshops import closes_around, is_closed, orient_faces, orient_shells, seal_t_junctions
 from twin.raster import closed_sections
 from twin.records import BuildingModel, Element, Geometry, Mesh, Relation
 from twin.scene import MeshSet, StoreyInfo
@@ -118,6 +118,53 @@ def test_a_surface_a_lost_face_or_faces_turned_inside_out_do_not_close_the_secti
     tri, owner = as_triangles(lost, no_wall, inside_out, mesh)
     assert closed_sections(tri, owner, 5, 1.5).tolist() == [True, False, False, True, False]
     assert closed_sections(tri, owner, 5, 3.5).tolist() == [False] * 5  # above it: nothing to fill
+
+
+def test_a_face_by_face_mesh_closes_around_a_volume_and_a_ring_of_faces_or_a_lost_face_does_not() -> None:
+    for tilt in (0.0, 0.3):
+        mesh = mesh_of(LIFT, tilt=tilt)
+        assert not is_closed(mesh.faces) and closes_around(mesh.vertices, mesh.faces), tilt
+    watertight = mesh_of(box_faces((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)))
+    assert is_closed(watertight.faces) and closes_around(watertight.vertices, watertight.faces)
+    ring = mesh_of(box_faces((0.0, 0.0, 0.0), (2.0, 1.5, 1.1))[2:])  # sides only: a railing round a void
+    lost = mesh_of(LIFT[1:])  # the bottom face is lost
+    for surface in (ring, lost):
+        assert not closes_around(surface.vertices, surface.faces)
+    a = mesh_of(box_faces((0.0, 0.0, 0.0), (1.0, 1.0, 3.0), split_z=(2.0,)))
+    b = mesh_of(box_faces((1.0, 0.0, 0.0), (2.0, 1.0, 3.0), split_y=(0.5,)))
+    both = np.concatenate([a.vertices, b.vertices])
+    assert closes_around(both, np.concatenate([a.faces, b.faces + len(a.vertices)]))
+
+
+def test_a_closed_surface_with_t_junctions_and_a_face_turned_inwards_is_sealed_and_oriented() -> None:
+    mesh = mesh_of(LIFT, tilt=0.3)
+    faces = mesh.faces.copy()
+    faces[6:8] = faces[6:8, ::-1]  # the +y wall turned inwards: a surface model need not orient faces
+    sealed = seal_t_junctions(mesh.vertices, faces)
+    assert len(sealed) > len(faces)  # the long edges split at their neighbours' vertices
+    oriented = orient_shells(sealed)
+    assert oriented is not None and is_closed(oriented)
+    tri, owner = as_triangles(replace(mesh, faces=oriented))
+    assert closed_sections(tri, owner, 1, 1.5).tolist() == [True]
+    ring = mesh_of(box_faces((0.0, 0.0, 0.0), (2.0, 1.5, 1.1))[2:])
+    assert orient_shells(seal_t_junctions(ring.vertices, ring.faces)) is None, "a ring has no inside"
+
+
+def test_shells_touching_along_an_edge_are_oriented_each_on_its_own() -> None:
+    a = mesh_of(box_faces((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)))
+    b = mesh_of(box_faces((1.0, 1.0, 0.0), (2.0, 2.0, 1.0)))  # shares the edge x = y = 1 with a
+    points: dict[tuple[float, ...], int] = {}
+    vertices, faces = [], []
+    for m in (a, b):
+        for tri in m.vertices[m.faces]:
+            faces.append([points.setdefault(tuple(p), len(points)) for p in tri.tolist()])
+    vertices = np.array(list(points), dtype=np.float64)
+    both = np.array(faces, dtype=np.int32)
+    both[14:16] = both[14:16, ::-1]  # one side of b turned inwards
+    assert not is_closed(both) and closes_around(vertices, both)
+    assert orient_faces(both) is None, "four faces on the shared edge: not one shell"
+    oriented = orient_shells(both)
+    assert oriented is not None and is_closed(oriented)
 
 
 FRAME = GridFrame.around(-0.5, -0.5, 2.5, 2.0, resolution_m=0.05, margin_m=0.0)

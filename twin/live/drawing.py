@@ -13,11 +13,9 @@ Example::
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from twin.grid import FREE, UNKNOWN, GridData, Window
+from twin.grid import GridData, Window
 from twin.live.live_map import LiveMap
 from twin.live.overlay import (
     MapKey,
@@ -26,7 +24,8 @@ from twin.live.overlay import (
     grow,
     in_band,
 )
-from twin.maps import BoolGrid, dilate_disk, occupancy, render_layers
+from twin.maps import occupancy, render_cells, render_layers
+from twin.raster import BoolArray
 from twin.raster.boxes import footprint_cells
 from twin.records import FloatArray, Shape
 from twin.scene import IndexArray, MeshSet, Scene
@@ -70,13 +69,13 @@ class Drawing:
     def _base_ids(self, m: LiveMap) -> IndexArray:
         return np.flatnonzero(m.base_mask & ~self.hidden).astype(np.intp)
 
-    def _raster(self, m: LiveMap, iri: str, el: OverlayElement) -> tuple[Window, BoolGrid] | None:
+    def _raster(self, m: LiveMap, iri: str, el: OverlayElement) -> tuple[Window, BoolArray] | None:
         """The element's occupancy on ``m``'s grid in its own window (cached), None if it has none."""
         key = (iri, m.key)
         if key in self._rasters.cells:
             return self._rasters.cells[key]
         b = el.bounds
-        out: tuple[Window, BoolGrid] | None = None
+        out: tuple[Window, BoolArray] | None = None
         shared = None
         footprint = el.footprint_in(m.plan)
         if footprint is not None:
@@ -99,7 +98,7 @@ class Drawing:
             self._rasters.shared[shared] = out
         return out
 
-    def _or_raster(self, m: LiveMap, iri: str, el: OverlayElement, occ: BoolGrid, window: Window) -> None:
+    def _or_raster(self, m: LiveMap, iri: str, el: OverlayElement, occ: BoolArray, window: Window) -> None:
         """OR the element's own occupancy on ``m`` into ``occ``, the cells of ``window``."""
         hit = self._raster(m, iri, el)
         if hit is None:
@@ -111,7 +110,7 @@ class Drawing:
         dst = occ[w.row0 - window.row0 : w.row1 - window.row0, w.col0 - window.col0 : w.col1 - window.col0]
         dst |= cells[w.row0 - win.row0 : w.row1 - win.row0, w.col0 - win.col0 : w.col1 - win.col0]
 
-    def _occupancy(self, m: LiveMap, window: Window) -> BoolGrid:
+    def _occupancy(self, m: LiveMap, window: Window) -> BoolArray:
         """Occupancy (before inflation) of ``window``: the static cells OR each overlay element's."""
         occ = m.static[window.row0 : window.row1, window.col0 : window.col1].copy()
         for iri in m.overlay:
@@ -120,7 +119,7 @@ class Drawing:
                 self._or_raster(m, iri, el, occ, window)
         return occ
 
-    def _occupancy_at_once(self, m: LiveMap, window: Window) -> BoolGrid:
+    def _occupancy_at_once(self, m: LiveMap, window: Window) -> BoolArray:
         """Like :meth:`_occupancy`, with every overlay element in ``window`` that is not an upright box
         rasterised in one call (cheaper than one per element when several changed at once, as under
         load); upright boxes take their own fast path."""
@@ -146,32 +145,23 @@ class Drawing:
         return occ
 
     def render(
-        self, m: LiveMap, window: Window, *, source: tuple[Window, BoolGrid] | None = None
+        self, m: LiveMap, window: Window, *, source: tuple[Window, BoolArray] | None = None
     ) -> GridData:
         """The values of ``window`` of ``m`` from its static cells and overlay elements (or from
-        ``source``: the occupancy of a window that holds this one's, grown by the inflation)."""
-        plan = m.plan
-        window = window.intersect(plan.frame.full)
-        if window.empty:
-            return np.zeros((max(window.shape[0], 0), max(window.shape[1], 0)), dtype=np.int8)
-        pad = math.floor(plan.inflation_cells + 1e-9)
-        padded = grow(window, pad).intersect(plan.frame.full)
-        if source is None:
-            occupied = self._occupancy(m, padded)
-        else:
+        ``source``: the occupancy of a window that holds this one's, grown by the inflation), drawn by
+        the maps' one renderer (:func:`~twin.maps.render_cells`)."""
+
+        def occupied_in(padded: Window) -> BoolArray:
+            if source is None:
+                return self._occupancy(m, padded)
             sw, cells = source
-            occupied = cells[
+            return cells[
                 padded.row0 - sw.row0 : padded.row1 - sw.row0, padded.col0 - sw.col0 : padded.col1 - sw.col0
             ]
-        if pad:
-            occupied = dilate_disk(occupied, plan.inflation_cells)
-        r0, c0 = window.row0 - padded.row0, window.col0 - padded.col0
-        occupied = occupied[r0 : r0 + window.shape[0], c0 : c0 + window.shape[1]]
-        data = np.where(occupied, np.int8(plan.skill.occupied_value), FREE).astype(np.int8)
-        if m.inside is not None:
-            inside = m.inside[window.row0 : window.row1, window.col0 : window.col1]
-            data[~inside & ~occupied] = UNKNOWN
-        return data
+
+        inside = m.inside
+        inside_in = None if inside is None else (lambda w: inside[w.row0 : w.row1, w.col0 : w.col1])
+        return render_cells(occupied_in, m.plan, window, inside_in=inside_in)
 
     def rebuild(self, m: LiveMap) -> GridData:
         """The full map rendered from scratch from the triangles (the reference the live one equals)."""

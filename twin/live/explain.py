@@ -21,9 +21,8 @@ from typing import Any
 from twin import vocab
 from twin.errors import ExplainError
 from twin.grid import Window
-from twin.live.selection import _material_word, needs_store, selects
+from twin.live.selection import rejection
 from twin.live.state import ElementState, LiveState
-from twin.skill_selection import VIRTUAL_TYPE, class_iri
 from twin.skills import SkillProfile
 from twin.store import GraphStore
 
@@ -31,43 +30,10 @@ NEAR_M = 1.0
 """How far from the point elements count as near, metres (default)."""
 
 
-def _excluded_type(types: tuple[str, ...], state: ElementState) -> str | None:
-    for t in types:
-        iri = class_iri(t)
-        if (iri is not None and iri in state.classes) or (iri is None and t in state.ifc_types):
-            return t
-    return None
-
-
-def _zone_or_kind(skill: SkillProfile, state: ElementState) -> str | None:
-    if skill.kind == "keepout" and not state.keepout:
-        return "not marked as a keepout zone"
-    if skill.kind == "speed" and state.speed_limit != skill.limit_percent:
-        return f"not marked as a {skill.limit_percent} % speed zone"
-    if not skill.is_mask and VIRTUAL_TYPE in state.ifc_types:
-        return "a virtual element (zones are in masks only)"
-    return None
-
-
-def _filters(skill: SkillProfile, state: ElementState) -> str | None:
-    if skill.include_types and _excluded_type(skill.include_types, state) is None:
-        return f"not among include_types {list(skill.include_types)}"
-    if skill.exclude_types and (t := _excluded_type(skill.exclude_types, state)) is not None:
-        return f"excluded type {t}"
-    for word in skill.exclude_materials:
-        faced = [m for m in sorted(state.facing_materials) if _material_word(word).search(m)]
-        if faced:
-            return f"made of {word} ({faced[0]})"
-    return None
-
-
 def why_not(skill: SkillProfile, state: ElementState, bounds: Any, z_lo: float, z_hi: float) -> str:
-    """Why ``skill`` does not draw the element (it has geometry near the point)."""
-    if state.removed:
-        return "removed"
-    if state.is_open is True:
-        return "a door observed open (passable)"
-    reason = _zone_or_kind(skill, state) or _filters(skill, state)
+    """Why ``skill`` does not draw the element (it has geometry near the point): the selection's own
+    reason (:func:`~twin.live.selection.rejection`), else its place outside the height band."""
+    reason = rejection(skill, state, has_geometry=True)
     if reason is not None:
         return reason
     if bounds[5] < z_lo or bounds[2] > z_hi:
@@ -135,7 +101,7 @@ def explain_cell(
             f"y {f.origin_y:.2f}..{f.origin_y + f.height * f.resolution_m:.2f})."
         )
         raise ExplainError(msg)
-    pad = math.floor(plan.inflation_cells + 1e-9)
+    pad = plan.inflation_pad
     cell = Window(row, col, row + 1, col + 1)
     occupied = live.maps.elements_at((storey, skill), cell)
     inflated = []
@@ -154,10 +120,7 @@ def explain_cell(
             continue
         if b[2] > plan.storey.elevation_m + 10.0:
             continue
-        chosen = not needs_store(profile) and selects(profile, state, has_geometry=True)
         reason = why_not(profile, state, b, plan.z_lo, plan.z_hi)
-        if chosen and not reason.startswith("outside the height band"):
-            reason = "selected, but its geometry does not touch this cell"
         near.append((math.hypot(dx, dy), iri, state, reason))
     near.sort(key=lambda t: (t[0], t[1]))
     details = _details(store, [*occupied, *inflated, *(i for _, i, _, _ in near)])

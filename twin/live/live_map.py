@@ -14,7 +14,8 @@ import numpy.typing as npt
 
 from twin.grid import GridData, OccupancyGrid, Window
 from twin.live.overlay import MapKey
-from twin.maps import BoolGrid, MapPlan
+from twin.maps import MapPlan
+from twin.raster import BoolArray
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -37,9 +38,9 @@ class LiveMap:
     """Which base elements the skill selects."""
     overlay: set[str]
     """Which overlay elements the skill selects."""
-    static: BoolGrid
+    static: BoolArray
     """Occupancy (before inflation) of the selected, visible base elements, whole grid."""
-    inside: BoolGrid | None
+    inside: BoolArray | None
     """Cells inside a space (only for ``unknown_outside`` skills)."""
     data: GridData
     version: int = 1

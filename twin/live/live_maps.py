@@ -42,7 +42,8 @@ from twin.live.overlay import (
     dirty_windows,
     grow,
 )
-from twin.maps import BoolGrid, occupancy, plan_map
+from twin.maps import occupancy, plan_map
+from twin.raster import BoolArray
 from twin.records import GeometryChange, Shape
 from twin.scene import Scene
 from twin.skills import SkillProfile
@@ -66,7 +67,7 @@ class LiveMaps(Drawing):
         scene: Scene,
         *,
         margin_m: float,
-        hidden: BoolGrid,
+        hidden: BoolArray,
         overlay: Mapping[str, Shape],
         maps: Iterable[LiveMap],
     ) -> LiveMaps:
@@ -181,7 +182,7 @@ class LiveMaps(Drawing):
                     max(w.col1 for w in windows),
                 )
                 if u.shape[0] * u.shape[1] <= _AT_ONCE_AREA * sum(w.shape[0] * w.shape[1] for w in windows):
-                    grown = grow(u, math.floor(m.plan.inflation_cells + 1e-9)).intersect(m.plan.frame.full)
+                    grown = grow(u, m.plan.inflation_pad).intersect(m.plan.frame.full)
                     source = (grown, self._occupancy_at_once(m, grown))
             fresh = [(win, self.render(m, win, source=source)) for win in windows]
             for win, cells in fresh:  # all rendered before any is written

@@ -20,9 +20,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from twin.grid import Window
-from twin.maps import BoolGrid, MapPlan
+from twin.maps import MapPlan
+from twin.raster import BoolArray
 from twin.raster.boxes import box_footprint
-from twin.records import FloatArray, Shape
+from twin.records import FloatArray, Shape, to_world
 from twin.scene import MeshSet
 
 MapKey = tuple[str, str]
@@ -46,7 +47,7 @@ class OverlayElement:
         mesh, placement = shape
         if not mesh.triangle_count:
             return cls(shape, None)
-        world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]  # as MeshSet.build, bit for bit
+        world = to_world(mesh.vertices, placement)  # as MeshSet.build, bit for bit
         used = world[mesh.faces.ravel()]
         b = np.concatenate([used.min(axis=0), used.max(axis=0)])
         footprint = box_footprint(mesh.vertices, placement) if is_upright_box(shape) else None
@@ -82,8 +83,8 @@ def is_upright_box(shape: Shape) -> bool:
 class RasterCache:
     """Occupancy of each overlay element on each map's grid, in the element's own window."""
 
-    cells: dict[tuple[str, MapKey], tuple[Window, BoolGrid] | None] = field(default_factory=dict)
-    shared: dict[tuple[str, object], tuple[Window, BoolGrid] | None] = field(default_factory=dict)
+    cells: dict[tuple[str, MapKey], tuple[Window, BoolArray] | None] = field(default_factory=dict)
+    shared: dict[tuple[str, object], tuple[Window, BoolArray] | None] = field(default_factory=dict)
     """Upright boxes: one raster per frame, for every map of that frame whose band they cross."""
 
     def drop(self, iri: str) -> None:

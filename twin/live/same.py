@@ -1,7 +1,7 @@
 """What counts as the same geometry: the re-confirmation tolerances applied to meshes and placements.
 
-A robot re-reports what it sees many times a second; a report within :data:`~twin.tolerances.SAME_POSITION_M`
-of every world vertex and :data:`~twin.tolerances.SAME_ANGLE_RAD` of the orientation is the same shape, so
+A robot re-reports what it sees many times a second; a report within ``TOLERANCES.same_position_m``
+of every world vertex and ``same_angle_rad`` of the orientation is the same shape, so
 the observation is a re-confirmation and changes nothing. Box placements are quantised far below those
 tolerances before they are written (shorter literals in the store).
 
@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.records import FloatArray, Mesh, Shape
-from twin.tolerances import SAME_ANGLE_RAD, SAME_POSITION_M
+from twin.records import FloatArray, Mesh, Shape, to_world
+from twin.tolerances import TOLERANCES
 
 
 def same_mesh(a: Mesh, b: Mesh) -> bool:
@@ -33,8 +33,8 @@ def same_mesh(a: Mesh, b: Mesh) -> bool:
 
 def same_shape(a: Shape, b: Shape) -> bool:
     """The same geometry within the re-confirmation tolerances: the same faces, every world vertex
-    within :data:`~twin.tolerances.SAME_POSITION_M`, the orientation within
-    :data:`~twin.tolerances.SAME_ANGLE_RAD`."""
+    within ``TOLERANCES.same_position_m``, the orientation within
+    ``same_angle_rad``."""
     (ma, pa), (mb, pb) = a, b
     if (ma.closed, ma.solid, ma.faces.shape, ma.vertices.shape) != (
         mb.closed,
@@ -45,14 +45,14 @@ def same_shape(a: Shape, b: Shape) -> bool:
         return False
     if ma is not mb and not np.array_equal(ma.faces, mb.faces):
         return False
-    wa = ma.vertices @ pa[:3, :3].T + pa[:3, 3]
-    wb = mb.vertices @ pb[:3, :3].T + pb[:3, 3]
-    if len(wa) and float(np.abs(wa - wb).max()) > SAME_POSITION_M:
+    wa = to_world(ma.vertices, pa)
+    wb = to_world(mb.vertices, pb)
+    if len(wa) and float(np.abs(wa - wb).max()) > TOLERANCES.same_position_m:
         return False
     # the angle of the relative rotation (orthonormal parts of the placements)
     r = _rotation(pa).T @ _rotation(pb)
     cos = (float(np.trace(r)) - 1.0) / 2.0
-    return bool(np.arccos(np.clip(cos, -1.0, 1.0)) <= SAME_ANGLE_RAD)
+    return bool(np.arccos(np.clip(cos, -1.0, 1.0)) <= TOLERANCES.same_angle_rad)
 
 
 def _rotation(p: FloatArray) -> FloatArray:

@@ -9,6 +9,7 @@ writer asks the store for those.
 Example::
 
     selects(skill, states[iri], has_geometry=shape is not None)      # True / False
+    rejection(skill, states[iri], has_geometry=True)                 # None, or "excluded type IfcDoor"
 """
 
 from __future__ import annotations
@@ -35,44 +36,71 @@ def _material_word(word: str) -> re.Pattern[str]:
     return re.compile(rf"(?:^|[\W_]){re.escape(word)}(?:$|[\W_])", re.IGNORECASE)
 
 
-def _has_type(state: ElementState, types: tuple[str, ...]) -> bool:
+def _first_type(state: ElementState, types: tuple[str, ...]) -> str | None:
+    """The first of ``types`` the element has (an IFC name with subtypes, or a class), None if none."""
     for t in types:
         iri = class_iri(t)
         if (iri is not None and iri in state.classes) or (iri is None and t in state.ifc_types):
-            return True
-    return False
+            return t
+    return None
 
 
-def _zone_fits(skill: SkillProfile, state: ElementState) -> bool:
+def _zone_misfit(skill: SkillProfile, state: ElementState) -> str | None:
     """Masks show their zones only; maps of the building never show virtual elements."""
     if skill.kind == "keepout":
-        return state.keepout
+        return None if state.keepout else "not marked as a keepout zone"
     if skill.kind == "speed":
-        return state.speed_limit == skill.limit_percent
-    return VIRTUAL_TYPE not in state.ifc_types
+        if state.speed_limit == skill.limit_percent:
+            return None
+        return f"not marked as a {skill.limit_percent} % speed zone"
+    return "a virtual element (zones are in masks only)" if VIRTUAL_TYPE in state.ifc_types else None
+
+
+def rejection(  # noqa: PLR0911 (one return per test, in the order their reasons are given)
+    skill: SkillProfile, state: ElementState, *, has_geometry: bool
+) -> str | None:
+    """Why ``skill`` does not select the element, None when it does: the one rule, in memory, that
+    ``selection_query(skill)`` states in SPARQL (:func:`selects` is this rule's yes or no, and
+    ``twin explain`` gives its reasons).
+
+    The first failing test names the reason: ``"removed"``, ``"no geometry"``, ``"a door observed
+    open (passable)"``, ``"not a building element"``, a zone the element is not marked as, ``"a virtual
+    element ..."``, ``"not among include_types [...]"``, ``"excluded type IfcX"``, ``"made of glass
+    (Glass - Clear)"``. For a skill with a custom ``sparql`` pattern only the rest of its selection is
+    judged: the pattern needs the store (:func:`needs_store`).
+    """
+    if state.removed:
+        return "removed"
+    if not has_geometry:
+        return "no geometry"
+    if state.is_open is True:
+        return "a door observed open (passable)"
+    if "https://w3id.org/bot#Element" not in state.classes:
+        return "not a building element"
+    if (misfit := _zone_misfit(skill, state)) is not None:
+        return misfit
+    if skill.include_types and _first_type(state, skill.include_types) is None:
+        return f"not among include_types {list(skill.include_types)}"
+    if skill.exclude_types and (t := _first_type(state, skill.exclude_types)) is not None:
+        return f"excluded type {t}"
+    for word in skill.exclude_materials:
+        pattern = _material_word(word)
+        faced = [m for m in sorted(state.facing_materials) if pattern.search(m)]
+        if faced:
+            return f"made of {word} ({faced[0]})"
+    return None
 
 
 def selects(skill: SkillProfile, state: ElementState, *, has_geometry: bool) -> bool:
-    """Whether ``skill`` selects the element (what ``selection_query(skill)`` would answer).
+    """Whether ``skill`` selects the element (what ``selection_query(skill)`` would answer): no
+    :func:`rejection`.
 
     Raises ValueError for a skill with a custom ``sparql`` pattern (see :func:`needs_store`).
     """
     if needs_store(skill):
         msg = f"Skill {skill.name!r} has a SPARQL pattern: its selection needs the store."
         raise ValueError(msg)
-    if state.removed or not has_geometry or state.is_open is True:
-        return False
-    if "https://w3id.org/bot#Element" not in state.classes or not _zone_fits(skill, state):
-        return False
-    if skill.include_types and not _has_type(state, skill.include_types):
-        return False
-    if skill.exclude_types and _has_type(state, skill.exclude_types):
-        return False
-    for word in skill.exclude_materials:
-        pattern = _material_word(word)
-        if any(pattern.search(m) for m in state.facing_materials):
-            return False
-    return True
+    return rejection(skill, state, has_geometry=has_geometry) is None
 
 
 def membership(

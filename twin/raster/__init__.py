@@ -40,15 +40,14 @@ from twin.raster.loops import closed_sections
 from twin.raster.settings import (
     MAX_VERTICES,
     RASTER_SETTINGS,
-    TOLERANCES,
     BoolArray,
     FloatArray,
     IndexArray,
     Int8Array,
     RasterSettings,
     Spans,
-    Tolerances,
 )
+from twin.tolerances import TOLERANCES, Tolerances
 
 __all__ = [
     "MAX_VERTICES",

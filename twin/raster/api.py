@@ -6,16 +6,9 @@ import numpy as np
 
 from twin.grid import GridFrame, Window
 from twin.raster.clip import SlabGeometry, _check_inputs, _check_window, _parts, _Polygons, _region
-from twin.raster.settings import (
-    RASTER_SETTINGS,
-    TOLERANCES,
-    BoolArray,
-    FloatArray,
-    IndexArray,
-    RasterSettings,
-    Tolerances,
-)
+from twin.raster.settings import RASTER_SETTINGS, BoolArray, FloatArray, IndexArray, RasterSettings
 from twin.raster.spans import _Cells, _expand
+from twin.tolerances import TOLERANCES, Tolerances
 
 
 def rasterize_slab(  # noqa: PLR0917 (the map generator's established call)

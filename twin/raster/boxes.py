@@ -21,7 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from twin.grid import GridFrame, Window
-from twin.raster.settings import TOLERANCES, BoolArray, FloatArray, Tolerances
+from twin.raster.settings import BoolArray, FloatArray
+from twin.tolerances import TOLERANCES, Tolerances
 
 
 def box_footprint(vertices: FloatArray, placement: FloatArray) -> FloatArray:

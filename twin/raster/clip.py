@@ -22,8 +22,8 @@ from twin.raster.settings import (
     IndexArray,
     Int8Array,
     RasterSettings,
-    Tolerances,
 )
+from twin.tolerances import Tolerances
 
 
 class _Polygons(NamedTuple):

@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from twin.raster.clip import _min_max, _section
-from twin.raster.settings import TOLERANCES, BoolArray, FloatArray, IndexArray, Tolerances
+from twin.raster.settings import BoolArray, FloatArray, IndexArray
+from twin.tolerances import TOLERANCES, Tolerances
 
 _SHIFT = 0.318309886  # joints are cells of a grid shifted off round numbers (model coordinates often are)
 

@@ -1,4 +1,5 @@
-"""Numerical tolerances, work sizes and the array types shared by the rasterising modules."""
+"""Work sizes and the array types shared by the rasterising modules; their tolerances are the twin's
+(:class:`twin.tolerances.Tolerances`)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,6 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.errors import MapError
-from twin.tolerances import SECTION_JOIN_M
 
 FloatArray = npt.NDArray[np.float64]
 IndexArray = npt.NDArray[np.intp]
@@ -18,24 +18,6 @@ Spans = tuple[IndexArray, IndexArray, IndexArray]  # (row, first column, last co
 
 #: Polygon slots: a triangle clipped by two planes has at most 5 vertices.
 MAX_VERTICES = 5
-
-
-@dataclass(frozen=True, slots=True)
-class Tolerances:
-    """Numerical tolerances of rasterising.
-
-    Attributes:
-        cell_m: cells are shrunk (solid geometry) or grown (degenerate open surfaces) by this many
-            metres; an open polygon is degenerate when its area is at most ``cell_m`` times its extent.
-        join_m: section endpoints closer than this are one joint when deciding whether a solid's
-            open mesh has a section made of closed loops (:func:`twin.raster.closed_sections`).
-    """
-
-    cell_m: float = 1e-9
-    join_m: float = SECTION_JOIN_M
-
-
-TOLERANCES = Tolerances()
 
 
 @dataclass(frozen=True, slots=True)

@@ -16,8 +16,8 @@ from twin.raster.settings import (
     Int8Array,
     RasterSettings,
     Spans,
-    Tolerances,
 )
+from twin.tolerances import Tolerances
 
 
 class _Cells:

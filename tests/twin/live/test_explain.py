@@ -9,6 +9,8 @@ from tests.twin.box_lab import OX, OY, element_iri, spec
 from tests.twin.live_helpers import PREFIX, box_turtle, observe, started
 from twin.live import TwinService
 from twin.live.requests import Reply
+from twin.live.selection import rejection
+from twin.skill_selection import selection_query
 
 GROUND = "ground-floor"
 TABLE = "urn:robot1:table-1"
@@ -79,3 +81,21 @@ def test_an_unknown_map_or_a_point_outside_it_is_refused_by_name(
     service, _ = started()
     reply = explain(service, skill, x, 1.0, storey=storey)
     assert not reply.ok and message in str(reply.body["error"])
+
+
+def test_explain_gives_the_selection_s_own_reasons_and_none_only_for_what_sparql_selects() -> None:
+    service, _ = started()
+    observe(service, "robot1", box_turtle(TABLE, 11.5, 2.0))
+    observe(service, "robot1", f"{PREFIX}<{element_iri(spec('Door A'))}> twin:isOpen true .".encode())
+    for skill in service.skills.values():
+        by_store = {r["element"] for r in service.store.select(selection_query(skill))}
+        for iri, state in service.states.items():
+            reason = rejection(skill, state, has_geometry=service.engine.shape_of(iri) is not None)
+            assert (reason is None) == (iri in by_store), (skill.name, iri, reason)
+    answer = explain(service, "localization", 11.9, 2.0).body  # the glass wall and the table are near
+    near = {e["iri"]: e["why_not"] for e in answer["near"]}  # type: ignore[attr-defined]
+    skill = service.skills["localization"]
+    assert {near[i] for i in near} >= {"made of glass (Glass)", "excluded type IfcFurnishingElement"}
+    for iri, why in near.items():
+        reason = rejection(skill, service.states[iri], has_geometry=True)
+        assert why == reason or (reason is None and why.startswith(("outside the height band", "selected")))

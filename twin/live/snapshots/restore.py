@@ -25,7 +25,7 @@ from twin.live.snapshots.keys import skill_digest
 from twin.live.state import ElementState, LiveState, load_states
 from twin.maps import plan_map
 from twin.meshcodec import decode_mesh, decode_placement
-from twin.records import FloatArray, GeometryChange, Mesh, Shape
+from twin.records import FloatArray, GeometryChange, Mesh, Shape, to_world
 from twin.scene import MeshSet, Scene, StoreyInfo
 from twin.skills import SkillProfile
 from twin.snapshot import AnyArray, read_snapshot
@@ -92,7 +92,7 @@ class Restored:
             if lo_row == hi_row:
                 continue
             _, mesh, placement = self.items[i]
-            world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]
+            world = to_world(mesh.vertices, placement)
             t = els.triangles[lo_row:hi_row]
             t[...] = world[mesh.faces]
             lo = np.minimum(np.minimum(t[:, 0], t[:, 1]), t[:, 2])
@@ -288,7 +288,7 @@ def replay(
     for g in geometry:
         if g.iri in base.index and g.new is not None and len(g.new[0].faces):
             mesh, placement = g.new
-            world = (mesh.vertices @ placement[:3, :3].T + placement[:3, 3])[mesh.faces.ravel()]
+            world = to_world(mesh.vertices, placement)[mesh.faces.ravel()]
             boxes.append(np.concatenate([world.min(axis=0), world.max(axis=0)]))
     boxes = [b for b in boxes if not np.isnan(b).any()]
     if boxes:
