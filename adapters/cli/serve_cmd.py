@@ -162,7 +162,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
                 ros = RosMapPublisher(
                     session, cfg, keys=keys, sinks=service.sinks, revision=lambda: service.revision,
-                    maps=daemon.maps,
+                    maps=daemon.maps, request=service.submit_storey,
                 )  # fmt: skip
                 daemon.status_sources.append(ros.status)
                 daemon.followers.append(ros)  # on the daemon's dispatcher, a lane per robot

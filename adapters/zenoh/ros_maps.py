@@ -105,6 +105,7 @@ from twin.events import (
     TwinSink,
     TwinStarted,
 )
+from twin.live.requests import Reply
 
 log = logging.getLogger(__name__)
 
@@ -200,8 +201,14 @@ class RosMapPublisher:
         revision: Callable[[], int] = lambda: 0,
         clock: Callable[[], int] | None = None,
         maps: LatestMaps | None = None,
+        request: StoreyRequester | None = None,
     ) -> None:
         self.session = session
+        self.request = request
+        """The writer's storey requests (``TwinService.submit_storey``): given, every switch is decided
+        by the twin's writer, and this publisher republishes a robot's topics when the writer's
+        :class:`RobotStoreyChanged` reaches it (:meth:`emit`); without it (standalone), :meth:`switch`
+        decides and emits to ``sinks`` itself."""
         self._own_maps = maps is None
         self.maps = (
             maps
@@ -326,6 +333,8 @@ class RosMapPublisher:
                     self._update(event)
                 elif isinstance(event, MapRemoved) and self._own_maps:
                     self.maps.remove((event.storey, event.skill))
+                elif isinstance(event, RobotStoreyChanged) and self.request is not None:
+                    self._apply(event.robot, event.storey)  # the writer decided: republish
         except Exception:  # a ROS layout must never stop the twin
             log.exception("Publishing %s to ROS 2 robots failed", type(event).__name__)
 
@@ -422,11 +431,10 @@ class RosMapPublisher:
         return r
 
     def switch(self, robot: str, storey: str, *, source: Source = "zenoh") -> RobotStoreyChanged | None:
-        """Put ``robot`` on ``storey``: every topic of the robot republishes that storey's maps, latched.
-
-        Returns the event (also emitted to the sinks), or None when the robot was already there.
-        Raises StoreySwitchError, changing nothing, for an unknown robot or storey.
-        """
+        """Put ``robot`` on ``storey`` here, without the writer (a standalone publisher): every topic of
+        the robot republishes that storey's maps, latched. Returns the event (also emitted to the sinks),
+        or None when the robot was already there. Raises StoreySwitchError, changing nothing, for an
+        unknown robot or storey. In the daemon, switches go through the writer (:meth:`ask`)."""
         with self._lock:
             r = self._robot(robot)
             try:
@@ -442,8 +450,48 @@ class RosMapPublisher:
             except StoreySwitchError as err:
                 r.refused = str(err)
                 raise
-            if r.storey == storey:
+            changed, previous = self._apply(robot, storey)
+            if not changed:
                 return None
+            event = RobotStoreyChanged(robot, storey, previous, source, self.revision(), self.clock())
+        for sink in list(self.sinks):
+            if sink is self:
+                continue
+            try:
+                sink.emit(event)
+            except Exception:  # a sink must never stop the switch
+                log.exception("Sink %s failed on %s", type(sink).__name__, type(event).__name__)
+        return event
+
+    def ask(self, robot: str, storey: str, *, source: Source, reply: Callable[[Reply], None]) -> None:
+        """Ask for ``robot`` on ``storey``: through the writer when there is one (``reply`` gets its
+        answer, on the writer's thread), else at once by :meth:`switch`."""
+        if self.request is not None:
+
+            def answered(answer: Reply) -> None:
+                if not answer.ok:
+                    with self._lock:
+                        known = self._robots.get(robot)
+                        if known is not None:
+                            known.refused = str(answer.body.get("error", ""))
+                reply(answer)
+
+            self.request(robot, storey, source=source, reply=answered)
+            return
+        try:
+            self.switch(robot, storey, source=source)
+        except TwinError as err:
+            reply(Reply.error(str(err)))
+            return
+        reply(Reply(True, {"ok": True, "robot": robot, "storey": storey}))
+
+    def _apply(self, robot: str, storey: str) -> tuple[bool, str | None]:
+        """Republish every topic of ``robot`` with ``storey``'s maps; returns whether it moved (False:
+        it was there already, nothing sent) and the storey it was on."""
+        with self._lock:
+            r = self._robots.get(robot)
+            if r is None or r.storey == storey:
+                return False, storey
             previous, r.storey = r.storey, storey
             stamp = self.clock()
             r.switches += 1
@@ -455,25 +503,18 @@ class RosMapPublisher:
                     log.warning("No %s map of storey %s yet for %s/%s", t.skill, storey, robot, t.name)
                     continue
                 self._send_full(r, t)
-            event = RobotStoreyChanged(robot, storey, previous, source, self.revision(), stamp)
-        log.info("Robot %s is now on storey %s (was %s), via %s: %d topic(s) republished",
-                 robot, storey, previous, source, len(r.topics))  # fmt: skip
-        for sink in list(self.sinks):
-            if sink is self:
-                continue
-            try:
-                sink.emit(event)
-            except Exception:  # a sink must never stop the switch
-                log.exception("Sink %s failed on %s", type(sink).__name__, type(event).__name__)
-        return event
+        log.info("Robot %s is now on storey %s (was %s): %d topic(s) republished",
+                 robot, storey, previous, len(r.topics))  # fmt: skip
+        return True, previous
 
     def _ros_storey_handler(self, robot: str) -> Callable[[zenoh.Sample], None]:
         def on_sample(sample: zenoh.Sample) -> None:
             try:
                 storey = decode_string(sample.payload.to_bytes()).strip()
-                self.switch(robot, storey, source="ros")
             except TwinError as err:
                 log.warning("Refused a storey on %s: %s", sample.key_expr, err)
+                return
+            self.ask(robot, storey, source="ros", reply=_warn_refusal(str(sample.key_expr)))
 
         return on_sample
 
@@ -482,9 +523,11 @@ class RosMapPublisher:
             return
         robot = str(sample.key_expr).split("/")[-2]
         try:
-            self.switch(robot, _storey_text(sample.payload.to_bytes()), source="zenoh")
+            storey = _storey_text(sample.payload.to_bytes())
         except TwinError as err:  # a put has no reply: a warning, never a traceback
             log.warning("Refused a storey put on %s: %s", sample.key_expr, err)
+            return
+        self.ask(robot, storey, source="zenoh", reply=_warn_refusal(str(sample.key_expr)))
 
     def _on_storey_get(self, query: zenoh.Query) -> None:
         assert self.keys is not None
@@ -502,10 +545,23 @@ class RosMapPublisher:
                 names = [n for n in self._robots if zenoh.KeyExpr(self.keys.robot_storey(n)).intersects(key)]
         else:
             names = [key.split("/")[-2]]
+        if wanted and len(names) == 1:
+            name = names[0]
+            keys = self.keys
+
+            def answer(reply: Reply) -> None:  # on the writer's thread once it decided
+                try:
+                    if reply.ok:
+                        query.reply(keys.robot_storey(name), wanted.encode(), encoding=TEXT)
+                    else:
+                        query.reply_err(str(reply.body.get("error", "refused")).encode(), encoding=TEXT)
+                except Exception:  # the asker may have gone
+                    log.debug("Could not answer a storey switch of %s", name, exc_info=True)
+
+            self.ask(name, wanted, source="zenoh", reply=answer)
+            return
         for name in names:
             try:
-                if wanted:
-                    self.switch(name, wanted, source="zenoh")
                 storey = self.storey_of(name)
             except TwinError as err:
                 query.reply_err(str(err).encode(), encoding=TEXT)
@@ -596,3 +652,15 @@ def _storey_text(payload: bytes) -> str:
 
 
 __all__ = ["NODE_NAME", "STOREY_TOPIC", "RosMapPublisher"]
+
+
+StoreyRequester = Callable[..., None]
+"""``TwinService.submit_storey(robot, storey, *, source, reply)``."""
+
+
+def _warn_refusal(where: str) -> Callable[[Reply], None]:
+    def warn(reply: Reply) -> None:
+        if not reply.ok:
+            log.warning("Refused a storey on %s: %s", where, reply.body.get("error"))
+
+    return warn

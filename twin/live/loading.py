@@ -103,6 +103,7 @@ def load_live_or_restore(
         last_seen={},
         held={},
         fusion=load_fusion(store, time.time_ns()),
+        robot_storeys={n: r.storey for n, r in config.robots.items() if r.storey},
     )
     return live, model_iri.removesuffix("model"), restored
 

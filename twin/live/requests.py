@@ -56,7 +56,17 @@ class ExplainRequest:
     reply: ReplyFn | None
 
 
-Request = ObserveRequest | SkillRequest | ExplainRequest
+@dataclass(frozen=True, slots=True)
+class StoreyRequest:
+    """Put ``robot`` on ``storey`` (it took the lift); ``source`` says who asked (``"zenoh"``, ``"ros"``)."""
+
+    robot: str
+    storey: str
+    source: str
+    reply: ReplyFn | None
+
+
+Request = ObserveRequest | SkillRequest | ExplainRequest | StoreyRequest
 
 
 class RequestQueue:
@@ -75,7 +85,9 @@ class RequestQueue:
     def depth(self) -> int:
         return self._queue.qsize() + (self._held is not None)
 
-    def take(self, timeout_s: float = 0.0) -> list[ObserveRequest] | SkillRequest | ExplainRequest | None:
+    def take(
+        self, timeout_s: float = 0.0
+    ) -> list[ObserveRequest] | SkillRequest | ExplainRequest | StoreyRequest | None:
         """The next work: a batch of up to ``max_batch`` observations queued in a row, or one other
         request; None if nothing came within ``timeout_s`` (0: do not wait)."""
         if self._held is not None:

@@ -27,7 +27,7 @@ from collections.abc import Callable, Sequence
 
 from twin.config import Config
 from twin.errors import TwinError
-from twin.events import ElementShape, TwinEvent, TwinSink, TwinStarted
+from twin.events import ElementShape, RobotStoreyChanged, TwinEvent, TwinSink, TwinStarted
 from twin.live.explain import explain_cell
 from twin.live.live_maps import LiveMaps
 from twin.live.loading import catch_up, load_live_or_restore
@@ -42,6 +42,7 @@ from twin.live.requests import (
     Request,
     RequestQueue,
     SkillRequest,
+    StoreyRequest,
 )
 from twin.live.skill_changes import apply_skill, publish_all_maps
 from twin.live.snapshots import Restored, Snapshots
@@ -230,6 +231,19 @@ class TwinService:
         is; ``reply`` gets the answer (see :mod:`twin.live.explain`)."""
         self._queue.put(ExplainRequest(storey, skill, x, y, reply))
 
+    def submit_storey(
+        self, robot: str, storey: str, *, source: str = "zenoh", reply: ReplyFn | None = None
+    ) -> None:
+        """Queue a robot's storey switch (the lift): the writer checks the robot and the storey, keeps the
+        robot's storey and emits :class:`~twin.events.RobotStoreyChanged` to the sinks (the ROS 2
+        publisher republishes that robot's topics on it); ``reply`` gets ``{"storey", "previous",
+        "changed"}`` or the refusal naming the unknown robot or storey."""
+        self._queue.put(StoreyRequest(robot, storey, source, reply))
+
+    def robot_storey(self, robot: str) -> str | None:
+        """The storey the writer last put ``robot`` on (its configured one at start)."""
+        return self.live.robot_storeys.get(robot)
+
     def submit_skill(self, name: str, payload: bytes | None, reply: ReplyFn | None = None) -> None:
         """Queue a skill profile (JSON) to add or replace ``name``, or its removal (``payload`` None)."""
         self._queue.put(SkillRequest(name, None if payload is None else bytes(payload), reply))
@@ -263,6 +277,9 @@ class TwinService:
                 handled += len(work)
             elif isinstance(work, ExplainRequest):
                 self._explain(work)
+                handled += 1
+            elif isinstance(work, StoreyRequest):
+                self._switch_storey(work)
                 handled += 1
             else:
                 self._change_skill(work)
@@ -307,6 +324,34 @@ class TwinService:
             log.exception("Internal error while explaining a cell")
             reply = Reply.error(f"Internal error ({type(err).__name__}): {err}")
         _send(req, reply)
+
+    def _switch_storey(self, req: StoreyRequest) -> None:
+        live = self.live
+        if req.robot not in self.config.robots:
+            known = ", ".join(sorted(self.config.robots)) or "none"
+            _send(
+                req,
+                Reply.error(f"Unknown robot {req.robot!r}: configured robots ([robots.NAME]) are {known}."),
+            )
+            return
+        if req.storey not in live.site.storeys:
+            known = ", ".join(s.key for s in live.maps.scene.storeys) or "none"
+            _send(
+                req,
+                Reply.error(
+                    f"Unknown storey {req.storey!r} for robot {req.robot!r}: the twin's storeys are {known}."
+                ),
+            )
+            return
+        previous = live.robot_storeys.get(req.robot)
+        changed = previous != req.storey
+        if changed:
+            live.robot_storeys[req.robot] = req.storey
+            self._emit(
+                RobotStoreyChanged(req.robot, req.storey, previous, req.source, live.revision, self.clock())
+            )
+        body: dict[str, object] = {"ok": True, "robot": req.robot, "storey": req.storey, "previous": previous}
+        _send(req, Reply(True, body | {"changed": changed}))
 
     def _change_skill(self, req: SkillRequest) -> None:
         try:

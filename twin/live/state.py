@@ -166,6 +166,8 @@ class LiveState:
     """Subject -> predicate -> the exact object of each single-valued triple the writer last wrote (so
     that the next change deletes that triple exactly instead of by a pattern)."""
     fusion: FusionMemory = field(default_factory=FusionMemory)
+    robot_storeys: dict[str, str] = field(default_factory=dict)
+    """Configured robot -> the storey it is on (configured at start, switched by storey requests)."""
     """What robots saw and missed of each element, and the robot IRIs that resolved to elements."""
 
     def advance(self, revision: int) -> None:
