@@ -47,7 +47,15 @@ from adapters.zenoh.latched import BLOCK, CDR, MAP_PRIORITY, Answer, LatchedPubl
 from adapters.zenoh.latest import LatestMaps
 from adapters.zenoh.outbox import Outbox
 from twin.errors import TwinError
-from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent, TwinSink, TwinStarted
+from twin.events import (
+    MapPublished,
+    MapRemoved,
+    MapUpdated,
+    RobotStoreyChanged,
+    TwinEvent,
+    TwinSink,
+    TwinStarted,
+)
 from twin.live import Reply, TwinService
 
 log = logging.getLogger(__name__)
@@ -102,7 +110,7 @@ class ZenohDaemon:
 
     # --- sink ---------------------------------------------------------------------------------------
     def emit(self, event: TwinEvent) -> None:
-        if isinstance(event, MapPublished | MapUpdated | MapRemoved | TwinStarted):
+        if isinstance(event, MapPublished | MapUpdated | MapRemoved | TwinStarted | RobotStoreyChanged):
             self.outbox.put(lambda: self._dispatch(event))
 
     def drain(self) -> None:
