@@ -1,0 +1,403 @@
+"""Which voxels a set of triangles touches, exactly, and the surface point nearest each voxel's centre.
+
+Coordinates here are *cell coordinates*: world metres minus the grid origin, divided by the voxel size,
+computed once per vertex in float64 (``(x - origin) / resolution``). Voxel ``(i, j, k)`` is the
+half-open box ``[i, i+1) x [j, j+1) x [max(k, w_lo), min(k+1, w_hi))``: the cell, cut by the height
+band ``[w_lo, w_hi)``. A triangle (a closed set) *touches* a voxel when they share a point.
+
+The test is the separating axis theorem for a triangle and a box (13 axes), with two refinements that
+make it exact rather than approximate:
+
+- half-open boxes: a triangle that meets a box only on its upper faces (``x = i+1`` ...) does not
+  touch it; on an axis, that is a projection touching the box's interval at an end that moves inward
+  when the upper faces move in (the limit of closed boxes shrunk by ``d -> 0+``);
+- rounding: the three box axes compare the vertices themselves (exact); on the ten other axes, a
+  projection within a rounding bound of a tie is decided again in exact rational arithmetic
+  (:func:`_exact_touch`, Python integers), so float noise never adds or drops a voxel.
+
+Candidates are enumerated per triangle by columns along its dominant normal axis (a big slanted
+triangle costs its area in voxels, not its bounding box's volume), in batches of bounded size.
+
+Example::
+
+    tri, ijk = touched_voxels(cells, lo=(0, 0, -1), hi=(200, 150, 30), w_band=(-0.5, 30.0))
+    q, d2 = nearest_points(cells[tri], ijk, w_band=(-0.5, 30.0))    # one point in each touched voxel
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+_BATCH = 400_000
+"""Candidate (triangle, voxel) pairs tested at once (bounds the memory of a batch to ~100 MB)."""
+_TOL = 1e-13
+"""Rounding bound (relative to the magnitudes involved, ~450 ulp) under which a projection counts
+as a possible tie (decided exactly)."""
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype=np.float64)
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
+    return np.asarray(a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2])
+
+
+# --- candidates ------------------------------------------------------------------------------------
+def _columns(
+    cells: FloatArray, lo: IntArray, hi: IntArray
+) -> tuple[IntArray, IntArray, IntArray, IntArray, IntArray]:
+    """Per triangle: its dominant axis ``d``, the other two ``p, q``, and its index ranges per axis
+    (``first``, ``last`` inclusive, clipped to ``[lo, hi)``)."""
+    n = _cross(cells[:, 1] - cells[:, 0], cells[:, 2] - cells[:, 0])
+    d = np.argmax(np.abs(n), axis=1).astype(np.int64)
+    p = (d + 1) % 3
+    q = (d + 2) % 3
+    first = np.maximum(np.floor(cells.min(axis=1)).astype(np.int64), lo)
+    last = np.minimum(np.floor(cells.max(axis=1)).astype(np.int64), hi - 1)
+    return d, p, q, first, last
+
+
+def _candidates(cells: FloatArray, lo: IntArray, hi: IntArray) -> Iterator[tuple[IntArray, IntArray]]:
+    """Batches of ``(triangle index, (m, 3) voxel index)`` pairs: a superset of the touching pairs."""
+    if not len(cells):
+        return
+    d, p, q, first, last = _columns(cells, lo, hi)
+    rows = np.arange(len(cells))
+    span_p = last[rows, p] - first[rows, p] + 1
+    span_q = last[rows, q] - first[rows, q] + 1
+    span_d = last[rows, d] - first[rows, d] + 1
+    ok = (span_p > 0) & (span_q > 0) & (span_d > 0)
+    n_cols = np.where(ok, span_p * span_q, 0)
+    n = _cross(cells[:, 1] - cells[:, 0], cells[:, 2] - cells[:, 0])
+    nd = n[rows, d]
+    # columns of a batch of triangles at a time
+    cum = np.cumsum(n_cols)
+    start = 0
+    while start < len(cells):
+        base = cum[start - 1] if start else 0
+        stop = int(np.searchsorted(cum, base + _BATCH, side="right"))
+        stop = max(stop, start + 1)
+        sel = np.arange(start, stop)
+        start = stop
+        counts = n_cols[sel]
+        if not counts.sum():
+            continue
+        tri = np.repeat(sel, counts)
+        offs = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+        a = first[tri, p[tri]] + offs % span_p[tri]
+        b = first[tri, q[tri]] + offs // span_p[tri]
+        # the plane's range of the dominant coordinate over the column's square, cut to the triangle's
+        t_lo = cells[tri, :, d[tri]].min(axis=1)
+        t_hi = cells[tri, :, d[tri]].max(axis=1)
+        flat = np.abs(nd[tri]) > 0
+        safe = np.where(flat, nd[tri], 1.0)
+        v0 = cells[tri, 0]
+        c0 = _dot(n[tri], v0)
+        np_, nq = n[tri, p[tri]], n[tri, q[tri]]
+        corners = np.stack(
+            [(c0 - np_ * (a + da) - nq * (b + db)) / safe for da in (0, 1) for db in (0, 1)], axis=1
+        )
+        # rounding of the plane (its normal from rounded edges) and of its evaluation, generously: a
+        # nearly degenerate triangle's plane is ill-conditioned, and its column is then its full range
+        big = 1.0 + np.abs(cells[tri].reshape(-1, 9)).max(axis=1)
+        mag = np.abs(c0) + (np.abs(np_) + np.abs(nq)) * (big + 2.0) + big**3
+        eps = 1e-10 * mag / np.abs(safe) + 1e-9
+        w_lo = np.where(flat, np.maximum(t_lo, corners.min(axis=1) - eps), t_lo)
+        w_hi = np.where(flat, np.minimum(t_hi, corners.max(axis=1) + eps), t_hi)
+        k0 = np.maximum(np.floor(w_lo).astype(np.int64), lo[d[tri]])
+        k1 = np.minimum(np.floor(w_hi).astype(np.int64), hi[d[tri]] - 1)
+        nk = np.maximum(k1 - k0 + 1, 0)
+        # expand each column into its voxels (in chunks: a steep column can hold many)
+        cstart = 0
+        ccum = np.cumsum(nk)
+        while cstart < len(nk):
+            cbase = ccum[cstart - 1] if cstart else 0
+            cstop = max(int(np.searchsorted(ccum, cbase + _BATCH, side="right")), cstart + 1)
+            cs = np.arange(cstart, cstop)
+            cstart = cstop
+            kk = nk[cs]
+            total = int(kk.sum())
+            if not total:
+                continue
+            col = np.repeat(cs, kk)
+            k = k0[col] + np.arange(total) - np.repeat(np.cumsum(kk) - kk, kk)
+            t = tri[col]
+            ijk = np.empty((total, 3), dtype=np.int64)
+            r = np.arange(total)
+            ijk[r, p[t]] = a[col]
+            ijk[r, q[t]] = b[col]
+            ijk[r, d[t]] = k
+            yield t, ijk
+
+
+# --- the test --------------------------------------------------------------------------------------
+def _boxes(ijk: IntArray, w_band: tuple[float, float]) -> tuple[FloatArray, FloatArray]:
+    lo = ijk.astype(np.float64)
+    hi = lo + 1.0
+    lo[:, 2] = np.maximum(lo[:, 2], w_band[0])
+    hi[:, 2] = np.minimum(hi[:, 2], w_band[1])
+    return lo, hi
+
+
+def _overlap(
+    v: FloatArray, lo: FloatArray, hi: FloatArray
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """``(touch, unsure)`` for triangles ``v (m, 3, 3)`` and half-open boxes ``[lo, hi)``: ``touch``
+    is the float verdict, ``unsure`` marks pairs within rounding of a tie on a non-box axis (to be
+    decided exactly)."""
+    vmin, vmax = v.min(axis=1), v.max(axis=1)
+    # box axes: exact comparisons (a vertex on an upper face does not enter the box)
+    touch = ((vmax >= lo) & (vmin < hi)).all(axis=1)
+    unsure = np.zeros(len(v), dtype=np.bool_)
+    r = np.flatnonzero(touch)
+    if not len(r):
+        return touch, unsure
+    v = v[r]
+    rel = v - lo[r][:, None, :]
+    size = hi[r] - lo[r]
+    e = np.stack([v[:, 1] - v[:, 0], v[:, 2] - v[:, 1], v[:, 0] - v[:, 2]], axis=1)  # (m, 3, 3)
+    # rounding bounds: |v| (vertices), |rel| (vertices from the box's corner), |e| (edges)
+    big_v = 1.0 + np.abs(v.reshape(-1, 9)).max(axis=1)
+    big_r = 1.0 + np.abs(rel.reshape(-1, 9)).max(axis=1)
+    reach = 1.0 + np.abs(e.reshape(-1, 9)).max(axis=1)
+    axes = [_cross(e[:, 0], e[:, 1])]
+    for i in range(3):
+        for j in range(3):
+            unit = np.zeros(3)
+            unit[j] = 1.0
+            axes.append(_cross(e[:, i], unit))
+    apart = np.zeros(len(r), dtype=np.bool_)
+    near = np.zeros(len(r), dtype=np.bool_)
+    r0, r1, r2 = rel[:, 0], rel[:, 1], rel[:, 2]
+    for n_axis, ax in enumerate(axes):
+        ax0, ax1, ax2 = ax[:, 0], ax[:, 1], ax[:, 2]
+        # an axis along x, y or z (or none) is a box axis's test again, decided exactly above
+        oblique = ((ax0 != 0).astype(np.int8) + (ax1 != 0) + (ax2 != 0)) >= 2
+        if not oblique.any():
+            continue
+        p0, p1, p2 = _dot(ax, r0), _dot(ax, r1), _dot(ax, r2)
+        tmin = np.minimum(np.minimum(p0, p1), p2)
+        tmax = np.maximum(np.maximum(p0, p1), p2)
+        l0, l1, l2 = ax0 * size[:, 0], ax1 * size[:, 1], ax2 * size[:, 2]
+        bmin = np.minimum(l0, 0.0) + np.minimum(l1, 0.0) + np.minimum(l2, 0.0)
+        bmax = np.maximum(l0, 0.0) + np.maximum(l1, 0.0) + np.maximum(l2, 0.0)
+        size_ax = np.abs(ax0) + np.abs(ax1) + np.abs(ax2)
+        ax_err = big_v * (reach if n_axis == 0 else 1.0)  # the axis's own rounding, in units of ulp
+        tol = _TOL * ((size_ax + ax_err) * big_r + size_ax * big_v)
+        apart |= oblique & ((tmin > bmax + tol) | (tmax < bmin - tol))
+        near |= oblique & ((np.abs(tmin - bmax) <= tol) | (np.abs(tmax - bmin) <= tol))
+    touch[r] = ~apart
+    unsure[r] = ~apart & near
+    return touch, unsure
+
+
+def _ints(values: list[float]) -> tuple[list[int], int]:
+    """``values`` as integers over one power of two: ``(numerators, exponent)``, exactly."""
+    ratios = [float(x).as_integer_ratio() for x in values]
+    shift = max(den.bit_length() - 1 for _, den in ratios)
+    return [num << (shift - (den.bit_length() - 1)) for num, den in ratios], shift
+
+
+def _exact_touch(v: FloatArray, lo: FloatArray, hi: FloatArray) -> bool:
+    """The separating axis test of one triangle and one half-open box in exact integer arithmetic."""
+    nums, _ = _ints([*v.reshape(-1).tolist(), *lo.tolist(), *hi.tolist()])
+    p = [nums[0:3], nums[3:6], nums[6:9]]
+    b0, b1 = nums[9:12], nums[12:15]
+    for a in range(3):
+        if max(x[a] for x in p) < b0[a] or min(x[a] for x in p) >= b1[a]:
+            return False
+    e = [[p[1][i] - p[0][i] for i in range(3)], [p[2][i] - p[1][i] for i in range(3)]]
+    e.append([p[0][i] - p[2][i] for i in range(3)])
+
+    def cross(x: list[int], y: list[int]) -> list[int]:
+        return [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]]
+
+    axes = [cross(e[0], e[1])]
+    for i in range(3):
+        for j in range(3):
+            unit = [0, 0, 0]
+            unit[j] = 1
+            axes.append(cross(e[i], unit))
+    for ax in axes:
+        proj = [sum(ax[i] * x[i] for i in range(3)) for x in p]
+        bmin = sum(min(ax[i] * b0[i], ax[i] * b1[i]) for i in range(3))
+        bmax = sum(max(ax[i] * b0[i], ax[i] * b1[i]) for i in range(3))
+        tmin, tmax = min(proj), max(proj)
+        if tmin > bmax or tmax < bmin:
+            return False
+        if tmin == bmax and any(c > 0 for c in ax):
+            return False
+        if tmax == bmin and any(c < 0 for c in ax):
+            return False
+    return True
+
+
+def touched_voxels(
+    cells: FloatArray,
+    *,
+    lo: tuple[int, int, int] | IntArray,
+    hi: tuple[int, int, int] | IntArray,
+    w_band: tuple[float, float],
+) -> tuple[IntArray, IntArray]:
+    """Every (triangle, voxel) pair that touch: ``(triangle index (m,), voxel (m, 3) i, j, k)``.
+
+    Args:
+        cells: ``(n, 3, 3)`` triangles in cell coordinates.
+        lo, hi: the voxel index range ``[lo, hi)`` per axis (the frame; k: the band's layers).
+        w_band: the band ``[w_lo, w_hi)`` in cell units of z (voxels are cut by it).
+    """
+    lo_a, hi_a = np.asarray(lo, dtype=np.int64), np.asarray(hi, dtype=np.int64)
+    tris, voxels = [], []
+    for t_all, ijk_all in _candidates(np.asarray(cells, dtype=np.float64), lo_a, hi_a):
+        blo, bhi = _boxes(ijk_all, w_band)
+        keep = bhi[:, 2] > blo[:, 2]
+        t, ijk, blo, bhi = t_all[keep], ijk_all[keep], blo[keep], bhi[keep]
+        touch, unsure = _overlap(cells[t], blo, bhi)
+        for r in np.flatnonzero(unsure):
+            touch[r] = _exact_touch(cells[t[r]], blo[r], bhi[r])
+        tris.append(t[touch])
+        voxels.append(ijk[touch])
+    if not tris:
+        return np.empty(0, dtype=np.int64), np.empty((0, 3), dtype=np.int64)
+    return np.concatenate(tris).astype(np.int64), np.concatenate(voxels)
+
+
+# --- the nearest point -----------------------------------------------------------------------------
+def _closest_on_triangle(p: FloatArray, a: FloatArray, b: FloatArray, c: FloatArray) -> FloatArray:
+    """The point of each triangle ``abc`` nearest ``p`` (Ericson, *Real-Time Collision Detection* 5.1.5)."""
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = _dot(ab, ap), _dot(ac, ap)
+    bp = p - b
+    d3, d4 = _dot(ab, bp), _dot(ac, bp)
+    cp = p - c
+    d5, d6 = _dot(ab, cp), _dot(ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        v = vb / denom
+        w = vc / denom
+        out = a + ab * v[:, None] + ac * w[:, None]  # inside the face
+        # edges
+        t_ab = d1 / (d1 - d3)
+        t_ac = d2 / (d2 - d6)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    on_bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
+    out = np.where(on_bc[:, None], b + (c - b) * np.nan_to_num(t_bc)[:, None], out)
+    on_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+    out = np.where(on_ac[:, None], a + ac * np.nan_to_num(t_ac)[:, None], out)
+    on_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+    out = np.where(on_ab[:, None], a + ab * np.nan_to_num(t_ab)[:, None], out)
+    # vertices
+    out = np.where(((d6 >= 0) & (d5 <= d6))[:, None], c, out)
+    out = np.where(((d3 >= 0) & (d4 <= d3))[:, None], b, out)
+    out = np.where(((d1 <= 0) & (d2 <= 0))[:, None], a, out)
+    bad = ~np.isfinite(out).all(axis=1)
+    if bad.any():  # degenerate triangles: the nearest of their three edges
+        corners = np.stack([a[bad], b[bad], c[bad]], axis=1)
+        out[bad] = _closest_on_segments(p[bad], corners, np.full(int(bad.sum()), 3))
+    return out
+
+
+def _closest_on_segments(p: FloatArray, poly: FloatArray, count: IntArray) -> FloatArray:
+    """The point of each closed polyline loop ``poly[:count]`` (its edges) nearest ``p``."""
+    m, k = poly.shape[:2]
+    nxt = (np.arange(k)[None, :] + 1) % np.maximum(count, 1)[:, None]
+    a = poly
+    b = np.take_along_axis(poly, nxt[:, :, None].repeat(3, axis=2), axis=1)
+    ab = b - a
+    ll = _dot(ab, ab)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.clip(np.where(ll > 0, _dot(p[:, None, :] - a, ab) / ll, 0.0), 0.0, 1.0)
+    q = a + ab * t[..., None]
+    d = _dot(q - p[:, None, :], q - p[:, None, :])
+    d = np.where(np.arange(k)[None, :] < count[:, None], d, np.inf)
+    best = np.argmin(d, axis=1)
+    out: FloatArray = q[np.arange(m), best]
+    return out
+
+
+def _clip(tri: FloatArray, lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, IntArray]:
+    """Each triangle cut by its closed box (Sutherland-Hodgman): ``(polygons (m, 9, 3), counts)``."""
+    m = len(tri)
+    poly = np.zeros((m, 9, 3))
+    poly[:, :3] = tri
+    count = np.full(m, 3, dtype=np.int64)
+    rows = np.arange(m)
+    for axis in range(3):
+        for bound, sign in ((lo[:, axis], 1.0), (hi[:, axis], -1.0)):
+            k = poly.shape[1]
+            idx = np.arange(k)[None, :]
+            valid = idx < count[:, None]
+            nxt = (idx + 1) % np.maximum(count, 1)[:, None]
+            cur = poly
+            nb = np.take_along_axis(poly, nxt[:, :, None].repeat(3, axis=2), axis=1)
+            dc = sign * (cur[:, :, axis] - bound[:, None])
+            dn = sign * (nb[:, :, axis] - bound[:, None])
+            cin, nin = dc >= 0, dn >= 0
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = np.where(dc != dn, dc / (dc - dn), 0.0)
+            cross = cur + (nb - cur) * t[..., None]
+            cross[:, :, axis] = np.where(cin != nin, bound[:, None], cross[:, :, axis])
+            out = np.zeros((m, 2 * k, 3))
+            keep = np.zeros((m, 2 * k), dtype=np.bool_)
+            out[:, 0::2], keep[:, 0::2] = cur, valid & cin
+            out[:, 1::2], keep[:, 1::2] = cross, valid & (cin != nin)
+            order = np.argsort(~keep, axis=1, kind="stable")
+            out = np.take_along_axis(out, order[:, :, None].repeat(3, axis=2), axis=1)
+            count = keep.sum(axis=1)
+            poly = np.zeros((m, 9, 3))
+            poly[:, : min(9, 2 * k)] = out[:, :9]
+            count = np.minimum(count, 9)
+    del rows
+    return poly, count
+
+
+def nearest_points(
+    tri: FloatArray, ijk: IntArray, *, w_band: tuple[float, float]
+) -> tuple[FloatArray, FloatArray]:
+    """For each touching pair: the point of the triangle within the voxel's (closed) box nearest the
+    box's centre, and its squared distance (cell units). ``tri`` is ``(m, 3, 3)``, one per voxel."""
+    lo, hi = _boxes(ijk, w_band)
+    centre = 0.5 * (lo + hi)
+    q = _closest_on_triangle(centre, tri[:, 0], tri[:, 1], tri[:, 2])
+    outside = ~((q >= lo) & (q <= hi)).all(axis=1)
+    if outside.any():
+        o = np.flatnonzero(outside)
+        poly, count = _clip(tri[o], lo[o], hi[o])
+        c = centre[o]
+        n = _cross(tri[o, 1] - tri[o, 0], tri[o, 2] - tri[o, 0])
+        nn = _dot(n, n)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            proj = c - n * (_dot(c - tri[o, 0], n) / nn)[:, None]
+        k = poly.shape[1]
+        idx = np.arange(k)[None, :]
+        nxt = (idx + 1) % np.maximum(count, 1)[:, None]
+        nb = np.take_along_axis(poly, nxt[:, :, None].repeat(3, axis=2), axis=1)
+        side = _dot(_cross(nb - poly, proj[:, None, :] - poly), n[:, None, :])
+        # a polygon with no area (the triangle touches the box at a point or along a segment): its edges
+        area = _cross(poly, nb)
+        area = np.where((idx < count[:, None])[:, :, None], area, 0.0).sum(axis=1)
+        extent = 1.0 + np.abs(poly.reshape(len(o), -1)).max(axis=1)
+        flat = _dot(area, n) <= 1e-12 * np.sqrt(nn) * extent**2
+        inside = np.where(idx < count[:, None], side >= 0, True).all(axis=1) & (count >= 3) & (nn > 0) & ~flat
+        edge = _closest_on_segments(c, poly, count)
+        best = np.where(inside[:, None], proj, edge)
+        empty = count == 0  # only float noise: the triangle touches at a point or an edge
+        best[empty] = q[o][empty]
+        q[o] = best
+    q = np.clip(q, lo, hi)
+    diff = q - centre
+    return q, _dot(diff, diff)
