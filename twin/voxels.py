@@ -376,7 +376,10 @@ def nearest_points(
     outside = ~((q >= lo) & (q <= hi)).all(axis=1)
     if outside.any():
         o = np.flatnonzero(outside)
-        poly, count = _clip(tri[o], lo[o], hi[o])
+        # the box grown by a rounding margin, so that a contact at a point or along an edge survives
+        # the clipping's rounding (the result is clamped to the box below)
+        grow = 1e-10 * (1.0 + np.abs(tri[o].reshape(len(o), -1)).max(axis=1))[:, None]
+        poly, count = _clip(tri[o], lo[o] - grow, hi[o] + grow)
         c = centre[o]
         n = _cross(tri[o, 1] - tri[o, 0], tri[o, 2] - tri[o, 0])
         nn = _dot(n, n)
