@@ -1,0 +1,249 @@
+"""The live points maps: each (storey, points skill) cloud kept current as the building changes.
+
+Each map keeps, per selected element, the voxels it touches with its own point in each
+(:func:`twin.points.voxels_by_element`), and which of them it *wins* (its point is the voxel's: the
+nearest the voxel's centre, ties to the smallest point). A changed element replaces only the voxels it
+touched before and touches now: its old voxels are dropped, its new ones computed from its triangles
+alone, and the winners of just those voxels are decided again among the elements that touch them. The
+cloud (:meth:`PointsMap.cloud`) is the winners, sorted by voxel: it equals a full rebuild from the
+triangles voxel for voxel (:meth:`LivePoints.rebuild` is that reference; the tests hold the two
+together).
+
+The geometry is the live scene's (:class:`~twin.live.drawing.Drawing`: the imported base less what
+robots hid, plus the overlay); selection changes come as the 2D maps get them (per skill name, per
+element: selected or not).
+
+Example::
+
+    points = LivePoints(drawing)
+    points.add_map(skill, "ground-floor", selected_iris)
+    changed = points.redraw({iri}, {skill.name: {iri: True}})     # [(storey, skill, version)]
+    cloud = points.maps[("ground-floor", skill.name)].cloud()
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from twin.live.drawing import Drawing
+from twin.live.overlay import MapKey
+from twin.points import (
+    PointCloud,
+    PointsPlan,
+    Voxels,
+    best_per_voxel,
+    cloud_of,
+    plan_points,
+    voxels_by_element,
+)
+from twin.scene import MeshSet
+from twin.skills import SkillProfile
+from twin.voxels import IntArray
+
+__all__ = ["LivePoints", "PointsMap"]
+
+
+@dataclass(eq=False, slots=True)
+class PointsMap:
+    """One (storey, points skill) map as the live twin keeps it."""
+
+    plan: PointsPlan
+    base_mask: npt.NDArray[np.bool_]
+    """Which base elements the skill selects."""
+    overlay: set[str]
+    """Which elements robots added (not in the base) the skill selects."""
+    parts: dict[str, Voxels] = field(default_factory=dict)
+    """Each selected element's own voxels (only elements that touch any)."""
+    wins: dict[str, npt.NDArray[np.bool_]] = field(default_factory=dict)
+    """Per part: which of its voxels hold its point."""
+    span: dict[str, IntArray] = field(default_factory=dict)
+    """Per part: its smallest and largest voxel ``(i, j, k)`` (which parts a change can concern)."""
+    version: int = 1
+
+    @property
+    def key(self) -> MapKey:
+        return (self.plan.storey.key, self.plan.skill.name)
+
+    def winners(self) -> Voxels:
+        """Every part's winning voxels, one per key (ties between parts hold the same point), sorted."""
+        parts = [self.parts[i].take(self.wins[i]) for i in sorted(self.parts)]
+        merged = Voxels.concat(parts)
+        if not len(merged):
+            return merged
+        order = np.argsort(merged.keys, kind="stable")
+        keys = merged.keys[order]
+        first = np.ones(len(keys), dtype=np.bool_)
+        first[1:] = keys[1:] != keys[:-1]
+        return merged.take(order[first])
+
+    def cloud(self) -> PointCloud:
+        return cloud_of(self.plan, self.winners())
+
+    def __len__(self) -> int:
+        return sum(int(w.sum()) for w in self.wins.values())
+
+    def _set(self, iri: str, part: Voxels) -> None:
+        self.parts[iri] = part
+        self.wins[iri] = np.zeros(len(part), dtype=np.bool_)
+        ijk = self.plan.ijk(part.keys)
+        self.span[iri] = np.concatenate([ijk.min(axis=0), ijk.max(axis=0)])
+
+    def _drop(self, iri: str) -> Voxels | None:
+        self.wins.pop(iri, None)
+        self.span.pop(iri, None)
+        return self.parts.pop(iri, None)
+
+    def decide(self, keys: IntArray) -> bool:
+        """Decide the winners of voxels ``keys`` (sorted, unique) among the parts; True if the cloud's
+        points there changed."""
+        if not len(keys):
+            return False
+        ijk = self.plan.ijk(keys)
+        lo, hi = ijk.min(axis=0), ijk.max(axis=0)
+        names, rows, before = [], [], []
+        for iri, s in self.span.items():
+            if (s[:3] > hi).any() or (s[3:] < lo).any():
+                continue
+            part = self.parts[iri]
+            at = np.searchsorted(keys, part.keys)
+            at = np.minimum(at, len(keys) - 1)
+            hit = np.flatnonzero(keys[at] == part.keys)
+            if len(hit):
+                names.append(iri)
+                rows.append(hit)
+                before.append(part.take(hit[self.wins[iri][hit]]))
+        old = best_per_voxel(Voxels.concat(before))
+        if not names:
+            return len(old) > 0
+        cand = Voxels.concat([self.parts[n].take(r) for n, r in zip(names, rows, strict=True)])
+        best = best_per_voxel(cand)
+        at = np.searchsorted(best.keys, cand.keys)
+        win = (best.d2[at] == cand.d2) & (best.q[at] == cand.q).all(axis=1)
+        start = 0
+        for n, r in zip(names, rows, strict=True):
+            self.wins[n][r] = win[start : start + len(r)]
+            start += len(r)
+        return not (
+            np.array_equal(old.keys, best.keys)
+            and np.array_equal(old.q, best.q)
+            and np.array_equal(old.d2, best.d2)
+        )
+
+
+class LivePoints:
+    """Every points map over the live scene, kept current. Not thread-safe: one writer (the one that
+    changes the :class:`Drawing`)."""
+
+    def __init__(self, drawing: Drawing, *, margin_m: float) -> None:
+        self.drawing = drawing
+        self.margin_m = margin_m
+        self.maps: dict[MapKey, PointsMap] = {}
+        self.pending: dict[MapKey, int] = {}
+        """Maps whose cloud changed since the publisher last took them (:meth:`take_changed`): version."""
+
+    def take_changed(self) -> dict[MapKey, int]:
+        """The maps changed since the last call, with their current version (for a publisher)."""
+        out, self.pending = self.pending, {}
+        return out
+
+    def _member(self, m: PointsMap, iri: str) -> bool:
+        if self.drawing.shape_of(iri) is None:
+            return False
+        i = self.drawing.scene.elements.index.get(iri)
+        return iri in m.overlay if i is None else bool(m.base_mask[i])
+
+    def _members(self, m: PointsMap) -> tuple[npt.NDArray[np.intp], list[str]]:
+        """The selected base elements drawn from the base, and every other selected element (moved or
+        reshaped base elements, elements robots added), sorted."""
+        scene = self.drawing.scene
+        base = np.flatnonzero(m.base_mask & ~self.drawing.hidden).astype(np.intp)
+        moved = [scene.elements.iris[int(i)] for i in np.flatnonzero(m.base_mask & self.drawing.hidden)]
+        others = sorted({*moved, *m.overlay})
+        return base, [i for i in others if self.drawing.shape_of(i) is not None]
+
+    def _voxels(self, m: PointsMap, iri: str) -> Voxels:
+        """The element's own voxels in ``m`` from its current triangles."""
+        scene = self.drawing.scene
+        i = scene.elements.index.get(iri)
+        if i is not None and not self.drawing.hidden[i]:
+            return voxels_by_element(scene.elements, np.array([i], dtype=np.intp), m.plan)[0]
+        shape = self.drawing.shape_of(iri)
+        if shape is None:
+            return Voxels.empty()
+        meshes = MeshSet.build([(iri, shape[0], shape[1])])
+        return voxels_by_element(meshes, np.zeros(1, dtype=np.intp), m.plan)[0]
+
+    def add_map(self, skill: SkillProfile, storey: str, selected: Iterable[str]) -> PointsMap:
+        """Plan and build the points map of ``skill`` on ``storey`` from the selected IRIs."""
+        chosen = set(selected)
+        scene = self.drawing.scene
+        plan = plan_points(scene, skill, storey, (), margin_m=self.margin_m)
+        mask = np.zeros(len(scene.elements), dtype=np.bool_)
+        mask[scene.elements.indices_of(tuple(chosen))] = True
+        m = PointsMap(plan, mask, {i for i in chosen if i not in scene.elements.index})
+        base, others = self._members(m)
+        for i, part in zip(base, voxels_by_element(scene.elements, base, plan), strict=True):
+            if len(part):
+                m._set(scene.elements.iris[int(i)], part)
+        for iri in others:
+            part = self._voxels(m, iri)
+            if len(part):
+                m._set(iri, part)
+        everything = Voxels.concat(list(m.parts.values()))
+        m.decide(np.unique(everything.keys))
+        self.maps[m.key] = m
+        self.pending[m.key] = m.version
+        return m
+
+    def remove_skill(self, name: str) -> list[MapKey]:
+        gone = [k for k in self.maps if k[1] == name]
+        for k in gone:
+            del self.maps[k]
+            self.pending.pop(k, None)
+        return gone
+
+    def redraw(
+        self, touched: Iterable[str], membership: Mapping[str, Mapping[str, bool]]
+    ) -> list[tuple[str, str, int]]:
+        """Bring every map up to the live scene after the elements ``touched`` changed (the drawing has
+        their new geometry already; ``membership`` their new selection per skill name).
+
+        Returns ``(storey, skill, version)`` of each map whose cloud changed (its next version).
+        """
+        touched = sorted(set(touched) | {i for sel in membership.values() for i in sel})
+        base = self.drawing.scene.elements.index
+        changed = []
+        for m in self.maps.values():
+            for iri, selected in membership.get(m.plan.skill.name, {}).items():
+                if iri in base:
+                    m.base_mask[base[iri]] = selected
+                elif selected:
+                    m.overlay.add(iri)
+                else:
+                    m.overlay.discard(iri)
+            keys = []
+            for iri in touched:
+                old = m._drop(iri)
+                if old is not None:
+                    keys.append(old.keys)
+                if self._member(m, iri):
+                    part = self._voxels(m, iri)
+                    if len(part):
+                        m._set(iri, part)
+                        keys.append(part.keys)
+            if keys and m.decide(np.unique(np.concatenate(keys))):
+                m.version += 1
+                changed.append((m.plan.storey.key, m.plan.skill.name, m.version))
+                self.pending[m.key] = m.version
+        return changed
+
+    def rebuild(self, m: PointsMap) -> PointCloud:
+        """The full cloud from scratch from the triangles (the reference a live map equals)."""
+        base, others = self._members(m)
+        parts = voxels_by_element(self.drawing.scene.elements, base, m.plan)
+        parts += [self._voxels(m, iri) for iri in others]
+        return cloud_of(m.plan, best_per_voxel(Voxels.concat(parts)))
