@@ -201,10 +201,22 @@ def best_per_voxel(v: Voxels) -> Voxels:
     """One point per key: the nearest the voxel's centre, ties to the smallest (x, y, z); sorted by key."""
     if not len(v):
         return v
-    order = _order(v.keys, v.q, v.d2)
-    k = v.keys[order]
+    order = np.lexsort((v.d2, v.keys))
+    k, d2 = v.keys[order], v.d2[order]
     first = np.ones(len(k), dtype=np.bool_)
     first[1:] = k[1:] != k[:-1]
+    # voxels whose nearest distance is shared by two points (coincident faces): the smallest point
+    tie = np.zeros(len(k), dtype=np.bool_)
+    tie[:-1] = ~first[1:] & (d2[1:] == d2[:-1])
+    if tie.any():
+        tied = np.isin(k, k[tie])
+        sub = order[tied]
+        sub = sub[_order(v.keys[sub], v.q[sub], v.d2[sub])]
+        ks = v.keys[sub]
+        keep = np.ones(len(ks), dtype=np.bool_)
+        keep[1:] = ks[1:] != ks[:-1]
+        chosen = np.concatenate([order[first & ~tied], sub[keep]])
+        return v.take(chosen[np.argsort(v.keys[chosen], kind="stable")])
     return v.take(order[first])
 
 

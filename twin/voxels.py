@@ -49,6 +49,16 @@ def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
     return out
 
 
+def _min3(a: FloatArray) -> FloatArray:
+    """The minimum over axis 1 of ``(m, 3, ...)`` (element-wise: numpy's reductions over a short axis
+    are slow)."""
+    return np.minimum(np.minimum(a[:, 0], a[:, 1]), a[:, 2])
+
+
+def _max3(a: FloatArray) -> FloatArray:
+    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
+
+
 def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.asarray(a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2])
 
@@ -150,97 +160,115 @@ def _boxes(ijk: IntArray, w_band: tuple[float, float]) -> tuple[FloatArray, Floa
     return lo, hi
 
 
+def _axis(e: FloatArray, n_axis: int) -> FloatArray:
+    """Axis ``n_axis`` of the ten that are not the box's: 0 the triangle's normal, ``1 + 3 i + j`` edge
+    ``i`` x unit vector ``j``."""
+    if n_axis == 0:
+        return _cross(e[:, 0], e[:, 1])
+    i, j = divmod(n_axis - 1, 3)
+    edge = e[:, i]
+    out = np.zeros_like(edge)
+    # edge x unit_j, written out: (e1 u2 - e2 u1, e2 u0 - e0 u2, e0 u1 - e1 u0)
+    if j == 0:
+        out[:, 1], out[:, 2] = edge[:, 2], -edge[:, 1]
+    elif j == 1:
+        out[:, 0], out[:, 2] = -edge[:, 2], edge[:, 0]
+    else:
+        out[:, 0], out[:, 1] = edge[:, 1], -edge[:, 0]
+    return out
+
+
 def _overlap(
     v: FloatArray, lo: FloatArray, hi: FloatArray
-) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
-    """``(touch, unsure)`` for triangles ``v (m, 3, 3)`` and half-open boxes ``[lo, hi)``: ``touch``
-    is the float verdict, ``unsure`` marks pairs within rounding of a tie on a non-box axis (to be
-    decided exactly)."""
-    vmin, vmax = v.min(axis=1), v.max(axis=1)
+) -> tuple[npt.NDArray[np.bool_], IntArray, npt.NDArray[np.bool_]]:
+    """The float verdict for triangles ``v (m, 3, 3)`` and half-open boxes ``[lo, hi)``:
+    ``(touch, unsure rows, near axes (len(unsure), 10))``; an unsure pair is within rounding of a tie
+    on the marked (non-box) axes, and is to be decided exactly on them."""
+    vmin, vmax = _min3(v), _max3(v)
     # box axes: exact comparisons (a vertex on an upper face does not enter the box)
-    touch = ((vmax >= lo) & (vmin < hi)).all(axis=1)
-    unsure = np.zeros(len(v), dtype=np.bool_)
-    r = np.flatnonzero(touch)
+    meets = (vmax >= lo) & (vmin < hi)
+    touch = meets[:, 0] & meets[:, 1] & meets[:, 2]
+    # a vertex inside the half-open box: they touch (exact comparisons again)
+    inside = np.zeros(len(v), dtype=np.bool_)
+    for corner in range(3):
+        within = (v[:, corner] >= lo) & (v[:, corner] < hi)
+        inside |= within[:, 0] & within[:, 1] & within[:, 2]
+    r = np.flatnonzero(touch & ~inside)
+    none = np.empty(0, dtype=np.int64)
     if not len(r):
-        return touch, unsure
+        return touch, none, np.zeros((0, 10), dtype=np.bool_)
     v = v[r]
     rel = v - lo[r][:, None, :]
     size = hi[r] - lo[r]
     e = np.stack([v[:, 1] - v[:, 0], v[:, 2] - v[:, 1], v[:, 0] - v[:, 2]], axis=1)  # (m, 3, 3)
     # rounding bounds: |v| (vertices), |rel| (vertices from the box's corner), |e| (edges)
-    big_v = 1.0 + np.abs(v.reshape(-1, 9)).max(axis=1)
-    big_r = 1.0 + np.abs(rel.reshape(-1, 9)).max(axis=1)
-    reach = 1.0 + np.abs(e.reshape(-1, 9)).max(axis=1)
-    axes = [_cross(e[:, 0], e[:, 1])]
-    for i in range(3):
-        for j in range(3):
-            unit = np.zeros(3)
-            unit[j] = 1.0
-            axes.append(_cross(e[:, i], unit))
+    big_v = 1.0 + _max3(np.maximum(np.abs(vmin[r]), np.abs(vmax[r])))
+    big_r = 1.0 + _max3(np.maximum(np.abs(_min3(rel)), np.abs(_max3(rel))))
+    reach = 1.0 + _max3(np.maximum(np.abs(_min3(e)), np.abs(_max3(e))))
     apart = np.zeros(len(r), dtype=np.bool_)
-    near = np.zeros(len(r), dtype=np.bool_)
-    r0, r1, r2 = rel[:, 0], rel[:, 1], rel[:, 2]
-    for n_axis, ax in enumerate(axes):
-        ax0, ax1, ax2 = ax[:, 0], ax[:, 1], ax[:, 2]
+    near = np.zeros((len(r), 10), dtype=np.bool_)
+    for n_axis in range(10):
+        ax = _axis(e, n_axis)
         # an axis along x, y or z (or none) is a box axis's test again, decided exactly above
-        oblique = ((ax0 != 0).astype(np.int8) + (ax1 != 0) + (ax2 != 0)) >= 2
-        if not oblique.any():
+        oblique = ((ax[:, 0] != 0).astype(np.int8) + (ax[:, 1] != 0) + (ax[:, 2] != 0)) >= 2
+        idx = np.flatnonzero(oblique & ~apart)
+        if not len(idx):
             continue
-        p0, p1, p2 = _dot(ax, r0), _dot(ax, r1), _dot(ax, r2)
+        ax = ax[idx]
+        ax0, ax1, ax2 = ax[:, 0], ax[:, 1], ax[:, 2]
+        rel_i = rel[idx]
+        p0, p1, p2 = _dot(ax, rel_i[:, 0]), _dot(ax, rel_i[:, 1]), _dot(ax, rel_i[:, 2])
         tmin = np.minimum(np.minimum(p0, p1), p2)
         tmax = np.maximum(np.maximum(p0, p1), p2)
-        l0, l1, l2 = ax0 * size[:, 0], ax1 * size[:, 1], ax2 * size[:, 2]
+        sz = size[idx]
+        l0, l1, l2 = ax0 * sz[:, 0], ax1 * sz[:, 1], ax2 * sz[:, 2]
         bmin = np.minimum(l0, 0.0) + np.minimum(l1, 0.0) + np.minimum(l2, 0.0)
         bmax = np.maximum(l0, 0.0) + np.maximum(l1, 0.0) + np.maximum(l2, 0.0)
         size_ax = np.abs(ax0) + np.abs(ax1) + np.abs(ax2)
-        ax_err = big_v * (reach if n_axis == 0 else 1.0)  # the axis's own rounding, in units of ulp
-        tol = _TOL * ((size_ax + ax_err) * big_r + size_ax * big_v)
-        apart |= oblique & ((tmin > bmax + tol) | (tmax < bmin - tol))
-        near |= oblique & ((np.abs(tmin - bmax) <= tol) | (np.abs(tmax - bmin) <= tol))
+        bv = big_v[idx]
+        ax_err = bv * (reach[idx] if n_axis == 0 else 1.0)  # the axis's own rounding, in units of ulp
+        tol = _TOL * ((size_ax + ax_err) * big_r[idx] + size_ax * bv)
+        apart[idx] = (tmin > bmax + tol) | (tmax < bmin - tol)
+        near[idx, n_axis] = (np.abs(tmin - bmax) <= tol) | (np.abs(tmax - bmin) <= tol)
     touch[r] = ~apart
-    unsure[r] = ~apart & near
-    return touch, unsure
+    unsure = ~apart & near.any(axis=1)
+    return touch, r[unsure], near[unsure]
 
 
-def _ints(values: list[float]) -> tuple[list[int], int]:
-    """``values`` as integers over one power of two: ``(numerators, exponent)``, exactly."""
+def _ints(values: list[float]) -> list[int]:
+    """``values`` as integers over one power of two (exactly)."""
     ratios = [float(x).as_integer_ratio() for x in values]
     shift = max(den.bit_length() - 1 for _, den in ratios)
-    return [num << (shift - (den.bit_length() - 1)) for num, den in ratios], shift
+    return [num << (shift - (den.bit_length() - 1)) for num, den in ratios]
 
 
-def _exact_touch(v: FloatArray, lo: FloatArray, hi: FloatArray) -> bool:
-    """The separating axis test of one triangle and one half-open box in exact integer arithmetic."""
-    nums, _ = _ints([*v.reshape(-1).tolist(), *lo.tolist(), *hi.tolist()])
+def _exact_separates(v: FloatArray, lo: FloatArray, hi: FloatArray, axes: npt.NDArray[np.bool_]) -> bool:
+    """Does one of the marked axes (see :func:`_axis`) separate the triangle from the half-open box, in
+    exact integer arithmetic? (A tie separates when the box's end there moves in as its upper faces do.)"""
+    nums = _ints([*v.reshape(-1).tolist(), *lo.tolist(), *hi.tolist()])
     p = [nums[0:3], nums[3:6], nums[6:9]]
     b0, b1 = nums[9:12], nums[12:15]
-    for a in range(3):
-        if max(x[a] for x in p) < b0[a] or min(x[a] for x in p) >= b1[a]:
-            return False
     e = [[p[1][i] - p[0][i] for i in range(3)], [p[2][i] - p[1][i] for i in range(3)]]
     e.append([p[0][i] - p[2][i] for i in range(3)])
-
-    def cross(x: list[int], y: list[int]) -> list[int]:
-        return [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]]
-
-    axes = [cross(e[0], e[1])]
-    for i in range(3):
-        for j in range(3):
-            unit = [0, 0, 0]
-            unit[j] = 1
-            axes.append(cross(e[i], unit))
-    for ax in axes:
-        proj = [sum(ax[i] * x[i] for i in range(3)) for x in p]
+    for n_axis in np.flatnonzero(axes).tolist():
+        if n_axis == 0:
+            x, y = e[0], e[1]
+            ax = [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]]
+        else:
+            i, j = divmod(n_axis - 1, 3)
+            ed = e[i]
+            ax = [[0, ed[2], -ed[1]], [-ed[2], 0, ed[0]], [ed[1], -ed[0], 0]][j]
+        proj = [ax[0] * x[0] + ax[1] * x[1] + ax[2] * x[2] for x in p]
         bmin = sum(min(ax[i] * b0[i], ax[i] * b1[i]) for i in range(3))
         bmax = sum(max(ax[i] * b0[i], ax[i] * b1[i]) for i in range(3))
         tmin, tmax = min(proj), max(proj)
         if tmin > bmax or tmax < bmin:
-            return False
+            return True
         if tmin == bmax and any(c > 0 for c in ax):
-            return False
+            return True
         if tmax == bmin and any(c < 0 for c in ax):
-            return False
-    return True
+            return True
+    return False
 
 
 def touched_voxels(
@@ -263,9 +291,9 @@ def touched_voxels(
         blo, bhi = _boxes(ijk_all, w_band)
         keep = bhi[:, 2] > blo[:, 2]
         t, ijk, blo, bhi = t_all[keep], ijk_all[keep], blo[keep], bhi[keep]
-        touch, unsure = _overlap(cells[t], blo, bhi)
-        for r in np.flatnonzero(unsure):
-            touch[r] = _exact_touch(cells[t[r]], blo[r], bhi[r])
+        touch, unsure, near = _overlap(cells[t], blo, bhi)
+        for r, axes in zip(unsure.tolist(), near, strict=True):
+            touch[r] = not _exact_separates(cells[t[r]], blo[r], bhi[r], axes)
         tris.append(t[touch])
         voxels.append(ijk[touch])
     if not tris:

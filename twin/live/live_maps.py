@@ -101,13 +101,12 @@ class LiveMaps(Drawing):
         return m
 
     def remove_skill(self, name: str) -> list[MapKey]:
-        self.points.remove_skill(name)
         gone = [k for k in self.maps if k[1] == name]
         for k in gone:
             del self.maps[k]
         for key in [k for k in self._rasters.cells if k[1][1] == name]:
             del self._rasters.cells[key]
-        return gone
+        return gone + self.points.remove_skill(name)
 
     def _member(self, m: LiveMap, iri: str) -> bool:
         if iri in self._overlay:

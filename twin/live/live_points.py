@@ -18,17 +18,20 @@ Example::
     points = LivePoints(drawing)
     points.add_map(skill, "ground-floor", selected_iris)
     changed = points.redraw({iri}, {skill.name: {iri: True}})     # [(storey, skill, version)]
+    publication.flush(points, revision, due_only=True)            # PointsPublished, bounded rate
     cloud = points.maps[("ground-floor", skill.name)].cloud()
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+import math
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
+from twin.events import PointsPublished, TwinEvent
 from twin.live.drawing import Drawing
 from twin.live.overlay import MapKey
 from twin.points import (
@@ -44,7 +47,11 @@ from twin.scene import MeshSet
 from twin.skills import SkillProfile
 from twin.voxels import IntArray
 
-__all__ = ["LivePoints", "PointsMap"]
+__all__ = ["POINTS_INTERVAL_S", "LivePoints", "PointsMap", "PointsPublication"]
+
+POINTS_INTERVAL_S = 1.0
+"""A changed cloud is published again at most this often (seconds): clouds are large (12 bytes a point)
+and have no update message."""
 
 
 @dataclass(eq=False, slots=True)
@@ -143,12 +150,7 @@ class LivePoints:
         self.margin_m = margin_m
         self.maps: dict[MapKey, PointsMap] = {}
         self.pending: dict[MapKey, int] = {}
-        """Maps whose cloud changed since the publisher last took them (:meth:`take_changed`): version."""
-
-    def take_changed(self) -> dict[MapKey, int]:
-        """The maps changed since the last call, with their current version (for a publisher)."""
-        out, self.pending = self.pending, {}
-        return out
+        """Maps built or changed since :class:`PointsPublication` last published them: their version."""
 
     def _member(self, m: PointsMap, iri: str) -> bool:
         if self.drawing.shape_of(iri) is None:
@@ -247,3 +249,41 @@ class LivePoints:
         parts = voxels_by_element(self.drawing.scene.elements, base, m.plan)
         parts += [self._voxels(m, iri) for iri in others]
         return cloud_of(m.plan, best_per_voxel(Voxels.concat(parts)))
+
+
+class PointsPublication:
+    """Which clouds went out: every points map once it is built, then each changed one again, at most
+    once per ``interval_s``. One writer."""
+
+    def __init__(
+        self,
+        *,
+        emit: Callable[[TwinEvent], None],
+        clock: Callable[[], int],
+        interval_s: float = POINTS_INTERVAL_S,
+    ) -> None:
+        self.emit = emit
+        self.clock = clock
+        self.interval_ns = int(interval_s * 1e9)
+        self.latest: dict[MapKey, PointsPublished] = {}
+        self._sent_ns: dict[MapKey, int] = {}
+
+    def flush(self, points: LivePoints, revision: int, *, due_only: bool = False) -> None:
+        """Publish every changed cloud; with ``due_only``, only those last published ``interval_s`` ago
+        or more (the others stay owed)."""
+        now = self.clock()
+        for key in sorted(points.pending):
+            if due_only and now - self._sent_ns.get(key, -math.inf) < self.interval_ns:
+                continue
+            del points.pending[key]
+            m = points.maps.get(key)
+            if m is None:
+                continue
+            event = PointsPublished(m.cloud(), revision, m.version, now)
+            self.latest[key] = event
+            self._sent_ns[key] = now
+            self.emit(event)
+
+    def drop(self, key: MapKey) -> None:
+        self.latest.pop(key, None)
+        self._sent_ns.pop(key, None)

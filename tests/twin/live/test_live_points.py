@@ -12,9 +12,10 @@ from hypothesis import strategies as st
 
 from tests.conftest import examples, imported
 from tests.twin.box_lab import box_lab, element_iri, spec
-from tests.twin.live_helpers import TWIN, observe, started
+from tests.twin.live_helpers import TWIN, Recorder, observe, started
 from tests.twin.test_engine import steps
 from twin.config import Config, load_config
+from twin.events import PointsPublished
 from twin.live import TwinService
 from twin.skills import parse_skill
 
@@ -58,7 +59,7 @@ def test_incremental_clouds_equal_a_full_rebuild_voxel_for_voxel(sequence: list[
 
 
 def test_a_door_opened_changes_the_cloud_at_the_next_version_and_only_where_the_door_was() -> None:
-    service, _ = started(imported(box_lab()), _config(0.1))
+    service, rec = started(imported(box_lab()), _config(0.1))
     points = service.engine.points
     key = next(k for k in points.maps if k[1] == "lidar3d")
     m = points.maps[key]
@@ -67,7 +68,7 @@ def test_a_door_opened_changes_the_cloud_at_the_next_version_and_only_where_the_
     assert observe(service, "robot1", f"<{DOOR}> <{TWIN}isOpen> true .".encode()).ok
     after = m.cloud()
     assert m.version == version + 1
-    assert points.take_changed().get(key) == m.version
+    assert rec.of(PointsPublished)[-1].version == m.version  # published whole at the first flush
     gone = np.setdiff1d(before.keys, after.keys)
     assert len(gone) > 0 and np.isin(gone, door).all()  # voxels only the door touched are gone
     # everywhere else the cloud is the same, point for point
@@ -96,3 +97,25 @@ def test_a_wall_removed_leaves_the_cloud_without_its_voxels_and_closing_the_door
     gone = np.setdiff1d(start.keys, after.keys)
     assert len(gone) > 0 and np.isin(gone, wall).all()
     _same_cloud(service)
+
+
+def test_clouds_are_published_whole_at_start_and_again_after_a_change_at_most_once_a_second() -> None:
+    now = [1_000_000_000_000]
+    rec = Recorder()
+    service = TwinService(imported(box_lab()), _config(0.2), sinks=[rec], clock=lambda: now[0])
+    service.start()
+    service.process()
+    first = rec.of(PointsPublished)
+    assert {(e.cloud.storey, e.cloud.skill) for e in first} == {("ground-floor", "lidar3d")}
+    assert first[0].version == 1 and len(first[0].cloud) > 1000
+    for state in ("true", "false", "true"):  # three changes within the second: one publication after it
+        assert observe(service, "robot1", f"<{DOOR}> <{TWIN}isOpen> {state} .".encode()).ok
+    assert len(rec.of(PointsPublished)) == 1
+    now[0] += 1_000_000_000
+    service.process()
+    again = rec.of(PointsPublished)[1:]
+    m = service.engine.points.maps[("ground-floor", "lidar3d")]
+    assert [e.version for e in again] == [m.version] and m.version == 4
+    np.testing.assert_array_equal(again[0].cloud.keys, m.cloud().keys)
+    service.process()
+    assert len(rec.of(PointsPublished)) == 2  # nothing changed since: nothing more
