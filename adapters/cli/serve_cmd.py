@@ -33,6 +33,7 @@ from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.outbox import OutboxSink
+from adapters.zenoh.points import ZenohPoints
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
@@ -145,6 +146,8 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
                 daemon.status_sources.append(ros.status)
             ros_sink = OutboxSink(ros, daemon.outbox) if ros is not None else None  # off the writer too
             service.sinks += [sink for sink in (daemon, ros_sink, recorder) if sink is not None]
+            points = ZenohPoints(session, prefix=keys.prefix, frame_id=cfg.frame_id)  # points skills' clouds
+            service.sinks.append(OutboxSink(points, daemon.outbox))
             t0 = time.perf_counter()
             service.start()
             daemon.drain()  # every map is declared and sent before we say so
