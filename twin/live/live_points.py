@@ -93,6 +93,45 @@ class PointsMap:
     def __len__(self) -> int:
         return sum(int(w.sum()) for w in self.wins.values())
 
+    def packed(self) -> tuple[list[str], dict[str, npt.NDArray[np.generic]]]:
+        """The parts as flat arrays (for a snapshot): element IRIs, and per-row ``keys, q, d2, wins``
+        with each element's row count ``counts`` (base mask and overlay are copied by the caller)."""
+        names = sorted(self.parts)
+        parts = [self.parts[n] for n in names]
+        flat = Voxels.concat(parts)
+        wins = np.concatenate([self.wins[n] for n in names]) if names else np.zeros(0, dtype=np.bool_)
+        counts = np.array([len(p) for p in parts], dtype=np.int64)
+        return names, {"keys": flat.keys, "q": flat.q, "d2": flat.d2, "wins": wins, "counts": counts}
+
+    @classmethod
+    def unpacked(
+        cls,
+        plan: PointsPlan,
+        base_mask: npt.NDArray[np.bool_],
+        overlay: set[str],
+        *,
+        names: list[str],
+        arrays: Mapping[str, npt.NDArray[np.generic]],
+        version: int,
+    ) -> PointsMap:
+        """A map from :meth:`packed`'s arrays."""
+        m = cls(plan, base_mask, overlay, version=version)
+        counts = np.asarray(arrays["counts"], dtype=np.int64)
+        if len(counts) != len(names) or int(counts.sum()) != len(arrays["keys"]):
+            n = len(arrays["keys"])
+            msg = f"points map {m.key}: {len(names)} parts and {len(counts)} counts of {n} rows"
+            raise ValueError(msg)
+        start = np.concatenate([[0], np.cumsum(counts)])
+        keys = np.asarray(arrays["keys"], dtype=np.int64)
+        q = np.asarray(arrays["q"], dtype=np.float64)
+        d2 = np.asarray(arrays["d2"], dtype=np.float64)
+        wins = np.asarray(arrays["wins"], dtype=np.bool_)
+        for i, name in enumerate(names):
+            rows = slice(int(start[i]), int(start[i + 1]))
+            m._set(name, Voxels(keys[rows], q[rows], d2[rows]))
+            m.wins[name] = wins[rows].copy()
+        return m
+
     def _set(self, iri: str, part: Voxels) -> None:
         self.parts[iri] = part
         self.wins[iri] = np.zeros(len(part), dtype=np.bool_)

@@ -130,10 +130,10 @@ def publish_all_maps(
     completing = None
     if restored is not None:  # the maps first, then the triangles they were drawn from
         for skill in live.skills.values():
-            if skill.name in restored.skills:
+            if skill.name in restored.skills and skill.kind != "points":  # clouds: PointsPublication
                 for s in live.maps.scene.storeys:
                     publication.publish(live.maps.maps[(s.key, skill.name)], live.revision, stamp)
-        if not restored.skills >= frozenset(live.skills):  # (points maps are built from the triangles)
+        if not restored.skills >= frozenset(live.skills):
             restored.complete()  # the other skills' maps are rendered now
         else:
             completing = restored

@@ -5,6 +5,8 @@ the box lab, as the 2D maps' tests/twin/test_engine.py)."""
 from __future__ import annotations
 
 import dataclasses
+import threading
+from pathlib import Path
 
 import numpy as np
 from hypothesis import HealthCheck, given, settings
@@ -12,12 +14,15 @@ from hypothesis import strategies as st
 
 from tests.conftest import examples, imported
 from tests.twin.box_lab import box_lab, element_iri, spec
-from tests.twin.live_helpers import TWIN, Recorder, observe, started
+from tests.twin.live_helpers import TWIN, Recorder, box_turtle, observe, started
 from tests.twin.test_engine import steps
 from twin.config import Config, load_config
 from twin.events import PointsPublished
 from twin.live import TwinService
+from twin.live.snapshots import Snapshots
 from twin.skills import parse_skill
+from twin.snapshot import read_snapshot
+from twin.store import GraphStore
 
 DOOR = element_iri(spec("Door A"))
 WALL = element_iri(spec("Wall A west"))
@@ -119,3 +124,32 @@ def test_clouds_are_published_whole_at_start_and_again_after_a_change_at_most_on
     np.testing.assert_array_equal(again[0].cloud.keys, m.cloud().keys)
     service.process()
     assert len(rec.of(PointsPublished)) == 2  # nothing changed since: nothing more
+
+
+def _start(store: GraphStore, path: Path, config: Config) -> TwinService:
+    service = TwinService(store, config, snapshot=Snapshots(path))
+    service.start()
+    assert service.snapshot is not None
+    service.snapshot.join()
+    return service
+
+
+def test_the_snapshot_holds_the_clouds_and_a_restart_replays_what_changed_since(tmp_path: Path) -> None:
+    store, path, config = imported(box_lab()), tmp_path / "store.snapshot", _config()
+    first = _start(store, path, config)
+    assert observe(first, "robot1", box_turtle("urn:robot1:crate", 2.0, 1.0)).ok
+    stop = threading.Event()
+    stop.set()
+    first.serve_forever(stop)  # a clean stop: the snapshot at revision 1
+    header, _ = read_snapshot(path)
+    assert [p["skill"] for p in header["points"]] == ["lidar3d"]
+    again = _start(store, path, config)
+    assert again.restored_from == 1
+    key = ("ground-floor", "lidar3d")
+    restored = again.live.maps.points.maps[key]  # before the scene's triangles are computed
+    np.testing.assert_array_equal(restored.cloud().keys, first.engine.points.maps[key].cloud().keys)
+    np.testing.assert_array_equal(restored.cloud().xyz, first.engine.points.maps[key].cloud().xyz)
+    assert observe(again, "robot1", f"<{DOOR}> <{TWIN}isOpen> true .".encode()).ok  # then no clean stop
+    third = _start(store, path, config)  # from the snapshot of revision 1, the door replayed
+    assert third.restored_from == 1 and third.revision == 2
+    _same_cloud(third, again)
