@@ -45,12 +45,7 @@ from twin.store import EmbeddedStore  # noqa: E402
 
 LIDAR = {
     "kind": "points",
-    "exclude_types": [
-        "IfcOpeningElement",
-        "IfcFurnishingElement",
-        "IfcBuildingElementProxy",
-        "IfcFlowTerminal",
-    ],
+    "exclude_types": ["IfcOpeningElement", "IfcFurnishingElement"],
     "exclude_materials": ["glass"],
 }
 
