@@ -12,7 +12,9 @@ and 5 deg (yaw) to
 - the naive baseline: a cloud of every element's surfaces (glass and furniture where the model has
   them; openings left out, as they are no surfaces), 0.1 m;
 
-and counted converged when within 5 cm and 1 deg of the true pose. Poses: x, y uniform in the storey's
+and, to show what the selection does, to the twin's cloud with the 2D localization skill's selection
+(proxies and flow terminals left out too); counted converged when within 5 cm and 1 deg of the true
+pose. Poses: x, y uniform in the storey's
 extent, the lidar 1.0 m above the floor, yaw uniform; kept when a floor is under it (within 1.5 m), no
 surface is within 0.4 m around it and 70 % of the rays return (inside the building). Storeys whose band
 is under 2 m high (ceiling voids modelled as storeys) are skipped: no robot drives there.
@@ -49,6 +51,16 @@ from twin.store import EmbeddedStore  # noqa: E402
 TWIN = {
     "kind": "points",
     "exclude_types": ["IfcOpeningElement", "IfcFurnishingElement"],
+    "exclude_materials": ["glass"],
+}
+TWIN_2D = {  # the 2D localization skill's selection: proxies and flow terminals out too
+    "kind": "points",
+    "exclude_types": [
+        "IfcOpeningElement",
+        "IfcFurnishingElement",
+        "IfcBuildingElementProxy",
+        "IfcFlowTerminal",
+    ],
     "exclude_materials": ["glass"],
 }
 BASELINE = {"kind": "points", "exclude_types": ["IfcOpeningElement"]}
@@ -96,7 +108,7 @@ def _pose(x: float, y: float, z: float, yaw: float) -> Array:
 
 def run(store_dir: Path, poses: int, seed: int) -> dict[str, Any]:
     rng = np.random.default_rng(seed)
-    store = EmbeddedStore.open(store_dir)
+    store = EmbeddedStore.open(store_dir, read_only=True)
     scene = load_scene(store)
     els = scene.elements
     seen_ids = els.indices_of(tuple(_iris(store, SEEN)))
@@ -116,24 +128,28 @@ def run(store_dir: Path, poses: int, seed: int) -> dict[str, Any]:
     mesh.vertex.positions = o3d.core.Tensor(world.astype(np.float32))
     mesh.triangle.indices = o3d.core.Tensor(faces)
     ray_scene.add_triangles(mesh)
-    twin_skill, base_skill = parse_skill("lidar3d", TWIN), parse_skill("everything", BASELINE)
-    twin_iris, base_iris = _iris(store, TWIN), _iris(store, BASELINE)
+    twin_skill = parse_skill("lidar3d", TWIN)
+    clouds = [
+        ("twin", twin_skill, _iris(store, TWIN)),
+        ("twin_2d_selection", parse_skill("lidar3d-2d", TWIN_2D), _iris(store, TWIN_2D)),
+        ("baseline", parse_skill("everything", BASELINE), _iris(store, BASELINE)),
+    ]
     out: dict[str, Any] = {"storeys": [], "triangles_cast": len(faces)}
-    totals = {"twin": 0, "baseline": 0, "poses": 0}
+    totals = {name: 0 for name, _, _ in clouds} | {"poses": 0}
     for storey in scene.storeys:
         if plan_points(scene, twin_skill, storey.key, ()).band[1] < 2.0:
             print(f"  {storey.key}: skipped (a band under 2 m high)", flush=True)
             continue
         maps = {}
-        for name, skill, iris in (("twin", twin_skill, twin_iris), ("baseline", base_skill, base_iris)):
+        for name, skill, iris in clouds:
             cloud = build_points(scene, plan_points(scene, skill, storey.key, iris))
             xyz = cloud.xyz.copy()
             xyz[:, 2] += storey.elevation_m
             maps[name] = (_cloud(xyz, normals=True), len(cloud))
         xmin, ymin, xmax, ymax = storey.extent
         row: dict[str, Any] = {"storey": storey.key, "points": {k: v[1] for k, v in maps.items()}}
-        ok = {"twin": 0, "baseline": 0}
-        errors: dict[str, list[tuple[float, float]]] = {"twin": [], "baseline": []}
+        ok = {name: 0 for name, _, _ in clouds}
+        errors: dict[str, list[tuple[float, float]]] = {name: [] for name, _, _ in clouds}
         tried = found = 0
         while found < poses and tried < 400 * poses:
             tried += 1
@@ -190,9 +206,9 @@ def run(store_dir: Path, poses: int, seed: int) -> dict[str, Any]:
         }
         out["storeys"].append(row)
         totals["poses"] += found
-        totals["twin"] += ok["twin"]
-        totals["baseline"] += ok["baseline"]
-        print(f"  {storey.key}: {found} poses, twin {ok['twin']}, baseline {ok['baseline']}", flush=True)
+        for name, count in ok.items():
+            totals[name] += count
+        print(f"  {storey.key}: {found} poses, converged {ok}", flush=True)
     out["totals"] = totals
     store.close()
     return out

@@ -58,7 +58,7 @@ def rss_mb() -> float:
 
 
 def run(store_dir: Path, resolution: float, changes: int, seed: int) -> dict[str, Any]:
-    store = EmbeddedStore.open(store_dir)
+    store = EmbeddedStore.open(store_dir, read_only=True)
     t = time.perf_counter()
     scene = load_scene(store)
     out: dict[str, Any] = {"triangles": len(scene.elements.triangles), "load_s": time.perf_counter() - t}

@@ -90,7 +90,21 @@ def _candidates(cells: FloatArray, lo: IntArray, hi: IntArray) -> Iterator[tuple
     ok = (span_p > 0) & (span_q > 0) & (span_d > 0)
     n_cols = np.where(ok, span_p * span_q, 0)
     n = _cross(cells[:, 1] - cells[:, 0], cells[:, 2] - cells[:, 0])
-    nd = n[rows, d]
+    # per triangle: its coordinates along p, q, d; its plane; its 2D edge normals in (p, q) with the
+    # triangle's extent along each (a column whose square lies beyond one holds no voxel of it)
+    vp = np.take_along_axis(cells, p[:, None, None].repeat(3, axis=1), axis=2)[:, :, 0]
+    vq = np.take_along_axis(cells, q[:, None, None].repeat(3, axis=1), axis=2)[:, :, 0]
+    vd = np.take_along_axis(cells, d[:, None, None].repeat(3, axis=1), axis=2)[:, :, 0]
+    nd, np_all, nq_all = n[rows, d], n[rows, p], n[rows, q]
+    c0_all = _dot(n, cells[:, 0])
+    t_lo_all, t_hi_all = _min3(vd), _max3(vd)
+    big_all = 1.0 + np.maximum(np.abs(_min3(cells)), np.abs(_max3(cells))).max(axis=1)
+    edge_p = np.roll(vp, -1, axis=1) - vp  # (n, 3): edge i from vertex i to i + 1
+    edge_q = np.roll(vq, -1, axis=1) - vq
+    m_p, m_q = edge_q, -edge_p  # the edges' normals in (p, q)
+    proj = m_p[:, :, None] * vp[:, None, :] + m_q[:, :, None] * vq[:, None, :]  # (n, edge, vertex)
+    e_lo, e_hi = proj.min(axis=2), proj.max(axis=2)
+    e_tol = 1e-9 * (np.abs(m_p) + np.abs(m_q)) * (big_all[:, None] + 2.0)
     # columns of a batch of triangles at a time
     cum = np.cumsum(n_cols)
     start = 0
@@ -107,20 +121,30 @@ def _candidates(cells: FloatArray, lo: IntArray, hi: IntArray) -> Iterator[tuple
         offs = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
         a = first[tri, p[tri]] + offs % span_p[tri]
         b = first[tri, q[tri]] + offs // span_p[tri]
+        # drop the columns whose square one of the triangle's (projected) edges separates from it
+        keep = np.ones(len(tri), dtype=np.bool_)
+        for i in range(3):
+            mp, mq = m_p[tri, i], m_q[tri, i]
+            base_sq = mp * a + mq * b
+            sq_lo = base_sq + np.minimum(mp, 0.0) + np.minimum(mq, 0.0)
+            sq_hi = base_sq + np.maximum(mp, 0.0) + np.maximum(mq, 0.0)
+            tol = e_tol[tri, i]
+            keep &= (sq_hi >= e_lo[tri, i] - tol) & (sq_lo <= e_hi[tri, i] + tol)
+        tri, a, b = tri[keep], a[keep], b[keep]
+        if not len(tri):
+            continue
         # the plane's range of the dominant coordinate over the column's square, cut to the triangle's
-        t_lo = cells[tri, :, d[tri]].min(axis=1)
-        t_hi = cells[tri, :, d[tri]].max(axis=1)
+        t_lo, t_hi = t_lo_all[tri], t_hi_all[tri]
         flat = np.abs(nd[tri]) > 0
         safe = np.where(flat, nd[tri], 1.0)
-        v0 = cells[tri, 0]
-        c0 = _dot(n[tri], v0)
-        np_, nq = n[tri, p[tri]], n[tri, q[tri]]
+        c0 = c0_all[tri]
+        np_, nq = np_all[tri], nq_all[tri]
         corners = np.stack(
             [(c0 - np_ * (a + da) - nq * (b + db)) / safe for da in (0, 1) for db in (0, 1)], axis=1
         )
         # rounding of the plane (its normal from rounded edges) and of its evaluation, generously: a
         # nearly degenerate triangle's plane is ill-conditioned, and its column is then its full range
-        big = 1.0 + np.abs(cells[tri].reshape(-1, 9)).max(axis=1)
+        big = big_all[tri]
         mag = np.abs(c0) + (np.abs(np_) + np.abs(nq)) * (big + 2.0) + big**3
         eps = 1e-10 * mag / np.abs(safe) + 1e-9
         w_lo = np.where(flat, np.maximum(t_lo, corners.min(axis=1) - eps), t_lo)
