@@ -339,23 +339,25 @@ def _closest_on_triangle(p: FloatArray, a: FloatArray, b: FloatArray, c: FloatAr
     vc = d1 * d4 - d3 * d2
     with np.errstate(divide="ignore", invalid="ignore"):
         denom = va + vb + vc
-        v = vb / denom
+        v = vb / denom  # the point is a + ab v + ac w: inside the face first, then the other regions
         w = vc / denom
-        out = a + ab * v[:, None] + ac * w[:, None]  # inside the face
-        # edges
         t_ab = d1 / (d1 - d3)
         t_ac = d2 / (d2 - d6)
         t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
     on_bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
-    out = np.where(on_bc[:, None], b + (c - b) * np.nan_to_num(t_bc)[:, None], out)
+    t = np.nan_to_num(t_bc)
+    v, w = np.where(on_bc, 1.0 - t, v), np.where(on_bc, t, w)
     on_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-    out = np.where(on_ac[:, None], a + ac * np.nan_to_num(t_ac)[:, None], out)
+    v, w = np.where(on_ac, 0.0, v), np.where(on_ac, np.nan_to_num(t_ac), w)
     on_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-    out = np.where(on_ab[:, None], a + ab * np.nan_to_num(t_ab)[:, None], out)
-    # vertices
-    out = np.where(((d6 >= 0) & (d5 <= d6))[:, None], c, out)
-    out = np.where(((d3 >= 0) & (d4 <= d3))[:, None], b, out)
-    out = np.where(((d1 <= 0) & (d2 <= 0))[:, None], a, out)
+    v, w = np.where(on_ab, np.nan_to_num(t_ab), v), np.where(on_ab, 0.0, w)
+    at_c = (d6 >= 0) & (d5 <= d6)
+    v, w = np.where(at_c, 0.0, v), np.where(at_c, 1.0, w)
+    at_b = (d3 >= 0) & (d4 <= d3)
+    v, w = np.where(at_b, 1.0, v), np.where(at_b, 0.0, w)
+    at_a = (d1 <= 0) & (d2 <= 0)
+    v, w = np.where(at_a, 0.0, v), np.where(at_a, 0.0, w)
+    out = a + ab * v[:, None] + ac * w[:, None]
     bad = ~np.isfinite(out).all(axis=1)
     if bad.any():  # degenerate triangles: the nearest of their three edges
         corners = np.stack([a[bad], b[bad], c[bad]], axis=1)
