@@ -49,6 +49,8 @@ __all__ = [
     "voxels_of",
 ]
 
+_CHUNK = 100_000
+"""Pairs whose nearest points are computed at once (bounds the temporaries to ~100 MB)."""
 MAX_POINTS_VOXELS = 2**62
 """Keys are int64: a points map's frame (columns x rows x layers) must have fewer voxels."""
 
@@ -226,7 +228,11 @@ def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
         return np.empty(0, dtype=np.int64), Voxels.empty()
     cells = plan.cells(triangles)
     tri, ijk = touched_voxels(cells, lo=plan.lo, hi=plan.hi, w_band=plan.w_band)
-    q, d2 = nearest_points(cells[tri], ijk, w_band=plan.w_band)
+    q = np.empty((len(tri), 3))
+    d2 = np.empty(len(tri))
+    for s in range(0, len(tri), _CHUNK):  # element-wise: the same values in any chunks, less memory
+        e = s + _CHUNK
+        q[s:e], d2[s:e] = nearest_points(cells[tri[s:e]], ijk[s:e], w_band=plan.w_band)
     return tri, Voxels(plan.keys(ijk), q, d2)
 
 

@@ -34,7 +34,7 @@ import numpy.typing as npt
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
-_BATCH = 400_000
+_BATCH = 150_000
 """Candidate (triangle, voxel) pairs tested at once (bounds the memory of a batch to ~100 MB)."""
 _TOL = 1e-13
 """Rounding bound (relative to the magnitudes involved, ~450 ulp) under which a projection counts

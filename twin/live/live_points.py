@@ -70,6 +70,8 @@ class PointsMap:
     span: dict[str, IntArray] = field(default_factory=dict)
     """Per part: its smallest and largest voxel ``(i, j, k)`` (which parts a change can concern)."""
     version: int = 1
+    _spans: tuple[list[str], IntArray] | None = None
+    """``span`` as one array (made when needed, dropped when a part changes)."""
 
     @property
     def key(self) -> MapKey:
@@ -137,23 +139,35 @@ class PointsMap:
         self.wins[iri] = np.zeros(len(part), dtype=np.bool_)
         ijk = self.plan.ijk(part.keys)
         self.span[iri] = np.concatenate([ijk.min(axis=0), ijk.max(axis=0)])
+        self._spans = None
 
     def _drop(self, iri: str) -> Voxels | None:
-        self.wins.pop(iri, None)
+        """Remove a part; its voxels that held its point, or None if it had none."""
+        wins = self.wins.pop(iri, None)
         self.span.pop(iri, None)
-        return self.parts.pop(iri, None)
+        self._spans = None
+        part = self.parts.pop(iri, None)
+        return None if part is None or wins is None else part.take(wins)
 
-    def decide(self, keys: IntArray) -> bool:
+    def _near(self, lo: IntArray, hi: IntArray) -> list[str]:
+        """The parts whose voxels' box meets ``[lo, hi]`` (voxel indices)."""
+        if self._spans is None:
+            names = list(self.span)
+            self._spans = (names, np.array([self.span[n] for n in names]).reshape(-1, 6))
+        names, spans = self._spans
+        apart = (spans[:, :3] > hi).any(axis=1) | (spans[:, 3:] < lo).any(axis=1)
+        return [names[i] for i in np.flatnonzero(~apart)]
+
+    def decide(self, keys: IntArray, gone: Iterable[Voxels] = ()) -> bool:
         """Decide the winners of voxels ``keys`` (sorted, unique) among the parts; True if the cloud's
-        points there changed."""
+        points there changed (``gone``: the winning voxels of parts dropped since they were decided)."""
         if not len(keys):
             return False
         ijk = self.plan.ijk(keys)
         lo, hi = ijk.min(axis=0), ijk.max(axis=0)
-        names, rows, before = [], [], []
-        for iri, s in self.span.items():
-            if (s[:3] > hi).any() or (s[3:] < lo).any():
-                continue
+        names, rows = [], []
+        before = [g.take(np.isin(g.keys, keys)) for g in gone]
+        for iri in self._near(lo, hi):
             part = self.parts[iri]
             at = np.searchsorted(keys, part.keys)
             at = np.minimum(at, len(keys) - 1)
@@ -218,6 +232,11 @@ class LivePoints:
         meshes = MeshSet.build([(iri, shape[0], shape[1])])
         return voxels_by_element(meshes, np.zeros(1, dtype=np.intp), m.plan)[0]
 
+    @staticmethod
+    def _part_keys(m: PointsMap, iri: str) -> IntArray | None:
+        part = m.parts.get(iri)
+        return None if part is None else part.keys
+
     def add_map(self, skill: SkillProfile, storey: str, selected: Iterable[str]) -> PointsMap:
         """Plan and build the points map of ``skill`` on ``storey`` from the selected IRIs."""
         chosen = set(selected)
@@ -266,17 +285,20 @@ class LivePoints:
                     m.overlay.add(iri)
                 else:
                     m.overlay.discard(iri)
-            keys = []
+            keys, gone = [], []
             for iri in touched:
-                old = m._drop(iri)
+                old = self._part_keys(m, iri)
+                won = m._drop(iri)
                 if old is not None:
-                    keys.append(old.keys)
+                    keys.append(old)
+                if won is not None:
+                    gone.append(won)
                 if self._member(m, iri):
                     part = self._voxels(m, iri)
                     if len(part):
                         m._set(iri, part)
                         keys.append(part.keys)
-            if keys and m.decide(np.unique(np.concatenate(keys))):
+            if keys and m.decide(np.unique(np.concatenate(keys)), gone):
                 m.version += 1
                 changed.append((m.plan.storey.key, m.plan.skill.name, m.version))
                 self.pending[m.key] = m.version

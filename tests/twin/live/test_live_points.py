@@ -153,3 +153,13 @@ def test_the_snapshot_holds_the_clouds_and_a_restart_replays_what_changed_since(
     third = _start(store, path, config)  # from the snapshot of revision 1, the door replayed
     assert third.restored_from == 1 and third.revision == 2
     _same_cloud(third, again)
+
+
+def test_an_element_redrawn_as_it_was_leaves_the_cloud_and_its_version_as_they_were() -> None:
+    service, _ = started(imported(box_lab()), _config(0.1))
+    points = service.engine.points
+    m = points.maps[("ground-floor", "lidar3d")]
+    before, version = m.cloud(), m.version
+    assert points.redraw({WALL, DOOR}, {"lidar3d": {WALL: True, DOOR: True}}) == []
+    assert m.version == version
+    np.testing.assert_array_equal(m.cloud().xyz, before.xyz)
