@@ -35,6 +35,7 @@ from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.outbox import OutboxSink
 from adapters.zenoh.points import ZenohPoints
 from adapters.zenoh.ros_maps import RosMapPublisher
+from adapters.zenoh.ros_points import RosPointsPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.errors import StoreNotFoundError
@@ -148,6 +149,8 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             service.sinks += [sink for sink in (daemon, ros_sink, recorder) if sink is not None]
             points = ZenohPoints(session, prefix=keys.prefix, frame_id=cfg.frame_id)  # points skills' clouds
             service.sinks.append(OutboxSink(points, daemon.outbox))
+            if any(s.kind == "points" for s in cfg.skills.values()) and cfg.robots:  # /<ns>/points_map
+                service.sinks.append(OutboxSink(RosPointsPublisher(session, cfg), daemon.outbox))
             t0 = time.perf_counter()
             service.start()
             daemon.drain()  # every map is declared and sent before we say so
