@@ -124,6 +124,9 @@ def test_clouds_are_published_whole_at_start_and_again_after_a_change_at_most_on
     np.testing.assert_array_equal(again[0].cloud.keys, m.cloud().keys)
     service.process()
     assert len(rec.of(PointsPublished)) == 2  # nothing changed since: nothing more
+    (entry,) = service.status()["points"]  # type: ignore[misc]
+    assert entry == {"storey": "ground-floor", "skill": "lidar3d", "version": 4, "revision": 3,
+                     "points": len(m.cloud())}  # fmt: skip
 
 
 def _start(store: GraphStore, path: Path, config: Config) -> TwinService:
