@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from twin.grid import GridData, GridFrame, OccupancyGrid, Window
+from twin.points import PointCloud
 from twin.records import FloatArray, Mesh
 from twin.skills import SkillProfile
 
@@ -183,9 +184,22 @@ class RobotStoreyChanged:
     stamp_ns: int
 
 
+@dataclass(frozen=True, eq=False, slots=True)
+class PointsPublished:
+    """A points map's whole cloud (latched). ``sensor_msgs/PointCloud2`` has no update message: a
+    changed cloud is published whole again, at most once per ``interval`` (see
+    :class:`twin.live.live_points.PointsPublication`)."""
+
+    cloud: PointCloud
+    revision: int
+    version: int
+    stamp_ns: int
+
+
 TwinEvent = (
     TwinStarted
     | MapPublished
+    | PointsPublished
     | MapUpdated
     | MapRemoved
     | ObservationAccepted

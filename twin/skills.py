@@ -6,6 +6,12 @@ A profile is a typed record parsed from a TOML table or a JSON object. Two kinds
   centred on that height;
 - ``navigation``: everything between ``floor_clearance_m`` and ``robot_height_m``, projected.
 
+a point cloud for 3D lidars (NDT / ICP localizers):
+
+- ``points``: the voxels of ``resolution_m`` (default 0.1 m) the selected surfaces touch between
+  ``band_bottom_m`` (default -0.05: just below the floor's top, so the floor is in) and ``band_top_m``
+  (default: up to the next storey's elevation), one point per voxel (see :mod:`twin.points`);
+
 and two kinds of nav2 costmap filter mask, made of the zones operators mark (same band as navigation):
 
 - ``keepout``: the elements marked ``twin:keepout true``, as occupied (100) cells;
@@ -41,9 +47,9 @@ from twin.errors import SkillError
 from twin.rdf import uses_service
 from twin.skill_selection import class_iri, selection_query
 
-__all__ = ["MASK_KINDS", "Kind", "SkillProfile", "parse_skill", "parse_skill_json"]
+__all__ = ["MASK_KINDS", "POINTS_RESOLUTION_M", "Kind", "SkillProfile", "parse_skill", "parse_skill_json"]
 
-Kind = Literal["localization", "navigation", "keepout", "speed"]
+Kind = Literal["localization", "navigation", "keepout", "speed", "points"]
 MASK_KINDS: tuple[Kind, ...] = ("keepout", "speed")
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
 _IFC_NAME = re.compile(r"^Ifc[A-Za-z0-9]+$")
@@ -63,7 +69,10 @@ _FIELDS: dict[str, set[str]] = {
     "navigation": _COMMON | {"robot_height_m", "floor_clearance_m", "inflation_radius_m"},
     "keepout": _COMMON | {"robot_height_m", "floor_clearance_m"},
     "speed": _COMMON | {"robot_height_m", "floor_clearance_m", "limit_percent"},
+    "points": (_COMMON - {"unknown_outside"}) | {"band_bottom_m", "band_top_m"},
 }
+POINTS_RESOLUTION_M = 0.1
+"""A ``points`` skill's ``resolution_m`` (voxel size) unless it sets one."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,6 +95,11 @@ class SkillProfile:
     description: str = ""
     limit_percent: int = 50
     """``speed`` masks: the limit of the zones they show (cells of that value)."""
+    band_bottom_m: float = -0.05
+    """``points``: the band's bottom relative to the storey's elevation (below 0: the floor's top is in)."""
+    band_top_m: float | None = None
+    """``points``: the band's top relative to the storey's elevation; None: the next storey's elevation
+    (the top storey: the top of the model's geometry)."""
 
     @property
     def is_mask(self) -> bool:
@@ -103,6 +117,8 @@ class SkillProfile:
         if self.kind == "localization":
             half = self.slab_thickness_m / 2
             return (self.lidar_height_m - half, self.lidar_height_m + half)
+        if self.kind == "points":
+            return (self.band_bottom_m, 1e3 if self.band_top_m is None else self.band_top_m)
         return (self.floor_clearance_m, self.robot_height_m)
 
     def to_json(self) -> dict[str, Any]:
@@ -155,8 +171,8 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
     kind = data.get("kind")
     if not isinstance(kind, str) or kind not in _FIELDS:
         msg = (
-            f"Skill {name!r}: field 'kind' must be 'localization', 'navigation', 'keepout' or 'speed', "
-            f"got {kind!r}."
+            f"Skill {name!r}: field 'kind' must be 'localization', 'navigation', 'keepout', 'speed' or "
+            f"'points', got {kind!r}."
         )
         raise SkillError(msg)
     unknown = sorted(set(data) - _FIELDS[kind])
@@ -166,6 +182,8 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
         msg = f"Skill {name!r}: unknown field {unknown[0]!r}{hint}."
         raise SkillError(msg)
     args: dict[str, Any] = {"name": name, "kind": kind}
+    if kind == "points":
+        args["resolution_m"] = POINTS_RESOLUTION_M
     if "resolution_m" in data:
         args["resolution_m"] = _number(
             name, "resolution_m", data["resolution_m"], minimum=0.001, strict=False, maximum=10.0
@@ -176,6 +194,9 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
     for key in ("slab_thickness_m",):
         if key in data:
             args[key] = _number(name, key, data[key], minimum=0.0, strict=True, maximum=10.0)
+    for key in ("band_bottom_m", "band_top_m"):
+        if key in data:
+            args[key] = _number(name, key, data[key], minimum=-100.0, strict=False, maximum=100.0)
     for key in ("floor_clearance_m", "inflation_radius_m"):
         if key in data:
             args[key] = _number(name, key, data[key], minimum=0.0, strict=False, maximum=100.0)
@@ -213,7 +234,19 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
             raise SkillError(msg)
         args["sparql"] = data["sparql"]
     skill = SkillProfile(**args)
-    if skill.kind != "localization" and skill.floor_clearance_m >= skill.robot_height_m:
+    if skill.kind == "points" and skill.resolution_m < 0.01:
+        msg = (
+            f"Skill {name!r}: field 'resolution_m' of a points skill must be >= 0.01, "
+            f"got {skill.resolution_m}."
+        )
+        raise SkillError(msg)
+    if skill.band_top_m is not None and skill.band_top_m <= skill.band_bottom_m:
+        msg = (
+            f"Skill {name!r}: field 'band_top_m' ({skill.band_top_m}) must be above "
+            f"'band_bottom_m' ({skill.band_bottom_m})."
+        )
+        raise SkillError(msg)
+    if skill.kind in ("navigation", "keepout", "speed") and skill.floor_clearance_m >= skill.robot_height_m:
         msg = (
             f"Skill {name!r}: field 'floor_clearance_m' ({skill.floor_clearance_m}) must be below "
             f"'robot_height_m' ({skill.robot_height_m})."

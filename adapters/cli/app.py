@@ -86,7 +86,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.set_defaults(func=model_cmds.cmd_sample)
 
-    sp = sub.add_parser("map", help="write skill maps (map_server YAML+PGM, PNG, CDR) per storey")
+    sp = sub.add_parser(
+        "map", help="write skill maps (map_server YAML+PGM, PNG, CDR; points skills: PCD) per storey"
+    )
     _store_arg(sp)
     sp.add_argument("--skill", action="append", help="a configured skill (repeatable)")
     sp.add_argument("--all-skills", action="store_true", help="every configured skill")

@@ -1,4 +1,5 @@
-"""``twin map``: write skill maps of a store as nav2 map_server files, PNG previews and CDR messages."""
+"""``twin map``: write skill maps of a store as nav2 map_server files, PNG previews and CDR messages, and
+``points`` skills' clouds as PCD files and CDR ``sensor_msgs/PointCloud2`` messages."""
 
 from __future__ import annotations
 
@@ -9,9 +10,11 @@ from typing import Any
 
 from adapters.cli.common import add_store_args, open_store
 from adapters.ros import write_map_files
+from adapters.ros.pcd import points_offset, write_points_files
 from twin.config import Config
 from twin.errors import MapError, SkillError
 from twin.maps import build_map, plan_map
+from twin.points import build_points, plan_points
 from twin.rdf import literal_value
 from twin.scene import load_scene
 from twin.skill_selection import selection_query
@@ -39,6 +42,18 @@ def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
             iris = [literal_value(r["element"]) or "" for r in store.select(selection_query(skill))]
             for storey in storeys:
                 t1 = time.perf_counter()
+                if skill.kind == "points":
+                    cloud = build_points(
+                        scene, plan_points(scene, skill, storey.key, iris, margin_m=cfg.margin_m)
+                    )
+                    pfiles = write_points_files(cloud, out, stamp_ns=stamp_ns)
+                    ox, oy = points_offset(cloud)
+                    shift = f" (offset {ox}, {oy} m)" if (ox, oy) != (0.0, 0.0) else ""
+                    print(
+                        f"{storey.key}/{skill.name}: {len(cloud):,} points at {skill.resolution_m} m, "
+                        f"{time.perf_counter() - t1:.2f} s -> {pfiles.pcd}{shift}"
+                    )
+                    continue
                 grid = build_map(scene, plan_map(scene, skill, storey.key, iris, margin_m=cfg.margin_m))
                 files = write_map_files(grid, out, stamp_ns=stamp_ns)
                 occupied = int(grid.occupied().sum())
@@ -50,7 +65,9 @@ def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
 
 
 def add_map_parser(sub: Any) -> None:
-    sp = sub.add_parser("map", help="write skill maps (map_server YAML+PGM, PNG, CDR) per storey")
+    sp = sub.add_parser(
+        "map", help="write skill maps (map_server YAML+PGM, PNG, CDR; points skills: PCD) per storey"
+    )
     add_store_args(sp)
     sp.add_argument("--skill", action="append", help="a configured skill (repeatable)")
     sp.add_argument("--all-skills", action="store_true", help="every configured skill")

@@ -33,8 +33,10 @@ from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
+from adapters.zenoh.points import ZenohPoints
 from adapters.zenoh.ros_ingest import RosIngest
 from adapters.zenoh.ros_maps import RosMapPublisher
+from adapters.zenoh.ros_points import RosPointsPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.errors import StoreNotFoundError
@@ -172,6 +174,10 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
                 daemon.status_sources.append(ingest.status)
                 service.sinks.append(ingest)  # storeys, doors and occluding maps: cheap, on the writer
             service.sinks += [sink for sink in (daemon, recorder) if sink is not None]
+            points = ZenohPoints(session, prefix=keys.prefix, frame_id=cfg.frame_id)  # points skills' clouds
+            daemon.followers.append(points)  # on the dispatcher, off the writer
+            if any(s.kind == "points" for s in cfg.skills.values()) and cfg.robots:  # /<ns>/points_map
+                daemon.followers.append(RosPointsPublisher(session, cfg))
             t0 = time.perf_counter()
             source = store_label(args, cfg)
             print(f"loading site {cfg.site!r} from {source} ...", file=sys.stderr, flush=True)

@@ -40,6 +40,7 @@ from twin.events import (
     ObservationAccepted,
     ObservationNoted,
     ObservationRejected,
+    PointsPublished,
     RobotStoreyChanged,
     SkillChanged,
     TwinEvent,
@@ -175,10 +176,13 @@ class RecordingWriter:
             self._version(event.storey, event.skill, event.version, event.revision)
         elif isinstance(event, MapUpdated):
             self._update(event)
+        elif isinstance(event, PointsPublished):
+            self._points(event)
         elif isinstance(event, MapRemoved):
             self._time(event.revision, event.stamp_ns)
             self._maps.pop((event.storey, event.skill), None)
             self.stream.log(f"maps/{event.storey}/{event.skill}", rr.Clear(recursive=True))
+            self.stream.log(f"points/{event.storey}/{event.skill}", rr.Clear(recursive=True))
             self._text(f"map {event.storey}/{event.skill} removed", "INFO")
         elif isinstance(event, ObservationAccepted):
             self._accepted(event)
@@ -197,6 +201,16 @@ class RecordingWriter:
             self._time(event.revision, event.stamp_ns)
             was = f" (was {event.previous})" if event.previous else ""
             self._text(f"{event.robot}: now on storey {event.storey}{was}, via {event.source}", "INFO")
+
+    def _points(self, event: PointsPublished) -> None:
+        """A points map's cloud, in world coordinates (z plus the storey's elevation), each version."""
+        self._time(event.revision, event.stamp_ns)
+        c = event.cloud
+        xyz = c.xyz.astype(np.float32)
+        xyz[:, 2] += np.float32(c.elevation_m)
+        self.stream.log(
+            f"points/{c.storey}/{c.skill}", rr.Points3D(xyz, radii=np.float32(c.resolution_m / 4))
+        )
 
     def _text(self, text: str, level: str) -> None:
         self.stream.log("events", rr.TextLog(text, level=level))

@@ -51,6 +51,7 @@ from twin.events import (
     MapPublished,
     MapRemoved,
     MapUpdated,
+    PointsPublished,
     RobotStoreyChanged,
     TwinEvent,
     TwinSink,
@@ -110,7 +111,9 @@ class ZenohDaemon:
 
     # --- sink ---------------------------------------------------------------------------------------
     def emit(self, event: TwinEvent) -> None:
-        if isinstance(event, MapPublished | MapUpdated | MapRemoved | TwinStarted | RobotStoreyChanged):
+        if isinstance(
+            event, MapPublished | MapUpdated | MapRemoved | TwinStarted | RobotStoreyChanged | PointsPublished
+        ):
             self.outbox.put(lambda: self._dispatch(event))
 
     def drain(self) -> None:

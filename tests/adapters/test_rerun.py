@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -20,8 +21,10 @@ from adapters.rerun.cut import cut
 from adapters.rerun.tiles import TILE, tiles_of
 from tests.twin.box_lab import element_iri, spec
 from tests.twin.live_helpers import TWIN, box_turtle, observe, started
+from twin.config import load_config
 from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
 from twin.grid import GridFrame, OccupancyGrid
+from twin.skills import parse_skill
 
 SCREENSHOT = Path(__file__).resolve().parents[3] / "shared" / "tools" / "rrd_screenshot.sh"
 
@@ -337,3 +340,26 @@ def test_a_moved_element_logs_its_mesh_once_and_its_placement_at_every_move(tmp_
     assert len(logged("Transform3D:translation")) == 3
     revisions = sorted(r[0] for r in logged("observed_revision"))  # type: ignore[index]
     assert revisions == [1, 2, 3]  # who saw it when, at every move
+
+
+def test_a_points_skills_cloud_is_recorded_per_storey_in_world_coordinates_at_each_version(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "points.rrd"
+    lidar = parse_skill(
+        "lidar3d", {"kind": "points", "resolution_m": 0.25, "exclude_types": ["IfcOpeningElement"]}
+    )
+    cfg = dataclasses.replace(load_config(), skills={"lidar3d": lidar})
+    recorder = RerunRecorder(path=path)
+    service, _ = started(config=cfg)
+    service.sinks.append(recorder)
+    service.process()  # the first clouds
+    m = service.engine.points.maps[("ground-floor", "lidar3d")]
+    first = m.cloud()
+    recorder.close()
+    batches = chunks_by_entity(path)["/points/ground-floor/lidar3d"]
+    positions = [p for b in batches for p in column(b, "Points3D:positions") if p is not None]
+    assert len(positions) == 1 and len(positions[0]) == len(first)
+    got = np.array(positions[0], dtype=np.float32)
+    np.testing.assert_array_equal(got[:, :2], first.xyz[:, :2].astype(np.float32))
+    assert np.allclose(got[:, 2], first.xyz[:, 2] + first.elevation_m, atol=1e-5)

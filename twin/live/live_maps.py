@@ -36,6 +36,7 @@ import numpy as np
 from twin.grid import Window
 from twin.live.drawing import Drawing
 from twin.live.live_map import LiveMap, WindowUpdate
+from twin.live.live_points import LivePoints
 from twin.live.overlay import (
     MapKey,
     OverlayElement,
@@ -60,6 +61,8 @@ class LiveMaps(Drawing):
     def __init__(self, scene: Scene, *, margin_m: float) -> None:
         super().__init__(scene)
         self.margin_m = margin_m
+        self.points = LivePoints(self, margin_m=margin_m)
+        """The ``points`` skills' clouds over the same live scene (kept current by :meth:`redraw`)."""
 
     @classmethod
     def restored(
@@ -104,7 +107,7 @@ class LiveMaps(Drawing):
             del self.maps[k]
         for key in [k for k in self._rasters.cells if k[1][1] == name]:
             del self._rasters.cells[key]
-        return gone
+        return gone + self.points.remove_skill(name)
 
     def _member(self, m: LiveMap, iri: str) -> bool:
         if iri in self._overlay:
@@ -188,4 +191,6 @@ class LiveMaps(Drawing):
             for win, cells in fresh:  # all rendered before any is written
                 if (update := m.write(win, cells)) is not None:
                     updates.append(update)
+        if self.points.maps:
+            self.points.redraw(touched, membership)
         return updates

@@ -30,6 +30,7 @@ from twin.errors import TwinError
 from twin.events import ElementShape, RobotStoreyChanged, TwinEvent, TwinSink, TwinStarted
 from twin.live.explain import explain_cell
 from twin.live.live_maps import LiveMaps
+from twin.live.live_points import PointsPublication
 from twin.live.loading import catch_up, load_live_or_restore
 from twin.live.observe import Observer, element_shapes
 from twin.live.publication import Publication, PublishedMap
@@ -92,6 +93,8 @@ class TwinService:
         self.publication = Publication(
             emit=self._emit, clock=clock, keyframe_s=config.limits.keyframe_interval_s
         )
+        self.points_publication = PointsPublication(emit=self._emit, clock=clock)
+        """The points skills' clouds (whole, at a bounded rate: see :mod:`twin.live.live_points`)."""
         self._live: LiveState | None = None
         self._observer: Observer | None = None
         self.started_ns = 0
@@ -203,6 +206,7 @@ class TwinService:
         ``due_only``, only the keyframes that are due (``keyframe_interval_s`` since the last one)."""
         if self._live is not None:
             self.publication.flush(self._live.maps.maps, self._live.revision, due_only=due_only)
+            self.points_publication.flush(self._live.maps.points, self._live.revision, due_only=due_only)
 
     def flush_store(self, *, due_only: bool = False) -> None:
         """Flush the store's buffers if anything was committed since the last flush (with ``due_only``:

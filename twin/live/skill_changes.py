@@ -51,8 +51,13 @@ def stored_skills(store: GraphStore, configured: dict[str, SkillProfile]) -> dic
 
 
 def add_skill_maps(store: GraphStore, live: LiveState, skill: SkillProfile) -> list[LiveMap]:
-    """Build the skill's map of every storey (its selection asked of the store once)."""
+    """Build the skill's map of every storey (its selection asked of the store once). A ``points``
+    skill's clouds go to ``live.maps.points`` (no 2D map: the list is empty)."""
     selected = {r["element"] or "" for r in store.select(selection_query(skill))}
+    if skill.kind == "points":
+        for s in live.maps.scene.storeys:
+            live.maps.points.add_map(skill, s.key, selected)
+        return []
     return [live.maps.add_map(skill, s.key, selected) for s in live.maps.scene.storeys]
 
 
@@ -125,7 +130,7 @@ def publish_all_maps(
     completing = None
     if restored is not None:  # the maps first, then the triangles they were drawn from
         for skill in live.skills.values():
-            if skill.name in restored.skills:
+            if skill.name in restored.skills and skill.kind != "points":  # clouds: PointsPublication
                 for s in live.maps.scene.storeys:
                     publication.publish(live.maps.maps[(s.key, skill.name)], live.revision, stamp)
         if not restored.skills >= frozenset(live.skills):

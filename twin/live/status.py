@@ -14,8 +14,9 @@ if TYPE_CHECKING:
 
 
 def service_status(service: TwinService) -> dict[str, object]:
-    """Site, revision, element and triple counts, skills, storeys, every map's version, observation
-    counts, queue depth and uptime of a started service."""
+    """Site, revision, element and triple counts, skills, storeys, every map's version, every points
+    map's latest published cloud (version, size), observation counts, queue depth and uptime of a
+    started service."""
     live = service.live
     obs = service.observer
     now = service.clock()
@@ -29,6 +30,19 @@ def service_status(service: TwinService) -> dict[str, object]:
         "maps": [
             {"storey": p.storey, "skill": p.skill, "version": p.version, "revision": p.revision}
             for p in sorted(service.published_maps(), key=lambda p: (p.storey, p.skill))
+        ],
+        "points": [
+            {
+                "storey": e.cloud.storey,
+                "skill": e.cloud.skill,
+                "version": e.version,
+                "revision": e.revision,
+                "points": len(e.cloud),
+            }
+            for e in sorted(
+                list(service.points_publication.latest.values()),
+                key=lambda e: (e.cloud.storey, e.cloud.skill),
+            )
         ],
         "observations": {"accepted": obs.accepted, "unchanged": obs.unchanged, "rejected": obs.rejected},
         "fusion": {

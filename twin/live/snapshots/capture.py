@@ -42,6 +42,18 @@ class _MapCopy:
 
 
 @dataclass(frozen=True, eq=False, slots=True)
+class _PointsCopy:
+    storey: str
+    skill: str
+    skill_digest: str
+    version: int
+    overlay: tuple[str, ...]
+    base_mask: AnyArray
+    names: list[str]
+    arrays: dict[str, AnyArray]
+
+
+@dataclass(frozen=True, eq=False, slots=True)
 class Captured:
     """The live maps at one revision, copied (what changes) or shared (what never does: the scene)."""
 
@@ -52,6 +64,7 @@ class Captured:
     overlay: dict[str, Shape]
     maps: tuple[_MapCopy, ...]
     states: dict[str, ElementState]
+    points: tuple[_PointsCopy, ...] = ()
 
 
 def capture(live: LiveState, keys: dict[str, Any]) -> Captured:
@@ -70,6 +83,21 @@ def capture(live: LiveState, keys: dict[str, Any]) -> Captured:
         )
         for m in live.maps.maps.values()
     )
+    points = []
+    for p in live.maps.points.maps.values():
+        names, arrays = p.packed()  # new arrays: a copy
+        points.append(
+            _PointsCopy(
+                p.plan.storey.key,
+                p.plan.skill.name,
+                skill_digest(p.plan.skill),
+                p.version,
+                tuple(sorted(p.overlay)),
+                p.base_mask.copy(),
+                names,
+                arrays,
+            )
+        )
     return Captured(
         live.revision,
         keys,
@@ -78,6 +106,7 @@ def capture(live: LiveState, keys: dict[str, Any]) -> Captured:
         live.maps.overlay_shapes(),
         maps,
         dict(live.states),  # the states themselves are immutable
+        tuple(points),
     )
 
 
@@ -149,6 +178,20 @@ def save(path: Path, snap: Captured) -> int:
                 "overlay": list(m.overlay),
             }
         )
+    points = []
+    for j, p in enumerate(snap.points):
+        arrays[f"p{j}_mask"] = p.base_mask
+        arrays |= {f"p{j}_{name}": a for name, a in p.arrays.items()}
+        points.append(
+            {
+                "storey": p.storey,
+                "skill": p.skill,
+                "skill_digest": p.skill_digest,
+                "version": p.version,
+                "overlay": list(p.overlay),
+                "names": p.names,
+            }
+        )
     header = {
         "kind": "building-twin live maps",
         "revision": snap.revision,
@@ -160,6 +203,7 @@ def save(path: Path, snap: Captured) -> int:
         "space_storey": scene.space_storey,
         "overlay": over,
         "maps": maps,
+        "points": points,
         "states": [_state_json(st) for st in snap.states.values()],
     }
     return write_snapshot(path, header, arrays)

@@ -20,11 +20,13 @@ import numpy as np
 from twin.errors import SnapshotError, TwinError
 from twin.live.live_map import LiveMap
 from twin.live.live_maps import LiveMaps
+from twin.live.live_points import PointsMap
 from twin.live.selection import membership
 from twin.live.snapshots.keys import skill_digest
 from twin.live.state import ElementState, LiveState, load_states
 from twin.maps import plan_map
 from twin.meshcodec import decode_mesh, decode_placement
+from twin.points import plan_points
 from twin.records import FloatArray, GeometryChange, Mesh, Shape, to_world
 from twin.scene import MeshSet, Scene, StoreyInfo
 from twin.skills import SkillProfile
@@ -225,6 +227,23 @@ def restore(
                     int(entry["version"]),
                 )
             )
+        points: list[PointsMap] = []
+        for j, entry in enumerate(header.get("points", [])):
+            skill = skills.get(str(entry["skill"]))
+            if skill is None or skill.kind != "points" or skill_digest(skill) != entry["skill_digest"]:
+                continue
+            cloud_plan = plan_points(scene, skill, str(entry["storey"]), (), margin_m=margin_m)
+            parts = {n: arrays[f"p{j}_{n}"] for n in ("keys", "q", "d2", "wins", "counts")}
+            points.append(
+                PointsMap.unpacked(
+                    cloud_plan,
+                    arrays[f"p{j}_mask"],
+                    {str(i) for i in entry["overlay"]},
+                    names=[str(n) for n in entry["names"]],
+                    arrays=parts,
+                    version=int(entry["version"]),
+                )
+            )
     except SnapshotError as err:
         msg = f"The snapshot {path} is inconsistent: {err}."
         raise SnapshotError(msg) from err
@@ -232,8 +251,12 @@ def restore(
         msg = f"The snapshot {path} is inconsistent: {type(err).__name__}: {err}."
         raise SnapshotError(msg) from err
     live = LiveMaps.restored(scene, margin_m=margin_m, hidden=arrays["hidden"], overlay=overlay, maps=maps)
+    for p in points:
+        live.points.maps[p.key] = p
+        live.points.pending[p.key] = p.version  # published at the first flush
     filled = np.zeros(len(items), dtype=np.bool_)
-    return Restored(live, at, frozenset(m.plan.skill.name for m in maps), items, states, filled)
+    names = frozenset(m.plan.skill.name for m in maps) | frozenset(p.plan.skill.name for p in points)
+    return Restored(live, at, names, items, states, filled)
 
 
 # --- replay ------------------------------------------------------------------------------------------

@@ -1,0 +1,141 @@
+"""Points maps on ROS 2 robots' topics: ``/<ns>/points_map``, the cloud of the robot's current storey.
+
+For every configured robot with a namespace, each ``points`` skill's cloud of the storey the robot is
+on goes out as ``sensor_msgs/msg/PointCloud2`` (latched, as map_server's map) on ``/<ns>/points_map``
+(one points skill) or ``/<ns>/points_map_<skill>`` (several; ``-`` becomes ``_``), in the robot's
+layouts, as :mod:`adapters.zenoh.ros_maps` serves the 2D maps: ``bridge`` (key ``<ns>/points_map``, an
+AdvancedPublisher with a cache of one) and ``rmw_zenoh`` (rmw_zenoh_cpp's data key with type hash,
+the 33-byte attachment on every sample, liveliness tokens of node ``<ns>/twin_points_server`` and of
+its publishers). When the robot switches storey (a :class:`~twin.events.RobotStoreyChanged` from the
+map publisher), the new storey's cloud is published. PointCloud2 has no update message: the twin
+publishes a changed cloud whole, at most once a second. Each cloud is encoded once per version.
+
+Example::
+
+    ros_points = RosPointsPublisher(session, config)
+    service.sinks.append(OutboxSink(ros_points, daemon.outbox))    # encoded off the writer's thread
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+import zenoh
+
+from adapters.ros.pcd import POINT_CLOUD2, encode_point_cloud2
+from adapters.ros.rmw_zenoh import LATCHED_QOS, RosNode, RosTopic, attachment, gid_of
+from adapters.zenoh.latched import declare_latched_publisher
+from twin.config import Config
+from twin.events import MapRemoved, PointsPublished, RobotStoreyChanged, TwinEvent
+
+__all__ = ["NODE_NAME", "RosPointsPublisher", "points_topic"]
+
+log = logging.getLogger(__name__)
+
+NODE_NAME = "twin_points_server"
+_ENTITY_BASE = 1 << 20
+"""Entity ids of this node and its publishers: apart from the map server's (same session)."""
+_RMW_HEARTBEAT_S = 0.5
+
+
+def points_topic(skill: str, *, several: bool) -> str:
+    """The topic name of a points skill under a robot's namespace."""
+    return f"points_map_{skill.replace('-', '_')}" if several else "points_map"
+
+
+@dataclass(eq=False, slots=True)
+class _Pub:
+    publisher: Any
+    gid: bytes | None = None
+    sequence: int = 0
+
+    def put(self, payload: bytes, stamp_ns: int) -> None:
+        if self.gid is None:
+            self.publisher.put(payload)
+            return
+        self.sequence += 1
+        self.publisher.put(payload, attachment=attachment(self.sequence, stamp_ns, self.gid))
+
+
+@dataclass(eq=False, slots=True)
+class _Robot:
+    storey: str | None
+    topics: dict[str, list[_Pub]] = field(default_factory=dict)
+    """Per points skill, its publishers (one per layout)."""
+    entities: list[Any] = field(default_factory=list)
+
+
+class RosPointsPublisher:
+    """Publishes the points skills' clouds to the configured robots. Call :meth:`emit` from one thread."""
+
+    def __init__(self, session: zenoh.Session, config: Config) -> None:
+        self.frame_id = config.frame_id
+        skills = sorted(name for name, s in config.skills.items() if s.kind == "points")
+        self._latest: dict[tuple[str, str], tuple[bytes, int]] = {}
+        self._robots: dict[str, _Robot] = {}
+        zid = str(session.zid())
+        entity = _ENTITY_BASE
+        for robot in sorted(config.robots.values(), key=lambda r: r.name):
+            if robot.namespace is None or not skills:
+                continue
+            r = self._robots[robot.name] = _Robot(robot.storey)
+            node = RosNode(robot.domain_id, robot.namespace, NODE_NAME, zid, entity)
+            entity += 1
+            rmw = "rmw_zenoh" in robot.ros
+            if rmw:
+                r.entities.append(session.liveliness().declare_token(node.node_token()))
+            for skill in skills:
+                topic = RosTopic(
+                    robot.domain_id,
+                    robot.namespace,
+                    points_topic(skill, several=len(skills) > 1),
+                    POINT_CLOUD2,
+                )
+                pubs = r.topics[skill] = []
+                if "bridge" in robot.ros:
+                    pubs.append(_Pub(declare_latched_publisher(session, topic.bridge_key)))
+                if rmw:
+                    token = node.publisher_token(topic, entity, LATCHED_QOS)
+                    entity += 1
+                    latched = declare_latched_publisher(session, topic.data_key, heartbeat_s=_RMW_HEARTBEAT_S)
+                    pubs.append(_Pub(latched, gid=gid_of(token)))
+                    r.entities.append(session.liveliness().declare_token(token))
+            log.info(
+                "Serving %s the points maps %s (%s)", robot.namespace, ", ".join(skills), ", ".join(robot.ros)
+            )
+
+    def emit(self, event: TwinEvent) -> None:
+        if isinstance(event, PointsPublished):
+            cloud = event.cloud
+            payload = encode_point_cloud2(cloud, stamp_ns=event.stamp_ns, frame_id=self.frame_id)
+            self._latest[(cloud.storey, cloud.skill)] = (payload, event.stamp_ns)
+            for r in self._robots.values():
+                if r.storey == cloud.storey:
+                    self._send(r, cloud.skill)
+        elif isinstance(event, RobotStoreyChanged):
+            robot = self._robots.get(event.robot)
+            if robot is not None and robot.storey != event.storey:
+                robot.storey = event.storey
+                for skill in robot.topics:
+                    self._send(robot, skill)
+        elif isinstance(event, MapRemoved):
+            self._latest.pop((event.storey, event.skill), None)
+
+    def _send(self, r: _Robot, skill: str) -> None:
+        latest = self._latest.get((r.storey or "", skill))
+        if latest is None:
+            return
+        payload, stamp_ns = latest
+        for pub in r.topics.get(skill, []):
+            pub.put(payload, stamp_ns)
+
+    def close(self) -> None:
+        for r in self._robots.values():
+            for pubs in r.topics.values():
+                for pub in pubs:
+                    pub.publisher.undeclare()
+            for e in r.entities:
+                e.undeclare()
+        self._robots.clear()

@@ -1,0 +1,198 @@
+"""Point-cloud maps for 3D lidars: the points skill, the exact voxels surfaces touch (against a reference
+written apart, tests/twin/reference_voxels.py) and one point per voxel, in the storey's frame."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from tests.conftest import examples
+from tests.twin.box_lab import element_iri, spec
+from tests.twin.reference_voxels import reference_voxels
+from twin.errors import MapError, SkillError
+from twin.points import (
+    PointsPlan,
+    Voxels,
+    best_per_voxel,
+    build_points,
+    plan_points,
+    voxels_by_element,
+    voxels_of,
+)
+from twin.rdf import literal_value
+from twin.scene import Scene, load_scene
+from twin.skill_selection import selection_query
+from twin.skills import SkillProfile, parse_skill
+from twin.store import GraphStore
+from twin.voxels import nearest_points, touched_voxels
+
+LIDAR = {
+    "kind": "points",
+    "exclude_types": [
+        "IfcOpeningElement",
+        "IfcFurnishingElement",
+        "IfcBuildingElementProxy",
+        "IfcFlowTerminal",
+    ],
+    "exclude_materials": ["glass"],
+}
+LO, HI = (0, 0, -1), (6, 6, 5)
+
+
+def _coordinates(kind: int) -> st.SearchStrategy[float]:
+    if kind == 0:
+        return st.floats(-2.0, 7.0, allow_nan=False)
+    if kind == 1:
+        return st.integers(-2, 7).map(float)  # on the grid: ties on every axis
+    return st.integers(-4, 14).map(lambda v: v / 2)  # on faces and half-way
+
+
+@st.composite
+def triangles(draw: st.DrawFn) -> npt.NDArray[np.float64]:
+    kind = draw(st.integers(0, 3))
+    if kind == 3:  # a sliver: a nearly straight triangle
+        a = np.array(draw(st.lists(_coordinates(0), min_size=3, max_size=3)))
+        b = np.array(draw(st.lists(_coordinates(0), min_size=3, max_size=3)))
+        nudge = draw(st.sampled_from([0.0, 1e-12, 1e-7]))
+        return np.array([a, b, (a + b) / 2 + nudge])
+    coords = draw(st.lists(_coordinates(kind), min_size=9, max_size=9))
+    tri = np.array(coords, dtype=np.float64).reshape(3, 3)
+    if draw(st.booleans()):  # in an axis-aligned plane, as building faces are
+        axis = draw(st.integers(0, 2))
+        tri[:, axis] = draw(_coordinates(kind))
+    return tri
+
+
+BANDS = st.tuples(st.sampled_from([-1.0, -0.5, 0.0, 0.25]), st.sampled_from([3.0, 4.5, 5.0]))
+
+
+@settings(max_examples=examples(300), deadline=None, suppress_health_check=list(HealthCheck))
+@given(triangles(), BANDS)
+def test_the_voxels_a_triangle_touches_are_exactly_the_references(
+    tri: npt.NDArray[np.float64], band: tuple[float, float]
+) -> None:
+    _, ijk = touched_voxels(tri[None], lo=LO, hi=HI, w_band=band)
+    got = {(int(i), int(j), int(k)) for i, j, k in ijk}
+    ref = reference_voxels(tri, LO, HI, band)
+    assert sorted(ref - got) == [], "voxels missed"
+    assert sorted(got - ref) == [], "extra voxels"
+
+
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=list(HealthCheck))
+@given(triangles(), BANDS)
+def test_each_point_lies_in_its_voxel_on_the_triangle_and_no_farther_than_the_centres_projection(
+    tri: npt.NDArray[np.float64], band: tuple[float, float]
+) -> None:
+    t, ijk = touched_voxels(tri[None], lo=LO, hi=HI, w_band=band)
+    if not len(t):
+        return
+    q, d2 = nearest_points(tri[None][t], ijk, w_band=band)
+    lo = ijk.astype(float)
+    lo[:, 2] = np.maximum(lo[:, 2], band[0])
+    hi = ijk + 1.0
+    hi[:, 2] = np.minimum(hi[:, 2], band[1])
+    assert ((q >= lo) & (q <= hi)).all()
+    # on the triangle: barycentric coordinates in [0, 1] (within rounding), or on its line if degenerate
+    n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+    if np.linalg.norm(n) > 1e-3:  # (a sliver's plane is too ill-conditioned to measure against)
+        dist = np.abs((q - tri[0]) @ n) / np.linalg.norm(n)
+        assert dist.max() < 1e-8  # cell units: a nanometre at 0.1 m
+    centre = (lo + hi) / 2
+    assert np.allclose(((q - centre) ** 2).sum(axis=1), d2)
+    # no vertex of the triangle inside a voxel is nearer its centre than the chosen point
+    for v in tri:
+        inside = ((v >= lo) & (v <= hi)).all(axis=1)
+        assert (((v - centre[inside]) ** 2).sum(axis=1) >= d2[inside] - 1e-9).all()
+
+
+def test_a_points_skill_defaults_to_a_decimetre_and_a_band_from_below_the_floor_to_the_next_storey(
+    box_store2: GraphStore,
+) -> None:
+    skill = parse_skill("lidar3d", LIDAR)
+    assert (skill.resolution_m, skill.band_bottom_m, skill.band_top_m) == (0.1, -0.05, None)
+    scene = load_scene(box_store2)
+    ground, first = scene.storeys
+    plan = plan_points(scene, skill, ground.key, _iris(box_store2, skill))
+    assert plan.band == (-0.05, pytest.approx(first.elevation_m - ground.elevation_m))
+    assert skill.to_json()["kind"] == "points" and "band_top_m" not in skill.to_json()
+
+
+@pytest.mark.parametrize(
+    ("data", "words"),
+    [
+        ({"kind": "points", "band_bottom_m": 2.0, "band_top_m": 1.0}, r"'band_top_m' \(1.0\) must be above"),
+        ({"kind": "points", "resolution_m": 0.001}, "must be >= 0.01"),
+        ({"kind": "points", "lidar_height_m": 1.0}, "unknown field 'lidar_height_m'"),
+        ({"kind": "points", "band_top_m": "high"}, "'band_top_m' must be a finite number"),
+    ],
+)
+def test_a_bad_points_profile_is_refused_naming_the_field(data: dict[str, object], words: str) -> None:
+    with pytest.raises(SkillError, match=words):
+        parse_skill("bad", data)
+
+
+def test_a_2d_skill_cannot_plan_a_points_map(box_store: GraphStore) -> None:
+    scene = load_scene(box_store)
+    with pytest.raises(MapError, match="not a points skill"):
+        plan_points(scene, parse_skill("nav", {"kind": "navigation"}), scene.storeys[0].key, [])
+
+
+def _iris(store: GraphStore, skill: SkillProfile) -> list[str]:
+    return [literal_value(r["element"]) or "" for r in store.select(selection_query(skill))]
+
+
+def _plan(store: GraphStore, **extra: object) -> tuple[Scene, PointsPlan]:
+    scene = load_scene(store)
+    skill = parse_skill("lidar3d", {**LIDAR, **extra})
+    return scene, plan_points(scene, skill, scene.storeys[0].key, _iris(store, skill))
+
+
+def test_the_lab_cloud_is_every_voxel_its_walls_and_floor_touch_and_nothing_else(
+    box_store: GraphStore,
+) -> None:
+    scene, plan = _plan(box_store, resolution_m=0.25)
+    cloud = build_points(scene, plan)
+    expected: set[tuple[int, int, int]] = set()
+    for tri in plan.cells(scene.elements.triangles_of(plan.selected)[0]):
+        expected |= reference_voxels(tri, plan.lo, plan.hi, plan.w_band)
+    got = {(int(i), int(j), int(k)) for i, j, k in plan.ijk(cloud.keys)}
+    assert (len(got - expected), len(expected - got)) == (0, 0)
+    assert np.all(np.diff(cloud.keys) > 0)
+    # x, y in the map frame (world), z above the storey: the floor's top is in, at z = 0
+    assert cloud.xyz[:, 2].min() == pytest.approx(-0.05) or cloud.xyz[:, 2].min() >= -0.05
+    assert np.isclose(cloud.xyz[:, 2], 0.0).sum() > 100
+
+
+def test_glass_and_furniture_are_left_out_and_the_same_twin_gives_the_same_cloud(
+    box_store: GraphStore,
+) -> None:
+    scene, plan = _plan(box_store)
+    one, two = build_points(scene, plan), build_points(scene, plan)
+    assert np.array_equal(one.keys, two.keys) and np.array_equal(one.xyz, two.xyz)
+    table = scene.elements.index[element_iri(spec("Table"))]
+    assert table not in plan.selected
+    tri, _ = scene.elements.triangles_of(np.array([table]))
+    own = voxels_of(plan, tri)
+    assert len(own) and not np.isin(own.keys, one.keys).all()
+
+
+def test_the_cloud_is_the_union_of_its_elements_voxels_each_with_its_nearest_point(
+    box_store: GraphStore,
+) -> None:
+    scene, plan = _plan(box_store)
+    cloud = build_points(scene, plan)
+    parts = voxels_by_element(scene.elements, plan.selected, plan)
+    merged = best_per_voxel(Voxels.concat(parts))
+    assert np.array_equal(merged.keys, cloud.keys)
+    assert np.array_equal(plan.to_xyz(merged.q), cloud.xyz)
+    # where elements share a voxel (walls meeting the floor), the point is the one nearest its centre
+    keys, counts = np.unique(np.concatenate([p.keys for p in parts]), return_counts=True)
+    shared = keys[counts > 1]
+    assert len(shared) > 50
+    for p in parts:
+        mine = np.isin(p.keys, shared)
+        rows = np.searchsorted(merged.keys, p.keys[mine])
+        assert np.all(merged.d2[rows] <= p.d2[mine])

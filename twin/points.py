@@ -1,0 +1,315 @@
+"""Point-cloud maps for 3D lidars: one point per voxel the selected surfaces touch, in a storey's band.
+
+A ``points`` skill (:mod:`twin.skills`) selects elements like the 2D skills do. Its map of a storey is
+the set of voxels (cubes of ``resolution_m``, half-open) that the selected elements' triangles touch
+within the height band (from ``band_bottom_m`` to ``band_top_m`` above the storey's elevation, by
+default from just below the floor's top to the next storey's elevation): the 3D analogue of the 2D
+rule, so thin elements never vanish and touching elements leave no gaps. The touch test is exact
+(:mod:`twin.voxels`). Each voxel holds one point: the point of the selected surfaces, within the voxel,
+nearest its centre (a centre would bias the cloud by up to half a voxel); ties go to the smallest
+point, so the cloud does not depend on the order elements are processed in (incremental updates equal
+a full rebuild voxel for voxel).
+
+Frames: the voxels' x, y are the cells of the storey's 2D maps at this resolution (same origin, the
+``map`` frame); z is metres above the storey's elevation, voxel layer ``k`` covering
+``[k*res, (k+1)*res)``. Voxel ``(col, row, k)`` has the key ``((k - k_lo) * rows + row) * cols + col``;
+clouds are sorted by key.
+
+Example::
+
+    plan = plan_points(scene, skill, "ground-floor", iris, margin_m=1.0)
+    cloud = build_points(scene, plan)   # keys, xyz: x, y in the map frame, z above the storey
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from twin.errors import MapError
+from twin.grid import GridFrame
+from twin.scene import IndexArray, MeshSet, Scene, StoreyInfo
+from twin.skills import SkillProfile
+from twin.voxels import FloatArray, IntArray, nearest_points, touched_voxels
+
+__all__ = [
+    "MAX_POINTS_VOXELS",
+    "PointCloud",
+    "PointsPlan",
+    "Voxels",
+    "best_per_voxel",
+    "build_points",
+    "cloud_of",
+    "plan_points",
+    "voxels_by_element",
+    "voxels_of",
+]
+
+_CHUNK = 100_000
+"""Pairs whose nearest points are computed at once (bounds the temporaries to ~100 MB)."""
+MAX_POINTS_VOXELS = 2**62
+"""Keys are int64: a points map's frame (columns x rows x layers) must have fewer voxels."""
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class PointsPlan:
+    """One (storey, points skill) map: the 2D frame, the band, the selected elements."""
+
+    skill: SkillProfile
+    storey: StoreyInfo
+    frame: GridFrame
+    band: tuple[float, float]
+    """``[bottom, top)`` metres above the storey's elevation."""
+    selected: IndexArray
+
+    @property
+    def resolution_m(self) -> float:
+        return self.frame.resolution_m
+
+    @property
+    def w_band(self) -> tuple[float, float]:
+        """The band in cell units of z (above the elevation)."""
+        return (self.band[0] / self.resolution_m, self.band[1] / self.resolution_m)
+
+    @property
+    def layers(self) -> tuple[int, int]:
+        """``[k_lo, k_hi)``: the voxel layers the band cuts."""
+        w_lo, w_hi = self.w_band
+        return math.floor(w_lo), math.ceil(w_hi)
+
+    @property
+    def lo(self) -> tuple[int, int, int]:
+        return (0, 0, self.layers[0])
+
+    @property
+    def hi(self) -> tuple[int, int, int]:
+        return (self.frame.width, self.frame.height, self.layers[1])
+
+    @property
+    def world_band(self) -> tuple[float, float]:
+        e = self.storey.elevation_m
+        return (e + self.band[0], e + self.band[1])
+
+    def cells(self, triangles: FloatArray) -> FloatArray:
+        """World triangles ``(n, 3, 3)`` in cell coordinates (the voxels' units; see :mod:`twin.voxels`)."""
+        out = np.empty_like(triangles, dtype=np.float64)
+        res = self.resolution_m
+        out[..., 0] = (triangles[..., 0] - self.frame.origin_x) / res
+        out[..., 1] = (triangles[..., 1] - self.frame.origin_y) / res
+        out[..., 2] = (triangles[..., 2] - self.storey.elevation_m) / res
+        return out
+
+    def keys(self, ijk: IntArray) -> IntArray:
+        k_lo = self.layers[0]
+        return np.asarray(((ijk[:, 2] - k_lo) * self.frame.height + ijk[:, 1]) * self.frame.width + ijk[:, 0])
+
+    def ijk(self, keys: IntArray) -> IntArray:
+        w, h = self.frame.width, self.frame.height
+        out = np.empty((len(keys), 3), dtype=np.int64)
+        out[:, 0] = keys % w
+        out[:, 1] = (keys // w) % h
+        out[:, 2] = keys // (w * h) + self.layers[0]
+        return out
+
+    def to_xyz(self, q: FloatArray) -> FloatArray:
+        """Cell coordinates to map-frame metres: world x, y; z above the storey's elevation."""
+        res = self.resolution_m
+        out = np.empty_like(q)
+        out[:, 0] = self.frame.origin_x + q[:, 0] * res
+        out[:, 1] = self.frame.origin_y + q[:, 1] * res
+        out[:, 2] = q[:, 2] * res
+        return out
+
+
+def _band_top(scene: Scene, storey: StoreyInfo, res: float) -> float:
+    above = [s.elevation_m for s in scene.storeys if s.elevation_m > storey.elevation_m]
+    if above:
+        return min(above) - storey.elevation_m
+    b = scene.elements.bounds
+    b = b[~np.isnan(b).any(axis=1)]
+    top = float(b[:, 5].max()) if len(b) else storey.elevation_m
+    return max(top - storey.elevation_m, 0.0) + res  # the top storey: the model's top is in
+
+
+def plan_points(
+    scene: Scene, skill: SkillProfile, storey_key: str, element_iris: Sequence[str], *, margin_m: float = 1.0
+) -> PointsPlan:
+    """Fix the frame (the storey's 2D map frame at the skill's resolution), the band and the elements."""
+    if skill.kind != "points":
+        msg = f"Skill {skill.name!r} is a {skill.kind} skill, not a points skill."
+        raise MapError(msg)
+    storey = scene.storey(storey_key)
+    xmin, ymin, xmax, ymax = storey.extent
+    frame = GridFrame.around(xmin, ymin, xmax, ymax, resolution_m=skill.resolution_m, margin_m=margin_m)
+    top = skill.band_top_m if skill.band_top_m is not None else _band_top(scene, storey, skill.resolution_m)
+    if top <= skill.band_bottom_m:
+        msg = (
+            f"Skill {skill.name!r}: storey {storey_key!r} has an empty band ({skill.band_bottom_m} to "
+            f"{top} m): the next storey is at or below its bottom; set band_top_m."
+        )
+        raise MapError(msg)
+    selected = scene.elements.indices_of(tuple(element_iris))
+    plan = PointsPlan(skill, storey, frame, (skill.band_bottom_m, top), selected)
+    k_lo, k_hi = plan.layers
+    if frame.width * frame.height * (k_hi - k_lo) >= MAX_POINTS_VOXELS:
+        msg = (
+            f"Skill {skill.name!r}: resolution_m={skill.resolution_m} gives too many voxels for storey "
+            f"{storey_key!r}; use a coarser resolution."
+        )
+        raise MapError(msg)
+    return plan
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class Voxels:
+    """Touched voxels and their points: ``keys (n,)`` sorted, unique; ``q (n, 3)`` the point in cell
+    coordinates; ``d2 (n,)`` its squared distance to the voxel's centre (cell units)."""
+
+    keys: IntArray
+    q: FloatArray
+    d2: FloatArray
+
+    @classmethod
+    def empty(cls) -> Voxels:
+        return cls(np.empty(0, dtype=np.int64), np.empty((0, 3)), np.empty(0))
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    def take(self, rows: IntArray | npt.NDArray[np.bool_] | slice) -> Voxels:
+        return Voxels(self.keys[rows], self.q[rows], self.d2[rows])
+
+    @classmethod
+    def concat(cls, parts: Sequence[Voxels]) -> Voxels:
+        if not parts:
+            return cls.empty()
+        return cls(
+            np.concatenate([p.keys for p in parts]),
+            np.concatenate([p.q for p in parts]),
+            np.concatenate([p.d2 for p in parts]),
+        )
+
+
+def _order(keys: IntArray, q: FloatArray, d2: FloatArray, *extra: IntArray) -> IntArray:
+    """Sort by ``extra`` (outermost first), then key, then the point's rank (d2, x, y, z)."""
+    return np.lexsort((q[:, 2], q[:, 1], q[:, 0], d2, keys, *reversed(extra)))
+
+
+def best_per_voxel(v: Voxels) -> Voxels:
+    """One point per key: the nearest the voxel's centre, ties to the smallest (x, y, z); sorted by key."""
+    if not len(v):
+        return v
+    order = np.lexsort((v.d2, v.keys))
+    k, d2 = v.keys[order], v.d2[order]
+    first = np.ones(len(k), dtype=np.bool_)
+    first[1:] = k[1:] != k[:-1]
+    # voxels whose nearest distance is shared by two points (coincident faces): the smallest point
+    tie = np.zeros(len(k), dtype=np.bool_)
+    tie[:-1] = ~first[1:] & (d2[1:] == d2[:-1])
+    if tie.any():
+        tied = np.isin(k, k[tie])
+        sub = order[tied]
+        sub = sub[_order(v.keys[sub], v.q[sub], v.d2[sub])]
+        ks = v.keys[sub]
+        keep = np.ones(len(ks), dtype=np.bool_)
+        keep[1:] = ks[1:] != ks[:-1]
+        chosen = np.concatenate([order[first & ~tied], sub[keep]])
+        return v.take(chosen[np.argsort(v.keys[chosen], kind="stable")])
+    return v.take(order[first])
+
+
+def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
+    """Every touching (triangle, voxel) pair of world ``triangles`` with the pair's point."""
+    if not len(triangles):
+        return np.empty(0, dtype=np.int64), Voxels.empty()
+    cells = plan.cells(triangles)
+    tri, ijk = touched_voxels(cells, lo=plan.lo, hi=plan.hi, w_band=plan.w_band)
+    q = np.empty((len(tri), 3))
+    d2 = np.empty(len(tri))
+    for s in range(0, len(tri), _CHUNK):  # element-wise: the same values in any chunks, less memory
+        e = s + _CHUNK
+        q[s:e], d2[s:e] = nearest_points(cells[tri[s:e]], ijk[s:e], w_band=plan.w_band)
+    return tri, Voxels(plan.keys(ijk), q, d2)
+
+
+def _near_band(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> tuple[FloatArray, IndexArray]:
+    """The triangles of ``ids`` whose bounds meet the frame and the band, and their owner (into ids)."""
+    rows, owner = meshes._rows_of(ids)
+    tb = meshes.triangle_bounds[rows]
+    f = plan.frame
+    z_lo, z_hi = plan.world_band
+    keep = (
+        (tb[:, 0] <= f.origin_x + f.width * f.resolution_m)
+        & (tb[:, 3] >= f.origin_x)
+        & (tb[:, 1] <= f.origin_y + f.height * f.resolution_m)
+        & (tb[:, 4] >= f.origin_y)
+        & (tb[:, 2] <= z_hi)
+        & (tb[:, 5] >= z_lo)
+    )
+    return meshes.triangles[rows[keep]], owner[keep]
+
+
+def voxels_of(plan: PointsPlan, triangles: FloatArray) -> Voxels:
+    """The voxels a set of world triangles (one element, or many) touches, one point each."""
+    _, v = _pairs(plan, triangles)
+    return best_per_voxel(v)
+
+
+def voxels_by_element(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> list[Voxels]:
+    """Per element of ``ids`` (in that order): its own voxels (what the live maps keep per element)."""
+    triangles, owner = _near_band(meshes, ids, plan)
+    tri, v = _pairs(plan, triangles)
+    out = [Voxels.empty() for _ in ids]
+    if not len(v):
+        return out
+    own = owner[tri]
+    order = _order(v.keys, v.q, v.d2, own)
+    own, v = own[order], v.take(order)
+    first = np.ones(len(own), dtype=np.bool_)
+    first[1:] = (own[1:] != own[:-1]) | (v.keys[1:] != v.keys[:-1])
+    own, v = own[first], v.take(first)
+    bounds = np.searchsorted(own, np.arange(len(ids) + 1))
+    for i in range(len(ids)):
+        if bounds[i + 1] > bounds[i]:
+            out[i] = v.take(slice(bounds[i], bounds[i + 1]))
+    return out
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class PointCloud:
+    """A points map: ``xyz (n, 3) float64`` (x, y in the map frame, z above the storey's elevation),
+    one per touched voxel, sorted by the voxels' ``keys``."""
+
+    storey: str
+    skill: str
+    elevation_m: float
+    resolution_m: float
+    frame: GridFrame
+    keys: IntArray
+    xyz: FloatArray
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+
+def cloud_of(plan: PointsPlan, v: Voxels) -> PointCloud:
+    """The cloud of a plan's voxels (one point per key, sorted)."""
+    return PointCloud(
+        storey=plan.storey.key,
+        skill=plan.skill.name,
+        elevation_m=plan.storey.elevation_m,
+        resolution_m=plan.resolution_m,
+        frame=plan.frame,
+        keys=v.keys,
+        xyz=plan.to_xyz(v.q),
+    )
+
+
+def build_points(scene: Scene, plan: PointsPlan) -> PointCloud:
+    """The full points map of ``plan``, from the selected elements' triangles."""
+    triangles, _ = _near_band(scene.elements, plan.selected, plan)
+    return cloud_of(plan, voxels_of(plan, triangles))

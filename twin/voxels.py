@@ -1,0 +1,460 @@
+"""Which voxels a set of triangles touches, exactly, and the surface point nearest each voxel's centre.
+
+Coordinates here are *cell coordinates*: world metres minus the grid origin, divided by the voxel size,
+computed once per vertex in float64 (``(x - origin) / resolution``). Voxel ``(i, j, k)`` is the
+half-open box ``[i, i+1) x [j, j+1) x [max(k, w_lo), min(k+1, w_hi))``: the cell, cut by the height
+band ``[w_lo, w_hi)``. A triangle (a closed set) *touches* a voxel when they share a point.
+
+The test is the separating axis theorem for a triangle and a box (13 axes), with two refinements that
+make it exact rather than approximate:
+
+- half-open boxes: a triangle that meets a box only on its upper faces (``x = i+1`` ...) does not
+  touch it; on an axis, that is a projection touching the box's interval at an end that moves inward
+  when the upper faces move in (the limit of closed boxes shrunk by ``d -> 0+``);
+- rounding: the three box axes compare the vertices themselves (exact); on the ten other axes, a
+  projection within a rounding bound of a tie is decided again in exact rational arithmetic
+  (:func:`_exact_touch`, Python integers), so float noise never adds or drops a voxel.
+
+Candidates are enumerated per triangle by columns along its dominant normal axis (a big slanted
+triangle costs its area in voxels, not its bounding box's volume), in batches of bounded size.
+
+Example::
+
+    tri, ijk = touched_voxels(cells, lo=(0, 0, -1), hi=(200, 150, 30), w_band=(-0.5, 30.0))
+    q, d2 = nearest_points(cells[tri], ijk, w_band=(-0.5, 30.0))    # one point in each touched voxel
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+_BATCH = 150_000
+"""Candidate (triangle, voxel) pairs tested at once (bounds the memory of a batch to ~100 MB)."""
+_TOL = 1e-13
+"""Rounding bound (relative to the magnitudes involved, ~450 ulp) under which a projection counts
+as a possible tie (decided exactly)."""
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype=np.float64)
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def _min3(a: FloatArray) -> FloatArray:
+    """The minimum over axis 1 of ``(m, 3, ...)`` (element-wise: numpy's reductions over a short axis
+    are slow)."""
+    return np.minimum(np.minimum(a[:, 0], a[:, 1]), a[:, 2])
+
+
+def _max3(a: FloatArray) -> FloatArray:
+    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
+
+
+def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
+    return np.asarray(a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2])
+
+
+# --- candidates ------------------------------------------------------------------------------------
+def _columns(
+    cells: FloatArray, lo: IntArray, hi: IntArray
+) -> tuple[IntArray, IntArray, IntArray, IntArray, IntArray]:
+    """Per triangle: its dominant axis ``d``, the other two ``p, q``, and its index ranges per axis
+    (``first``, ``last`` inclusive, clipped to ``[lo, hi)``)."""
+    n = _cross(cells[:, 1] - cells[:, 0], cells[:, 2] - cells[:, 0])
+    d = np.argmax(np.abs(n), axis=1).astype(np.int64)
+    p = (d + 1) % 3
+    q = (d + 2) % 3
+    first = np.maximum(np.floor(cells.min(axis=1)).astype(np.int64), lo)
+    last = np.minimum(np.floor(cells.max(axis=1)).astype(np.int64), hi - 1)
+    return d, p, q, first, last
+
+
+def _candidates(cells: FloatArray, lo: IntArray, hi: IntArray) -> Iterator[tuple[IntArray, IntArray]]:
+    """Batches of ``(triangle index, (m, 3) voxel index)`` pairs: a superset of the touching pairs."""
+    if not len(cells):
+        return
+    d, p, q, first, last = _columns(cells, lo, hi)
+    rows = np.arange(len(cells))
+    span_p = last[rows, p] - first[rows, p] + 1
+    span_q = last[rows, q] - first[rows, q] + 1
+    span_d = last[rows, d] - first[rows, d] + 1
+    ok = (span_p > 0) & (span_q > 0) & (span_d > 0)
+    n_cols = np.where(ok, span_p * span_q, 0)
+    n = _cross(cells[:, 1] - cells[:, 0], cells[:, 2] - cells[:, 0])
+    # per triangle: its coordinates along p, q, d; its plane; its 2D edge normals in (p, q) with the
+    # triangle's extent along each (a column whose square lies beyond one holds no voxel of it)
+    vp = np.take_along_axis(cells, p[:, None, None].repeat(3, axis=1), axis=2)[:, :, 0]
+    vq = np.take_along_axis(cells, q[:, None, None].repeat(3, axis=1), axis=2)[:, :, 0]
+    vd = np.take_along_axis(cells, d[:, None, None].repeat(3, axis=1), axis=2)[:, :, 0]
+    nd, np_all, nq_all = n[rows, d], n[rows, p], n[rows, q]
+    c0_all = _dot(n, cells[:, 0])
+    t_lo_all, t_hi_all = _min3(vd), _max3(vd)
+    big_all = 1.0 + np.maximum(np.abs(_min3(cells)), np.abs(_max3(cells))).max(axis=1)
+    edge_p = np.roll(vp, -1, axis=1) - vp  # (n, 3): edge i from vertex i to i + 1
+    edge_q = np.roll(vq, -1, axis=1) - vq
+    m_p, m_q = edge_q, -edge_p  # the edges' normals in (p, q)
+    proj = m_p[:, :, None] * vp[:, None, :] + m_q[:, :, None] * vq[:, None, :]  # (n, edge, vertex)
+    e_lo, e_hi = proj.min(axis=2), proj.max(axis=2)
+    e_tol = 1e-9 * (np.abs(m_p) + np.abs(m_q)) * (big_all[:, None] + 2.0)
+    # columns of a batch of triangles at a time
+    cum = np.cumsum(n_cols)
+    start = 0
+    while start < len(cells):
+        base = cum[start - 1] if start else 0
+        stop = int(np.searchsorted(cum, base + _BATCH, side="right"))
+        stop = max(stop, start + 1)
+        sel = np.arange(start, stop)
+        start = stop
+        counts = n_cols[sel]
+        if not counts.sum():
+            continue
+        tri = np.repeat(sel, counts)
+        offs = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+        a = first[tri, p[tri]] + offs % span_p[tri]
+        b = first[tri, q[tri]] + offs // span_p[tri]
+        # drop the columns whose square one of the triangle's (projected) edges separates from it
+        keep = np.ones(len(tri), dtype=np.bool_)
+        for i in range(3):
+            mp, mq = m_p[tri, i], m_q[tri, i]
+            base_sq = mp * a + mq * b
+            sq_lo = base_sq + np.minimum(mp, 0.0) + np.minimum(mq, 0.0)
+            sq_hi = base_sq + np.maximum(mp, 0.0) + np.maximum(mq, 0.0)
+            tol = e_tol[tri, i]
+            keep &= (sq_hi >= e_lo[tri, i] - tol) & (sq_lo <= e_hi[tri, i] + tol)
+        tri, a, b = tri[keep], a[keep], b[keep]
+        if not len(tri):
+            continue
+        # the plane's range of the dominant coordinate over the column's square, cut to the triangle's
+        t_lo, t_hi = t_lo_all[tri], t_hi_all[tri]
+        flat = np.abs(nd[tri]) > 0
+        safe = np.where(flat, nd[tri], 1.0)
+        c0 = c0_all[tri]
+        np_, nq = np_all[tri], nq_all[tri]
+        corners = np.stack(
+            [(c0 - np_ * (a + da) - nq * (b + db)) / safe for da in (0, 1) for db in (0, 1)], axis=1
+        )
+        # rounding of the plane (its normal from rounded edges) and of its evaluation, generously: a
+        # nearly degenerate triangle's plane is ill-conditioned, and its column is then its full range
+        big = big_all[tri]
+        mag = np.abs(c0) + (np.abs(np_) + np.abs(nq)) * (big + 2.0) + big**3
+        eps = 1e-10 * mag / np.abs(safe) + 1e-9
+        w_lo = np.where(flat, np.maximum(t_lo, corners.min(axis=1) - eps), t_lo)
+        w_hi = np.where(flat, np.minimum(t_hi, corners.max(axis=1) + eps), t_hi)
+        k0 = np.maximum(np.floor(w_lo).astype(np.int64), lo[d[tri]])
+        k1 = np.minimum(np.floor(w_hi).astype(np.int64), hi[d[tri]] - 1)
+        nk = np.maximum(k1 - k0 + 1, 0)
+        # expand each column into its voxels (in chunks: a steep column can hold many)
+        cstart = 0
+        ccum = np.cumsum(nk)
+        while cstart < len(nk):
+            cbase = ccum[cstart - 1] if cstart else 0
+            cstop = max(int(np.searchsorted(ccum, cbase + _BATCH, side="right")), cstart + 1)
+            cs = np.arange(cstart, cstop)
+            cstart = cstop
+            kk = nk[cs]
+            total = int(kk.sum())
+            if not total:
+                continue
+            col = np.repeat(cs, kk)
+            k = k0[col] + np.arange(total) - np.repeat(np.cumsum(kk) - kk, kk)
+            t = tri[col]
+            ijk = np.empty((total, 3), dtype=np.int64)
+            r = np.arange(total)
+            ijk[r, p[t]] = a[col]
+            ijk[r, q[t]] = b[col]
+            ijk[r, d[t]] = k
+            yield t, ijk
+
+
+# --- the test --------------------------------------------------------------------------------------
+def _boxes(ijk: IntArray, w_band: tuple[float, float]) -> tuple[FloatArray, FloatArray]:
+    lo = ijk.astype(np.float64)
+    hi = lo + 1.0
+    lo[:, 2] = np.maximum(lo[:, 2], w_band[0])
+    hi[:, 2] = np.minimum(hi[:, 2], w_band[1])
+    return lo, hi
+
+
+def _axis(e: FloatArray, n_axis: int) -> FloatArray:
+    """Axis ``n_axis`` of the ten that are not the box's: 0 the triangle's normal, ``1 + 3 i + j`` edge
+    ``i`` x unit vector ``j``."""
+    if n_axis == 0:
+        return _cross(e[:, 0], e[:, 1])
+    i, j = divmod(n_axis - 1, 3)
+    edge = e[:, i]
+    out = np.zeros_like(edge)
+    # edge x unit_j, written out: (e1 u2 - e2 u1, e2 u0 - e0 u2, e0 u1 - e1 u0)
+    if j == 0:
+        out[:, 1], out[:, 2] = edge[:, 2], -edge[:, 1]
+    elif j == 1:
+        out[:, 0], out[:, 2] = -edge[:, 2], edge[:, 0]
+    else:
+        out[:, 0], out[:, 1] = edge[:, 1], -edge[:, 0]
+    return out
+
+
+def _overlap(
+    v: FloatArray, lo: FloatArray, hi: FloatArray
+) -> tuple[npt.NDArray[np.bool_], IntArray, npt.NDArray[np.bool_]]:
+    """The float verdict for triangles ``v (m, 3, 3)`` and half-open boxes ``[lo, hi)``:
+    ``(touch, unsure rows, near axes (len(unsure), 10))``; an unsure pair is within rounding of a tie
+    on the marked (non-box) axes, and is to be decided exactly on them."""
+    vmin, vmax = _min3(v), _max3(v)
+    # box axes: exact comparisons (a vertex on an upper face does not enter the box)
+    meets = (vmax >= lo) & (vmin < hi)
+    touch = meets[:, 0] & meets[:, 1] & meets[:, 2]
+    # a vertex inside the half-open box: they touch (exact comparisons again)
+    inside = np.zeros(len(v), dtype=np.bool_)
+    for corner in range(3):
+        within = (v[:, corner] >= lo) & (v[:, corner] < hi)
+        inside |= within[:, 0] & within[:, 1] & within[:, 2]
+    r = np.flatnonzero(touch & ~inside)
+    none = np.empty(0, dtype=np.int64)
+    if not len(r):
+        return touch, none, np.zeros((0, 10), dtype=np.bool_)
+    v = v[r]
+    rel = v - lo[r][:, None, :]
+    size = hi[r] - lo[r]
+    e = np.stack([v[:, 1] - v[:, 0], v[:, 2] - v[:, 1], v[:, 0] - v[:, 2]], axis=1)  # (m, 3, 3)
+    # rounding bounds: |v| (vertices), |rel| (vertices from the box's corner), |e| (edges)
+    big_v = 1.0 + _max3(np.maximum(np.abs(vmin[r]), np.abs(vmax[r])))
+    big_r = 1.0 + _max3(np.maximum(np.abs(_min3(rel)), np.abs(_max3(rel))))
+    reach = 1.0 + _max3(np.maximum(np.abs(_min3(e)), np.abs(_max3(e))))
+    apart = np.zeros(len(r), dtype=np.bool_)
+    near = np.zeros((len(r), 10), dtype=np.bool_)
+    for n_axis in range(10):
+        ax = _axis(e, n_axis)
+        # an axis along x, y or z (or none) is a box axis's test again, decided exactly above
+        oblique = ((ax[:, 0] != 0).astype(np.int8) + (ax[:, 1] != 0) + (ax[:, 2] != 0)) >= 2
+        idx = np.flatnonzero(oblique & ~apart)
+        if not len(idx):
+            continue
+        ax = ax[idx]
+        ax0, ax1, ax2 = ax[:, 0], ax[:, 1], ax[:, 2]
+        rel_i = rel[idx]
+        p0, p1, p2 = _dot(ax, rel_i[:, 0]), _dot(ax, rel_i[:, 1]), _dot(ax, rel_i[:, 2])
+        tmin = np.minimum(np.minimum(p0, p1), p2)
+        tmax = np.maximum(np.maximum(p0, p1), p2)
+        sz = size[idx]
+        l0, l1, l2 = ax0 * sz[:, 0], ax1 * sz[:, 1], ax2 * sz[:, 2]
+        bmin = np.minimum(l0, 0.0) + np.minimum(l1, 0.0) + np.minimum(l2, 0.0)
+        bmax = np.maximum(l0, 0.0) + np.maximum(l1, 0.0) + np.maximum(l2, 0.0)
+        size_ax = np.abs(ax0) + np.abs(ax1) + np.abs(ax2)
+        bv = big_v[idx]
+        ax_err = bv * (reach[idx] if n_axis == 0 else 1.0)  # the axis's own rounding, in units of ulp
+        tol = _TOL * ((size_ax + ax_err) * big_r[idx] + size_ax * bv)
+        apart[idx] = (tmin > bmax + tol) | (tmax < bmin - tol)
+        near[idx, n_axis] = (np.abs(tmin - bmax) <= tol) | (np.abs(tmax - bmin) <= tol)
+    touch[r] = ~apart
+    unsure = ~apart & near.any(axis=1)
+    return touch, r[unsure], near[unsure]
+
+
+def _ints(values: list[float]) -> list[int]:
+    """``values`` as integers over one power of two (exactly)."""
+    ratios = [float(x).as_integer_ratio() for x in values]
+    shift = max(den.bit_length() - 1 for _, den in ratios)
+    return [num << (shift - (den.bit_length() - 1)) for num, den in ratios]
+
+
+def _exact_separates(v: FloatArray, lo: FloatArray, hi: FloatArray, axes: npt.NDArray[np.bool_]) -> bool:
+    """Does one of the marked axes (see :func:`_axis`) separate the triangle from the half-open box, in
+    exact integer arithmetic? (A tie separates when the box's end there moves in as its upper faces do.)"""
+    nums = _ints([*v.reshape(-1).tolist(), *lo.tolist(), *hi.tolist()])
+    p = [nums[0:3], nums[3:6], nums[6:9]]
+    b0, b1 = nums[9:12], nums[12:15]
+    e = [[p[1][i] - p[0][i] for i in range(3)], [p[2][i] - p[1][i] for i in range(3)]]
+    e.append([p[0][i] - p[2][i] for i in range(3)])
+    for n_axis in np.flatnonzero(axes).tolist():
+        if n_axis == 0:
+            x, y = e[0], e[1]
+            ax = [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]]
+        else:
+            i, j = divmod(n_axis - 1, 3)
+            ed = e[i]
+            ax = [[0, ed[2], -ed[1]], [-ed[2], 0, ed[0]], [ed[1], -ed[0], 0]][j]
+        proj = [ax[0] * x[0] + ax[1] * x[1] + ax[2] * x[2] for x in p]
+        bmin = sum(min(ax[i] * b0[i], ax[i] * b1[i]) for i in range(3))
+        bmax = sum(max(ax[i] * b0[i], ax[i] * b1[i]) for i in range(3))
+        tmin, tmax = min(proj), max(proj)
+        if tmin > bmax or tmax < bmin:
+            return True
+        if tmin == bmax and any(c > 0 for c in ax):
+            return True
+        if tmax == bmin and any(c < 0 for c in ax):
+            return True
+    return False
+
+
+def touched_voxels(
+    cells: FloatArray,
+    *,
+    lo: tuple[int, int, int] | IntArray,
+    hi: tuple[int, int, int] | IntArray,
+    w_band: tuple[float, float],
+) -> tuple[IntArray, IntArray]:
+    """Every (triangle, voxel) pair that touch: ``(triangle index (m,), voxel (m, 3) i, j, k)``.
+
+    Args:
+        cells: ``(n, 3, 3)`` triangles in cell coordinates.
+        lo, hi: the voxel index range ``[lo, hi)`` per axis (the frame; k: the band's layers).
+        w_band: the band ``[w_lo, w_hi)`` in cell units of z (voxels are cut by it).
+    """
+    lo_a, hi_a = np.asarray(lo, dtype=np.int64), np.asarray(hi, dtype=np.int64)
+    tris, voxels = [], []
+    for t_all, ijk_all in _candidates(np.asarray(cells, dtype=np.float64), lo_a, hi_a):
+        blo, bhi = _boxes(ijk_all, w_band)
+        keep = bhi[:, 2] > blo[:, 2]
+        t, ijk, blo, bhi = t_all[keep], ijk_all[keep], blo[keep], bhi[keep]
+        touch, unsure, near = _overlap(cells[t], blo, bhi)
+        for r, axes in zip(unsure.tolist(), near, strict=True):
+            touch[r] = not _exact_separates(cells[t[r]], blo[r], bhi[r], axes)
+        tris.append(t[touch])
+        voxels.append(ijk[touch])
+    if not tris:
+        return np.empty(0, dtype=np.int64), np.empty((0, 3), dtype=np.int64)
+    return np.concatenate(tris).astype(np.int64), np.concatenate(voxels)
+
+
+# --- the nearest point -----------------------------------------------------------------------------
+def _closest_on_triangle(p: FloatArray, a: FloatArray, b: FloatArray, c: FloatArray) -> FloatArray:
+    """The point of each triangle ``abc`` nearest ``p`` (Ericson, *Real-Time Collision Detection* 5.1.5)."""
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = _dot(ab, ap), _dot(ac, ap)
+    bp = p - b
+    d3, d4 = _dot(ab, bp), _dot(ac, bp)
+    cp = p - c
+    d5, d6 = _dot(ab, cp), _dot(ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        v = vb / denom  # the point is a + ab v + ac w: inside the face first, then the other regions
+        w = vc / denom
+        t_ab = d1 / (d1 - d3)
+        t_ac = d2 / (d2 - d6)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    on_bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
+    t = np.nan_to_num(t_bc)
+    v, w = np.where(on_bc, 1.0 - t, v), np.where(on_bc, t, w)
+    on_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+    v, w = np.where(on_ac, 0.0, v), np.where(on_ac, np.nan_to_num(t_ac), w)
+    on_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+    v, w = np.where(on_ab, np.nan_to_num(t_ab), v), np.where(on_ab, 0.0, w)
+    at_c = (d6 >= 0) & (d5 <= d6)
+    v, w = np.where(at_c, 0.0, v), np.where(at_c, 1.0, w)
+    at_b = (d3 >= 0) & (d4 <= d3)
+    v, w = np.where(at_b, 1.0, v), np.where(at_b, 0.0, w)
+    at_a = (d1 <= 0) & (d2 <= 0)
+    v, w = np.where(at_a, 0.0, v), np.where(at_a, 0.0, w)
+    out = a + ab * v[:, None] + ac * w[:, None]
+    bad = ~np.isfinite(out).all(axis=1)
+    if bad.any():  # degenerate triangles: the nearest of their three edges
+        corners = np.stack([a[bad], b[bad], c[bad]], axis=1)
+        out[bad] = _closest_on_segments(p[bad], corners, np.full(int(bad.sum()), 3))
+    return out
+
+
+def _closest_on_segments(p: FloatArray, poly: FloatArray, count: IntArray) -> FloatArray:
+    """The point of each closed polyline loop ``poly[:count]`` (its edges) nearest ``p``."""
+    m, k = poly.shape[:2]
+    nxt = (np.arange(k)[None, :] + 1) % np.maximum(count, 1)[:, None]
+    a = poly
+    b = np.take_along_axis(poly, nxt[:, :, None].repeat(3, axis=2), axis=1)
+    ab = b - a
+    ll = _dot(ab, ab)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.clip(np.where(ll > 0, _dot(p[:, None, :] - a, ab) / ll, 0.0), 0.0, 1.0)
+    q = a + ab * t[..., None]
+    d = _dot(q - p[:, None, :], q - p[:, None, :])
+    d = np.where(np.arange(k)[None, :] < count[:, None], d, np.inf)
+    best = np.argmin(d, axis=1)
+    out: FloatArray = q[np.arange(m), best]
+    return out
+
+
+def _clip(tri: FloatArray, lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, IntArray]:
+    """Each triangle cut by its closed box (Sutherland-Hodgman): ``(polygons (m, 9, 3), counts)``."""
+    m = len(tri)
+    poly = np.zeros((m, 9, 3))
+    poly[:, :3] = tri
+    count = np.full(m, 3, dtype=np.int64)
+    rows = np.arange(m)
+    for axis in range(3):
+        for bound, sign in ((lo[:, axis], 1.0), (hi[:, axis], -1.0)):
+            k = poly.shape[1]
+            idx = np.arange(k)[None, :]
+            valid = idx < count[:, None]
+            nxt = (idx + 1) % np.maximum(count, 1)[:, None]
+            cur = poly
+            nb = np.take_along_axis(poly, nxt[:, :, None].repeat(3, axis=2), axis=1)
+            dc = sign * (cur[:, :, axis] - bound[:, None])
+            dn = sign * (nb[:, :, axis] - bound[:, None])
+            cin, nin = dc >= 0, dn >= 0
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = np.where(dc != dn, dc / (dc - dn), 0.0)
+            cross = cur + (nb - cur) * t[..., None]
+            cross[:, :, axis] = np.where(cin != nin, bound[:, None], cross[:, :, axis])
+            out = np.zeros((m, 2 * k, 3))
+            keep = np.zeros((m, 2 * k), dtype=np.bool_)
+            out[:, 0::2], keep[:, 0::2] = cur, valid & cin
+            out[:, 1::2], keep[:, 1::2] = cross, valid & (cin != nin)
+            order = np.argsort(~keep, axis=1, kind="stable")
+            out = np.take_along_axis(out, order[:, :, None].repeat(3, axis=2), axis=1)
+            count = keep.sum(axis=1)
+            poly = np.zeros((m, 9, 3))
+            poly[:, : min(9, 2 * k)] = out[:, :9]
+            count = np.minimum(count, 9)
+    del rows
+    return poly, count
+
+
+def nearest_points(
+    tri: FloatArray, ijk: IntArray, *, w_band: tuple[float, float]
+) -> tuple[FloatArray, FloatArray]:
+    """For each touching pair: the point of the triangle within the voxel's (closed) box nearest the
+    box's centre, and its squared distance (cell units). ``tri`` is ``(m, 3, 3)``, one per voxel."""
+    lo, hi = _boxes(ijk, w_band)
+    centre = 0.5 * (lo + hi)
+    q = _closest_on_triangle(centre, tri[:, 0], tri[:, 1], tri[:, 2])
+    outside = ~((q >= lo) & (q <= hi)).all(axis=1)
+    if outside.any():
+        o = np.flatnonzero(outside)
+        # the box grown by a rounding margin, so that a contact at a point or along an edge survives
+        # the clipping's rounding (the result is clamped to the box below)
+        grow = 1e-10 * (1.0 + np.abs(tri[o].reshape(len(o), -1)).max(axis=1))[:, None]
+        poly, count = _clip(tri[o], lo[o] - grow, hi[o] + grow)
+        c = centre[o]
+        n = _cross(tri[o, 1] - tri[o, 0], tri[o, 2] - tri[o, 0])
+        nn = _dot(n, n)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            proj = c - n * (_dot(c - tri[o, 0], n) / nn)[:, None]
+        k = poly.shape[1]
+        idx = np.arange(k)[None, :]
+        nxt = (idx + 1) % np.maximum(count, 1)[:, None]
+        nb = np.take_along_axis(poly, nxt[:, :, None].repeat(3, axis=2), axis=1)
+        side = _dot(_cross(nb - poly, proj[:, None, :] - poly), n[:, None, :])
+        # a polygon with no area (the triangle touches the box at a point or along a segment): its edges
+        area = _cross(poly, nb)
+        area = np.where((idx < count[:, None])[:, :, None], area, 0.0).sum(axis=1)
+        extent = 1.0 + np.abs(poly.reshape(len(o), -1)).max(axis=1)
+        flat = _dot(area, n) <= 1e-12 * np.sqrt(nn) * extent**2
+        inside = np.where(idx < count[:, None], side >= 0, True).all(axis=1) & (count >= 3) & (nn > 0) & ~flat
+        edge = _closest_on_segments(c, poly, count)
+        best = np.where(inside[:, None], proj, edge)
+        empty = count == 0  # only float noise: the triangle touches at a point or an edge
+        best[empty] = q[o][empty]
+        q[o] = best
+    q = np.clip(q, lo, hi)
+    diff = q - centre
+    return q, _dot(diff, diff)
