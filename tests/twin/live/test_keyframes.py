@@ -88,7 +88,7 @@ def test_a_change_right_after_a_keyframe_waits_for_the_next_one() -> None:
     assert observe(service, "robot1", box_turtle(TABLE, 5.0, 2.0)).ok  # due at once: 11 s since start
     rec.events.clear()
     clock.now += SECOND
-    assert observe(service, "robot1", box_turtle(TABLE, 5.5, 2.0)).ok
+    assert observe(service, "robot1", box_turtle(TABLE, 6.5, 2.0)).ok  # a move (fusion: > 0.5 m at once)
     clock.now += 8 * SECOND
     service.process()
     assert full_maps(rec) == []
