@@ -61,6 +61,7 @@ def robot(endpoint: str, index: int, rate: float, duration: float, start_at: flo
     from twin.errors import TwinError
 
     rng = random.Random(index)
+    last = (-1e9, -1e9)  # where its table was last sent
     name = f"robot{index}"
     x0, x1, y0, y1 = CORRIDOR
     table, generation, added = f"urn:load:{name}:table-0", 0, False
@@ -75,9 +76,13 @@ def robot(endpoint: str, index: int, rate: float, duration: float, start_at: flo
             else:
                 op = "move" if added else "add"
                 x, y, yaw = rng.uniform(x0, x1), rng.uniform(y0, y1), rng.uniform(0, 3)
+                while abs(x - last[0]) + abs(y - last[1]) < 0.8:  # a move fusion applies at once
+                    x, y = rng.uniform(x0, x1), rng.uniform(y0, y1)
+                last = (x, y)
                 box = f"{x:.3f} {y:.3f} 0.375 0.8 0.6 0.75 {yaw:.3f}"
                 payload = (
-                    f'<{table}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "{STOREY}" ; '
+                    f'<{table}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}distinct> true ; '
+                    f'<{TWIN}storey> "{STOREY}" ; '
                     f'<{TWIN}box> "{box}" .'
                 )
             sent = time.time()

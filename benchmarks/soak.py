@@ -63,6 +63,7 @@ def robot(
     from twin.errors import TwinError
 
     rng = random.Random(index)
+    last = (-1e9, -1e9)  # where its table was last sent
     name = f"robot{index}"
     x0, x1, y0, y1 = area
     table = f"urn:soak:{name}:table"
@@ -79,8 +80,12 @@ def robot(
             else:
                 op = "move" if present else "add"
                 x, y, yaw = rng.uniform(x0, x1), rng.uniform(y0, y1), rng.uniform(0, 3)
+                while abs(x - last[0]) + abs(y - last[1]) < 0.8:  # a move fusion applies at once
+                    x, y = rng.uniform(x0, x1), rng.uniform(y0, y1)
+                last = (x, y)
                 doc = payload = (
-                    f'<{table}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "{storey}" ; '
+                    f'<{table}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}distinct> true ; '
+                    f'<{TWIN}storey> "{storey}" ; '
                     f'<{TWIN}box> "{x:.3f} {y:.3f} 0.375 0.8 0.6 0.75 {yaw:.3f}" .'
                 )
             sent = time.time()

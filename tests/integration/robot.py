@@ -22,7 +22,11 @@ TWIN = "https://w3id.org/building-twin#"
 
 
 def box_turtle(iri: str, box: str) -> str:
-    return f'<{iri}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "ground-floor" ; <{TWIN}box> "{box}" .'
+    """Each item is an object of its own (``twin:distinct``: fusion never takes one for another)."""
+    return (
+        f'<{iri}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "ground-floor" ; <{TWIN}box> "{box}" ; '
+        f"<{TWIN}distinct> true ."
+    )
 
 
 def main() -> int:
@@ -31,13 +35,16 @@ def main() -> int:
     stop = threading.Event()
     threading.Thread(target=lambda: (sys.stdin.read(), stop.set()), daemon=True).start()
     live: list[str] = []
+    where: dict[str, tuple[float, float]] = {}
     i = 0
     with TwinClient.connect([endpoint], timeout_s=2.0) as twin:
         while not stop.is_set():
             op = "add" if len(live) < 3 else rng.choice(["add", "add", "move", "remove"])
-            x, y, yaw = rng.uniform(11, 21), rng.uniform(5.5, 8.5), rng.uniform(0, 3)
-            box = f"{x:.3f} {y:.3f} 0.3 0.4 0.4 0.6 {yaw:.3f}"
             iri = f"urn:robot:item-{i}" if op == "add" else rng.choice(live)
+            x, y, yaw = rng.uniform(11, 21), rng.uniform(5.5, 8.5), rng.uniform(0, 3)
+            while iri in where and abs(x - where[iri][0]) + abs(y - where[iri][1]) < 0.8:
+                x, y = rng.uniform(11, 21), rng.uniform(5.5, 8.5)  # a move fusion applies at once
+            box = f"{x:.3f} {y:.3f} 0.3 0.4 0.4 0.6 {yaw:.3f}"
             payload = f"<{iri}> <{TWIN}removed> true ." if op == "remove" else box_turtle(iri, box)
             try:
                 ack = twin.observe("robot1", payload)
@@ -45,6 +52,8 @@ def main() -> int:
             except TwinError:
                 acked, revision = False, -1
                 time.sleep(0.05)  # no daemon (no route: the request fails at once): try again soon
+            if acked and op != "remove":
+                where[iri] = (x, y)
             if acked and op == "add":
                 live.append(iri)
             if acked and op == "remove":
