@@ -13,9 +13,9 @@ from hypothesis import settings
 
 from tests.sparql_server import SparqlServer, start_sparql_server
 from twin.config import Config, load_config
-from twin.import_model import import_model
+from twin.graph.import_model import import_model
+from twin.graph.store import EmbeddedStore, GraphStore
 from twin.records import BuildingModel
-from twin.store import EmbeddedStore, GraphStore
 
 SHARED_IFC = Path(__file__).resolve().parents[2] / "shared" / "data" / "ifc"
 SHARED_MODELS = (

@@ -16,8 +16,8 @@ import numpy as np
 from adapters.zenoh.client import TwinClient
 from tests.integration.conftest import ROOT, Daemon, start_daemon
 from twin.config import load_config
+from twin.graph.store import EmbeddedStore
 from twin.live import TwinService
-from twin.store import EmbeddedStore
 
 KILLS = 5
 

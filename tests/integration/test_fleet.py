@@ -10,7 +10,7 @@ from pathlib import Path
 
 from adapters.zenoh.client import TwinClient
 from tests.integration.conftest import Daemon, start_daemon, twin
-from twin.grid import OCCUPIED
+from twin.maps.grid import OCCUPIED
 
 ROOT = Path(__file__).resolve().parents[2]
 

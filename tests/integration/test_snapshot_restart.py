@@ -13,8 +13,8 @@ import pytest
 from adapters.zenoh.client import TwinClient
 from tests.integration.conftest import Daemon, start_daemon
 from twin.config import load_config
+from twin.graph.store import EmbeddedStore
 from twin.live import TwinService
-from twin.store import EmbeddedStore
 
 TWIN = "https://w3id.org/building-twin#"
 
