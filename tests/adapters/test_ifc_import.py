@@ -24,6 +24,8 @@ from twin.maps.shapes import box_mesh
 from twin.records import BuildingModel
 from twin.samples.lab_layout import LabLayout
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 MODELS = ["lab", *SHARED_MODELS]
 
 

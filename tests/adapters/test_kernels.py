@@ -20,6 +20,8 @@ from tests.conftest import imported, shared_model
 from twin.graph.stats import model_stats
 from twin.records import BuildingModel
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 SMALL_MODELS = [
     "AC20-FZK-Haus.ifc",
     "Duplex_A_20110907.ifc",

@@ -31,6 +31,8 @@ from twin.records import BuildingModel
 from twin.samples.lab_plan import DOOR_HOST, Box
 from twin.selection.skills import SkillProfile, parse_skill
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 
 def make_map(store: GraphStore, scene: Scene, skill: SkillProfile, storey: str) -> OccupancyGrid:
     return build_map(scene, plan_map(scene, skill, storey, selected(store, skill)))

@@ -15,6 +15,8 @@ from adapters.zenoh.errors import RemoteError
 from tests.integration.conftest import Daemon, JsonLinesProcess, start_daemon, twin
 from twin.maps.grid import OCCUPIED
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 TWIN = "https://w3id.org/building-twin#"
 TABLE_BOX = "16.6,7.0,0.375,0.6,0.6,0.75,0.0"  # in the corridor, east of the arch
 TABLE = "urn:twin:robot1:table-1"

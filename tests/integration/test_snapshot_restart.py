@@ -16,6 +16,8 @@ from twin.config import load_config
 from twin.graph.store import EmbeddedStore
 from twin.live import TwinService
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 TWIN = "https://w3id.org/building-twin#"
 
 
