@@ -1,7 +1,7 @@
 """The edges of building-twin: translate between the core's records and the outside world.
 
 - ``adapters.ifc``: IFC files -> ``twin.records.BuildingModel`` (ifcopenshell); ``sample_lab`` writes
-  the bundled sample building (``twin.lab_layout``) with ifcopenshell.api
+  the bundled sample building (``twin.samples.lab_layout``) with ifcopenshell.api
 - ``adapters.ros``: CDR messages (``nav_msgs/OccupancyGrid`` and updates), nav2 map_server files,
   PNG previews, rmw_zenoh's and zenoh-bridge-ros2dds's key layouts
 - ``adapters.zenoh``: the daemon's publishers, queryables and subscribers, the robot-side client,

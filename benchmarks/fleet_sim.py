@@ -324,7 +324,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
 
 def twin_elements(client: Any, storey: str) -> dict[str, tuple[float, float]]:
     from twin.fusion.footprints import pose_of
-    from twin.meshcodec import decode_mesh, decode_placement
+    from twin.graph.meshcodec import decode_mesh, decode_placement
 
     rows = client.sparql(
         f"""SELECT ?e ?pl ?ply WHERE {{ ?st twin:storeyKey "{storey}" ; bot:containsElement ?e .
@@ -411,8 +411,8 @@ def oracle_service(store: Path, work: Path) -> Any:
     from dataclasses import replace
 
     from twin.config import FusionRules, load_config
+    from twin.graph.store import EmbeddedStore
     from twin.live import TwinService
-    from twin.store import EmbeddedStore
 
     copy = work / "oracle"
     shutil.copytree(store, copy)
@@ -451,7 +451,7 @@ def cpu_seconds(pid: int) -> float:
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
     from adapters.zenoh.client import TwinClient
-    from twin.grid import OCCUPIED
+    from twin.maps.grid import OCCUPIED
 
     work = Path(tempfile.mkdtemp(prefix="fleet-"))
     store = live.prepare_store(args.model, work)

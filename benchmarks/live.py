@@ -113,8 +113,8 @@ def busiest(store: Path) -> tuple[str, tuple[float, float, float, float], float]
     import tasks
 
     from twin.config import load_config
-    from twin.scene import load_scene
-    from twin.store import EmbeddedStore
+    from twin.graph.store import EmbeddedStore
+    from twin.maps.scene import load_scene
 
     with EmbeddedStore.open(store, read_only=True) as st:
         scene = load_scene(st)
@@ -126,8 +126,8 @@ def busiest(store: Path) -> tuple[str, tuple[float, float, float, float], float]
 def recompute(store: Path, storey: str, positions: list[tuple[float, float]]) -> dict[str, float]:
     """Incremental apply vs full rebuild of the affected maps, in process, on a copy of the store."""
     from twin.config import load_config
+    from twin.graph.store import EmbeddedStore
     from twin.live import TwinService
-    from twin.store import EmbeddedStore
 
     copy = Path(tempfile.mkdtemp()) / "store"
     shutil.copytree(store, copy)
@@ -168,7 +168,7 @@ def start_oxigraph(work: Path, store: Path) -> tuple[subprocess.Popen[bytes], st
 
     from adapters.sparql.remote_store import RemoteStore
     from twin.errors import StoreUnavailableError
-    from twin.store import EmbeddedStore
+    from twin.graph.store import EmbeddedStore
 
     binary = shutil.which("oxigraph", path=str(Path(sys.executable).parent)) or "oxigraph"
     url = f"http://127.0.0.1:{_free_port()}"

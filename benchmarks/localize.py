@@ -42,12 +42,12 @@ sys.path.insert(0, str(ROOT))
 
 import open3d as o3d  # noqa: E402
 
-from twin.points import build_points, plan_points  # noqa: E402
-from twin.rdf import literal_value  # noqa: E402
-from twin.scene import load_scene  # noqa: E402
-from twin.skill_selection import selection_query  # noqa: E402
-from twin.skills import parse_skill  # noqa: E402
-from twin.store import EmbeddedStore  # noqa: E402
+from twin.graph.rdf import literal_value  # noqa: E402
+from twin.graph.store import EmbeddedStore  # noqa: E402
+from twin.maps.points import build_points, plan_points  # noqa: E402
+from twin.maps.scene import load_scene  # noqa: E402
+from twin.selection.skill_selection import selection_query  # noqa: E402
+from twin.selection.skills import parse_skill  # noqa: E402
 
 TWIN = {
     "kind": "points",

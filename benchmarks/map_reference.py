@@ -32,9 +32,9 @@ def main() -> int:
     from adapters.ifc import read_model
     from references.opencascade_maps import PINNED, TOLERANCE_M, compare_model, pinned
     from twin.config import load_config
-    from twin.import_model import import_model
-    from twin.scene import load_scene
-    from twin.store import EmbeddedStore
+    from twin.graph.import_model import import_model
+    from twin.graph.store import EmbeddedStore
+    from twin.maps.scene import load_scene
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("models", nargs="*", help="parts of model file names (default: all)")

@@ -1,6 +1,6 @@
 """Peer map builders for the benchmark: the typical trimesh and manifold3d ways of making a slab map.
 
-Both start from the same world triangles as ``twin.maps`` (the scene's selected elements, pre-filtered
+Both start from the same world triangles as ``twin.maps.render`` (the scene's selected elements, pre-filtered
 by the same AABB test against the frame and slab, which favours the peers) and rasterise with Pillow
 on the plan's grid frame: cell ``(row, col)`` has its centre at pixel ``(col, row)``, so row 0 is the
 lowest y, as in ``nav_msgs/OccupancyGrid``.
@@ -31,9 +31,9 @@ import numpy as np
 import numpy.typing as npt
 from PIL import Image, ImageDraw
 
-from twin.grid import GridFrame
-from twin.maps import MapPlan
-from twin.scene import IndexArray, Scene, SlabBox
+from twin.maps.grid import GridFrame
+from twin.maps.render import MapPlan
+from twin.maps.scene import IndexArray, Scene, SlabBox
 
 FloatArray = npt.NDArray[np.float64]
 BoolGrid = npt.NDArray[np.bool_]
@@ -64,7 +64,8 @@ class Welded:
 
 
 def near_elements(scene: Scene, plan: MapPlan, ids: IndexArray | None = None) -> IndexArray:
-    """The selected elements whose AABB meets the frame and the slab (the same test as ``twin.maps``)."""
+    """The selected elements whose AABB meets the frame and the slab (the same test as
+    ``twin.maps.render``)."""
     f = plan.frame
     box = SlabBox(
         xmin=f.origin_x,

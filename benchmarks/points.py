@@ -3,7 +3,7 @@
 Measures, for a points skill with the shipped localization skill's selection (no glass, no furniture,
 no openings) at ``--resolution`` (default 0.1 m):
 
-- the full cloud of every storey from the triangles (:func:`twin.points.build_points`): wall and CPU
+- the full cloud of every storey from the triangles (:func:`twin.maps.points.build_points`): wall and CPU
   seconds, points;
 - the live maps (:class:`twin.live.live_points.LivePoints`, every storey): build time and the RSS they
   add; then single-element changes on the busiest storey (walls, doors, slabs moved by 5 cm, doors
@@ -35,14 +35,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from twin.graph.rdf import literal_value  # noqa: E402
+from twin.graph.store import EmbeddedStore  # noqa: E402
 from twin.live.live_maps import LiveMaps  # noqa: E402
-from twin.points import build_points, plan_points  # noqa: E402
-from twin.rdf import literal_value  # noqa: E402
+from twin.maps.points import build_points, plan_points  # noqa: E402
+from twin.maps.scene import load_scene  # noqa: E402
 from twin.records import GeometryChange  # noqa: E402
-from twin.scene import load_scene  # noqa: E402
-from twin.skill_selection import selection_query  # noqa: E402
-from twin.skills import parse_skill  # noqa: E402
-from twin.store import EmbeddedStore  # noqa: E402
+from twin.selection.skill_selection import selection_query  # noqa: E402
+from twin.selection.skills import parse_skill  # noqa: E402
 
 LIDAR = {
     "kind": "points",

@@ -1,4 +1,5 @@
-"""Time ``twin.raster`` on the Janesville restaurant: full navigation and localization maps and 5x5 m windows.
+"""Time ``twin.maps.raster`` on the Janesville restaurant: full navigation and localization maps and 5x5
+m windows.
 
 Usage::
 
@@ -26,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from twin.grid import GridFrame, Window
-from twin.raster import rasterize, rasterize_slab, slab_geometry
+from twin.maps.grid import GridFrame, Window
+from twin.maps.raster import rasterize, rasterize_slab, slab_geometry
 
 JANESVILLE = Path("/work/shared/data/ifc/revit2012_janesville_restaurant.ifc")
 

@@ -113,7 +113,7 @@ def translate_only(per_robot: int, repeat: int = 2000) -> dict[str, float]:
     from adapters.ros.detections import DetectionContext, DetectionSettings, translate_detections
     from adapters.ros.tf import TfBuffer, decode_tf_message
     from tests.adapters.ros_reports import OPTICAL, Det, Tf, cdr_detections, cdr_tf
-    from twin.grid import GridFrame, OccupancyGrid
+    from twin.maps.grid import GridFrame, OccupancyGrid
 
     now = time.time_ns()
     tf = TfBuffer()

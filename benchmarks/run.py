@@ -315,7 +315,7 @@ def print_report(
     if summaries:
         print("A) IMPORT (median of fresh processes; peak = max RSS of the process and its meshing child)")
         print(report.import_table(summaries))
-        print("\nTable 1 (paper): twin.stats.model_stats of the imported store")
+        print("\nTable 1 (paper): twin.graph.stats.model_stats of the imported store")
         print(report.table1_table(stats))
     if maps:
         print("\nB) MAPS (time = median of runs; peak MB = method's own peak RSS, +MB above the setup)")

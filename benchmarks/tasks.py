@@ -7,8 +7,9 @@ Tasks:
     bare-routed  the same with our kernel routing: the products ``adapters.ifc.kernel_choice`` sends to
               OpenCASCADE meshed by it while manifold meshes the rest (one single-threaded iterator
               each, in two threads of one process): the geometry our import must compute, nothing else.
-    import    ``adapters.ifc.read_model`` + ``twin.import_model.import_model`` into an on-disk store.
-    stats     ``twin.stats.model_stats`` of the store an ``import`` child left behind (the paper's Table 1).
+    import    ``adapters.ifc.read_model`` + ``twin.graph.import_model.import_model`` into an on-disk store.
+    stats     ``twin.graph.stats.model_stats`` of the store an ``import`` child left behind (the paper's
+    Table 1).
     map       setup (in-memory import, scene, selection, plan), then one method: ``twin-full``,
               ``twin-region``, ``trimesh`` or ``manifold3d``.
     storey-maps  the full map of every configured skill on every storey of the store an ``import``
@@ -206,7 +207,7 @@ def twin_import(path: Path, store_dir: Path) -> dict[str, Any]:
     store at ``store_dir`` (closed afterwards)."""
     from adapters.cli.import_file import import_ifc
     from twin.config import load_config
-    from twin.store import EmbeddedStore
+    from twin.graph.store import EmbeddedStore
 
     cfg = load_config()
     meshed: list[float] = []
@@ -245,8 +246,8 @@ def twin_import(path: Path, store_dir: Path) -> dict[str, Any]:
 
 def table1(store_dir: Path) -> dict[str, Any]:
     """The paper's Table 1 numbers of an imported store."""
-    from twin.stats import model_stats
-    from twin.store import EmbeddedStore
+    from twin.graph.stats import model_stats
+    from twin.graph.store import EmbeddedStore
 
     t0 = time.perf_counter()
     with EmbeddedStore.open(store_dir, read_only=True) as store:
@@ -269,11 +270,11 @@ def table1(store_dir: Path) -> dict[str, Any]:
 def storey_maps(store_dir: Path, repeat: int) -> dict[str, Any]:
     """Full-map time of every (storey, skill) of an imported store, as the daemon builds them at start."""
     from twin.config import load_config
-    from twin.maps import build_map, plan_map
-    from twin.rdf import literal_value
-    from twin.scene import load_scene
-    from twin.skill_selection import selection_query
-    from twin.store import EmbeddedStore
+    from twin.graph.rdf import literal_value
+    from twin.graph.store import EmbeddedStore
+    from twin.maps.render import build_map, plan_map
+    from twin.maps.scene import load_scene
+    from twin.selection.skill_selection import selection_query
 
     cfg = load_config()
     t0 = time.perf_counter()
@@ -312,7 +313,7 @@ class MapSetup:
 def busiest_storey(scene: Any, navigation: Any) -> str:
     """The storey whose navigation slab (``navigation.z_range`` above its elevation, over its extent)
     meets the most element bounding boxes: the busiest floor a robot drives on. First one on ties."""
-    from twin.scene import SlabBox
+    from twin.maps.scene import SlabBox
 
     everything = np.arange(len(scene.elements), dtype=np.intp)
     lo, hi = navigation.z_range
@@ -332,12 +333,12 @@ def map_setup(path: Path, skill_name: str) -> MapSetup:
     """In-memory import, scene, selection and plan on the busiest storey (the same for both skills)."""
     from adapters.ifc import read_model
     from twin.config import load_config
-    from twin.import_model import import_model
-    from twin.maps import plan_map
-    from twin.rdf import literal_value
-    from twin.scene import load_scene
-    from twin.skill_selection import selection_query
-    from twin.store import EmbeddedStore
+    from twin.graph.import_model import import_model
+    from twin.graph.rdf import literal_value
+    from twin.graph.store import EmbeddedStore
+    from twin.maps.render import plan_map
+    from twin.maps.scene import load_scene
+    from twin.selection.skill_selection import selection_query
 
     cfg = load_config()
     skill = cfg.skill(skill_name)
@@ -364,7 +365,7 @@ def map_setup(path: Path, skill_name: str) -> MapSetup:
 
 
 def _twin_occupied(setup: MapSetup) -> np.ndarray:
-    from twin.maps import build_map
+    from twin.maps.render import build_map
 
     occupied: np.ndarray = build_map(setup.scene, setup.plan).occupied()
     return occupied
@@ -380,7 +381,7 @@ def _diff(peer: np.ndarray, ours: np.ndarray) -> dict[str, int]:
 
 
 def map_twin_full(setup: MapSetup, repeat: int) -> dict[str, Any]:
-    from twin.maps import build_map
+    from twin.maps.render import build_map
 
     memory = MethodMemory.start()
     times, grid = timed_runs(lambda: build_map(setup.scene, setup.plan), repeat)
@@ -389,7 +390,7 @@ def map_twin_full(setup: MapSetup, repeat: int) -> dict[str, Any]:
 
 def region_windows(occupied: np.ndarray, cells: int, count: int, seed: int) -> list[Any]:
     """``count`` windows of ``cells x cells`` centred on random occupied cells (fixed seed)."""
-    from twin.grid import Window
+    from twin.maps.grid import Window
 
     where = np.argwhere(occupied)
     if len(where) == 0:
@@ -403,9 +404,9 @@ def region_windows(occupied: np.ndarray, cells: int, count: int, seed: int) -> l
 
 
 def map_twin_region(setup: MapSetup, repeat: int, *, prepared: bool = False) -> dict[str, Any]:
-    """5 m x 5 m windows; ``prepared``: from the slab clipped once (``twin.maps.prepare_slab``)."""
-    from twin.grid import OCCUPIED
-    from twin.maps import prepare_slab, render_window
+    """5 m x 5 m windows; ``prepared``: from the slab clipped once (``twin.maps.render.prepare_slab``)."""
+    from twin.maps.grid import OCCUPIED
+    from twin.maps.render import prepare_slab, render_window
 
     full = _twin_occupied(setup)
     frame = setup.plan.frame
@@ -466,9 +467,9 @@ def map_peer(setup: MapSetup, repeat: int, which: str) -> dict[str, Any]:
 
 
 def twin_on_subset(setup: MapSetup, ids: np.ndarray, repeat: int) -> float:
-    """Median seconds of ``twin.raster.rasterize_slab`` on just ``ids`` (as closed solids, full frame):
+    """Median seconds of ``twin.maps.raster.rasterize_slab`` on just ``ids`` (as closed solids, full frame):
     our rasteriser on exactly the input a peer that drops elements kept."""
-    from twin.raster import rasterize_slab
+    from twin.maps.raster import rasterize_slab
 
     plan = setup.plan
     triangles, owner = setup.scene.elements.triangles_of(ids)

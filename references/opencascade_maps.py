@@ -35,13 +35,13 @@ from references.slab_maps import (
     rasterize_element,
     slab_geometry,
 )
-from twin.grid import OCCUPIED, Window
-from twin.maps import MapPlan, build_map, dilate_disk, plan_map, render_window
-from twin.rdf import literal_value
-from twin.scene import Scene, SlabBox
-from twin.skill_selection import selection_query
-from twin.skills import SkillProfile
-from twin.store import GraphStore
+from twin.graph.rdf import literal_value
+from twin.graph.store import GraphStore
+from twin.maps.grid import OCCUPIED, Window
+from twin.maps.render import MapPlan, build_map, dilate_disk, plan_map, render_window
+from twin.maps.scene import Scene, SlabBox
+from twin.selection.skill_selection import selection_query
+from twin.selection.skills import SkillProfile
 
 TOLERANCE_M = 0.01
 """How far our map may legitimately be from the reference, in metres: a cell must be ours if its

@@ -1,6 +1,6 @@
 """An independent reference for slab maps: trimesh plane slicing + shapely polygons + per-cell tests.
 
-Simple on purpose (shapely per element, no shared code with ``twin.raster``): it is what the fast
+Simple on purpose (shapely per element, no shared code with ``twin.maps.raster``): it is what the fast
 rasteriser is checked against. Only the numpy plumbing around shapely and trimesh is vectorised.
 
 Example::
@@ -19,7 +19,7 @@ import numpy.typing as npt
 import shapely
 import trimesh
 
-from twin.grid import GridFrame, Window
+from twin.maps.grid import GridFrame, Window
 
 BoolArray = npt.NDArray[np.bool_]
 

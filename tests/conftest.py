@@ -13,9 +13,9 @@ from hypothesis import settings
 
 from tests.sparql_server import SparqlServer, start_sparql_server
 from twin.config import Config, load_config
-from twin.import_model import import_model
+from twin.graph.import_model import import_model
+from twin.graph.store import EmbeddedStore, GraphStore
 from twin.records import BuildingModel
-from twin.store import EmbeddedStore, GraphStore
 
 SHARED_IFC = Path(__file__).resolve().parents[2] / "shared" / "data" / "ifc"
 SHARED_MODELS = (
@@ -26,18 +26,6 @@ SHARED_MODELS = (
     "revit2012_janesville_restaurant.ifc",
 )
 BASE = "https://example.org/test#"
-
-# ``make test-fast`` (``-m "not slow"``) leaves these out: daemons and robots as processes, the shared
-# models, the mutated-IFC sweep and the real viewer. ``make test`` (what CI runs) runs everything.
-SLOW_DIRS = ("integration",)
-SLOW_MODULES = (
-    "test_ifc_import.py",
-    "test_maps_ifc.py",
-    "test_kernels.py",
-    "test_live_ifc.py",
-    "test_boolean_routing.py",
-    "test_broken_ifc.py",
-)
 
 # Longer fuzz runs: HYPOTHESIS_PROFILE=long (500 examples per fuzz test, or HYPOTHESIS_MAX_EXAMPLES).
 settings.register_profile(
@@ -50,14 +38,6 @@ if os.environ.get("HYPOTHESIS_PROFILE"):
 def examples(n: int) -> int:
     """``n`` examples in the default suite; the loaded profile's count when HYPOTHESIS_PROFILE is set."""
     return settings.default.max_examples if os.environ.get("HYPOTHESIS_PROFILE") else n
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Mark the slow part of the suite (see ``SLOW_DIRS`` and ``SLOW_MODULES``)."""
-    for item in items:
-        path = item.path
-        if path.name in SLOW_MODULES or any(part in SLOW_DIRS for part in path.parent.parts[-1:]):
-            item.add_marker(pytest.mark.slow)
 
 
 @pytest.fixture(scope="session")

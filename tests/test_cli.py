@@ -177,7 +177,7 @@ def test_map_rejects_an_unknown_skill_naming_the_known_ones(lab_store_dir: Path,
 
 
 def test_a_store_in_use_by_another_process_gives_a_clear_error(lab_store_dir: Path, tmp_path: Path) -> None:
-    from twin.store import EmbeddedStore
+    from twin.graph.store import EmbeddedStore
 
     model = tmp_path / "lab.ifc"
     twin("sample", "lab", model)
@@ -273,9 +273,9 @@ def test_two_different_config_files_before_and_after_the_command_are_refused(tmp
 
 def _site_of(store: Path) -> tuple[str, str]:
     """(the site label of the store's model node, the IRI of one storey)."""
-    from twin import vocab
-    from twin.rdf import literal_value
-    from twin.store import EmbeddedStore
+    from twin.graph import vocab
+    from twin.graph.rdf import literal_value
+    from twin.graph.store import EmbeddedStore
 
     with EmbeddedStore.open(store, read_only=True) as s:
         site = s.select(f"SELECT ?s WHERE {{ ?m a <{vocab.TWIN_MODEL}> ; <{vocab.RDFS_LABEL}> ?s }}")

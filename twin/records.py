@@ -2,7 +2,7 @@
 
 Adapters turn foreign data (IFC files, wire payloads) into these records: a building model to import
 (:class:`BuildingModel`), what robots report about elements (:class:`ElementReport`, parsed by
-``twin.observations``); the import turns them into triples, the scene reads them back. They import
+``twin.live.observations``); the import turns them into triples, the scene reads them back. They import
 nothing but numpy. All lengths are metres, in the building's world frame unless a field says ``local``.
 
 Arrays follow trimesh's conventions:
@@ -37,7 +37,7 @@ class Mesh:
         solid: True when the body bounds a volume although its mesh may be open: the source model
             says it is a solid (an extrusion, a B-rep, a CSG or boolean result, ...), or it is a
             surface whose faces close around a volume up to T-junctions (a lift's car modelled as a
-            surface model: :func:`twin.meshops.closes_around`). Such an open mesh (T-junctions, seams
+            surface model: :func:`twin.maps.meshops.closes_around`). Such an open mesh (T-junctions, seams
             a kernel left unstitched) is still filled where its section is made of closed loops.
             False for open surfaces and when unknown (older stores, meshes robots send).
     """

@@ -1,6 +1,7 @@
 """The twin's numerical tolerances, in one frozen object (metres and radians).
 
-Maps (:mod:`twin.raster`, :mod:`twin.meshops`): cells are shrunk or grown by ``cell_m``; points within
+Maps (:mod:`twin.maps.raster`, :mod:`twin.maps.meshops`): cells are shrunk or grown by ``cell_m``;
+points within
 ``join_m`` are one point where the geometry must close: the ends of a section's segments, when a
 solid's open mesh is filled where its section is made of closed loops, and the ends of a mesh's
 edges along a line, when a surface is found to close around a volume.
@@ -30,8 +31,8 @@ class Tolerances:
             metres when rasterising; an open polygon is degenerate when its area is at most ``cell_m``
             times its extent.
         join_m: two points this close are one (1 um): the ends of section segments
-            (:func:`twin.raster.closed_sections`) and of edges along a line
-            (:func:`twin.meshops.closes_around`). Far above the rounding errors of T-junctions and of
+            (:func:`twin.maps.raster.closed_sections`) and of edges along a line
+            (:func:`twin.maps.meshops.closes_around`). Far above the rounding errors of T-junctions and of
             unwelded vertex copies (1e-12 m), far below any real gap.
         same_position_m: a re-reported geometry whose every world vertex is within this of the held
             one (1 mm) is the same.

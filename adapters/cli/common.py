@@ -9,10 +9,10 @@ from adapters.sparql.remote_store import RemoteStore
 from adapters.sparql.settings import RemoteStoreSettings, remote_store_settings
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.settings import ZenohSettings
-from twin import vocab
 from twin.config import Config
-from twin.rdf import literal_value
-from twin.store import EmbeddedStore, GraphStore
+from twin.graph import vocab
+from twin.graph.rdf import literal_value
+from twin.graph.store import EmbeddedStore, GraphStore
 
 AnyStore = EmbeddedStore | RemoteStore
 

@@ -1,6 +1,6 @@
 """``twin import``'s work: an IFC file into the graph store, the store loading the structure and then
 each element's geometry while forked children still mesh (:class:`adapters.ifc.read_model.ModelReading` and
-:class:`twin.import_model.ModelImport`, wired here).
+:class:`twin.graph.import_model.ModelImport`, wired here).
 
 Example::
 
@@ -16,8 +16,8 @@ from pathlib import Path
 from adapters.ifc.geometry import DEFAULT_KERNELS
 from adapters.ifc.read_model import start_reading
 from twin.gc_pause import paused_gc
-from twin.import_model import ImportSummary, ModelImport
-from twin.store import GraphStore
+from twin.graph.import_model import ImportSummary, ModelImport
+from twin.graph.store import GraphStore
 
 
 def import_ifc(

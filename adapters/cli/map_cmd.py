@@ -13,11 +13,11 @@ from adapters.ros import write_map_files
 from adapters.ros.pcd import points_offset, write_points_files
 from twin.config import Config
 from twin.errors import MapError, SkillError
-from twin.maps import build_map, plan_map
-from twin.points import build_points, plan_points
-from twin.rdf import literal_value
-from twin.scene import load_scene
-from twin.skill_selection import selection_query
+from twin.graph.rdf import literal_value
+from twin.maps.points import build_points, plan_points
+from twin.maps.render import build_map, plan_map
+from twin.maps.scene import load_scene
+from twin.selection.skill_selection import selection_query
 
 
 def cmd_map(args: argparse.Namespace, cfg: Config) -> int:

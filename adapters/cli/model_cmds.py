@@ -28,7 +28,7 @@ from twin.live.snapshots import snapshot_path
 def import_site(args: argparse.Namespace, cfg: Config, model_path: Path) -> tuple[str, str]:
     """(the site an import names its model, where that name comes from): ``--site``, else the
     configuration's ``site.name`` if a configuration file sets it, else the model file's name."""
-    from twin.vocab import site_slug
+    from twin.graph.vocab import site_slug
 
     if args.site:
         return args.site, "--site"
@@ -39,7 +39,7 @@ def import_site(args: argparse.Namespace, cfg: Config, model_path: Path) -> tupl
 
 def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
     from adapters.cli.import_file import import_ifc
-    from twin.vocab import check_base
+    from twin.graph.vocab import check_base
 
     model_path = Path(args.model)
     site, site_from = import_site(args, cfg, model_path)
@@ -98,7 +98,7 @@ def plural(n: int, word: str) -> str:
 
 
 def cmd_stats(args: argparse.Namespace, cfg: Config) -> int:
-    from twin.stats import model_stats
+    from twin.graph.stats import model_stats
 
     with open_store(args, cfg, read_only=True) as store:
         stats = model_stats(store)

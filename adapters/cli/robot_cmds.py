@@ -20,10 +20,10 @@ from adapters.cli.common import add_client_args, key_prefix, open_client
 from adapters.ros import write_map_files
 from adapters.zenoh.client import MapVersion, MapWatcher
 from adapters.zenoh.errors import RemoteError, StoreySwitchError
-from twin import vocab
 from twin.config import Config
 from twin.errors import ObservationError, SkillError
-from twin.grid import OccupancyGrid
+from twin.graph import vocab
+from twin.maps.grid import OccupancyGrid
 
 
 def box_turtle(iri: str, box: list[float], *, ifc_class: str, storey: str, label: str | None = None) -> str:

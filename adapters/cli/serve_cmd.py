@@ -40,8 +40,8 @@ from adapters.zenoh.ros_points import RosPointsPublisher
 from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.errors import StoreNotFoundError
-from twin.events import MapPublished, TwinEvent, TwinStarted
 from twin.live import TwinService
+from twin.live.events import MapPublished, TwinEvent, TwinStarted
 from twin.live.snapshots import Snapshots, snapshot_path
 
 if TYPE_CHECKING:

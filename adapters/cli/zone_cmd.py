@@ -24,9 +24,9 @@ from typing import Any
 from adapters.cli.common import add_client_args, open_client
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import RemoteError
-from twin import vocab
 from twin.config import Config
 from twin.errors import ObservationError
+from twin.graph import vocab
 
 VIRTUAL_CLASS = "IfcVirtualElement"
 

@@ -41,7 +41,7 @@ from adapters.ifc.body_kind import BodyKind
 from adapters.ifc.errors import ENTITY_ERRORS
 from adapters.ifc.kernel_choice import KernelChoice
 from twin.errors import ModelError
-from twin.meshops import (
+from twin.maps.meshops import (
     are_closed,
     closes_around,
     is_closed,
@@ -124,7 +124,7 @@ def make_mesh(
     ``NEAR_WELD_M``) and, if it is watertight, its faces re-oriented.
 
     A surface (not a solid by the file) whose open mesh closes around a volume up to T-junctions
-    (:func:`~twin.meshops.closes_around`: a surface model whose faces enclose a lift's car) is a solid:
+    (:func:`~twin.maps.meshops.closes_around`: a surface model whose faces enclose a lift's car) is a solid:
     its T-junctions are split and the faces of each of its shells oriented alike (a surface model
     need not orient them), which makes it watertight; failing that it stays open, marked solid."""
     if not known_open and is_closed(faces):

@@ -1,6 +1,7 @@
 """The bundled sample building written as IFC4 with ``ifcopenshell.api``: the lab of de Vos et al.
 
-The lab's plan and world layout are plain data in the core (``twin.lab_plan``, ``twin.lab_layout``:
+The lab's plan and world layout are plain data in the core (``twin.samples.lab_plan``,
+``twin.samples.lab_layout``:
 the rooms, the corridor and its arch, the glass wall, the table, Door A in its opening, a floor slab
 under each storey); this module writes them as an IFC4 file so the demo and the tests need no
 downloaded model, with the openings, fillings, space boundaries, materials and units real models have.
@@ -46,8 +47,8 @@ import ifcopenshell.api.unit
 import numpy as np
 from ifcopenshell.util.shape_builder import ShapeBuilder
 
-from twin.lab_layout import LabLayout, entity_global_id, ifc_global_id, lab_layout, storey_plans
-from twin.lab_plan import ARCH, BUILDING, BUILDING_OFFSET, PROJECT, SITE, XY, Box, StoreyPlan
+from twin.samples.lab_layout import LabLayout, entity_global_id, ifc_global_id, lab_layout, storey_plans
+from twin.samples.lab_plan import ARCH, BUILDING, BUILDING_OFFSET, PROJECT, SITE, XY, Box, StoreyPlan
 
 log = logging.getLogger(__name__)
 
@@ -124,7 +125,7 @@ class _LabBuilder:
         )
 
     def build(self, plans: tuple[StoreyPlan, ...]) -> None:
-        """Write the storeys of ``plans`` (the entities of ``twin.lab_layout.lab_layout``)."""
+        """Write the storeys of ``plans`` (the entities of ``twin.samples.lab_layout.lab_layout``)."""
         site = self._root("IfcSite", SITE)
         ifcopenshell.api.aggregate.assign_object(self.file, products=[site], relating_object=self.project)
         self._place(site, (0.0, 0.0, 0.0))

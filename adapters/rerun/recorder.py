@@ -33,8 +33,8 @@ from typing import IO
 
 from adapters.rerun.pipe import write_message
 from adapters.rerun.tiles import MapMark
-from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
-from twin.grid import GridFrame
+from twin.live.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
+from twin.maps.grid import GridFrame
 
 log = logging.getLogger(__name__)
 

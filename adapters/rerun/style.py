@@ -10,7 +10,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import rerun.blueprint as rrb
 
-from twin.events import ElementShape, TwinStarted
+from twin.live.events import ElementShape, TwinStarted
 
 Rgba = tuple[int, int, int, int]
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import rerun as rr
 
-from twin.grid import GridData, GridFrame, OccupancyGrid, Window
+from twin.maps.grid import GridData, GridFrame, OccupancyGrid, Window
 
 TILE = 128
 """Cells per side of a recorded map tile."""

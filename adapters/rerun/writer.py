@@ -32,7 +32,7 @@ import rerun as rr
 
 from adapters.rerun.style import OBSERVED, Rgba, blueprint_of, colour_of, entity_name
 from adapters.rerun.tiles import TILE, MapMark, MapTiles, tiles_of, tiles_path
-from twin.events import (
+from twin.live.events import (
     ElementShape,
     MapPublished,
     MapRemoved,

@@ -1,6 +1,6 @@
 """ROS 2 views of the core's occupancy grids: CDR messages and nav2 ``map_server`` files.
 
-The core's :class:`~twin.grid.OccupancyGrid` already uses ``nav_msgs/OccupancyGrid`` conventions
+The core's :class:`~twin.maps.grid.OccupancyGrid` already uses ``nav_msgs/OccupancyGrid`` conventions
 (``int8`` cells, 0 free, 100 occupied, -1 unknown, row-major, row 0 = lowest y), so this package only
 translates containers; it never resamples or re-thresholds a map. :mod:`~adapters.ros.cdr` encodes
 and decodes the messages on ``/map`` and ``/map_updates``; :mod:`~adapters.ros.map_server` writes and

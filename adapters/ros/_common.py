@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.errors import MapError
-from twin.grid import GridData
+from twin.maps.grid import GridData
 
 __all__ = [
     "FREE_PIXEL",

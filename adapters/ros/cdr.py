@@ -26,7 +26,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from adapters.ros.interfaces import register_interfaces
 from twin.errors import MapError
-from twin.grid import GridData, GridFrame, OccupancyGrid, Window
+from twin.maps.grid import GridData, GridFrame, OccupancyGrid, Window
 
 __all__ = [
     "COSTMAP_FILTER_INFO",

@@ -46,7 +46,7 @@ from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
 from adapters.ros.view import polygon_area, visibility_polygon
 from twin.config import DetectionConfig, Limits
 from twin.errors import MapError
-from twin.grid import OccupancyGrid
+from twin.maps.grid import OccupancyGrid
 
 __all__ = [
     "DetectionContext",

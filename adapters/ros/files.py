@@ -18,7 +18,7 @@ from adapters.ros.cdr import encode_occupancy_grid
 from adapters.ros.map_server import write_map_server
 from adapters.ros.png import write_png_preview
 from twin.errors import MapError
-from twin.grid import OccupancyGrid
+from twin.maps.grid import OccupancyGrid
 
 __all__ = ["MapFiles", "write_map_files"]
 

@@ -35,7 +35,7 @@ from adapters.ros._common import (
     write_atomic,
 )
 from twin.errors import MapError
-from twin.grid import GridFrame, OccupancyGrid
+from twin.maps.grid import GridFrame, OccupancyGrid
 
 __all__ = [
     "FREE_PIXEL",

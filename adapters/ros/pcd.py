@@ -35,7 +35,7 @@ import numpy.typing as npt
 from adapters.ros._common import write_atomic
 from adapters.ros.cdr import _deserialize, _header, _serialize, _stamp_ns, _typestore
 from twin.errors import MapError
-from twin.points import PointCloud
+from twin.maps.points import PointCloud
 
 __all__ = [
     "OFFSET_LIMIT_M",

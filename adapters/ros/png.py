@@ -16,7 +16,7 @@ import numpy as np
 
 from adapters.ros._common import trinary_pixels, write_atomic
 from twin.errors import MapError
-from twin.grid import OccupancyGrid
+from twin.maps.grid import OccupancyGrid
 
 __all__ = ["write_png_preview"]
 

@@ -34,8 +34,8 @@ from adapters.ros.detections import box_in_map
 from adapters.ros.interfaces import DOOR_STATE, OBSTACLES
 from adapters.ros.observation_doc import BoxReport, RosInputError, Translation, observation_turtle, robot_iri
 from adapters.ros.tf import matrix
-from twin import vocab
 from twin.errors import MapError, ModelError
+from twin.graph import vocab
 
 __all__ = [
     "DoorIndex",

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from twin.grid import OccupancyGrid
+from twin.maps.grid import OccupancyGrid
 
 __all__ = ["OCCUPIED_AT", "polygon_area", "visibility_polygon"]
 

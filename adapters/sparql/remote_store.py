@@ -1,17 +1,17 @@
-"""The graph store on a remote SPARQL 1.1 server (a :class:`~twin.store.GraphStore`).
+"""The graph store on a remote SPARQL 1.1 server (a :class:`~twin.graph.store.GraphStore`).
 
 Any server that speaks the SPARQL 1.1 Protocol (queries and updates) and the Graph Store Protocol
 works: Oxigraph's own server (``oxigraph serve``, endpoints ``/query``, ``/update``, ``/store``), Fuseki
 (``/ds/query``, ``/ds/update``, ``/ds/data``), GraphDB, ... Requests go over HTTP/1.1 keep-alive
 connections (standard library only: this module imports no transport beyond ``http.client``), each with a
-timeout; results are parsed into the same plain :data:`~twin.store.Row` records :class:`EmbeddedStore`
+timeout; results are parsed into the same plain :data:`~twin.graph.store.Row` records :class:`EmbeddedStore`
 returns, so the service and the map engine cannot tell the two apart.
 
 - :meth:`RemoteStore.apply` is ONE SPARQL update request, which the server runs as one transaction:
   when it returns, the change is committed on the server (the daemon acks only after that).
 - :meth:`RemoteStore.bulk_add` is ONE Graph Store Protocol ``POST`` of N-Triples to the default graph,
   streamed in chunks (so blank nodes keep their identity and memory stays flat).
-- The vocabulary's prefixes (:data:`twin.vocab.PREFIXES`) are predefined, as in the embedded store.
+- The vocabulary's prefixes (:data:`twin.graph.vocab.PREFIXES`) are predefined, as in the embedded store.
 
 Example::
 
@@ -36,9 +36,9 @@ from urllib.parse import urlsplit
 
 import pyoxigraph as ox
 
-from twin import vocab
 from twin.errors import QueryError, StoreError, StoreUnavailableError
-from twin.rdf import (
+from twin.graph import vocab
+from twin.graph.rdf import (
     ByteCounter,
     ChangeSet,
     Row,
@@ -372,7 +372,7 @@ class RemoteStore:
         return not self.ask(f"ASK {{ {_ALL_QUADS} }}")
 
     def select(self, sparql: str) -> list[Row]:
-        """Run a SELECT query; one plain row per solution (see :data:`~twin.store.Row`)."""
+        """Run a SELECT query; one plain row per solution (see :data:`~twin.graph.store.Row`)."""
         return list(solution_rows(self._results(sparql)))
 
     def iter_select(self, sparql: str) -> Iterator[Row]:

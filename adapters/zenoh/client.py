@@ -30,7 +30,7 @@ from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.latched import LatchedSubscription
 from adapters.zenoh.session import client_config
 from adapters.zenoh.settings import ZenohMode, ZenohSettings
-from twin.grid import OccupancyGrid
+from twin.maps.grid import OccupancyGrid
 
 log = logging.getLogger(__name__)
 

@@ -47,7 +47,8 @@ from adapters.zenoh.latched import BLOCK, CDR, MAP_PRIORITY, Answer, LatchedPubl
 from adapters.zenoh.latest import LatestMaps
 from adapters.zenoh.outbox import Outbox
 from twin.errors import TwinError
-from twin.events import (
+from twin.live import Reply, TwinService
+from twin.live.events import (
     MapPublished,
     MapRemoved,
     MapUpdated,
@@ -57,7 +58,6 @@ from twin.events import (
     TwinSink,
     TwinStarted,
 )
-from twin.live import Reply, TwinService
 
 log = logging.getLogger(__name__)
 
@@ -76,7 +76,8 @@ class _MapOut:
 
 
 class ZenohDaemon:
-    """Publishes the service's maps and feeds it the robots' requests. A :class:`~twin.events.TwinSink`."""
+    """Publishes the service's maps and feeds it the robots' requests. A
+    :class:`~twin.live.events.TwinSink`."""
 
     def __init__(
         self, session: zenoh.Session, service: TwinService, *, keys: SiteKeys, frame_id: str

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from adapters.ros import encode_occupancy_grid
-from twin.events import MapPublished, MapUpdated
-from twin.grid import OccupancyGrid
+from twin.live.events import MapPublished, MapUpdated
+from twin.maps.grid import OccupancyGrid
 
 MapKey = tuple[str, str]
 

@@ -1,6 +1,6 @@
 """Points maps on Zenoh: each (storey, points skill) cloud, latched, on ``<prefix>/points/<storey>/<skill>``.
 
-A :class:`~twin.events.TwinSink` for :class:`~twin.events.PointsPublished`: the payload is the CDR
+A :class:`~twin.live.events.TwinSink` for :class:`~twin.live.events.PointsPublished`: the payload is the CDR
 ``sensor_msgs/msg/PointCloud2`` (x y z float32 in the map frame, ``frame_id`` from ``[ros] frame_id``)
 from an AdvancedPublisher with a cache of one and publisher detection (late joiners get the latest
 cloud, as with the 2D maps' ``map/`` keys); each sample carries the attachment
@@ -24,7 +24,7 @@ import zenoh
 from adapters.ros.pcd import encode_point_cloud2
 from adapters.zenoh.keys import check_chunk
 from adapters.zenoh.latched import declare_latched_publisher
-from twin.events import MapRemoved, PointsPublished, TwinEvent
+from twin.live.events import MapRemoved, PointsPublished, TwinEvent
 
 __all__ = ["ZenohPoints", "points_key"]
 

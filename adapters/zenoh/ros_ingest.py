@@ -64,10 +64,10 @@ from adapters.ros.tf import TfBuffer, decode_tf_message
 from adapters.zenoh.latched import CDR, declare_latched_subscriber
 from twin.config import Config, Limits
 from twin.errors import MapError, ObservationError
-from twin.events import MapPublished, MapUpdated, TwinEvent, TwinStarted
-from twin.grid import OccupancyGrid
+from twin.live.events import MapPublished, MapUpdated, TwinEvent, TwinStarted
+from twin.live.observations import parse_observation
 from twin.live.requests import Reply, ReplyFn
-from twin.observations import parse_observation
+from twin.maps.grid import OccupancyGrid
 
 __all__ = ["INGEST_NODE", "RosIngest", "core_reads_fusion_terms"]
 

@@ -28,7 +28,7 @@ current one, a ``get`` with a storey key as payload switches and answers, or rep
 through the ROS topic ``/<ns>/storey`` (``std_msgs/msg/String``, subscribed in the robot's layouts,
 with a subscriber liveliness token on rmw_zenoh). On a switch every topic of the robot republishes the
 new storey's map, latched (a late joiner gets the new floor), the switch is logged, counted in the
-status (:meth:`RosMapPublisher.status`) and emitted as :class:`~twin.events.RobotStoreyChanged` to the
+status (:meth:`RosMapPublisher.status`) and emitted as :class:`~twin.live.events.RobotStoreyChanged` to the
 other sinks (the Rerun recording). An unknown robot or storey is refused with an error naming it and
 changes nothing; the same storey again is a no-op (robots re-report it often).
 
@@ -96,7 +96,7 @@ from adapters.zenoh.latest import LatestMaps
 from adapters.zenoh.outbox import Outbox
 from twin.config import Config, RobotConfig
 from twin.errors import TwinError
-from twin.events import (
+from twin.live.events import (
     MapPublished,
     MapRemoved,
     MapUpdated,

@@ -6,7 +6,7 @@ on goes out as ``sensor_msgs/msg/PointCloud2`` (latched, as map_server's map) on
 layouts, as :mod:`adapters.zenoh.ros_maps` serves the 2D maps: ``bridge`` (key ``<ns>/points_map``, an
 AdvancedPublisher with a cache of one) and ``rmw_zenoh`` (rmw_zenoh_cpp's data key with type hash,
 the 33-byte attachment on every sample, liveliness tokens of node ``<ns>/twin_points_server`` and of
-its publishers). When the robot switches storey (a :class:`~twin.events.RobotStoreyChanged` from the
+its publishers). When the robot switches storey (a :class:`~twin.live.events.RobotStoreyChanged` from the
 map publisher), the new storey's cloud is published. PointCloud2 has no update message: the twin
 publishes a changed cloud whole, at most once a second. Each cloud is encoded once per version.
 
@@ -28,7 +28,7 @@ from adapters.ros.pcd import POINT_CLOUD2, encode_point_cloud2
 from adapters.ros.rmw_zenoh import LATCHED_QOS, RosNode, RosTopic, attachment, gid_of
 from adapters.zenoh.latched import declare_latched_publisher
 from twin.config import Config
-from twin.events import MapRemoved, PointsPublished, RobotStoreyChanged, TwinEvent
+from twin.live.events import MapRemoved, PointsPublished, RobotStoreyChanged, TwinEvent
 
 __all__ = ["NODE_NAME", "RosPointsPublisher", "points_topic"]
 

@@ -19,7 +19,7 @@ from adapters.ros import apply_update, decode_occupancy_grid, decode_occupancy_g
 from adapters.ros.cdr import OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE
 from adapters.ros.rmw_zenoh import RosTopic, parse_attachment
 from adapters.zenoh.latched import LatchedSubscription
-from twin.grid import OccupancyGrid
+from twin.maps.grid import OccupancyGrid
 
 log = logging.getLogger(__name__)
 

@@ -29,7 +29,7 @@ from adapters.ros.cdr import OCCUPANCY_GRID, _typestore
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.session import session_config
 from adapters.zenoh.settings import ZenohSettings
-from twin.grid import OccupancyGrid
+from twin.maps.grid import OccupancyGrid
 
 log = logging.getLogger(__name__)
 

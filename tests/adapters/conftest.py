@@ -12,9 +12,9 @@ from adapters.ifc import read_model
 from adapters.ifc.sample_lab import write_lab
 from tests.conftest import imported
 from twin.config import Config
-from twin.lab_layout import LabLayout
+from twin.graph.store import GraphStore
 from twin.records import BuildingModel
-from twin.store import GraphStore
+from twin.samples.lab_layout import LabLayout
 
 
 @pytest.fixture(scope="session")

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from twin.grid import GridFrame, OccupancyGrid
+from twin.maps.grid import GridFrame, OccupancyGrid
 
 STAMP_NS = 1_700_000_123_456_789_012
 

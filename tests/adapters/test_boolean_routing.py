@@ -13,6 +13,8 @@ from adapters.ifc.kernel_choice import reference_reason
 from tests.conftest import shared_model
 from twin.records import BuildingModel, Geometry
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 
 def volume(g: Geometry) -> float:
     tri = g.world_vertices()[g.mesh.faces]

@@ -33,6 +33,8 @@ from hypothesis import strategies as st
 from adapters.ifc.sample_lab import write_lab
 from tests.conftest import examples
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 TIMEOUT_S = 60.0
 MUTATED_EXAMPLES = examples(30)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import ifcopenshell.ifcopenshell_wrapper as w
 import pytest
 
-from twin.ifc_classes import element_classes, supertypes
+from twin.graph.ifc_classes import element_classes, supertypes
 
 
 @pytest.mark.parametrize(

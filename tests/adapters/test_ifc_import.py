@@ -16,13 +16,15 @@ from adapters.ifc import IfcFileError, read_model
 from adapters.ifc.kernel_child import make_mesh
 from adapters.ifc.sample_lab import write_lab
 from tests.conftest import SHARED_MODELS, imported, shared_model
-from twin import vocab
-from twin.lab_layout import LabLayout
-from twin.meshcodec import decode_mesh, decode_placement
-from twin.rdf import literal_value
+from twin.graph import vocab
+from twin.graph.meshcodec import decode_mesh, decode_placement
+from twin.graph.rdf import literal_value
+from twin.graph.store import GraphStore
+from twin.maps.shapes import box_mesh
 from twin.records import BuildingModel
-from twin.shapes import box_mesh
-from twin.store import GraphStore
+from twin.samples.lab_layout import LabLayout
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 MODELS = ["lab", *SHARED_MODELS]
 
@@ -388,7 +390,7 @@ def test_a_bad_or_duplicated_globalid_is_named_and_replace_keeps_the_old_graph(l
     from dataclasses import replace
 
     from twin.errors import ModelError
-    from twin.import_model import import_model
+    from twin.graph.import_model import import_model
 
     store = imported(lab_model)
     before = len(store)

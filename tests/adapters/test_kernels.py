@@ -17,8 +17,10 @@ from adapters.ifc.kernel_check import MeshMeasures, compare, disagreements
 from adapters.ifc.kernel_choice import REFERENCE_KERNEL, reference_reason
 from tests.adapters.generated import Generated
 from tests.conftest import imported, shared_model
+from twin.graph.stats import model_stats
 from twin.records import BuildingModel
-from twin.stats import model_stats
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 SMALL_MODELS = [
     "AC20-FZK-Haus.ifc",

@@ -6,12 +6,15 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tests.conftest import imported, shared_model
 from tests.twin.live_helpers import TWIN, observe, started
 from twin.records import BuildingModel
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 
 def _box(iri: str, storey: str, *, x: float, y: float, yaw: float, size: float) -> bytes:

@@ -23,13 +23,15 @@ from references.slab_maps import rasterize_reference, slab_geometry
 from tests.adapters.generated import Generated, box_faces
 from tests.conftest import imported, shared_model
 from twin.config import Config
-from twin.grid import OCCUPIED, OccupancyGrid, Window
-from twin.lab_plan import DOOR_HOST, Box
-from twin.maps import build_map, dilate_disk, plan_map, prepare_slab, render_window
+from twin.graph.store import GraphStore
+from twin.maps.grid import OCCUPIED, OccupancyGrid, Window
+from twin.maps.render import build_map, dilate_disk, plan_map, prepare_slab, render_window
+from twin.maps.scene import MeshSet, Scene, SlabBox, load_scene
 from twin.records import BuildingModel
-from twin.scene import MeshSet, Scene, SlabBox, load_scene
-from twin.skills import SkillProfile, parse_skill
-from twin.store import GraphStore
+from twin.samples.lab_plan import DOOR_HOST, Box
+from twin.selection.skills import SkillProfile, parse_skill
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 
 def make_map(store: GraphStore, scene: Scene, skill: SkillProfile, storey: str) -> OccupancyGrid:

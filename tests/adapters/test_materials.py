@@ -10,13 +10,13 @@ from adapters.ifc import read_model
 from adapters.ifc.materials import facing_material_names, material_names
 from tests.adapters.generated import Generated
 from tests.conftest import imported
-from twin.grid import OCCUPIED
-from twin.maps import build_map, plan_map
-from twin.rdf import literal_value
-from twin.scene import load_scene
-from twin.skill_selection import selection_query
-from twin.skills import parse_skill
-from twin.store import GraphStore
+from twin.graph.rdf import literal_value
+from twin.graph.store import GraphStore
+from twin.maps.grid import OCCUPIED
+from twin.maps.render import build_map, plan_map
+from twin.maps.scene import load_scene
+from twin.selection.skill_selection import selection_query
+from twin.selection.skills import parse_skill
 
 KEPT = {"brick-fiberglass-plaster", "brick-glasswool-brick", "typed-brick-fiberglass", "glass-in-the-middle"}
 GONE = {"glass-outer-layer", "glass-inner-face", "glass-plate", "window", "listed-window", "typed-glass"}

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from tests.conftest import imported
+from twin.graph.stats import model_stats
 from twin.records import BuildingModel, Element
-from twin.stats import model_stats
 
 GENERATOR = Path(__file__).resolve().parents[2] / "benchmarks" / "neuron_gen.py"
 SMALL: dict[str, Any] = {"seed": 7, "storeys": 2, "scale": 0.05}

@@ -12,13 +12,13 @@ from tests.adapters.generated import Generated
 from tests.conftest import imported
 from twin.config import Config
 from twin.errors import MapError
-from twin.grid import OCCUPIED, OccupancyGrid
-from twin.maps import build_map, plan_map
-from twin.rdf import literal_value
-from twin.scene import Scene, load_scene
-from twin.skill_selection import selection_query
-from twin.skills import SkillProfile, parse_skill
-from twin.store import GraphStore
+from twin.graph.rdf import literal_value
+from twin.graph.store import GraphStore
+from twin.maps.grid import OCCUPIED, OccupancyGrid
+from twin.maps.render import build_map, plan_map
+from twin.maps.scene import Scene, load_scene
+from twin.selection.skill_selection import selection_query
+from twin.selection.skills import SkillProfile, parse_skill
 
 COLUMNS = [(float(x), float(y)) for x in (0, 10) for y in (0, 8)]
 

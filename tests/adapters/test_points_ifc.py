@@ -15,13 +15,13 @@ import pytest
 
 from tests.conftest import SHARED_MODELS, imported, shared_model
 from tests.twin.reference_voxels import reference_voxels
-from twin.points import _near_band, plan_points
-from twin.rdf import literal_value
+from twin.graph.rdf import literal_value
+from twin.maps.points import _near_band, plan_points
+from twin.maps.scene import load_scene
+from twin.maps.voxels import touched_voxels
 from twin.records import BuildingModel
-from twin.scene import load_scene
-from twin.skill_selection import selection_query
-from twin.skills import parse_skill
-from twin.voxels import touched_voxels
+from twin.selection.skill_selection import selection_query
+from twin.selection.skills import parse_skill
 
 pytestmark = pytest.mark.slow
 

@@ -17,7 +17,7 @@ from adapters.sparql.settings import remote_store_settings
 from tests.sparql_server import SparqlServer, start_sparql_server
 from twin.config import load_config
 from twin.errors import ConfigError, StoreError, StoreUnavailableError
-from twin.rdf import ChangeSet, RdfLiteral, Triple
+from twin.graph.rdf import ChangeSet, RdfLiteral, Triple
 
 Q = ox.Quad(ox.NamedNode("https://ex.org/a"), ox.NamedNode("https://ex.org/p"), ox.Literal("x"))
 

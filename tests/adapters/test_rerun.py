@@ -22,9 +22,9 @@ from adapters.rerun.tiles import TILE, tiles_of
 from tests.twin.box_lab import element_iri, spec
 from tests.twin.live_helpers import TWIN, box_turtle, observe, started
 from twin.config import load_config
-from twin.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
-from twin.grid import GridFrame, OccupancyGrid
-from twin.skills import parse_skill
+from twin.live.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
+from twin.maps.grid import GridFrame, OccupancyGrid
+from twin.selection.skills import parse_skill
 
 SCREENSHOT = Path(__file__).resolve().parents[3] / "shared" / "tools" / "rrd_screenshot.sh"
 

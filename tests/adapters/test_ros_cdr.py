@@ -18,7 +18,7 @@ from adapters.ros import (
 )
 from tests.adapters.ros_samples import STAMP_NS, random_grid
 from twin.errors import MapError
-from twin.grid import GridFrame, OccupancyGrid, Window
+from twin.maps.grid import GridFrame, OccupancyGrid, Window
 
 UPDATE_MSG = "std_msgs/Header header\nint32 x\nint32 y\nuint32 width\nuint32 height\nint8[] data\n"
 

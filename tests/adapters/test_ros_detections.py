@@ -14,7 +14,7 @@ from adapters.ros.observation_doc import RosInputError
 from adapters.ros.tf import TfBuffer, TfError, decode_tf_message
 from adapters.ros.view import polygon_area, visibility_polygon
 from tests.adapters.ros_reports import OPTICAL, Det, Tf, cdr_detections, cdr_tf, yaw_quaternion
-from twin.grid import GridFrame, OccupancyGrid
+from twin.maps.grid import GridFrame, OccupancyGrid
 
 NOW = 1_700_000_000_000_000_000
 TWIN = "https://w3id.org/building-twin#"

@@ -16,7 +16,7 @@ from adapters.ros import (
 )
 from tests.adapters.ros_samples import STAMP_NS, decode_png, random_grid, read_pgm
 from twin.errors import MapError
-from twin.grid import GridFrame, OccupancyGrid
+from twin.maps.grid import GridFrame, OccupancyGrid
 
 
 def test_map_files_bundle_writes_yaml_pgm_png_and_cdr(tmp_path: Path) -> None:

@@ -20,9 +20,9 @@ from adapters.zenoh.ros_ingest import RosIngest
 from adapters.zenoh.session import client_config
 from tests.adapters.ros_reports import OPTICAL, Det, Tf, cdr_detections, cdr_tf
 from twin.config import load_config
-from twin.events import MapPublished, MapUpdated, TwinStarted
-from twin.grid import GridFrame, OccupancyGrid, Window
+from twin.live.events import MapPublished, MapUpdated, TwinStarted
 from twin.live.requests import Reply, ReplyFn
+from twin.maps.grid import GridFrame, OccupancyGrid, Window
 
 TWIN = "https://w3id.org/building-twin#"
 FRAME = GridFrame(10.0, 2.0, 0.05, 200, 200)  # x 10..20, y 2..12

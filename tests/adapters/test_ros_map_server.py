@@ -17,7 +17,7 @@ from adapters.ros import (
 )
 from tests.adapters.ros_samples import corner_grid, random_grid, read_pgm
 from twin.errors import MapError
-from twin.grid import GridFrame
+from twin.maps.grid import GridFrame
 
 
 def test_map_server_yaml_and_pgm_round_trip_exactly(tmp_path: Path) -> None:

@@ -26,8 +26,8 @@ from adapters.ros.pcd import (
 )
 from adapters.ros.rmw_zenoh import type_hash
 from tests.adapters.rosidl_build import shipped_hash
-from twin.grid import GridFrame
-from twin.points import PointCloud
+from twin.maps.grid import GridFrame
+from twin.maps.points import PointCloud
 
 STAMP_NS = 1_700_000_123_456_789_012
 

@@ -42,7 +42,7 @@ from adapters.ros.cdr import (
 from adapters.ros.rmw_zenoh import type_hash
 from tests.adapters.ros_samples import STAMP_NS, corner_grid, random_grid
 from tests.adapters.rosidl_build import generated_hash, shipped_hash
-from twin.grid import Window
+from twin.maps.grid import Window
 
 # map_msgs/msg/OccupancyGridUpdate.msg as ROS 2 ships it (ros-planning/navigation_msgs, map_msgs)
 UPDATE_MSG = """\

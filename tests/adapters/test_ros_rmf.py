@@ -17,7 +17,7 @@ from adapters.ros.rmf import (
     translate_door_state,
 )
 from tests.adapters.ros_reports import Obstacle, cdr_door_state, cdr_obstacles
-from twin import vocab
+from twin.graph import vocab
 
 NOW = 1_700_000_000_000_000_000
 GUID = "2_bXoMMEnLjvJDRiT8YUDb"

@@ -13,7 +13,7 @@ from shapely.geometry import Point, Polygon
 from adapters.ros.observation_doc import _metres
 from adapters.ros.view import OCCUPIED_AT, visibility_polygon
 from tests.conftest import examples
-from twin.grid import GridFrame, OccupancyGrid
+from twin.maps.grid import GridFrame, OccupancyGrid
 
 FRAME = GridFrame(0.0, 0.0, 0.1, 80, 60)  # 8 x 6 m
 

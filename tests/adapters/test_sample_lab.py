@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from adapters.ifc.sample_lab import LengthUnit, build_lab, write_lab
-from twin.lab_layout import LabLayout, ifc_global_id
-from twin.lab_plan import (
+from twin.samples.lab_layout import LabLayout, ifc_global_id
+from twin.samples.lab_plan import (
     ARCH,
     BUILDING_OFFSET,
     DOOR,

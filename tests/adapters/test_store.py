@@ -13,10 +13,10 @@ import pytest
 
 from adapters.sparql.remote_store import RemoteStore
 from tests.sparql_server import SparqlServer
-from twin import vocab
 from twin.errors import QueryError, StoreError
-from twin.rdf import ChangeSet, RdfLiteral, Triple
-from twin.store import EmbeddedStore
+from twin.graph import vocab
+from twin.graph.rdf import ChangeSet, RdfLiteral, Triple
+from twin.graph.store import EmbeddedStore
 
 Q = ox.Quad(ox.NamedNode("https://ex.org/a"), ox.NamedNode("https://ex.org/p"), ox.Literal("x"))
 EX = "https://ex.org/"

@@ -25,8 +25,8 @@ from adapters.zenoh.session import client_config, session_config
 from adapters.zenoh.settings import ZenohSettings
 from tests.integration.conftest import free_port
 from twin.config import Config, load_config
-from twin.events import MapPublished, MapUpdated, TwinStarted
-from twin.grid import GridFrame, OccupancyGrid, Window
+from twin.live.events import MapPublished, MapUpdated, TwinStarted
+from twin.maps.grid import GridFrame, OccupancyGrid, Window
 
 ROBOTS = """
 [robots.robot1]

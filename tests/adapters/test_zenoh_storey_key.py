@@ -20,7 +20,7 @@ from adapters.zenoh.settings import ZenohSettings
 from tests.conftest import examples
 from tests.integration.conftest import free_port
 from twin.config import Config, load_config
-from twin.events import TwinStarted
+from twin.live.events import TwinStarted
 
 KEYS = SiteKeys("twin/lab")
 ROBOTS = """

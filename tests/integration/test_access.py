@@ -18,6 +18,8 @@ from adapters.zenoh.settings import AuthSettings, TlsSettings, ZenohSettings
 from tests.integration.certs import CertificateAuthority
 from tests.integration.conftest import Daemon, start_daemon
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 TWIN = "https://w3id.org/building-twin#"
 LAB = "twin/lab"  # under access control a robot sees only its site's keys: no discovery, the site is given
 MAP = "twin/lab/map/ground-floor/lab-navigation"

@@ -13,7 +13,9 @@ import pytest
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import RemoteError
 from tests.integration.conftest import Daemon, JsonLinesProcess, start_daemon, twin
-from twin.grid import OCCUPIED
+from twin.maps.grid import OCCUPIED
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 TWIN = "https://w3id.org/building-twin#"
 TABLE_BOX = "16.6,7.0,0.375,0.6,0.6,0.75,0.0"  # in the corridor, east of the arch

@@ -12,12 +12,15 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from adapters.zenoh.client import TwinClient
 from tests.integration.conftest import ROOT, Daemon, start_daemon
 from twin.config import load_config
+from twin.graph.store import EmbeddedStore
 from twin.live import TwinService
-from twin.store import EmbeddedStore
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 KILLS = 5
 

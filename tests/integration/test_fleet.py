@@ -8,9 +8,13 @@ import json
 import sys
 from pathlib import Path
 
+import pytest
+
 from adapters.zenoh.client import TwinClient
 from tests.integration.conftest import Daemon, start_daemon, twin
-from twin.grid import OCCUPIED
+from twin.maps.grid import OCCUPIED
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -7,7 +7,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from tests.integration.conftest import ROOT
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 
 def test_under_load_no_acked_observation_is_lost_and_every_subscriber_ends_with_the_daemons_maps(

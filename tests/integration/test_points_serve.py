@@ -12,6 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import pytest
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import PointCloud2 as RosPointCloud2
 
@@ -22,6 +23,8 @@ from adapters.zenoh.latched import declare_latched_subscriber
 from adapters.zenoh.points import points_key
 from tests.integration.conftest import start_daemon
 from tests.integration.test_daemon import TWIN, door_of
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 CONFIG = """
 [skills.lidar3d]

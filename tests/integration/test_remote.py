@@ -15,7 +15,9 @@ import pytest
 from adapters.sparql.remote_store import RemoteStore
 from tests.integration.conftest import start_daemon, twin
 from tests.sparql_server import SparqlServer, start_sparql_server
-from twin.store import EmbeddedStore
+from twin.graph.store import EmbeddedStore
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 TWIN = "https://w3id.org/building-twin#"
 TABLE = "urn:twin:robot1:remote-table"

@@ -16,6 +16,8 @@ import pytest
 
 from tests.integration.conftest import ROOT, Daemon, start_daemon, twin
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 
 @pytest.fixture(scope="module")
 def daemon(lab_store_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Daemon]:

@@ -17,6 +17,8 @@ from adapters.zenoh.client import TwinClient
 from adapters.zenoh.session import client_config
 from tests.integration.conftest import Daemon, JsonLinesProcess, start_daemon, twin
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 CONFIG = """
 [robots.robot1]
 namespace = "/robot1"

@@ -42,7 +42,9 @@ from tests.adapters.ros_reports import (
     cdr_tf,
 )
 from tests.integration.conftest import Daemon, JsonLinesProcess, start_daemon
-from twin.grid import OccupancyGrid
+from twin.maps.grid import OccupancyGrid
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 OCCUPIED = 100
 TABLE = (16.6, 7.0, 0.6, 0.6)  # centre x, y and sizes in the map: free floor of the lab's ground floor

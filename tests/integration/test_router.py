@@ -19,6 +19,8 @@ import pytest
 from adapters.zenoh.client import TwinClient
 from tests.integration.conftest import ROOT, Daemon, free_port, start_daemon, twin
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 TWIN = "https://w3id.org/building-twin#"
 NAV = ("ground-floor", "lab-navigation")
 

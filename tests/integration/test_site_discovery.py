@@ -13,6 +13,8 @@ from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import TransportError
 from tests.integration.conftest import Daemon, start_daemon, twin
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 
 @pytest.fixture(scope="module")
 def wing_store_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:

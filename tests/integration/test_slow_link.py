@@ -26,6 +26,8 @@ from adapters.zenoh.session import client_config
 from tests.integration.conftest import Daemon, start_daemon
 from tests.integration.throttle import ThrottlingProxy
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 CONFIG = """
 [robots.robot1]
 namespace = "/robot1"

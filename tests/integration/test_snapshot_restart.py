@@ -13,8 +13,10 @@ import pytest
 from adapters.zenoh.client import TwinClient
 from tests.integration.conftest import Daemon, start_daemon
 from twin.config import load_config
+from twin.graph.store import EmbeddedStore
 from twin.live import TwinService
-from twin.store import EmbeddedStore
+
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
 TWIN = "https://w3id.org/building-twin#"
 

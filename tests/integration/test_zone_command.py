@@ -15,6 +15,8 @@ import pytest
 from adapters.zenoh.client import TwinClient
 from tests.integration.conftest import Daemon, start_daemon, twin
 
+pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
+
 CONFIG = """
 [skills.keepout]
 kind = "keepout"

@@ -1,6 +1,6 @@
 """The paper's lab as core records built from boxes: no IFC, no ifcopenshell (the core's own tests).
 
-The lab is ``twin.lab_layout`` (the layout ``adapters.ifc.sample_lab`` writes as IFC), so the core's
+The lab is ``twin.samples.lab_layout`` (the layout ``adapters.ifc.sample_lab`` writes as IFC), so the core's
 tests and the IFC tests see the same building: same names, classes, materials, GlobalIds and world
 boxes (the building at x 10.., y 5..), ground floor only unless ``storeys=2``. Each element's mesh is
 its box, or the boxes left of it once its openings are cut (Wall A south, with Door A's opening); a
@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.ifc_classes import supertypes
-from twin.lab_layout import LabElement, LabLayout, lab_layout
-from twin.lab_plan import BUILDING, BUILDING_OFFSET, SITE, Box
+from twin.graph.ifc_classes import supertypes
+from twin.graph.vocab import entity_iri
+from twin.maps.shapes import box_mesh, box_placement
 from twin.records import Building, BuildingModel, Element, Geometry, Mesh, Relation, Site, Space, Storey
-from twin.shapes import box_mesh, box_placement
-from twin.vocab import entity_iri
+from twin.samples.lab_layout import LabElement, LabLayout, lab_layout
+from twin.samples.lab_plan import BUILDING, BUILDING_OFFSET, SITE, Box
 
 OX, OY = BUILDING_OFFSET[0], BUILDING_OFFSET[1]
 BASE = "https://example.org/test#"
@@ -41,7 +41,7 @@ def spec(name: str) -> LabElement:
 
 def _boxes_geometry(boxes: tuple[Box, ...]) -> Geometry:
     """One closed mesh of the disjoint world ``boxes``, its local origin at the first box's centre (as
-    ``twin.shapes`` places a box: a single box's mesh is centred)."""
+    ``twin.maps.shapes`` places a box: a single box's mesh is centred)."""
     centres = np.array([[(b[i] + b[i + 3]) / 2 for i in range(3)] for b in boxes])
     vertices, faces, count = [], [], 0
     for b, centre in zip(boxes, centres - centres[0], strict=True):

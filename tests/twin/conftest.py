@@ -6,7 +6,7 @@ import pytest
 
 from tests.conftest import imported
 from tests.twin.box_lab import box_lab
-from twin.store import GraphStore
+from twin.graph.store import GraphStore
 
 
 @pytest.fixture(scope="session")

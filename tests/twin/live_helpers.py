@@ -7,9 +7,9 @@ from dataclasses import dataclass, field
 from tests.conftest import imported
 from tests.twin.box_lab import OX, OY, box_lab
 from twin.config import Config, load_config
-from twin.events import TwinEvent
+from twin.graph.store import GraphStore
 from twin.live import Reply, TwinService
-from twin.store import GraphStore
+from twin.live.events import TwinEvent
 
 TWIN = "https://w3id.org/building-twin#"
 PREFIX = f"@prefix twin: <{TWIN}> .\n"

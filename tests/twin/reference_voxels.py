@@ -1,4 +1,4 @@
-"""A reference for which voxels a triangle touches, written apart from ``twin.voxels`` (which it checks).
+"""A reference for which voxels a triangle touches, written apart from ``twin.maps.voxels`` (which it checks).
 
 Plain Python, one triangle and one voxel at a time, in exact integer arithmetic: the closed separating
 axis test (13 axes) of the triangle and the voxel's box *shrunk* at its upper faces by less than any

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.extents import _bounds, _instance_bounds, geometry_bounds, storey_extents
+from twin.graph.extents import _bounds, _instance_bounds, geometry_bounds, storey_extents
+from twin.maps.shapes import box_mesh, box_placement
 from twin.records import BuildingModel, Element, Geometry, Mesh, Relation, Storey
-from twin.shapes import box_mesh, box_placement
 
 
 def _random_geometries(seed: int) -> list[Geometry]:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from twin.ifc_classes import element_classes, schema_family, supertypes
+from twin.graph.ifc_classes import element_classes, schema_family, supertypes
 
 
 def test_observed_classes_get_their_supertypes_like_imported_ones() -> None:

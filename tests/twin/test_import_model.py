@@ -17,17 +17,17 @@ import numpy as np
 import pyoxigraph as ox
 import pytest
 
-import twin.import_model
+import twin.graph.import_model
 from tests.twin.box_lab import BASE, box_lab
-from twin import vocab
 from twin.errors import ModelError
-from twin.extents import _bounds, format_extent, storey_extents
-from twin.import_model import ModelImport, import_model
-from twin.meshcodec import encode_mesh, encode_placement
-from twin.model_triples import MeshLiterals, ModelTriples, checked_iris, mint_iris
+from twin.graph import vocab
+from twin.graph.extents import _bounds, format_extent, storey_extents
+from twin.graph.import_model import ModelImport, import_model
+from twin.graph.meshcodec import encode_mesh, encode_placement
+from twin.graph.model_triples import MeshLiterals, ModelTriples, checked_iris, mint_iris
+from twin.graph.store import EmbeddedStore, TextLoader
+from twin.maps.shapes import box_mesh, box_placement
 from twin.records import BuildingModel, Geometry, Mesh, Relation, Space, Storey
-from twin.shapes import box_mesh, box_placement
-from twin.store import EmbeddedStore, TextLoader
 
 
 def _n(iri: str) -> ox.NamedNode:
@@ -177,7 +177,7 @@ def _nquads(store: ox.Store) -> list[bytes]:
 def test_the_imported_graph_equals_the_reference_writers_term_for_term(
     min_part: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(twin.import_model, "_MIN_PART", min_part)  # 1: the structure loads in halves
+    monkeypatch.setattr(twin.graph.import_model, "_MIN_PART", min_part)  # 1: the structure loads in halves
     model = _awkward_lab()
     expected = ox.Store()
     expected.extend(_reference_quads(model, base_iri=BASE, site='lab "x"'))
@@ -262,7 +262,7 @@ def test_geometry_written_as_it_comes_gives_the_reference_graph(
 ) -> None:
     """The structure first, then each geometry on its own (in parts loaded in the background), then the
     rest: the graph is the reference writer's, term for term."""
-    monkeypatch.setattr(twin.import_model, "_PART_TRIANGLES", part_triangles)
+    monkeypatch.setattr(twin.graph.import_model, "_PART_TRIANGLES", part_triangles)
     model = _awkward_lab()
     structure = dataclasses.replace(
         model,

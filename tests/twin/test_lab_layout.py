@@ -1,4 +1,4 @@
-"""The sample lab's layout (``twin.lab_layout``): one plan for the IFC file and the core's box lab."""
+"""The sample lab's layout (``twin.samples.lab_layout``): one plan for the IFC file and the core's box lab."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from tests.twin.box_lab import LAB, box_lab
-from twin.lab_layout import lab_layout
-from twin.lab_plan import DOOR_HOST, Box
+from twin.samples.lab_layout import lab_layout
+from twin.samples.lab_plan import DOOR_HOST, Box
 
 
 def volume(box: Box) -> float:

@@ -9,10 +9,16 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from twin.errors import ModelError
-from twin.meshcodec import decode_mesh, decode_placement, encode_mesh, encode_placement, encode_placements
-from twin.meshops import are_closed, is_closed, is_edge_closed, orient_faces
+from twin.graph.meshcodec import (
+    decode_mesh,
+    decode_placement,
+    encode_mesh,
+    encode_placement,
+    encode_placements,
+)
+from twin.maps.meshops import are_closed, is_closed, is_edge_closed, orient_faces
+from twin.maps.shapes import box_mesh
 from twin.records import Mesh
-from twin.shapes import box_mesh
 
 TETRA = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]], dtype=np.int32)
 

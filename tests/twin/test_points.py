@@ -13,7 +13,9 @@ from tests.conftest import examples
 from tests.twin.box_lab import element_iri, spec
 from tests.twin.reference_voxels import reference_voxels
 from twin.errors import MapError, SkillError
-from twin.points import (
+from twin.graph.rdf import literal_value
+from twin.graph.store import GraphStore
+from twin.maps.points import (
     PointsPlan,
     Voxels,
     best_per_voxel,
@@ -22,12 +24,10 @@ from twin.points import (
     voxels_by_element,
     voxels_of,
 )
-from twin.rdf import literal_value
-from twin.scene import Scene, load_scene
-from twin.skill_selection import selection_query
-from twin.skills import SkillProfile, parse_skill
-from twin.store import GraphStore
-from twin.voxels import nearest_points, touched_voxels
+from twin.maps.scene import Scene, load_scene
+from twin.maps.voxels import nearest_points, touched_voxels
+from twin.selection.skill_selection import selection_query
+from twin.selection.skills import SkillProfile, parse_skill
 
 LIDAR = {
     "kind": "points",

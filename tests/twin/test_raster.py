@@ -1,4 +1,4 @@
-"""Slab rasterising (twin.raster) against an independent shapely reference.
+"""Slab rasterising (twin.maps.raster) against an independent shapely reference.
 
 The reference clips every triangle to the slab in plain Python, takes the convex hull of the clipped
 points (for a closed convex part: of all its clipped points, which is the projection of the part's
@@ -18,8 +18,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from twin.errors import MapError
-from twin.grid import GridFrame, Window
-from twin.raster import TOLERANCES, RasterSettings, rasterize, rasterize_slab, slab_geometry
+from twin.maps.grid import GridFrame, Window
+from twin.maps.raster import TOLERANCES, RasterSettings, rasterize, rasterize_slab, slab_geometry
 
 TOL = TOLERANCES.cell_m
 FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

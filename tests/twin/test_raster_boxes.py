@@ -8,10 +8,10 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from twin.grid import GridFrame, Window
-from twin.raster import rasterize_slab
-from twin.raster.boxes import box_footprint, footprint_cells
-from twin.shapes import box_mesh, box_placement
+from twin.maps.grid import GridFrame, Window
+from twin.maps.raster import rasterize_slab
+from twin.maps.raster.boxes import box_footprint, footprint_cells
+from twin.maps.shapes import box_mesh, box_placement
 
 FRAME = GridFrame(origin_x=-2.0, origin_y=-3.0, resolution_m=0.05, width=160, height=140)
 

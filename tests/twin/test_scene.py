@@ -2,8 +2,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from twin.maps.scene import MeshSet, SlabBox
 from twin.records import Mesh
-from twin.scene import MeshSet, SlabBox
 
 BOX_V = np.array([[x, y, z] for x in (0.0, 1) for y in (0.0, 1) for z in (0.0, 1)])
 BOX_F = np.array(

@@ -12,11 +12,11 @@ from tests.twin.box_lab import OX, OY, box_lab, element_iri, spec
 from tests.twin.live_helpers import PREFIX, TWIN, box_turtle, observe, started
 from twin.config import load_config
 from twin.errors import QueryError
-from twin.events import MapPublished, MapRemoved, MapUpdated, ObservationAccepted, ObservationRejected
-from twin.grid import OCCUPIED
 from twin.live import TwinService
+from twin.live.events import MapPublished, MapRemoved, MapUpdated, ObservationAccepted, ObservationRejected
 from twin.live.selection import selects
-from twin.skill_selection import selection_query
+from twin.maps.grid import OCCUPIED
+from twin.selection.skill_selection import selection_query
 
 TABLE = "urn:robot1:table-1"
 

@@ -8,10 +8,10 @@ import pytest
 from tests.twin.box_lab import GROUND, spec
 from twin.config import load_config
 from twin.errors import ConfigError, QueryError, SkillError
-from twin.rdf import literal_value
-from twin.skill_selection import selection_query
-from twin.skills import parse_skill, parse_skill_json
-from twin.store import GraphStore
+from twin.graph.rdf import literal_value
+from twin.graph.store import GraphStore
+from twin.selection.skill_selection import selection_query
+from twin.selection.skills import parse_skill, parse_skill_json
 
 
 def test_shipped_profiles_reproduce_the_paper() -> None:

@@ -14,13 +14,13 @@ from tests.twin.box_lab import box_lab, element_iri, spec
 from tests.twin.live_helpers import PREFIX, TWIN, box_turtle, observe
 from twin.config import Config, load_config
 from twin.errors import SnapshotError
+from twin.graph.store import GraphStore
 from twin.live import TwinService
 from twin.live.snapshots import Snapshots, restore
 from twin.live.state import ElementState, load_states
-from twin.scene import load_scene
-from twin.skills import parse_skill_json
-from twin.snapshot import read_snapshot, write_snapshot
-from twin.store import GraphStore
+from twin.maps.scene import load_scene
+from twin.maps.snapshot import read_snapshot, write_snapshot
+from twin.selection.skills import parse_skill_json
 
 # --- the file -----------------------------------------------------------------------------------------
 

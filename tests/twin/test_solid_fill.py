@@ -21,15 +21,15 @@ from hypothesis import strategies as st
 from tests.conftest import imported
 from tests.twin.box_lab import OX, OY, box_lab
 from tests.twin.live_helpers import box_turtle, observe, started
-from twin.grid import GridFrame, Window
-from twin.maps import MapPlan, occupancy
-from twin.meshcodec import decode_mesh, encode_mesh
-from twin.meshops import closes_around, is_closed, orient_faces, orient_shells, seal_t_junctions
-from twin.raster import closed_sections
+from twin.graph.meshcodec import decode_mesh, encode_mesh
+from twin.graph.vocab import entity_iri
+from twin.maps.grid import GridFrame, Window
+from twin.maps.meshops import closes_around, is_closed, orient_faces, orient_shells, seal_t_junctions
+from twin.maps.raster import closed_sections
+from twin.maps.render import MapPlan, occupancy
+from twin.maps.scene import MeshSet, StoreyInfo
 from twin.records import BuildingModel, Element, Geometry, Mesh, Relation
-from twin.scene import MeshSet, StoreyInfo
-from twin.skills import parse_skill
-from twin.vocab import entity_iri
+from twin.selection.skills import parse_skill
 
 XYZ = tuple[float, float, float]
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 from tests.conftest import imported
 from tests.twin.box_lab import box_lab
 from tests.twin.live_helpers import TWIN, box_turtle, observe, started
-from twin.rdf import literal_value
-from twin.skill_selection import selection_query
-from twin.stats import model_stats
+from twin.graph.rdf import literal_value
+from twin.graph.stats import model_stats
+from twin.selection.skill_selection import selection_query
 
 TABLE = "urn:robot1:tombstone-table"
 

@@ -5,8 +5,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from twin import vocab
 from twin.errors import ModelError
+from twin.graph import vocab
 
 
 @given(st.uuids())

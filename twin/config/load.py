@@ -35,7 +35,7 @@ from twin.config.tables import (
     StoreTable,
 )
 from twin.errors import ConfigError, SkillError
-from twin.skills import SkillProfile, parse_skill
+from twin.selection.skills import SkillProfile, parse_skill
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "default.toml"  # package data: installs with twin
 S = TypeVar("S", bound=ConfigSection)
@@ -217,7 +217,7 @@ def config_schema(sections: Sequence[type[ConfigSection]] = ()) -> dict[str, Any
 
 def _skill_schema() -> dict[str, Any]:
     """A skill table's keys for editors, from :class:`SkillProfile`'s fields (checked by
-    :func:`~twin.skills.parse_skill`, which also refuses keys that do not belong to the kind)."""
+    :func:`~twin.selection.skills.parse_skill`, which also refuses keys that do not belong to the kind)."""
     schema = TypeAdapter(SkillProfile).json_schema()
     properties = {k: v for k, v in schema["properties"].items() if k != "name"}
     properties["sparql"] = {"type": "string", "description": "A group graph pattern binding ?element."}

@@ -1,6 +1,6 @@
 """The core's tables: ``[site]``, ``[store]``, ``[import]``, ``[maps]``, ``[limits]``, ``[rights]``
 and ``[ros]`` (``[robots.NAME]`` is in :mod:`twin.config.robots`, ``[skills.NAME]`` is parsed by
-:func:`twin.skills.parse_skill`). Each field's default is the value ``config/default.toml`` shows.
+:func:`twin.selection.skills.parse_skill`). Each field's default is the value ``config/default.toml`` shows.
 """
 
 from __future__ import annotations

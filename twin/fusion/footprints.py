@@ -67,7 +67,7 @@ def box_pose(cx: float, cy: float, cz: float, sx: float, sy: float, sz: float, *
 
 
 def _is_box_mesh(vertices: FloatArray) -> FloatArray | None:
-    """The sizes of a box mesh centred on its origin (as :func:`twin.shapes.box_mesh` makes), or None."""
+    """The sizes of a box mesh centred on its origin (as :func:`twin.maps.shapes.box_mesh` makes), or None."""
     if vertices.shape != (8, 3):
         return None
     half = np.abs(vertices).max(axis=0)

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.grid import GridData, Window
 from twin.live.live_map import LiveMap
 from twin.live.overlay import (
     MapKey,
@@ -24,11 +23,12 @@ from twin.live.overlay import (
     grow,
     in_band,
 )
-from twin.maps import occupancy, render_cells, render_layers
-from twin.raster import BoolArray
-from twin.raster.boxes import footprint_cells
+from twin.maps.grid import GridData, Window
+from twin.maps.raster import BoolArray
+from twin.maps.raster.boxes import footprint_cells
+from twin.maps.render import occupancy, render_cells, render_layers
+from twin.maps.scene import IndexArray, MeshSet, Scene
 from twin.records import FloatArray, Shape
-from twin.scene import IndexArray, MeshSet, Scene
 
 _ONE: IndexArray = np.zeros(1, dtype=np.intp)
 
@@ -149,7 +149,7 @@ class Drawing:
     ) -> GridData:
         """The values of ``window`` of ``m`` from its static cells and overlay elements (or from
         ``source``: the occupancy of a window that holds this one's, grown by the inflation), drawn by
-        the maps' one renderer (:func:`~twin.maps.render_cells`)."""
+        the maps' one renderer (:func:`~twin.maps.render.render_cells`)."""
 
         def occupied_in(padded: Window) -> BoolArray:
             if source is None:

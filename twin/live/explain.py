@@ -18,13 +18,13 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from twin import vocab
 from twin.errors import ExplainError
-from twin.grid import Window
+from twin.graph import vocab
+from twin.graph.store import GraphStore
 from twin.live.selection import rejection
 from twin.live.state import ElementState, LiveState
-from twin.skills import SkillProfile
-from twin.store import GraphStore
+from twin.maps.grid import Window
+from twin.selection.skills import SkillProfile
 
 NEAR_M = 1.0
 """How far from the point elements count as near, metres (default)."""

@@ -47,11 +47,11 @@ from twin.fusion.footprints import (
     yaw_difference,
 )
 from twin.fusion.memory import TENTATIVE_TTL_NS, Alias, FusionMemory, Miss, Refinement, Track
-from twin.ifc_classes import supertypes
+from twin.graph.ifc_classes import supertypes
+from twin.graph.store import GraphStore
 from twin.live.state import ElementState, LiveState
 from twin.records import ElementReport, Observation, ObservedBox, Shape
-from twin.skill_selection import VIRTUAL_TYPE
-from twin.store import GraphStore
+from twin.selection.skill_selection import VIRTUAL_TYPE
 
 Effect = Callable[[FusionMemory], None]
 

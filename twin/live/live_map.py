@@ -12,10 +12,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from twin.grid import GridData, OccupancyGrid, Window
 from twin.live.overlay import MapKey
-from twin.maps import MapPlan
-from twin.raster import BoolArray
+from twin.maps.grid import GridData, OccupancyGrid, Window
+from twin.maps.raster import BoolArray
+from twin.maps.render import MapPlan
 
 
 @dataclass(frozen=True, eq=False, slots=True)

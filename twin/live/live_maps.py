@@ -1,6 +1,6 @@
 """The live maps: the twin's geometry as it changes, and every skill map kept current, fast.
 
-The imported elements form a frozen base (:class:`~twin.scene.MeshSet`); what robots changed lives in
+The imported elements form a frozen base (:class:`~twin.maps.scene.MeshSet`); what robots changed lives in
 an overlay (:mod:`twin.live.overlay`: a new element, a moved or reshaped one); a base element that was
 moved, reshaped or removed is hidden in the base. One map's cells and versions: :mod:`twin.live.live_map`.
 
@@ -11,7 +11,7 @@ Each (storey, skill) map keeps, besides its cells:
   removed: rare);
 - the occupancy of each selected overlay element in its own small window (cached per element and map,
   dropped when the element changes); an upright box (``twin:box``) crossing the band is drawn straight
-  from its footprint (:mod:`twin.raster.boxes`), once for all the maps of one grid frame.
+  from its footprint (:mod:`twin.maps.raster.boxes`), once for all the maps of one grid frame.
 
 A map is the union of its elements' maps, so a window is re-rendered (:mod:`twin.live.drawing`) by
 OR-ing the static cells with the overlay elements that overlap it, then inflating; moving a table
@@ -33,7 +33,6 @@ from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from twin.grid import Window
 from twin.live.drawing import Drawing
 from twin.live.live_map import LiveMap, WindowUpdate
 from twin.live.live_points import LivePoints
@@ -43,11 +42,12 @@ from twin.live.overlay import (
     dirty_windows,
     grow,
 )
-from twin.maps import occupancy, plan_map
-from twin.raster import BoolArray
+from twin.maps.grid import Window
+from twin.maps.raster import BoolArray
+from twin.maps.render import occupancy, plan_map
+from twin.maps.scene import Scene
 from twin.records import GeometryChange, Shape
-from twin.scene import Scene
-from twin.skills import SkillProfile
+from twin.selection.skills import SkillProfile
 
 _AT_ONCE_AREA = 4
 """Windows changed together are rendered in one pass over their bounding window when it is at most this

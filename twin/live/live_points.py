@@ -1,7 +1,7 @@
 """The live points maps: each (storey, points skill) cloud kept current as the building changes.
 
 Each map keeps, per selected element, the voxels it touches with its own point in each
-(:func:`twin.points.voxels_by_element`), and which of them it *wins* (its point is the voxel's: the
+(:func:`twin.maps.points.voxels_by_element`), and which of them it *wins* (its point is the voxel's: the
 nearest the voxel's centre, ties to the smallest point). A changed element replaces only the voxels it
 touched before and touches now: its old voxels are dropped, its new ones computed from its triangles
 alone, and the winners of just those voxels are decided again among the elements that touch them. The
@@ -31,10 +31,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from twin.events import PointsPublished, TwinEvent
 from twin.live.drawing import Drawing
+from twin.live.events import PointsPublished, TwinEvent
 from twin.live.overlay import MapKey
-from twin.points import (
+from twin.maps.points import (
     PointCloud,
     PointsPlan,
     Voxels,
@@ -43,9 +43,9 @@ from twin.points import (
     plan_points,
     voxels_by_element,
 )
-from twin.scene import MeshSet
-from twin.skills import SkillProfile
-from twin.voxels import IntArray
+from twin.maps.scene import MeshSet
+from twin.maps.voxels import IntArray
+from twin.selection.skills import SkillProfile
 
 __all__ = ["POINTS_INTERVAL_S", "LivePoints", "PointsMap", "PointsPublication"]
 

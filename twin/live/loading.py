@@ -17,6 +17,8 @@ import numpy as np
 
 from twin.config import Config
 from twin.errors import SnapshotError, TwinError
+from twin.graph.rdf import Row
+from twin.graph.store import GraphStore
 from twin.live.fuse import load_fusion
 from twin.live.live_maps import LiveMaps
 from twin.live.skill_changes import stored_skills
@@ -30,10 +32,8 @@ from twin.live.snapshots import (
     store_identity,
 )
 from twin.live.state import LiveState, SiteFrame, StoreyFrame, load_states
-from twin.rdf import Row
-from twin.scene import Scene, load_scene
-from twin.skills import SkillProfile
-from twin.store import GraphStore
+from twin.maps.scene import Scene, load_scene
+from twin.selection.skills import SkillProfile
 
 log = logging.getLogger(__name__)
 

@@ -24,10 +24,13 @@ from collections import ChainMap, Counter, OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from twin import vocab
 from twin.config import Config
 from twin.errors import TwinError
-from twin.events import (
+from twin.fusion.footprints import Pose
+from twin.graph import vocab
+from twin.graph.rdf import ChangeSet, Object, Triple
+from twin.graph.store import GraphStore
+from twin.live.events import (
     ElementShape,
     MapChange,
     MapUpdated,
@@ -36,17 +39,14 @@ from twin.events import (
     ObservationRejected,
     TwinEvent,
 )
-from twin.fusion.footprints import Pose
 from twin.live.fuse import Fused, expire_aliases, fuse, index_element, is_candidate
+from twin.live.observations import parse_observation_document
 from twin.live.plan import ObservationPlan, plan_observation
 from twin.live.publication import Publication
 from twin.live.requests import ObserveRequest, Reply
 from twin.live.selection import membership
 from twin.live.state import ElementState, LiveState, Sighting
-from twin.observations import parse_observation_document
-from twin.rdf import ChangeSet, Object, Triple
 from twin.records import ElementReport, GeometryChange, Observation, Shape
-from twin.store import GraphStore
 
 log = logging.getLogger(__name__)
 

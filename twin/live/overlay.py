@@ -2,7 +2,7 @@
 
 Each overlay element keeps its shape and bounds; its mesh set is made only when the general rasteriser
 needs it. An upright box (a ``twin:box``) keeps its footprint instead: in a band it crosses, its cells
-are the footprint's (:mod:`twin.raster.boxes`), the same in every map of one grid frame. The rasters
+are the footprint's (:mod:`twin.maps.raster.boxes`), the same in every map of one grid frame. The rasters
 are cached per element and map (or per element and frame for upright boxes) until the element changes.
 The window helpers here say which cells a change can touch.
 
@@ -19,12 +19,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from twin.grid import Window
-from twin.maps import MapPlan
-from twin.raster import BoolArray
-from twin.raster.boxes import box_footprint
+from twin.maps.grid import Window
+from twin.maps.raster import BoolArray
+from twin.maps.raster.boxes import box_footprint
+from twin.maps.render import MapPlan
+from twin.maps.scene import MeshSet
 from twin.records import FloatArray, Shape, to_world
-from twin.scene import MeshSet
 
 MapKey = tuple[str, str]
 """``(storey key, skill name)``."""
@@ -38,7 +38,7 @@ class OverlayElement:
     bounds: FloatArray | None
     footprint: FloatArray | None = None
     """An upright box's (a ``twin:box``: eight corners, turned about +z only) footprint corners: in a
-    band it crosses its cells are those of the footprint (:mod:`twin.raster.boxes`), the same in every
+    band it crosses its cells are those of the footprint (:mod:`twin.maps.raster.boxes`), the same in every
     map of one frame, so they are computed once for all of them."""
     _meshes: MeshSet | None = None
 

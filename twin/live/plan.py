@@ -3,7 +3,7 @@
 :func:`plan_observation` decides everything before anything changes: whether each element exists,
 whether the robot may change it (its rights: ``create`` new dynamic elements, change ``dynamic``
 ones, open and close ``doors``, change ``static`` structure), that its storey exists and its geometry
-lies within the site. It returns the :class:`~twin.store.ChangeSet` and the geometry changes for the
+lies within the site. It returns the :class:`~twin.graph.store.ChangeSet` and the geometry changes for the
 live maps; on any problem it raises ObservationError and nothing is changed.
 
 Only what differs from the twin is written: a moved box rewrites its placement, not its mesh; a door
@@ -28,17 +28,17 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from twin import vocab
 from twin.config import Right
 from twin.errors import ObservationError
-from twin.ifc_classes import supertypes
+from twin.graph import vocab
+from twin.graph.ifc_classes import supertypes
+from twin.graph.meshcodec import encode_placement
+from twin.graph.rdf import ChangeSet, Object, Triple
 from twin.live.same import quantised, same_mesh, same_shape
 from twin.live.state import ElementState, SiteFrame
 from twin.live.writes import Held, TripleWriter, boolean, geometry_triples, literal
-from twin.meshcodec import encode_placement
-from twin.rdf import ChangeSet, Object, Triple
+from twin.maps.shapes import box_mesh, box_placement
 from twin.records import ElementReport, GeometryChange, Shape
-from twin.shapes import box_mesh, box_placement
 
 
 @dataclass(frozen=True, eq=False, slots=True)

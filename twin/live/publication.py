@@ -1,7 +1,7 @@
 """Full maps out: when a map goes out in full, and when each map last did.
 
 A change costs its changed cells: its updates (the changed rectangles) go out at once and nothing else.
-A map goes out in full (:class:`~twin.events.MapPublished`) only
+A map goes out in full (:class:`~twin.live.events.MapPublished`) only
 
 - on its first publication (start-up, a skill added), on a skill change, and when its extent (grid
   frame) changed;
@@ -26,10 +26,10 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
-from twin.events import MapPublished, TwinEvent
-from twin.grid import GridFrame
+from twin.live.events import MapPublished, TwinEvent
 from twin.live.live_map import LiveMap
 from twin.live.overlay import MapKey
+from twin.maps.grid import GridFrame
 
 
 @dataclass(frozen=True, slots=True)

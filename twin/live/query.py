@@ -12,7 +12,7 @@ import threading
 
 from twin.config import Limits
 from twin.errors import QueryError, TwinError
-from twin.store import GraphStore
+from twin.graph.store import GraphStore
 
 _PREFIXES = re.compile(r"^\s*((PREFIX|BASE)\s+[^\n]*\n?\s*)*", re.IGNORECASE)
 _UPDATE = re.compile(r"^\s*(INSERT|DELETE|LOAD|CLEAR|DROP|CREATE|ADD|MOVE|COPY|WITH)\b", re.IGNORECASE)

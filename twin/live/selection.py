@@ -1,6 +1,6 @@
 """Skill selection for the elements an observation changed, evaluated in memory.
 
-:func:`twin.skills.selection_query` is the definition of which elements a skill's maps are made of;
+:func:`twin.selection.skills.selection_query` is the definition of which elements a skill's maps are made of;
 this module answers the same question from :class:`~twin.live.state.ElementState` without a query,
 for every skill whose selection is made of types, classes and materials (every shipped one). A skill
 with a custom ``sparql`` pattern cannot be answered from memory: :func:`needs_store` says so and the
@@ -18,10 +18,10 @@ import functools
 import re
 from collections.abc import Callable, Mapping, Sequence
 
+from twin.graph.store import GraphStore
 from twin.live.state import ElementState
-from twin.skill_selection import VIRTUAL_TYPE, class_iri, selection_query
-from twin.skills import SkillProfile
-from twin.store import GraphStore
+from twin.selection.skill_selection import VIRTUAL_TYPE, class_iri, selection_query
+from twin.selection.skills import SkillProfile
 
 
 def needs_store(skill: SkillProfile) -> bool:
@@ -31,7 +31,7 @@ def needs_store(skill: SkillProfile) -> bool:
 
 @functools.cache
 def _material_word(word: str) -> re.Pattern[str]:
-    # Words are separated by anything but letters and digits, as twin.skills.material_word_pattern:
+    # Words are separated by anything but letters and digits, as twin.selection.skills.material_word_pattern:
     # in Python's re, [\W_] is "not a letter or digit".
     return re.compile(rf"(?:^|[\W_]){re.escape(word)}(?:$|[\W_])", re.IGNORECASE)
 

@@ -1,9 +1,9 @@
 """The twin service: the single writer of the twin, with no transport.
 
-It loads the graph (:func:`~twin.scene.load_scene`), builds every skill map of every storey, and then
+It loads the graph (:func:`~twin.maps.scene.load_scene`), builds every skill map of every storey, and then
 handles requests one at a time on its own worker thread: robot observations (:mod:`twin.live.observe`:
 the hot path) and skill profiles added or removed at run time (:mod:`twin.live.skill_changes`). After
-each committed change it bumps the twin's revision and emits events (:mod:`twin.events`) to its sinks:
+each committed change it bumps the twin's revision and emits events (:mod:`twin.live.events`) to its sinks:
 the changed rectangle of every affected map at once, and a changed map in full only as a keyframe (at
 most every ``limits.keyframe_interval_s``; see :mod:`twin.live.publication`). Requests come from any
 thread (e.g. Zenoh callbacks, which only enqueue); replies go to the callback given with each request.
@@ -27,7 +27,8 @@ from collections.abc import Callable, Sequence
 
 from twin.config import Config
 from twin.errors import TwinError
-from twin.events import ElementShape, RobotStoreyChanged, TwinEvent, TwinSink, TwinStarted
+from twin.graph.store import GraphStore
+from twin.live.events import ElementShape, RobotStoreyChanged, TwinEvent, TwinSink, TwinStarted
 from twin.live.explain import explain_cell
 from twin.live.live_maps import LiveMaps
 from twin.live.live_points import PointsPublication
@@ -49,8 +50,7 @@ from twin.live.skill_changes import apply_skill, publish_all_maps
 from twin.live.snapshots import Restored, Snapshots
 from twin.live.state import ElementState, LiveState
 from twin.live.status import service_status
-from twin.skills import SkillProfile
-from twin.store import GraphStore
+from twin.selection.skills import SkillProfile
 
 log = logging.getLogger(__name__)
 
@@ -239,7 +239,7 @@ class TwinService:
         self, robot: str, storey: str, *, source: str = "zenoh", reply: ReplyFn | None = None
     ) -> None:
         """Queue a robot's storey switch (the lift): the writer checks the robot and the storey, keeps the
-        robot's storey and emits :class:`~twin.events.RobotStoreyChanged` to the sinks (the ROS 2
+        robot's storey and emits :class:`~twin.live.events.RobotStoreyChanged` to the sinks (the ROS 2
         publisher republishes that robot's topics on it); ``reply`` gets ``{"storey", "previous",
         "changed"}`` or the refusal naming the unknown robot or storey."""
         self._queue.put(StoreyRequest(robot, storey, source, reply))

@@ -15,18 +15,18 @@ import json
 import logging
 from collections.abc import Callable
 
-from twin import vocab
 from twin.errors import SkillError, TwinError
-from twin.events import MapRemoved, SkillChanged, TwinEvent
+from twin.graph import vocab
+from twin.graph.rdf import ChangeSet, RdfLiteral, Triple
+from twin.graph.store import GraphStore
+from twin.live.events import MapRemoved, SkillChanged, TwinEvent
 from twin.live.live_map import LiveMap
 from twin.live.publication import Publication
 from twin.live.requests import Reply, SkillRequest
 from twin.live.snapshots import Restored
 from twin.live.state import LiveState
-from twin.rdf import ChangeSet, RdfLiteral, Triple
-from twin.skill_selection import selection_query
-from twin.skills import SkillProfile, parse_skill_json
-from twin.store import GraphStore
+from twin.selection.skill_selection import selection_query
+from twin.selection.skills import SkillProfile, parse_skill_json
 
 log = logging.getLogger(__name__)
 

@@ -15,11 +15,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from twin.fusion.memory import FusionMemory
+from twin.graph.rdf import Object
+from twin.graph.store import GraphStore
 from twin.live.live_maps import LiveMaps
-from twin.observations import sense_time_ns
-from twin.rdf import Object
-from twin.skills import SkillProfile
-from twin.store import GraphStore
+from twin.live.observations import sense_time_ns
+from twin.selection.skills import SkillProfile
 
 
 @dataclass(frozen=True, slots=True)

@@ -12,9 +12,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from twin import vocab
-from twin.meshcodec import encode_mesh, encode_placement
-from twin.rdf import Object, RdfLiteral, Triple
+from twin.graph import vocab
+from twin.graph.meshcodec import encode_mesh, encode_placement
+from twin.graph.rdf import Object, RdfLiteral, Triple
 from twin.records import FloatArray, Mesh
 
 Held = Mapping[str, Mapping[str, Object | None]]

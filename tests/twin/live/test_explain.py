@@ -10,7 +10,7 @@ from tests.twin.live_helpers import PREFIX, box_turtle, observe, started
 from twin.live import TwinService
 from twin.live.requests import Reply
 from twin.live.selection import rejection
-from twin.skill_selection import selection_query
+from twin.selection.skill_selection import selection_query
 
 GROUND = "ground-floor"
 TABLE = "urn:robot1:table-1"

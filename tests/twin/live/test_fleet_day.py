@@ -13,12 +13,12 @@ from tests.conftest import imported
 from tests.twin.box_lab import box_lab, element_iri, spec
 from tests.twin.live_helpers import PREFIX, TWIN, box_turtle, observe, started
 from twin.config import FusionRules, load_config
-from twin.events import MapPublished, MapUpdated, ObservationAccepted
+from twin.graph.meshcodec import encode_placement
 from twin.live import TwinService
+from twin.live.events import MapPublished, MapUpdated, ObservationAccepted
 from twin.live.selection import needs_store, selects
-from twin.meshcodec import encode_placement
-from twin.skill_selection import selection_query
-from twin.skills import parse_skill
+from twin.selection.skill_selection import selection_query
+from twin.selection.skills import parse_skill
 
 TABLE = "urn:robot1:table-1"
 

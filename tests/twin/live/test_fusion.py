@@ -12,8 +12,8 @@ import numpy as np
 from tests.twin.box_lab import OX, OY, element_iri, spec
 from tests.twin.live_helpers import PREFIX, box_turtle, observe, started
 from twin.config import FusionRules, load_config
-from twin.events import ObservationAccepted, ObservationNoted
 from twin.live import TwinService
+from twin.live.events import ObservationAccepted, ObservationNoted
 
 T0 = 1_795_000_000_000_000_000  # a sense time (ns) well in the past of the test's clock
 TABLE = "urn:robot1:table-1"

@@ -14,8 +14,8 @@ from tests.twin.box_lab import box_lab
 from tests.twin.live_helpers import Recorder, box_turtle, observe
 from twin.config import load_config
 from twin.errors import ConfigError
-from twin.events import MapPublished, MapUpdated
 from twin.live import TwinService
+from twin.live.events import MapPublished, MapUpdated
 
 TABLE = "urn:robot1:table-1"
 SECOND = 1_000_000_000

@@ -17,12 +17,12 @@ from tests.twin.box_lab import box_lab, element_iri, spec
 from tests.twin.live_helpers import TWIN, Recorder, box_turtle, observe, started
 from tests.twin.test_engine import steps
 from twin.config import Config, load_config
-from twin.events import PointsPublished
+from twin.graph.store import GraphStore
 from twin.live import TwinService
+from twin.live.events import PointsPublished
 from twin.live.snapshots import Snapshots
-from twin.skills import parse_skill
-from twin.snapshot import read_snapshot
-from twin.store import GraphStore
+from twin.maps.snapshot import read_snapshot
+from twin.selection.skills import parse_skill
 
 DOOR = element_iri(spec("Door A"))
 WALL = element_iri(spec("Wall A west"))

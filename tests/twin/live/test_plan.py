@@ -7,12 +7,12 @@ from collections.abc import Sequence
 import pytest
 
 from tests.twin.live_helpers import box_turtle, observe, started
-from twin import vocab
 from twin.config import load_config
 from twin.errors import ObservationError
+from twin.graph import vocab
+from twin.live.observations import parse_observation
 from twin.live.plan import ObservationPlan, plan_observation
 from twin.live.service import TwinService
-from twin.observations import parse_observation
 from twin.records import ElementReport
 
 ALL_RIGHTS = frozenset({"create", "dynamic", "doors", "static", "zones"})

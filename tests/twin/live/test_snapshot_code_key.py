@@ -30,9 +30,9 @@ def test_the_digest_of_an_unchanged_copy_of_the_core_equals_the_running_code(cor
     [
         "live/drawing.py",
         "live/selection.py",
-        "skill_selection.py",
-        "raster/clip.py",
-        "maps.py",
+        "selection/skill_selection.py",
+        "maps/raster/clip.py",
+        "maps/render.py",
         "live/plan.py",
     ],
 )

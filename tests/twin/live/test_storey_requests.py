@@ -10,8 +10,8 @@ from tests.conftest import imported
 from tests.twin.box_lab import box_lab
 from tests.twin.live_helpers import started
 from twin.config import load_config
-from twin.events import RobotStoreyChanged
 from twin.live import Reply
+from twin.live.events import RobotStoreyChanged
 
 
 def ask(service, robot: str, storey: str) -> Reply:  # type: ignore[no-untyped-def]

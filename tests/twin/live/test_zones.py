@@ -15,8 +15,8 @@ from tests.twin.live_helpers import PREFIX, box_turtle, observe, started
 from twin.config import Config, load_config
 from twin.errors import ObservationError, SkillError
 from twin.live import TwinService
-from twin.observations import parse_observation
-from twin.skills import parse_skill
+from twin.live.observations import parse_observation
+from twin.selection.skills import parse_skill
 
 ZONE = "urn:operator:zone-1"
 GROUND = "ground-floor"

@@ -3,7 +3,7 @@ nor renders every map.
 
 What :meth:`~twin.live.service.TwinService.start` derives from the store (the scene: every element's
 local mesh and placement, the spaces and storeys; and every map: its cells, its static occupancy, its
-selection of base elements, its overlay) is written to one file (:mod:`twin.snapshot`) next to the
+selection of base elements, its overlay) is written to one file (:mod:`twin.maps.snapshot`) next to the
 store: on a clean stop, after a start that had to rebuild, and in the background while the daemon
 runs (captured by the writer between two commits, compressed and written on another thread).
 

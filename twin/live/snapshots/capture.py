@@ -21,9 +21,9 @@ import numpy as np
 
 from twin.live.snapshots.keys import skill_digest
 from twin.live.state import ElementState, LiveState
+from twin.maps.scene import Scene
+from twin.maps.snapshot import AnyArray, write_snapshot
 from twin.records import Mesh, Shape
-from twin.scene import Scene
-from twin.snapshot import AnyArray, write_snapshot
 
 log = logging.getLogger(__name__)
 

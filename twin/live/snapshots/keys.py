@@ -13,8 +13,8 @@ import json
 from pathlib import Path
 
 from twin.config import Config
-from twin.skills import SkillProfile
-from twin.store import GraphStore
+from twin.graph.store import GraphStore
+from twin.selection.skills import SkillProfile
 
 _CORE = Path(__file__).resolve().parents[2]
 """The core package (``twin/``): every module in it may shape maps, so every one keys the snapshot."""

@@ -18,20 +18,20 @@ from typing import Any
 import numpy as np
 
 from twin.errors import SnapshotError, TwinError
+from twin.graph.meshcodec import decode_mesh, decode_placement
+from twin.graph.store import GraphStore
 from twin.live.live_map import LiveMap
 from twin.live.live_maps import LiveMaps
 from twin.live.live_points import PointsMap
 from twin.live.selection import membership
 from twin.live.snapshots.keys import skill_digest
 from twin.live.state import ElementState, LiveState, load_states
-from twin.maps import plan_map
-from twin.meshcodec import decode_mesh, decode_placement
-from twin.points import plan_points
+from twin.maps.points import plan_points
+from twin.maps.render import plan_map
+from twin.maps.scene import MeshSet, Scene, StoreyInfo
+from twin.maps.snapshot import AnyArray, read_snapshot
 from twin.records import FloatArray, GeometryChange, Mesh, Shape, to_world
-from twin.scene import MeshSet, Scene, StoreyInfo
-from twin.skills import SkillProfile
-from twin.snapshot import AnyArray, read_snapshot
-from twin.store import GraphStore
+from twin.selection.skills import SkillProfile
 
 log = logging.getLogger(__name__)
 

@@ -16,10 +16,10 @@ from typing import Final
 
 import pyoxigraph as ox
 
-from twin import vocab
 from twin.errors import ModelError
-from twin.extents import format_extent, storey_extents
-from twin.meshcodec import encode_mesh, encode_placements
+from twin.graph import vocab
+from twin.graph.extents import format_extent, storey_extents
+from twin.graph.meshcodec import encode_mesh, encode_placements
 from twin.records import BuildingModel, FloatArray, Geometry, Mesh
 
 log = logging.getLogger(__name__)
@@ -135,7 +135,7 @@ class ModelTriples:
 
     def geometry(self, node: str, geometry: Geometry, placement: str) -> None:
         """The geometry node of ``node`` (an IRI): mesh, placement (``placement``, its
-        :func:`~twin.meshcodec.encode_placement` text), closedness, solidity, triangle count."""
+        :func:`~twin.graph.meshcodec.encode_placement` text), closedness, solidity, triangle count."""
         g = vocab.geometry_iri(node)
         mesh = geometry.mesh
         if self._as_text and self._literals.first_text(mesh):
@@ -351,7 +351,7 @@ def geometry_triples(
 
     The geometry nodes of the GlobalIds in ``written`` (already written with that geometry, by
     :func:`geometry_nodes`) are left out; ModelError if the model's geometry is another. ``bounds``:
-    :func:`~twin.extents.geometry_bounds` of written geometry, for the storey extents.
+    :func:`~twin.graph.extents.geometry_bounds` of written geometry, for the storey extents.
     """
     written = written or {}
     out = ModelTriples()

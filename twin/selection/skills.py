@@ -10,7 +10,7 @@ a point cloud for 3D lidars (NDT / ICP localizers):
 
 - ``points``: the voxels of ``resolution_m`` (default 0.1 m) the selected surfaces touch between
   ``band_bottom_m`` (default -0.05: just below the floor's top, so the floor is in) and ``band_top_m``
-  (default: up to the next storey's elevation), one point per voxel (see :mod:`twin.points`);
+  (default: up to the next storey's elevation), one point per voxel (see :mod:`twin.maps.points`);
 
 and two kinds of nav2 costmap filter mask, made of the zones operators mark (same band as navigation):
 
@@ -23,7 +23,7 @@ localization or navigation maps.
 
 Heights are relative to the storey's elevation. The element selection becomes one SPARQL query over
 the graph (IFC types with their subtypes, BEO/FURN classes, materials, or a raw pattern on ``?element``):
-see ``twin.skill_selection``.
+see ``twin.selection.skill_selection``.
 
 Example::
 
@@ -42,10 +42,10 @@ from typing import Any, Literal
 
 import pyoxigraph as ox
 
-from twin import vocab
 from twin.errors import SkillError
-from twin.rdf import uses_service
-from twin.skill_selection import class_iri, selection_query
+from twin.graph import vocab
+from twin.graph.rdf import uses_service
+from twin.selection.skill_selection import class_iri, selection_query
 
 __all__ = ["MASK_KINDS", "POINTS_RESOLUTION_M", "Kind", "SkillProfile", "parse_skill", "parse_skill_json"]
 

@@ -3,7 +3,7 @@
 A solid's mesh is not always watertight: a kernel that triangulates each face of a B-rep on its own
 leaves T-junctions (one face's edge split at a vertex of its neighbour, the neighbour's edge whole),
 bodies of one element touch along faces, two copies of a vertex lie a rounding error apart. Such a
-mesh fails the edge test (:func:`twin.meshops.is_closed`), yet its section at a height is still made
+mesh fails the edge test (:func:`twin.maps.meshops.is_closed`), yet its section at a height is still made
 of closed loops, up to rounding: every point where a section segment ends is where another begins.
 Then the section can be filled exactly like a watertight mesh's, by the winding number of its
 segments (their orientation comes from the faces).
@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.raster.clip import _min_max, _section
-from twin.raster.settings import BoolArray, FloatArray, IndexArray
+from twin.maps.raster.clip import _min_max, _section
+from twin.maps.raster.settings import BoolArray, FloatArray, IndexArray
 from twin.tolerances import TOLERANCES, Tolerances
 
 _SHIFT = 0.318309886  # joints are cells of a grid shifted off round numbers (model coordinates often are)
@@ -40,7 +40,7 @@ def closed_sections(
         element: ``(n,) intp`` element of each triangle, in ``[0, count)``.
         count: number of elements.
         z: the section's height (world z, metres); a vertex exactly at ``z`` counts as above it, as
-            when the section is filled (:mod:`twin.raster.clip`).
+            when the section is filled (:mod:`twin.maps.raster.clip`).
         tol: ``join_m``: section endpoints this close (on a grid of that pitch) are one joint.
 
     Returns:

@@ -2,12 +2,12 @@
 
 An upright box (eight corners, turned about +z only) that crosses a slab from below its bottom to above
 its top has, in that slab, the same geometry as its footprint: a convex quadrilateral. By the rules of
-:mod:`twin.raster` (a closed element's polygons meet cells shrunk by ``Tolerances.cell_m``; its inside
+:mod:`twin.maps.raster` (a closed element's polygons meet cells shrunk by ``Tolerances.cell_m``; its inside
 fills the cells whose centre it holds) a cell is occupied iff the closed footprint meets the cell
 shrunk by ``cell_m``. For two convex shapes that is a separating-axis test on four axes (the grid's
 two and the footprint's edge normals), vectorised over the cells of the window: tens of microseconds,
 where the general rasteriser spends half a millisecond of fixed numpy cost on the box's 12 triangles.
-The result equals :func:`twin.raster.rasterize_slab` for such a box, cell for cell (tested on random
+The result equals :func:`twin.maps.raster.rasterize_slab` for such a box, cell for cell (tested on random
 boxes, grid-aligned ones included).
 
 Example::
@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.grid import GridFrame, Window
-from twin.raster.settings import BoolArray, FloatArray
+from twin.maps.grid import GridFrame, Window
+from twin.maps.raster.settings import BoolArray, FloatArray
 from twin.tolerances import TOLERANCES, Tolerances
 
 

@@ -26,10 +26,10 @@ from collections import defaultdict
 import numpy as np
 import pyoxigraph as ox
 
-from twin import vocab
 from twin.config import Limits
 from twin.errors import ModelError, ObservationError
-from twin.meshcodec import decode_mesh, decode_placement
+from twin.graph import vocab
+from twin.graph.meshcodec import decode_mesh, decode_placement
 from twin.records import ElementReport, FloatArray, Geometry, Observation, ObservedBox, ObservedView
 
 __all__ = ["parse_observation", "parse_observation_document", "sense_time_ns"]

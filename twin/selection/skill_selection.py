@@ -19,10 +19,10 @@ import re
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from twin import vocab
+from twin.graph import vocab
 
 if TYPE_CHECKING:
-    from twin.skills import SkillProfile
+    from twin.selection.skills import SkillProfile
 
 VIRTUAL_TYPE = "IfcVirtualElement"
 """Virtual elements (e.g. a zone an operator drew) are in masks only."""

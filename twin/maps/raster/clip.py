@@ -1,6 +1,6 @@
 """Slab geometry: input checks, culling, clipping triangles to the slab, and the mid-height section.
 
-Produces the projected polygons (:class:`_Polygons`, chunk by chunk) that :mod:`twin.raster.spans`
+Produces the projected polygons (:class:`_Polygons`, chunk by chunk) that :mod:`twin.maps.raster.spans`
 turns into cells, and defines :class:`SlabGeometry`, their grid-independent, indexed whole.
 """
 
@@ -13,8 +13,8 @@ from typing import NamedTuple
 import numpy as np
 
 from twin.errors import MapError
-from twin.grid import GridFrame, Window
-from twin.raster.settings import (
+from twin.maps.grid import GridFrame, Window
+from twin.maps.raster.settings import (
     MAX_VERTICES,
     RASTER_SETTINGS,
     BoolArray,

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.grid import GridFrame, Window
-from twin.raster.clip import SlabGeometry, _check_inputs, _check_window, _parts, _Polygons, _region
-from twin.raster.settings import RASTER_SETTINGS, BoolArray, FloatArray, IndexArray, RasterSettings
-from twin.raster.spans import _Cells, _expand
+from twin.maps.grid import GridFrame, Window
+from twin.maps.raster.clip import SlabGeometry, _check_inputs, _check_window, _parts, _Polygons, _region
+from twin.maps.raster.settings import RASTER_SETTINGS, BoolArray, FloatArray, IndexArray, RasterSettings
+from twin.maps.raster.spans import _Cells, _expand
 from twin.tolerances import TOLERANCES, Tolerances
 
 
@@ -29,7 +29,7 @@ def rasterize_slab(  # noqa: PLR0917 (the map generator's established call)
         triangles: ``(n, 3, 3) float64`` world xyz of each triangle's vertices, metres.
         element: ``(n,)`` integer index of the element each triangle belongs to, in ``[0, k)``.
         closed: ``(k,) bool`` per element: True to fill it, for a watertight mesh or a solid's mesh
-            whose section is made of closed loops (:func:`twin.raster.closed_sections`); faces should
+            whose section is made of closed loops (:func:`twin.maps.raster.closed_sections`); faces should
             be consistently oriented, as a solid's are.
         z_lo, z_hi: the slab, world z, ``z_lo <= z_hi``.
         frame: the grid.

@@ -21,11 +21,11 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import Final, Self
 
-from twin import vocab
 from twin.errors import ModelError, StoreNotEmptyError
-from twin.extents import geometry_bounds
 from twin.gc_pause import paused_gc
-from twin.model_triples import (
+from twin.graph import vocab
+from twin.graph.extents import geometry_bounds
+from twin.graph.model_triples import (
     MeshLiterals,
     ModelTriples,
     checked_iris,
@@ -33,8 +33,8 @@ from twin.model_triples import (
     geometry_triples,
     structure_triples,
 )
+from twin.graph.store import GraphStore, TextLoader
 from twin.records import BuildingModel, FloatArray, Geometry
-from twin.store import GraphStore, TextLoader
 
 log = logging.getLogger(__name__)
 

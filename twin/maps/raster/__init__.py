@@ -34,10 +34,10 @@ Example::
     occupied = rasterize_slab(triangles, element, closed, 0.05, 1.5, frame)  # (height, width) bool
 """
 
-from twin.raster.api import rasterize, rasterize_slab, slab_geometry
-from twin.raster.clip import SlabGeometry
-from twin.raster.loops import closed_sections
-from twin.raster.settings import (
+from twin.maps.raster.api import rasterize, rasterize_slab, slab_geometry
+from twin.maps.raster.clip import SlabGeometry
+from twin.maps.raster.loops import closed_sections
+from twin.maps.raster.settings import (
     MAX_VERTICES,
     RASTER_SETTINGS,
     BoolArray,

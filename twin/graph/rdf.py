@@ -1,8 +1,8 @@
-"""The graph's plain values and their SPARQL, shared by every :class:`~twin.store.GraphStore`.
+"""The graph's plain values and their SPARQL, shared by every :class:`~twin.graph.store.GraphStore`.
 
 Going in: RDF literals, triples and change sets (:class:`ChangeSet`), written as one SPARQL 1.1
 update (:func:`changes_to_sparql`). Coming out: query solutions as plain rows (:data:`Row`,
-:func:`solution_rows`) and ASK answers. The embedded store (``twin.store``) and the remote one
+:func:`solution_rows`) and ASK answers. The embedded store (``twin.graph.store``) and the remote one
 (``adapters.sparql.remote_store``) both use these, so the two cannot tell rows apart.
 
 Example::
@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import pyoxigraph as ox
 
-from twin import vocab
 from twin.errors import QueryError, StoreError
+from twin.graph import vocab
 
 _SERVICE = re.compile(r"\bSERVICE\b", re.IGNORECASE)
 

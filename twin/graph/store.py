@@ -1,7 +1,7 @@
 """The graph store: the :class:`GraphStore` interface and its embedded pyoxigraph implementation.
 
 The other implementation, on a remote SPARQL server, is ``adapters.sparql.remote_store``; what both
-share (change sets as SPARQL updates, solutions as plain rows) is ``twin.rdf``.
+share (change sets as SPARQL updates, solutions as plain rows) is ``twin.graph.rdf``.
 
 The embedded store is on disk by default (a directory, RocksDB), in memory when no path is given
 (tests). Only one process can open an on-disk store for writing: the daemon owns it, others query
@@ -26,9 +26,9 @@ from typing import IO, Protocol, Self, runtime_checkable
 
 import pyoxigraph as ox
 
-from twin import vocab
 from twin.errors import QueryError, StoreError, StoreNotFoundError
-from twin.rdf import (
+from twin.graph import vocab
+from twin.graph.rdf import (
     ByteCounter,
     ChangeSet,
     Row,
@@ -40,7 +40,7 @@ from twin.rdf import (
 
 log = logging.getLogger(__name__)
 
-# twin.live still imports these records from here; their home is twin.rdf.
+# twin.live still imports these records from here; their home is twin.graph.rdf.
 __all__ = ["EmbeddedStore", "GraphStore", "StoreInfo", "TextLoader"]
 
 

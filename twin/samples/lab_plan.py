@@ -4,7 +4,7 @@ The paper "Generation of skill-specific maps from graph world models for robotic
 method on a small lab: two rooms joined by a corridor, with an arch across the corridor that a lidar
 at 0.1 m sees under but a 0.5 m tall robot cannot pass, a glass wall that a lidar does not see, and a
 table. This module holds that lab's plan, storey by storey in each storey's frame (boxes, classes,
-materials, relationships) and nothing else; ``twin.lab_layout`` places it in the world and names its
+materials, relationships) and nothing else; ``twin.samples.lab_layout`` places it in the world and names its
 GlobalIds. ``adapters.ifc.sample_lab`` writes it as an IFC4 file, and the core's tests build the same
 lab as records from its boxes (``tests/twin/box_lab.py``).
 

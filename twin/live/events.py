@@ -25,10 +25,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Protocol
 
-from twin.grid import GridData, GridFrame, OccupancyGrid, Window
-from twin.points import PointCloud
+from twin.maps.grid import GridData, GridFrame, OccupancyGrid, Window
+from twin.maps.points import PointCloud
 from twin.records import FloatArray, Mesh
-from twin.skills import SkillProfile
+from twin.selection.skills import SkillProfile
 
 
 @dataclass(frozen=True, eq=False, slots=True)

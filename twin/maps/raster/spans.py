@@ -6,9 +6,9 @@ from itertools import pairwise
 
 import numpy as np
 
-from twin.grid import GridFrame, Window
-from twin.raster.clip import _Polygons
-from twin.raster.settings import (
+from twin.maps.grid import GridFrame, Window
+from twin.maps.raster.clip import _Polygons
+from twin.maps.raster.settings import (
     MAX_VERTICES,
     BoolArray,
     FloatArray,

@@ -11,9 +11,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from twin.rdf import literal_value
-from twin.scene import STOREY_MEMBER
-from twin.store import GraphStore
+from twin.graph.rdf import literal_value
+from twin.graph.store import GraphStore
+from twin.maps.scene import STOREY_MEMBER
 
 
 @dataclass(frozen=True, slots=True)

@@ -6,7 +6,7 @@ tools. The project's own terms live in one namespace, ``TWIN``.
 
 Example::
 
-    from twin import vocab
+    from twin.graph import vocab
     iri = vocab.entity_iri("https://example.org/lab#", "IfcWall", "2O2Fr$t4X7Zf8NOew3FLOH")
 """
 

@@ -1,11 +1,12 @@
 """Point-cloud maps for 3D lidars: one point per voxel the selected surfaces touch, in a storey's band.
 
-A ``points`` skill (:mod:`twin.skills`) selects elements like the 2D skills do. Its map of a storey is
+A ``points`` skill (:mod:`twin.selection.skills`) selects elements like the 2D skills do. Its map of a
+storey is
 the set of voxels (cubes of ``resolution_m``, half-open) that the selected elements' triangles touch
 within the height band (from ``band_bottom_m`` to ``band_top_m`` above the storey's elevation, by
 default from just below the floor's top to the next storey's elevation): the 3D analogue of the 2D
 rule, so thin elements never vanish and touching elements leave no gaps. The touch test is exact
-(:mod:`twin.voxels`). Each voxel holds one point: the point of the selected surfaces, within the voxel,
+(:mod:`twin.maps.voxels`). Each voxel holds one point: the point of the selected surfaces, within the voxel,
 nearest its centre (a centre would bias the cloud by up to half a voxel); ties go to the smallest
 point, so the cloud does not depend on the order elements are processed in (incremental updates equal
 a full rebuild voxel for voxel).
@@ -31,10 +32,10 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.errors import MapError
-from twin.grid import GridFrame
-from twin.scene import IndexArray, MeshSet, Scene, StoreyInfo
-from twin.skills import SkillProfile
-from twin.voxels import FloatArray, IntArray, nearest_points, touched_voxels
+from twin.maps.grid import GridFrame
+from twin.maps.scene import IndexArray, MeshSet, Scene, StoreyInfo
+from twin.maps.voxels import FloatArray, IntArray, nearest_points, touched_voxels
+from twin.selection.skills import SkillProfile
 
 __all__ = [
     "MAX_POINTS_VOXELS",
@@ -95,7 +96,8 @@ class PointsPlan:
         return (e + self.band[0], e + self.band[1])
 
     def cells(self, triangles: FloatArray) -> FloatArray:
-        """World triangles ``(n, 3, 3)`` in cell coordinates (the voxels' units; see :mod:`twin.voxels`)."""
+        """World triangles ``(n, 3, 3)`` in cell coordinates (the voxels' units; see
+        :mod:`twin.maps.voxels`)."""
         out = np.empty_like(triangles, dtype=np.float64)
         res = self.resolution_m
         out[..., 0] = (triangles[..., 0] - self.frame.origin_x) / res

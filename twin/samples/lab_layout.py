@@ -1,5 +1,5 @@
 """The bundled sample lab placed in the world: every storey, space and element with its GlobalId and
-world box (metres), computed from the plan in ``twin.lab_plan`` without any IFC library.
+world box (metres), computed from the plan in ``twin.samples.lab_plan`` without any IFC library.
 
 ``adapters.ifc.sample_lab`` writes exactly this layout as IFC (and returns it, so tests check the file
 against it); the core's tests build the same lab as records from its boxes. GlobalIds are derived
@@ -19,7 +19,7 @@ import uuid
 from dataclasses import dataclass
 from typing import Final, Literal, TypeVar
 
-from twin.lab_plan import (
+from twin.samples.lab_plan import (
     ARCH,
     BUILDING,
     BUILDING_OFFSET,

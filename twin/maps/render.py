@@ -24,14 +24,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from twin.errors import MapError
-from twin.grid import FREE, UNKNOWN, GridData, GridFrame, OccupancyGrid, Window
-from twin.raster import BoolArray, SlabGeometry, closed_sections, rasterize, rasterize_slab, slab_geometry
-from twin.scene import IndexArray, MeshSet, Scene, SlabBox, StoreyInfo
-from twin.skills import SkillProfile
+from twin.maps.grid import FREE, UNKNOWN, GridData, GridFrame, OccupancyGrid, Window
+from twin.maps.raster import (
+    BoolArray,
+    SlabGeometry,
+    closed_sections,
+    rasterize,
+    rasterize_slab,
+    slab_geometry,
+)
+from twin.maps.scene import IndexArray, MeshSet, Scene, SlabBox, StoreyInfo
+from twin.selection.skills import SkillProfile
 
 MAX_MAP_CELLS = 50_000_000
 """The largest skill map the twin builds (50 M cells: a 350 m x 350 m storey at 5 cm); any grid frame
-may hold up to :data:`twin.grid.MAX_FRAME_CELLS`."""
+may hold up to :data:`twin.maps.grid.MAX_FRAME_CELLS`."""
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -116,7 +123,7 @@ def filled(meshes: MeshSet, ids: IndexArray, plan: MapPlan) -> BoolArray:
 
     A watertight mesh is; so is a solid's mesh that is not watertight (T-junctions, touching bodies,
     vertex copies) where its section at the slab's mid-height is made of closed loops
-    (:func:`twin.raster.closed_sections`). Decided per element from all of its triangles, so every
+    (:func:`twin.maps.raster.closed_sections`). Decided per element from all of its triangles, so every
     window of a map agrees. Only solids with open meshes cost anything here.
     """
     fill = meshes.closed[ids]

@@ -22,11 +22,11 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.errors import MapError
-from twin.extents import parse_extent
-from twin.meshcodec import decode_mesh, decode_placement
-from twin.rdf import literal_value
+from twin.graph.extents import parse_extent
+from twin.graph.meshcodec import decode_mesh, decode_placement
+from twin.graph.rdf import literal_value
+from twin.graph.store import GraphStore
 from twin.records import Mesh, to_world
-from twin.store import GraphStore
 
 log = logging.getLogger(__name__)
 
@@ -55,7 +55,7 @@ class MeshSet:
         start: ``(k + 1,) intp``: node ``i`` owns ``triangles[start[i]:start[i+1]]``.
         closed: ``(k,) bool`` watertight meshes (filled when sliced).
         solid: ``(k,) bool`` bodies the source model calls solid (their open meshes are filled where
-            the section is made of closed loops; see :func:`twin.maps.filled`).
+            the section is made of closed loops; see :func:`twin.maps.render.filled`).
         bounds: ``(k, 6) float64`` world AABB ``xmin, ymin, zmin, xmax, ymax, zmax`` (NaN if empty).
         triangle_bounds: ``(n, 6) float32`` each triangle's AABB, rounded outwards (a superset filter).
     """

@@ -1,0 +1,1 @@
+"""From the graph's meshes to maps: the scene, the raster, one renderer, grids, 3D clouds."""
