@@ -441,7 +441,7 @@ def fuse(
                 else:
                     out.effects.append(_reset_refinement(target))
                     if track is not None and track.moving is not None and not _far(rules, pose, held):
-                        pose = _mean_of(track.moving, aligned(pose, held))  # the sightings that agreed
+                        pose = _mean_with(track.moving, aligned(pose, held))  # the sightings that agreed
                         r = replace(r, box=_box_of(pose, storey.elevation_m))
                     other = _merge_target(ctx, target, state, pose, storey.key)
                     if other is not None and not (
@@ -511,12 +511,6 @@ def _agreeing(
     return moving.n if _confirms(class_rules, aligned(seen, held), moving.mean(), sizes=sizes) else 0
 
 
-def _mean_of(moving: Refinement, pose: Pose) -> Pose:
-    copy = moving.copy()
-    copy.add(pose)
-    return copy.mean()
-
-
 def _only_sighting(r: ElementReport, state: ElementState) -> bool:
     """Nothing in ``r`` but what the element already is (its class), once its box confirmed it."""
     return (
@@ -550,6 +544,7 @@ def _seen(memory: FusionMemory, iri: str) -> int:
 
 
 def _mean_with(refinement: Refinement, pose: Pose) -> Pose:
+    """The mean of ``refinement``'s sightings and ``pose`` (the held sums are left as they are)."""
     copy = refinement.copy()
     copy.add(pose)
     return copy.mean()
