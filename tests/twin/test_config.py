@@ -3,6 +3,7 @@ and the sections through which adapters add their own tables (the core knows no 
 
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from pathlib import Path
@@ -226,3 +227,17 @@ def test_the_snapshot_is_on_and_rewritten_every_five_minutes_unless_configured(t
 def test_a_bad_snapshot_setting_is_refused_by_name(tmp_path: Path, text: str, message: str) -> None:
     with pytest.raises(ConfigError, match=re.escape(message)):
         load_config(write(tmp_path, f"[store]\n{text}\n"))
+
+
+def test_fusion_values_per_ifc_class_override_the_defaults_for_that_class_and_its_subtypes(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "fusion.toml"
+    path.write_text(
+        "[fusion]\nconfirm_angle_deg = 20.0\n[fusion.classes.IfcFurniture]\nconfirm_distance_m = 0.05\n"
+    )
+    rules = load_config(path).fusion
+    chair = rules.of(("IfcChair", "IfcFurniture", "IfcFurnishingElement"))
+    assert chair.confirm_distance_m == 0.05
+    assert chair.confirm_angle_rad == pytest.approx(math.radians(20.0))  # not overridden: the table's
+    assert rules.of(("IfcWall",)).confirm_distance_m == 0.15

@@ -12,8 +12,9 @@ Example::
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Any
 
 from pydantic import Field
 
@@ -97,34 +98,13 @@ class FusionTable(ConfigTable):
     )
 
     def rules(self) -> FusionRules:
-        base = FusionClassRules(
-            confirm_distance_m=self.confirm_distance_m,
-            confirm_angle_rad=math.radians(self.confirm_angle_deg),
-            min_iou=self.min_iou,
-            small_object_m=self.small_object_m,
-            centre_distance_m=self.centre_distance_m,
-            misses_to_remove=self.misses_to_remove,
-            miss_span_ns=int(self.miss_span_s * 1e9),
-            ttl_ns=int(self.ttl_s * 1e9),
-        )
-        per_class = {}
-        for name, t in self.classes.items():
-            per_class[name] = FusionClassRules(
-                confirm_distance_m=_or(t.confirm_distance_m, base.confirm_distance_m),
-                confirm_angle_rad=base.confirm_angle_rad
-                if t.confirm_angle_deg is None
-                else math.radians(t.confirm_angle_deg),
-                min_iou=_or(t.min_iou, base.min_iou),
-                small_object_m=_or(t.small_object_m, base.small_object_m),
-                centre_distance_m=_or(t.centre_distance_m, base.centre_distance_m),
-                misses_to_remove=int(_or(t.misses_to_remove, base.misses_to_remove)),
-                miss_span_ns=base.miss_span_ns if t.miss_span_s is None else int(t.miss_span_s * 1e9),
-                ttl_ns=base.ttl_ns if t.ttl_s is None else int(t.ttl_s * 1e9),
-            )
+        base = {k: getattr(self, k) for k in FusionClassTable.model_fields}
         return FusionRules(
             enabled=self.enabled,
-            default=base,
-            per_class=per_class,
+            default=_class_rules(base),
+            per_class={
+                name: _class_rules(base | t.model_dump(exclude_none=True)) for name, t in self.classes.items()
+            },
             refine_after=self.refine_after,
             refine_fraction=self.refine_fraction,
             move_sightings=self.move_sightings,
@@ -136,8 +116,18 @@ class FusionTable(ConfigTable):
         )
 
 
-def _or(value: float | None, default: float) -> float:
-    return default if value is None else value
+def _class_rules(v: Mapping[str, Any]) -> FusionClassRules:
+    """The per-class values of a table (degrees and seconds as the core's radians and nanoseconds)."""
+    return FusionClassRules(
+        confirm_distance_m=v["confirm_distance_m"],
+        confirm_angle_rad=math.radians(v["confirm_angle_deg"]),
+        min_iou=v["min_iou"],
+        small_object_m=v["small_object_m"],
+        centre_distance_m=v["centre_distance_m"],
+        misses_to_remove=int(v["misses_to_remove"]),
+        miss_span_ns=int(v["miss_span_s"] * 1e9),
+        ttl_ns=int(v["ttl_s"] * 1e9),
+    )
 
 
 @dataclass(frozen=True, slots=True)

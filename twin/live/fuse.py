@@ -28,7 +28,6 @@ Example::
 from __future__ import annotations
 
 import datetime
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
@@ -716,8 +715,3 @@ def _count_tentative(iri: str, seen: tuple[int, int] | None) -> Effect:
 
 def _mark_distinct(iri: str) -> Effect:
     return lambda m: m.distinct.add(iri)
-
-
-def distance_from(p: Pose, q: Pose) -> float:
-    """How far two poses are apart (centre, metres): for logs and tests."""
-    return math.hypot(p.cx - q.cx, p.cy - q.cy)

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 from twin.config import Config
 from twin.errors import TwinError
-from twin.fusion.footprints import Pose
+from twin.fusion.footprints import Pose, pose_of
 from twin.graph import vocab
 from twin.graph.rdf import ChangeSet, Object, Triple
 from twin.graph.store import GraphStore
@@ -373,8 +373,6 @@ def fused_pending(
         state = states.get(g.iri)
         if g.new is None or state is None or state.storey is None:
             continue
-        from twin.fusion.footprints import pose_of  # noqa: PLC0415
-
         out[g.iri] = (state.storey, pose_of(g.new), state)
     return out
 
