@@ -2,7 +2,7 @@
 the selected triangles touch are those of the reference written apart (tests/twin/reference_voxels.py:
 per-triangle exact separating axes on a shrunk box, every voxel of the triangle's bounding box):
 0 missed, 0 extra. (That a cloud is the union of its triangles' voxels, one point each, is
-tests/twin/test_points.py's.) Slow: the models are read with ifcopenshell (skipped when ../shared is
+tests/twin/maps/test_points.py's.) Slow: the models are read with ifcopenshell (skipped when ../shared is
 absent)."""
 
 from __future__ import annotations

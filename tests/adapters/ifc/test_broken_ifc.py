@@ -9,7 +9,7 @@ hang fails the test instead of stalling the suite. The explicit cases run the re
 a warm interpreter (the forkserver preloads the CLI), which makes an example cost the import and not
 the interpreter start-up.
 
-A longer fuzz run: ``HYPOTHESIS_PROFILE=long .venv/bin/python -m pytest tests/adapters/test_broken_ifc.py
+A longer fuzz run: ``HYPOTHESIS_PROFILE=long .venv/bin/python -m pytest tests/adapters/ifc/test_broken_ifc.py
 -k mutated`` (500 examples; ``HYPOTHESIS_MAX_EXAMPLES=N`` for another count).
 """
 

@@ -258,7 +258,7 @@ def test_a_snapshot_written_by_other_core_code_is_rebuilt_not_served(
     store, path = imported(box_lab()), tmp_path / "store.snapshot"
     stop_cleanly(start(store, path))
     assert start(store, path).restored_from == 0  # the same code: used
-    # the drawing code changed (any module of twin/ does: tests/twin/live/test_snapshot_code_key.py)
+    # the drawing code changed (any module of twin/ does: tests/twin/live/snapshots/test_snapshot_code_key.py)
     monkeypatch.setattr("twin.live.loading.code_digest", lambda: "drawing changed")
     again = start(store, path)
     assert again.restored_from is None

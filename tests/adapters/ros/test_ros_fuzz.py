@@ -14,6 +14,9 @@ from adapters.ros.detections import translate_detections
 from adapters.ros.observation_doc import RosInputError, Translation
 from adapters.ros.rmf import DoorSettings, ObstacleTracker, translate_door_state
 from adapters.ros.tf import TfError, decode_tf_message
+from tests.adapters.ros.test_ros_detections import NOW, SETTINGS, ctx
+from tests.adapters.ros.test_ros_rmf import INDEX
+from tests.adapters.ros.test_ros_rmf import SETTINGS as OBSTACLE_SETTINGS
 from tests.adapters.ros_reports import (
     Det,
     Obstacle,
@@ -23,9 +26,6 @@ from tests.adapters.ros_reports import (
     cdr_obstacles,
     cdr_tf,
 )
-from tests.adapters.test_ros_detections import NOW, SETTINGS, ctx
-from tests.adapters.test_ros_rmf import INDEX
-from tests.adapters.test_ros_rmf import SETTINGS as OBSTACLE_SETTINGS
 from tests.conftest import examples
 from twin.config import Limits
 from twin.errors import MapError

@@ -13,7 +13,7 @@ from adapters.ros.interfaces import DETECTION_3D_ARRAY, DIAGNOSTIC_ARRAY, DOOR_S
 from adapters.ros.rmw_zenoh import type_hash
 from tests.adapters.rosidl_build import generated_package_hashes, shipped_hash
 
-UPSTREAM = Path(__file__).resolve().parents[2].parent / "shared" / "ros-msgs"
+UPSTREAM = Path(__file__).resolve().parents[3].parent / "shared" / "ros-msgs"
 TF_MESSAGE_MSG = "geometry_msgs/TransformStamped[] transforms\n"  # ros2/geometry2, tf2_msgs/msg/TFMessage.msg
 
 

@@ -18,7 +18,7 @@ from adapters.zenoh.settings import ZenohSettings
 from twin.config import DEFAULT_CONFIG
 from twin.errors import ConfigError
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 
 
 def write(tmp_path: Path, text: str) -> Path:

@@ -20,7 +20,7 @@ from tests.conftest import imported
 from twin.graph.stats import model_stats
 from twin.records import BuildingModel, Element
 
-GENERATOR = Path(__file__).resolve().parents[2] / "benchmarks" / "neuron_gen.py"
+GENERATOR = Path(__file__).resolve().parents[3] / "benchmarks" / "neuron_gen.py"
 SMALL: dict[str, Any] = {"seed": 7, "storeys": 2, "scale": 0.05}
 """Two storeys (the stairs lead from one to the other), two rooms a side: about 300 elements."""
 PAPER_ELEMENTS = 11_500

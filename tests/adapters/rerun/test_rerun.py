@@ -26,7 +26,7 @@ from twin.live.events import MapPublished, MapRemoved, MapUpdated, TwinEvent
 from twin.maps.grid import GridFrame, OccupancyGrid
 from twin.selection.skills import parse_skill
 
-SCREENSHOT = Path(__file__).resolve().parents[3] / "shared" / "tools" / "rrd_screenshot.sh"
+SCREENSHOT = Path(__file__).resolve().parents[4] / "shared" / "tools" / "rrd_screenshot.sh"
 
 
 def record(path: Path) -> tuple[list[TwinEvent], int]:
