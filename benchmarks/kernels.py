@@ -1,6 +1,6 @@
 """Check every stored element mesh against the reference kernel (OpenCASCADE) on the shared models.
 
-The suite checks the four small models (tests/adapters/test_kernels.py); Janesville is checked here
+The suite checks the four small models (tests/adapters/ifc/test_kernels.py); Janesville is checked here
 because OpenCASCADE alone takes 16-30 s on it. Prints, per model, how many elements each kernel meshed
 and how many disagree with the reference (volume within 1 %, world bounding box within 1 cm).
 

@@ -2,7 +2,7 @@
 
 The reference meshes the selected elements straight from the IFC file with OpenCASCADE in world
 coordinates, slices them to each map's band and rasterises them cell by cell with shapely
-(references/opencascade_maps.py, which the suite uses too: tests/adapters/test_maps_ifc.py checks
+(references/opencascade_maps.py, which the suite uses too: tests/adapters/ifc/test_maps_ifc.py checks
 the four small models; Janesville is checked here because it is too slow for the suite). A cell is
 missed when the reference surely occupies it (its square shrunk by 1 cm meets the geometry) and our
 map does not, extra when our map occupies it and the reference cannot (its square grown by 1 cm does

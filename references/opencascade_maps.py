@@ -4,7 +4,7 @@ The reference shares nothing with the import but the choice of elements (the ski
 selection, element IRIs turned into GlobalIds by the graph) and each map's plan (its storey's z band
 and grid frame): every selected element is meshed by ifcopenshell's iterator with the OpenCASCADE
 kernel in world coordinates (so placements are checked too), sliced to the band and rasterised cell
-by cell with shapely (:mod:`references.slab_maps`). Used by ``tests/adapters/test_maps_ifc.py`` on the
+by cell with shapely (:mod:`references.slab_maps`). Used by ``tests/adapters/ifc/test_maps_ifc.py`` on the
 small shared models and by ``benchmarks/map_reference.py`` on all of them (Janesville is too slow
 for the suite), so that the two cannot drift apart.
 
