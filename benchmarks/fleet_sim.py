@@ -386,7 +386,7 @@ def sample(  # noqa: PLR0917
             if pending and not any(math.dist(ev.place, e) <= MATCH_M for e in elements.values()):
                 ev.detected = now
     grid, _, _ = client.get_map(storey, skill)
-    truth = oracle.engine.maps[(storey, skill)].data
+    truth = oracle.live_maps.skill_maps[(storey, skill)].data
     cells = int((grid.data != truth).sum()) if grid.data.shape == truth.shape else -1
     status = client.status()
     return {
@@ -460,7 +460,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     else:
         storey, skill = live.busiest(store)[0], "navigation"
     oracle = oracle_service(store, work)
-    m = oracle.engine.maps[(storey, skill)]
+    m = oracle.live_maps.skill_maps[(storey, skill)]
     f = m.plan.frame
     data = m.data
     blocked = data == OCCUPIED

@@ -135,20 +135,20 @@ def recompute(store: Path, storey: str, positions: list[tuple[float, float]]) ->
     with EmbeddedStore.open(copy) as st:
         service = TwinService(st, load_config())
         service.start()
-        original = service.engine.redraw
+        original = service.live_maps.redraw
 
         def timed(*a: Any, **k: Any) -> Any:
             t0 = time.perf_counter()
             out = original(*a, **k)
             inc.append(time.perf_counter() - t0)
             for u in out:  # the rebuild of the same affected maps, for comparison
-                m = service.engine.maps[(u.storey, u.skill)]
+                m = service.live_maps.skill_maps[(u.storey, u.skill)]
                 t1 = time.perf_counter()
-                service.engine.rebuild(m)
+                service.live_maps.rebuild(m)
                 full.append(time.perf_counter() - t1)
             return out
 
-        service.engine.redraw = timed  # type: ignore[method-assign]
+        service.live_maps.redraw = timed  # type: ignore[method-assign]
         for i, (x, y) in enumerate(positions[:50]):
             service.submit_observation("bench", _table(storey, x, y, i).encode())
             service.process()

@@ -2,7 +2,7 @@
 
 Adapters turn foreign data (IFC files, wire payloads) into these records: a building model to import
 (:class:`BuildingModel`), what robots report about elements (:class:`ElementReport`, parsed by
-``twin.live.observations``); the import turns them into triples, the scene reads them back. They import
+``twin.live.parse``); the import turns them into triples, the scene reads them back. They import
 nothing but numpy. All lengths are metres, in the building's world frame unless a field says ``local``.
 
 Arrays follow trimesh's conventions:

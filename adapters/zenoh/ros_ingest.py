@@ -65,7 +65,7 @@ from adapters.zenoh.latched import CDR, declare_latched_subscriber
 from twin.config import Config, Limits
 from twin.errors import MapError, ObservationError
 from twin.live.events import MapPublished, MapUpdated, TwinEvent, TwinStarted
-from twin.live.observations import parse_observation
+from twin.live.parse import parse_observation
 from twin.live.requests import Reply, ReplyFn
 from twin.maps.grid import OccupancyGrid
 

@@ -111,6 +111,6 @@ def check(daemon: Daemon, fresh_store: Path, out: str, err: str) -> None:
             assert (row["geom"] is None) == (row["removed"] == "true"), row
         service = TwinService(store, load_config())
         service.start()
-        for key, m in service.engine.maps.items():
+        for key, m in service.live_maps.skill_maps.items():
             np.testing.assert_array_equal(served[key], m.data, err_msg=str(key))
     print(f"{len(acked)} acked of {len(attempts)} attempts across {KILLS} kills")

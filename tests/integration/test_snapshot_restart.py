@@ -49,8 +49,8 @@ def _assert_equal_to_a_rebuild(store: Path, served: dict[tuple[str, str], np.nda
     with EmbeddedStore.open(store) as st:
         service = TwinService(st, load_config())
         service.start()
-        assert sorted(served) == sorted(service.engine.maps)
-        for key, m in service.engine.maps.items():
+        assert sorted(served) == sorted(service.live_maps.skill_maps)
+        for key, m in service.live_maps.skill_maps.items():
             np.testing.assert_array_equal(served[key], m.data, err_msg=str(key))
 
 

@@ -41,7 +41,7 @@ class Drawing:
         self.hidden = np.zeros(len(scene.elements), dtype=np.bool_)
         self._overlay: dict[str, OverlayElement] = {}
         self._rasters = RasterCache()
-        self.maps: dict[MapKey, LiveMap] = {}
+        self.skill_maps: dict[MapKey, LiveMap] = {}
 
     # --- geometry ----------------------------------------------------------------------------------
     def bounds_of(self, iri: str) -> FloatArray | None:
@@ -174,7 +174,7 @@ class Drawing:
     def elements_at(self, key: MapKey, window: Window) -> list[str]:
         """The elements the map ``key`` selects whose own occupancy (before inflation) touches
         ``window``: what makes its cells occupied (what ``twin explain`` answers)."""
-        m = self.maps[key]
+        m = self.skill_maps[key]
         f = m.plan.frame
         x0, y0 = f.origin_x + window.col0 * f.resolution_m, f.origin_y + window.row0 * f.resolution_m
         x1, y1 = f.origin_x + window.col1 * f.resolution_m, f.origin_y + window.row1 * f.resolution_m

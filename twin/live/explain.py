@@ -21,7 +21,7 @@ from typing import Any
 from twin.errors import ExplainError
 from twin.graph import vocab
 from twin.graph.store import GraphStore
-from twin.live.selection import rejection
+from twin.live.membership import rejection
 from twin.live.state import ElementState, LiveState
 from twin.maps.grid import Window
 from twin.selection.skills import SkillProfile
@@ -32,7 +32,7 @@ NEAR_M = 1.0
 
 def why_not(skill: SkillProfile, state: ElementState, bounds: Any, z_lo: float, z_hi: float) -> str:
     """Why ``skill`` does not draw the element (it has geometry near the point): the selection's own
-    reason (:func:`~twin.live.selection.rejection`), else its place outside the height band."""
+    reason (:func:`~twin.live.membership.rejection`), else its place outside the height band."""
     reason = rejection(skill, state, has_geometry=True)
     if reason is not None:
         return reason
@@ -86,9 +86,9 @@ def explain_cell(
     if not (math.isfinite(x) and math.isfinite(y)):
         msg = f"The point must have finite coordinates, got x={x!r}, y={y!r}."
         raise ExplainError(msg)
-    m = live.maps.maps.get((storey, skill))
+    m = live.maps.skill_maps.get((storey, skill))
     if m is None:
-        known = ", ".join(f"{s}/{k}" for s, k in sorted(live.maps.maps)) or "none"
+        known = ", ".join(f"{s}/{k}" for s, k in sorted(live.maps.skill_maps)) or "none"
         msg = f"No map {storey}/{skill}; the twin's maps are {known}."
         raise ExplainError(msg)
     f, plan = m.plan.frame, m.plan

@@ -79,7 +79,7 @@ class LiveMaps(Drawing):
         out = cls(scene, margin_m=margin_m)
         out.hidden = hidden
         out._overlay = {iri: OverlayElement.of(shape) for iri, shape in overlay.items()}
-        out.maps = {m.key: m for m in maps}
+        out.skill_maps = {m.key: m for m in maps}
         return out
 
     def overlay_shapes(self) -> dict[str, Shape]:
@@ -98,13 +98,13 @@ class LiveMaps(Drawing):
         m = LiveMap(plan, mask, {i for i in chosen if i in self._overlay}, empty, inside, empty.view(np.int8))
         m.static = occupancy(self.scene.elements, self._base_ids(m), plan, full)
         m.data = self.render(m, full)
-        self.maps[m.key] = m
+        self.skill_maps[m.key] = m
         return m
 
     def remove_skill(self, name: str) -> list[MapKey]:
-        gone = [k for k in self.maps if k[1] == name]
+        gone = [k for k in self.skill_maps if k[1] == name]
         for k in gone:
-            del self.maps[k]
+            del self.skill_maps[k]
         for key in [k for k in self._rasters.cells if k[1][1] == name]:
             del self._rasters.cells[key]
         return gone + self.points.remove_skill(name)
@@ -137,8 +137,8 @@ class LiveMaps(Drawing):
         """
         touched = {c.iri for c in geometry} | {i for sel in membership.values() for i in sel}
         old_bounds = {i: self.bounds_of(i) for i in touched}
-        was = {k: {i for i in touched if self._member(m, i)} for k, m in self.maps.items()}
-        was_base = {k: {i for i in touched if self._base_member(m, i)} for k, m in self.maps.items()}
+        was = {k: {i for i in touched if self._member(m, i)} for k, m in self.skill_maps.items()}
+        was_base = {k: {i for i in touched if self._base_member(m, i)} for k, m in self.skill_maps.items()}
         base = self.scene.elements.index
         for ch in geometry:
             if ch.iri in base:
@@ -148,7 +148,7 @@ class LiveMaps(Drawing):
                 self._overlay.pop(ch.iri, None)
             else:
                 self._overlay[ch.iri] = OverlayElement.of(ch.new)
-        for m in self.maps.values():
+        for m in self.skill_maps.values():
             for iri, selected in membership.get(m.plan.skill.name, {}).items():
                 if iri in self._overlay and selected:
                     m.overlay.add(iri)
@@ -158,7 +158,7 @@ class LiveMaps(Drawing):
                     m.base_mask[base[iri]] = selected
         new_bounds = {i: self.bounds_of(i) for i in touched}
         updates = []
-        for key, m in self.maps.items():
+        for key, m in self.skill_maps.items():
             # 1. the static cells where a base element left (or came back to) this map: rare
             gone = [
                 b

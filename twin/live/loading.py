@@ -123,7 +123,7 @@ def _restore(
         return None
     log.info(
         "Restored %d maps from the snapshot of revision %d (store at %d) in %.2f s",
-        len(restored.maps.maps),
+        len(restored.maps.skill_maps),
         restored.revision,
         revision,
         time.perf_counter() - t,
@@ -144,5 +144,5 @@ def catch_up(store: GraphStore, live: LiveState, restored: Restored) -> None:
             restored.revision,
             time.perf_counter() - t,
         )
-    for m in live.maps.maps.values():
+    for m in live.maps.skill_maps.values():
         m.version = 1  # as after a rebuild: map versions count from 1 in each run of the daemon

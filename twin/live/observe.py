@@ -8,7 +8,7 @@ committed together in one store transaction (group commit: each keeps its own re
 apply in order), then the maps are brought up to date once for all of them and each is acked with its
 revision and the map rectangles that changed. An ack always follows the commit.
 
-Skill selection of the changed elements is answered from memory (:mod:`twin.live.selection`); only a
+Skill selection of the changed elements is answered from memory (:mod:`twin.live.membership`); only a
 skill with its own SPARQL pattern asks the store.
 
 Example::
@@ -40,11 +40,11 @@ from twin.live.events import (
     TwinEvent,
 )
 from twin.live.fuse import Fused, expire_aliases, fuse, index_element, is_candidate
-from twin.live.observations import parse_observation_document
+from twin.live.membership import membership
+from twin.live.parse import parse_observation_document
 from twin.live.plan import ObservationPlan, plan_observation
 from twin.live.publication import Publication
 from twin.live.requests import ObserveRequest, Reply
-from twin.live.selection import membership
 from twin.live.state import ElementState, LiveState, Sighting
 from twin.records import ElementReport, GeometryChange, Observation, Shape
 
@@ -320,7 +320,7 @@ class Observer:
         membership = self._membership(list(states), shapes)
         changes = []
         for u in live.maps.redraw(geometry, membership):
-            m = live.maps.maps[(u.storey, u.skill)]
+            m = live.maps.skill_maps[(u.storey, u.skill)]
             self.emit(
                 MapUpdated(u.storey, u.skill, m.plan.frame, u.window, u.data, live.revision, u.version, stamp)
             )

@@ -33,7 +33,7 @@ from twin.maps.grid import GridFrame
 
 
 @dataclass(frozen=True, slots=True)
-class PublishedMap:
+class PublishedVersion:
     """What went out with a map's latest full publication (not the cells: the live map holds those,
     and the adapters hold what they sent)."""
 
@@ -54,7 +54,7 @@ class Publication:
         self.emit = emit
         self.clock = clock
         self.keyframe_ns = int(keyframe_s * 1e9)
-        self.latest: dict[MapKey, PublishedMap] = {}
+        self.latest: dict[MapKey, PublishedVersion] = {}
         self.pending: dict[MapKey, int] = {}
         """Maps changed since their last full publication -> when the first such change happened (ns)."""
 
@@ -62,7 +62,7 @@ class Publication:
         """Publish the full current version of ``m``."""
         stamp = self.clock() if stamp is None else stamp
         grid = m.grid()
-        self.latest[m.key] = PublishedMap(grid.storey, grid.skill, grid.frame, revision, m.version, stamp)
+        self.latest[m.key] = PublishedVersion(grid.storey, grid.skill, grid.frame, revision, m.version, stamp)
         self.pending.pop(m.key, None)
         self.emit(MapPublished(grid, revision, m.version, stamp))
 

@@ -34,7 +34,7 @@ from twin.live.live_maps import LiveMaps
 from twin.live.live_points import PointsPublication
 from twin.live.loading import catch_up, load_live_or_restore
 from twin.live.observe import Observer, element_shapes
-from twin.live.publication import Publication, PublishedMap
+from twin.live.publication import Publication, PublishedVersion
 from twin.live.query import run_query
 from twin.live.requests import (
     ExplainRequest,
@@ -171,7 +171,7 @@ class TwinService:
         return self._observer
 
     @property
-    def engine(self) -> LiveMaps:
+    def live_maps(self) -> LiveMaps:
         """The live maps (every (storey, skill) map and the geometry they are drawn from)."""
         self.complete_scene()
         return self.live.maps
@@ -205,7 +205,7 @@ class TwinService:
         """Publish the full version of every map changed since its last full publication; with
         ``due_only``, only the keyframes that are due (``keyframe_interval_s`` since the last one)."""
         if self._live is not None:
-            self.publication.flush(self._live.maps.maps, self._live.revision, due_only=due_only)
+            self.publication.flush(self._live.maps.skill_maps, self._live.revision, due_only=due_only)
             self.points_publication.flush(self._live.maps.points, self._live.revision, due_only=due_only)
 
     def flush_store(self, *, due_only: bool = False) -> None:
@@ -374,11 +374,11 @@ class TwinService:
         _send(req, reply)
 
     # --- read-only views (any thread) -----------------------------------------------------------------
-    def published(self, storey: str, skill: str) -> PublishedMap | None:
+    def published(self, storey: str, skill: str) -> PublishedVersion | None:
         """The latest full map published for (storey, skill), or None."""
         return self.publication.latest.get((storey, skill))
 
-    def published_maps(self) -> list[PublishedMap]:
+    def published_maps(self) -> list[PublishedVersion]:
         return list(self.publication.latest.values())
 
     def status(self) -> dict[str, object]:

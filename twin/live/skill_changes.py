@@ -132,7 +132,7 @@ def publish_all_maps(
         for skill in live.skills.values():
             if skill.name in restored.skills and skill.kind != "points":  # clouds: PointsPublication
                 for s in live.maps.scene.storeys:
-                    publication.publish(live.maps.maps[(s.key, skill.name)], live.revision, stamp)
+                    publication.publish(live.maps.skill_maps[(s.key, skill.name)], live.revision, stamp)
         if not restored.skills >= frozenset(live.skills):
             restored.complete()  # the other skills' maps are rendered now
         else:

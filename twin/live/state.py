@@ -18,7 +18,7 @@ from twin.fusion.memory import FusionMemory
 from twin.graph.rdf import Object
 from twin.graph.store import GraphStore
 from twin.live.live_maps import LiveMaps
-from twin.live.observations import sense_time_ns
+from twin.live.parse import sense_time_ns
 from twin.selection.skills import SkillProfile
 
 

@@ -36,7 +36,7 @@ def test_changes_on_a_shared_model_match_a_rebuild(
     model = read_cached(shared_model("AC20-FZK-Haus.ifc"))
     store = imported(model)
     service, _ = started(store)
-    storeys = {s.key: s.extent for s in service.engine.scene.storeys}
+    storeys = {s.key: s.extent for s in service.live_maps.scene.storeys}
     doors = sorted(e.iri for e in service.element_shapes() if "door" in e.ifc_class.lower())
     assert doors
     for _ in range(data.draw(st.integers(1, 6))):
@@ -56,5 +56,5 @@ def test_changes_on_a_shared_model_match_a_rebuild(
             payload = f"<{iri}> <{TWIN}removed> true .".encode()
         observe(service, "robot1", payload)
     fresh, _ = started(store)
-    for key, m in service.engine.maps.items():
-        np.testing.assert_array_equal(m.data, fresh.engine.maps[key].data, err_msg=str(key))
+    for key, m in service.live_maps.skill_maps.items():
+        np.testing.assert_array_equal(m.data, fresh.live_maps.skill_maps[key].data, err_msg=str(key))

@@ -354,7 +354,7 @@ def test_a_points_skills_cloud_is_recorded_per_storey_in_world_coordinates_at_ea
     service, _ = started(config=cfg)
     service.sinks.append(recorder)
     service.process()  # the first clouds
-    m = service.engine.points.maps[("ground-floor", "lidar3d")]
+    m = service.live_maps.points.maps[("ground-floor", "lidar3d")]
     first = m.cloud()
     recorder.close()
     batches = chunks_by_entity(path)["/points/ground-floor/lidar3d"]

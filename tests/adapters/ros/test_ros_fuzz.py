@@ -29,7 +29,7 @@ from tests.adapters.ros_reports import (
 from tests.conftest import examples
 from twin.config import Limits
 from twin.errors import MapError
-from twin.live.observations import parse_observation
+from twin.live.parse import parse_observation
 
 FUZZ = settings(max_examples=examples(200), deadline=None, suppress_health_check=list(HealthCheck))
 WILD = st.one_of(

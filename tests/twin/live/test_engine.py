@@ -51,6 +51,10 @@ def test_incremental_maps_equal_a_full_rebuild_from_the_graph(sequence: list[byt
         observe(service, "robot1", payload)  # some are refused (e.g. removing what is not there)
     fresh, _ = started(store)
     assert fresh.revision == service.revision
-    for key, m in service.engine.maps.items():
-        np.testing.assert_array_equal(m.data, service.engine.rebuild(m), err_msg=f"{key} vs its own rebuild")
-        np.testing.assert_array_equal(m.data, fresh.engine.maps[key].data, err_msg=f"{key} vs a restart")
+    for key, m in service.live_maps.skill_maps.items():
+        np.testing.assert_array_equal(
+            m.data, service.live_maps.rebuild(m), err_msg=f"{key} vs its own rebuild"
+        )
+        np.testing.assert_array_equal(
+            m.data, fresh.live_maps.skill_maps[key].data, err_msg=f"{key} vs a restart"
+        )

@@ -8,8 +8,8 @@ import pytest
 from tests.twin.box_lab import OX, OY, element_iri, spec
 from tests.twin.live_helpers import PREFIX, box_turtle, observe, started
 from twin.live import TwinService
+from twin.live.membership import rejection
 from twin.live.requests import Reply
-from twin.live.selection import rejection
 from twin.selection.skill_selection import selection_query
 
 GROUND = "ground-floor"
@@ -90,7 +90,7 @@ def test_explain_gives_the_selection_s_own_reasons_and_none_only_for_what_sparql
     for skill in service.skills.values():
         by_store = {r["element"] for r in service.store.select(selection_query(skill))}
         for iri, state in service.states.items():
-            reason = rejection(skill, state, has_geometry=service.engine.shape_of(iri) is not None)
+            reason = rejection(skill, state, has_geometry=service.live_maps.shape_of(iri) is not None)
             assert (reason is None) == (iri in by_store), (skill.name, iri, reason)
     answer = explain(service, "localization", 11.9, 2.0).body  # the glass wall and the table are near
     near = {e["iri"]: e["why_not"] for e in answer["near"]}  # type: ignore[attr-defined]

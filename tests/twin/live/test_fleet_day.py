@@ -16,7 +16,7 @@ from twin.config import FusionRules, load_config
 from twin.graph.meshcodec import encode_placement
 from twin.live import TwinService
 from twin.live.events import MapPublished, MapUpdated, ObservationAccepted
-from twin.live.selection import needs_store, selects
+from twin.live.membership import needs_store, selects
 from twin.selection.skill_selection import selection_query
 from twin.selection.skills import parse_skill
 
@@ -66,7 +66,7 @@ def test_a_door_seen_as_it_is_changes_nothing_and_a_new_label_is_a_change() -> N
 def test_a_robot_may_re_confirm_a_wall_but_not_move_it() -> None:
     service, _ = started()
     wall = element_iri(spec("Wall A west"))
-    shape = service.engine.shape_of(wall)
+    shape = service.live_maps.shape_of(wall)
     assert shape is not None
 
     def placed(p: np.ndarray) -> bytes:
@@ -120,14 +120,14 @@ def test_after_moves_door_changes_a_removal_and_a_re_creation_a_restart_gives_th
     again = TwinService(store, load_config())
     again.start()
     assert again.revision == service.revision
-    for key, m in service.engine.maps.items():
-        np.testing.assert_array_equal(m.data, again.engine.maps[key].data, err_msg=str(key))
-        np.testing.assert_array_equal(m.data, service.engine.rebuild(m), err_msg=str(key))
+    for key, m in service.live_maps.skill_maps.items():
+        np.testing.assert_array_equal(m.data, again.live_maps.skill_maps[key].data, err_msg=str(key))
+        np.testing.assert_array_equal(m.data, service.live_maps.rebuild(m), err_msg=str(key))
     before, after = service.states[TABLE], again.states[TABLE]
     assert set(before.ifc_types) == set(after.ifc_types)
     assert replace(before, ifc_types=()) == replace(after, ifc_types=())
     assert again.states[door].is_open is False
-    shape, fresh = service.engine.shape_of(TABLE), again.engine.shape_of(TABLE)
+    shape, fresh = service.live_maps.shape_of(TABLE), again.live_maps.shape_of(TABLE)
     assert shape is not None and fresh is not None
     np.testing.assert_array_equal(shape[1], fresh[1])
     np.testing.assert_array_equal(shape[0].vertices, fresh[0].vertices)
@@ -152,7 +152,7 @@ def test_in_memory_selection_answers_what_the_selection_query_answers_for_every_
         in_memory = {
             iri
             for iri, state in service.states.items()
-            if selects(skill, state, has_geometry=service.engine.shape_of(iri) is not None)
+            if selects(skill, state, has_geometry=service.live_maps.shape_of(iri) is not None)
         }
         assert in_memory == by_store, skill.name
 
@@ -164,8 +164,8 @@ def test_a_skill_with_its_own_sparql_is_selected_by_the_store() -> None:
     service, rec = started(config=config)
     reply = observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
     assert ("ground-floor", "tables") in {(m["storey"], m["skill"]) for m in reply.body["maps"]}  # type: ignore[union-attr]
-    m = service.engine.maps[("ground-floor", "tables")]
-    np.testing.assert_array_equal(m.data, service.engine.rebuild(m))
+    m = service.live_maps.skill_maps[("ground-floor", "tables")]
+    np.testing.assert_array_equal(m.data, service.live_maps.rebuild(m))
     assert rec.of(ObservationAccepted) and rec.of(MapUpdated) and rec.of(MapPublished)
 
 
@@ -208,5 +208,7 @@ def test_a_batch_of_moves_rendered_together_equals_a_rebuild(inflation: float) -
         if round_ == 3:
             service.submit_observation("robot1", f"{PREFIX}<urn:r:t2> twin:removed true .".encode())
         service.process()
-        for key, m in service.engine.maps.items():
-            np.testing.assert_array_equal(m.data, service.engine.rebuild(m), err_msg=f"{key} round {round_}")
+        for key, m in service.live_maps.skill_maps.items():
+            np.testing.assert_array_equal(
+                m.data, service.live_maps.rebuild(m), err_msg=f"{key} round {round_}"
+            )

@@ -52,7 +52,7 @@ ROOM_A = [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)]
 
 
 def cells_of(service: TwinService, x: float, y: float) -> int:
-    m = service.engine.maps[NAV]
+    m = service.live_maps.skill_maps[NAV]
     f = m.plan.frame
     col, row = int((OX + x - f.origin_x) / f.resolution_m), int((OY + y - f.origin_y) / f.resolution_m)
     return int(m.data[row, col])
@@ -63,8 +63,8 @@ def dynamic_elements(service: TwinService) -> list[str]:
 
 
 def assert_maps_equal_a_rebuild(service: TwinService) -> None:
-    for key, m in service.engine.maps.items():
-        np.testing.assert_array_equal(m.data, service.engine.rebuild(m), err_msg=str(key))
+    for key, m in service.live_maps.skill_maps.items():
+        np.testing.assert_array_equal(m.data, service.live_maps.rebuild(m), err_msg=str(key))
 
 
 # --- association --------------------------------------------------------------------------------------
@@ -110,10 +110,10 @@ def test_two_tables_a_metre_apart_stay_two_elements() -> None:
 def test_a_table_reported_onto_a_wall_does_not_change_the_wall() -> None:
     service, _ = started()
     wall = element_iri(spec("Wall corridor south"))
-    before = (service.states[wall], service.engine.shape_of(wall))
+    before = (service.states[wall], service.live_maps.shape_of(wall))
     reply = observe(service, "robot1", box_turtle("urn:robot1:x", 6.0, 1.3, sx=0.8, sy=0.3))
     assert reply.ok and "resolved" not in reply.body
-    assert service.states[wall] == before[0] and service.engine.shape_of(wall) is before[1]
+    assert service.states[wall] == before[0] and service.live_maps.shape_of(wall) is before[1]
 
 
 def test_the_imported_table_is_associated_and_a_flipped_heading_confirms_it() -> None:
@@ -195,7 +195,7 @@ def test_confirmations_that_agree_on_a_small_offset_refine_the_pose_once() -> No
         revisions.append(observe(service, "robot2", box_turtle("urn:robot2:t", 6.69, 2.0)).body["revision"])
     assert service.revision == 2
     assert any("refined" in n for e in rec.of(ObservationAccepted) for n in e.notes)
-    shape = service.engine.shape_of(TABLE)
+    shape = service.live_maps.shape_of(TABLE)
     assert shape is not None and abs(shape[1][0, 3] - (OX + 6.69)) < 0.01
 
 
@@ -413,7 +413,7 @@ def test_a_detector_outlier_is_no_move_and_a_short_move_shows_at_its_second_sigh
     assert first.body["unchanged"] is True
     second = observe(service, "robot2", box_turtle("urn:robot2:t", 6.86, 2.01))
     assert second.body["upserted"] == [TABLE] and service.revision == 2
-    shape = service.engine.shape_of(TABLE)
+    shape = service.live_maps.shape_of(TABLE)
     assert shape is not None and abs(shape[1][0, 3] - (OX + 6.855)) < 0.005  # the two sightings' mean
 
 

@@ -78,7 +78,11 @@ def service() -> TwinService:
 
 
 def snapshot(service: TwinService) -> tuple[int, int, dict[tuple[str, str], bytes]]:
-    return service.revision, len(service.store), {k: m.data.tobytes() for k, m in service.engine.maps.items()}
+    return (
+        service.revision,
+        len(service.store),
+        {k: m.data.tobytes() for k, m in service.live_maps.skill_maps.items()},
+    )
 
 
 @FUZZ
@@ -92,7 +96,7 @@ def test_fuzzed_observations_are_answered_and_refusals_change_nothing(
     if not reply.ok:
         assert isinstance(reply.body["error"], str) and reply.body["error"]
         assert snapshot(service) == before
-    for m in service.engine.maps.values():
+    for m in service.live_maps.skill_maps.values():
         assert np.isin(m.data, (0, 100, -1)).all()
 
 

@@ -47,7 +47,7 @@ def full_maps(rec: Recorder) -> list[tuple[str, str, int]]:
 
 def test_after_the_first_publication_a_burst_of_changes_sends_updates_and_no_full_map() -> None:
     service, rec, clock = started()
-    assert len(full_maps(rec)) == len(service.engine.maps)  # every map once, at start
+    assert len(full_maps(rec)) == len(service.live_maps.skill_maps)  # every map once, at start
     rec.events.clear()
     for i in range(20):
         clock.now += SECOND // 20
@@ -69,9 +69,13 @@ def test_a_changed_map_goes_out_in_full_once_its_keyframe_is_due_and_an_unchange
     assert full_maps(rec) == []  # 59 s after the start: not yet
     clock.now += 2 * SECOND
     service.process()
-    nav = service.engine.maps[("ground-floor", "navigation")]
+    nav = service.live_maps.skill_maps[("ground-floor", "navigation")]
     assert sorted(full_maps(rec)) == [
-        ("ground-floor", "lab-navigation", service.engine.maps[("ground-floor", "lab-navigation")].version),
+        (
+            "ground-floor",
+            "lab-navigation",
+            service.live_maps.skill_maps[("ground-floor", "lab-navigation")].version,
+        ),
         ("ground-floor", "navigation", nav.version),
     ]
     keyframe = next(e for e in rec.of(MapPublished) if e.grid.skill == "navigation")

@@ -8,7 +8,7 @@ import pytest
 
 from twin.config import Limits
 from twin.errors import ObservationError
-from twin.live.observations import parse_observation
+from twin.live.parse import parse_observation
 
 TWIN = "https://w3id.org/building-twin#"
 P = f"@prefix twin: <{TWIN}> .\n@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .\n"

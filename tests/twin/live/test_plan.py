@@ -10,7 +10,7 @@ from tests.twin.live_helpers import box_turtle, observe, started
 from twin.config import load_config
 from twin.errors import ObservationError
 from twin.graph import vocab
-from twin.live.observations import parse_observation
+from twin.live.parse import parse_observation
 from twin.live.plan import ObservationPlan, plan_observation
 from twin.live.service import TwinService
 from twin.records import ElementReport

@@ -14,7 +14,7 @@ from twin.config import load_config
 from twin.errors import QueryError
 from twin.live import TwinService
 from twin.live.events import MapPublished, MapRemoved, MapUpdated, ObservationAccepted, ObservationRejected
-from twin.live.selection import selects
+from twin.live.membership import selects
 from twin.maps.grid import OCCUPIED
 from twin.selection.skill_selection import selection_query
 
@@ -22,24 +22,24 @@ TABLE = "urn:robot1:table-1"
 
 
 def grid_of(service: TwinService, skill: str, storey: str = "ground-floor") -> np.ndarray:
-    return service.engine.maps[(storey, skill)].data.copy()
+    return service.live_maps.skill_maps[(storey, skill)].data.copy()
 
 
 def cells(service: TwinService, skill: str, *box: float) -> np.ndarray:
     x0, y0, x1, y1 = box
-    m = service.engine.maps[("ground-floor", skill)]
+    m = service.live_maps.skill_maps[("ground-floor", skill)]
     w = m.plan.frame.window_for(OX + x0, OY + y0, OX + x1, OY + y1)
     return m.data[w.row0 : w.row1, w.col0 : w.col1]
 
 
 def assert_equals_rebuild(service: TwinService) -> None:
-    for key, m in service.engine.maps.items():
-        np.testing.assert_array_equal(m.data, service.engine.rebuild(m), err_msg=str(key))
+    for key, m in service.live_maps.skill_maps.items():
+        np.testing.assert_array_equal(m.data, service.live_maps.rebuild(m), err_msg=str(key))
 
 
 def test_a_table_in_the_corridor_appears_in_navigation_maps_only_within_its_footprint() -> None:
     service, rec = started()
-    before = {k: m.data.copy() for k, m in service.engine.maps.items()}
+    before = {k: m.data.copy() for k, m in service.live_maps.skill_maps.items()}
     reply = observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, sx=0.6, sy=0.6))
     assert reply.ok, reply.body
     assert reply.body["revision"] == 1
@@ -49,7 +49,7 @@ def test_a_table_in_the_corridor_appears_in_navigation_maps_only_within_its_foot
     for skill in ("navigation", "lab-navigation"):
         assert (cells(service, skill, 6.32, 1.72, 6.88, 2.28) == OCCUPIED).all()
         diff = np.argwhere(grid_of(service, skill) != before[("ground-floor", skill)])
-        frame = service.engine.maps[("ground-floor", skill)].plan.frame
+        frame = service.live_maps.skill_maps[("ground-floor", skill)].plan.frame
         footprint = frame.window_for(OX + 6.3, OY + 1.7, OX + 6.9, OY + 2.3)
         assert diff[:, 0].min() >= footprint.row0 and diff[:, 0].max() < footprint.row1
         assert diff[:, 1].min() >= footprint.col0 and diff[:, 1].max() < footprint.col1
@@ -58,7 +58,7 @@ def test_a_table_in_the_corridor_appears_in_navigation_maps_only_within_its_foot
     updates = rec.of(MapUpdated)
     assert {(u.storey, u.skill) for u in updates} == changed
     u = updates[0]
-    m = service.engine.maps[(u.storey, u.skill)]
+    m = service.live_maps.skill_maps[(u.storey, u.skill)]
     np.testing.assert_array_equal(
         u.data, m.data[u.window.row0 : u.window.row1, u.window.col0 : u.window.col1]
     )
@@ -67,11 +67,11 @@ def test_a_table_in_the_corridor_appears_in_navigation_maps_only_within_its_foot
 
 def test_removing_the_table_restores_the_original_maps_bit_for_bit() -> None:
     service, _ = started()
-    before = {k: m.data.copy() for k, m in service.engine.maps.items()}
+    before = {k: m.data.copy() for k, m in service.live_maps.skill_maps.items()}
     assert observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0)).ok
     reply = observe(service, "robot1", f"<{TABLE}> <{TWIN}removed> true .".encode())
     assert reply.ok and reply.body["removed"] == [TABLE]
-    for key, m in service.engine.maps.items():
+    for key, m in service.live_maps.skill_maps.items():
         np.testing.assert_array_equal(m.data, before[key], err_msg=str(key))
 
 
@@ -124,13 +124,13 @@ def test_bad_observations_are_refused_naming_the_problem_and_change_nothing(
 ) -> None:
     service, rec = started()
     triples = len(service.store)
-    before = {k: m.data.copy() for k, m in service.engine.maps.items()}
+    before = {k: m.data.copy() for k, m in service.live_maps.skill_maps.items()}
     reply = observe(service, "robot1", payload)
     assert not reply.ok
     assert message in str(reply.body["error"])
     assert json.loads(reply.to_json())["ok"] is False
     assert len(service.store) == triples and service.revision == 0
-    for key, m in service.engine.maps.items():
+    for key, m in service.live_maps.skill_maps.items():
         np.testing.assert_array_equal(m.data, before[key])
     assert rec.of(ObservationRejected)[-1].error == reply.body["error"]
     assert observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0)).ok  # still serving
@@ -169,8 +169,8 @@ def test_a_restarted_service_serves_the_same_maps_in_the_same_frames() -> None:
     observe(service, "robot1", box_turtle("urn:robot1:crate", 2.0, 1.0))
     again, _ = started(store)
     assert again.revision == 2
-    for key, m in service.engine.maps.items():
-        other = again.engine.maps[key]
+    for key, m in service.live_maps.skill_maps.items():
+        other = again.live_maps.skill_maps[key]
         assert other.plan.frame == m.plan.frame
         np.testing.assert_array_equal(other.data, m.data, err_msg=str(key))
 
@@ -185,8 +185,8 @@ def test_skills_are_added_and_removed_at_run_time_and_survive_a_restart() -> Non
     service.process()
     assert [r.ok for r in replies] == [True, True, False]
     assert "field 'kind'" in str(replies[2].body["error"])
-    assert ("ground-floor", "tall") in service.engine.maps
-    assert ("ground-floor", "lab-localization") not in service.engine.maps
+    assert ("ground-floor", "tall") in service.live_maps.skill_maps
+    assert ("ground-floor", "lab-localization") not in service.live_maps.skill_maps
     assert any(isinstance(e, MapPublished) and e.grid.skill == "tall" for e in rec.events)
     assert any(isinstance(e, MapRemoved) and e.skill == "lab-localization" for e in rec.events)
     again, _ = started(store)
@@ -267,8 +267,8 @@ def test_queued_observations_commit_one_by_one_and_share_one_map_pass_that_equal
     assert service.revision == 6
     assert len(rec.of(ObservationAccepted)) == 6 and len(rec.of(ObservationRejected)) == 1
     assert_equals_rebuild(service)
-    for key, m in service.engine.maps.items():  # the batch ends where one-by-one processing ends
-        np.testing.assert_array_equal(m.data, other.engine.maps[key].data, err_msg=str(key))
+    for key, m in service.live_maps.skill_maps.items():  # the batch ends where one-by-one processing ends
+        np.testing.assert_array_equal(m.data, other.live_maps.skill_maps[key].data, err_msg=str(key))
     updates = rec.of(MapUpdated)
     assert updates and all(u.revision == 6 for u in updates[-len(replies[-1].body["maps"]) :])
     rows = service.store.select(

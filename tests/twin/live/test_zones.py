@@ -15,7 +15,7 @@ from tests.twin.live_helpers import PREFIX, box_turtle, observe, started
 from twin.config import Config, load_config
 from twin.errors import ObservationError, SkillError
 from twin.live import TwinService
-from twin.live.observations import parse_observation
+from twin.live.parse import parse_observation
 from twin.selection.skills import parse_skill
 
 ZONE = "urn:operator:zone-1"
@@ -46,14 +46,14 @@ def zoned(tmp_path: Path) -> TwinService:
 
 
 def assert_all_equal_rebuild(service: TwinService) -> None:
-    for key, m in service.engine.maps.items():
-        np.testing.assert_array_equal(m.data, service.engine.rebuild(m), err_msg=str(key))
+    for key, m in service.live_maps.skill_maps.items():
+        np.testing.assert_array_equal(m.data, service.live_maps.rebuild(m), err_msg=str(key))
 
 
 def test_masks_start_empty_when_no_zone_is_marked(tmp_path: Path) -> None:
     service = zoned(tmp_path)
     for skill in ("keepout", "slow"):
-        assert not service.engine.maps[(GROUND, skill)].data.any()
+        assert not service.live_maps.skill_maps[(GROUND, skill)].data.any()
 
 
 def test_an_operator_marking_the_table_keepout_changes_the_mask_by_an_update_and_unmarking_restores_it(
@@ -61,13 +61,13 @@ def test_an_operator_marking_the_table_keepout_changes_the_mask_by_an_update_and
 ) -> None:
     service = zoned(tmp_path)
     table = element_iri(spec("Table"))
-    before = service.engine.maps[(GROUND, "keepout")].data.copy()
+    before = service.live_maps.skill_maps[(GROUND, "keepout")].data.copy()
     reply = observe(service, "operator", f"{PREFIX}<{table}> twin:keepout true .".encode())
     assert reply.ok, reply.body
     updates = [m for m in reply.body["maps"] if m["skill"] == "keepout"]
     assert len(updates) == 1
     u = updates[0]
-    mask = service.engine.maps[(GROUND, "keepout")]
+    mask = service.live_maps.skill_maps[(GROUND, "keepout")]
     frame = mask.plan.frame
     # the update is the table's footprint (1.2 x 0.8 m), not the whole storey
     assert u["width"] * u["height"] < frame.width * frame.height / 20
@@ -75,7 +75,7 @@ def test_an_operator_marking_the_table_keepout_changes_the_mask_by_an_update_and
     x, y = OX + 2.0, OY + 3.0  # the table's centre
     col, row = int((x - frame.origin_x) / frame.resolution_m), int((y - frame.origin_y) / frame.resolution_m)
     assert mask.data[row, col] == 100
-    assert not service.engine.maps[(GROUND, "slow")].data.any()
+    assert not service.live_maps.skill_maps[(GROUND, "slow")].data.any()
     assert_all_equal_rebuild(service)
     unmarked = observe(service, "operator", f"{PREFIX}<{table}> twin:keepout false .".encode())
     assert unmarked.ok and unmarked.body["revision"] == 2
@@ -86,9 +86,9 @@ def test_a_speed_zone_shows_its_percent_only_in_the_mask_of_that_limit(tmp_path:
     service = zoned(tmp_path)
     table = element_iri(spec("Table"))
     assert observe(service, "operator", f"{PREFIX}<{table}> twin:speedLimit 30 .".encode()).ok
-    slow = service.engine.maps[(GROUND, "slow")].data
+    slow = service.live_maps.skill_maps[(GROUND, "slow")].data
     assert set(np.unique(slow)) == {0, 30}
-    assert not service.engine.maps[(GROUND, "keepout")].data.any()
+    assert not service.live_maps.skill_maps[(GROUND, "keepout")].data.any()
     assert_all_equal_rebuild(service)
     assert observe(service, "operator", f"{PREFIX}<{table}> twin:speedLimit 60 .".encode()).ok
     assert not slow.any()  # 60 % is another profile's limit
@@ -99,15 +99,15 @@ def test_a_virtual_zone_drawn_by_an_operator_is_in_the_mask_but_in_no_map_of_the
     tmp_path: Path,
 ) -> None:
     service = zoned(tmp_path)
-    nav_before = service.engine.maps[(GROUND, "navigation")].data.copy()
-    loc_before = service.engine.maps[(GROUND, "localization")].data.copy()
+    nav_before = service.live_maps.skill_maps[(GROUND, "navigation")].data.copy()
+    loc_before = service.live_maps.skill_maps[(GROUND, "localization")].data.copy()
     zone = box_turtle(ZONE, 9.0, 2.0, sx=2.0, sy=2.0, sz=2.0, cls="IfcVirtualElement").decode()
     reply = observe(service, "operator", (zone.rstrip(" .\n") + " ; twin:keepout true .").encode())
     assert reply.ok, reply.body
     assert {m["skill"] for m in reply.body["maps"]} == {"keepout"}
-    assert int((service.engine.maps[(GROUND, "keepout")].data == 100).sum()) >= 40 * 40
-    np.testing.assert_array_equal(service.engine.maps[(GROUND, "navigation")].data, nav_before)
-    np.testing.assert_array_equal(service.engine.maps[(GROUND, "localization")].data, loc_before)
+    assert int((service.live_maps.skill_maps[(GROUND, "keepout")].data == 100).sum()) >= 40 * 40
+    np.testing.assert_array_equal(service.live_maps.skill_maps[(GROUND, "navigation")].data, nav_before)
+    np.testing.assert_array_equal(service.live_maps.skill_maps[(GROUND, "localization")].data, loc_before)
     assert_all_equal_rebuild(service)
 
 
@@ -119,7 +119,7 @@ def test_a_robot_without_the_zones_right_cannot_mark_a_zone_and_nothing_changes(
     assert not reply.ok
     assert "zones" in reply.body["error"] and "urn:robot1:table-9" in reply.body["error"]
     assert service.revision == revision
-    assert not service.engine.maps[(GROUND, "keepout")].data.any()
+    assert not service.live_maps.skill_maps[(GROUND, "keepout")].data.any()
 
 
 def test_zone_marks_survive_a_restart(tmp_path: Path) -> None:
@@ -128,10 +128,10 @@ def test_zone_marks_survive_a_restart(tmp_path: Path) -> None:
     service, _ = started(store, config)
     table = element_iri(spec("Table"))
     observe(service, "operator", f"{PREFIX}<{table}> twin:keepout true ; twin:speedLimit 30 .".encode())
-    marked = {k: m.data.copy() for k, m in service.engine.maps.items()}
+    marked = {k: m.data.copy() for k, m in service.live_maps.skill_maps.items()}
     again, _ = started(store, config)
     for key, data in marked.items():
-        np.testing.assert_array_equal(again.engine.maps[key].data, data, err_msg=str(key))
+        np.testing.assert_array_equal(again.live_maps.skill_maps[key].data, data, err_msg=str(key))
     assert again.states[table].keepout and again.states[table].speed_limit == 30
 
 

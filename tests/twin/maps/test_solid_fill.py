@@ -256,7 +256,7 @@ def test_the_imported_lift_is_filled_in_the_live_maps_and_its_graph_node_says_so
     store = imported(model)
     assert store.ask(f"ASK {{ <{iri}> omg:hasGeometry/twin:solid true }}"), "twin:solid on the geometry node"
     service, _ = started(store)
-    m = service.engine.maps[("ground-floor", "navigation")]
+    m = service.live_maps.skill_maps[("ground-floor", "navigation")]
     f = m.plan.frame
     w = f.window_for(OX + 9.2, OY + 1.7, OX + 10.4, OY + 2.5)
     assert (m.data[w.row0 : w.row1, w.col0 : w.col1] == 100).all(), "the inside of the lift is occupied"
@@ -278,5 +278,7 @@ def test_incremental_maps_around_an_open_solid_equal_a_full_rebuild(moves: list)
         name = f"urn:robot:crate-{i % 2}"
         payload = f"<{name}> <https://w3id.org/building-twin#removed> true .".encode() if remove else None
         observe(service, "robot1", payload or box_turtle(name, x, y, sx=size, sy=size))
-    for key, m in service.engine.maps.items():
-        np.testing.assert_array_equal(m.data, service.engine.rebuild(m), err_msg=f"{key} vs its own rebuild")
+    for key, m in service.live_maps.skill_maps.items():
+        np.testing.assert_array_equal(
+            m.data, service.live_maps.rebuild(m), err_msg=f"{key} vs its own rebuild"
+        )

@@ -81,7 +81,7 @@ def capture(live: LiveState, keys: dict[str, Any]) -> Captured:
             m.data.copy(),
             None if m.inside is None else m.inside.copy(),
         )
-        for m in live.maps.maps.values()
+        for m in live.maps.skill_maps.values()
     )
     points = []
     for p in live.maps.points.maps.values():

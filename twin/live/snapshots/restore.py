@@ -23,7 +23,7 @@ from twin.graph.store import GraphStore
 from twin.live.live_map import LiveMap
 from twin.live.live_maps import LiveMaps
 from twin.live.live_points import PointsMap
-from twin.live.selection import membership
+from twin.live.membership import membership
 from twin.live.snapshots.keys import skill_digest
 from twin.live.state import ElementState, LiveState, load_states
 from twin.maps.points import plan_points
@@ -106,7 +106,7 @@ class Restored:
         """Compute the triangles of every element whose XY bounds come within two cells (and half a
         metre) of one of ``boxes`` (world AABBs): all that re-rendering their cells reads."""
         b = self.maps.scene.elements.bounds
-        res = max((m.plan.frame.resolution_m for m in self.maps.maps.values()), default=0.05)
+        res = max((m.plan.frame.resolution_m for m in self.maps.skill_maps.values()), default=0.05)
         margin = 0.5 + 2 * res
         need = np.zeros(len(b), dtype=np.bool_)
         for box in boxes:

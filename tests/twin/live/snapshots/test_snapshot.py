@@ -94,12 +94,12 @@ def assert_same_as_a_rebuild(service: TwinService) -> None:
     """Every map equals that of a service started from the store alone, and the states the store's."""
     fresh = start(service.store, None, service.config)
     assert service.revision == fresh.revision
-    assert sorted(service.engine.maps) == sorted(fresh.engine.maps)
-    for key, m in fresh.engine.maps.items():
-        np.testing.assert_array_equal(service.engine.maps[key].data, m.data, err_msg=str(key))
-        assert service.engine.maps[key].plan.frame == m.plan.frame
-    for key, m in service.engine.maps.items():
-        np.testing.assert_array_equal(m.data, service.engine.rebuild(m), err_msg=str(key))
+    assert sorted(service.live_maps.skill_maps) == sorted(fresh.live_maps.skill_maps)
+    for key, m in fresh.live_maps.skill_maps.items():
+        np.testing.assert_array_equal(service.live_maps.skill_maps[key].data, m.data, err_msg=str(key))
+        assert service.live_maps.skill_maps[key].plan.frame == m.plan.frame
+    for key, m in service.live_maps.skill_maps.items():
+        np.testing.assert_array_equal(m.data, service.live_maps.rebuild(m), err_msg=str(key))
     assert normal(service.states) == normal(load_states(service.store))
 
 
@@ -141,7 +141,7 @@ def test_a_restart_after_a_clean_stop_restores_every_map_from_the_snapshot(tmp_p
     stop_cleanly(first)
     again = start(store, path)
     assert again.restored_from == first.revision == 6
-    assert {m.version for m in again.engine.maps.values()} == {1}  # as after a rebuild
+    assert {m.version for m in again.live_maps.skill_maps.values()} == {1}  # as after a rebuild
     assert_same_as_a_rebuild(again)
     changes(again)  # the restored twin keeps changing as a rebuilt one would
     assert_same_as_a_rebuild(again)
@@ -223,7 +223,7 @@ def test_a_changed_skill_profile_rebuilds_its_maps_and_keeps_the_others(tmp_path
     cfg = dataclasses.replace(cfg, skills={**cfg.skills, "navigation": taller})
     again = start(store, path, cfg)
     assert again.restored_from == 6
-    assert again.engine.maps[("ground-floor", "navigation")].plan.skill == taller
+    assert again.live_maps.skill_maps[("ground-floor", "navigation")].plan.skill == taller
     assert_same_as_a_rebuild(again)
     third = start(store, path, cfg)  # and the snapshot now holds the new profile's maps
     assert third.restored_from == 6

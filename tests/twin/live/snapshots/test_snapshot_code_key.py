@@ -29,7 +29,7 @@ def test_the_digest_of_an_unchanged_copy_of_the_core_equals_the_running_code(cor
     "module",
     [
         "live/drawing.py",
-        "live/selection.py",
+        "live/membership.py",
         "selection/skill_selection.py",
         "maps/raster/clip.py",
         "maps/render.py",
