@@ -66,13 +66,17 @@ class ServedTwin:
 
 
 @contextmanager
-def served_twin(config: Config, *, sinks: Sequence[TwinSink] = ()) -> Iterator[ServedTwin]:
-    """The served twin; ``sinks`` are the service's before the daemon's (as ``serve`` adds its own)."""
+def served_twin(
+    config: Config, *, sinks: Sequence[TwinSink] = (), followers: Sequence[TwinSink] = ()
+) -> Iterator[ServedTwin]:
+    """The served twin; ``sinks`` are the service's before the daemon's (as ``serve`` adds its own),
+    ``followers`` the daemon's after the ROS 2 publisher."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     session = zenoh.open(session_config(ZenohSettings(), mode="peer", listen=[endpoint], connect=[]))
     service = TwinService(imported(box_lab(storeys=2)), config, sinks=list(sinks))
     daemon = ZenohDaemon(session, service, keys=KEYS, frame_id=config.frame_id)
     ros = RosMapPublisher.following(daemon, config)
+    daemon.followers += followers
     service.sinks.append(daemon)
     stop, started = threading.Event(), threading.Event()
     failed: list[BaseException] = []
