@@ -162,12 +162,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         try:
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=cfg.frame_id)
             if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
-                ros = RosMapPublisher(
-                    session, cfg, keys=keys, sinks=service.sinks, revision=lambda: service.revision,
-                    maps=daemon.maps, request=service.submit_storey,
-                )  # fmt: skip
-                daemon.status_sources.append(ros.status)
-                daemon.followers.append(ros)  # on the daemon's dispatcher, a lane per robot
+                ros = RosMapPublisher.following(daemon, cfg)  # on the dispatcher, a lane per robot
             if cfg.sources or any(r.detections is not None for r in cfg.robots.values()):
                 storey_of = ros.storey_of if ros is not None else (lambda _robot: None)
                 ingest = RosIngest(session, cfg, service.submit_observation, storey_of=storey_of)

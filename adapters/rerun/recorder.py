@@ -44,7 +44,12 @@ BATCH_S = 0.02
 
 
 class RerunRecorder:
-    """Records service events to an ``.rrd`` file and/or a live viewer, in a separate process."""
+    """Records service events to an ``.rrd`` file and/or a live viewer, in a separate process.
+
+    It holds no map: ``_held`` is, per map, only the frame and version the recorder process has (to
+    send a full map that equals its updates applied as a :class:`MapMark`). The cells live in the
+    recorder process (:class:`~adapters.rerun.writer.RecordingWriter`), which says why it needs them.
+    """
 
     def __init__(
         self,

@@ -63,7 +63,16 @@ def _same_mesh(a: ElementShape, b: ElementShape) -> bool:
 
 
 class RecordingWriter:
-    """Writes events to an ``.rrd`` file (rotated) and/or a live viewer, in the order they come."""
+    """Writes events to an ``.rrd`` file (rotated) and/or a live viewer, in the order they come.
+
+    It keeps its own copy of every map (``_maps``: :class:`~adapters.rerun.tiles.MapTiles`, updates
+    applied), a second holder beside the daemon's ``LatestMaps`` for three reasons: it runs in the
+    recorder process, which cannot read the daemon's memory; it must hold each map *as of the revision
+    it is recording*, which lags the daemon's latest version by its queue; and it needs the cells to
+    log only the tiles a full map changes (:meth:`MapTiles.replace`) and to log every tile again at
+    the start of a rotated file. It is written by the events alone, so it equals the daemon's holder
+    once both have taken the same events.
+    """
 
     def __init__(
         self,

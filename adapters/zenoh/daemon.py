@@ -18,8 +18,10 @@ the writer's thread is the daemon's dispatcher (:attr:`ZenohDaemon.outbox`): in 
 emitted, it brings :attr:`ZenohDaemon.maps` (the one holder of each map's latest version) up to date,
 then hands the sends to *lanes*, one thread each: the site's keys and acks on :attr:`ZenohDaemon.site`,
 and each ROS 2 robot's topics on that robot's own lane (the ``followers``, e.g.
-:class:`~adapters.zenoh.ros_maps.RosMapPublisher`). A blocking send (a big map on a slow link) holds only
-its lane: the writer never waits for Zenoh, and one robot never waits for another.
+:class:`~adapters.zenoh.ros_maps.RosMapPublisher`, attached by ``RosMapPublisher.following(daemon,
+config)``: it reads :attr:`ZenohDaemon.maps` and keeps no map of its own). A blocking send (a big map
+on a slow link) holds only its lane: the writer never waits for Zenoh, and one robot never waits for
+another.
 
 Example::
 

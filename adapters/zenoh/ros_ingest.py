@@ -144,6 +144,10 @@ class RosIngest:
     ``submit`` is ``TwinService.submit_observation``; ``storey_of(robot)`` the robot's current storey
     (``RosMapPublisher.storey_of``). Add it to the service's sinks before the service starts (it learns
     the storeys, the doors and the maps that occlude views from the events), and ``close`` it.
+
+    It keeps its own copy of the ``view_skill`` maps (``_grids``), beside the daemon's ``LatestMaps``:
+    its worker cuts views with a grid it reads without a lock, so each version is a new array (copy on
+    write), where the holder applies updates in place under its lock; and only the view skills.
     """
 
     def __init__(

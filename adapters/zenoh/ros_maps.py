@@ -1,5 +1,5 @@
 """Serve skill maps to ROS 2 robots as map_servers in their namespace would, and follow the storey each
-robot is on (a TwinSink).
+robot is on (a follower of the daemon's dispatcher).
 
 For every configured robot with a namespace (``[robots.NAME]``), each of its topics
 (``[robots.NAME.maps]``, topic = skill; default ``map`` = localization for AMCL, ``navigation_map`` =
@@ -26,11 +26,13 @@ what nav2's ``KeepoutFilter`` and ``SpeedFilter`` read as their ``filter_info_to
 time through ``twin/<site>/robots/<name>/storey`` (a put of the storey key; a ``get`` answers the
 current one, a ``get`` with a storey key as payload switches and answers, or replies an error) or
 through the ROS topic ``/<ns>/storey`` (``std_msgs/msg/String``, subscribed in the robot's layouts,
-with a subscriber liveliness token on rmw_zenoh). On a switch every topic of the robot republishes the
-new storey's map, latched (a late joiner gets the new floor), the switch is logged, counted in the
-status (:meth:`RosMapPublisher.status`) and emitted as :class:`~twin.live.events.RobotStoreyChanged` to the
-other sinks (the Rerun recording). An unknown robot or storey is refused with an error naming it and
-changes nothing; the same storey again is a no-op (robots re-report it often).
+with a subscriber liveliness token on rmw_zenoh). Every switch is a request to the twin's writer
+(``TwinService.submit_storey``, through :meth:`RosMapPublisher.ask`): the writer refuses an unknown
+robot or storey with an error naming it (nothing changes), keeps each robot's storey and emits
+:class:`~twin.live.events.RobotStoreyChanged` on its own thread (the Rerun recording logs it); the same
+storey again is a no-op (robots re-report it often). When that event reaches this publisher (on the
+daemon's dispatcher) every topic of the robot republishes the new storey's map, latched (a late joiner
+gets the new floor), and the switch is logged and counted in the status (:meth:`RosMapPublisher.status`).
 
 **What goes out.** After a topic's first map, a change goes out as its update only; the topic's map
 goes out in full on a storey switch, on the twin's keyframes (:mod:`twin.live.publication`) and, for a
@@ -43,8 +45,8 @@ the current map by :class:`~adapters.zenoh.latched.LatchedPublisher`.
 
 **One holder, one lane per robot.** Every full map sent (switch, keyframe, policy, history reply) is
 read from :class:`~adapters.zenoh.latest.LatestMaps`, the daemon's one holder of each map's latest
-version (updates applied; a standalone publisher keeps its own), encoded once per version. Each robot's
-sends are made on that robot's own lane (an :class:`~adapters.zenoh.outbox.Outbox`): reliable,
+version (updates applied), encoded once per version: this publisher keeps no copy of its own. Each
+robot's sends are made on that robot's own lane (an :class:`~adapters.zenoh.outbox.Outbox`): reliable,
 congestion BLOCK, one priority for a map and its updates, so a robot on a slow link holds only its own
 lane; the order on a lane is the order of the twin's changes, history replies included.
 """
@@ -55,9 +57,9 @@ import functools
 import logging
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import zenoh
 
@@ -98,14 +100,15 @@ from twin.config import Config, RobotConfig
 from twin.errors import TwinError
 from twin.live.events import (
     MapPublished,
-    MapRemoved,
     MapUpdated,
     RobotStoreyChanged,
     TwinEvent,
-    TwinSink,
     TwinStarted,
 )
 from twin.live.requests import Reply
+
+if TYPE_CHECKING:
+    from adapters.zenoh.daemon import ZenohDaemon
 
 log = logging.getLogger(__name__)
 
@@ -182,43 +185,48 @@ class _Robot:
 class RosMapPublisher:
     """Publishes configured robots' maps in the ROS 2 layouts and follows their storeys.
 
-    Create once the session is open. In the daemon, pass the daemon's holder (``maps=daemon.maps``) and
-    add it to ``daemon.followers``: it is then called on the daemon's dispatcher, after the holder is up
-    to date, and never on the writer's thread. Standalone (no ``maps``), it keeps its own holder and may
-    be a sink of the service itself. Either way its sends are made on one lane per robot.
-    ``keys`` enables ``robots/<name>/storey`` (every configured robot); ``sinks`` receive the
-    :class:`RobotStoreyChanged` events (pass the service's own list: ``service.sinks``); ``revision``
-    tells the twin revision at a switch.
+    Made by :meth:`following` (the daemon's composition: ``serve`` and the tests use it), which reads
+    every full map from the daemon's holder (``maps``), asks the daemon's writer for every storey switch
+    (``request``) and adds the publisher to ``daemon.followers``: its :meth:`emit` is then called on
+    the daemon's dispatcher, after the holder is up to date, never on the writer's thread. Its sends
+    are made on one lane per robot. ``keys`` enables ``robots/<name>/storey`` (every configured robot).
     """
+
+    @classmethod
+    def following(cls, daemon: ZenohDaemon, config: Config) -> RosMapPublisher:
+        """The daemon's ROS 2 map topics: the daemon's session, holder, keys and writer; a follower of
+        its dispatcher and a section (``robots``) of its status."""
+        ros = cls(
+            daemon.session,
+            config,
+            maps=daemon.maps,
+            request=daemon.service.submit_storey,
+            keys=daemon.keys,
+            clock=daemon.service.clock,
+        )
+        daemon.status_sources.append(ros.status)
+        daemon.followers.append(ros)
+        return ros
 
     def __init__(
         self,
         session: zenoh.Session,
         config: Config,
         *,
+        maps: LatestMaps,
+        request: StoreyRequester,
         keys: SiteKeys | None = None,
-        sinks: Sequence[TwinSink] = (),
-        revision: Callable[[], int] = lambda: 0,
         clock: Callable[[], int] | None = None,
-        maps: LatestMaps | None = None,
-        request: StoreyRequester | None = None,
     ) -> None:
         self.session = session
         self.request = request
-        """The writer's storey requests (``TwinService.submit_storey``): given, every switch is decided
-        by the twin's writer, and this publisher republishes a robot's topics when the writer's
-        :class:`RobotStoreyChanged` reaches it (:meth:`emit`); without it (standalone), :meth:`switch`
-        decides and emits to ``sinks`` itself."""
-        self._own_maps = maps is None
-        self.maps = (
-            maps
-            if maps is not None
-            else LatestMaps(frame_id=config.frame_id, timestamp=session.new_timestamp)
-        )
+        """The writer's storey requests (``TwinService.submit_storey``): every switch is decided by the
+        twin's writer, and this publisher republishes a robot's topics when the writer's
+        :class:`RobotStoreyChanged` reaches it (:meth:`emit`)."""
+        self.maps = maps
+        """The daemon's holder of each map's latest version (written by the dispatcher, read here)."""
         self.frame_id = config.frame_id
         self.keys = keys
-        self.sinks = sinks
-        self.revision = revision
         self.clock = clock or time.time_ns
         self._lock = threading.RLock()
         self._storeys: tuple[str, ...] | None = None
@@ -317,23 +325,17 @@ class RosMapPublisher:
             return None
         return now.payload, out.reply_attachment(now.stamp_ns), _newer(now.timestamp, t.shown)
 
-    # --- the sink (the daemon's dispatcher, or the service's thread when standalone) -----------------
+    # --- the sink (the daemon's dispatcher, after the holder) ---------------------------------------
     def emit(self, event: TwinEvent) -> None:
         try:
             with self._lock:
                 if isinstance(event, TwinStarted):
                     self._started(event)
                 elif isinstance(event, MapPublished):
-                    if self._own_maps:
-                        self.maps.publish(event)
                     self._publish(event.grid.storey, event.grid.skill)
                 elif isinstance(event, MapUpdated):
-                    if self._own_maps and not self.maps.update(event):
-                        return
                     self._update(event)
-                elif isinstance(event, MapRemoved) and self._own_maps:
-                    self.maps.remove((event.storey, event.skill))
-                elif isinstance(event, RobotStoreyChanged) and self.request is not None:
+                elif isinstance(event, RobotStoreyChanged):
                     self._apply(event.robot, event.storey)  # the writer decided: republish
         except Exception:  # a ROS layout must never stop the twin
             log.exception("Publishing %s to ROS 2 robots failed", type(event).__name__)
@@ -430,68 +432,27 @@ class RosMapPublisher:
             raise StoreySwitchError(msg)
         return r
 
-    def switch(self, robot: str, storey: str, *, source: Source = "zenoh") -> RobotStoreyChanged | None:
-        """Put ``robot`` on ``storey`` here, without the writer (a standalone publisher): every topic of
-        the robot republishes that storey's maps, latched. Returns the event (also emitted to the sinks),
-        or None when the robot was already there. Raises StoreySwitchError, changing nothing, for an
-        unknown robot or storey. In the daemon, switches go through the writer (:meth:`ask`)."""
-        with self._lock:
-            r = self._robot(robot)
-            try:
-                if self._storeys is None:
-                    msg = f"Cannot put robot {robot!r} on storey {storey!r}: the twin has not started yet."
-                    raise StoreySwitchError(msg)
-                if storey not in self._storeys:
-                    msg = (
-                        f"Unknown storey {storey!r} for robot {robot!r}: the twin's storeys are "
-                        f"{', '.join(self._storeys) or 'none'}."
-                    )
-                    raise StoreySwitchError(msg)
-            except StoreySwitchError as err:
-                r.refused = str(err)
-                raise
-            changed, previous = self._apply(robot, storey)
-            if not changed:
-                return None
-            event = RobotStoreyChanged(robot, storey, previous, source, self.revision(), self.clock())
-        for sink in list(self.sinks):
-            if sink is self:
-                continue
-            try:
-                sink.emit(event)
-            except Exception:  # a sink must never stop the switch
-                log.exception("Sink %s failed on %s", type(sink).__name__, type(event).__name__)
-        return event
-
     def ask(self, robot: str, storey: str, *, source: Source, reply: Callable[[Reply], None]) -> None:
-        """Ask for ``robot`` on ``storey``: through the writer when there is one (``reply`` gets its
-        answer, on the writer's thread), else at once by :meth:`switch`."""
-        if self.request is not None:
+        """Ask the writer for ``robot`` on ``storey`` (the one way a storey switch happens); ``reply``
+        gets its answer on the writer's thread, and a refusal is kept for the status."""
 
-            def answered(answer: Reply) -> None:
-                if not answer.ok:
-                    with self._lock:
-                        known = self._robots.get(robot)
-                        if known is not None:
-                            known.refused = str(answer.body.get("error", ""))
-                reply(answer)
+        def answered(answer: Reply) -> None:
+            if not answer.ok:
+                with self._lock:
+                    known = self._robots.get(robot)
+                    if known is not None:
+                        known.refused = str(answer.body.get("error", ""))
+            reply(answer)
 
-            self.request(robot, storey, source=source, reply=answered)
-            return
-        try:
-            self.switch(robot, storey, source=source)
-        except TwinError as err:
-            reply(Reply.error(str(err)))
-            return
-        reply(Reply(True, {"ok": True, "robot": robot, "storey": storey}))
+        self.request(robot, storey, source=source, reply=answered)
 
-    def _apply(self, robot: str, storey: str) -> tuple[bool, str | None]:
-        """Republish every topic of ``robot`` with ``storey``'s maps; returns whether it moved (False:
-        it was there already, nothing sent) and the storey it was on."""
+    def _apply(self, robot: str, storey: str) -> None:
+        """The writer put ``robot`` on ``storey``: republish every topic of the robot with that storey's
+        maps (nothing when it is there already)."""
         with self._lock:
             r = self._robots.get(robot)
             if r is None or r.storey == storey:
-                return False, storey
+                return
             previous, r.storey = r.storey, storey
             stamp = self.clock()
             r.switches += 1
@@ -505,7 +466,6 @@ class RosMapPublisher:
                 self._send_full(r, t)
         log.info("Robot %s is now on storey %s (was %s): %d topic(s) republished",
                  robot, storey, previous, len(r.topics))  # fmt: skip
-        return True, previous
 
     def _ros_storey_handler(self, robot: str) -> Callable[[zenoh.Sample], None]:
         def on_sample(sample: zenoh.Sample) -> None:
@@ -607,8 +567,6 @@ class RosMapPublisher:
                 entity.undeclare()
             except Exception:
                 log.debug("undeclare failed", exc_info=True)
-        if self._own_maps:
-            self.maps.clear()
 
 
 def _updates_publisher(session: zenoh.Session, key: str) -> zenoh.Publisher:

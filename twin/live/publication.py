@@ -55,6 +55,9 @@ class Publication:
         self.clock = clock
         self.keyframe_ns = int(keyframe_s * 1e9)
         self.latest: dict[MapKey, PublishedVersion] = {}
+        """Each map's latest *full publication* (frame, revision, version, stamp; no cells): what decides
+        a keyframe. Not the map's latest version: the live map holds the cells, and the one holder of
+        each map's latest version as sent (updates applied) is the Zenoh adapter's ``LatestMaps``."""
         self.pending: dict[MapKey, int] = {}
         """Maps changed since their last full publication -> when the first such change happened (ns)."""
 

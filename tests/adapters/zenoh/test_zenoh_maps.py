@@ -1,5 +1,6 @@
 """Map publication on Zenoh in process: a real :class:`~adapters.zenoh.ros_maps.RosMapPublisher` on one
-session (a sink fed the twin's events by hand), robots as sessions of their own on loopback.
+session, fed the twin's events by hand as the daemon's dispatcher feeds it (its holder,
+:class:`~adapters.zenoh.latest.LatestMaps`, first), robots as sessions of their own on loopback.
 
 What a late joiner gets (the current map, updates applied, once), what a robot topic's ``full_every_s``
 policy sends, and that a robot whose sends are stuck holds only its own lane."""
@@ -20,12 +21,14 @@ import zenoh.ext
 from adapters.ros import decode_occupancy_grid, decode_occupancy_grid_update
 from adapters.ros.cdr import OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE
 from adapters.ros.rmw_zenoh import RosTopic
+from adapters.zenoh.latest import LatestMaps
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import client_config, session_config
 from adapters.zenoh.settings import ZenohSettings
 from tests.integration.conftest import free_port
 from twin.config import Config, load_config
-from twin.live.events import MapPublished, MapUpdated, TwinStarted
+from twin.live.events import MapPublished, MapUpdated, RobotStoreyChanged, TwinEvent, TwinStarted
+from twin.live.requests import Reply, ReplyFn
 from twin.maps.grid import GridFrame, OccupancyGrid, Window
 
 ROBOTS = """
@@ -50,6 +53,11 @@ def until(predicate: Callable[[], bool], timeout_s: float = 10.0) -> None:
         time.sleep(0.01)
 
 
+def no_writer(robot: str, storey: str, *, source: str, reply: ReplyFn) -> None:
+    """These tests feed the writer's decisions by hand (``RobotStoreyChanged``) and ask it nothing."""
+    reply(Reply.error(f"No writer in this test to put {robot!r} on {storey!r} ({source})."))
+
+
 class Served:
     """The publisher, its session's endpoint, and the maps as the twin has them."""
 
@@ -58,8 +66,9 @@ class Served:
         self.session = zenoh.open(
             session_config(ZenohSettings(), mode="peer", listen=[self.endpoint], connect=[])
         )
-        self.ros = RosMapPublisher(self.session, config)
-        self.ros.emit(TwinStarted("lab", 0, 1, STOREYS, (), {}))
+        self.latest = LatestMaps(frame_id=config.frame_id, timestamp=self.session.new_timestamp)
+        self.ros = RosMapPublisher(self.session, config, maps=self.latest, request=no_writer)
+        self.emit(TwinStarted("lab", 0, 1, STOREYS, (), {}))
         rng = np.random.default_rng(3)
         self.maps: dict[tuple[str, str], np.ndarray] = {}
         self.versions: dict[tuple[str, str], int] = {}
@@ -68,7 +77,15 @@ class Served:
                 data = rng.choice(np.array([0, 100, -1], np.int8), size=FRAME.shape)
                 self.maps[(storey, skill)] = data
                 self.versions[(storey, skill)] = 1
-                self.ros.emit(MapPublished(OccupancyGrid(FRAME, data.copy(), storey, skill), 0, 1, 10))
+                self.emit(MapPublished(OccupancyGrid(FRAME, data.copy(), storey, skill), 0, 1, 10))
+
+    def emit(self, event: TwinEvent) -> None:
+        """What the daemon's dispatcher does with the writer's event: the holder first, then the sends."""
+        if isinstance(event, MapPublished):
+            self.latest.publish(event)
+        elif isinstance(event, MapUpdated) and not self.latest.update(event):
+            return
+        self.ros.emit(event)
 
     def change(self, storey: str, skill: str, row: int, col: int, value: int) -> None:
         key = (storey, skill)
@@ -76,7 +93,7 @@ class Served:
         self.versions[key] += 1
         window = Window(row, col, row + 3, col + 4)
         cells = self.maps[key][row : row + 3, col : col + 4].copy()
-        self.ros.emit(MapUpdated(storey, skill, FRAME, window, cells, 1, self.versions[key], time.time_ns()))
+        self.emit(MapUpdated(storey, skill, FRAME, window, cells, 1, self.versions[key], time.time_ns()))
 
     def close(self) -> None:
         self.ros.close()
@@ -215,7 +232,7 @@ def test_a_storey_switch_sends_the_new_floors_current_map_and_a_late_joiner_gets
     try:
         until(lambda: early.maps == 1)
         served.change("first-floor", "navigation", 30, 30, 100)  # updates of a floor robot2 is not on
-        served.ros.switch("robot2", "first-floor")
+        served.emit(RobotStoreyChanged("robot2", "first-floor", "ground-floor", "zenoh", 1, time.time_ns()))
         until(lambda: early.maps == 2)
         late = Follower(served.endpoint, "/robot2", "navigation_map", "rmw_zenoh")
         until(lambda: late.maps >= 1)

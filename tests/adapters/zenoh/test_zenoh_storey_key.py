@@ -1,56 +1,32 @@
-"""The robot storey key (``twin/<site>/robots/<robot>/storey``) with hostile payloads, in process: a real
-:class:`~adapters.zenoh.ros_maps.RosMapPublisher` on one Zenoh session, a robot's session beside it."""
+"""The robot storey key (``twin/<site>/robots/<robot>/storey``) with hostile payloads, in process: the
+daemon's live path as ``serve`` composes it (:mod:`tests.adapters.served_twin`: a real writer decides
+every switch), a robot's session beside it."""
 
 from __future__ import annotations
 
 import logging
 import time
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 import zenoh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.ros_maps import RosMapPublisher
-from adapters.zenoh.session import client_config, session_config
-from adapters.zenoh.settings import ZenohSettings
+from adapters.zenoh.session import client_config
+from tests.adapters.served_twin import KEYS, robots_config, served_twin
 from tests.conftest import examples
-from tests.integration.conftest import free_port
-from twin.config import Config, load_config
-from twin.live.events import TwinStarted
-
-KEYS = SiteKeys("twin/lab")
-ROBOTS = """
-[robots.robot1]
-namespace = "/robot1"
-storey = "ground-floor"
-"""
 
 
 @pytest.fixture(scope="module")
-def robots_config(tmp_path_factory: pytest.TempPathFactory) -> Config:
-    path = tmp_path_factory.mktemp("storey") / "robots.toml"
-    path.write_text(ROBOTS)
-    return load_config(Path(path))
-
-
-@pytest.fixture(scope="module")
-def served(robots_config: Config) -> Iterator[tuple[zenoh.Session, RosMapPublisher]]:
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    daemon = zenoh.open(session_config(ZenohSettings(), mode="peer", listen=[endpoint], connect=[]))
-    ros = RosMapPublisher(daemon, robots_config, keys=KEYS)
-    storeys = (("ground-floor", "Ground floor", 0.0), ("first-floor", "First floor", 3.0))
-    ros.emit(TwinStarted("lab", 0, 1, storeys, (), {}))
-    robot = zenoh.open(client_config([endpoint]))
-    try:
-        yield robot, ros
-    finally:
-        robot.close()
-        ros.close()
-        daemon.close()
+def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[zenoh.Session, RosMapPublisher]]:
+    with served_twin(robots_config(tmp_path_factory.mktemp("storey"))) as twin:
+        robot = zenoh.open(client_config([twin.endpoint]))
+        try:
+            yield robot, twin.ros
+        finally:
+            robot.close()
 
 
 def _get(session: zenoh.Session, payload: bytes | None) -> list[tuple[bool, bytes]]:
