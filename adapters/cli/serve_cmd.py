@@ -174,10 +174,12 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
                 daemon.status_sources.append(ingest.status)
                 service.sinks.append(ingest)  # storeys, doors and occluding maps: cheap, on the writer
             service.sinks += [sink for sink in (daemon, recorder) if sink is not None]
-            points = ZenohPoints(session, prefix=keys.prefix, frame_id=cfg.frame_id)  # points skills' clouds
+            points = ZenohPoints(  # points skills' clouds, from the daemon's holder, on the site's lane
+                session, prefix=keys.prefix, frame_id=cfg.frame_id, maps=daemon.maps, lane=daemon.site
+            )
             daemon.followers.append(points)  # on the dispatcher, off the writer
             if any(s.kind == "points" for s in cfg.skills.values()) and cfg.robots:  # /<ns>/points_map
-                daemon.followers.append(RosPointsPublisher(session, cfg))
+                daemon.followers.append(RosPointsPublisher(session, cfg, maps=daemon.maps))
             t0 = time.perf_counter()
             source = store_label(args, cfg)
             print(f"loading site {cfg.site!r} from {source} ...", file=sys.stderr, flush=True)

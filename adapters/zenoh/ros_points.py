@@ -8,12 +8,14 @@ AdvancedPublisher with a cache of one) and ``rmw_zenoh`` (rmw_zenoh_cpp's data k
 the 33-byte attachment on every sample, liveliness tokens of node ``<ns>/twin_points_server`` and of
 its publishers). When the robot switches storey (a :class:`~twin.live.events.RobotStoreyChanged` from the
 map publisher), the new storey's cloud is published. PointCloud2 has no update message: the twin
-publishes a changed cloud whole, at most once a second. Each cloud is encoded once per version.
+publishes a changed cloud whole, at most once a second. Each cloud is encoded once per version, by
+:class:`~adapters.zenoh.latest.LatestMaps` (in the daemon its one holder, ``daemon.maps``, brought up to
+date before this sink is called; standalone, a holder of its own).
 
 Example::
 
-    ros_points = RosPointsPublisher(session, config)
-    service.sinks.append(OutboxSink(ros_points, daemon.outbox))    # encoded off the writer's thread
+    ros_points = RosPointsPublisher(session, config, maps=daemon.maps)
+    daemon.followers.append(ros_points)    # on the daemon's dispatcher, off the writer's thread
 """
 
 from __future__ import annotations
@@ -24,9 +26,10 @@ from typing import Any
 
 import zenoh
 
-from adapters.ros.pcd import POINT_CLOUD2, encode_point_cloud2
+from adapters.ros.pcd import POINT_CLOUD2
 from adapters.ros.rmw_zenoh import LATCHED_QOS, RosNode, RosTopic, attachment, gid_of
 from adapters.zenoh.latched import declare_latched_publisher
+from adapters.zenoh.latest import LatestMaps
 from twin.config import Config
 from twin.live.events import MapRemoved, PointsPublished, RobotStoreyChanged, TwinEvent
 
@@ -70,10 +73,13 @@ class _Robot:
 class RosPointsPublisher:
     """Publishes the points skills' clouds to the configured robots. Call :meth:`emit` from one thread."""
 
-    def __init__(self, session: zenoh.Session, config: Config) -> None:
+    def __init__(self, session: zenoh.Session, config: Config, *, maps: LatestMaps | None = None) -> None:
         self.frame_id = config.frame_id
         skills = sorted(name for name, s in config.skills.items() if s.kind == "points")
-        self._latest: dict[tuple[str, str], tuple[bytes, int]] = {}
+        self._own_maps = maps is None
+        self.maps = (
+            maps if maps is not None else LatestMaps(frame_id=self.frame_id, timestamp=session.new_timestamp)
+        )
         self._robots: dict[str, _Robot] = {}
         zid = str(session.zid())
         entity = _ENTITY_BASE
@@ -109,8 +115,8 @@ class RosPointsPublisher:
     def emit(self, event: TwinEvent) -> None:
         if isinstance(event, PointsPublished):
             cloud = event.cloud
-            payload = encode_point_cloud2(cloud, stamp_ns=event.stamp_ns, frame_id=self.frame_id)
-            self._latest[(cloud.storey, cloud.skill)] = (payload, event.stamp_ns)
+            if self._own_maps:
+                self.maps.publish_points(event)
             for r in self._robots.values():
                 if r.storey == cloud.storey:
                     self._send(r, cloud.skill)
@@ -120,16 +126,15 @@ class RosPointsPublisher:
                 robot.storey = event.storey
                 for skill in robot.topics:
                     self._send(robot, skill)
-        elif isinstance(event, MapRemoved):
-            self._latest.pop((event.storey, event.skill), None)
+        elif isinstance(event, MapRemoved) and self._own_maps:
+            self.maps.remove((event.storey, event.skill))
 
     def _send(self, r: _Robot, skill: str) -> None:
-        latest = self._latest.get((r.storey or "", skill))
-        if latest is None:
+        now = self.maps.cloud((r.storey or "", skill))
+        if now is None:
             return
-        payload, stamp_ns = latest
         for pub in r.topics.get(skill, []):
-            pub.put(payload, stamp_ns)
+            pub.put(now.payload, now.stamp_ns)
 
     def close(self) -> None:
         for r in self._robots.values():

@@ -1,0 +1,131 @@
+"""Points maps on Zenoh in process: a real :class:`~adapters.zenoh.points.ZenohPoints` and
+:class:`~adapters.zenoh.ros_points.RosPointsPublisher` on one session, reading one
+:class:`~adapters.zenoh.latest.LatestMaps` (fed the twin's events by hand, as the daemon's dispatcher
+does), and a robot as a session of its own on loopback: a ``get`` answers the latest cloud, as for the
+2D maps, and rclpy decodes the robot's ``points_map`` to the same points."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import zenoh
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import PointCloud2 as RosPointCloud2
+
+from adapters.ros.pcd import POINT_CLOUD2, decode_point_cloud2
+from adapters.ros.rmw_zenoh import RosTopic
+from adapters.zenoh.latched import declare_latched_subscriber
+from adapters.zenoh.latest import LatestMaps
+from adapters.zenoh.points import ZenohPoints
+from adapters.zenoh.ros_points import RosPointsPublisher
+from adapters.zenoh.session import client_config, session_config
+from adapters.zenoh.settings import ZenohSettings
+from tests.integration.conftest import free_port
+from twin.config import load_config
+from twin.live.events import MapRemoved, PointsPublished
+from twin.maps.grid import GridFrame
+from twin.maps.points import PointCloud
+
+PREFIX = "twin/lab"
+SITE = """
+[skills.lidar3d]
+kind = "points"
+[robots.robot1]
+namespace = "/robot1"
+storey = "ground-floor"
+ros = ["rmw_zenoh"]
+"""
+
+
+def cloud(storey: str, n: int, seed: int) -> PointCloud:
+    xyz = np.round(np.random.default_rng(seed).uniform(0, 20, size=(n, 3)), 3)
+    return PointCloud(storey, "lidar3d", 0.0, 0.1, GridFrame(0.0, 0.0, 0.1, 200, 200), np.arange(n), xyz)
+
+
+def until(predicate: Callable[[], bool], timeout_s: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.01)
+
+
+def test_a_get_answers_each_storeys_latest_cloud_and_rclpy_reads_the_robots_topic_as_the_same_points(
+    tmp_path: Path,
+) -> None:
+    (tmp_path / "site.toml").write_text(SITE)
+    config = load_config(tmp_path / "site.toml")
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    session = zenoh.open(session_config(ZenohSettings(), mode="peer", listen=[endpoint], connect=[]))
+    holder = LatestMaps(frame_id="map", timestamp=session.new_timestamp)
+    points = ZenohPoints(session, prefix=PREFIX, frame_id="map", maps=holder)
+    ros = RosPointsPublisher(session, config, maps=holder)
+    robot = zenoh.open(client_config([endpoint]))
+    try:
+
+        def emit(event: PointsPublished | MapRemoved) -> None:  # as the daemon's dispatcher: holder first
+            if isinstance(event, PointsPublished):
+                holder.publish_points(event)
+            else:
+                holder.remove((event.storey, event.skill))
+            points.emit(event)
+            ros.emit(event)
+            points.drain()
+
+        ground1, ground2, first = (
+            cloud("ground-floor", 500, 1),
+            cloud("ground-floor", 480, 2),
+            cloud("first-floor", 300, 3),
+        )
+        emit(PointsPublished(ground1, 3, 1, 100))
+        emit(PointsPublished(first, 3, 1, 100))
+        emit(PointsPublished(ground2, 5, 2, 200))  # the newer version replaces the first
+
+        def get(selector: str) -> dict[str, tuple[np.ndarray, dict[str, int]]]:
+            out = {}
+            for reply in robot.get(selector, timeout=5.0):
+                assert reply.ok is not None
+                s = reply.ok
+                out[str(s.key_expr)] = (
+                    decode_point_cloud2(s.payload.to_bytes())[0],
+                    json.loads(s.attachment.to_bytes()),
+                )
+            return out
+
+        until(lambda: bool(get(f"{PREFIX}/points/**")))
+        got = get(f"{PREFIX}/points/**")
+        assert set(got) == {f"{PREFIX}/points/ground-floor/lidar3d", f"{PREFIX}/points/first-floor/lidar3d"}
+        xyz, meta = got[f"{PREFIX}/points/ground-floor/lidar3d"]
+        np.testing.assert_array_equal(xyz, ground2.xyz.astype(np.float32))
+        assert meta == {"revision": 5, "version": 2}
+        only = get(f"{PREFIX}/points/first-floor/*")  # a get names what it asks for
+        assert list(only) == [f"{PREFIX}/points/first-floor/lidar3d"]
+        np.testing.assert_array_equal(
+            only[f"{PREFIX}/points/first-floor/lidar3d"][0], first.xyz.astype(np.float32)
+        )
+
+        topic = RosTopic(0, "/robot1", "points_map", POINT_CLOUD2)  # a late joiner, as rmw_zenoh's
+        ros_got: list[np.ndarray] = []
+        lock = threading.Lock()
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            msg = deserialize_message(sample.payload.to_bytes(), RosPointCloud2)
+            with lock:
+                ros_got.append(np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 3).copy())
+
+        sub = declare_latched_subscriber(robot, topic.data_key, on_sample)
+        until(lambda: bool(ros_got))
+        sub.undeclare()
+        np.testing.assert_array_equal(ros_got[-1], xyz)  # rclpy: the same points as the get
+
+        emit(MapRemoved("ground-floor", "lidar3d", 6, 300))  # a removed skill's cloud: no longer answered
+        assert set(get(f"{PREFIX}/points/**")) == {f"{PREFIX}/points/first-floor/lidar3d"}
+    finally:
+        robot.close()
+        points.close()
+        ros.close()
+        session.close()
