@@ -159,6 +159,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         daemon: ZenohDaemon | None = None
         ros: RosMapPublisher | None = None
         ingest: RosIngest | None = None
+        ros_points: RosPointsPublisher | None = None
         try:
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=cfg.frame_id)
             if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
@@ -179,7 +180,8 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             )
             daemon.followers.append(points)  # on the dispatcher, off the writer
             if any(s.kind == "points" for s in cfg.skills.values()) and cfg.robots:  # /<ns>/points_map
-                daemon.followers.append(RosPointsPublisher(session, cfg, maps=daemon.maps))
+                ros_points = RosPointsPublisher(session, cfg, maps=daemon.maps)
+                daemon.followers.append(ros_points)  # a lane per robot
             t0 = time.perf_counter()
             source = store_label(args, cfg)
             print(f"loading site {cfg.site!r} from {source} ...", file=sys.stderr, flush=True)
@@ -206,7 +208,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             service.serve_forever(stop)
         finally:
             t1 = time.perf_counter()
-            for closable in (ingest, daemon, ros):
+            for closable in (ingest, daemon, ros, ros_points):
                 if closable is not None:
                     closable.close()
             session.close()

@@ -2,8 +2,8 @@
 
 A :class:`~twin.live.events.TwinSink` for :class:`~twin.live.events.PointsPublished`: the payload is the CDR
 ``sensor_msgs/msg/PointCloud2`` (x y z float32 in the map frame, ``frame_id`` from ``[ros] frame_id``)
-from an AdvancedPublisher with a cache of one and publisher detection (late joiners get the latest
-cloud, as with the 2D maps' ``map/`` keys); each sample carries the attachment
+from a :class:`~adapters.zenoh.latched.LatchedPublisher` (late joiners get the latest cloud, as with the
+2D maps' ``map/`` keys); each sample carries the attachment
 ``{"revision": R, "version": V}``. A queryable on ``<prefix>/points/**`` answers a ``get`` with the
 latest cloud of every points map the key expression names (to the asker alone, same attachment), as
 ``map/**`` answers with the 2D maps. The twin publishes a changed cloud whole, at most once a second
@@ -22,13 +22,12 @@ Example::
 from __future__ import annotations
 
 import logging
-from typing import Any
 
 import zenoh
 
 from adapters.zenoh.daemon import revision_attachment
 from adapters.zenoh.keys import SiteKeys
-from adapters.zenoh.latched import CDR, Lane, declare_latched_publisher
+from adapters.zenoh.latched import CDR, Answer, Lane, LatchedPublisher
 from adapters.zenoh.latest import Current, LatestMaps
 from adapters.zenoh.outbox import Outbox
 from twin.live.events import MapRemoved, PointsPublished, TwinEvent
@@ -71,7 +70,7 @@ class ZenohPoints:
         if lane is None:
             lane = self._own_lane = Outbox("twin-zenoh-points")
         self.lane = lane
-        self._out: dict[tuple[str, str], Any] = {}
+        self._out: dict[tuple[str, str], LatchedPublisher] = {}
         self._queryable = session.declare_queryable(self.keys.points, self._on_get)
 
     def emit(self, event: TwinEvent) -> None:
@@ -92,9 +91,17 @@ class ZenohPoints:
             return
         out = self._out.get(key)
         if out is None:
-            out = self._out[key] = declare_latched_publisher(self.session, self.keys.points_map(*key))
+            name = self.keys.points_map(*key)
+            out = self._out[key] = LatchedPublisher(
+                self.session, name, answer=lambda: self._answer(key), lane=self.lane
+            )
         out.put(now.payload, attachment=_attachment(now), timestamp=now.timestamp)
         log.debug("Published the cloud %s/%s (version %d)", *key, now.version)
+
+    def _answer(self, key: tuple[str, str]) -> Answer | None:
+        """A late joiner's cloud of ``key``: the latest one (on the lane)."""
+        now = self.maps.cloud(key)
+        return None if now is None else (now.payload, _attachment(now), now.timestamp)
 
     def _remove(self, key: tuple[str, str]) -> None:
         out = self._out.pop(key, None)

@@ -1,8 +1,9 @@
 """Points maps on Zenoh in process: a real :class:`~adapters.zenoh.points.ZenohPoints` and
 :class:`~adapters.zenoh.ros_points.RosPointsPublisher` on one session, reading one
 :class:`~adapters.zenoh.latest.LatestMaps` (fed the twin's events by hand, as the daemon's dispatcher
-does), and a robot as a session of its own on loopback: a ``get`` answers the latest cloud, as for the
-2D maps, and rclpy decodes the robot's ``points_map`` to the same points."""
+does), and a robot as a session of its own on loopback: a ``get`` answers the latest cloud, rclpy decodes
+the robot's ``points_map`` to the same points, and a late joiner of the robot's topic gets its current
+storey's cloud (nothing for a removed skill), all as for the 2D maps."""
 
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from adapters.zenoh.session import client_config, session_config
 from adapters.zenoh.settings import ZenohSettings
 from tests.integration.conftest import free_port
 from twin.config import load_config
-from twin.live.events import MapRemoved, PointsPublished
+from twin.live.events import MapRemoved, PointsPublished, RobotStoreyChanged
 from twin.maps.grid import GridFrame
 from twin.maps.points import PointCloud
 
@@ -67,10 +68,10 @@ def test_a_get_answers_each_storeys_latest_cloud_and_rclpy_reads_the_robots_topi
     robot = zenoh.open(client_config([endpoint]))
     try:
 
-        def emit(event: PointsPublished | MapRemoved) -> None:  # as the daemon's dispatcher: holder first
-            if isinstance(event, PointsPublished):
+        def emit(event: PointsPublished | MapRemoved | RobotStoreyChanged) -> None:  # as the dispatcher
+            if isinstance(event, PointsPublished):  # the holder first
                 holder.publish_points(event)
-            else:
+            elif isinstance(event, MapRemoved):
                 holder.remove((event.storey, event.skill))
             points.emit(event)
             ros.emit(event)
@@ -108,22 +109,33 @@ def test_a_get_answers_each_storeys_latest_cloud_and_rclpy_reads_the_robots_topi
             only[f"{PREFIX}/points/first-floor/lidar3d"][0], first.xyz.astype(np.float32)
         )
 
-        topic = RosTopic(0, "/robot1", "points_map", POINT_CLOUD2)  # a late joiner, as rmw_zenoh's
-        ros_got: list[np.ndarray] = []
-        lock = threading.Lock()
+        topic = RosTopic(0, "/robot1", "points_map", POINT_CLOUD2)
 
-        def on_sample(sample: zenoh.Sample) -> None:
-            msg = deserialize_message(sample.payload.to_bytes(), RosPointCloud2)
-            with lock:
-                ros_got.append(np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 3).copy())
+        def late_joiner(wait_s: float = 10.0) -> np.ndarray | None:
+            """What a new rmw_zenoh subscription of /robot1/points_map gets, decoded by rclpy."""
+            got: list[np.ndarray] = []
+            lock = threading.Lock()
 
-        sub = declare_latched_subscriber(robot, topic.data_key, on_sample)
-        until(lambda: bool(ros_got))
-        sub.undeclare()
-        np.testing.assert_array_equal(ros_got[-1], xyz)  # rclpy: the same points as the get
+            def on_sample(sample: zenoh.Sample) -> None:
+                msg = deserialize_message(sample.payload.to_bytes(), RosPointCloud2)
+                with lock:
+                    got.append(np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 3).copy())
 
-        emit(MapRemoved("ground-floor", "lidar3d", 6, 300))  # a removed skill's cloud: no longer answered
-        assert set(get(f"{PREFIX}/points/**")) == {f"{PREFIX}/points/first-floor/lidar3d"}
+            sub = declare_latched_subscriber(robot, topic.data_key, on_sample)
+            deadline = time.monotonic() + wait_s
+            while not got and time.monotonic() < deadline:
+                time.sleep(0.01)
+            sub.undeclare()
+            return got[-1] if got else None
+
+        np.testing.assert_array_equal(late_joiner(), xyz)  # rclpy: the same points as the get
+        emit(RobotStoreyChanged("robot1", "first-floor", "ground-floor", "zenoh", 5, 250))
+        ros.drain()
+        np.testing.assert_array_equal(late_joiner(), first.xyz.astype(np.float32))  # the robot's storey's
+
+        emit(MapRemoved("first-floor", "lidar3d", 6, 300))  # a removed skill's cloud: no longer answered
+        assert set(get(f"{PREFIX}/points/**")) == {f"{PREFIX}/points/ground-floor/lidar3d"}
+        assert late_joiner(wait_s=1.0) is None  # nor to a late joiner of the robot's topic
     finally:
         robot.close()
         points.close()
