@@ -107,7 +107,7 @@ class ZenohPoints:
         out = self._out.pop(key, None)
         if out is not None:
             try:
-                out.delete()  # late joiners no longer get the removed skill's cloud
+                out.delete()  # subscribers see the cloud go, as a removed map
             finally:
                 out.undeclare()
 
