@@ -10,7 +10,7 @@ import threading
 from typing import Any
 
 from adapters.cli.common import key_prefix, zenoh_of
-from adapters.zenoh.access import access_control, ros_map_keys, site_access_control
+from adapters.zenoh.access import access_control, ros_map_keys, ros_points_keys, site_access_control
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.router import MapStorage, open_router
 from twin.config import Config
@@ -24,7 +24,7 @@ def cmd_acl(args: argparse.Namespace, cfg: Config) -> int:
         sorted(cfg.robots),
         identity=identity,
         operators=zenoh_of(cfg).access.operators,
-        ros_keys=ros_map_keys(cfg.robots.values()),
+        ros_keys=ros_map_keys(cfg.robots.values()) + ros_points_keys(cfg),
     )
     json.dump({"access_control": acl}, sys.stdout, indent=2)
     print()

@@ -159,6 +159,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         daemon: ZenohDaemon | None = None
         ros: RosMapPublisher | None = None
         ingest: RosIngest | None = None
+        ros_points: RosPointsPublisher | None = None
         try:
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=cfg.frame_id)
             if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
@@ -169,10 +170,13 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
                 daemon.status_sources.append(ingest.status)
                 service.sinks.append(ingest)  # storeys, doors and occluding maps: cheap, on the writer
             service.sinks += [sink for sink in (daemon, recorder) if sink is not None]
-            points = ZenohPoints(session, prefix=keys.prefix, frame_id=cfg.frame_id)  # points skills' clouds
+            points = ZenohPoints(  # points skills' clouds, from the daemon's holder, on the site's lane
+                session, prefix=keys.prefix, frame_id=cfg.frame_id, maps=daemon.maps, lane=daemon.site
+            )
             daemon.followers.append(points)  # on the dispatcher, off the writer
             if any(s.kind == "points" for s in cfg.skills.values()) and cfg.robots:  # /<ns>/points_map
-                daemon.followers.append(RosPointsPublisher(session, cfg))
+                ros_points = RosPointsPublisher(session, cfg, maps=daemon.maps)
+                daemon.followers.append(ros_points)  # a lane per robot
             t0 = time.perf_counter()
             source = store_label(args, cfg)
             print(f"loading site {cfg.site!r} from {source} ...", file=sys.stderr, flush=True)
@@ -199,7 +203,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             service.serve_forever(stop)
         finally:
             t1 = time.perf_counter()
-            for closable in (ingest, daemon, ros):
+            for closable in (ingest, daemon, ros, ros_points):
                 if closable is not None:
                     closable.close()
             session.close()

@@ -15,8 +15,8 @@ never competes with the daemon's writer for the GIL. What is recorded (entity pa
 Timelines: ``revision`` (the twin revision the data reflects) and ``time`` (wall clock of the change).
 
 **Rotation** (``rotate_every_s``, ``max_bytes``): the recording continues in ``<name>-0001.rrd``,
-``-0002`` ... each starting with the building, every current map (all tiles) and what robots observed,
-at the current revision, so any file replays on its own.
+``-0002`` ... each starting with the building, every current map (all tiles), every points skill's
+current cloud and what robots observed, at the current revision, so any file replays on its own.
 """
 
 from __future__ import annotations
@@ -101,6 +101,8 @@ class RecordingWriter:
         self._maps: dict[tuple[str, str], MapTiles] = {}
         self._placed: dict[tuple[str, str], int] = {}
         """Per map, the last generation of tiles this file holds (kept on removal)."""
+        self._clouds: dict[tuple[str, str], rr.Points3D] = {}
+        """Per points map, its latest cloud as logged (what a new file starts with)."""
 
     # --- files -------------------------------------------------------------------------------------
     def _open(self, path: Path | None) -> rr.RecordingStream:
@@ -153,6 +155,8 @@ class RecordingWriter:
             tiles.place(self.stream)
             self._placed[key] = tiles.generation
             tiles.log(self.stream, tiles_of(tiles.frame.full))
+        for (storey, skill), cloud in self._clouds.items():
+            self.stream.log(f"points/{storey}/{skill}", cloud)
         for entity, (shape, colour, seen) in self._observed.items():
             self._shape(entity, shape, colour, static=False, seen=seen)
         self._text(f"recording continued from {previous.name} at revision {revision}", "INFO")
@@ -190,6 +194,7 @@ class RecordingWriter:
         elif isinstance(event, MapRemoved):
             self._time(event.revision, event.stamp_ns)
             self._maps.pop((event.storey, event.skill), None)
+            self._clouds.pop((event.storey, event.skill), None)
             self.stream.log(f"maps/{event.storey}/{event.skill}", rr.Clear(recursive=True))
             self.stream.log(f"points/{event.storey}/{event.skill}", rr.Clear(recursive=True))
             self._text(f"map {event.storey}/{event.skill} removed", "INFO")
@@ -217,9 +222,8 @@ class RecordingWriter:
         c = event.cloud
         xyz = c.xyz.astype(np.float32)
         xyz[:, 2] += np.float32(c.elevation_m)
-        self.stream.log(
-            f"points/{c.storey}/{c.skill}", rr.Points3D(xyz, radii=np.float32(c.resolution_m / 4))
-        )
+        cloud = self._clouds[(c.storey, c.skill)] = rr.Points3D(xyz, radii=np.float32(c.resolution_m / 4))
+        self.stream.log(f"points/{c.storey}/{c.skill}", cloud)
 
     def _text(self, text: str, level: str) -> None:
         self.stream.log("events", rr.TextLog(text, level=level))

@@ -5,12 +5,14 @@ name they authenticate with: their zenoh user name (``identity = "username"``, u
 authentication) or the common name of their TLS client certificate (``identity = "certificate"``,
 mutual TLS). A link that authenticates as nobody listed gets nothing (default deny).
 
-- every robot: read maps, map updates, status, SPARQL and the skill list, and the ROS 2 map topics
-  of the configured robots; put ``observations/<its name>``, query ``observe/<its name>``, put and
-  query ``robots/<its name>/storey`` and publish its own ROS ``/<ns>/storey`` topic, nothing else;
+- every robot: read maps, map updates, points skills' clouds, status, SPARQL and the skill list, and
+  the ROS 2 map and ``points_map`` topics of the configured robots; put ``observations/<its name>``,
+  query ``observe/<its name>``, put and query ``robots/<its name>/storey`` and publish its own ROS
+  ``/<ns>/storey`` topic, nothing else;
 - operators (``[zenoh.access] operators``): everything under the site's prefix (skills too), for
   people and for routers or daemons that relay;
-- nobody but the daemon publishes maps: a robot's put on ``map/**`` is dropped at the daemon.
+- nobody but the daemon publishes maps: a robot's put on ``map/**`` (or ``points/**``, or a robot's map
+  topics) is dropped at the daemon.
 
 Example::
 
@@ -27,6 +29,7 @@ from adapters.ros.rmw_zenoh import ADMIN_SPACE, RosTopic, resolve_name
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys, check_chunk
 from adapters.zenoh.ros_maps import STOREY_TOPIC
+from adapters.zenoh.ros_points import points_topic
 from adapters.zenoh.settings import Identity, ZenohSettings
 from twin.config import Config, RobotConfig, SourceConfig
 
@@ -57,6 +60,18 @@ def ros_map_keys(robots: Iterable[RobotConfig]) -> list[str]:
         for topic_name, _ in robot.maps:
             for name in (topic_name, f"{topic_name}_updates"):
                 keys += _ros_keys(robot, name)
+    return keys
+
+
+def ros_points_keys(cfg: Config) -> list[str]:
+    """The key expressions of the configured robots' ROS 2 ``points_map`` topics (one per points skill,
+    :mod:`adapters.zenoh.ros_points`), both layouts."""
+    skills = sorted(name for name, skill in cfg.skills.items() if skill.kind == "points")
+    keys: list[str] = []
+    for robot in cfg.robots.values():
+        if robot.namespace is not None:
+            for skill in skills:
+                keys += _ros_keys(robot, points_topic(skill, several=len(skills) > 1))
     return keys
 
 
@@ -123,7 +138,7 @@ def access_control(
     if not names and not ops:
         msg = "Access control needs at least one robot ([robots.NAME]) or operator to let in."
         raise TransportError(msg)
-    maps = _with_adv([keys.maps, keys.all_map_updates, *ros_keys])
+    maps = _with_adv([keys.maps, keys.all_map_updates, keys.points, *ros_keys])
     reads = [*maps, keys.status, keys.sparql, keys.explain, keys.skills_listing, keys.daemon]
     rules: list[dict[str, Any]] = [
         {"id": "read", "permission": "allow", "flows": ["ingress"], "messages": READ, "key_exprs": reads},
@@ -132,7 +147,7 @@ def access_control(
             "permission": "allow",
             "flows": ["ingress"],
             "messages": ["liveliness_token"],
-            "key_exprs": [*_with_adv([keys.maps, *ros_keys]), f"{ADMIN_SPACE}/**"],
+            "key_exprs": [*_with_adv([keys.maps, keys.points, *ros_keys]), f"{ADMIN_SPACE}/**"],
         },
         {
             "id": "ros-graph",
@@ -232,6 +247,6 @@ def site_access_control(cfg: Config, keys: SiteKeys, *, enforce: bool = False) -
         sorted([*cfg.robots, *cfg.sources]),
         identity=access.identity,
         operators=access.operators,
-        ros_keys=ros_map_keys(cfg.robots.values()) + ros_diagnostics_keys(cfg),
+        ros_keys=ros_map_keys(cfg.robots.values()) + ros_points_keys(cfg) + ros_diagnostics_keys(cfg),
         robot_keys=robot_keys,
     )

@@ -5,6 +5,7 @@ Example::
     with TwinClient.connect(["tcp/127.0.0.1:7447"], prefix="twin/lab") as twin:
         ack = twin.observe("robot1", turtle)              # {"ok": true, "revision": ..., "maps": [...]}
         grid, revision, version = twin.get_map("ground-floor", "navigation")
+        xyz, revision, version = twin.get_points("ground-floor", "lidar3d")   # a points skill's cloud
         with twin.watch("ground-floor", "navigation", on_version=print) as watcher:
             ...
         graph = twin.sparql("CONSTRUCT { ?s ?p ?o } WHERE { ?s a bot:Storey ; ?p ?o }")  # rdflib.Graph
@@ -21,10 +22,13 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import Any, Self
 
+import numpy as np
+import numpy.typing as npt
 import rdflib
 import zenoh
 
 from adapters.ros import apply_update, decode_occupancy_grid, decode_occupancy_grid_update
+from adapters.ros.pcd import decode_point_cloud2
 from adapters.zenoh.errors import DaemonTimeoutError, RemoteError, TransportError
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.latched import LatchedSubscription
@@ -427,6 +431,15 @@ class TwinClient:
         grid, _ = decode_occupancy_grid(sample.payload.to_bytes(), storey=storey, skill=skill)
         revision, version = _meta(sample)
         return grid, revision, version
+
+    def get_points(self, storey: str, skill: str) -> tuple[npt.NDArray[np.float32], int, int]:
+        """The current cloud of a points skill: ``(xyz, revision, version)``, xyz (n, 3) float32 in the
+        map frame."""
+        key = self.keys.points_map(storey, skill)
+        sample = self._get(key, what=f"the cloud {storey}/{skill}")[0]
+        xyz, _, _ = decode_point_cloud2(sample.payload.to_bytes())
+        revision, version = _meta(sample)
+        return xyz, revision, version
 
     def list_maps(self) -> list[tuple[str, str]]:
         """``(storey, skill)`` of every map the daemon serves."""

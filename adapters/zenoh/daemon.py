@@ -144,6 +144,8 @@ class ZenohDaemon:
         elif isinstance(event, MapRemoved):
             self.maps.remove((event.storey, event.skill))
             self.site.put(lambda: self._remove(event.storey, event.skill))
+        elif isinstance(event, PointsPublished):  # a cloud: held here, sent by its followers
+            self.maps.publish_points(event)
         for follower in self.followers:
             try:
                 follower.emit(event)

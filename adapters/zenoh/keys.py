@@ -39,6 +39,15 @@ class SiteKeys:
     def maps(self) -> str:
         return f"{self.prefix}/map/**"
 
+    def points_map(self, storey: str, skill: str) -> str:
+        """A points skill's cloud: ``points/<storey>/<skill>``."""
+        return f"{self.prefix}/points/{check_chunk(storey, 'Storey key')}/{check_chunk(skill, 'Skill name')}"
+
+    @property
+    def points(self) -> str:
+        """Every points skill's cloud (``points/**``)."""
+        return f"{self.prefix}/points/**"
+
     def observations(self, robot: str) -> str:
         return f"{self.prefix}/observations/{check_chunk(robot, 'Robot name')}"
 

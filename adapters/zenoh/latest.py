@@ -1,7 +1,11 @@
 """The one holder of each map's latest version on the Zenoh side (updates applied), for everything that
 answers with the current map: a ``get`` on ``map/<storey>/<skill>``, a late joiner's history query on
 any layout (:mod:`adapters.zenoh.latched`), a robot's storey switch and the full maps of a robot
-topic's ``full_every_s`` policy (:mod:`adapters.zenoh.ros_maps`).
+topic's ``full_every_s`` policy (:mod:`adapters.zenoh.ros_maps`). It holds the points skills' clouds
+too (:meth:`LatestMaps.publish_points`, :meth:`LatestMaps.cloud`), for a ``get`` on
+``points/<storey>/<skill>`` (:mod:`adapters.zenoh.points`) and a robot's ``points_map`` topics
+(:mod:`adapters.zenoh.ros_points`): a cloud has no updates, so each version is encoded once, when it
+arrives, and only its CDR is held.
 
 It is written on one thread (the daemon's dispatcher, off the writer's thread, in the order the writer
 emitted) and read from any thread under its lock. Each version's full CDR is encoded once, when first
@@ -15,6 +19,8 @@ Example::
     maps.publish(map_published_event)
     maps.update(map_updated_event)
     current = maps.current(("ground-floor", "navigation"))   # payload, revision, version, timestamp
+    maps.publish_points(points_published_event)
+    cloud = maps.cloud(("ground-floor", "lidar3d"))          # the same, a CDR PointCloud2
 """
 
 from __future__ import annotations
@@ -25,7 +31,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from adapters.ros import encode_occupancy_grid
-from twin.live.events import MapPublished, MapUpdated
+from adapters.ros.pcd import encode_point_cloud2
+from twin.live.events import MapPublished, MapUpdated, PointsPublished
 from twin.maps.grid import OccupancyGrid
 
 MapKey = tuple[str, str]
@@ -61,6 +68,7 @@ class LatestMaps:
         self.timestamp = timestamp
         self._lock = threading.Lock()
         self._maps: dict[MapKey, _Held] = {}
+        self._clouds: dict[MapKey, Current] = {}
 
     def publish(self, event: MapPublished) -> None:
         """A full version: replaces what is held (a copy of it)."""
@@ -83,9 +91,29 @@ class LatestMaps:
             held.timestamp, held.payload = ts, None
         return True
 
+    def publish_points(self, event: PointsPublished) -> None:
+        """A points map's new cloud: encoded once (CDR ``PointCloud2``), replaces what is held."""
+        c = event.cloud
+        payload = encode_point_cloud2(c, stamp_ns=event.stamp_ns, frame_id=self.frame_id)
+        now = Current(payload, event.revision, event.version, event.stamp_ns, self.timestamp())
+        with self._lock:
+            self._clouds[(c.storey, c.skill)] = now
+
+    def cloud(self, key: MapKey) -> Current | None:
+        """The latest cloud of points map ``key`` (its CDR ``PointCloud2``), or None when not held."""
+        with self._lock:
+            return self._clouds.get(key)
+
+    def clouds(self) -> list[MapKey]:
+        """The keys of the clouds held, sorted."""
+        with self._lock:
+            return sorted(self._clouds)
+
     def remove(self, key: MapKey) -> None:
+        """Forget map ``key`` (a grid or a cloud: a removed skill's)."""
         with self._lock:
             self._maps.pop(key, None)
+            self._clouds.pop(key, None)
 
     def __contains__(self, key: object) -> bool:
         with self._lock:
@@ -131,3 +159,4 @@ class LatestMaps:
     def clear(self) -> None:
         with self._lock:
             self._maps.clear()
+            self._clouds.clear()

@@ -9,11 +9,15 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 import zenoh
 
+from adapters.ros.pcd import POINT_CLOUD2, decode_point_cloud2
+from adapters.ros.rmw_zenoh import RosTopic
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import DaemonTimeoutError, TransportError
+from adapters.zenoh.latched import declare_latched_subscriber
 from adapters.zenoh.settings import AuthSettings, TlsSettings, ZenohSettings
 from tests.integration.certs import CertificateAuthority
 from tests.integration.conftest import Daemon, start_daemon
@@ -191,7 +195,14 @@ def tls_settings(
     return ZenohSettings(tls=TlsSettings(root_ca=root or ca.path, certificate=cert, private_key=key))
 
 
-def tls_daemon(store_dir: Path, root: Path, ca: CertificateAuthority, *, mutual: bool) -> Daemon:
+def tls_daemon(
+    store_dir: Path,
+    root: Path,
+    ca: CertificateAuthority,
+    *,
+    mutual: bool,
+    extra: str = "[robots.robot1]\n[robots.robot2]\n",
+) -> Daemon:
     import shutil
 
     shutil.copytree(store_dir, root / "store")
@@ -201,7 +212,7 @@ def tls_daemon(store_dir: Path, root: Path, ca: CertificateAuthority, *, mutual:
         f'private_key = "{ca.directory / "daemon.key"}"\nmutual = {json.dumps(mutual)}\n'
     )
     if mutual:
-        text += '[zenoh.access]\nenabled = true\nidentity = "certificate"\n[robots.robot1]\n[robots.robot2]\n'
+        text += '[zenoh.access]\nenabled = true\nidentity = "certificate"\n' + extra
     config.write_text(text)
     return start_daemon(root / "store", "--no-record", config=config, scheme="tls")
 
@@ -241,3 +252,100 @@ def test_with_mutual_tls_a_robot_is_its_certificate(
             TwinClient.connect([d.endpoint], settings=tls_settings(pki), mode="client")  # no certificate
     finally:
         stopped(d)
+
+
+# --- point clouds under the same rules as maps ---------------------------------------------------------
+CLOUD = "twin/lab/points/ground-floor/lidar3d"
+CLOUDS_SITE = """
+[skills.lidar3d]
+kind = "points"
+resolution_m = 0.25
+[robots.robot1]
+namespace = "/robot1"
+storey = "ground-floor"
+ros = ["bridge", "rmw_zenoh"]
+[robots.robot2]
+"""
+
+
+@pytest.fixture(scope="module")
+def clouds(
+    lab_store_dir: Path, pki: CertificateAuthority, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[Daemon]:
+    """The lab's daemon with mutual TLS and access control by certificate, a points skill and a ROS robot;
+    ``stranger`` holds a certificate of the same authority but is no robot of the site."""
+    pki.issue("stranger")
+    root = tmp_path_factory.mktemp("clouds")
+    d = tls_daemon(lab_store_dir, root, pki, mutual=True, extra=CLOUDS_SITE)
+    yield d
+    stopped(d)
+
+
+def as_certified(d: Daemon, ca: CertificateAuthority, name: str, timeout_s: float = 3.0) -> TwinClient:
+    return TwinClient.connect(
+        [d.endpoint], settings=tls_settings(ca, name), mode="client", timeout_s=timeout_s, prefix=LAB
+    )
+
+
+def _wait(got: list[bytes], n: int = 1, timeout_s: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while len(got) < n and time.monotonic() < deadline:
+        time.sleep(0.05)
+
+
+def test_a_robot_reads_the_clouds_as_it_reads_maps_and_a_stranger_reads_neither(
+    clouds: Daemon, pki: CertificateAuthority
+) -> None:
+    ros = RosTopic(0, "/robot1", "points_map", POINT_CLOUD2)
+    with as_certified(clouds, pki, "robot1") as robot1:
+        latched: dict[str, list[bytes]] = {CLOUD: [], ros.bridge_key: [], ros.data_key: []}
+        subs = [
+            declare_latched_subscriber(
+                robot1.session, key, lambda s, got=got: got.append(s.payload.to_bytes())
+            )
+            for key, got in latched.items()
+        ]
+        for got in latched.values():
+            _wait(got)
+        for s in subs:
+            s.undeclare()
+        xyz, revision, version = robot1.get_points("ground-floor", "lidar3d")  # a get, as for a map
+        assert len(xyz) > 1000 and version >= 1 and revision >= 0
+        for key, got in latched.items():  # late joiners on the native key and both ROS 2 layouts
+            assert got, f"robot1 got no cloud on {key}"
+            np.testing.assert_array_equal(decode_point_cloud2(got[0])[0], xyz)
+    with as_certified(clouds, pki, "stranger", timeout_s=1.5) as stranger:
+        for get in (lambda: stranger.get_map("ground-floor", "lab-navigation"),
+                    lambda: stranger.get_points("ground-floor", "lidar3d")):  # fmt: skip
+            with pytest.raises(DaemonTimeoutError):
+                get()
+        got: list[bytes] = []
+        sub = declare_latched_subscriber(stranger.session, CLOUD, lambda s: got.append(s.payload.to_bytes()))
+        time.sleep(1.0)  # robot1's arrived within a fraction of that
+        sub.undeclare()
+        assert not got
+
+
+def test_no_robot_publishes_a_cloud_on_the_sites_key_or_a_robots_points_map(
+    clouds: Daemon, pki: CertificateAuthority
+) -> None:
+    ros = RosTopic(0, "/robot1", "points_map", POINT_CLOUD2)
+    with as_certified(clouds, pki, "robot1") as robot1:
+        native, sub_native = _collect(robot1.session, CLOUD)
+        bridge, sub_bridge = _collect(robot1.session, ros.bridge_key)
+        with as_certified(clouds, pki, "robot2") as robot2:
+            time.sleep(0.3)
+            robot2.session.put(CLOUD, b"forged cloud")
+            robot2.session.put(ros.bridge_key, b"forged cloud")
+            time.sleep(0.5)
+        # the control: the daemon's own next cloud reaches robot1 on the same subscribers
+        door = robot1.sparql('SELECT ?door WHERE { ?door twin:ifcClass "IfcDoor" } LIMIT 1')
+        assert isinstance(door, dict)
+        iri = door["results"]["bindings"][0]["door"]["value"]
+        assert robot1.observe("robot1", f"<{iri}> <{TWIN}isOpen> true .")["ok"]
+        _wait(native)
+        _wait(bridge)
+        sub_native.undeclare()
+        sub_bridge.undeclare()
+        assert native and bridge, "the daemon's next cloud never arrived"
+        assert b"forged cloud" not in native + bridge

@@ -1,5 +1,6 @@
 """``twin serve`` with a points skill: each storey's cloud is latched on ``<prefix>/points/<storey>/<skill>``
-as a CDR PointCloud2, a door opened republishes the cloud without the door's voxels, and a ROS 2 robot
+as a CDR PointCloud2 (a ``get`` answers the latest), a door opened republishes the cloud without the door's
+voxels, and a ROS 2 robot
 gets its storey's cloud on ``/<ns>/points_map`` in both layouts, decoded by real rclpy (a real daemon
 process on loopback; the subscriber is this process's own Zenoh session)."""
 
@@ -79,6 +80,9 @@ def test_the_daemon_latches_each_storeys_cloud_and_republishes_it_when_a_door_op
             extent = changed[:, :2].max(axis=0) - changed[:, :2].min(axis=0)
             assert extent.max() < 1.6, extent  # a 0.9 m door, its frame, a voxel around it
             sub.undeclare()
+            xyz, revision, version = client.get_points("ground-floor", "lidar3d")  # a get: the latest cloud
+            assert (revision, version) == (meta2["revision"], 2)
+            np.testing.assert_array_equal(xyz, after)
     finally:
         d.process.terminate()
         d.process.wait(timeout=30)
@@ -131,6 +135,8 @@ def test_a_ros_robot_gets_its_storeys_cloud_on_points_map_in_both_layouts_and_th
             assert ground["rmw_zenoh"][1] == 33 and ground["bridge"][1] == 0  # rmw_zenoh's attachment
             np.testing.assert_array_equal(ground["bridge"][0], ground["rmw_zenoh"][0])
             assert len(ground["bridge"][0]) > 1000
+            xyz, _, _ = client.get_points("ground-floor", "lidar3d")  # the native get: the same points
+            np.testing.assert_array_equal(xyz, ground["rmw_zenoh"][0])
             assert client.robot_storey("robot1", "first-floor") == "first-floor"
             wait_for(2)
             first = got["bridge"][1][0]

@@ -363,3 +363,30 @@ def test_a_points_skills_cloud_is_recorded_per_storey_in_world_coordinates_at_ea
     got = np.array(positions[0], dtype=np.float32)
     np.testing.assert_array_equal(got[:, :2], first.xyz[:, :2].astype(np.float32))
     assert np.allclose(got[:, 2], first.xyz[:, 2] + first.elevation_m, atol=1e-5)
+
+
+def test_a_rotated_file_starts_with_every_points_skills_current_cloud(tmp_path: Path) -> None:
+    path = tmp_path / "points.rrd"
+    lidar = parse_skill(
+        "lidar3d", {"kind": "points", "resolution_m": 0.25, "exclude_types": ["IfcOpeningElement"]}
+    )
+    cfg = dataclasses.replace(load_config(), skills={"lidar3d": lidar})
+    recorder = RerunRecorder(path=path)
+    service, kept = started(config=cfg)
+    for event in kept.events:
+        recorder.emit(event)
+    service.sinks.append(recorder)
+    service.process()  # the first clouds, in the first file
+    first = service.engine.points.maps[("ground-floor", "lidar3d")].cloud()
+    recorder.wait_idle()
+    recorder.max_bytes = 1  # a new file before the next event
+    observe(service, "robot2", b"this is not turtle")  # an event that changes no cloud
+    recorder.close()
+    assert len(recorder.files) == 2
+    for f in recorder.files:  # each file alone holds the cloud, as the daemon served it
+        batches = chunks_by_entity(f)["/points/ground-floor/lidar3d"]
+        positions = [p for b in batches for p in column(b, "Points3D:positions") if p is not None]
+        assert len(positions) == 1, f.name
+        got = np.array(positions[0], dtype=np.float32)
+        np.testing.assert_array_equal(got[:, :2], first.xyz[:, :2].astype(np.float32))
+        assert np.allclose(got[:, 2], first.xyz[:, 2] + first.elevation_m, atol=1e-5)

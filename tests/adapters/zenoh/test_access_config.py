@@ -138,3 +138,29 @@ def test_a_robot_alone_publishes_its_detections_and_tf_and_a_source_alone_its_rm
     assert "0/diagnostics/**" in rules["from-daemon"]["key_exprs"]
     policies = {tuple(p["subjects"]): p["rules"] for p in acl["policies"]}
     assert "publish-doors" not in policies[("robot-r1",)] and "publish-r1" not in policies[("robot-doors",)]
+
+
+def test_point_clouds_and_their_ros_topics_are_read_and_guarded_as_maps_are(tmp_path: Path) -> None:
+    users = tmp_path / "users.txt"
+    users.write_text("r1:a\n")
+    text = (
+        f'[zenoh.auth]\nusers_file = "{users}"\n[zenoh.access]\nenabled = true\n'
+        '[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\nros = ["bridge", "rmw_zenoh"]\n'
+        '[skills.lidar3d]\nkind = "points"\n[skills.lidar-far]\nkind = "points"\nresolution_m = 0.2\n'
+    )
+    acl = site_access_control(load(config(tmp_path, text)), SiteKeys("twin/lab"))
+    assert acl is not None
+    rules = {r["id"]: r for r in acl["rules"]}
+    clouds = (
+        "twin/lab/points/**",
+        "r1/points_map_lidar3d",
+        "r1/points_map_lidar_far",
+        "0/r1/points_map_lidar3d/**",
+    )
+    for key in clouds:
+        for rule in ("read", "no-forged-maps"):
+            assert key in rules[rule]["key_exprs"], (key, rule)
+        assert key.startswith("twin/lab/") or key in rules["from-daemon"]["key_exprs"]  # site keys: all
+        adv = f"{key}/@adv/**"
+        assert adv in rules["read"]["key_exprs"] and adv in rules["tokens"]["key_exprs"]
+    assert not any("points_map" in key for key in rules["publish-r1"]["key_exprs"])
