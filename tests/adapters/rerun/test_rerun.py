@@ -377,7 +377,7 @@ def test_a_rotated_file_starts_with_every_points_skills_current_cloud(tmp_path: 
         recorder.emit(event)
     service.sinks.append(recorder)
     service.process()  # the first clouds, in the first file
-    first = service.engine.points.maps[("ground-floor", "lidar3d")].cloud()
+    first = service.live_maps.points.maps[("ground-floor", "lidar3d")].cloud()
     recorder.wait_idle()
     recorder.max_bytes = 1  # a new file before the next event
     observe(service, "robot2", b"this is not turtle")  # an event that changes no cloud
