@@ -10,29 +10,23 @@ import threading
 from typing import Any
 
 from adapters.cli.common import key_prefix, zenoh_of
-from adapters.zenoh.access import access_control, ros_map_keys, ros_points_keys, site_access_control
+from adapters.zenoh.access import site_access_control, site_acl
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.router import MapStorage, open_router
 from twin.config import Config
 
 
 def cmd_acl(args: argparse.Namespace, cfg: Config) -> int:
-    """Print the ``access_control`` section the daemon uses, for a router's or zenohd's config file."""
-    identity = args.identity or zenoh_of(cfg).access.identity
-    acl = access_control(
-        SiteKeys(key_prefix(cfg, args.site)),
-        sorted(cfg.robots),
-        identity=identity,
-        operators=zenoh_of(cfg).access.operators,
-        ros_keys=ros_map_keys(cfg.robots.values()) + ros_points_keys(cfg),
-    )
+    """Print the ``access_control`` section the daemon and ``twin router --acl`` enforce (the same
+    function makes both), for a zenohd's config file."""
+    acl = site_acl(cfg, SiteKeys(key_prefix(cfg, args.site)), identity=args.identity)
     json.dump({"access_control": acl}, sys.stdout, indent=2)
     print()
     return 0
 
 
 def cmd_router(args: argparse.Namespace, cfg: Config) -> int:
-    """Run a Zenoh router that daemons and robots connect to; optionally keep every site's maps."""
+    """Run a Zenoh router that daemons and robots connect to; optionally keep every site's maps and clouds."""
     listen = args.listen or list(zenoh_of(cfg).listen)
     keys = SiteKeys(key_prefix(cfg, args.site))
     acl = site_access_control(cfg, keys, enforce=True) if args.acl else None
@@ -44,17 +38,18 @@ def cmd_router(args: argparse.Namespace, cfg: Config) -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     session = open_router(zenoh_of(cfg), listen=listen, connect=args.connect or [], access_control=acl)
-    storage = None
+    storages: list[MapStorage] = []
     try:
-        if args.store_maps:
-            storage = MapStorage(session, zenoh_of(cfg).prefix.replace("{site}", "*").strip("/") + "/map/**")
-        what = f"; keeping the latest maps of {storage.key_expr}" if storage else ""
+        if args.store_maps:  # every site's maps (updates applied) and points skills' clouds
+            sites = zenoh_of(cfg).prefix.replace("{site}", "*").strip("/")
+            storages = [MapStorage(session, f"{sites}/map/**"), MapStorage(session, f"{sites}/points/**")]
+        what = f"; keeping the latest of {', '.join(s.key_expr for s in storages)}" if storages else ""
         print(
             f"router {session.info.zid()} on {', '.join(listen)}{what}; {_access_line(acl, keys)}", flush=True
         )
         stop.wait()
     finally:
-        if storage is not None:
+        for storage in storages:
             storage.close()
         session.close()
     print("router stopped", flush=True)
@@ -78,7 +73,8 @@ def add_parsers(sub: Any) -> None:
     sp.add_argument(
         "--store-maps",
         action="store_true",
-        help="keep the latest map of every site (twin/*/map/**) and answer for it while its daemon restarts",
+        help="keep the latest map and cloud of every site (twin/*/map/**, twin/*/points/**) and answer "
+        "for them while its daemon restarts",
     )
     sp.add_argument(
         "--acl",

@@ -1,4 +1,4 @@
-"""Zenoh access control for a site: who may write what, from the configured robots.
+"""Zenoh access control for a site: who may write what, from the configured robots and sources.
 
 The daemon (or the router robots connect to) enforces it on its links; robots are told apart by the
 name they authenticate with: their zenoh user name (``identity = "username"``, user/password
@@ -240,12 +240,21 @@ def site_access_control(cfg: Config, keys: SiteKeys, *, enforce: bool = False) -
             "certificate and private_key, and tls/... listen endpoints."
         )
         raise TransportError(msg)
+    return site_acl(cfg, keys)
+
+
+def site_acl(cfg: Config, keys: SiteKeys, *, identity: Identity | None = None) -> dict[str, Any]:
+    """The ``access_control`` section for the configured robots, ``[sources.NAME]`` and operators: what
+    the daemon and ``twin router --acl`` enforce (:func:`site_access_control`) and ``twin acl`` prints,
+    from this one function. ``identity``: how robots are known (default: ``[zenoh.access] identity``).
+    Checks no authentication settings (a zenohd config has its own)."""
+    access = cfg.section(ZenohSettings).access
     robot_keys = {name: ros_storey_keys(robot) + ros_report_keys(robot) for name, robot in cfg.robots.items()}
     robot_keys |= {name: ros_source_keys(source) for name, source in cfg.sources.items()}  # identities too
     return access_control(
         keys,
         sorted([*cfg.robots, *cfg.sources]),
-        identity=access.identity,
+        identity=identity or access.identity,
         operators=access.operators,
         ros_keys=ros_map_keys(cfg.robots.values()) + ros_points_keys(cfg) + ros_diagnostics_keys(cfg),
         robot_keys=robot_keys,

@@ -1,15 +1,17 @@
-"""A Zenoh router for many daemons, and an in-memory storage that keeps their latest maps.
+"""A Zenoh router for many daemons, and an in-memory storage that keeps their latest maps and clouds.
 
 Several daemons (one per site, or per storey group) join one network through a router; robots connect
 to the router and reach every site under its own key prefix. The router can keep the latest map of
-every site (``MapStorage``: the full maps with the updates applied): a robot that starts while a
-daemon restarts still gets the map (its ``get`` or ``MapWatcher`` is answered by the storage; the
-daemon's own answers win once it is back, being newer).
+every site (``MapStorage`` on ``twin/*/map/**``: the full maps with the updates applied) and the latest
+cloud of every points skill (``MapStorage`` on ``twin/*/points/**``: clouds have no updates): a robot
+that starts while a daemon restarts still gets them (its ``get`` or ``MapWatcher`` is answered by the
+storage; the daemon's own answers win once it is back, being newer). A map or cloud the daemon deletes
+(a removed skill) is forgotten.
 
 Example::
 
     with open_router(cfg.section(ZenohSettings), listen=["tcp/127.0.0.1:7447"]) as session:
-        storage = MapStorage(session, "twin/*/map/**")
+        maps, clouds = MapStorage(session, "twin/*/map/**"), MapStorage(session, "twin/*/points/**")
         ...
 """
 
@@ -69,7 +71,9 @@ class MapStorage:
     """The latest version of every map under ``key_expr`` (``<prefix>/map/**``), answering queries on
     them: each full map as it was published, with the daemon's updates (``<prefix>/map_updates/**``)
     applied in version order, so that it stays the current map between the daemon's keyframes; after
-    a gap (an update missed) it waits for the next full map."""
+    a gap (an update missed) it waits for the next full map. On ``<prefix>/points/**`` (or any other
+    key expression) it keeps each key's latest sample as published (a cloud is always sent whole).
+    A deleted key is forgotten."""
 
     def __init__(self, session: zenoh.Session, key_expr: str) -> None:
         self.key_expr = key_expr

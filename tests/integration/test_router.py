@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from adapters.zenoh.client import TwinClient
+from adapters.zenoh.errors import DaemonTimeoutError
 from tests.integration.conftest import ROOT, Daemon, free_port, start_daemon, twin
 
 pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
@@ -43,9 +44,11 @@ class Router:
         return self.process.returncode
 
 
-def site_daemon(store_dir: Path, root: Path, site: str, router: Router) -> Daemon:
+def site_daemon(store_dir: Path, root: Path, site: str, router: Router, config: Path | None = None) -> Daemon:
     shutil.copytree(store_dir, root / site)
-    return start_daemon(root / site, "--no-record", "--site", site, "--connect", router.endpoint)
+    return start_daemon(
+        root / site, "--no-record", "--site", site, "--connect", router.endpoint, config=config
+    )
 
 
 def kill(d: Daemon) -> None:
@@ -119,17 +122,34 @@ def test_a_robot_at_the_router_gets_both_sites_maps_and_an_observation_changes_o
     assert router.stop() == 0
 
 
-def test_the_routers_map_storage_serves_a_site_while_its_daemon_is_down(
+POINTS = """
+[skills.lidar3d]
+kind = "points"
+resolution_m = 0.2
+exclude_types = ["IfcOpeningElement"]    # furniture in: a table observed changes the cloud
+[skills.lidar-gone]
+kind = "points"
+resolution_m = 0.5
+"""
+
+
+def test_the_routers_storage_serves_a_sites_maps_and_clouds_while_its_daemon_is_down(
     lab_store_dir: Path, tmp_path: Path, router: Router
 ) -> None:
-    north = site_daemon(lab_store_dir, tmp_path, "north", router)
+    config = tmp_path / "points.toml"
+    config.write_text(POINTS)
+    north = site_daemon(lab_store_dir, tmp_path, "north", router, config=config)
+    cloud = ("ground-floor", "lidar3d")
     try:
         with TwinClient.connect([router.endpoint], prefix="twin/north", mode="client") as robot:
-            live = robot.get_map(*NAV)
+            live, live_cloud = robot.get_map(*NAV), robot.get_points(*cloud)
+            assert len(robot.get_points("ground-floor", "lidar-gone")[0]) > 0
             robot.observe("robot1", table(18.0))
-            time.sleep(1.0)  # the update reaches the router's storage (no full map follows it)
-            latest = robot.get_map(*NAV)
-            assert latest[2] > live[2]
+            robot.delete_skill("lidar-gone")  # its clouds are deleted: the storage forgets them
+            time.sleep(1.5)  # the update and the new cloud (at most one a second) reach the router
+            latest, latest_cloud = robot.get_map(*NAV), robot.get_points(*cloud)
+            assert latest[2] > live[2] and latest_cloud[2] > live_cloud[2]
+            assert len(latest_cloud[0]) > len(live_cloud[0])  # the table's voxels
     finally:
         kill(north)
     time.sleep(0.5)
@@ -138,6 +158,11 @@ def test_the_routers_map_storage_serves_a_site_while_its_daemon_is_down(
         grid, _, version = late.get_map(*NAV)  # answered by the router's storage
         assert version == latest[2]
         np.testing.assert_array_equal(grid.data, latest[0].data)
+        xyz, _, cloud_version = late.get_points(*cloud)  # so is the cloud
+        assert cloud_version == latest_cloud[2]
+        np.testing.assert_array_equal(xyz, latest_cloud[0])
+        with pytest.raises(DaemonTimeoutError):
+            late.get_points("ground-floor", "lidar-gone")
         watcher = late.watch(*NAV)
         seen = watcher.wait_for(lambda v: True, timeout_s=10)
         assert seen.version == latest[2]

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
 import pytest
 
+from adapters.cli.app import main
 from adapters.cli.config_cmd import load
 from adapters.zenoh.access import access_control, site_access_control
 from adapters.zenoh.errors import TransportError
@@ -164,3 +166,30 @@ def test_point_clouds_and_their_ros_topics_are_read_and_guarded_as_maps_are(tmp_
         adv = f"{key}/@adv/**"
         assert adv in rules["read"]["key_exprs"] and adv in rules["tokens"]["key_exprs"]
     assert not any("points_map" in key for key in rules["publish-r1"]["key_exprs"])
+
+
+def test_twin_acl_prints_exactly_the_access_control_the_daemon_applies(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    users = tmp_path / "users.txt"
+    users.write_text("r1:a\nr2:b\ndoors:c\nops:d\n")
+    path = config(
+        tmp_path,
+        f'[zenoh.auth]\nusers_file = "{users}"\n[zenoh.access]\nenabled = true\noperators = ["ops"]\n'
+        '[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\nros = ["bridge", "rmw_zenoh"]\n'
+        '[robots.r1.detections]\nclasses = { table = "IfcFurniture" }\ndiagnostics = true\n'
+        '[robots.r2]\nnamespace = "/r2"\nstorey = "ground-floor"\nros = ["bridge"]\n'
+        '[sources.doors]\nkind = "rmf_doors"\nros = ["rmw_zenoh"]\ndiagnostics = true\n'
+        '[skills.lidar3d]\nkind = "points"\n',
+    )
+    assert main(["acl", "--config", str(path)]) == 0
+    printed = json.loads(capsys.readouterr().out)["access_control"]
+    cfg = load(path)
+    assert printed == site_access_control(cfg, SiteKeys("twin/lab"))  # `twin serve`, `twin router --acl`
+    rules = {r["id"]: r for r in printed["rules"]}
+    assert {"r1/storey", "r1/detections", "r2/storey"} <= {
+        key for rule in ("publish-r1", "publish-r2") for key in rules[rule]["key_exprs"]
+    }  # each robot's own /<ns>/storey and detections
+    assert "0/door_states/**" in rules["publish-doors"]["key_exprs"]  # the [sources.doors] identity
+    assert "r1/diagnostics" in rules["from-daemon"]["key_exprs"]
+    assert {s["id"] for s in printed["subjects"]} == {"robot-r1", "robot-r2", "robot-doors", "operator-ops"}
