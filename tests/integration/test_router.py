@@ -133,6 +133,22 @@ resolution_m = 0.5
 """
 
 
+def first_cloud(
+    robot: TwinClient, storey: str, skill: str, newer_than: int = 0
+) -> tuple[np.ndarray, int, int]:
+    """The cloud once the daemon has built it (after its 2D maps) at a version above ``newer_than``."""
+    deadline = time.monotonic() + 30
+    while True:
+        try:
+            got = robot.get_points(storey, skill)
+            if got[2] > newer_than:
+                return got
+        except DaemonTimeoutError:
+            pass
+        assert time.monotonic() < deadline, f"no cloud {storey}/{skill} above version {newer_than} in 30 s"
+        time.sleep(0.2)
+
+
 def test_the_routers_storage_serves_a_sites_maps_and_clouds_while_its_daemon_is_down(
     lab_store_dir: Path, tmp_path: Path, router: Router
 ) -> None:
@@ -142,13 +158,14 @@ def test_the_routers_storage_serves_a_sites_maps_and_clouds_while_its_daemon_is_
     cloud = ("ground-floor", "lidar3d")
     try:
         with TwinClient.connect([router.endpoint], prefix="twin/north", mode="client") as robot:
-            live, live_cloud = robot.get_map(*NAV), robot.get_points(*cloud)
-            assert len(robot.get_points("ground-floor", "lidar-gone")[0]) > 0
+            live, live_cloud = robot.get_map(*NAV), first_cloud(robot, *cloud)  # built after the maps
+            assert len(first_cloud(robot, "ground-floor", "lidar-gone")[0]) > 0
             robot.observe("robot1", table(18.0))
             robot.delete_skill("lidar-gone")  # its clouds are deleted: the storage forgets them
-            time.sleep(1.5)  # the update and the new cloud (at most one a second) reach the router
-            latest, latest_cloud = robot.get_map(*NAV), robot.get_points(*cloud)
-            assert latest[2] > live[2] and latest_cloud[2] > live_cloud[2]
+            latest_cloud = first_cloud(robot, *cloud, newer_than=live_cloud[2])  # at most one a second
+            time.sleep(1.0)  # the update and the new cloud reach the router's storage
+            latest = robot.get_map(*NAV)
+            assert latest[2] > live[2]
             assert len(latest_cloud[0]) > len(live_cloud[0])  # the table's voxels
     finally:
         kill(north)
