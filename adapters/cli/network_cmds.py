@@ -87,7 +87,7 @@ def add_parsers(sub: Any) -> None:
     sp.set_defaults(func=cmd_router)
 
     sp = sub.add_parser(
-        "acl", help="print the Zenoh access control of the configured robots (JSON, for a router's config)"
+        "acl", help="print the Zenoh access control the daemon enforces (JSON, for a zenohd config)"
     )
     sp.add_argument("--site", help="site name (default: site.name)")
     sp.add_argument(
