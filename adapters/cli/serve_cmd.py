@@ -29,6 +29,7 @@ from adapters.cli.common import (
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
 from adapters.rerun.settings import RerunSettings
+from adapters.ros.settings import RosSettings, ros_robots
 from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
@@ -161,17 +162,18 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         ingest: RosIngest | None = None
         ros_points: RosPointsPublisher | None = None
         try:
-            daemon = ZenohDaemon(session, service, keys=keys, frame_id=cfg.frame_id)
+            frame_id = cfg.section(RosSettings).frame_id
+            daemon = ZenohDaemon(session, service, keys=keys, frame_id=frame_id)
             if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
                 ros = RosMapPublisher.following(daemon, cfg)  # on the dispatcher, a lane per robot
-            if cfg.sources or any(r.detections is not None for r in cfg.robots.values()):
+            if cfg.sources or any(r.detections is not None for r in ros_robots(cfg).values()):
                 storey_of = ros.storey_of if ros is not None else (lambda _robot: None)
                 ingest = RosIngest(session, cfg, service.submit_observation, storey_of=storey_of)
                 daemon.status_sources.append(ingest.status)
                 service.sinks.append(ingest)  # storeys, doors and occluding maps: cheap, on the writer
             service.sinks += [sink for sink in (daemon, recorder) if sink is not None]
             points = ZenohPoints(  # points skills' clouds, from the daemon's holder, on the site's lane
-                session, prefix=keys.prefix, frame_id=cfg.frame_id, maps=daemon.maps, lane=daemon.site
+                session, prefix=keys.prefix, frame_id=frame_id, maps=daemon.maps, lane=daemon.site
             )
             daemon.followers.append(points)  # on the dispatcher, off the writer
             if any(s.kind == "points" for s in cfg.skills.values()) and cfg.robots:  # /<ns>/points_map

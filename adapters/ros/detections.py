@@ -42,9 +42,10 @@ from adapters.ros.observation_doc import (
     observation_turtle,
     robot_iri,
 )
+from adapters.ros.settings import DetectionConfig
 from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
 from adapters.ros.view import polygon_area, visibility_polygon
-from twin.config import DetectionConfig, Limits
+from twin.config import Limits
 from twin.errors import MapError
 from twin.maps.grid import OccupancyGrid
 

@@ -26,12 +26,13 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from adapters.ros.rmw_zenoh import ADMIN_SPACE, RosTopic, resolve_name
+from adapters.ros.settings import RosRobot, RosSource, ros_robots, ros_sources
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys, check_chunk
 from adapters.zenoh.ros_maps import STOREY_TOPIC
 from adapters.zenoh.ros_points import points_topic
 from adapters.zenoh.settings import Identity, ZenohSettings
-from twin.config import Config, RobotConfig, SourceConfig
+from twin.config import Config
 
 # zenoh's ACL message kinds (zenoh-config AclMessage)
 READ = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
@@ -50,7 +51,7 @@ def _with_adv(keys: Iterable[str]) -> list[str]:
     return out
 
 
-def ros_map_keys(robots: Iterable[RobotConfig]) -> list[str]:
+def ros_map_keys(robots: Iterable[RosRobot]) -> list[str]:
     """The key expressions of the configured robots' ROS 2 map topics (and their ``_updates``), both
     layouts."""
     keys: list[str] = []
@@ -68,19 +69,19 @@ def ros_points_keys(cfg: Config) -> list[str]:
     :mod:`adapters.zenoh.ros_points`), both layouts."""
     skills = sorted(name for name, skill in cfg.skills.items() if skill.kind == "points")
     keys: list[str] = []
-    for robot in cfg.robots.values():
+    for robot in ros_robots(cfg).values():
         if robot.namespace is not None:
             for skill in skills:
                 keys += _ros_keys(robot, points_topic(skill, several=len(skills) > 1))
     return keys
 
 
-def ros_storey_keys(robot: RobotConfig) -> list[str]:
+def ros_storey_keys(robot: RosRobot) -> list[str]:
     """The keys of the robot's ``/<ns>/storey`` topic (``std_msgs/String``), which only it publishes."""
     return _ros_keys(robot, STOREY_TOPIC) if robot.namespace is not None else []
 
 
-def ros_report_keys(robot: RobotConfig) -> list[str]:
+def ros_report_keys(robot: RosRobot) -> list[str]:
     """The keys of the robot's detections, ``tf`` and ``tf_static`` topics, which only it publishes."""
     d = robot.detections
     if d is None or robot.namespace is None:
@@ -91,21 +92,21 @@ def ros_report_keys(robot: RobotConfig) -> list[str]:
 def ros_diagnostics_keys(cfg: Config) -> list[str]:
     """The keys of the ``/<ns>/diagnostics`` topics the daemon publishes (robots and sources that ask)."""
     keys: list[str] = []
-    for robot in cfg.robots.values():
+    for robot in ros_robots(cfg).values():
         if robot.namespace is not None and robot.detections is not None and robot.detections.diagnostics:
             keys += _ros_keys(robot, "diagnostics")
-    for source in cfg.sources.values():
+    for source in ros_sources(cfg).values():
         if source.diagnostics:
             keys += _topic_keys(source.domain_id, source.namespace, "diagnostics", source.ros)
     return keys
 
 
-def ros_source_keys(source: SourceConfig) -> list[str]:
+def ros_source_keys(source: RosSource) -> list[str]:
     """The keys of a ``[sources.NAME]`` topic (door states, obstacles), which only that source publishes."""
     return _topic_keys(source.domain_id, source.namespace, source.topic, source.ros)
 
 
-def _ros_keys(robot: RobotConfig, name: str) -> list[str]:
+def _ros_keys(robot: RosRobot, name: str) -> list[str]:
     assert robot.namespace is not None
     return _topic_keys(robot.domain_id, robot.namespace, name, robot.ros)
 
@@ -249,13 +250,14 @@ def site_acl(cfg: Config, keys: SiteKeys, *, identity: Identity | None = None) -
     from this one function. ``identity``: how robots are known (default: ``[zenoh.access] identity``).
     Checks no authentication settings (a zenohd config has its own)."""
     access = cfg.section(ZenohSettings).access
-    robot_keys = {name: ros_storey_keys(robot) + ros_report_keys(robot) for name, robot in cfg.robots.items()}
-    robot_keys |= {name: ros_source_keys(source) for name, source in cfg.sources.items()}  # identities too
+    robots, sources = ros_robots(cfg), ros_sources(cfg)
+    robot_keys = {name: ros_storey_keys(robot) + ros_report_keys(robot) for name, robot in robots.items()}
+    robot_keys |= {name: ros_source_keys(source) for name, source in sources.items()}  # identities too
     return access_control(
         keys,
         sorted([*cfg.robots, *cfg.sources]),
         identity=identity or access.identity,
         operators=access.operators,
-        ros_keys=ros_map_keys(cfg.robots.values()) + ros_points_keys(cfg) + ros_diagnostics_keys(cfg),
+        ros_keys=ros_map_keys(robots.values()) + ros_points_keys(cfg) + ros_diagnostics_keys(cfg),
         robot_keys=robot_keys,
     )

@@ -60,6 +60,7 @@ from adapters.ros.rmw_zenoh import (
     resolve_name,
     type_hash,
 )
+from adapters.ros.settings import ros_robots, ros_sources
 from adapters.ros.tf import TfBuffer, decode_tf_message
 from adapters.zenoh.latched import CDR, declare_latched_subscriber
 from twin.config import Config, Limits
@@ -181,7 +182,7 @@ class RosIngest:
         zid = str(session.zid())
         node_id = _NODE_ID_BASE
         entity = 0
-        for robot in sorted(config.robots.values(), key=lambda r: r.name):
+        for robot in sorted(ros_robots(config).values(), key=lambda r: r.name):
             d = robot.detections
             if d is None or robot.namespace is None:
                 continue
@@ -200,7 +201,7 @@ class RosIngest:
             )
             if d.diagnostics:
                 entity = self._declare_diagnostics(session, robot.name, node, robot.ros, entity)
-        for source in sorted(config.sources.values(), key=lambda s: s.name):
+        for source in sorted(ros_sources(config).values(), key=lambda s: s.name):
             self._counts[source.name] = Counts()
             if source.kind == "rmf_doors":
                 self._doors[source.name] = DoorSettings(source.name, dict(source.doors))

@@ -83,6 +83,7 @@ from adapters.ros.rmw_zenoh import (
     attachment,
     gid_of,
 )
+from adapters.ros.settings import RosRobot, RosSettings, ros_robots
 from adapters.zenoh.errors import StoreySwitchError
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.latched import (
@@ -96,7 +97,7 @@ from adapters.zenoh.latched import (
 )
 from adapters.zenoh.latest import LatestMaps
 from adapters.zenoh.outbox import Outbox
-from twin.config import Config, RobotConfig
+from twin.config import Config
 from twin.errors import TwinError
 from twin.live.events import (
     MapPublished,
@@ -170,7 +171,7 @@ class _Topic:
 
 @dataclass(eq=False, slots=True)
 class _Robot:
-    config: RobotConfig
+    config: RosRobot
     storey: str | None
     lane: Outbox | None = None
     topics: list[_Topic] = field(default_factory=list)
@@ -225,7 +226,7 @@ class RosMapPublisher:
         :class:`RobotStoreyChanged` reaches it (:meth:`emit`)."""
         self.maps = maps
         """The daemon's holder of each map's latest version (written by the dispatcher, read here)."""
-        self.frame_id = config.frame_id
+        self.frame_id = config.section(RosSettings).frame_id
         self.keys = keys
         self.clock = clock or time.time_ns
         self._lock = threading.RLock()
@@ -235,7 +236,7 @@ class RosMapPublisher:
         self._kinds = {name: skill.kind for name, skill in config.skills.items()}
         zid = str(session.zid())
         entity = 0
-        for robot in sorted(config.robots.values(), key=lambda r: r.name):
+        for robot in sorted(ros_robots(config).values(), key=lambda r: r.name):
             r = _Robot(robot, robot.storey)
             self._robots[robot.name] = r
             if robot.namespace is None:
@@ -290,7 +291,7 @@ class RosMapPublisher:
             ]
 
     def _declare_info(
-        self, t: _Topic, robot: RobotConfig, node: RosNode, *, mask: RosTopic, entity: int, tokens: list[Any]
+        self, t: _Topic, robot: RosRobot, node: RosNode, *, mask: RosTopic, entity: int, tokens: list[Any]
     ) -> None:
         """Declare ``/<ns>/<name>_info`` and publish its one CostmapFilterInfo (latched)."""
         assert robot.namespace is not None

@@ -31,6 +31,7 @@ import zenoh
 
 from adapters.ros.pcd import POINT_CLOUD2
 from adapters.ros.rmw_zenoh import LATCHED_QOS, RosNode, RosTopic, attachment, gid_of
+from adapters.ros.settings import RosSettings, ros_robots
 from adapters.zenoh.latched import Answer, LatchedPublisher
 from adapters.zenoh.latest import LatestMaps
 from adapters.zenoh.outbox import Outbox
@@ -96,7 +97,7 @@ class RosPointsPublisher:
 
     def __init__(self, session: zenoh.Session, config: Config, *, maps: LatestMaps | None = None) -> None:
         self.session = session
-        self.frame_id = config.frame_id
+        self.frame_id = config.section(RosSettings).frame_id
         skills = sorted(name for name, s in config.skills.items() if s.kind == "points")
         self._own_maps = maps is None
         self.maps = (
@@ -105,7 +106,7 @@ class RosPointsPublisher:
         self._robots: dict[str, _Robot] = {}
         zid = str(session.zid())
         entity = _ENTITY_BASE
-        for robot in sorted(config.robots.values(), key=lambda r: r.name):
+        for robot in sorted(ros_robots(config).values(), key=lambda r: r.name):
             if robot.namespace is None or not skills:
                 continue
             r = self._robots[robot.name] = _Robot(robot.storey, Outbox(f"twin-ros-points-{robot.name}"))

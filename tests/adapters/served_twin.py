@@ -16,6 +16,7 @@ from pathlib import Path
 
 import zenoh
 
+from adapters.ros.settings import RosSettings
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.ros_maps import RosMapPublisher
@@ -74,7 +75,7 @@ def served_twin(
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     session = zenoh.open(session_config(ZenohSettings(), mode="peer", listen=[endpoint], connect=[]))
     service = TwinService(imported(box_lab(storeys=2)), config, sinks=list(sinks))
-    daemon = ZenohDaemon(session, service, keys=KEYS, frame_id=config.frame_id)
+    daemon = ZenohDaemon(session, service, keys=KEYS, frame_id=config.section(RosSettings).frame_id)
     ros = RosMapPublisher.following(daemon, config)
     daemon.followers += followers
     service.sinks.append(daemon)

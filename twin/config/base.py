@@ -37,12 +37,16 @@ class ConfigSection(ConfigTable):
 
     ``table`` is its name in the file. A section may add keys to a table of the core (the remote
     store's keys sit in ``[store]`` beside the embedded store's ``path``): the core's keys stay the
-    core's, the others are the section's, and a key that neither knows is an error. The composition
-    root hands its sections to :func:`twin.config.load_config`; adapters read theirs with
-    :meth:`twin.config.Config.section`.
+    core's, the others are the section's, and a key that neither knows is an error. A key that both
+    declare is the core's, which the section reads too (a robot's ``storey``). With ``each``, the
+    section's keys sit in every ``[<table>.NAME]`` instead (the ROS keys of ``[robots.NAME]``). The
+    composition root hands its sections to :func:`twin.config.load_config`; adapters read theirs with
+    :meth:`twin.config.Config.section` (``each``: :meth:`twin.config.Config.each`).
     """
 
     table: ClassVar[str]
+    each: ClassVar[bool] = False
+    """True: keys of every ``[<table>.NAME]`` (a table of the core that holds one table per name)."""
 
 
 def _path(value: Any) -> Path:

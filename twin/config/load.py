@@ -1,11 +1,12 @@
 """Loading: ``config/default.toml`` merged with an optional user file, validated table by table into
 a :class:`Config`.
 
-The core validates its own tables. The adapters' tables (``[zenoh]``, ``[rerun]``, the remote
-store's keys in ``[store]``) are :class:`~twin.config.base.ConfigSection` schemas that the composition
-root passes as ``sections``: then the whole file is checked at once, and a table or key that nobody
-knows is an error. Without ``sections`` (the core's own tests and tools) the adapters' tables are kept
-as they were written and parsed when first asked for (:meth:`Config.section`).
+The core validates its own tables. The adapters' tables (``[zenoh]``, ``[rerun]``, ``[ros]``, the
+remote store's keys in ``[store]``, the ROS keys of each ``[robots.NAME]``) are
+:class:`~twin.config.base.ConfigSection` schemas that the composition root passes as ``sections``:
+then the whole file is checked at once, and a table or key that nobody knows is an error. Without
+``sections`` (the core's own tests and tools) the adapters' tables and keys are kept as they were
+written and parsed when first asked for (:meth:`Config.section`, :meth:`Config.each`).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, TypeVar
+from typing import Annotated, Any, TypeVar, cast
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, WithJsonSchema, create_model
 
@@ -30,7 +31,6 @@ from twin.config.tables import (
     MapsTable,
     Right,
     RightsTable,
-    RosTable,
     SiteTable,
     StoreTable,
 )
@@ -48,10 +48,12 @@ CORE_TABLES: dict[str, type[ConfigTable]] = {
     "maps": MapsTable,
     "limits": Limits,
     "rights": RightsTable,
-    "ros": RosTable,
     "fusion": FusionTable,
 }
-"""The core's tables with one schema each; ``[skills.NAME]`` and ``[robots.NAME]`` hold many."""
+"""The core's tables with one schema each; ``[skills.NAME]`` and :data:`NAMED_TABLES` hold many."""
+NAMED_TABLES: dict[str, type[ConfigTable]] = {"robots": RobotTable, "sources": SourceTable}
+"""The core's tables of one table per name (``[robots.NAME]``, ``[sources.NAME]``): the core's keys
+of each (names, rights, storeys); adapters add theirs (``ConfigSection.each``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,8 +71,7 @@ class Config:
     default_rights: frozenset[Right] = frozenset({"create", "dynamic", "doors"})
     robots: Mapping[str, RobotConfig] = field(default_factory=dict)
     sources: Mapping[str, SourceConfig] = field(default_factory=dict)
-    """``[sources.NAME]``: the building's systems that report over ROS 2 (Open-RMF doors, obstacles)."""
-    frame_id: str = "map"
+    """``[sources.NAME]``: the building's systems that report to the twin (Open-RMF doors, obstacles)."""
     store_flush_every_s: float = 60.0
     """``[store] flush_every_s``: how often the daemon flushes the embedded store's buffers."""
     site_set: bool = False
@@ -86,6 +87,10 @@ class Config:
     """The merged file as written (defaults under the user's file)."""
     sections: Mapping[type[ConfigSection], ConfigSection] = field(default_factory=dict, repr=False)
     """The adapters' sections validated at load time."""
+    named_sections: Mapping[type[ConfigSection], Mapping[str, ConfigSection]] = field(
+        default_factory=dict, repr=False
+    )
+    """The adapters' ``each`` sections validated at load time, by the name of their table."""
 
     def section(self, kind: type[S]) -> S:
         """The adapter table ``kind`` (e.g. ``ZenohSettings``): validated at load time if the loader
@@ -96,14 +101,33 @@ class Config:
             return found
         alone = create_model("SectionFile", **{kind.table: (kind, Field(default_factory=kind))})  # type: ignore[call-overload]
         table = self.tables.get(kind.table, {})
-        if kind.table in CORE_TABLES and isinstance(table, Mapping):  # other sections' keys are theirs
-            table = {k: v for k, v in table.items() if k in kind.model_fields}
+        if kind.table in CORE_TABLES:  # other sections' keys are theirs
+            table = _owned(kind, table)
         try:
-            checked = alone.model_validate({kind.table: table})
+            checked = alone.model_validate({kind.table: table}, context={"skills": set(self.skills)})
         except ValidationError as err:
             raise config_error(err, alone) from None
         section: S = getattr(checked, kind.table)
         return section
+
+    def each(self, kind: type[S]) -> Mapping[str, S]:
+        """The keys ``kind`` (an ``each`` section, e.g. a robot's ROS keys) of every
+        ``[<kind.table>.NAME]``, by name: validated at load time if the loader was given ``kind``,
+        else parsed now (a :class:`ConfigError` naming the table and key if bad; keys that ``kind``
+        does not know are left to their owners)."""
+        found = self.named_sections.get(kind)
+        if found is not None:
+            return cast(Mapping[str, S], found)
+        alone = create_model("SectionFile", **{kind.table: (dict[str, kind], Field(default_factory=dict))})  # type: ignore[call-overload,valid-type]
+        tables = self.tables.get(kind.table, {})
+        if isinstance(tables, Mapping):
+            tables = {name: _owned(kind, table) for name, table in tables.items()}
+        try:
+            checked = alone.model_validate({kind.table: tables}, context={"skills": set(self.skills)})
+        except ValidationError as err:
+            raise config_error(err, alone) from None
+        named: dict[str, S] = getattr(checked, kind.table)
+        return named
 
     def rights_of(self, robot: str) -> frozenset[Right]:
         """What ``robot`` (or source) may change: its own ``rights`` if configured, else
@@ -146,8 +170,9 @@ def load_config(
     skills = _skills(raw.get("skills", {}))
     model = file_model(sections or (), strict=sections is not None)
     data = raw if sections is not None else _core_keys(raw)
+    context = {"skills": set(skills)}
     try:
-        checked: Any = model.model_validate(data, context={"skills": set(skills)})
+        checked: Any = model.model_validate(data, context=context)
     except ValidationError as err:
         raise config_error(err, model) from None
     default_rights = frozenset(checked.rights.default)
@@ -168,35 +193,39 @@ def load_config(
         default_rights=default_rights,
         robots={name: table.record(name, default_rights) for name, table in checked.robots.items()},
         sources={name: table.record(name) for name, table in checked.sources.items()},
-        frame_id=checked.ros.frame_id,
         store_flush_every_s=checked.store.flush_every_s,
         store_snapshot=checked.store.snapshot,
         store_snapshot_every_s=checked.store.snapshot_every_s,
         fusion=checked.fusion.rules(),
         tables=raw,
-        sections={s: s.model_validate(_section_keys(s, raw.get(s.table, {}))) for s in sections or ()},
+        sections={
+            s: s.model_validate(_section_keys(s, raw.get(s.table, {}))) for s in sections or () if not s.each
+        },
+        named_sections={s: _each(s, raw.get(s.table, {}), context) for s in sections or () if s.each},
     )
 
 
 def file_model(sections: Sequence[type[ConfigSection]] = (), *, strict: bool = True) -> type[BaseModel]:
     """The schema of a whole configuration file: the core's tables and ``sections``; a table that a
-    section shares with the core (``[store]``) accepts the keys of both."""
+    section shares with the core (``[store]``, each ``[robots.NAME]``) accepts the keys of both."""
     tables: dict[str, list[type[ConfigTable]]] = {name: [model] for name, model in CORE_TABLES.items()}
+    named: dict[str, list[type[ConfigTable]]] = {name: [model] for name, model in NAMED_TABLES.items()}
     for section in sections:
-        tables.setdefault(section.table, []).append(section)
+        (named if section.each else tables).setdefault(section.table, []).append(section)
     fields: dict[str, Any] = {}
     for name, owners in tables.items():
-        model = owners[0] if len(owners) == 1 else create_model(f"{name.title()}File", __base__=tuple(owners))
+        model = _merged(name, owners)
         fields[f"{name}_" if name == "import" else name] = (model, Field(default_factory=model, alias=name))
     fields["skills"] = (
         dict[str, Annotated[dict[str, Any], WithJsonSchema(_skill_schema())]],
         Field(default_factory=dict, description="Skill profiles: [skills.NAME] (README, 'Skills')."),
     )
-    fields["robots"] = (dict[RobotName, RobotTable], Field(default_factory=dict))
-    fields["sources"] = (
-        dict[RobotName, SourceTable],
-        Field(default_factory=dict, description="Building systems reporting over ROS 2 (Open-RMF)."),
-    )
+    described = {"sources": "Building systems that report to the twin (Open-RMF doors, obstacles)."}
+    for name, owners in named.items():
+        fields[name] = (
+            dict[RobotName, _merged(name, owners)],  # type: ignore[misc]
+            Field(default_factory=dict, description=described.get(name)),
+        )
     return create_model(
         "BuildingTwinConfig",
         __config__=ConfigDict(extra="forbid" if strict else "ignore", frozen=True, populate_by_name=True),
@@ -244,22 +273,44 @@ def _plain(node: Any) -> Any:
     return node
 
 
+def _merged(name: str, owners: Sequence[type[ConfigTable]]) -> type[ConfigTable]:
+    """One table's schema from its owners' (the core's first: a key both declare is described by it)."""
+    if len(owners) == 1:
+        return owners[0]
+    return cast(
+        type[ConfigTable],
+        create_model(f"{name.title()}File", __base__=tuple(owners), __doc__=owners[0].__doc__),
+    )
+
+
+def _each(kind: type[ConfigSection], tables: Mapping[str, Any], context: Any) -> dict[str, ConfigSection]:
+    """An ``each`` section's keys of every named table (already checked with the whole file)."""
+    return {name: kind.model_validate(_owned(kind, table), context=context) for name, table in tables.items()}
+
+
 def _core_keys(raw: Mapping[str, Any]) -> dict[str, Any]:
     """The file without the keys that sections add to the core's tables (checked when asked for)."""
     out = dict(raw)
     for name, model in CORE_TABLES.items():
-        table = raw.get(name)
-        if getattr(model, "extended_by_sections", False) and isinstance(table, Mapping):
-            out[name] = {k: v for k, v in table.items() if k in model.model_fields}
+        if getattr(model, "extended_by_sections", False) and name in raw:
+            out[name] = _owned(model, raw[name])
+    for name, model in NAMED_TABLES.items():
+        tables = raw.get(name)
+        if isinstance(tables, Mapping):
+            out[name] = {n: _owned(model, table) for n, table in tables.items()}
     return out
 
 
 def _section_keys(kind: type[ConfigSection], table: Any) -> Any:
     """A section's keys of its table (all of them unless it shares the table with the core)."""
-    core = CORE_TABLES.get(kind.table)
-    if core is None or not isinstance(table, Mapping):
+    return _owned(kind, table) if kind.table in CORE_TABLES else table
+
+
+def _owned(model: type[ConfigTable], table: Any) -> Any:
+    """The keys of ``table`` that ``model`` declares (``table`` as it is if not a table)."""
+    if not isinstance(table, Mapping):
         return table
-    return {k: v for k, v in table.items() if k not in core.model_fields}
+    return {k: v for k, v in table.items() if k in model.model_fields}
 
 
 def _skills(raw: Any) -> dict[str, SkillProfile]:

@@ -1,5 +1,5 @@
-"""The core's tables: ``[site]``, ``[store]``, ``[import]``, ``[maps]``, ``[limits]``, ``[rights]``
-and ``[ros]`` (``[robots.NAME]`` is in :mod:`twin.config.robots`, ``[skills.NAME]`` is parsed by
+"""The core's tables: ``[site]``, ``[store]``, ``[import]``, ``[maps]``, ``[limits]`` and ``[rights]``
+(``[robots.NAME]`` is in :mod:`twin.config.robots`, ``[skills.NAME]`` is parsed by
 :func:`twin.selection.skills.parse_skill`). Each field's default is the value ``config/default.toml`` shows.
 """
 
@@ -123,9 +123,3 @@ class RightsTable(ConfigTable):
     """``[rights]``: what a robot may do unless its ``[robots.NAME]`` table says otherwise."""
 
     default: Annotated[tuple[Right, ...], list_of("rights")] = ("create", "dynamic", "doors")
-
-
-class RosTable(ConfigTable):
-    """``[ros]``: what ROS 2 robots see of the maps."""
-
-    frame_id: Text = Field("map", description="header.frame_id of the OccupancyGrid messages.")

@@ -21,6 +21,7 @@ import zenoh.ext
 from adapters.ros import decode_occupancy_grid, decode_occupancy_grid_update
 from adapters.ros.cdr import OCCUPANCY_GRID, OCCUPANCY_GRID_UPDATE
 from adapters.ros.rmw_zenoh import RosTopic
+from adapters.ros.settings import RosSettings
 from adapters.zenoh.latest import LatestMaps
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.session import client_config, session_config
@@ -66,7 +67,9 @@ class Served:
         self.session = zenoh.open(
             session_config(ZenohSettings(), mode="peer", listen=[self.endpoint], connect=[])
         )
-        self.latest = LatestMaps(frame_id=config.frame_id, timestamp=self.session.new_timestamp)
+        self.latest = LatestMaps(
+            frame_id=config.section(RosSettings).frame_id, timestamp=self.session.new_timestamp
+        )
         self.ros = RosMapPublisher(self.session, config, maps=self.latest, request=no_writer)
         self.emit(TwinStarted("lab", 0, 1, STOREYS, (), {}))
         rng = np.random.default_rng(3)

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import ClassVar
 
 import pytest
+from pydantic import model_validator
 
 from twin.config import DEFAULT_CONFIG, ConfigSection, Limits, config_schema, load_config
 from twin.config.base import Flag, Whole
@@ -36,6 +37,21 @@ class Archive(ConfigSection):
 
     table: ClassVar[str] = "store"
     archive_every_s: Whole = 0
+
+
+class Beacon(ConfigSection):
+    """A made-up adapter that adds keys to every ``[robots.NAME]`` and reads the core's ``storey``."""
+
+    table: ClassVar[str] = "robots"
+    each: ClassVar[bool] = True
+    beacon: Whole | None = None
+    storey: str | None = None
+
+    @model_validator(mode="after")
+    def _placed(self) -> Beacon:
+        if self.beacon is not None and self.storey is None:
+            raise ValueError("a robot with a beacon needs 'storey'")
+        return self
 
 
 def test_the_store_is_flushed_every_minute_unless_configured(tmp_path: Path) -> None:
@@ -82,7 +98,6 @@ def test_a_bad_flush_interval_is_refused_by_name(tmp_path: Path, value: str, pro
             '[rights]\ndefault = ["fly"]',
             "[rights] default[0]: expected 'create', 'dynamic', 'doors', 'static'",
         ),
-        ("[ros]\nframe_id = 3", "[ros] frame_id: expected a string, got 3"),
         ("maps = 3", "[maps]: expected a table, got 3"),
     ],
 )
@@ -155,6 +170,39 @@ def test_with_sections_an_unknown_table_or_key_is_refused(tmp_path: Path, text: 
         load_config(write(tmp_path, text), sections=[Lights, Archive], defaults=defaults)
 
 
+def test_an_adapter_adds_keys_to_every_robot_the_core_keeps_its_own_and_checks_a_typo_only_with_sections(
+    tmp_path: Path,
+) -> None:
+    defaults = tmp_path / "defaults.toml"
+    defaults.write_text("")
+    text = '[robots.r1]\nbeacon = 7\nstorey = "ground-floor"\n[robots.r2]\nbeacn = 1\nstorey = "roof"\n'
+    alone = load_config(write(tmp_path, text), defaults=defaults)  # the core's keys only
+    assert (alone.robots["r1"].storey, alone.robots["r2"].storey) == ("ground-floor", "roof")
+    assert alone.each(Beacon)["r1"] == Beacon(beacon=7, storey="ground-floor")  # parsed when asked for
+    assert alone.each(Beacon)["r2"] == Beacon(storey="roof")  # beacn: maybe another adapter's key
+    message = "[robots.r2] beacn: unknown key (did you mean beacon?)"
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        load_config(write(tmp_path, text), sections=[Beacon], defaults=defaults)
+    checked = load_config(
+        write(tmp_path, text.replace("beacn", "beacon")), sections=[Beacon], defaults=defaults
+    )
+    assert dict(checked.each(Beacon)) == {
+        "r1": Beacon(beacon=7, storey="ground-floor"),
+        "r2": Beacon(beacon=1, storey="roof"),
+    }
+
+
+def test_an_adapters_check_of_a_robot_names_the_robot_at_load_or_when_asked_for(tmp_path: Path) -> None:
+    defaults = tmp_path / "defaults.toml"
+    defaults.write_text("")
+    path = write(tmp_path, "[robots.r1]\nbeacon = 7\n")
+    message = "Configuration [robots.r1]: a robot with a beacon needs 'storey'."
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        load_config(path, sections=[Beacon], defaults=defaults)
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        load_config(path, defaults=defaults).each(Beacon)
+
+
 def test_the_shipped_defaults_need_the_adapters_sections_to_load_strictly() -> None:
     with pytest.raises(ConfigError, match=re.escape("[zenoh]: unknown table")):
         load_config(sections=[Lights, Archive])  # the defaults' [zenoh] without the zenoh adapter's section
@@ -170,9 +218,9 @@ def test_the_json_schema_describes_every_table_and_refuses_unknown_ones() -> Non
         "maps",
         "limits",
         "rights",
-        "ros",
         "skills",
         "robots",
+        "sources",
         "lights",
     } <= set(schema["properties"])
     skill = schema["properties"]["skills"]["additionalProperties"]

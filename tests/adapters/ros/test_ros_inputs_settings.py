@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from twin.config import load_config
+from adapters.cli.config_cmd import load
+from adapters.ros.settings import ros_robots, ros_sources
 from twin.config.load import Config
 from twin.errors import ConfigError
 
@@ -18,7 +19,7 @@ ROBOT = '[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\n'
 def config(tmp_path: Path, text: str) -> Config:
     path = tmp_path / "c.toml"
     path.write_text(text)
-    return load_config(path)
+    return load(path)
 
 
 def test_a_robots_detections_table_gives_its_topic_class_table_camera_and_tf(tmp_path: Path) -> None:
@@ -27,7 +28,7 @@ def test_a_robots_detections_table_gives_its_topic_class_table_camera_and_tf(tmp
         ROBOT + '[robots.r1.detections]\nclasses = { table = "IfcFurniture" }\nfov_deg = 87\n'
         'sensor_frame = "cam_optical"\nz_reference = "building"\n',
     )
-    d = cfg.robots["r1"].detections
+    d = ros_robots(cfg)["r1"].detections
     assert d is not None
     assert (d.topic, d.classes, d.fov_deg, d.sensor_frame, d.z_reference) == (
         "detections", (("table", "IfcFurniture"),), 87.0, "cam_optical", "building"
@@ -63,7 +64,7 @@ def test_sources_are_identities_of_their_own_with_default_rights_per_kind(tmp_pa
         '[sources.obst]\nkind = "rmf_obstacles"\nclasses = { human = "IfcBuildingElementProxy" }\n'
         'levels.L1 = { storey = "ground-floor", x = 1.5, yaw_deg = 90 }\n',
     )
-    doors, obst = cfg.sources["doors"], cfg.sources["obst"]
+    doors, obst = ros_sources(cfg)["doors"], ros_sources(cfg)["obst"]
     assert (doors.topic, doors.namespace, doors.doors) == ("door_states", "/", (("main", "Door 1"),))
     assert cfg.rights_of("doors") == frozenset({"doors"})
     assert cfg.rights_of("obst") == frozenset({"create", "dynamic"})
@@ -85,5 +86,5 @@ def test_an_unknown_source_kind_is_refused(tmp_path: Path) -> None:
 
 def test_absolute_tf_topics_are_kept_for_robots_that_publish_the_global_tf(tmp_path: Path) -> None:
     cfg = config(tmp_path, ROBOT + '[robots.r1.detections]\nclasses = { t = "IfcFurniture" }\ntf = "/tf"\n')
-    d = cfg.robots["r1"].detections
+    d = ros_robots(cfg)["r1"].detections
     assert d is not None and (d.tf, d.tf_static) == ("/tf", "tf_static")

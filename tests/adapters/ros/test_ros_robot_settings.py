@@ -1,4 +1,6 @@
-"""``[robots.NAME]``: a namespaced robot's topics -> skills, the old single ``skill``, and the errors."""
+"""The ROS 2 keys of ``[robots.NAME]`` (``adapters/ros/settings.py``): a namespaced robot's topics ->
+skills, the old single ``skill``, and the errors, as ``twin`` loads them (the core's tables and every
+adapter's section) and as an adapter reads them from a file the core loaded alone."""
 
 from __future__ import annotations
 
@@ -6,14 +8,16 @@ from pathlib import Path
 
 import pytest
 
-from twin.config import DEFAULT_ROBOT_MAPS, load_config
+from adapters.cli.config_cmd import load
+from adapters.ros.settings import DEFAULT_ROBOT_MAPS, RosRobot, ros_robots
+from twin.config import RobotConfig, load_config
 from twin.errors import ConfigError
 
 
-def robots(tmp_path: Path, text: str) -> dict[str, object]:
+def robots(tmp_path: Path, text: str) -> dict[str, RosRobot]:
     path = tmp_path / "robots.toml"
     path.write_text(text)
-    return dict(load_config(path).robots)
+    return ros_robots(load(path))
 
 
 def test_a_namespaced_robot_without_topics_gets_localization_on_map_and_navigation_on_navigation_map(
@@ -99,3 +103,31 @@ def test_a_bad_full_every_s_is_refused_naming_the_topic_or_value(
     with pytest.raises(ConfigError, match="full_every_s") as err:
         robots(tmp_path, f'[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\n{table}')
     assert error in str(err.value)
+
+
+def test_the_core_alone_keeps_a_robots_name_rights_and_storey_and_the_ros_side_reads_the_rest(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "robots.toml"
+    path.write_text('[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\nrights = ["create"]\n')
+    cfg = load_config(path)  # no sections: the core's tests and tools
+    assert cfg.robots == {"r1": RobotConfig("r1", frozenset({"create"}), "ground-floor")}
+    assert ros_robots(cfg) == ros_robots(load(path))
+    assert ros_robots(cfg)["r1"].namespace == "/r1"
+
+
+def test_a_bad_ros_key_in_a_file_the_core_loaded_alone_is_refused_when_the_adapter_reads_it(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "robots.toml"
+    path.write_text('[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\ndomain_id = 233\n')
+    cfg = load_config(path)
+    with pytest.raises(ConfigError, match=r"\[robots.r1\] domain_id: expected a number <= 232, got 233"):
+        ros_robots(cfg)
+
+
+def test_a_typo_in_any_robot_key_is_refused_at_load_naming_the_robot_and_key(tmp_path: Path) -> None:
+    path = tmp_path / "robots.toml"
+    path.write_text('[robots.r1]\nrigths = ["create"]\n')
+    with pytest.raises(ConfigError, match=r"\[robots.r1\] rigths: unknown key \(did you mean rights\?\)"):
+        load(path)
