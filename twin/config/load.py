@@ -53,7 +53,8 @@ CORE_TABLES: dict[str, type[ConfigTable]] = {
 """The core's tables with one schema each; ``[skills.NAME]`` and :data:`NAMED_TABLES` hold many."""
 NAMED_TABLES: dict[str, type[ConfigTable]] = {"robots": RobotTable, "sources": SourceTable}
 """The core's tables of one table per name (``[robots.NAME]``, ``[sources.NAME]``): the core's keys
-of each (names, rights, storeys); adapters add theirs (``ConfigSection.each``)."""
+of each (rights, storey, kind); adapters add theirs (``ConfigSection.each``). Without sections, the
+other keys are left to the adapters (:meth:`Config.each`)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,6 +97,9 @@ class Config:
         """The adapter table ``kind`` (e.g. ``ZenohSettings``): validated at load time if the loader
         was given it, else parsed now from the file (a :class:`ConfigError` naming the key if bad;
         in a table shared with the core, keys that ``kind`` does not know are left to their owners)."""
+        if kind.each:
+            msg = f"{kind.__name__} holds keys of every [{kind.table}.NAME]: read it with Config.each"
+            raise TypeError(msg)
         found = self.sections.get(kind)
         if isinstance(found, kind):
             return found
@@ -220,12 +224,8 @@ def file_model(sections: Sequence[type[ConfigSection]] = (), *, strict: bool = T
         dict[str, Annotated[dict[str, Any], WithJsonSchema(_skill_schema())]],
         Field(default_factory=dict, description="Skill profiles: [skills.NAME] (README, 'Skills')."),
     )
-    described = {"sources": "Building systems that report to the twin (Open-RMF doors, obstacles)."}
     for name, owners in named.items():
-        fields[name] = (
-            dict[RobotName, _merged(name, owners)],  # type: ignore[misc]
-            Field(default_factory=dict, description=described.get(name)),
-        )
+        fields[name] = (dict[RobotName, _merged(name, owners)], Field(default_factory=dict))  # type: ignore[misc]
     return create_model(
         "BuildingTwinConfig",
         __config__=ConfigDict(extra="forbid" if strict else "ignore", frozen=True, populate_by_name=True),

@@ -15,7 +15,7 @@ Example::
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, ClassVar
+from typing import Annotated
 
 from pydantic import Field, StringConstraints
 
@@ -38,8 +38,6 @@ class RobotConfig:
 class RobotTable(ConfigTable):
     """``[robots.NAME]``: a robot, what it may change and the storey it starts on; the ROS 2 adapter's
     keys (``namespace``, ``maps``, ``detections``, ...) sit beside these."""
-
-    extended_by_sections: ClassVar[bool] = True
 
     storey: Text | None = Field(None, description="The storey key it starts on (needed with a namespace).")
     rights: Annotated[tuple[Right, ...], list_of("rights")] | None = Field(

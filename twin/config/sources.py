@@ -16,7 +16,7 @@ Example::
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, ClassVar, Literal
+from typing import Annotated, Literal
 
 from pydantic import Field
 
@@ -40,9 +40,9 @@ class SourceConfig:
 
 
 class SourceTable(ConfigTable):
-    """``[sources.NAME]``."""
-
-    extended_by_sections: ClassVar[bool] = True
+    """``[sources.NAME]``: a building system that reports to the twin (an Open-RMF door adapter or
+    obstacle detector), what it is and what it may change; the ROS 2 adapter's keys (``topic``,
+    ``doors``, ``levels``, ...) sit beside these."""
 
     kind: SourceKind = Field(description='"rmf_doors" (DoorState) or "rmf_obstacles" (Obstacles).')
     rights: Annotated[tuple[Right, ...], list_of("rights")] | None = Field(

@@ -180,6 +180,8 @@ def test_an_adapter_adds_keys_to_every_robot_the_core_keeps_its_own_and_checks_a
     assert (alone.robots["r1"].storey, alone.robots["r2"].storey) == ("ground-floor", "roof")
     assert alone.each(Beacon)["r1"] == Beacon(beacon=7, storey="ground-floor")  # parsed when asked for
     assert alone.each(Beacon)["r2"] == Beacon(storey="roof")  # beacn: maybe another adapter's key
+    with pytest.raises(TypeError, match=r"read it with Config.each"):
+        alone.section(Beacon)
     message = "[robots.r2] beacn: unknown key (did you mean beacon?)"
     with pytest.raises(ConfigError, match=re.escape(message)):
         load_config(write(tmp_path, text), sections=[Beacon], defaults=defaults)
