@@ -6,6 +6,8 @@ translates containers; it never resamples or re-thresholds a map. :mod:`~adapter
 and decodes the messages on ``/map`` and ``/map_updates``; :mod:`~adapters.ros.map_server` writes and
 reads nav2's YAML + PGM pair; :mod:`~adapters.ros.png` writes a grayscale preview; and
 :mod:`~adapters.ros.files` writes all of them for one map. Everything is re-exported here.
+:mod:`~adapters.ros.settings` holds the configuration's ROS 2 keys (``[ros]``, a robot's namespace,
+topics and detections, a source's topic); it is not re-exported.
 
 Example::
 
