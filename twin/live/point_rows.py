@@ -1,0 +1,319 @@
+"""The rows of one live points map: every selected element's own voxels in one arena, indexed by voxel.
+
+A points map keeps, per selected element (a *part*), the voxels it touches with its own point in each and
+whether that point is the voxel's (it *wins*). A change must find, for the voxels it concerns, every
+part's row there: the rows live in flat arrays (an arena: each part one contiguous slice, a dropped
+part's slice dead until the arena is compacted) and are found by voxel key through a sorted index (a
+large sorted base and a small sorted delta of the rows added since the base was merged, so that a change
+costs its own rows, not the map's). Winners are decided with whole-array operations on the rows of the
+concerned voxels only.
+
+Example::
+
+    rows = PointRows.of(["wall", "slab"], [wall_voxels, slab_voxels])
+    changed = rows.replace({"wall": moved_wall_voxels})     # True if a point of the cloud changed
+    cloud = rows.winners()                                  # one point per voxel, sorted by key
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+from twin.maps.points import Voxels, best_rows, sorted_unique
+from twin.maps.voxels import IntArray
+
+__all__ = ["PointRows"]
+
+_SPARE = 1 << 16
+"""Rows the arena holds beyond its live rows at least (and an eighth of them): room for changes."""
+_DELTA = 1 << 16
+"""Index rows kept in the delta before it is merged into the base (at least; or an eighth of the base)."""
+
+BoolArray = npt.NDArray[np.bool_]
+
+
+def _merge(
+    keys_a: IntArray, rows_a: IntArray, keys_b: IntArray, rows_b: IntArray
+) -> tuple[IntArray, IntArray]:
+    """Two key-sorted index runs as one (a stable sort of two runs is a linear merge)."""
+    keys = np.concatenate([keys_a, keys_b])
+    order = np.argsort(keys, kind="stable")
+    return keys[order], np.concatenate([rows_a, rows_b])[order]
+
+
+def _hits(index_keys: IntArray, index_rows: IntArray, keys: IntArray) -> IntArray:
+    """The rows an index holds at ``keys`` (sorted)."""
+    if not len(index_keys) or not len(keys):
+        return np.empty(0, dtype=np.int64)
+    lo = np.searchsorted(index_keys, keys, side="left")
+    n = np.searchsorted(index_keys, keys, side="right") - lo
+    total = int(n.sum())
+    if not total:
+        return np.empty(0, dtype=np.int64)
+    at = np.repeat(lo - (np.cumsum(n) - n), n) + np.arange(total)
+    return index_rows[at]
+
+
+class PointRows(Mapping[str, Voxels]):
+    """Each part's voxels (``rows[iri]``: a :class:`Voxels`, views into the arena) and who wins where."""
+
+    def __init__(self, *, spare: int = _SPARE, delta: int = _DELTA) -> None:
+        self._spare_min = spare
+        self._delta_min = delta
+        self._keys = np.empty(0, dtype=np.int64)
+        self._q = np.empty((0, 3))
+        self._d2 = np.empty(0)
+        self._own = np.empty(0, dtype=np.int32)
+        """Each row's part (slot), -1 once the part is dropped."""
+        self._wins = np.empty(0, dtype=np.bool_)
+        self._end = 0
+        self._dead = 0
+        self._slot: dict[str, int] = {}
+        self._names: list[str | None] = []
+        self._free: list[int] = []
+        self._span: list[tuple[int, int]] = []
+        """Per slot: its rows ``[start, stop)`` in the arena."""
+        self._base = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
+        self._delta = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
+
+    # --- building ------------------------------------------------------------------------------------
+    @classmethod
+    def of(
+        cls,
+        names: Sequence[str],
+        parts: Sequence[Voxels],
+        wins: Sequence[BoolArray] | None = None,
+        *,
+        spare: int = _SPARE,
+        delta: int = _DELTA,
+    ) -> PointRows:
+        """The rows of ``parts`` (each sorted by key, one row per key), winners decided (or as given).
+        ``spare``, ``delta``: the arena's spare rows and the index's delta before a merge (at least)."""
+        out = cls(spare=spare, delta=delta)
+        keep = [i for i, p in enumerate(parts) if len(p)]
+        flat = Voxels.concat([parts[i] for i in keep])
+        out._alloc(len(flat))
+        n = len(flat)
+        out._keys[:n], out._q[:n], out._d2[:n] = flat.keys, flat.q, flat.d2
+        start = 0
+        for slot, i in enumerate(keep):
+            stop = start + len(parts[i])
+            out._slot[names[i]] = slot
+            out._names.append(names[i])
+            out._span.append((start, stop))
+            out._own[start:stop] = slot
+            start = stop
+        out._end = n
+        order = np.argsort(flat.keys, kind="stable")
+        out._base = (flat.keys[order], order.astype(np.int64))
+        if wins is None:
+            out._decide(np.arange(n, dtype=np.int64))
+        else:
+            out._wins[:n] = np.concatenate([wins[i] for i in keep]) if keep else np.zeros(0, dtype=np.bool_)
+        return out
+
+    def _alloc(self, live: int) -> None:
+        cap = live + max(self._spare_min, live // 8)
+        self._keys = np.empty(cap, dtype=np.int64)
+        self._q = np.empty((cap, 3))
+        self._d2 = np.empty(cap)
+        self._own = np.full(cap, -1, dtype=np.int32)
+        self._wins = np.zeros(cap, dtype=np.bool_)
+
+    # --- the mapping of parts ------------------------------------------------------------------------
+    def __getitem__(self, iri: str) -> Voxels:
+        start, stop = self._span[self._slot[iri]]
+        return Voxels(self._keys[start:stop], self._q[start:stop], self._d2[start:stop])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._slot)
+
+    def __len__(self) -> int:
+        return len(self._slot)
+
+    def wins_of(self, iri: str) -> BoolArray:
+        """Which of the part's voxels hold its point (a copy)."""
+        start, stop = self._span[self._slot[iri]]
+        return self._wins[start:stop].copy()
+
+    @property
+    def rows(self) -> int:
+        """Live rows (every part's voxels)."""
+        return self._end - self._dead
+
+    def won(self) -> int:
+        """Rows that hold their voxel's point (a voxel tied between parts counts once per part)."""
+        return int(np.count_nonzero(self._wins[: self._end]))
+
+    # --- queries -------------------------------------------------------------------------------------
+    def _at(self, keys: IntArray) -> IntArray:
+        """Every live row at ``keys`` (sorted, unique)."""
+        rows = np.concatenate([_hits(*self._base, keys), _hits(*self._delta, keys)])
+        live: IntArray = rows[self._own[rows] >= 0]
+        return live
+
+    def _best(self, rows: IntArray) -> Voxels:
+        """One point per key among ``rows`` that win (tied parts hold the same point), sorted by key."""
+        won = rows[self._wins[rows]]
+        keys = self._keys[won]
+        order = np.argsort(keys, kind="stable")
+        won, keys = won[order], keys[order]
+        first = np.ones(len(keys), dtype=np.bool_)
+        first[1:] = keys[1:] != keys[:-1]
+        won = won[first]
+        return Voxels(self._keys[won], self._q[won], self._d2[won])
+
+    def winners(self) -> Voxels:
+        """Every winning voxel, one point per key, sorted by key."""
+        runs = []
+        for index_keys, index_rows in (self._base, self._delta):
+            won = self._wins[index_rows]  # dead rows never win
+            runs.append((index_keys[won], index_rows[won]))
+        keys = np.concatenate([runs[0][0], runs[1][0]])
+        rows = np.concatenate([runs[0][1], runs[1][1]])
+        order = np.argsort(keys, kind="stable")  # two sorted runs: a merge
+        keys, rows = keys[order], rows[order]
+        first = np.ones(len(keys), dtype=np.bool_)
+        first[1:] = keys[1:] != keys[:-1]
+        rows = rows[first]
+        return Voxels(self._keys[rows], self._q[rows], self._d2[rows])
+
+    def _decide(self, rows: IntArray) -> None:
+        """Decide the winners among ``rows`` (every live row of their keys)."""
+        if not len(rows):
+            return
+        keys, q, d2 = self._keys[rows], self._q[rows], self._d2[rows]
+        best = best_rows(keys, q, d2)  # sorted by key
+        at = np.searchsorted(keys[best], keys)
+        b = best[at]
+        self._wins[rows] = (d2 == d2[b]) & (q == q[b]).all(axis=1)
+
+    # --- changes -------------------------------------------------------------------------------------
+    def replace(self, changes: Mapping[str, Voxels | None]) -> bool:
+        """Give each named part its new voxels (None or empty: the part is gone) and decide the winners of
+        the voxels they touched before or touch now; True if the cloud's points there changed."""
+        touched = [self[i].keys for i in changes if i in self._slot]
+        touched += [p.keys for p in changes.values() if p is not None and len(p)]
+        if not touched:
+            return False
+        keys = sorted_unique(np.concatenate(touched))
+        before = self._best(self._at(keys))
+        for iri in changes:
+            self._drop(iri)
+        for iri, part in changes.items():
+            if part is not None and len(part):
+                self._add(iri, part)
+        rows = self._at(keys)
+        self._decide(rows)
+        after = self._best(rows)
+        if len(self._delta[0]) > max(self._delta_min, len(self._base[0]) // 8):
+            self._merge_index()
+        return not (
+            np.array_equal(before.keys, after.keys)
+            and np.array_equal(before.q, after.q)
+            and np.array_equal(before.d2, after.d2)
+        )
+
+    def _drop(self, iri: str) -> None:
+        slot = self._slot.pop(iri, None)
+        if slot is None:
+            return
+        start, stop = self._span[slot]
+        self._own[start:stop] = -1
+        self._wins[start:stop] = False
+        self._dead += stop - start
+        self._names[slot] = None
+        self._span[slot] = (0, 0)
+        self._free.append(slot)
+
+    def _add(self, iri: str, part: Voxels) -> None:
+        n = len(part)
+        if self._end + n > len(self._keys):
+            self._compact(n)
+        start, stop = self._end, self._end + n
+        self._keys[start:stop], self._q[start:stop], self._d2[start:stop] = part.keys, part.q, part.d2
+        self._wins[start:stop] = False
+        if self._free:
+            slot = self._free.pop()
+            self._names[slot] = iri
+            self._span[slot] = (start, stop)
+        else:
+            slot = len(self._names)
+            self._names.append(iri)
+            self._span.append((start, stop))
+        self._slot[iri] = slot
+        self._own[start:stop] = slot
+        self._end = stop
+        self._delta = _merge(*self._delta, part.keys, np.arange(start, stop, dtype=np.int64))
+
+    def _merge_index(self) -> None:
+        """Fold the delta into the base, leaving dead rows out."""
+        (bk, br), (dk, dr) = self._base, self._delta
+        alive_b, alive_d = self._own[br] >= 0, self._own[dr] >= 0
+        self._base = _merge(bk[alive_b], br[alive_b], dk[alive_d], dr[alive_d])
+        self._delta = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
+
+    def _compact(self, extra: int) -> None:
+        """A new arena of the live rows (in the same order), with room for ``extra`` more."""
+        end = self._end
+        keep = self._own[:end] >= 0
+        live = int(keep.sum())
+        new_row = np.cumsum(keep) - 1
+        old = (self._keys, self._q, self._d2, self._own, self._wins)
+        self._alloc(live + extra)
+        self._keys[:live] = old[0][:end][keep]
+        self._q[:live] = old[1][:end][keep]
+        self._d2[:live] = old[2][:end][keep]
+        self._own[:live] = old[3][:end][keep]
+        self._wins[:live] = old[4][:end][keep]
+        for slot, (start, stop) in enumerate(self._span):
+            if stop > start:
+                self._span[slot] = (int(new_row[start]), int(new_row[start]) + stop - start)
+        (bk, br), (dk, dr) = self._base, self._delta
+        alive_b, alive_d = old[3][br] >= 0, old[3][dr] >= 0
+        self._base = _merge(bk[alive_b], new_row[br[alive_b]], dk[alive_d], new_row[dr[alive_d]])
+        self._delta = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
+        self._end, self._dead = live, 0
+
+    # --- snapshots -----------------------------------------------------------------------------------
+    def packed(self) -> tuple[list[str], dict[str, npt.NDArray[np.generic]]]:
+        """The parts by name as flat arrays: ``keys, q, d2, wins`` per row, ``counts`` per part."""
+        names = sorted(self._slot)
+        spans = [self._span[self._slot[n]] for n in names]
+        counts = np.array([stop - start for start, stop in spans], dtype=np.int64)
+        rows = (
+            np.concatenate([np.arange(start, stop) for start, stop in spans])
+            if spans
+            else np.empty(0, dtype=np.int64)
+        )
+        arrays: dict[str, npt.NDArray[np.generic]] = {
+            "keys": self._keys[rows],
+            "q": self._q[rows],
+            "d2": self._d2[rows],
+            "wins": self._wins[rows],
+            "counts": counts,
+        }
+        return names, arrays
+
+    @classmethod
+    def unpacked(cls, names: Sequence[str], arrays: Mapping[str, npt.NDArray[np.generic]]) -> PointRows:
+        """Rows from :meth:`packed`'s arrays (ValueError if they disagree)."""
+        counts = np.asarray(arrays["counts"], dtype=np.int64)
+        n = len(arrays["keys"])
+        if len(counts) != len(names) or int(counts.sum()) != n or (counts < 0).any():
+            msg = f"{len(names)} parts and {len(counts)} counts of {n} rows"
+            raise ValueError(msg)
+        start = np.concatenate([[0], np.cumsum(counts)])
+        keys = np.asarray(arrays["keys"], dtype=np.int64)
+        q = np.asarray(arrays["q"], dtype=np.float64).reshape(n, 3)
+        d2 = np.asarray(arrays["d2"], dtype=np.float64)
+        wins = np.asarray(arrays["wins"], dtype=np.bool_)
+        parts, won = [], []
+        for i in range(len(names)):
+            rows = slice(int(start[i]), int(start[i + 1]))
+            parts.append(Voxels(keys[rows], q[rows], d2[rows]))
+            won.append(wins[rows])
+        return cls.of(names, parts, won)
