@@ -78,8 +78,62 @@ def _columns(
     return d, p, q, first, last
 
 
-def _candidates(cells: FloatArray, lo: IntArray, hi: IntArray) -> Iterator[tuple[IntArray, IntArray]]:
-    """Batches of ``(triangle index, (m, 3) voxel index)`` pairs: a superset of the touching pairs."""
+def _strips(
+    vp: FloatArray,
+    vq: FloatArray,
+    *,
+    ok: npt.NDArray[np.bool_],
+    span_p: IntArray,
+    first_p: IntArray,
+    first_q: IntArray,
+    last_q: IntArray,
+    big: FloatArray,
+) -> tuple[IntArray, IntArray, IntArray, IntArray]:
+    """Per strip ``a <= p <= a + 1`` of each triangle's projection ``(vp, vq)``: ``(triangle, a, first
+    column b, columns)``, the columns covering the triangle's q range over the strip, widened beyond
+    rounding (a superset of the columns whose closed square meets the triangle)."""
+    sel = np.flatnonzero(ok)
+    n = np.where(ok, span_p, 0)[sel]
+    ts = np.repeat(sel, n)
+    sa = first_p[ts] + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+    margin = 1e-6 * (big[ts] + 2.0)
+    s_lo, s_hi = sa - margin, sa + 1.0 + margin
+    q_lo = np.full(len(ts), np.inf)
+    q_hi = np.full(len(ts), -np.inf)
+    for i in range(3):
+        p0, p1 = vp[ts, i], vp[ts, (i + 1) % 3]
+        q0, q1 = vq[ts, i], vq[ts, (i + 1) % 3]
+        lo_p, hi_p = np.minimum(p0, p1), np.maximum(p0, p1)
+        meets = (lo_p <= s_hi) & (hi_p >= s_lo)
+        dp = p1 - p0
+        # an edge nearly along q (its slope ill-conditioned): its whole q range
+        steep = np.abs(dp) <= margin
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = np.where(steep, 0.0, 1.0 / np.where(steep, 1.0, dp))
+            t0 = np.clip((np.maximum(lo_p, s_lo) - p0) * inv, 0.0, 1.0)
+            t1 = np.clip((np.minimum(hi_p, s_hi) - p0) * inv, 0.0, 1.0)
+        dq = q1 - q0
+        qa = np.where(steep, q0, q0 + t0 * dq)
+        qb = np.where(steep, q1, q0 + t1 * dq)
+        q_lo = np.where(meets, np.minimum(q_lo, np.minimum(qa, qb)), q_lo)
+        q_hi = np.where(meets, np.maximum(q_hi, np.maximum(qa, qb)), q_hi)
+    has = q_lo <= q_hi
+    first_b = np.maximum(np.floor(np.where(has, q_lo - margin, 0.0)).astype(np.int64), first_q[ts])
+    last_b = np.minimum(np.floor(np.where(has, q_hi + margin, -1.0)).astype(np.int64), last_q[ts])
+    nb = np.where(has, np.maximum(last_b - first_b + 1, 0), 0)
+    return ts, sa, first_b, nb
+
+
+def _candidates(
+    cells: FloatArray, lo: IntArray, hi: IntArray, w_band: tuple[float, float] = (-np.inf, np.inf)
+) -> Iterator[tuple[IntArray, IntArray, npt.NDArray[np.bool_]]]:
+    """Batches of ``(triangle index, (m, 3) voxel index, sure)`` pairs: a superset of the touching
+    pairs, ``sure`` where the pair certainly touches (no test needed).
+
+    A pair is sure when the column's whole (closed) square lies inside the triangle's projection by
+    a margin beyond rounding (over the square, the triangle is its plane), and the plane's range
+    over the square meets the voxel's extent along the column beyond rounding too (exactly, for a
+    triangle whose dominant coordinate is one value: a face in a grid-aligned plane)."""
     if not len(cells):
         return
     d, p, q, first, last = _columns(cells, lo, hi)
@@ -88,7 +142,6 @@ def _candidates(cells: FloatArray, lo: IntArray, hi: IntArray) -> Iterator[tuple
     span_q = last[rows, q] - first[rows, q] + 1
     span_d = last[rows, d] - first[rows, d] + 1
     ok = (span_p > 0) & (span_q > 0) & (span_d > 0)
-    n_cols = np.where(ok, span_p * span_q, 0)
     n = _cross(cells[:, 1] - cells[:, 0], cells[:, 2] - cells[:, 0])
     # per triangle: its coordinates along p, q, d; its plane; its 2D edge normals in (p, q) with the
     # triangle's extent along each (a column whose square lies beyond one holds no voxel of it)
@@ -105,52 +158,79 @@ def _candidates(cells: FloatArray, lo: IntArray, hi: IntArray) -> Iterator[tuple
     proj = m_p[:, :, None] * vp[:, None, :] + m_q[:, :, None] * vq[:, None, :]  # (n, edge, vertex)
     e_lo, e_hi = proj.min(axis=2), proj.max(axis=2)
     e_tol = 1e-9 * (np.abs(m_p) + np.abs(m_q)) * (big_all[:, None] + 2.0)
-    # columns of a batch of triangles at a time
-    cum = np.cumsum(n_cols)
+    # per edge: contiguous per-triangle arrays (gathered per column below)
+    edges = [
+        (m_p[:, i].copy(), m_q[:, i].copy(), e_lo[:, i].copy(), e_hi[:, i].copy(), e_tol[:, i].copy())
+        for i in range(3)
+    ]
+    first_p, first_q = first[rows, p], first[rows, q]
+    flat_all = np.abs(nd) > 0
+    safe_all = np.where(flat_all, nd, 1.0)
+    # rounding of the plane (its normal from rounded edges) and of its evaluation, generously: a
+    # nearly degenerate triangle's plane is ill-conditioned, and its column is then its full range
+    mag_all = np.abs(c0_all) + (np.abs(np_all) + np.abs(nq_all)) * (big_all + 2.0) + big_all**3
+    eps_all = 1e-10 * mag_all / np.abs(safe_all) + 1e-9
+    level_all = t_lo_all == t_hi_all  # the dominant coordinate is one value (exactly t_lo)
+    lo_d, hi_d = lo[d], hi[d] - 1
+    # the columns: per strip p in [a, a+1] of a triangle, the q range of the triangle there (generously
+    # rounded); then batches of strips
+    ts, sa, b0, nb = _strips(
+        vp, vq, ok=ok, span_p=span_p, first_p=first_p, first_q=first_q, last_q=last[rows, q], big=big_all
+    )
+    cum = np.cumsum(nb)
     start = 0
-    while start < len(cells):
+    while start < len(ts):
         base = cum[start - 1] if start else 0
-        stop = int(np.searchsorted(cum, base + _BATCH, side="right"))
-        stop = max(stop, start + 1)
+        stop = max(int(np.searchsorted(cum, base + _BATCH, side="right")), start + 1)
         sel = np.arange(start, stop)
         start = stop
-        counts = n_cols[sel]
-        if not counts.sum():
+        counts = nb[sel]
+        total_cols = int(counts.sum())
+        if not total_cols:
             continue
-        tri = np.repeat(sel, counts)
-        offs = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-        a = first[tri, p[tri]] + offs % span_p[tri]
-        b = first[tri, q[tri]] + offs // span_p[tri]
+        strip = np.repeat(sel, counts)
+        tri = ts[strip]
+        a = sa[strip]
+        b = b0[strip] + np.arange(total_cols) - np.repeat(np.cumsum(counts) - counts, counts)
         # drop the columns whose square one of the triangle's (projected) edges separates from it
         keep = np.ones(len(tri), dtype=np.bool_)
-        for i in range(3):
-            mp, mq = m_p[tri, i], m_q[tri, i]
+        inside = np.ones(len(tri), dtype=np.bool_)  # the square inside the triangle's projection
+        for mp_all, mq_all, el_all, eh_all, tol_all in edges:
+            mp, mq = mp_all[tri], mq_all[tri]
             base_sq = mp * a + mq * b
             sq_lo = base_sq + np.minimum(mp, 0.0) + np.minimum(mq, 0.0)
             sq_hi = base_sq + np.maximum(mp, 0.0) + np.maximum(mq, 0.0)
-            tol = e_tol[tri, i]
-            keep &= (sq_hi >= e_lo[tri, i] - tol) & (sq_lo <= e_hi[tri, i] + tol)
-        tri, a, b = tri[keep], a[keep], b[keep]
+            tol, el, eh = tol_all[tri], el_all[tri], eh_all[tri]
+            keep &= (sq_hi >= el - tol) & (sq_lo <= eh + tol)
+            inside &= (sq_lo > el + tol) & (sq_hi < eh - tol)
+        tri, a, b, inside = tri[keep], a[keep], b[keep], inside[keep]
         if not len(tri):
             continue
+        dt, pt, qt = d[tri], p[tri], q[tri]
+        # a square cut by the band (along p or q = z) is not whole: not sure
+        pz, qz = pt == 2, qt == 2
+        zc = np.where(pz, a, b)
+        inside &= ~(pz | qz) | ((zc >= w_band[0]) & (zc + 1 <= w_band[1]))
         # the plane's range of the dominant coordinate over the column's square, cut to the triangle's
         t_lo, t_hi = t_lo_all[tri], t_hi_all[tri]
-        flat = np.abs(nd[tri]) > 0
-        safe = np.where(flat, nd[tri], 1.0)
+        flat = flat_all[tri]
+        safe = safe_all[tri]
         c0 = c0_all[tri]
         np_, nq = np_all[tri], nq_all[tri]
-        corners = np.stack(
-            [(c0 - np_ * (a + da) - nq * (b + db)) / safe for da in (0, 1) for db in (0, 1)], axis=1
-        )
-        # rounding of the plane (its normal from rounded edges) and of its evaluation, generously: a
-        # nearly degenerate triangle's plane is ill-conditioned, and its column is then its full range
-        big = big_all[tri]
-        mag = np.abs(c0) + (np.abs(np_) + np.abs(nq)) * (big + 2.0) + big**3
-        eps = 1e-10 * mag / np.abs(safe) + 1e-9
-        w_lo = np.where(flat, np.maximum(t_lo, corners.min(axis=1) - eps), t_lo)
-        w_hi = np.where(flat, np.minimum(t_hi, corners.max(axis=1) + eps), t_hi)
-        k0 = np.maximum(np.floor(w_lo).astype(np.int64), lo[d[tri]])
-        k1 = np.minimum(np.floor(w_hi).astype(np.int64), hi[d[tri]] - 1)
+        pa, qb = np_ * a, nq * b
+        c00 = (c0 - pa - qb) / safe
+        c01 = (c0 - pa - (qb + nq)) / safe
+        c10 = (c0 - (pa + np_) - qb) / safe
+        c11 = (c0 - (pa + np_) - (qb + nq)) / safe
+        c_lo = np.minimum(np.minimum(c00, c01), np.minimum(c10, c11))
+        c_hi = np.maximum(np.maximum(c00, c01), np.maximum(c10, c11))
+        eps = eps_all[tri]
+        w_lo = np.where(flat, np.maximum(t_lo, c_lo - eps), t_lo)
+        w_hi = np.where(flat, np.minimum(t_hi, c_hi + eps), t_hi)
+        inside &= flat
+        level = level_all[tri]
+        k0 = np.maximum(np.floor(w_lo).astype(np.int64), lo_d[tri])
+        k1 = np.minimum(np.floor(w_hi).astype(np.int64), hi_d[tri])
         nk = np.maximum(k1 - k0 + 1, 0)
         # expand each column into its voxels (in chunks: a steep column can hold many)
         cstart = 0
@@ -164,15 +244,33 @@ def _candidates(cells: FloatArray, lo: IntArray, hi: IntArray) -> Iterator[tuple
             total = int(kk.sum())
             if not total:
                 continue
-            col = np.repeat(cs, kk)
-            k = k0[col] + np.arange(total) - np.repeat(np.cumsum(kk) - kk, kk)
+            if total == len(cs) and bool((kk == 1).all()):  # one voxel a column (faces across their axis)
+                col = cs
+                k = k0[cs]
+            else:
+                col = np.repeat(cs, kk)
+                k = k0[col] + np.arange(total) - np.repeat(np.cumsum(kk) - kk, kk)
             t = tri[col]
             ijk = np.empty((total, 3), dtype=np.int64)
-            r = np.arange(total)
-            ijk[r, p[t]] = a[col]
-            ijk[r, q[t]] = b[col]
-            ijk[r, d[t]] = k
-            yield t, ijk
+            dc, pc, ac, bc = dt[col], pt[col], a[col], b[col]
+            for axis in range(3):
+                ijk[:, axis] = np.where(dc == axis, k, np.where(pc == axis, ac, bc))
+            # sure: the voxel's extent along d, [lo_d, hi_d) (cut by the band along z), meets the
+            # plane's range over the square: (c_lo, c_hi) beyond rounding, or exactly the level
+            sure = inside[col]
+            if sure.any():
+                kf = k.astype(np.float64)
+                zd = dc == 2
+                box_lo = np.where(zd, np.maximum(kf, w_band[0]), kf)
+                box_hi = np.where(zd, np.minimum(kf + 1.0, w_band[1]), kf + 1.0)
+                e = eps[col]
+                lev = t_lo[col]
+                sure &= np.where(
+                    level[col],
+                    (box_lo <= lev) & (lev < box_hi),
+                    (c_lo[col] + e < box_hi) & (c_hi[col] - e > box_lo),
+                )
+            yield t, ijk, sure
 
 
 # --- the test --------------------------------------------------------------------------------------
@@ -259,40 +357,88 @@ def _overlap(
     return touch, r[unsure], near[unsure]
 
 
-def _ints(values: list[float]) -> list[int]:
-    """``values`` as integers over one power of two (exactly)."""
-    ratios = [float(x).as_integer_ratio() for x in values]
-    shift = max(den.bit_length() - 1 for _, den in ratios)
-    return [num << (shift - (den.bit_length() - 1)) for num, den in ratios]
+def _shift_of(values: list[float]) -> int:
+    """The power of two that makes every one of ``values`` an integer."""
+    return max(x.as_integer_ratio()[1].bit_length() - 1 for x in values)
 
 
-def _exact_separates(v: FloatArray, lo: FloatArray, hi: FloatArray, axes: npt.NDArray[np.bool_]) -> bool:
-    """Does one of the marked axes (see :func:`_axis`) separate the triangle from the half-open box, in
-    exact integer arithmetic? (A tie separates when the box's end there moves in as its upper faces do.)"""
-    nums = _ints([*v.reshape(-1).tolist(), *lo.tolist(), *hi.tolist()])
-    p = [nums[0:3], nums[3:6], nums[6:9]]
-    b0, b1 = nums[9:12], nums[12:15]
-    e = [[p[1][i] - p[0][i] for i in range(3)], [p[2][i] - p[1][i] for i in range(3)]]
-    e.append([p[0][i] - p[2][i] for i in range(3)])
-    for n_axis in np.flatnonzero(axes).tolist():
-        if n_axis == 0:
-            x, y = e[0], e[1]
-            ax = [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]]
-        else:
-            i, j = divmod(n_axis - 1, 3)
-            ed = e[i]
-            ax = [[0, ed[2], -ed[1]], [-ed[2], 0, ed[0]], [ed[1], -ed[0], 0]][j]
-        proj = [ax[0] * x[0] + ax[1] * x[1] + ax[2] * x[2] for x in p]
-        bmin = sum(min(ax[i] * b0[i], ax[i] * b1[i]) for i in range(3))
-        bmax = sum(max(ax[i] * b0[i], ax[i] * b1[i]) for i in range(3))
-        tmin, tmax = min(proj), max(proj)
-        if tmin > bmax or tmax < bmin:
-            return True
-        if tmin == bmax and any(c > 0 for c in ax):
-            return True
-        if tmax == bmin and any(c < 0 for c in ax):
-            return True
-    return False
+def _scaled(x: float, shift: int) -> int:
+    """``x * 2**shift`` exactly (an integer when ``shift`` is at least :func:`_shift_of` ``[x]``)."""
+    num, den = x.as_integer_ratio()
+    return num << (shift - (den.bit_length() - 1))
+
+
+class _ExactTriangle:
+    """One triangle in exact integers (over a power of two shared with the band's bounds), with its
+    separating axes and their projections made as they are asked for."""
+
+    __slots__ = ("axes", "edges", "points", "shift")
+
+    def __init__(self, v: list[float], band: tuple[float, float]) -> None:
+        self.shift = _shift_of([*v, *(b for b in band if np.isfinite(b))])
+        n = [_scaled(x, self.shift) for x in v]
+        self.points = [n[0:3], n[3:6], n[6:9]]
+        p = self.points
+        self.edges = [[p[(i + 1) % 3][c] - p[i][c] for c in range(3)] for i in range(3)]
+        self.axes: dict[int, tuple[list[int], int, int, bool, bool]] = {}
+
+    def axis(self, n_axis: int) -> tuple[list[int], int, int, bool, bool]:
+        """Axis ``n_axis`` (see :func:`_axis`): its components, the triangle's projection's ends, and
+        whether a component is positive, negative."""
+        got = self.axes.get(n_axis)
+        if got is None:
+            e = self.edges
+            if n_axis == 0:
+                x, y = e[0], e[1]
+                ax = [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]]
+            else:
+                i, j = divmod(n_axis - 1, 3)
+                ed = e[i]
+                ax = [[0, ed[2], -ed[1]], [-ed[2], 0, ed[0]], [ed[1], -ed[0], 0]][j]
+            proj = [ax[0] * x[0] + ax[1] * x[1] + ax[2] * x[2] for x in self.points]
+            got = (ax, min(proj), max(proj), any(c > 0 for c in ax), any(c < 0 for c in ax))
+            self.axes[n_axis] = got
+        return got
+
+    def separates(self, lo: list[float], hi: list[float], axes: list[int]) -> bool:
+        """Does one of ``axes`` separate the triangle from the half-open box ``[lo, hi)``, exactly? (A
+        tie separates when the box's end there moves in as its upper faces do.)"""
+        b0 = [_scaled(x, self.shift) for x in lo]
+        b1 = [_scaled(x, self.shift) for x in hi]
+        for n_axis in axes:
+            ax, tmin, tmax, positive, negative = self.axis(n_axis)
+            lo_end = [b0[c] if ax[c] >= 0 else b1[c] for c in range(3)]
+            hi_end = [b1[c] if ax[c] >= 0 else b0[c] for c in range(3)]
+            bmin = ax[0] * lo_end[0] + ax[1] * lo_end[1] + ax[2] * lo_end[2]
+            bmax = ax[0] * hi_end[0] + ax[1] * hi_end[1] + ax[2] * hi_end[2]
+            if tmin > bmax or tmax < bmin:
+                return True
+            if tmin == bmax and positive:
+                return True
+            if tmax == bmin and negative:
+                return True
+        return False
+
+
+def _exact_separated(
+    cells: FloatArray,
+    t: IntArray,
+    lo: FloatArray,
+    hi: FloatArray,
+    near: npt.NDArray[np.bool_],
+    *,
+    band: tuple[float, float],
+) -> list[bool]:
+    """For each unsure pair (triangle ``t``, box ``[lo, hi)``, its near axes), whether an axis
+    separates them exactly (each triangle made exact once)."""
+    made: dict[int, _ExactTriangle] = {}
+    out = []
+    for tri, box_lo, box_hi, axes in zip(t.tolist(), lo.tolist(), hi.tolist(), near, strict=True):
+        exact = made.get(tri)
+        if exact is None:
+            exact = made[tri] = _ExactTriangle(cells[tri].reshape(-1).tolist(), band)
+        out.append(exact.separates(box_lo, box_hi, np.flatnonzero(axes).tolist()))
+    return out
 
 
 def touched_voxels(
@@ -311,15 +457,19 @@ def touched_voxels(
     """
     lo_a, hi_a = np.asarray(lo, dtype=np.int64), np.asarray(hi, dtype=np.int64)
     tris, voxels = [], []
-    for t_all, ijk_all in _candidates(np.asarray(cells, dtype=np.float64), lo_a, hi_a):
+    for t_all, ijk_all, sure in _candidates(np.asarray(cells, dtype=np.float64), lo_a, hi_a, w_band):
         blo, bhi = _boxes(ijk_all, w_band)
         keep = bhi[:, 2] > blo[:, 2]
-        t, ijk, blo, bhi = t_all[keep], ijk_all[keep], blo[keep], bhi[keep]
-        touch, unsure, near = _overlap(cells[t], blo, bhi)
-        for r, axes in zip(unsure.tolist(), near, strict=True):
-            touch[r] = not _exact_separates(cells[t[r]], blo[r], bhi[r], axes)
-        tris.append(t[touch])
-        voxels.append(ijk[touch])
+        test = np.flatnonzero(keep & ~sure)
+        touch = sure & keep
+        t, blo, bhi = t_all[test], blo[test], bhi[test]
+        hit, unsure, near = _overlap(cells[t], blo, bhi)
+        if len(unsure):
+            apart = _exact_separated(cells, t[unsure], blo[unsure], bhi[unsure], near, band=w_band)
+            hit[unsure] = ~np.array(apart, dtype=np.bool_)
+        touch[test] = hit
+        tris.append(t_all[touch])
+        voxels.append(ijk_all[touch])
     if not tris:
         return np.empty(0, dtype=np.int64), np.empty((0, 3), dtype=np.int64)
     return np.concatenate(tris).astype(np.int64), np.concatenate(voxels)
