@@ -63,6 +63,13 @@ def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.asarray(a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2])
 
 
+def _coordinate(cells: FloatArray, axis: IntArray) -> FloatArray:
+    """Per triangle of ``cells (n, 3, 3)``: its vertices' coordinate ``axis[t]`` (``(n, 3)``)."""
+    a = axis[:, None]
+    out: FloatArray = np.where(a == 0, cells[:, :, 0], np.where(a == 1, cells[:, :, 1], cells[:, :, 2]))
+    return out
+
+
 # --- candidates ------------------------------------------------------------------------------------
 def _columns(
     cells: FloatArray, lo: IntArray, hi: IntArray
@@ -70,11 +77,12 @@ def _columns(
     """Per triangle: its dominant axis ``d``, the other two ``p, q``, and its index ranges per axis
     (``first``, ``last`` inclusive, clipped to ``[lo, hi)``)."""
     n = _cross(cells[:, 1] - cells[:, 0], cells[:, 2] - cells[:, 0])
-    d = np.argmax(np.abs(n), axis=1).astype(np.int64)
+    a0, a1, a2 = np.abs(n[:, 0]), np.abs(n[:, 1]), np.abs(n[:, 2])
+    d = np.where((a0 >= a1) & (a0 >= a2), 0, np.where(a1 >= a2, 1, 2)).astype(np.int64)  # argmax
     p = (d + 1) % 3
     q = (d + 2) % 3
-    first = np.maximum(np.floor(cells.min(axis=1)).astype(np.int64), lo)
-    last = np.minimum(np.floor(cells.max(axis=1)).astype(np.int64), hi - 1)
+    first = np.maximum(np.floor(_min3(cells)).astype(np.int64), lo)
+    last = np.minimum(np.floor(_max3(cells)).astype(np.int64), hi - 1)
     return d, p, q, first, last
 
 
@@ -145,18 +153,18 @@ def _candidates(
     n = _cross(cells[:, 1] - cells[:, 0], cells[:, 2] - cells[:, 0])
     # per triangle: its coordinates along p, q, d; its plane; its 2D edge normals in (p, q) with the
     # triangle's extent along each (a column whose square lies beyond one holds no voxel of it)
-    vp = np.take_along_axis(cells, p[:, None, None].repeat(3, axis=1), axis=2)[:, :, 0]
-    vq = np.take_along_axis(cells, q[:, None, None].repeat(3, axis=1), axis=2)[:, :, 0]
-    vd = np.take_along_axis(cells, d[:, None, None].repeat(3, axis=1), axis=2)[:, :, 0]
+    vp, vq, vd = (_coordinate(cells, axis) for axis in (p, q, d))
     nd, np_all, nq_all = n[rows, d], n[rows, p], n[rows, q]
     c0_all = _dot(n, cells[:, 0])
     t_lo_all, t_hi_all = _min3(vd), _max3(vd)
-    big_all = 1.0 + np.maximum(np.abs(_min3(cells)), np.abs(_max3(cells))).max(axis=1)
+    reach = np.maximum(np.abs(_min3(cells)), np.abs(_max3(cells)))
+    big_all = 1.0 + np.maximum(np.maximum(reach[:, 0], reach[:, 1]), reach[:, 2])
     edge_p = np.roll(vp, -1, axis=1) - vp  # (n, 3): edge i from vertex i to i + 1
     edge_q = np.roll(vq, -1, axis=1) - vq
     m_p, m_q = edge_q, -edge_p  # the edges' normals in (p, q)
     proj = m_p[:, :, None] * vp[:, None, :] + m_q[:, :, None] * vq[:, None, :]  # (n, edge, vertex)
-    e_lo, e_hi = proj.min(axis=2), proj.max(axis=2)
+    e_lo = np.minimum(np.minimum(proj[:, :, 0], proj[:, :, 1]), proj[:, :, 2])
+    e_hi = np.maximum(np.maximum(proj[:, :, 0], proj[:, :, 1]), proj[:, :, 2])
     e_tol = 1e-9 * (np.abs(m_p) + np.abs(m_q)) * (big_all[:, None] + 2.0)
     # per edge: contiguous per-triangle arrays (gathered per column below)
     edges = [
@@ -282,22 +290,100 @@ def _boxes(ijk: IntArray, w_band: tuple[float, float]) -> tuple[FloatArray, Floa
     return lo, hi
 
 
-def _axis(e: FloatArray, n_axis: int) -> FloatArray:
-    """Axis ``n_axis`` of the ten that are not the box's: 0 the triangle's normal, ``1 + 3 i + j`` edge
-    ``i`` x unit vector ``j``."""
+_AXES_AT_ONCE = 4096
+"""Up to this many pairs, the ten axes are tested at once; beyond, one by one (skipping what is
+decided). Both compute the same numbers."""
+
+
+def _ten_axes(
+    e: FloatArray,
+    rel: FloatArray,
+    size: FloatArray,
+    *,
+    big_v: FloatArray,
+    big_r: FloatArray,
+    reach: FloatArray,
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """The ten non-box axes of triangles with edges ``e (m, 3, 3)`` against boxes ``[0, size)`` with the
+    vertices at ``rel (m, 3, 3)`` from the box's corner: per pair, whether one separates them, and per
+    axis whether it is within rounding of a tie (``(m, 10)``). Axis 0 is the triangle's normal,
+    ``1 + 3 i + j`` edge ``i`` x unit vector ``j``."""
+    m = len(e)
+    ax = np.zeros((m, 10, 3))
+    ax[:, 0] = _cross(e[:, 0], e[:, 1])
+    for i in range(3):
+        ex, ey, ez = e[:, i, 0], e[:, i, 1], e[:, i, 2]
+        n = 1 + 3 * i  # edge i x unit x, y, z: (0, ez, -ey), (-ez, 0, ex), (ey, -ex, 0)
+        ax[:, n, 1], ax[:, n, 2] = ez, -ey
+        ax[:, n + 1, 0], ax[:, n + 1, 2] = -ez, ex
+        ax[:, n + 2, 0], ax[:, n + 2, 1] = ey, -ex
+    ax0, ax1, ax2 = ax[:, :, 0], ax[:, :, 1], ax[:, :, 2]
+    # an axis along x, y or z (or none) is a box axis's test again, decided exactly before
+    oblique = ((ax0 != 0).astype(np.int8) + (ax1 != 0) + (ax2 != 0)) >= 2
+    p0, p1, p2 = (
+        ax0 * rel[:, k, 0, None] + ax1 * rel[:, k, 1, None] + ax2 * rel[:, k, 2, None] for k in range(3)
+    )
+    tmin = np.minimum(np.minimum(p0, p1), p2)
+    tmax = np.maximum(np.maximum(p0, p1), p2)
+    l0, l1, l2 = ax0 * size[:, 0, None], ax1 * size[:, 1, None], ax2 * size[:, 2, None]
+    bmin = np.minimum(l0, 0.0) + np.minimum(l1, 0.0) + np.minimum(l2, 0.0)
+    bmax = np.maximum(l0, 0.0) + np.maximum(l1, 0.0) + np.maximum(l2, 0.0)
+    size_ax = np.abs(ax0) + np.abs(ax1) + np.abs(ax2)
+    bv = big_v[:, None]
+    ax_err = np.repeat(bv, 10, axis=1)  # the axis's own rounding, in units of ulp
+    ax_err[:, 0] = big_v * reach
+    tol = _TOL * ((size_ax + ax_err) * big_r[:, None] + size_ax * bv)
+    apart = oblique & ((tmin > bmax + tol) | (tmax < bmin - tol))
+    near = oblique & ((np.abs(tmin - bmax) <= tol) | (np.abs(tmax - bmin) <= tol))
+    return apart.any(axis=1), near
+
+
+def _one_axis(
+    n_axis: int,
+    apart: npt.NDArray[np.bool_],
+    near: npt.NDArray[np.bool_],
+    *,
+    e: FloatArray,
+    rel: FloatArray,
+    size: FloatArray,
+    big_v: FloatArray,
+    big_r: FloatArray,
+    reach: FloatArray,
+) -> None:
+    """Axis ``n_axis`` of :func:`_ten_axes`, for the pairs not ``apart`` yet (updates ``apart`` and
+    ``near[:, n_axis]``)."""
+    edge = e[:, (n_axis - 1) // 3] if n_axis else e[:, 0]
+    ax = np.zeros_like(edge)
+    j = (n_axis - 1) % 3
     if n_axis == 0:
-        return _cross(e[:, 0], e[:, 1])
-    i, j = divmod(n_axis - 1, 3)
-    edge = e[:, i]
-    out = np.zeros_like(edge)
-    # edge x unit_j, written out: (e1 u2 - e2 u1, e2 u0 - e0 u2, e0 u1 - e1 u0)
-    if j == 0:
-        out[:, 1], out[:, 2] = edge[:, 2], -edge[:, 1]
+        ax = _cross(e[:, 0], e[:, 1])
+    elif j == 0:
+        ax[:, 1], ax[:, 2] = edge[:, 2], -edge[:, 1]
     elif j == 1:
-        out[:, 0], out[:, 2] = -edge[:, 2], edge[:, 0]
+        ax[:, 0], ax[:, 2] = -edge[:, 2], edge[:, 0]
     else:
-        out[:, 0], out[:, 1] = edge[:, 1], -edge[:, 0]
-    return out
+        ax[:, 0], ax[:, 1] = edge[:, 1], -edge[:, 0]
+    # an axis along x, y or z (or none) is a box axis's test again, decided exactly before
+    oblique = ((ax[:, 0] != 0).astype(np.int8) + (ax[:, 1] != 0) + (ax[:, 2] != 0)) >= 2
+    idx = np.flatnonzero(oblique & ~apart)
+    if not len(idx):
+        return
+    ax = ax[idx]
+    ax0, ax1, ax2 = ax[:, 0], ax[:, 1], ax[:, 2]
+    rel_i = rel[idx]
+    p0, p1, p2 = _dot(ax, rel_i[:, 0]), _dot(ax, rel_i[:, 1]), _dot(ax, rel_i[:, 2])
+    tmin = np.minimum(np.minimum(p0, p1), p2)
+    tmax = np.maximum(np.maximum(p0, p1), p2)
+    sz = size[idx]
+    l0, l1, l2 = ax0 * sz[:, 0], ax1 * sz[:, 1], ax2 * sz[:, 2]
+    bmin = np.minimum(l0, 0.0) + np.minimum(l1, 0.0) + np.minimum(l2, 0.0)
+    bmax = np.maximum(l0, 0.0) + np.maximum(l1, 0.0) + np.maximum(l2, 0.0)
+    size_ax = np.abs(ax0) + np.abs(ax1) + np.abs(ax2)
+    bv = big_v[idx]
+    ax_err = bv * (reach[idx] if n_axis == 0 else 1.0)  # the axis's own rounding, in units of ulp
+    tol = _TOL * ((size_ax + ax_err) * big_r[idx] + size_ax * bv)
+    apart[idx] = (tmin > bmax + tol) | (tmax < bmin - tol)
+    near[idx, n_axis] = (np.abs(tmin - bmax) <= tol) | (np.abs(tmax - bmin) <= tol)
 
 
 def _overlap(
@@ -329,29 +415,11 @@ def _overlap(
     reach = 1.0 + _max3(np.maximum(np.abs(_min3(e)), np.abs(_max3(e))))
     apart = np.zeros(len(r), dtype=np.bool_)
     near = np.zeros((len(r), 10), dtype=np.bool_)
-    for n_axis in range(10):
-        ax = _axis(e, n_axis)
-        # an axis along x, y or z (or none) is a box axis's test again, decided exactly above
-        oblique = ((ax[:, 0] != 0).astype(np.int8) + (ax[:, 1] != 0) + (ax[:, 2] != 0)) >= 2
-        idx = np.flatnonzero(oblique & ~apart)
-        if not len(idx):
-            continue
-        ax = ax[idx]
-        ax0, ax1, ax2 = ax[:, 0], ax[:, 1], ax[:, 2]
-        rel_i = rel[idx]
-        p0, p1, p2 = _dot(ax, rel_i[:, 0]), _dot(ax, rel_i[:, 1]), _dot(ax, rel_i[:, 2])
-        tmin = np.minimum(np.minimum(p0, p1), p2)
-        tmax = np.maximum(np.maximum(p0, p1), p2)
-        sz = size[idx]
-        l0, l1, l2 = ax0 * sz[:, 0], ax1 * sz[:, 1], ax2 * sz[:, 2]
-        bmin = np.minimum(l0, 0.0) + np.minimum(l1, 0.0) + np.minimum(l2, 0.0)
-        bmax = np.maximum(l0, 0.0) + np.maximum(l1, 0.0) + np.maximum(l2, 0.0)
-        size_ax = np.abs(ax0) + np.abs(ax1) + np.abs(ax2)
-        bv = big_v[idx]
-        ax_err = bv * (reach[idx] if n_axis == 0 else 1.0)  # the axis's own rounding, in units of ulp
-        tol = _TOL * ((size_ax + ax_err) * big_r[idx] + size_ax * bv)
-        apart[idx] = (tmin > bmax + tol) | (tmax < bmin - tol)
-        near[idx, n_axis] = (np.abs(tmin - bmax) <= tol) | (np.abs(tmax - bmin) <= tol)
+    if len(r) <= _AXES_AT_ONCE:  # few pairs: the ten axes at once (fewer numpy calls)
+        apart, near = _ten_axes(e, rel, size, big_v=big_v, big_r=big_r, reach=reach)
+    else:  # many: axis by axis, each only where it is oblique, for the pairs no axis separated yet
+        for n_axis in range(10):
+            _one_axis(n_axis, apart, near, e=e, rel=rel, size=size, big_v=big_v, big_r=big_r, reach=reach)
     touch[r] = ~apart
     unsure = ~apart & near.any(axis=1)
     return touch, r[unsure], near[unsure]
@@ -383,7 +451,7 @@ class _ExactTriangle:
         self.axes: dict[int, tuple[list[int], int, int, bool, bool]] = {}
 
     def axis(self, n_axis: int) -> tuple[list[int], int, int, bool, bool]:
-        """Axis ``n_axis`` (see :func:`_axis`): its components, the triangle's projection's ends, and
+        """Axis ``n_axis`` (see :func:`_ten_axes`): its components, the triangle's projection's ends, and
         whether a component is positive, negative."""
         got = self.axes.get(n_axis)
         if got is None:
