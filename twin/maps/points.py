@@ -34,7 +34,7 @@ import numpy.typing as npt
 from twin.errors import MapError
 from twin.maps.grid import GridFrame
 from twin.maps.scene import IndexArray, MeshSet, Scene, StoreyInfo
-from twin.maps.voxels import FloatArray, IntArray, nearest_points, touched_voxels
+from twin.maps.voxels import FloatArray, IntArray, nearest_points, touched_pairs
 from twin.selection.skills import SkillProfile
 
 __all__ = [
@@ -263,12 +263,12 @@ def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
     if not len(triangles):
         return np.empty(0, dtype=np.int64), Voxels.empty()
     cells = plan.cells(triangles)
-    tri, ijk = touched_voxels(cells, lo=plan.lo, hi=plan.hi, w_band=plan.w_band)
+    tri, ijk, hint = touched_pairs(cells, lo=plan.lo, hi=plan.hi, w_band=plan.w_band)
     q = np.empty((len(tri), 3))
     d2 = np.empty(len(tri))
     for s in range(0, len(tri), _CHUNK):  # element-wise: the same values in any chunks, less memory
         e = s + _CHUNK
-        q[s:e], d2[s:e] = nearest_points(cells[tri[s:e]], ijk[s:e], w_band=plan.w_band)
+        q[s:e], d2[s:e] = nearest_points(cells[tri[s:e]], ijk[s:e], w_band=plan.w_band, hint=hint[s:e])
     return tri, Voxels(plan.keys(ijk), q, d2)
 
 

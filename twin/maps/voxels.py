@@ -36,6 +36,11 @@ IntArray = npt.NDArray[np.int64]
 
 _BATCH = 150_000
 """Candidate (triangle, voxel) pairs tested at once (bounds the memory of a batch to ~100 MB)."""
+_NO_HINT = -2
+"""Hints per touching pair: ``_NO_HINT``; ``_PLANE``: certain, the column's square inside the
+triangle's projection (over it, the triangle is its plane); ``0, 1, 2``: that, and the triangle is
+level along that (dominant) axis."""
+_PLANE = -1
 _TOL = 1e-13
 """Rounding bound (relative to the magnitudes involved, ~450 ulp) under which a projection counts
 as a possible tie (decided exactly)."""
@@ -134,9 +139,9 @@ def _strips(
 
 def _candidates(
     cells: FloatArray, lo: IntArray, hi: IntArray, w_band: tuple[float, float] = (-np.inf, np.inf)
-) -> Iterator[tuple[IntArray, IntArray, npt.NDArray[np.bool_]]]:
-    """Batches of ``(triangle index, (m, 3) voxel index, sure)`` pairs: a superset of the touching
-    pairs, ``sure`` where the pair certainly touches (no test needed).
+) -> Iterator[tuple[IntArray, IntArray, IntArray]]:
+    """Batches of ``(triangle index, (m, 3) voxel index, hint)`` pairs: a superset of the touching
+    pairs, with a hint where the pair certainly touches (no test needed; see :data:`_NO_HINT`).
 
     A pair is sure when the column's whole (closed) square lies inside the triangle's projection by
     a margin beyond rounding (over the square, the triangle is its plane), and the plane's range
@@ -278,7 +283,8 @@ def _candidates(
                     (box_lo <= lev) & (lev < box_hi),
                     (c_lo[col] + e < box_hi) & (c_hi[col] - e > box_lo),
                 )
-            yield t, ijk, sure
+            hint = np.where(sure, np.where(level[col], dc, _PLANE), _NO_HINT)
+            yield t, ijk, hint
 
 
 # --- the test --------------------------------------------------------------------------------------
@@ -509,14 +515,15 @@ def _exact_separated(
     return out
 
 
-def touched_voxels(
+def touched_pairs(
     cells: FloatArray,
     *,
     lo: tuple[int, int, int] | IntArray,
     hi: tuple[int, int, int] | IntArray,
     w_band: tuple[float, float],
-) -> tuple[IntArray, IntArray]:
-    """Every (triangle, voxel) pair that touch: ``(triangle index (m,), voxel (m, 3) i, j, k)``.
+) -> tuple[IntArray, IntArray, IntArray]:
+    """Every (triangle, voxel) pair that touch: ``(triangle index (m,), voxel (m, 3) i, j, k, hint
+    (m,))``; the hints make :func:`nearest_points` cheaper (see :data:`_NO_HINT`).
 
     Args:
         cells: ``(n, 3, 3)`` triangles in cell coordinates.
@@ -524,10 +531,11 @@ def touched_voxels(
         w_band: the band ``[w_lo, w_hi)`` in cell units of z (voxels are cut by it).
     """
     lo_a, hi_a = np.asarray(lo, dtype=np.int64), np.asarray(hi, dtype=np.int64)
-    tris, voxels = [], []
-    for t_all, ijk_all, sure in _candidates(np.asarray(cells, dtype=np.float64), lo_a, hi_a, w_band):
+    tris, voxels, hints = [], [], []
+    for t_all, ijk_all, hint in _candidates(np.asarray(cells, dtype=np.float64), lo_a, hi_a, w_band):
         blo, bhi = _boxes(ijk_all, w_band)
         keep = bhi[:, 2] > blo[:, 2]
+        sure = hint != _NO_HINT
         test = np.flatnonzero(keep & ~sure)
         touch = sure & keep
         t, blo, bhi = t_all[test], blo[test], bhi[test]
@@ -538,9 +546,23 @@ def touched_voxels(
         touch[test] = hit
         tris.append(t_all[touch])
         voxels.append(ijk_all[touch])
+        hints.append(hint[touch])
     if not tris:
-        return np.empty(0, dtype=np.int64), np.empty((0, 3), dtype=np.int64)
-    return np.concatenate(tris).astype(np.int64), np.concatenate(voxels)
+        return np.empty(0, dtype=np.int64), np.empty((0, 3), dtype=np.int64), np.empty(0, dtype=np.int64)
+    return np.concatenate(tris).astype(np.int64), np.concatenate(voxels), np.concatenate(hints)
+
+
+def touched_voxels(
+    cells: FloatArray,
+    *,
+    lo: tuple[int, int, int] | IntArray,
+    hi: tuple[int, int, int] | IntArray,
+    w_band: tuple[float, float],
+) -> tuple[IntArray, IntArray]:
+    """Every (triangle, voxel) pair that touch: ``(triangle index (m,), voxel (m, 3) i, j, k)`` (see
+    :func:`touched_pairs`)."""
+    tri, ijk, _ = touched_pairs(cells, lo=lo, hi=hi, w_band=w_band)
+    return tri, ijk
 
 
 # --- the nearest point -----------------------------------------------------------------------------
@@ -586,9 +608,8 @@ def _closest_on_triangle(p: FloatArray, a: FloatArray, b: FloatArray, c: FloatAr
 def _closest_on_segments(p: FloatArray, poly: FloatArray, count: IntArray) -> FloatArray:
     """The point of each closed polyline loop ``poly[:count]`` (its edges) nearest ``p``."""
     m, k = poly.shape[:2]
-    nxt = (np.arange(k)[None, :] + 1) % np.maximum(count, 1)[:, None]
     a = poly
-    b = np.take_along_axis(poly, nxt[:, :, None].repeat(3, axis=2), axis=1)
+    b = _next_vertices(poly, count)
     ab = b - a
     ll = _dot(ab, ab)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -601,21 +622,27 @@ def _closest_on_segments(p: FloatArray, poly: FloatArray, count: IntArray) -> Fl
     return out
 
 
+def _next_vertices(poly: FloatArray, count: IntArray) -> FloatArray:
+    """Per polygon ``poly[:count]``: each vertex's successor around it (beyond ``count``: anything)."""
+    nb = np.roll(poly, -1, axis=1)
+    rows = np.flatnonzero(count > 0)
+    nb[rows, count[rows] - 1] = poly[rows, 0]
+    return nb
+
+
 def _clip(tri: FloatArray, lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, IntArray]:
-    """Each triangle cut by its closed box (Sutherland-Hodgman): ``(polygons (m, 9, 3), counts)``."""
+    """Each triangle cut by its closed box (Sutherland-Hodgman): ``(polygons (m, 9, 3), counts)``
+    (zeros beyond each count)."""
     m = len(tri)
-    poly = np.zeros((m, 9, 3))
-    poly[:, :3] = tri
+    poly = np.zeros((m, 3, 3))
+    poly[:] = tri
     count = np.full(m, 3, dtype=np.int64)
-    rows = np.arange(m)
     for axis in range(3):
         for bound, sign in ((lo[:, axis], 1.0), (hi[:, axis], -1.0)):
             k = poly.shape[1]
-            idx = np.arange(k)[None, :]
-            valid = idx < count[:, None]
-            nxt = (idx + 1) % np.maximum(count, 1)[:, None]
+            valid = np.arange(k)[None, :] < count[:, None]
             cur = poly
-            nb = np.take_along_axis(poly, nxt[:, :, None].repeat(3, axis=2), axis=1)
+            nb = _next_vertices(poly, count)
             dc = sign * (cur[:, :, axis] - bound[:, None])
             dn = sign * (nb[:, :, axis] - bound[:, None])
             cin, nin = dc >= 0, dn >= 0
@@ -623,27 +650,58 @@ def _clip(tri: FloatArray, lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, 
                 t = np.where(dc != dn, dc / (dc - dn), 0.0)
             cross = cur + (nb - cur) * t[..., None]
             cross[:, :, axis] = np.where(cin != nin, bound[:, None], cross[:, :, axis])
-            out = np.zeros((m, 2 * k, 3))
-            keep = np.zeros((m, 2 * k), dtype=np.bool_)
+            out = np.empty((m, 2 * k, 3))
+            keep = np.empty((m, 2 * k), dtype=np.bool_)
             out[:, 0::2], keep[:, 0::2] = cur, valid & cin
             out[:, 1::2], keep[:, 1::2] = cross, valid & (cin != nin)
-            order = np.argsort(~keep, axis=1, kind="stable")
-            out = np.take_along_axis(out, order[:, :, None].repeat(3, axis=2), axis=1)
+            # the kept vertices first, in order (at most 9: a triangle cut by a box has up to 9)
+            pos = np.cumsum(keep, axis=1) - 1
+            keep &= pos < 9
+            r, c = np.nonzero(keep)
+            poly = np.zeros((m, min(9, 2 * k), 3))
+            poly[r, pos[r, c]] = out[r, c]
             count = keep.sum(axis=1)
-            poly = np.zeros((m, 9, 3))
-            poly[:, : min(9, 2 * k)] = out[:, :9]
-            count = np.minimum(count, 9)
-    del rows
+    if poly.shape[1] < 9:
+        poly = np.concatenate([poly, np.zeros((m, 9 - poly.shape[1], 3))], axis=1)
     return poly, count
 
 
 def nearest_points(
-    tri: FloatArray, ijk: IntArray, *, w_band: tuple[float, float]
+    tri: FloatArray, ijk: IntArray, *, w_band: tuple[float, float], hint: IntArray | None = None
 ) -> tuple[FloatArray, FloatArray]:
     """For each touching pair: the point of the triangle within the voxel's (closed) box nearest the
-    box's centre, and its squared distance (cell units). ``tri`` is ``(m, 3, 3)``, one per voxel."""
+    box's centre, and its squared distance (cell units). ``tri`` is ``(m, 3, 3)``, one per voxel;
+    ``hint`` (from :func:`touched_pairs`) lets the pairs whose column lies inside the triangle skip
+    the general search: the centre's projection on the plane is then the point when it is in the box."""
     lo, hi = _boxes(ijk, w_band)
     centre = 0.5 * (lo + hi)
+    q = np.empty_like(centre)
+    rest = np.ones(len(tri), dtype=np.bool_)
+    if hint is not None:
+        level = np.flatnonzero(hint >= 0)  # a face in a grid plane: the centre moved onto it, exactly
+        if len(level):
+            axis = hint[level]
+            q[level] = centre[level]
+            q[level, axis] = tri[level, 0, axis]
+            rest[level] = False
+        plane = np.flatnonzero(hint == _PLANE)
+        if len(plane):
+            t, c = tri[plane], centre[plane]
+            n = _cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+            proj = c - n * (_dot(c - t[:, 0], n) / _dot(n, n))[:, None]
+            inside = ((proj >= lo[plane]) & (proj <= hi[plane])).all(axis=1)
+            q[plane[inside]] = proj[inside]
+            rest[plane[inside]] = False
+    r = np.flatnonzero(rest)
+    if len(r):
+        q[r] = _nearest_general(tri[r], lo[r], hi[r], centre[r])
+    q = np.clip(q, lo, hi)
+    diff = q - centre
+    return q, _dot(diff, diff)
+
+
+def _nearest_general(tri: FloatArray, lo: FloatArray, hi: FloatArray, centre: FloatArray) -> FloatArray:
+    """:func:`nearest_points` without hints (before the clamp to the box)."""
     q = _closest_on_triangle(centre, tri[:, 0], tri[:, 1], tri[:, 2])
     outside = ~((q >= lo) & (q <= hi)).all(axis=1)
     if outside.any():
@@ -659,8 +717,7 @@ def nearest_points(
             proj = c - n * (_dot(c - tri[o, 0], n) / nn)[:, None]
         k = poly.shape[1]
         idx = np.arange(k)[None, :]
-        nxt = (idx + 1) % np.maximum(count, 1)[:, None]
-        nb = np.take_along_axis(poly, nxt[:, :, None].repeat(3, axis=2), axis=1)
+        nb = _next_vertices(poly, count)
         side = _dot(_cross(nb - poly, proj[:, None, :] - poly), n[:, None, :])
         # a polygon with no area (the triangle touches the box at a point or along a segment): its edges
         area = _cross(poly, nb)
@@ -673,6 +730,4 @@ def nearest_points(
         empty = count == 0  # only float noise: the triangle touches at a point or an edge
         best[empty] = q[o][empty]
         q[o] = best
-    q = np.clip(q, lo, hi)
-    diff = q - centre
-    return q, _dot(diff, diff)
+    return q
