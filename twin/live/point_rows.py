@@ -28,7 +28,7 @@ from twin.maps.voxels import IntArray
 __all__ = ["PointRows"]
 
 _SPARE = 1 << 16
-"""Rows the arena holds beyond its live rows at least (and an eighth of them): room for changes."""
+"""Rows the arena holds beyond its live rows at least (and a quarter of them): room for changes."""
 _DELTA = 1 << 16
 """Index rows kept in the delta before it is merged into the base (at least; or an eighth of the base)."""
 
@@ -45,16 +45,19 @@ def _merge(
 
 
 def _hits(index_keys: IntArray, index_rows: IntArray, keys: IntArray) -> IntArray:
-    """The rows an index holds at ``keys`` (sorted)."""
+    """The rows an index holds at ``keys`` (sorted; a voxel has a row per part that touches it: few)."""
+    out = [np.empty(0, dtype=np.int64)]
     if not len(index_keys) or not len(keys):
-        return np.empty(0, dtype=np.int64)
-    lo = np.searchsorted(index_keys, keys, side="left")
-    n = np.searchsorted(index_keys, keys, side="right") - lo
-    total = int(n.sum())
-    if not total:
-        return np.empty(0, dtype=np.int64)
-    at = np.repeat(lo - (np.cumsum(n) - n), n) + np.arange(total)
-    return index_rows[at]
+        return out[0]
+    at = np.searchsorted(index_keys, keys)
+    while len(at):
+        inside = at < len(index_keys)
+        at, keys = at[inside], keys[inside]
+        same = index_keys[at] == keys
+        at, keys = at[same], keys[same]
+        out.append(index_rows[at])
+        at = at + 1
+    return np.concatenate(out)
 
 
 class PointRows(Mapping[str, Voxels]):
@@ -116,7 +119,7 @@ class PointRows(Mapping[str, Voxels]):
         return out
 
     def _alloc(self, live: int) -> None:
-        cap = live + max(self._spare_min, live // 8)
+        cap = live + max(self._spare_min, live // 4)
         self._keys = np.empty(cap, dtype=np.int64)
         self._q = np.empty((cap, 3))
         self._d2 = np.empty(cap)
@@ -195,18 +198,25 @@ class PointRows(Mapping[str, Voxels]):
     def replace(self, changes: Mapping[str, Voxels | None]) -> bool:
         """Give each named part its new voxels (None or empty: the part is gone) and decide the winners of
         the voxels they touched before or touch now; True if the cloud's points there changed."""
-        touched = [self[i].keys for i in changes if i in self._slot]
-        touched += [p.keys for p in changes.values() if p is not None and len(p)]
+        fresh = {i: p for i, p in changes.items() if p is not None and len(p)}
+        touched = [self[i].keys for i in changes if i in self._slot] + [p.keys for p in fresh.values()]
         if not touched:
             return False
         keys = sorted_unique(np.concatenate(touched))
-        before = self._best(self._at(keys))
+        rows = self._at(keys)
+        before = self._best(rows)
         for iri in changes:
             self._drop(iri)
-        for iri, part in changes.items():
-            if part is not None and len(part):
-                self._add(iri, part)
-        rows = self._at(keys)
+        n_new = sum(len(p) for p in fresh.values())
+        if self._end + n_new > len(self._keys):
+            self._compact(n_new)
+            rows = self._at(keys)
+        else:
+            rows = rows[self._own[rows] >= 0]
+        start = self._end
+        for iri, part in fresh.items():
+            self._add(iri, part)
+        rows = np.concatenate([rows, np.arange(start, self._end, dtype=np.int64)])
         self._decide(rows)
         after = self._best(rows)
         if len(self._delta[0]) > max(self._delta_min, len(self._base[0]) // 8):
@@ -230,9 +240,8 @@ class PointRows(Mapping[str, Voxels]):
         self._free.append(slot)
 
     def _add(self, iri: str, part: Voxels) -> None:
+        """Append a part (the arena has room: see :meth:`replace`)."""
         n = len(part)
-        if self._end + n > len(self._keys):
-            self._compact(n)
         start, stop = self._end, self._end + n
         self._keys[start:stop], self._q[start:stop], self._d2[start:stop] = part.keys, part.q, part.d2
         self._wins[start:stop] = False

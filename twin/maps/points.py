@@ -199,8 +199,9 @@ class Voxels:
 
 
 def sorted_unique(keys: IntArray) -> IntArray:
-    """``keys`` sorted, each once (by sorting: numpy's hashing ``unique`` is slower here)."""
-    s = np.sort(keys)
+    """``keys`` sorted, each once (by sorting: numpy's hashing ``unique`` is slower here; a stable sort
+    merges runs already sorted, as concatenated voxel sets are)."""
+    s = np.sort(keys, kind="stable")
     if len(s) < 2:
         return s
     first = np.ones(len(s), dtype=np.bool_)
