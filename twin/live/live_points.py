@@ -48,8 +48,10 @@ from twin.maps.points import (
 from twin.maps.scene import MeshSet
 from twin.selection.skills import SkillProfile
 
-__all__ = ["POINTS_INTERVAL_S", "LivePoints", "PointsMap", "PointsPublication"]
+__all__ = ["POINTS_INTERVAL_S", "RECENT", "LivePoints", "PointsMap", "PointsPublication"]
 
+RECENT = 256
+"""Elements left out whose voxels a points map keeps, in case they come back unchanged."""
 POINTS_INTERVAL_S = 1.0
 """A changed cloud is published again at most this often (seconds): clouds are large (12 bytes a point)
 and have no update message."""
@@ -67,6 +69,9 @@ class PointsMap:
     rows: PointRows = field(default_factory=PointRows)
     """Each selected element's own voxels (only elements that touch any) and who wins where."""
     version: int = 1
+    recent: dict[str, Voxels] = field(default_factory=dict)
+    """The voxels of elements left out with their geometry unchanged (doors opened), the latest
+    :data:`RECENT` (not in snapshots): selected again unchanged, they need no voxelising."""
 
     @property
     def key(self) -> MapKey:
@@ -110,6 +115,15 @@ class PointsMap:
             msg = f"points map {(plan.storey.key, plan.skill.name)}: {err}"
             raise ValueError(msg) from err
         return cls(plan, base_mask, overlay, rows, version=version)
+
+    def put_aside(self, iri: str) -> None:
+        """Keep (a copy of) the element's voxels in :attr:`recent` before it is left out."""
+        part = self.rows.get(iri)
+        if part is not None:
+            self.recent.pop(iri, None)
+            self.recent[iri] = Voxels(part.keys.copy(), part.q.copy(), part.d2.copy())
+            while len(self.recent) > RECENT:
+                del self.recent[next(iter(self.recent))]
 
     def replace(self, changes: Mapping[str, Voxels | None]) -> bool:
         """Give each changed element its new voxels (None: not in this map any more) and decide the
@@ -160,6 +174,11 @@ class LivePoints:
                 meshes[iri] = mesh
         return voxels_by_element(mesh, np.zeros(1, dtype=np.intp), m.plan)[0]
 
+    def _taken_back(self, m: PointsMap, iri: str, meshes: dict[str, MeshSet]) -> Voxels:
+        """The voxels of an element selected again with its geometry unchanged."""
+        part = m.recent.pop(iri, None)
+        return self._voxels(m, iri, meshes) if part is None else part
+
     def add_map(self, skill: SkillProfile, storey: str, selected: Iterable[str]) -> PointsMap:
         """Plan and build the points map of ``skill`` on ``storey`` from the selected IRIs."""
         chosen = set(selected)
@@ -184,18 +203,29 @@ class LivePoints:
         return gone
 
     def redraw(
-        self, touched: Iterable[str], membership: Mapping[str, Mapping[str, bool]]
+        self,
+        touched: Iterable[str],
+        membership: Mapping[str, Mapping[str, bool]],
+        *,
+        moved: Iterable[str] | None = None,
     ) -> list[tuple[str, str, int]]:
         """Bring every map up to the live scene after the elements ``touched`` changed (the drawing has
-        their new geometry already; ``membership`` their new selection per skill name).
+        their new geometry already; ``membership`` their new selection per skill name; ``moved``: those
+        whose geometry changed, by default all).
+
+        An element whose geometry did not change keeps its voxels: a map where its selection did not
+        change either is left alone, and one that selects it again (a door closed) takes back the voxels
+        it had when it was left out, if it still holds them (:attr:`PointsMap.recent`).
 
         Returns ``(storey, skill, version)`` of each map whose cloud changed (its next version).
         """
         touched = sorted(set(touched) | {i for sel in membership.values() for i in sel})
+        reshaped = set(touched) if moved is None else set(moved)
         base = self.drawing.scene.elements.index
         meshes: dict[str, MeshSet] = {}
         changed = []
         for m in self.maps.values():
+            was = {iri: self._member(m, iri) for iri in touched if iri not in reshaped}
             for iri, selected in membership.get(m.plan.skill.name, {}).items():
                 if iri in base:
                     m.base_mask[base[iri]] = selected
@@ -203,8 +233,18 @@ class LivePoints:
                     m.overlay.add(iri)
                 else:
                     m.overlay.discard(iri)
-            changes = {iri: self._voxels(m, iri, meshes) if self._member(m, iri) else None for iri in touched}
-            if m.replace(changes):
+            changes: dict[str, Voxels | None] = {}
+            for iri in touched:
+                now = self._member(m, iri)
+                if iri in reshaped:
+                    m.recent.pop(iri, None)
+                    changes[iri] = self._voxels(m, iri, meshes) if now else None
+                elif now and not was[iri]:  # the same geometry, selected again
+                    changes[iri] = self._taken_back(m, iri, meshes)
+                elif was[iri] and not now:  # the same geometry, left out
+                    m.put_aside(iri)
+                    changes[iri] = None
+            if changes and m.replace(changes):
                 m.version += 1
                 changed.append((m.plan.storey.key, m.plan.skill.name, m.version))
                 self.pending[m.key] = m.version

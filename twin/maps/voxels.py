@@ -39,8 +39,10 @@ _BATCH = 150_000
 _NO_HINT = -2
 """Hints per touching pair: ``_NO_HINT``; ``_PLANE``: certain, the column's square inside the
 triangle's projection (over it, the triangle is its plane); ``0, 1, 2``: that, and the triangle is
-level along that (dominant) axis."""
+level along that (dominant) axis; ``_INSIDE``: certain, the triangle lies in the voxel."""
 _PLANE = -1
+_INSIDE = -3
+"""(A hint: certain, the triangle lies inside the voxel.)"""
 _TOL = 1e-13
 """Rounding bound (relative to the magnitudes involved, ~450 ulp) under which a projection counts
 as a possible tie (decided exactly)."""
@@ -185,6 +187,14 @@ def _candidates(
     eps_all = 1e-10 * mag_all / np.abs(safe_all) + 1e-9
     level_all = t_lo_all == t_hi_all  # the dominant coordinate is one value (exactly t_lo)
     lo_d, hi_d = lo[d], hi[d] - 1
+    # a triangle within one cell (and the band) touches that voxel only, certainly
+    vmin, vmax = _min3(cells), _max3(cells)
+    cell = np.floor(vmin)
+    single = ok & (cell == np.floor(vmax)).all(axis=1) & (vmin[:, 2] >= w_band[0]) & (vmax[:, 2] < w_band[1])
+    if single.any():
+        one = np.flatnonzero(single)
+        yield one, cell[one].astype(np.int64), np.full(len(one), _INSIDE, dtype=np.int64)
+        ok = ok & ~single
     # the columns: per strip p in [a, a+1] of a triangle, the q range of the triangle there (generously
     # rounded); then batches of strips
     ts, sa, b0, nb = _strips(

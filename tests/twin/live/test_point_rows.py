@@ -1,6 +1,7 @@
 """A live points map's rows (twin/live/point_rows.py): after any sequence of parts replaced, added and
 dropped, the winners are the best point per voxel of the parts as they are now, whatever the arena's
-compactions and the index's merges did in between."""
+compactions and the index's merges did in between; an element left out and selected again unchanged
+takes back the voxels it had."""
 
 from __future__ import annotations
 
@@ -8,9 +9,16 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tests.conftest import examples
+from tests.conftest import examples, imported
+from tests.twin.box_lab import box_lab, element_iri, spec
+from twin.graph.rdf import literal_value
+from twin.live.live_maps import LiveMaps
 from twin.live.point_rows import PointRows
 from twin.maps.points import Voxels, best_per_voxel
+from twin.maps.scene import load_scene
+from twin.records import GeometryChange
+from twin.selection.skill_selection import selection_query
+from twin.selection.skills import parse_skill
 
 NAMES = ["a", "b", "c", "d", "e"]
 
@@ -63,3 +71,33 @@ def test_the_winners_after_any_changes_are_the_best_point_per_voxel_of_the_parts
     again = PointRows.unpacked(names, arrays)
     assert _same(again.winners(), rows.winners())
     assert again.won() == rows.won()
+
+
+def test_a_door_left_out_and_selected_again_unchanged_takes_back_its_voxels_and_the_same_cloud() -> None:
+    store = imported(box_lab())
+    scene = load_scene(store)
+    skill = parse_skill("lidar3d", {"kind": "points", "resolution_m": 0.2})
+    selected = [literal_value(r["element"]) or "" for r in store.select(selection_query(skill))]
+    live = LiveMaps(scene, margin_m=1.0)
+    m = live.points.add_map(skill, scene.storeys[0].key, selected)
+    door = element_iri(spec("Door A"))
+    start, own = m.cloud(), m.parts[door].keys.copy()
+    live.redraw([], {"lidar3d": {door: False}})  # opened: out of the skill, geometry unchanged
+    assert door not in m.parts and np.array_equal(m.recent[door].keys, own)
+    live.redraw([], {"lidar3d": {door: True}})  # closed again: its voxels come back as they were
+    assert door not in m.recent and np.array_equal(m.parts[door].keys, own)
+    back, ref = m.cloud(), live.points.rebuild(m)
+    assert np.array_equal(back.keys, start.keys) and np.array_equal(back.xyz, start.xyz)
+    assert np.array_equal(back.keys, ref.keys) and np.array_equal(back.xyz, ref.xyz)
+    # moved while left out: what it had is stale and forgotten
+    live.redraw([], {"lidar3d": {door: False}})
+    shape = live.shape_of(door)
+    assert shape is not None
+    moved = shape[1].copy()
+    moved[0, 3] += 0.3
+    live.redraw([GeometryChange(door, (shape[0], moved))], {"lidar3d": {door: False}})
+    assert door not in m.recent
+    live.redraw([], {"lidar3d": {door: True}})
+    assert not np.array_equal(m.parts[door].keys, own)
+    ref = live.points.rebuild(m)
+    assert np.array_equal(m.cloud().keys, ref.keys) and np.array_equal(m.cloud().xyz, ref.xyz)
