@@ -26,6 +26,7 @@ Example::
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 
 import numpy as np
@@ -139,6 +140,100 @@ def _strips(
     return ts, sa, first_b, nb
 
 
+def _level_runs(
+    vp: FloatArray,
+    vq: FloatArray,
+    ts: IntArray,
+    sa: IntArray,
+    *,
+    first_b: IntArray,
+    last_b: IntArray,
+    big: FloatArray,
+) -> tuple[IntArray, IntArray]:
+    """Per strip ``a <= p <= a + 1`` of triangle ``ts``: the run ``[r0, r1]`` of its columns (within
+    ``[first_b, last_b]``) whose closed squares lie inside the triangle's projection beyond rounding
+    (empty: ``r0 > r1``). Over a strip, the projection's lower boundary is convex and its upper one
+    concave: they are checked at the strip's two sides."""
+    margin = 1e-6 * (big[ts] + 2.0)
+    p_lo, p_hi = _min3(vp[ts]), _max3(vp[ts])
+    inner = (sa >= p_lo + margin) & (sa + 1.0 <= p_hi - margin)
+    low = np.full(len(ts), -np.inf)
+    high = np.full(len(ts), np.inf)
+    for x in (sa.astype(np.float64), sa + 1.0):
+        lo_x = np.full(len(ts), np.inf)
+        hi_x = np.full(len(ts), -np.inf)
+        for i in range(3):
+            p0, p1 = vp[ts, i], vp[ts, (i + 1) % 3]
+            q0, q1 = vq[ts, i], vq[ts, (i + 1) % 3]
+            dp = p1 - p0
+            # an edge nearly along q is at the projection's side, beyond the strip (inner)
+            use = (np.abs(dp) > margin) & (x >= np.minimum(p0, p1)) & (x <= np.maximum(p0, p1))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                qx = q0 + (x - p0) / np.where(use, dp, 1.0) * (q1 - q0)
+            lo_x = np.where(use, np.minimum(lo_x, qx), lo_x)
+            hi_x = np.where(use, np.maximum(hi_x, qx), hi_x)
+        low, high = np.maximum(low, lo_x), np.minimum(high, hi_x)
+    inner &= np.isfinite(low) & np.isfinite(high)
+    r0 = np.maximum(np.ceil(np.where(inner, low + margin, 0.0)).astype(np.int64), first_b)
+    r1 = np.minimum(np.floor(np.where(inner, high - margin, 0.0)).astype(np.int64) - 1, last_b)
+    return np.where(inner, r0, 1), np.where(inner, r1, 0)
+
+
+def _split_level_runs(
+    vp: FloatArray,
+    vq: FloatArray,
+    strips: tuple[IntArray, IntArray, IntArray, IntArray],
+    *,
+    axes: tuple[IntArray, IntArray, IntArray],
+    level: npt.NDArray[np.bool_],
+    value: FloatArray,
+    frame: tuple[IntArray, IntArray],
+    w_band: tuple[float, float],
+    big: FloatArray,
+) -> tuple[IntArray, IntArray, IntArray, IntArray, IntArray, IntArray]:
+    """The voxels of the runs of columns inside level triangles (one each, at the level's layer, certain:
+    ``(triangle, (m, 3) voxel)``), and the strips' other columns as ranges ``(triangle, a, first b,
+    columns)`` (a strip with a run: the columns before it and those after it)."""
+    ts, sa, b0, nb = strips
+    d, p, q = axes
+    lo, hi = frame
+    idx = np.flatnonzero(level[ts] & (nb > 0))
+    t, a, first = ts[idx], sa[idx], b0[idx]
+    last = first + nb[idx] - 1
+    r0, r1 = _level_runs(vp, vq, t, a, first_b=first, last_b=last, big=big)
+    c = value[t]  # the level (exactly every vertex's d coordinate)
+    k = np.floor(c).astype(np.int64)
+    dt, pt, qt = d[t], p[t], q[t]
+    ok = (k >= lo[dt]) & (k <= hi[dt] - 1)
+    ok &= (dt != 2) | ((c >= w_band[0]) & (c < w_band[1]))  # the voxel, cut by the band, holds c
+    ok &= (pt != 2) | ((a >= w_band[0]) & (a + 1.0 <= w_band[1]))  # squares whole in the band
+    b_min = math.ceil(w_band[0]) if math.isfinite(w_band[0]) else np.iinfo(np.int64).min
+    b_max = math.floor(w_band[1]) - 1 if math.isfinite(w_band[1]) else np.iinfo(np.int64).max
+    zq = qt == 2
+    r0 = np.where(zq, np.maximum(r0, b_min), r0)
+    r1 = np.where(zq, np.minimum(r1, b_max), r1)
+    n_run = np.where(ok, np.maximum(r1 - r0 + 1, 0), 0)
+    total = int(n_run.sum())
+    rs = np.repeat(np.arange(len(idx)), n_run)
+    b = r0[rs] + np.arange(total) - np.repeat(np.cumsum(n_run) - n_run, n_run)
+    ijk = np.empty((total, 3), dtype=np.int64)
+    dr, pr, ar, kr = dt[rs], pt[rs], a[rs], k[rs]
+    for axis in range(3):
+        ijk[:, axis] = np.where(dr == axis, kr, np.where(pr == axis, ar, b))
+    # the other columns: before the run (all of them without one) and after it
+    has = n_run > 0
+    nb = nb.copy()
+    nb[idx] = np.where(has, r0 - first, nb[idx])
+    after = np.flatnonzero(has)
+    rest = (
+        np.concatenate([ts, t[after]]),
+        np.concatenate([sa, a[after]]),
+        np.concatenate([b0, r1[after] + 1]),
+        np.concatenate([nb, last[after] - r1[after]]),
+    )
+    return t[rs], ijk, *rest
+
+
 def _candidates(
     cells: FloatArray, lo: IntArray, hi: IntArray, w_band: tuple[float, float] = (-np.inf, np.inf)
 ) -> Iterator[tuple[IntArray, IntArray, IntArray]]:
@@ -200,6 +295,22 @@ def _candidates(
     ts, sa, b0, nb = _strips(
         vp, vq, ok=ok, span_p=span_p, first_p=first_p, first_q=first_q, last_q=last[rows, q], big=big_all
     )
+    # faces in a grid plane (level along d): the columns inside them hold one voxel each, certainly,
+    # in runs; the other columns are tested below
+    if (level_all & flat_all).any():
+        run_t, run_ijk, ts, sa, b0, nb = _split_level_runs(
+            vp,
+            vq,
+            (ts, sa, b0, nb),
+            axes=(d, p, q),
+            level=level_all & flat_all,
+            value=t_lo_all,
+            frame=(lo, hi),
+            w_band=w_band,
+            big=big_all,
+        )
+        if len(run_t):
+            yield run_t, run_ijk, d[run_t]
     cum = np.cumsum(nb)
     start = 0
     while start < len(ts):
