@@ -822,7 +822,13 @@ def nearest_points(
 
 
 def _nearest_general(tri: FloatArray, lo: FloatArray, hi: FloatArray, centre: FloatArray) -> FloatArray:
-    """:func:`nearest_points` without hints (before the clamp to the box)."""
+    """:func:`nearest_points` without hints (before the clamp to the box). A degenerate triangle's plane
+    is not finite: its rows take their polygon's edges (quietly)."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return _nearest_general_rows(tri, lo, hi, centre)
+
+
+def _nearest_general_rows(tri: FloatArray, lo: FloatArray, hi: FloatArray, centre: FloatArray) -> FloatArray:
     q = _closest_on_triangle(centre, tri[:, 0], tri[:, 1], tri[:, 2])
     outside = ~((q >= lo) & (q <= hi)).all(axis=1)
     if outside.any():
