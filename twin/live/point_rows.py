@@ -38,10 +38,16 @@ BoolArray = npt.NDArray[np.bool_]
 def _merge(
     keys_a: IntArray, rows_a: IntArray, keys_b: IntArray, rows_b: IntArray
 ) -> tuple[IntArray, IntArray]:
-    """Two key-sorted index runs as one (a stable sort of two runs is a linear merge)."""
-    keys = np.concatenate([keys_a, keys_b])
-    order = np.argsort(keys, kind="stable")
-    return keys[order], np.concatenate([rows_a, rows_b])[order]
+    """Two key-sorted index runs as one (``b``'s rows after ``a``'s at equal keys): each ``b`` entry's
+    place found by binary search, the rest scattered around them (linear, no sort)."""
+    n = len(keys_a) + len(keys_b)
+    at = np.searchsorted(keys_a, keys_b, side="right") + np.arange(len(keys_b))
+    others = np.ones(n, dtype=np.bool_)
+    others[at] = False
+    keys, rows = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    keys[at], rows[at] = keys_b, rows_b
+    keys[others], rows[others] = keys_a, rows_a
+    return keys, rows
 
 
 def _hits(index_keys: IntArray, index_rows: IntArray, keys: IntArray) -> IntArray:
