@@ -34,7 +34,7 @@ import numpy.typing as npt
 from twin.errors import MapError
 from twin.maps.grid import GridFrame
 from twin.maps.scene import IndexArray, MeshSet, Scene, StoreyInfo
-from twin.maps.voxels import FloatArray, IntArray, nearest_points, touched_pairs
+from twin.maps.voxels import FloatArray, IntArray, nearest_points_of, touched_pairs
 from twin.selection.skills import SkillProfile
 
 __all__ = [
@@ -269,7 +269,7 @@ def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
     d2 = np.empty(len(tri))
     for s in range(0, len(tri), _CHUNK):  # element-wise: the same values in any chunks, less memory
         e = s + _CHUNK
-        q[s:e], d2[s:e] = nearest_points(cells[tri[s:e]], ijk[s:e], w_band=plan.w_band, hint=hint[s:e])
+        q[s:e], d2[s:e] = nearest_points_of(cells, tri[s:e], ijk[s:e], w_band=plan.w_band, hint=hint[s:e])
     return tri, Voxels(plan.keys(ijk), q, d2)
 
 

@@ -794,28 +794,40 @@ def nearest_points(
     box's centre, and its squared distance (cell units). ``tri`` is ``(m, 3, 3)``, one per voxel;
     ``hint`` (from :func:`touched_pairs`) lets the pairs whose column lies inside the triangle skip
     the general search: the centre's projection on the plane is then the point when it is in the box."""
+    return nearest_points_of(tri, np.arange(len(tri)), ijk, w_band=w_band, hint=hint)
+
+
+def nearest_points_of(
+    cells: FloatArray,
+    t: IntArray,
+    ijk: IntArray,
+    *,
+    w_band: tuple[float, float],
+    hint: IntArray | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`nearest_points` of the pairs (triangle ``cells[t]``, voxel ``ijk``), gathering only the
+    triangles a pair's hint does not spare."""
     lo, hi = _boxes(ijk, w_band)
     centre = 0.5 * (lo + hi)
-    q = np.empty_like(centre)
-    rest = np.ones(len(tri), dtype=np.bool_)
+    q = centre.copy()
+    rest = np.ones(len(t), dtype=np.bool_)
     if hint is not None:
         level = np.flatnonzero(hint >= 0)  # a face in a grid plane: the centre moved onto it, exactly
         if len(level):
             axis = hint[level]
-            q[level] = centre[level]
-            q[level, axis] = tri[level, 0, axis]
+            q[level, axis] = cells[t[level], 0, axis]
             rest[level] = False
         plane = np.flatnonzero(hint == _PLANE)
         if len(plane):
-            t, c = tri[plane], centre[plane]
-            n = _cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-            proj = c - n * (_dot(c - t[:, 0], n) / _dot(n, n))[:, None]
+            tp, c = cells[t[plane]], centre[plane]
+            n = _cross(tp[:, 1] - tp[:, 0], tp[:, 2] - tp[:, 0])
+            proj = c - n * (_dot(c - tp[:, 0], n) / _dot(n, n))[:, None]
             inside = ((proj >= lo[plane]) & (proj <= hi[plane])).all(axis=1)
             q[plane[inside]] = proj[inside]
             rest[plane[inside]] = False
     r = np.flatnonzero(rest)
     if len(r):
-        q[r] = _nearest_general(tri[r], lo[r], hi[r], centre[r])
+        q[r] = _nearest_general(cells[t[r]], lo[r], hi[r], centre[r])
     q = np.clip(q, lo, hi)
     diff = q - centre
     return q, _dot(diff, diff)
