@@ -83,7 +83,8 @@ class PointRows(Mapping[str, Voxels]):
         self._slot: dict[str, int] = {}
         self._names: list[str | None] = []
         self._free: list[int] = []
-        self._span: list[tuple[int, int]] = []
+        self._start: list[int] = []
+        self._stop: list[int] = []
         """Per slot: its rows ``[start, stop)`` in the arena."""
         self._base = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
         self._delta = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
@@ -112,7 +113,8 @@ class PointRows(Mapping[str, Voxels]):
             stop = start + len(parts[i])
             out._slot[names[i]] = slot
             out._names.append(names[i])
-            out._span.append((start, stop))
+            out._start.append(start)
+            out._stop.append(stop)
             out._own[start:stop] = slot
             start = stop
         out._end = n
@@ -134,7 +136,8 @@ class PointRows(Mapping[str, Voxels]):
 
     # --- the mapping of parts ------------------------------------------------------------------------
     def __getitem__(self, iri: str) -> Voxels:
-        start, stop = self._span[self._slot[iri]]
+        slot = self._slot[iri]
+        start, stop = self._start[slot], self._stop[slot]
         return Voxels(self._keys[start:stop], self._q[start:stop], self._d2[start:stop])
 
     def __iter__(self) -> Iterator[str]:
@@ -145,8 +148,8 @@ class PointRows(Mapping[str, Voxels]):
 
     def wins_of(self, iri: str) -> BoolArray:
         """Which of the part's voxels hold its point (a copy)."""
-        start, stop = self._span[self._slot[iri]]
-        return self._wins[start:stop].copy()
+        slot = self._slot[iri]
+        return self._wins[self._start[slot] : self._stop[slot]].copy()
 
     @property
     def rows(self) -> int:
@@ -237,12 +240,12 @@ class PointRows(Mapping[str, Voxels]):
         slot = self._slot.pop(iri, None)
         if slot is None:
             return
-        start, stop = self._span[slot]
+        start, stop = self._start[slot], self._stop[slot]
         self._own[start:stop] = -1
         self._wins[start:stop] = False
         self._dead += stop - start
         self._names[slot] = None
-        self._span[slot] = (0, 0)
+        self._start[slot] = self._stop[slot] = 0
         self._free.append(slot)
 
     def _add(self, iri: str, part: Voxels) -> None:
@@ -254,11 +257,12 @@ class PointRows(Mapping[str, Voxels]):
         if self._free:
             slot = self._free.pop()
             self._names[slot] = iri
-            self._span[slot] = (start, stop)
+            self._start[slot], self._stop[slot] = start, stop
         else:
             slot = len(self._names)
             self._names.append(iri)
-            self._span.append((start, stop))
+            self._start.append(start)
+            self._stop.append(stop)
         self._slot[iri] = slot
         self._own[start:stop] = slot
         self._end = stop
@@ -277,18 +281,20 @@ class PointRows(Mapping[str, Voxels]):
         keep = self._own[:end] >= 0
         live = int(keep.sum())
         new_row = np.cumsum(keep) - 1
-        old = (self._keys, self._q, self._d2, self._own, self._wins)
+        old_own = self._own
+        old: tuple[npt.NDArray[np.generic], ...] = (self._keys, self._q, self._d2, self._own, self._wins)
         self._alloc(live + extra)
-        self._keys[:live] = old[0][:end][keep]
-        self._q[:live] = old[1][:end][keep]
-        self._d2[:live] = old[2][:end][keep]
-        self._own[:live] = old[3][:end][keep]
-        self._wins[:live] = old[4][:end][keep]
-        for slot, (start, stop) in enumerate(self._span):
-            if stop > start:
-                self._span[slot] = (int(new_row[start]), int(new_row[start]) + stop - start)
+        fresh: tuple[npt.NDArray[np.generic], ...] = (self._keys, self._q, self._d2, self._own, self._wins)
+        for new, was in zip(fresh, old, strict=True):
+            np.compress(keep, was[:end], axis=0, out=new[:live])
+        if self._start:
+            start, stop = np.array(self._start, dtype=np.int64), np.array(self._stop, dtype=np.int64)
+            used = stop > start
+            moved = np.where(used, new_row[np.where(used, start, 0)], 0) if end else np.zeros_like(start)
+            self._start = moved.tolist()
+            self._stop = (moved + stop - start).tolist()
         (bk, br), (dk, dr) = self._base, self._delta
-        alive_b, alive_d = old[3][br] >= 0, old[3][dr] >= 0
+        alive_b, alive_d = old_own[br] >= 0, old_own[dr] >= 0
         self._base = _merge(bk[alive_b], new_row[br[alive_b]], dk[alive_d], new_row[dr[alive_d]])
         self._delta = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
         self._end, self._dead = live, 0
@@ -297,7 +303,7 @@ class PointRows(Mapping[str, Voxels]):
     def packed(self) -> tuple[list[str], dict[str, npt.NDArray[np.generic]]]:
         """The parts by name as flat arrays: ``keys, q, d2, wins`` per row, ``counts`` per part."""
         names = sorted(self._slot)
-        spans = [self._span[self._slot[n]] for n in names]
+        spans = [(self._start[self._slot[n]], self._stop[self._slot[n]]) for n in names]
         counts = np.array([stop - start for start, stop in spans], dtype=np.int64)
         rows = (
             np.concatenate([np.arange(start, stop) for start, stop in spans])
