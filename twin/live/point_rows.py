@@ -28,7 +28,11 @@ from twin.maps.voxels import IntArray
 __all__ = ["PointRows"]
 
 _SPARE = 1 << 16
-"""Rows the arena holds beyond its live rows at least (and a quarter of them): room for changes."""
+"""Rows the arena holds beyond its live rows at least (and an eighth of them): room for changes."""
+_ROW = np.int32
+"""The index's row numbers (4 bytes a row: an arena holds fewer than 2**31 rows)."""
+_MAX_ROWS = 2**31 - 1
+RowArray = npt.NDArray[np.int32]
 _DELTA = 1 << 16
 """Index rows kept in the delta before it is merged into the base (at least; or an eighth of the base)."""
 
@@ -36,21 +40,21 @@ BoolArray = npt.NDArray[np.bool_]
 
 
 def _merge(
-    keys_a: IntArray, rows_a: IntArray, keys_b: IntArray, rows_b: IntArray
-) -> tuple[IntArray, IntArray]:
+    keys_a: IntArray, rows_a: RowArray, keys_b: IntArray, rows_b: RowArray
+) -> tuple[IntArray, RowArray]:
     """Two key-sorted index runs as one (``b``'s rows after ``a``'s at equal keys): each ``b`` entry's
     place found by binary search, the rest scattered around them (linear, no sort)."""
     n = len(keys_a) + len(keys_b)
     at = np.searchsorted(keys_a, keys_b, side="right") + np.arange(len(keys_b))
     others = np.ones(n, dtype=np.bool_)
     others[at] = False
-    keys, rows = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    keys, rows = np.empty(n, dtype=np.int64), np.empty(n, dtype=_ROW)
     keys[at], rows[at] = keys_b, rows_b
     keys[others], rows[others] = keys_a, rows_a
     return keys, rows
 
 
-def _hits(index_keys: IntArray, index_rows: IntArray, keys: IntArray) -> IntArray:
+def _hits(index_keys: IntArray, index_rows: RowArray, keys: IntArray) -> IntArray:
     """The rows an index holds at ``keys`` (sorted; a voxel has a row per part that touches it: few)."""
     out = [np.empty(0, dtype=np.int64)]
     if not len(index_keys) or not len(keys):
@@ -86,8 +90,8 @@ class PointRows(Mapping[str, Voxels]):
         self._start: list[int] = []
         self._stop: list[int] = []
         """Per slot: its rows ``[start, stop)`` in the arena."""
-        self._base = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
-        self._delta = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
+        self._base: tuple[IntArray, RowArray] = (np.empty(0, dtype=np.int64), np.empty(0, dtype=_ROW))
+        self._delta: tuple[IntArray, RowArray] = (np.empty(0, dtype=np.int64), np.empty(0, dtype=_ROW))
 
     # --- building ------------------------------------------------------------------------------------
     @classmethod
@@ -119,7 +123,7 @@ class PointRows(Mapping[str, Voxels]):
             start = stop
         out._end = n
         order = np.argsort(flat.keys, kind="stable")
-        out._base = (flat.keys[order], order.astype(np.int64))
+        out._base = (flat.keys[order], order.astype(_ROW))
         if wins is None:
             out._decide(np.arange(n, dtype=np.int64))
         else:
@@ -127,7 +131,10 @@ class PointRows(Mapping[str, Voxels]):
         return out
 
     def _alloc(self, live: int) -> None:
-        cap = live + max(self._spare_min, live // 4)
+        cap = live + max(self._spare_min, live // 8)
+        if cap >= _MAX_ROWS:
+            msg = f"a points map of {live} rows: more than an arena holds ({_MAX_ROWS})"
+            raise ValueError(msg)
         self._keys = np.empty(cap, dtype=np.int64)
         self._q = np.empty((cap, 3))
         self._d2 = np.empty(cap)
@@ -266,21 +273,21 @@ class PointRows(Mapping[str, Voxels]):
         self._slot[iri] = slot
         self._own[start:stop] = slot
         self._end = stop
-        self._delta = _merge(*self._delta, part.keys, np.arange(start, stop, dtype=np.int64))
+        self._delta = _merge(*self._delta, part.keys, np.arange(start, stop, dtype=_ROW))
 
     def _merge_index(self) -> None:
         """Fold the delta into the base, leaving dead rows out."""
         (bk, br), (dk, dr) = self._base, self._delta
         alive_b, alive_d = self._own[br] >= 0, self._own[dr] >= 0
         self._base = _merge(bk[alive_b], br[alive_b], dk[alive_d], dr[alive_d])
-        self._delta = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
+        self._delta = (np.empty(0, dtype=np.int64), np.empty(0, dtype=_ROW))
 
     def _compact(self, extra: int) -> None:
         """A new arena of the live rows (in the same order), with room for ``extra`` more."""
         end = self._end
         keep = self._own[:end] >= 0
         live = int(keep.sum())
-        new_row = np.cumsum(keep) - 1
+        new_row = (np.cumsum(keep) - 1).astype(_ROW)
         old_own = self._own
         old: tuple[npt.NDArray[np.generic], ...] = (self._keys, self._q, self._d2, self._own, self._wins)
         self._alloc(live + extra)
@@ -296,7 +303,7 @@ class PointRows(Mapping[str, Voxels]):
         (bk, br), (dk, dr) = self._base, self._delta
         alive_b, alive_d = old_own[br] >= 0, old_own[dr] >= 0
         self._base = _merge(bk[alive_b], new_row[br[alive_b]], dk[alive_d], new_row[dr[alive_d]])
-        self._delta = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
+        self._delta = (np.empty(0, dtype=np.int64), np.empty(0, dtype=_ROW))
         self._end, self._dead = live, 0
 
     # --- snapshots -----------------------------------------------------------------------------------
