@@ -66,12 +66,15 @@ class PointsMap:
     """Which base elements the skill selects."""
     overlay: set[str]
     """Which elements robots added (not in the base) the skill selects."""
-    rows: PointRows = field(default_factory=PointRows)
+    rows: PointRows = field(init=False)
     """Each selected element's own voxels (only elements that touch any) and who wins where."""
     version: int = 1
     recent: dict[str, Voxels] = field(default_factory=dict)
     """The voxels of elements left out with their geometry unchanged (doors opened), the latest
     :data:`RECENT` (not in snapshots): selected again unchanged, they need no voxelising."""
+
+    def __post_init__(self) -> None:
+        self.rows = PointRows(self.plan.distance)
 
     @property
     def key(self) -> MapKey:
@@ -110,11 +113,13 @@ class PointsMap:
     ) -> PointsMap:
         """A map from :meth:`packed`'s arrays."""
         try:
-            rows = PointRows.unpacked(names, arrays)
+            rows = PointRows.unpacked(names, arrays, distance=plan.distance)
         except ValueError as err:
             msg = f"points map {(plan.storey.key, plan.skill.name)}: {err}"
             raise ValueError(msg) from err
-        return cls(plan, base_mask, overlay, rows, version=version)
+        m = cls(plan, base_mask, overlay, version=version)
+        m.rows = rows
+        return m
 
     def put_aside(self, iri: str) -> None:
         """Keep (a copy of) the element's voxels in :attr:`recent` before it is left out."""
@@ -190,7 +195,7 @@ class LivePoints:
         base, others = self._members(m)
         names = [scene.elements.iris[int(i)] for i in base] + others
         parts = voxels_by_element(scene.elements, base, plan) + [self._voxels(m, iri) for iri in others]
-        m.rows = PointRows.of(names, parts)
+        m.rows = PointRows.of(names, parts, distance=plan.distance)
         self.maps[m.key] = m
         self.pending[m.key] = m.version
         return m

@@ -17,15 +17,15 @@ Example::
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 import numpy.typing as npt
 
 from twin.maps.points import Voxels, best_rows, sorted_unique
-from twin.maps.voxels import IntArray
+from twin.maps.voxels import FloatArray, IntArray
 
-__all__ = ["PointRows"]
+__all__ = ["Distance", "PointRows"]
 
 _SPARE = 1 << 16
 """Rows the arena holds beyond its live rows at least (and an eighth of them): room for changes."""
@@ -37,6 +37,8 @@ _DELTA = 1 << 16
 """Index rows kept in the delta before it is merged into the base (at least; or an eighth of the base)."""
 
 BoolArray = npt.NDArray[np.bool_]
+Distance = Callable[[IntArray, FloatArray], FloatArray]
+"""``(keys (n,), points (n, 3)) -> (n,)``: each point's squared distance to its voxel's centre."""
 
 
 def _merge(
@@ -73,12 +75,13 @@ def _hits(index_keys: IntArray, index_rows: RowArray, keys: IntArray) -> IntArra
 class PointRows(Mapping[str, Voxels]):
     """Each part's voxels (``rows[iri]``: a :class:`Voxels`, views into the arena) and who wins where."""
 
-    def __init__(self, *, spare: int = _SPARE, delta: int = _DELTA) -> None:
+    def __init__(self, distance: Distance, *, spare: int = _SPARE, delta: int = _DELTA) -> None:
+        self._distance = distance
+        """A point's squared distance to its voxel's centre (from its key): not stored, 8 bytes a row."""
         self._spare_min = spare
         self._delta_min = delta
         self._keys = np.empty(0, dtype=np.int64)
         self._q = np.empty((0, 3))
-        self._d2 = np.empty(0)
         self._own = np.empty(0, dtype=np.int32)
         """Each row's part (slot), -1 once the part is dropped."""
         self._wins = np.empty(0, dtype=np.bool_)
@@ -101,20 +104,21 @@ class PointRows(Mapping[str, Voxels]):
         parts: Sequence[Voxels],
         wins: Sequence[BoolArray] | None = None,
         *,
+        distance: Distance,
         spare: int = _SPARE,
         delta: int = _DELTA,
     ) -> PointRows:
         """The rows of ``parts`` (each sorted by key, one row per key), winners decided (or as given).
         ``spare``, ``delta``: the arena's spare rows and the index's delta before a merge (at least)."""
-        out = cls(spare=spare, delta=delta)
+        out = cls(distance, spare=spare, delta=delta)
         keep = [i for i, p in enumerate(parts) if len(p)]
-        flat = Voxels.concat([parts[i] for i in keep])
-        out._alloc(len(flat))
-        n = len(flat)
-        out._keys[:n], out._q[:n], out._d2[:n] = flat.keys, flat.q, flat.d2
+        n = sum(len(parts[i]) for i in keep)
+        out._alloc(n)
         start = 0
-        for slot, i in enumerate(keep):
-            stop = start + len(parts[i])
+        for slot, i in enumerate(keep):  # each part straight into the arena (no flat copy first)
+            part = parts[i]
+            stop = start + len(part)
+            out._keys[start:stop], out._q[start:stop] = part.keys, part.q
             out._slot[names[i]] = slot
             out._names.append(names[i])
             out._start.append(start)
@@ -122,8 +126,8 @@ class PointRows(Mapping[str, Voxels]):
             out._own[start:stop] = slot
             start = stop
         out._end = n
-        order = np.argsort(flat.keys, kind="stable")
-        out._base = (flat.keys[order], order.astype(_ROW))
+        order = np.argsort(out._keys[:n], kind="stable")
+        out._base = (out._keys[:n][order], order.astype(_ROW))
         if wins is None:
             out._decide(np.arange(n, dtype=np.int64))
         else:
@@ -137,7 +141,6 @@ class PointRows(Mapping[str, Voxels]):
             raise ValueError(msg)
         self._keys = np.empty(cap, dtype=np.int64)
         self._q = np.empty((cap, 3))
-        self._d2 = np.empty(cap)
         self._own = np.full(cap, -1, dtype=np.int32)
         self._wins = np.zeros(cap, dtype=np.bool_)
 
@@ -145,7 +148,8 @@ class PointRows(Mapping[str, Voxels]):
     def __getitem__(self, iri: str) -> Voxels:
         slot = self._slot[iri]
         start, stop = self._start[slot], self._stop[slot]
-        return Voxels(self._keys[start:stop], self._q[start:stop], self._d2[start:stop])
+        keys, q = self._keys[start:stop], self._q[start:stop]
+        return Voxels(keys, q, self._distance(keys, q))
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._slot)
@@ -183,7 +187,7 @@ class PointRows(Mapping[str, Voxels]):
         first = np.ones(len(keys), dtype=np.bool_)
         first[1:] = keys[1:] != keys[:-1]
         won = won[first]
-        return Voxels(self._keys[won], self._q[won], self._d2[won])
+        return Voxels(self._keys[won], self._q[won], np.zeros(len(won)))  # (compared by key and point)
 
     def winners(self) -> Voxels:
         """Every winning voxel, one point per key, sorted by key."""
@@ -198,13 +202,15 @@ class PointRows(Mapping[str, Voxels]):
         first = np.ones(len(keys), dtype=np.bool_)
         first[1:] = keys[1:] != keys[:-1]
         rows = rows[first]
-        return Voxels(self._keys[rows], self._q[rows], self._d2[rows])
+        keys, q = self._keys[rows], self._q[rows]
+        return Voxels(keys, q, self._distance(keys, q))
 
     def _decide(self, rows: IntArray) -> None:
         """Decide the winners among ``rows`` (every live row of their keys)."""
         if not len(rows):
             return
-        keys, q, d2 = self._keys[rows], self._q[rows], self._d2[rows]
+        keys, q = self._keys[rows], self._q[rows]
+        d2 = self._distance(keys, q)
         best = best_rows(keys, q, d2)  # sorted by key
         at = np.searchsorted(keys[best], keys)
         b = best[at]
@@ -237,11 +243,7 @@ class PointRows(Mapping[str, Voxels]):
         after = self._best(rows)
         if len(self._delta[0]) > max(self._delta_min, len(self._base[0]) // 8):
             self._merge_index()
-        return not (
-            np.array_equal(before.keys, after.keys)
-            and np.array_equal(before.q, after.q)
-            and np.array_equal(before.d2, after.d2)
-        )
+        return not (np.array_equal(before.keys, after.keys) and np.array_equal(before.q, after.q))
 
     def _drop(self, iri: str) -> None:
         slot = self._slot.pop(iri, None)
@@ -259,7 +261,7 @@ class PointRows(Mapping[str, Voxels]):
         """Append a part (the arena has room: see :meth:`replace`)."""
         n = len(part)
         start, stop = self._end, self._end + n
-        self._keys[start:stop], self._q[start:stop], self._d2[start:stop] = part.keys, part.q, part.d2
+        self._keys[start:stop], self._q[start:stop] = part.keys, part.q
         self._wins[start:stop] = False
         if self._free:
             slot = self._free.pop()
@@ -289,9 +291,9 @@ class PointRows(Mapping[str, Voxels]):
         live = int(keep.sum())
         new_row = (np.cumsum(keep) - 1).astype(_ROW)
         old_own = self._own
-        old: tuple[npt.NDArray[np.generic], ...] = (self._keys, self._q, self._d2, self._own, self._wins)
+        old: tuple[npt.NDArray[np.generic], ...] = (self._keys, self._q, self._own, self._wins)
         self._alloc(live + extra)
-        fresh: tuple[npt.NDArray[np.generic], ...] = (self._keys, self._q, self._d2, self._own, self._wins)
+        fresh: tuple[npt.NDArray[np.generic], ...] = (self._keys, self._q, self._own, self._wins)
         for new, was in zip(fresh, old, strict=True):
             np.compress(keep, was[:end], axis=0, out=new[:live])
         if self._start:
@@ -320,15 +322,17 @@ class PointRows(Mapping[str, Voxels]):
         arrays: dict[str, npt.NDArray[np.generic]] = {
             "keys": self._keys[rows],
             "q": self._q[rows],
-            "d2": self._d2[rows],
+            "d2": self._distance(self._keys[rows], self._q[rows]),
             "wins": self._wins[rows],
             "counts": counts,
         }
         return names, arrays
 
     @classmethod
-    def unpacked(cls, names: Sequence[str], arrays: Mapping[str, npt.NDArray[np.generic]]) -> PointRows:
-        """Rows from :meth:`packed`'s arrays (ValueError if they disagree)."""
+    def unpacked(
+        cls, names: Sequence[str], arrays: Mapping[str, npt.NDArray[np.generic]], *, distance: Distance
+    ) -> PointRows:
+        """Rows from :meth:`packed`'s arrays (ValueError if they disagree; distances are recomputed)."""
         counts = np.asarray(arrays["counts"], dtype=np.int64)
         n = len(arrays["keys"])
         if len(counts) != len(names) or int(counts.sum()) != n or (counts < 0).any():
@@ -337,11 +341,10 @@ class PointRows(Mapping[str, Voxels]):
         start = np.concatenate([[0], np.cumsum(counts)])
         keys = np.asarray(arrays["keys"], dtype=np.int64)
         q = np.asarray(arrays["q"], dtype=np.float64).reshape(n, 3)
-        d2 = np.asarray(arrays["d2"], dtype=np.float64)
         wins = np.asarray(arrays["wins"], dtype=np.bool_)
         parts, won = [], []
         for i in range(len(names)):
             rows = slice(int(start[i]), int(start[i + 1]))
-            parts.append(Voxels(keys[rows], q[rows], d2[rows]))
+            parts.append(Voxels(keys[rows], q[rows], np.empty(0)))  # (d2 unused: of() keeps keys, q)
             won.append(wins[rows])
-        return cls.of(names, parts, won)
+        return cls.of(names, parts, won, distance=distance)

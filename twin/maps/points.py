@@ -34,7 +34,7 @@ import numpy.typing as npt
 from twin.errors import MapError
 from twin.maps.grid import GridFrame
 from twin.maps.scene import IndexArray, MeshSet, Scene, StoreyInfo
-from twin.maps.voxels import FloatArray, IntArray, nearest_points_of, touched_pairs
+from twin.maps.voxels import FloatArray, IntArray, distance_to_centres, nearest_points_of, touched_pairs
 from twin.selection.skills import SkillProfile
 
 __all__ = [
@@ -118,6 +118,11 @@ class PointsPlan:
         out[:, 1] = (keys // w) % h
         out[:, 2] = keys // (w * h) + self.layers[0]
         return out
+
+    def distance(self, keys: IntArray, q: FloatArray) -> FloatArray:
+        """Points ``q`` (cell coordinates) in voxels ``keys``: their squared distances to the voxels'
+        centres (cell units; the numbers the voxelisation gives)."""
+        return distance_to_centres(q, self.ijk(keys), w_band=self.w_band)
 
     def to_xyz(self, q: FloatArray) -> FloatArray:
         """Cell coordinates to map-frame metres: world x, y; z above the storey's elevation."""

@@ -829,8 +829,19 @@ def nearest_points_of(
     if len(r):
         q[r] = _nearest_general(cells[t[r]], lo[r], hi[r], centre[r])
     q = np.clip(q, lo, hi)
+    return q, _squared_distance(q, centre)
+
+
+def _squared_distance(q: FloatArray, centre: FloatArray) -> FloatArray:
     diff = q - centre
-    return q, _dot(diff, diff)
+    return _dot(diff, diff)
+
+
+def distance_to_centres(q: FloatArray, ijk: IntArray, *, w_band: tuple[float, float]) -> FloatArray:
+    """Each point's squared distance to its voxel's centre (cell units), as :func:`nearest_points`
+    gives it (the same numbers)."""
+    lo, hi = _boxes(ijk, w_band)
+    return _squared_distance(q, 0.5 * (lo + hi))
 
 
 def _nearest_general(tri: FloatArray, lo: FloatArray, hi: FloatArray, centre: FloatArray) -> FloatArray:

@@ -6,6 +6,7 @@ takes back the voxels it had."""
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -23,14 +24,21 @@ from twin.selection.skills import parse_skill
 NAMES = ["a", "b", "c", "d", "e"]
 
 
+def _distance(keys: npt.NDArray[np.int64], q: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """A stand-in for a plan's distance to the voxel's centre: a function of the key and the point."""
+    out: npt.NDArray[np.float64] = ((q - 0.5 * (keys % 3)[:, None]) ** 2).sum(axis=1)
+    return out
+
+
 @st.composite
 def parts(draw: st.DrawFn) -> Voxels:
-    """A part's voxels: few keys, few distinct distances and points, so that parts tie."""
-    keys = sorted(draw(st.sets(st.integers(0, 40), max_size=25)))
+    """A part's voxels: few keys, few distinct points (so few distances), so that parts tie."""
+    keys = np.array(sorted(draw(st.sets(st.integers(0, 40), max_size=25))), dtype=np.int64)
     n = len(keys)
-    d2 = np.array(draw(st.lists(st.sampled_from([0.0, 0.25, 0.5]), min_size=n, max_size=n)))
-    q = np.array(draw(st.lists(st.sampled_from([0.0, 1.0]), min_size=3 * n, max_size=3 * n))).reshape(n, 3)
-    return Voxels(np.array(keys, dtype=np.int64), q, d2)
+    q = np.array(draw(st.lists(st.sampled_from([0.0, 0.5, 1.0]), min_size=3 * n, max_size=3 * n))).reshape(
+        n, 3
+    )
+    return Voxels(keys, q, _distance(keys, q))
 
 
 CHANGES = st.dictionaries(st.sampled_from(NAMES), st.none() | parts(), min_size=1, max_size=3)
@@ -51,7 +59,7 @@ def test_the_winners_after_any_changes_are_the_best_point_per_voxel_of_the_parts
 ) -> None:
     room = {"spare": 1, "delta": 1} if small else {}  # small: a compaction and a merge at every change
     names = sorted(start)
-    rows = PointRows.of(names, [start[n] for n in names], **room)
+    rows = PointRows.of(names, [start[n] for n in names], distance=_distance, **room)
     now = {n: p for n, p in start.items() if len(p)}
     for change in changes:
         before = rows.winners()
@@ -68,7 +76,7 @@ def test_the_winners_after_any_changes_are_the_best_point_per_voxel_of_the_parts
         for n, p in now.items():
             assert _same(rows[n], p)
     names, arrays = rows.packed()
-    again = PointRows.unpacked(names, arrays)
+    again = PointRows.unpacked(names, arrays, distance=_distance)
     assert _same(again.winners(), rows.winners())
     assert again.won() == rows.won()
 
