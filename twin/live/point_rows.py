@@ -10,7 +10,7 @@ concerned voxels only.
 
 Example::
 
-    rows = PointRows.of(["wall", "slab"], [wall_voxels, slab_voxels])
+    rows = PointRows.of(["wall", "slab"], [wall_voxels, slab_voxels], distance=plan.distance)
     changed = rows.replace({"wall": moved_wall_voxels})     # True if a point of the cloud changed
     cloud = rows.winners()                                  # one point per voxel, sorted by key
 """
@@ -32,11 +32,11 @@ _SPARE = 1 << 16
 _ROW = np.int32
 """The index's row numbers (4 bytes a row: an arena holds fewer than 2**31 rows)."""
 _MAX_ROWS = 2**31 - 1
-RowArray = npt.NDArray[np.int32]
 _DELTA = 1 << 16
 """Index rows kept in the delta before it is merged into the base (at least; or an eighth of the base)."""
 
 BoolArray = npt.NDArray[np.bool_]
+RowArray = npt.NDArray[np.int32]
 Distance = Callable[[IntArray, FloatArray], FloatArray]
 """``(keys (n,), points (n, 3)) -> (n,)``: each point's squared distance to its voxel's centre."""
 
@@ -157,6 +157,10 @@ class PointRows(Mapping[str, Voxels]):
     def __len__(self) -> int:
         return len(self._slot)
 
+    def _keys_of(self, iri: str) -> IntArray:
+        slot = self._slot[iri]
+        return self._keys[self._start[slot] : self._stop[slot]]
+
     def wins_of(self, iri: str) -> BoolArray:
         """Which of the part's voxels hold its point (a copy)."""
         slot = self._slot[iri]
@@ -221,7 +225,7 @@ class PointRows(Mapping[str, Voxels]):
         """Give each named part its new voxels (None or empty: the part is gone) and decide the winners of
         the voxels they touched before or touch now; True if the cloud's points there changed."""
         fresh = {i: p for i, p in changes.items() if p is not None and len(p)}
-        touched = [self[i].keys for i in changes if i in self._slot] + [p.keys for p in fresh.values()]
+        touched = [self._keys_of(i) for i in changes if i in self._slot] + [p.keys for p in fresh.values()]
         if not touched:
             return False
         keys = sorted_unique(np.concatenate(touched))

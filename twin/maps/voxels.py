@@ -13,15 +13,21 @@ make it exact rather than approximate:
   when the upper faces move in (the limit of closed boxes shrunk by ``d -> 0+``);
 - rounding: the three box axes compare the vertices themselves (exact); on the ten other axes, a
   projection within a rounding bound of a tie is decided again in exact rational arithmetic
-  (:func:`_exact_touch`, Python integers), so float noise never adds or drops a voxel.
+  (:class:`_ExactTriangle`, Python integers, each triangle made exact once), so float noise never adds
+  or drops a voxel.
 
-Candidates are enumerated per triangle by columns along its dominant normal axis (a big slanted
-triangle costs its area in voxels, not its bounding box's volume), in batches of bounded size.
+Candidates are enumerated per triangle by columns along its dominant normal axis, per strip of its
+projection (a big slanted triangle costs its area in voxels, not its bounding box's volume), in batches
+of bounded size. Most voxels of large faces need no test: a column whose square lies inside the
+triangle's projection beyond rounding holds the voxels the plane's range crosses beyond rounding (for
+a face in a grid plane, exactly one, given in runs of columns), and a triangle within one cell touches
+that voxel only; the test decides the rest. Those certain pairs carry a *hint* that makes their point
+cheaper (:func:`nearest_points`: the centre's projection on the plane).
 
 Example::
 
-    tri, ijk = touched_voxels(cells, lo=(0, 0, -1), hi=(200, 150, 30), w_band=(-0.5, 30.0))
-    q, d2 = nearest_points(cells[tri], ijk, w_band=(-0.5, 30.0))    # one point in each touched voxel
+    tri, ijk, hint = touched_pairs(cells, lo=(0, 0, -1), hi=(200, 150, 30), w_band=(-0.5, 30.0))
+    q, d2 = nearest_points_of(cells, tri, ijk, w_band=(-0.5, 30.0), hint=hint)   # a point per pair
 """
 
 from __future__ import annotations
