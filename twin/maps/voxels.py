@@ -46,9 +46,11 @@ _BATCH = 150_000
 _NO_HINT = -2
 """Hints per touching pair: ``_NO_HINT``; ``_PLANE``: certain, the column's square inside the
 triangle's projection (over it, the triangle is its plane); ``0, 1, 2``: that, and the triangle is
-level along that (dominant) axis; ``_INSIDE``: certain, the triangle lies in the voxel."""
+level along that (dominant) axis; ``_INSIDE``: certain, the triangle lies in the voxel; ``_LEVEL +
+0, 1, 2``: not certain (tested), the triangle level along that axis."""
 _PLANE = -1
 _INSIDE = -3
+_LEVEL = 3
 """(A hint: certain, the triangle lies inside the voxel.)"""
 _TOL = 1e-13
 """Rounding bound (relative to the magnitudes involved, ~450 ulp) under which a projection counts
@@ -410,7 +412,9 @@ def _candidates(
                     (box_lo <= lev) & (lev < box_hi),
                     (c_lo[col] + e < box_hi) & (c_hi[col] - e > box_lo),
                 )
-            hint = np.where(sure, np.where(level[col], dc, _PLANE), _NO_HINT)
+            hint = np.where(
+                sure, np.where(level[col], dc, _PLANE), np.where(level[col], _LEVEL + dc, _NO_HINT)
+            )
             yield t, ijk, hint
 
 
@@ -662,7 +666,7 @@ def touched_pairs(
     for t_all, ijk_all, hint in _candidates(np.asarray(cells, dtype=np.float64), lo_a, hi_a, w_band):
         blo, bhi = _boxes(ijk_all, w_band)
         keep = bhi[:, 2] > blo[:, 2]
-        sure = hint != _NO_HINT
+        sure = (hint != _NO_HINT) & (hint < _LEVEL)
         test = np.flatnonzero(keep & ~sure)
         touch = sure & keep
         t, blo, bhi = t_all[test], blo[test], bhi[test]
@@ -818,7 +822,7 @@ def nearest_points_of(
     q = centre.copy()
     rest = np.ones(len(t), dtype=np.bool_)
     if hint is not None:
-        level = np.flatnonzero(hint >= 0)  # a face in a grid plane: the centre moved onto it, exactly
+        level = np.flatnonzero((hint >= 0) & (hint < _LEVEL))  # in a face in a grid plane: the centre onto it
         if len(level):
             axis = hint[level]
             q[level, axis] = cells[t[level], 0, axis]
@@ -831,6 +835,12 @@ def nearest_points_of(
             inside = ((proj >= lo[plane]) & (proj <= hi[plane])).all(axis=1)
             q[plane[inside]] = proj[inside]
             rest[plane[inside]] = False
+        flat = np.flatnonzero(hint >= _LEVEL)  # a face in a grid plane, at the voxel's border
+        if len(flat):
+            axis = hint[flat] - _LEVEL
+            got, found = _nearest_level(cells[t[flat]], axis, lo[flat], hi[flat], centre[flat])
+            q[flat[found]] = got[found]
+            rest[flat[found]] = False
     r = np.flatnonzero(rest)
     if len(r):
         q[r] = _nearest_general(cells[t[r]], lo[r], hi[r], centre[r])
@@ -848,6 +858,53 @@ def distance_to_centres(q: FloatArray, ijk: IntArray, *, w_band: tuple[float, fl
     gives it (the same numbers)."""
     lo, hi = _boxes(ijk, w_band)
     return _squared_distance(q, 0.5 * (lo + hi))
+
+
+def _nearest_level(
+    tri: FloatArray, axis: IntArray, lo: FloatArray, hi: FloatArray, centre: FloatArray
+) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """For triangles level along ``axis`` (every vertex's coordinate there is one value, within the
+    box): the nearest point is a 2D one, lifted to that level. The centre itself when the triangle
+    covers it; else, the box's centre being inside the box, the nearest point of the triangle's edges
+    cut to the box (none may be found through rounding: ``found`` False, for the general search)."""
+    m = len(tri)
+    rows = np.arange(m)
+    p, q = (axis + 1) % 3, (axis + 2) % 3
+    up, uq = tri[rows, :, p], tri[rows, :, q]  # (m, 3) the vertices in 2D
+    cp, cq = centre[rows, p], centre[rows, q]
+    lo_p, hi_p, lo_q, hi_q = lo[rows, p], hi[rows, p], lo[rows, q], hi[rows, q]
+    best = np.full(m, np.inf)
+    bp, bq = cp.copy(), cq.copy()
+    sides = np.zeros((m, 3))
+    for i in range(3):
+        ap, aq = up[:, i], uq[:, i]
+        ep, eq = up[:, (i + 1) % 3] - ap, uq[:, (i + 1) % 3] - aq
+        sides[:, i] = ep * (cq - aq) - eq * (cp - ap)
+        # the edge cut to the closed box (Liang-Barsky), then its point nearest the centre
+        t0, t1 = np.zeros(m), np.ones(m)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for a0, e, b_lo, b_hi in ((ap, ep, lo_p, hi_p), (aq, eq, lo_q, hi_q)):
+                moving = e != 0
+                u = np.where(moving, (b_lo - a0) / np.where(moving, e, 1.0), -np.inf)
+                v = np.where(moving, (b_hi - a0) / np.where(moving, e, 1.0), np.inf)
+                enter, leave = np.minimum(u, v), np.maximum(u, v)
+                t0, t1 = np.maximum(t0, enter), np.minimum(t1, leave)
+                outside = ~moving & ((a0 < b_lo) | (a0 > b_hi))
+                t0 = np.where(outside, np.inf, t0)
+            ll = ep * ep + eq * eq
+            s = np.where(ll > 0, ((cp - ap) * ep + (cq - aq) * eq) / np.where(ll > 0, ll, 1.0), 0.0)
+        s = np.clip(s, t0, t1)
+        xp, xq = ap + s * ep, aq + s * eq
+        dist = (xp - cp) ** 2 + (xq - cq) ** 2
+        better = (t0 <= t1) & (dist < best)
+        best = np.where(better, dist, best)
+        bp, bq = np.where(better, xp, bp), np.where(better, xq, bq)
+    covered = ((sides >= 0).all(axis=1) | (sides <= 0).all(axis=1)) & (np.abs(sides).max(axis=1) > 0)
+    bp, bq = np.where(covered, cp, bp), np.where(covered, cq, bq)
+    out = centre.copy()
+    out[rows, p], out[rows, q] = bp, bq
+    out[rows, axis] = tri[rows, 0, axis]
+    return out, covered | np.isfinite(best)
 
 
 def _nearest_general(tri: FloatArray, lo: FloatArray, hi: FloatArray, centre: FloatArray) -> FloatArray:
