@@ -192,5 +192,5 @@ class LiveMaps(Drawing):
                 if (update := m.write(win, cells)) is not None:
                     updates.append(update)
         if self.points.maps:
-            self.points.redraw(touched, membership)
+            self.points.redraw(touched, membership, moved={c.iri for c in geometry})
         return updates

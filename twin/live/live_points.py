@@ -4,7 +4,8 @@ Each map keeps, per selected element, the voxels it touches with its own point i
 (:func:`twin.maps.points.voxels_by_element`), and which of them it *wins* (its point is the voxel's: the
 nearest the voxel's centre, ties to the smallest point). A changed element replaces only the voxels it
 touched before and touches now: its old voxels are dropped, its new ones computed from its triangles
-alone, and the winners of just those voxels are decided again among the elements that touch them. The
+alone, and the winners of just those voxels are decided again among the elements that touch them (the
+rows and their index by voxel: :mod:`twin.live.point_rows`). The
 cloud (:meth:`PointsMap.cloud`) is the winners, sorted by voxel: it equals a full rebuild from the
 triangles voxel for voxel (:meth:`LivePoints.rebuild` is that reference; the tests hold the two
 together).
@@ -34,6 +35,7 @@ import numpy.typing as npt
 from twin.live.drawing import Drawing
 from twin.live.events import PointsPublished, TwinEvent
 from twin.live.overlay import MapKey
+from twin.live.point_rows import PointRows
 from twin.maps.points import (
     PointCloud,
     PointsPlan,
@@ -44,11 +46,12 @@ from twin.maps.points import (
     voxels_by_element,
 )
 from twin.maps.scene import MeshSet
-from twin.maps.voxels import IntArray
 from twin.selection.skills import SkillProfile
 
-__all__ = ["POINTS_INTERVAL_S", "LivePoints", "PointsMap", "PointsPublication"]
+__all__ = ["POINTS_INTERVAL_S", "RECENT", "LivePoints", "PointsMap", "PointsPublication"]
 
+RECENT = 256
+"""Elements left out whose voxels a points map keeps, in case they come back unchanged."""
 POINTS_INTERVAL_S = 1.0
 """A changed cloud is published again at most this often (seconds): clouds are large (12 bytes a point)
 and have no update message."""
@@ -63,47 +66,39 @@ class PointsMap:
     """Which base elements the skill selects."""
     overlay: set[str]
     """Which elements robots added (not in the base) the skill selects."""
-    parts: dict[str, Voxels] = field(default_factory=dict)
-    """Each selected element's own voxels (only elements that touch any)."""
-    wins: dict[str, npt.NDArray[np.bool_]] = field(default_factory=dict)
-    """Per part: which of its voxels hold its point."""
-    span: dict[str, IntArray] = field(default_factory=dict)
-    """Per part: its smallest and largest voxel ``(i, j, k)`` (which parts a change can concern)."""
+    rows: PointRows = field(init=False)
+    """Each selected element's own voxels (only elements that touch any) and who wins where."""
     version: int = 1
-    _spans: tuple[list[str], IntArray] | None = None
-    """``span`` as one array (made when needed, dropped when a part changes)."""
+    recent: dict[str, Voxels] = field(default_factory=dict)
+    """The voxels of elements left out with their geometry unchanged (doors opened), the latest
+    :data:`RECENT` (not in snapshots): selected again unchanged, they need no voxelising."""
+
+    def __post_init__(self) -> None:
+        self.rows = PointRows(self.plan.distance)
 
     @property
     def key(self) -> MapKey:
         return (self.plan.storey.key, self.plan.skill.name)
 
+    @property
+    def parts(self) -> Mapping[str, Voxels]:
+        """Each selected element's own voxels, by IRI (views: copy what is kept)."""
+        return self.rows
+
     def winners(self) -> Voxels:
         """Every part's winning voxels, one per key (ties between parts hold the same point), sorted."""
-        parts = [self.parts[i].take(self.wins[i]) for i in sorted(self.parts)]
-        merged = Voxels.concat(parts)
-        if not len(merged):
-            return merged
-        order = np.argsort(merged.keys, kind="stable")
-        keys = merged.keys[order]
-        first = np.ones(len(keys), dtype=np.bool_)
-        first[1:] = keys[1:] != keys[:-1]
-        return merged.take(order[first])
+        return self.rows.winners()
 
     def cloud(self) -> PointCloud:
         return cloud_of(self.plan, self.winners())
 
     def __len__(self) -> int:
-        return sum(int(w.sum()) for w in self.wins.values())
+        return self.rows.won()
 
     def packed(self) -> tuple[list[str], dict[str, npt.NDArray[np.generic]]]:
         """The parts as flat arrays (for a snapshot): element IRIs, and per-row ``keys, q, d2, wins``
         with each element's row count ``counts`` (base mask and overlay are copied by the caller)."""
-        names = sorted(self.parts)
-        parts = [self.parts[n] for n in names]
-        flat = Voxels.concat(parts)
-        wins = np.concatenate([self.wins[n] for n in names]) if names else np.zeros(0, dtype=np.bool_)
-        counts = np.array([len(p) for p in parts], dtype=np.int64)
-        return names, {"keys": flat.keys, "q": flat.q, "d2": flat.d2, "wins": wins, "counts": counts}
+        return self.rows.packed()
 
     @classmethod
     def unpacked(
@@ -117,81 +112,28 @@ class PointsMap:
         version: int,
     ) -> PointsMap:
         """A map from :meth:`packed`'s arrays."""
+        try:
+            rows = PointRows.unpacked(names, arrays, distance=plan.distance)
+        except ValueError as err:
+            msg = f"points map {(plan.storey.key, plan.skill.name)}: {err}"
+            raise ValueError(msg) from err
         m = cls(plan, base_mask, overlay, version=version)
-        counts = np.asarray(arrays["counts"], dtype=np.int64)
-        if len(counts) != len(names) or int(counts.sum()) != len(arrays["keys"]):
-            n = len(arrays["keys"])
-            msg = f"points map {m.key}: {len(names)} parts and {len(counts)} counts of {n} rows"
-            raise ValueError(msg)
-        start = np.concatenate([[0], np.cumsum(counts)])
-        keys = np.asarray(arrays["keys"], dtype=np.int64)
-        q = np.asarray(arrays["q"], dtype=np.float64)
-        d2 = np.asarray(arrays["d2"], dtype=np.float64)
-        wins = np.asarray(arrays["wins"], dtype=np.bool_)
-        for i, name in enumerate(names):
-            rows = slice(int(start[i]), int(start[i + 1]))
-            m._set(name, Voxels(keys[rows], q[rows], d2[rows]))
-            m.wins[name] = wins[rows].copy()
+        m.rows = rows
         return m
 
-    def _set(self, iri: str, part: Voxels) -> None:
-        self.parts[iri] = part
-        self.wins[iri] = np.zeros(len(part), dtype=np.bool_)
-        ijk = self.plan.ijk(part.keys)
-        self.span[iri] = np.concatenate([ijk.min(axis=0), ijk.max(axis=0)])
-        self._spans = None
+    def put_aside(self, iri: str) -> None:
+        """Keep (a copy of) the element's voxels in :attr:`recent` before it is left out."""
+        part = self.rows.get(iri)
+        if part is not None:
+            self.recent.pop(iri, None)
+            self.recent[iri] = Voxels(part.keys.copy(), part.q.copy(), part.d2.copy())
+            while len(self.recent) > RECENT:
+                del self.recent[next(iter(self.recent))]
 
-    def _drop(self, iri: str) -> Voxels | None:
-        """Remove a part; its voxels that held its point, or None if it had none."""
-        wins = self.wins.pop(iri, None)
-        self.span.pop(iri, None)
-        self._spans = None
-        part = self.parts.pop(iri, None)
-        return None if part is None or wins is None else part.take(wins)
-
-    def _near(self, lo: IntArray, hi: IntArray) -> list[str]:
-        """The parts whose voxels' box meets ``[lo, hi]`` (voxel indices)."""
-        if self._spans is None:
-            names = list(self.span)
-            self._spans = (names, np.array([self.span[n] for n in names]).reshape(-1, 6))
-        names, spans = self._spans
-        apart = (spans[:, :3] > hi).any(axis=1) | (spans[:, 3:] < lo).any(axis=1)
-        return [names[i] for i in np.flatnonzero(~apart)]
-
-    def decide(self, keys: IntArray, gone: Iterable[Voxels] = ()) -> bool:
-        """Decide the winners of voxels ``keys`` (sorted, unique) among the parts; True if the cloud's
-        points there changed (``gone``: the winning voxels of parts dropped since they were decided)."""
-        if not len(keys):
-            return False
-        ijk = self.plan.ijk(keys)
-        lo, hi = ijk.min(axis=0), ijk.max(axis=0)
-        names, rows = [], []
-        before = [g.take(np.isin(g.keys, keys)) for g in gone]
-        for iri in self._near(lo, hi):
-            part = self.parts[iri]
-            at = np.searchsorted(keys, part.keys)
-            at = np.minimum(at, len(keys) - 1)
-            hit = np.flatnonzero(keys[at] == part.keys)
-            if len(hit):
-                names.append(iri)
-                rows.append(hit)
-                before.append(part.take(hit[self.wins[iri][hit]]))
-        old = best_per_voxel(Voxels.concat(before))
-        if not names:
-            return len(old) > 0
-        cand = Voxels.concat([self.parts[n].take(r) for n, r in zip(names, rows, strict=True)])
-        best = best_per_voxel(cand)
-        at = np.searchsorted(best.keys, cand.keys)
-        win = (best.d2[at] == cand.d2) & (best.q[at] == cand.q).all(axis=1)
-        start = 0
-        for n, r in zip(names, rows, strict=True):
-            self.wins[n][r] = win[start : start + len(r)]
-            start += len(r)
-        return not (
-            np.array_equal(old.keys, best.keys)
-            and np.array_equal(old.q, best.q)
-            and np.array_equal(old.d2, best.d2)
-        )
+    def replace(self, changes: Mapping[str, Voxels | None]) -> bool:
+        """Give each changed element its new voxels (None: not in this map any more) and decide the
+        winners of the voxels they touched before or touch now; True if the cloud's points changed."""
+        return self.rows.replace(changes)
 
 
 class LivePoints:
@@ -220,22 +162,27 @@ class LivePoints:
         others = sorted({*moved, *m.overlay})
         return base, [i for i in others if self.drawing.shape_of(i) is not None]
 
-    def _voxels(self, m: PointsMap, iri: str) -> Voxels:
-        """The element's own voxels in ``m`` from its current triangles."""
+    def _voxels(self, m: PointsMap, iri: str, meshes: dict[str, MeshSet] | None = None) -> Voxels:
+        """The element's own voxels in ``m`` from its current triangles (``meshes``: the meshes of
+        moved or added elements built so far, shared between maps)."""
         scene = self.drawing.scene
         i = scene.elements.index.get(iri)
         if i is not None and not self.drawing.hidden[i]:
             return voxels_by_element(scene.elements, np.array([i], dtype=np.intp), m.plan)[0]
-        shape = self.drawing.shape_of(iri)
-        if shape is None:
-            return Voxels.empty()
-        meshes = MeshSet.build([(iri, shape[0], shape[1])])
-        return voxels_by_element(meshes, np.zeros(1, dtype=np.intp), m.plan)[0]
+        mesh = None if meshes is None else meshes.get(iri)
+        if mesh is None:
+            shape = self.drawing.shape_of(iri)
+            if shape is None:
+                return Voxels.empty()
+            mesh = MeshSet.build([(iri, shape[0], shape[1])])
+            if meshes is not None:
+                meshes[iri] = mesh
+        return voxels_by_element(mesh, np.zeros(1, dtype=np.intp), m.plan)[0]
 
-    @staticmethod
-    def _part_keys(m: PointsMap, iri: str) -> IntArray | None:
-        part = m.parts.get(iri)
-        return None if part is None else part.keys
+    def _taken_back(self, m: PointsMap, iri: str, meshes: dict[str, MeshSet]) -> Voxels:
+        """The voxels of an element selected again with its geometry unchanged."""
+        part = m.recent.pop(iri, None)
+        return self._voxels(m, iri, meshes) if part is None else part
 
     def add_map(self, skill: SkillProfile, storey: str, selected: Iterable[str]) -> PointsMap:
         """Plan and build the points map of ``skill`` on ``storey`` from the selected IRIs."""
@@ -246,15 +193,9 @@ class LivePoints:
         mask[scene.elements.indices_of(tuple(chosen))] = True
         m = PointsMap(plan, mask, {i for i in chosen if i not in scene.elements.index})
         base, others = self._members(m)
-        for i, part in zip(base, voxels_by_element(scene.elements, base, plan), strict=True):
-            if len(part):
-                m._set(scene.elements.iris[int(i)], part)
-        for iri in others:
-            part = self._voxels(m, iri)
-            if len(part):
-                m._set(iri, part)
-        everything = Voxels.concat(list(m.parts.values()))
-        m.decide(np.unique(everything.keys))
+        names = [scene.elements.iris[int(i)] for i in base] + others
+        parts = voxels_by_element(scene.elements, base, plan) + [self._voxels(m, iri) for iri in others]
+        m.rows = PointRows.of(names, parts, distance=plan.distance)
         self.maps[m.key] = m
         self.pending[m.key] = m.version
         return m
@@ -267,17 +208,29 @@ class LivePoints:
         return gone
 
     def redraw(
-        self, touched: Iterable[str], membership: Mapping[str, Mapping[str, bool]]
+        self,
+        touched: Iterable[str],
+        membership: Mapping[str, Mapping[str, bool]],
+        *,
+        moved: Iterable[str] | None = None,
     ) -> list[tuple[str, str, int]]:
         """Bring every map up to the live scene after the elements ``touched`` changed (the drawing has
-        their new geometry already; ``membership`` their new selection per skill name).
+        their new geometry already; ``membership`` their new selection per skill name; ``moved``: those
+        whose geometry changed, by default all).
+
+        An element whose geometry did not change keeps its voxels: a map where its selection did not
+        change either is left alone, and one that selects it again (a door closed) takes back the voxels
+        it had when it was left out, if it still holds them (:attr:`PointsMap.recent`).
 
         Returns ``(storey, skill, version)`` of each map whose cloud changed (its next version).
         """
         touched = sorted(set(touched) | {i for sel in membership.values() for i in sel})
+        reshaped = set(touched) if moved is None else set(moved)
         base = self.drawing.scene.elements.index
+        meshes: dict[str, MeshSet] = {}
         changed = []
         for m in self.maps.values():
+            was = {iri: self._member(m, iri) for iri in touched if iri not in reshaped}
             for iri, selected in membership.get(m.plan.skill.name, {}).items():
                 if iri in base:
                     m.base_mask[base[iri]] = selected
@@ -285,20 +238,18 @@ class LivePoints:
                     m.overlay.add(iri)
                 else:
                     m.overlay.discard(iri)
-            keys, gone = [], []
+            changes: dict[str, Voxels | None] = {}
             for iri in touched:
-                old = self._part_keys(m, iri)
-                won = m._drop(iri)
-                if old is not None:
-                    keys.append(old)
-                if won is not None:
-                    gone.append(won)
-                if self._member(m, iri):
-                    part = self._voxels(m, iri)
-                    if len(part):
-                        m._set(iri, part)
-                        keys.append(part.keys)
-            if keys and m.decide(np.unique(np.concatenate(keys)), gone):
+                now = self._member(m, iri)
+                if iri in reshaped:
+                    m.recent.pop(iri, None)
+                    changes[iri] = self._voxels(m, iri, meshes) if now else None
+                elif now and not was[iri]:  # the same geometry, selected again
+                    changes[iri] = self._taken_back(m, iri, meshes)
+                elif was[iri] and not now:  # the same geometry, left out
+                    m.put_aside(iri)
+                    changes[iri] = None
+            if changes and m.replace(changes):
                 m.version += 1
                 changed.append((m.plan.storey.key, m.plan.skill.name, m.version))
                 self.pending[m.key] = m.version

@@ -34,7 +34,7 @@ import numpy.typing as npt
 from twin.errors import MapError
 from twin.maps.grid import GridFrame
 from twin.maps.scene import IndexArray, MeshSet, Scene, StoreyInfo
-from twin.maps.voxels import FloatArray, IntArray, nearest_points, touched_voxels
+from twin.maps.voxels import FloatArray, IntArray, distance_to_centres, nearest_points_of, touched_pairs
 from twin.selection.skills import SkillProfile
 
 __all__ = [
@@ -43,9 +43,11 @@ __all__ = [
     "PointsPlan",
     "Voxels",
     "best_per_voxel",
+    "best_rows",
     "build_points",
     "cloud_of",
     "plan_points",
+    "sorted_unique",
     "voxels_by_element",
     "voxels_of",
 ]
@@ -116,6 +118,11 @@ class PointsPlan:
         out[:, 1] = (keys // w) % h
         out[:, 2] = keys // (w * h) + self.layers[0]
         return out
+
+    def distance(self, keys: IntArray, q: FloatArray) -> FloatArray:
+        """Points ``q`` (cell coordinates) in voxels ``keys``: their squared distances to the voxels'
+        centres (cell units; the numbers the voxelisation gives)."""
+        return distance_to_centres(q, self.ijk(keys), w_band=self.w_band)
 
     def to_xyz(self, q: FloatArray) -> FloatArray:
         """Cell coordinates to map-frame metres: world x, y; z above the storey's elevation."""
@@ -196,32 +203,65 @@ class Voxels:
         )
 
 
-def _order(keys: IntArray, q: FloatArray, d2: FloatArray, *extra: IntArray) -> IntArray:
-    """Sort by ``extra`` (outermost first), then key, then the point's rank (d2, x, y, z)."""
-    return np.lexsort((q[:, 2], q[:, 1], q[:, 0], d2, keys, *reversed(extra)))
+def sorted_unique(keys: IntArray) -> IntArray:
+    """``keys`` sorted, each once (by sorting: numpy's hashing ``unique`` is slower here; a stable sort
+    merges runs already sorted, as concatenated voxel sets are)."""
+    s = np.sort(keys, kind="stable")
+    if len(s) < 2:
+        return s
+    first = np.ones(len(s), dtype=np.bool_)
+    first[1:] = s[1:] != s[:-1]
+    return s[first]
+
+
+def best_rows(keys: IntArray, q: FloatArray, d2: FloatArray, owner: IndexArray | None = None) -> IntArray:
+    """The row of each key's best point (nearest the voxel's centre, ties to the smallest ``(x, y, z)``),
+    one per key, in the order of the keys; with ``owner``, one per (owner, key), in that order."""
+    n = len(keys)
+    if n < 2:
+        return np.arange(n, dtype=np.int64)
+    order = np.argsort(keys, kind="stable") if owner is None else np.lexsort((keys, owner))
+    k = keys[order]
+    first = np.ones(n, dtype=np.bool_)
+    first[1:] = k[1:] != k[:-1]
+    if owner is not None:
+        o = owner[order]
+        first[1:] |= o[1:] != o[:-1]
+    starts = np.flatnonzero(first)
+    if len(starts) == n:
+        return order.astype(np.int64)
+    dk = d2[order]
+    group = np.cumsum(first) - 1
+    at_min = dk == np.minimum.reduceat(dk, starts)[group]
+    # the first row at the minimum of each group; groups with two rows at it are tie-broken by the point
+    pick = order[at_min]
+    g = group[at_min]
+    lead = np.ones(len(g), dtype=np.bool_)
+    lead[1:] = g[1:] != g[:-1]
+    tied = np.zeros(len(g), dtype=np.bool_)
+    tied[1:] = ~lead[1:]
+    if not tied.any():
+        out: IntArray = pick[lead].astype(np.int64)
+        return out
+    tied_group = np.zeros(len(starts), dtype=np.bool_)
+    tied_group[g[tied]] = True
+    in_tie = tied_group[g]
+    sub = pick[in_tie]
+    sub_g = g[in_tie]
+    sub = sub[np.lexsort((q[sub, 2], q[sub, 1], q[sub, 0], sub_g))]
+    sg = np.sort(sub_g)
+    keep = np.ones(len(sub), dtype=np.bool_)
+    keep[1:] = sg[1:] != sg[:-1]
+    out = pick[lead].astype(np.int64)  # one per group, in group order
+    out[tied_group] = sub[keep]
+    return out
 
 
 def best_per_voxel(v: Voxels) -> Voxels:
     """One point per key: the nearest the voxel's centre, ties to the smallest (x, y, z); sorted by key."""
     if not len(v):
         return v
-    order = np.lexsort((v.d2, v.keys))
-    k, d2 = v.keys[order], v.d2[order]
-    first = np.ones(len(k), dtype=np.bool_)
-    first[1:] = k[1:] != k[:-1]
-    # voxels whose nearest distance is shared by two points (coincident faces): the smallest point
-    tie = np.zeros(len(k), dtype=np.bool_)
-    tie[:-1] = ~first[1:] & (d2[1:] == d2[:-1])
-    if tie.any():
-        tied = np.isin(k, k[tie])
-        sub = order[tied]
-        sub = sub[_order(v.keys[sub], v.q[sub], v.d2[sub])]
-        ks = v.keys[sub]
-        keep = np.ones(len(ks), dtype=np.bool_)
-        keep[1:] = ks[1:] != ks[:-1]
-        chosen = np.concatenate([order[first & ~tied], sub[keep]])
-        return v.take(chosen[np.argsort(v.keys[chosen], kind="stable")])
-    return v.take(order[first])
+    return v.take(best_rows(v.keys, v.q, v.d2))
 
 
 def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
@@ -229,12 +269,12 @@ def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
     if not len(triangles):
         return np.empty(0, dtype=np.int64), Voxels.empty()
     cells = plan.cells(triangles)
-    tri, ijk = touched_voxels(cells, lo=plan.lo, hi=plan.hi, w_band=plan.w_band)
+    tri, ijk, hint = touched_pairs(cells, lo=plan.lo, hi=plan.hi, w_band=plan.w_band)
     q = np.empty((len(tri), 3))
     d2 = np.empty(len(tri))
     for s in range(0, len(tri), _CHUNK):  # element-wise: the same values in any chunks, less memory
         e = s + _CHUNK
-        q[s:e], d2[s:e] = nearest_points(cells[tri[s:e]], ijk[s:e], w_band=plan.w_band)
+        q[s:e], d2[s:e] = nearest_points_of(cells, tri[s:e], ijk[s:e], w_band=plan.w_band, hint=hint[s:e])
     return tri, Voxels(plan.keys(ijk), q, d2)
 
 
@@ -269,11 +309,8 @@ def voxels_by_element(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> lis
     if not len(v):
         return out
     own = owner[tri]
-    order = _order(v.keys, v.q, v.d2, own)
-    own, v = own[order], v.take(order)
-    first = np.ones(len(own), dtype=np.bool_)
-    first[1:] = (own[1:] != own[:-1]) | (v.keys[1:] != v.keys[:-1])
-    own, v = own[first], v.take(first)
+    rows = best_rows(v.keys, v.q, v.d2, own if len(ids) > 1 else None)
+    own, v = own[rows], v.take(rows)
     bounds = np.searchsorted(own, np.arange(len(ids) + 1))
     for i in range(len(ids)):
         if bounds[i + 1] > bounds[i]:

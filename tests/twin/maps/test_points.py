@@ -25,7 +25,7 @@ from twin.maps.points import (
     voxels_of,
 )
 from twin.maps.scene import Scene, load_scene
-from twin.maps.voxels import nearest_points, touched_voxels
+from twin.maps.voxels import _max3, _min3, _one_axis, _ten_axes, nearest_points, touched_voxels
 from twin.selection.skill_selection import selection_query
 from twin.selection.skills import SkillProfile, parse_skill
 
@@ -106,6 +106,31 @@ def test_each_point_lies_in_its_voxel_on_the_triangle_and_no_farther_than_the_ce
     for v in tri:
         inside = ((v >= lo) & (v <= hi)).all(axis=1)
         assert (((v - centre[inside]) ** 2).sum(axis=1) >= d2[inside] - 1e-9).all()
+
+
+@settings(max_examples=examples(100), deadline=None, suppress_health_check=list(HealthCheck))
+@given(st.lists(triangles(), min_size=1, max_size=8), st.integers(0, 2**32 - 1))
+def test_the_ten_separating_axes_tested_at_once_or_one_by_one_give_the_same_verdicts(
+    tris: list[npt.NDArray[np.float64]], seed: int
+) -> None:
+    # few pairs take the ten axes at once, many take them one by one: the same numbers either way
+    rng = np.random.default_rng(seed)
+    v = np.repeat(np.array(tris), 20, axis=0)
+    m = len(v)
+    lo = rng.integers(-1, 6, (m, 3)).astype(np.float64)
+    hi = lo + 1.0
+    hi[:, 2] = np.minimum(hi[:, 2], 4.5)  # some boxes cut by a band
+    rel, size = v - lo[:, None, :], hi - lo
+    e = np.stack([v[:, 1] - v[:, 0], v[:, 2] - v[:, 1], v[:, 0] - v[:, 2]], axis=1)
+    big_v = 1.0 + _max3(np.maximum(np.abs(_min3(v)), np.abs(_max3(v))))
+    big_r = 1.0 + _max3(np.maximum(np.abs(_min3(rel)), np.abs(_max3(rel))))
+    reach = 1.0 + _max3(np.maximum(np.abs(_min3(e)), np.abs(_max3(e))))
+    apart, near = _ten_axes(e, rel, size, big_v=big_v, big_r=big_r, reach=reach)
+    one_apart, one_near = np.zeros(m, dtype=np.bool_), np.zeros((m, 10), dtype=np.bool_)
+    for n_axis in range(10):
+        _one_axis(n_axis, one_apart, one_near, e=e, rel=rel, size=size, big_v=big_v, big_r=big_r, reach=reach)
+    np.testing.assert_array_equal(apart, one_apart)
+    np.testing.assert_array_equal(near[~apart], one_near[~apart])  # ties matter where no axis separates
 
 
 def test_a_points_skill_defaults_to_a_decimetre_and_a_band_from_below_the_floor_to_the_next_storey(
