@@ -55,6 +55,8 @@ _LEVEL = 3
 _TOL = 1e-13
 """Rounding bound (relative to the magnitudes involved, ~450 ulp) under which a projection counts
 as a possible tie (decided exactly)."""
+_SLIVER = 1e-12
+"""A triangle whose squared sine at its first corner is below this is taken as its edges."""
 
 
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -729,8 +731,10 @@ def _closest_on_triangle(p: FloatArray, a: FloatArray, b: FloatArray, c: FloatAr
     at_a = (d1 <= 0) & (d2 <= 0)
     v, w = np.where(at_a, 0.0, v), np.where(at_a, 0.0, w)
     out = a + ab * v[:, None] + ac * w[:, None]
-    bad = ~np.isfinite(out).all(axis=1)
-    if bad.any():  # degenerate triangles: the nearest of their three edges
+    # degenerate triangles (and slivers whose area is rounding: the regions' signs are noise there,
+    # sin^2 of the angle at a below 1e-12, under a micrometre of width per metre): their nearest edge
+    bad = ~np.isfinite(out).all(axis=1) | ~(denom > _SLIVER * _dot(ab, ab) * _dot(ac, ac))
+    if bad.any():
         corners = np.stack([a[bad], b[bad], c[bad]], axis=1)
         out[bad] = _closest_on_segments(p[bad], corners, np.full(int(bad.sum()), 3))
     return out
