@@ -92,7 +92,7 @@ def run(store_dir: Path, resolution: float, changes: int, seed: int) -> dict[str
     out["live_rss_added_mb"] = rss_mb() - before
     out["rss_mb"] = rss_mb()
     out["max_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    busiest = max(live.points.maps.values(), key=len)
+    busiest = max(live.points.clouds.values(), key=len)
     classes = {
         literal_value(r["e"]) or "": literal_value(r["c"]) or ""
         for r in store.select(f"SELECT ?e ?c WHERE {{ ?e <{TWIN_IFC_CLASS}> ?c }}")

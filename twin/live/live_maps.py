@@ -191,6 +191,6 @@ class LiveMaps(Drawing):
             for win, cells in fresh:  # all rendered before any is written
                 if (update := m.write(win, cells)) is not None:
                     updates.append(update)
-        if self.points.maps:
+        if self.points.clouds:
             self.points.redraw(touched, membership, moved={c.iri for c in geometry})
         return updates

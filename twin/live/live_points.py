@@ -20,7 +20,7 @@ Example::
     points.add_map(skill, "ground-floor", selected_iris)
     changed = points.redraw({iri}, {skill.name: {iri: True}})     # [(storey, skill, version)]
     publication.flush(points, revision, due_only=True)            # PointsPublished, bounded rate
-    cloud = points.maps[("ground-floor", skill.name)].cloud()
+    cloud = points.clouds[("ground-floor", skill.name)].cloud()
 """
 
 from __future__ import annotations
@@ -143,7 +143,7 @@ class LivePoints:
     def __init__(self, drawing: Drawing, *, margin_m: float) -> None:
         self.drawing = drawing
         self.margin_m = margin_m
-        self.maps: dict[MapKey, PointsMap] = {}
+        self.clouds: dict[MapKey, PointsMap] = {}
         self.pending: dict[MapKey, int] = {}
         """Maps built or changed since :class:`PointsPublication` last published them: their version."""
 
@@ -196,14 +196,14 @@ class LivePoints:
         names = [scene.elements.iris[int(i)] for i in base] + others
         parts = voxels_by_element(scene.elements, base, plan) + [self._voxels(m, iri) for iri in others]
         m.rows = PointRows.of(names, parts, distance=plan.distance)
-        self.maps[m.key] = m
+        self.clouds[m.key] = m
         self.pending[m.key] = m.version
         return m
 
     def remove_skill(self, name: str) -> list[MapKey]:
-        gone = [k for k in self.maps if k[1] == name]
+        gone = [k for k in self.clouds if k[1] == name]
         for k in gone:
-            del self.maps[k]
+            del self.clouds[k]
             self.pending.pop(k, None)
         return gone
 
@@ -229,7 +229,7 @@ class LivePoints:
         base = self.drawing.scene.elements.index
         meshes: dict[str, MeshSet] = {}
         changed = []
-        for m in self.maps.values():
+        for m in self.clouds.values():
             was = {iri: self._member(m, iri) for iri in touched if iri not in reshaped}
             for iri, selected in membership.get(m.plan.skill.name, {}).items():
                 if iri in base:
@@ -288,7 +288,7 @@ class PointsPublication:
             if due_only and now - self._sent_ns.get(key, -math.inf) < self.interval_ns:
                 continue
             del points.pending[key]
-            m = points.maps.get(key)
+            m = points.clouds.get(key)
             if m is None:
                 continue
             event = PointsPublished(m.cloud(), revision, m.version, now)

@@ -354,7 +354,7 @@ def test_a_points_skills_cloud_is_recorded_per_storey_in_world_coordinates_at_ea
     service, _ = started(config=cfg)
     service.sinks.append(recorder)
     service.process()  # the first clouds
-    m = service.live_maps.points.maps[("ground-floor", "lidar3d")]
+    m = service.live_maps.points.clouds[("ground-floor", "lidar3d")]
     first = m.cloud()
     recorder.close()
     batches = chunks_by_entity(path)["/points/ground-floor/lidar3d"]
@@ -377,7 +377,7 @@ def test_a_rotated_file_starts_with_every_points_skills_current_cloud(tmp_path: 
         recorder.emit(event)
     service.sinks.append(recorder)
     service.process()  # the first clouds, in the first file
-    first = service.live_maps.points.maps[("ground-floor", "lidar3d")].cloud()
+    first = service.live_maps.points.clouds[("ground-floor", "lidar3d")].cloud()
     recorder.wait_idle()
     recorder.max_bytes = 1  # a new file before the next event
     observe(service, "robot2", b"this is not turtle")  # an event that changes no cloud

@@ -40,13 +40,13 @@ def _config(resolution_m: float = 0.2) -> Config:
 
 def _same_cloud(service: TwinService, other: TwinService | None = None) -> None:
     points = service.live_maps.points
-    assert points.maps, "no points map"
-    for key, m in points.maps.items():
+    assert points.clouds, "no points map"
+    for key, m in points.clouds.items():
         cloud, ref = m.cloud(), points.rebuild(m)
         np.testing.assert_array_equal(cloud.keys, ref.keys, err_msg=f"{key}: voxels vs its own rebuild")
         np.testing.assert_array_equal(cloud.xyz, ref.xyz, err_msg=f"{key}: points vs its own rebuild")
         if other is not None:
-            fresh = other.live_maps.points.maps[key].cloud()
+            fresh = other.live_maps.points.clouds[key].cloud()
             np.testing.assert_array_equal(cloud.keys, fresh.keys, err_msg=f"{key}: voxels vs a restart")
             np.testing.assert_array_equal(cloud.xyz, fresh.xyz, err_msg=f"{key}: points vs a restart")
 
@@ -66,8 +66,8 @@ def test_incremental_clouds_equal_a_full_rebuild_voxel_for_voxel(sequence: list[
 def test_a_door_opened_changes_the_cloud_at_the_next_version_and_only_where_the_door_was() -> None:
     service, rec = started(imported(box_lab()), _config(0.1))
     points = service.live_maps.points
-    key = next(k for k in points.maps if k[1] == "lidar3d")
-    m = points.maps[key]
+    key = next(k for k in points.clouds if k[1] == "lidar3d")
+    m = points.clouds[key]
     before, version = m.cloud(), m.version
     door = m.parts[DOOR].keys.copy()
     assert observe(service, "robot1", f"<{DOOR}> <{TWIN}isOpen> true .".encode()).ok
@@ -87,7 +87,7 @@ def test_a_door_opened_changes_the_cloud_at_the_next_version_and_only_where_the_
 def test_a_wall_removed_leaves_the_cloud_without_its_voxels_and_closing_the_door_is_the_same_cloud() -> None:
     rights = frozenset({"create", "dynamic", "doors", "static"})  # removing a wall needs "static"
     service, _ = started(imported(box_lab()), dataclasses.replace(_config(0.1), default_rights=rights))
-    m = next(v for k, v in service.live_maps.points.maps.items() if k[1] == "lidar3d")
+    m = next(v for k, v in service.live_maps.points.clouds.items() if k[1] == "lidar3d")
     wall = m.parts[WALL].keys.copy()
     start = m.cloud()
     assert observe(service, "robot1", f"<{DOOR}> <{TWIN}isOpen> true .".encode()).ok
@@ -119,7 +119,7 @@ def test_clouds_are_published_whole_at_start_and_again_after_a_change_at_most_on
     now[0] += 1_000_000_000
     service.process()
     again = rec.of(PointsPublished)[1:]
-    m = service.live_maps.points.maps[("ground-floor", "lidar3d")]
+    m = service.live_maps.points.clouds[("ground-floor", "lidar3d")]
     assert [e.version for e in again] == [m.version] and m.version == 4
     np.testing.assert_array_equal(again[0].cloud.keys, m.cloud().keys)
     service.process()
@@ -149,9 +149,9 @@ def test_the_snapshot_holds_the_clouds_and_a_restart_replays_what_changed_since(
     again = _start(store, path, config)
     assert again.restored_from == 1
     key = ("ground-floor", "lidar3d")
-    restored = again.live.maps.points.maps[key]  # before the scene's triangles are computed
-    np.testing.assert_array_equal(restored.cloud().keys, first.live_maps.points.maps[key].cloud().keys)
-    np.testing.assert_array_equal(restored.cloud().xyz, first.live_maps.points.maps[key].cloud().xyz)
+    restored = again.live.maps.points.clouds[key]  # before the scene's triangles are computed
+    np.testing.assert_array_equal(restored.cloud().keys, first.live_maps.points.clouds[key].cloud().keys)
+    np.testing.assert_array_equal(restored.cloud().xyz, first.live_maps.points.clouds[key].cloud().xyz)
     assert observe(again, "robot1", f"<{DOOR}> <{TWIN}isOpen> true .".encode()).ok  # then no clean stop
     third = _start(store, path, config)  # from the snapshot of revision 1, the door replayed
     assert third.restored_from == 1 and third.revision == 2
@@ -161,7 +161,7 @@ def test_the_snapshot_holds_the_clouds_and_a_restart_replays_what_changed_since(
 def test_an_element_redrawn_as_it_was_leaves_the_cloud_and_its_version_as_they_were() -> None:
     service, _ = started(imported(box_lab()), _config(0.1))
     points = service.live_maps.points
-    m = points.maps[("ground-floor", "lidar3d")]
+    m = points.clouds[("ground-floor", "lidar3d")]
     before, version = m.cloud(), m.version
     assert points.redraw({WALL, DOOR}, {"lidar3d": {WALL: True, DOOR: True}}) == []
     assert m.version == version

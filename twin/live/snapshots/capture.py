@@ -84,7 +84,7 @@ def capture(live: LiveState, keys: dict[str, Any]) -> Captured:
         for m in live.maps.skill_maps.values()
     )
     points = []
-    for p in live.maps.points.maps.values():
+    for p in live.maps.points.clouds.values():
         names, arrays = p.packed()  # new arrays: a copy
         points.append(
             _PointsCopy(

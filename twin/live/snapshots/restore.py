@@ -252,7 +252,7 @@ def restore(
         raise SnapshotError(msg) from err
     live = LiveMaps.restored(scene, margin_m=margin_m, hidden=arrays["hidden"], overlay=overlay, maps=maps)
     for p in points:
-        live.points.maps[p.key] = p
+        live.points.clouds[p.key] = p
         live.points.pending[p.key] = p.version  # published at the first flush
     filled = np.zeros(len(items), dtype=np.bool_)
     names = frozenset(m.plan.skill.name for m in maps) | frozenset(p.plan.skill.name for p in points)
