@@ -9,8 +9,8 @@ latest cloud of every points map the key expression names (to the asker alone, s
 ``map/**`` answers with the 2D maps. The twin publishes a changed cloud whole, at most once a second
 (:data:`twin.live.live_points.POINTS_INTERVAL_S`). A removed skill's keys are undeclared.
 
-The clouds are read from :class:`~adapters.zenoh.latest.LatestMaps` (in the daemon its one holder,
-``daemon.maps``, brought up to date before this sink is called; standalone, a holder of its own), and
+The clouds are read from :class:`~adapters.zenoh.latest.LatestMaps` (the daemon's one holder,
+``daemon.maps``, brought up to date before this follower is called), and
 sent, like the replies, on one lane (in the daemon the site's: ``daemon.site``).
 
 Example::
@@ -56,16 +56,15 @@ class ZenohPoints:
         *,
         prefix: str,
         frame_id: str,
-        maps: LatestMaps | None = None,
+        maps: LatestMaps,
         lane: Lane | None = None,
     ) -> None:
         self.session = session
         self.keys = SiteKeys(prefix)
         self.frame_id = frame_id
-        self._own_maps = maps is None
-        self.maps = (
-            maps if maps is not None else LatestMaps(frame_id=frame_id, timestamp=session.new_timestamp)
-        )
+        self.maps = maps
+        """The daemon's one holder of each map's and cloud's latest version (the dispatcher writes it
+        before this follower is called; read here)."""
         self._own_lane: Outbox | None = None
         if lane is None:
             lane = self._own_lane = Outbox("twin-zenoh-points")
@@ -75,13 +74,9 @@ class ZenohPoints:
 
     def emit(self, event: TwinEvent) -> None:
         if isinstance(event, PointsPublished):
-            if self._own_maps:
-                self.maps.publish_points(event)
             key = (event.cloud.storey, event.cloud.skill)
             self.lane.put(lambda: self._put(key))
         elif isinstance(event, MapRemoved):
-            if self._own_maps:
-                self.maps.remove((event.storey, event.skill))
             self.lane.put(lambda: self._remove((event.storey, event.skill)))
 
     def _put(self, key: tuple[str, str]) -> None:

@@ -11,9 +11,9 @@ with the current cloud of the robot's current storey (nothing for a removed skil
 switches storey (a :class:`~twin.live.events.RobotStoreyChanged`), the new storey's cloud is published.
 PointCloud2 has no update message: the twin publishes a changed cloud whole, at most once a second.
 
-The clouds are read from :class:`~adapters.zenoh.latest.LatestMaps`, encoded once per version (in the
-daemon its one holder, ``daemon.maps``, brought up to date before this sink is called; standalone, a
-holder of its own); each robot's sends and history replies are made on that robot's own lane.
+The clouds are read from :class:`~adapters.zenoh.latest.LatestMaps`, encoded once per version (the
+daemon's one holder, ``daemon.maps``, brought up to date before this follower is called); each
+robot's sends and history replies are made on that robot's own lane.
 
 Example::
 
@@ -36,7 +36,7 @@ from adapters.zenoh.latched import Answer, LatchedPublisher
 from adapters.zenoh.latest import LatestMaps
 from adapters.zenoh.outbox import Outbox
 from twin.config import Config
-from twin.live.events import MapRemoved, PointsPublished, RobotStoreyChanged, TwinEvent
+from twin.live.events import PointsPublished, RobotStoreyChanged, TwinEvent
 
 __all__ = ["NODE_NAME", "RosPointsPublisher", "points_topic"]
 
@@ -95,14 +95,12 @@ def _newer(version: Any, shown: Any) -> Any:
 class RosPointsPublisher:
     """Publishes the points skills' clouds to the configured robots. Call :meth:`emit` from one thread."""
 
-    def __init__(self, session: zenoh.Session, config: Config, *, maps: LatestMaps | None = None) -> None:
+    def __init__(self, session: zenoh.Session, config: Config, *, maps: LatestMaps) -> None:
         self.session = session
         self.frame_id = config.section(RosSettings).frame_id
         skills = sorted(name for name, s in config.skills.items() if s.kind == "points")
-        self._own_maps = maps is None
-        self.maps = (
-            maps if maps is not None else LatestMaps(frame_id=self.frame_id, timestamp=session.new_timestamp)
-        )
+        self.maps = maps
+        """The daemon's one holder of each cloud's latest version (written by the dispatcher first)."""
         self._robots: dict[str, _Robot] = {}
         zid = str(session.zid())
         entity = _ENTITY_BASE
@@ -153,8 +151,6 @@ class RosPointsPublisher:
     def emit(self, event: TwinEvent) -> None:
         if isinstance(event, PointsPublished):
             cloud = event.cloud
-            if self._own_maps:
-                self.maps.publish_points(event)
             for r in self._robots.values():
                 if r.storey == cloud.storey:
                     self._send(r, cloud.skill)
@@ -165,8 +161,6 @@ class RosPointsPublisher:
                 robot.shown = self.session.new_timestamp()
                 for skill in robot.topics:
                     self._send(robot, skill)
-        elif isinstance(event, MapRemoved) and self._own_maps:
-            self.maps.remove((event.storey, event.skill))
 
     def _send(self, r: _Robot, skill: str) -> None:
         r.lane.put(lambda: self._put(r, skill))
