@@ -108,11 +108,13 @@ RELATIVE = 1e-6  # ICP stops when fitness and RMSE change less than this (relati
 EPSILON = 1e-3  # generalized ICP: a plane's covariance is diag(1, 1, EPSILON) in its frame
 CROP = RANGE + 2.0  # map points farther than this from the start can never be a correspondence
 
-# (voxel m, max correspondence m, iterations) per stage; the kernel is Tukey with k = distance / 2
+# (voxel m, max correspondence m, iterations) per stage; the kernel is Tukey with k = distance * KERNEL
+KERNEL = 0.5
 STAGES: dict[str, list[tuple[float, float, int]]] = {
     "gicp": [(0.4, 1.0, 30), (0.2, 0.5, 30), (0.1, 0.25, 30)],
     "p2l": [(0.4, 1.0, 30), (0.2, 0.5, 30), (0.1, 0.25, 30)],
     "planar": [(0.4, 1.0, 30), (0.2, 0.5, 30), (0.1, 0.25, 30)],
+    "planar_oriented": [(0.4, 1.0, 30), (0.2, 0.5, 30), (0.1, 0.25, 30)],
     "p2l_single": [(0.1, 1.0, 30), (0.1, 0.5, 30), (0.1, 0.2, 30)],  # this benchmark's first version
 }
 
@@ -213,6 +215,11 @@ class World:
         t = _cast(self.closed, origin, dirs)["t_hit"].numpy()
         return bool(t[-1] < 10.0 and (t[:-1] < 2 * RANGE).mean() >= 0.9)
 
+    def surface_normals(self, points: Array) -> Array:
+        """The outward normal (the mesh's winding) of the model's surface nearest each point."""
+        near = self.closed.compute_closest_points(o3d.core.Tensor(points.astype(np.float32)))
+        return np.asarray(near["primitive_normals"].numpy(), dtype=np.float64)
+
     def distance(self, points: Array) -> Array:
         return np.asarray(
             self.scene.compute_distance(o3d.core.Tensor(points.astype(np.float32))).numpy(), dtype=np.float64
@@ -232,30 +239,46 @@ class Target:
     """A map cloud per stage voxel size, with normals and covariances, and its xy for cropping."""
 
     levels: dict[float, tuple[Any, Array]]
+    outward: dict[float, Array]
+    """Per level, the model's outward normal at each point (when built with a world)."""
 
     @classmethod
-    def build(cls, xyz: Array, voxels: set[float], *, covariances: bool) -> Target:
+    def build(
+        cls, xyz: Array, voxels: set[float], *, covariances: bool, world: World | None = None
+    ) -> Target:
+        """With ``world``, the normals are the model's outward ones (which side of a wall a point is on),
+        else estimated from 20 neighbours (either sign)."""
         full = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz))
         levels: dict[float, tuple[Any, Array]] = {}
+        outward: dict[float, Array] = {}
         for v in sorted(voxels):
-            pc = full if v <= 0.1 + 1e-9 else full.voxel_down_sample(v)
+            pc = o3d.geometry.PointCloud(full) if v <= 0.1 + 1e-9 else full.voxel_down_sample(v)
             pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=3 * v, max_nn=20))
+            if world is not None:
+                outward[v] = world.surface_normals(np.asarray(pc.points))
             if covariances:
                 pc.estimate_covariances(o3d.geometry.KDTreeSearchParamKNN(20))
                 pc.covariances = o3d.utility.Matrix3dVector(plane_covariances(np.asarray(pc.covariances)))
             levels[v] = (pc, np.asarray(pc.points)[:, :2].copy())
-        return cls(levels)
+        return cls(levels, outward)
 
     def near(self, voxel: float, xy: Array) -> Any:
         pc, pts = self.levels[voxel]
         keep = np.flatnonzero((np.abs(pts - xy) < CROP).all(axis=1))
         return pc.select_by_index(keep)
 
+    def near_arrays(self, voxel: float, xy: Array, *, outward: bool) -> tuple[Array, Array]:
+        """``(points, normals)`` within reach of ``xy``; the outward normals or the estimated ones."""
+        pc, pts = self.levels[voxel]
+        keep = np.flatnonzero((np.abs(pts - xy) < CROP).all(axis=1))
+        normals = self.outward[voxel] if outward else np.asarray(pc.normals)
+        return np.asarray(pc.points)[keep], normals[keep]
+
 
 def register(scan_xyz: Array, target: Target, start: Array, method: str) -> Array:
     """Coarse-to-fine registration of a scan (sensor frame) to a map cloud from ``start``."""
-    if method == "planar":
-        return register_planar(scan_xyz, target, start, STAGES[method])
+    if method in {"planar", "planar_oriented"}:
+        return register_planar(scan_xyz, target, start, STAGES[method], oriented=method == "planar_oriented")
     reg = o3d.pipelines.registration
     raw = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(scan_xyz))
     pose = start
@@ -267,11 +290,11 @@ def register(scan_xyz: Array, target: Target, start: Array, method: str) -> Arra
             scan.estimate_covariances(o3d.geometry.KDTreeSearchParamKNN(20))
             scan.covariances = o3d.utility.Matrix3dVector(plane_covariances(np.asarray(scan.covariances)))
             # its residuals are Mahalanobis: along a normal, metres / sqrt(2 epsilon); the kernel likewise
-            gicp_kernel = reg.TukeyLoss(k=distance / 2 / np.sqrt(2 * EPSILON))
+            gicp_kernel = reg.TukeyLoss(k=distance * KERNEL / np.sqrt(2 * EPSILON))
             est = reg.TransformationEstimationForGeneralizedICP(EPSILON, gicp_kernel)
             result = reg.registration_generalized_icp(scan, near, distance, pose, est, criteria)
         else:
-            est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=distance / 2))
+            est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=distance * KERNEL))
             result = reg.registration_icp(scan, near, distance, pose, est, criteria)
         pose = np.asarray(result.transformation)
     return pose
@@ -282,27 +305,46 @@ def _yaw_of(pose: Array) -> float:
 
 
 def register_planar(
-    scan_xyz: Array, target: Target, start: Array, stages: list[tuple[float, float, int]]
+    scan_xyz: Array,
+    target: Target,
+    start: Array,
+    stages: list[tuple[float, float, int]],
+    *,
+    oriented: bool = False,
 ) -> Array:
     """Point-to-plane ICP in x, y and yaw only, a Tukey kernel per stage: a ground robot's localizer,
     whose lidar height above the floor is its mount and whose roll and pitch come from gravity (an
-    IMU); these three stay as ``start`` has them."""
+    IMU); these three stay as ``start`` has them. ``oriented``: a scan point (its normal turned to the
+    sensor) pairs with the nearest of its 4 nearest map points whose outward normal faces the same way,
+    not with the far side of a wall (a rejector of incompatible normals, as PCL's and libpointmatcher's)."""
     raw = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(scan_xyz))
     tilt = _rot_z(-_yaw_of(start)) @ start[:3, :3]  # roll and pitch: start = Rz(yaw) @ tilt
     x, y, z, yaw = float(start[0, 3]), float(start[1, 3]), float(start[2, 3]), _yaw_of(start)
     for voxel, distance, iterations in stages:
-        pts = np.asarray(raw.voxel_down_sample(voxel).points) @ tilt.T
-        near = target.near(voxel, start[:2, 3])
-        tgt, nrm = np.asarray(near.points), np.asarray(near.normals)
+        down = raw.voxel_down_sample(voxel)
+        pts = np.asarray(down.points) @ tilt.T
+        if oriented:
+            down.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=3 * voxel, max_nn=20))
+            down.orient_normals_towards_camera_location(np.zeros(3))
+            scan_n = np.asarray(down.normals) @ tilt.T
+        tgt, nrm = target.near_arrays(voxel, start[:2, 3], outward=oriented)
         index = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(tgt.astype(np.float32)))
         index.knn_index()
-        k = distance / 2
+        k = distance * KERNEL
         for _ in range(iterations):
-            rp = pts @ _rot_z(yaw).T
+            rot = _rot_z(yaw)
+            rp = pts @ rot.T
             moved = rp + np.array([x, y, z])
-            found, d2 = index.knn_search(o3d.core.Tensor(moved.astype(np.float32)), 1)
-            j = found.numpy()[:, 0].astype(np.intp)
-            keep = d2.numpy()[:, 0] < distance * distance
+            found, d2 = index.knn_search(o3d.core.Tensor(moved.astype(np.float32)), 4 if oriented else 1)
+            cand, dist2 = found.numpy().astype(np.intp), d2.numpy()
+            pick = np.zeros(len(pts), dtype=np.intp)
+            if oriented:
+                facing = np.einsum("nkj,nj->nk", nrm[cand], scan_n @ rot.T) > 0.0
+                pick = np.argmax(facing, axis=1)
+                dist2 = np.where(facing, dist2, np.inf)
+            rows = np.arange(len(pts))
+            j = cand[rows, pick]
+            keep = dist2[rows, pick] < distance * distance
             if keep.sum() < 10:
                 break
             n, q, rp_k = nrm[j[keep]], tgt[j[keep]], rp[keep]
@@ -440,7 +482,15 @@ def run(
             cloud = build_points(scene, plan_points(scene, skills[name], storey.key, iris[name]))
             xyz = cloud.xyz.astype(np.float64)
             xyz[:, 2] += storey.elevation_m  # the cloud's z is above the storey's elevation
-            targets[name], sizes[name] = Target.build(xyz, voxels, covariances="gicp" in methods), len(xyz)
+            targets[name], sizes[name] = (
+                Target.build(
+                    xyz,
+                    voxels,
+                    covariances="gicp" in methods,
+                    world=world if "planar_oriented" in methods else None,
+                ),
+                len(xyz),
+            )
         found = tried = 0
         rejected = {"body": 0, "floor": 0, "outside": 0}
         z = storey.elevation_m + LIDAR_HEIGHT
