@@ -19,6 +19,7 @@ from twin.maps.points import (
     PointsPlan,
     Voxels,
     best_per_voxel,
+    best_rows,
     build_points,
     plan_points,
     voxels_by_element,
@@ -281,3 +282,29 @@ def test_the_lab_clouds_normals_are_unit_and_the_floor_seen_from_above_faces_up(
     top = np.isclose(cloud.xyz[:, 2], 0.0)
     up = (cloud.normals[top] == np.array([0, 0, 1], dtype=np.float32)).all(axis=1)
     assert up.mean() > 0.9
+
+
+def test_a_tie_on_the_point_goes_to_the_smallest_normal_and_a_degenerate_triangles_zero_normal_last() -> None:
+    keys = np.array([7, 7, 7, 7, 9, 9], dtype=np.int64)
+    q = np.array([[0.5, 0.5, 0.0]] * 4 + [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    d2 = np.array([0.25, 0.25, 0.25, 0.25, 0.5, 0.5])
+    n = np.array([[0, 0, 1], [0, 0, 0], [0, 0, -1], [1, 0, 0], [0, 0, 0], [0, 1, 0]], dtype=np.float32)
+    for order in ([0, 1, 2, 3, 4, 5], [5, 4, 3, 2, 1, 0], [3, 1, 0, 2, 5, 4]):
+        rows = np.array(order)
+        best = rows[best_rows(keys[rows], q[rows], d2[rows], n[rows])]
+        assert n[best].tolist() == [[0, 0, -1], [0, 1, 0]]
+
+
+def test_two_boxes_sharing_a_face_give_its_voxels_the_smaller_of_the_two_outward_normals(
+    box_store: GraphStore,
+) -> None:
+    _, plan = _plan(box_store, resolution_m=0.25)
+    o = np.array([plan.frame.origin_x + 1.0, plan.frame.origin_y + 1.0, 0.5])
+    a = _box(o, o + np.array([1.0, 1.0, 1.0]))
+    b = _box(o + np.array([1.0, 0.0, 0.0]), o + np.array([2.0, 1.0, 1.0]))
+    one, two = voxels_of(plan, np.concatenate([a, b])), voxels_of(plan, np.concatenate([b, a]))
+    assert np.array_equal(one.keys, two.keys) and np.array_equal(one.n, two.n)
+    x = plan.to_xyz(one.q)[:, 0]
+    shared = np.isclose(x, o[0] + 1.0) & (one.n[:, 0] != 0)  # on the shared face, the faces' normals x
+    assert shared.sum() > 10
+    assert (one.n[shared] == np.array([-1, 0, 0], dtype=np.float32)).all()  # b's -x, not a's +x
