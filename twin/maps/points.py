@@ -216,7 +216,7 @@ class Voxels:
 
 def triangle_normals(triangles: FloatArray) -> Float32Array:
     """The unit normals ``(n, 3) float32`` of triangles ``(n, 3, 3)``, by their winding (right hand:
-    ``(b - a) x (c - a)``); zero for a triangle of no area."""
+    ``(b - a) x (c - a)``); zero for a triangle of no area; no negative zeros."""
     t = np.asarray(triangles, dtype=np.float64)
     u, v = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
     c = np.empty((len(t), 3))
@@ -227,7 +227,8 @@ def triangle_normals(triangles: FloatArray) -> Float32Array:
     ok = length > 0.0
     c[ok] /= length[ok, None]
     c[~ok] = 0.0
-    return c.astype(np.float32)
+    out: Float32Array = (c + 0.0).astype(np.float32)  # (+ 0.0: no -0.0, equal normals equal bits)
+    return out
 
 
 def sorted_unique(keys: IntArray) -> IntArray:

@@ -278,6 +278,7 @@ def test_the_lab_clouds_normals_are_unit_and_the_floor_seen_from_above_faces_up(
     cloud = build_points(scene, plan)
     assert cloud.normals.dtype == np.float32 and cloud.normals.shape == (len(cloud), 3)
     assert np.allclose(np.linalg.norm(cloud.normals, axis=1), 1.0, atol=1e-6)
+    assert not np.signbit(cloud.normals[cloud.normals == 0]).any()  # no -0.0: equal normals, equal bits
     # the floor's top (z = 0 above the storey) away from the walls: its outward normal is +z
     top = np.isclose(cloud.xyz[:, 2], 0.0)
     up = (cloud.normals[top] == np.array([0, 0, 1], dtype=np.float32)).all(axis=1)
