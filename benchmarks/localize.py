@@ -22,9 +22,13 @@ off the true pose, its roll and pitch off by a resting IMU's error (normal, 0.1 
   a ground robot's localizer, whose lidar height is its mount and whose roll and pitch come from
   gravity; the start's z, roll and pitch are kept;
 - ``planar_oriented``: the same, pairing each scan point (its normal turned to the sensor) with the
-  nearest of its 4 nearest map points whose outward normal (the model's, by the meshes' winding)
-  faces the same way: a wall's far face, a wall thickness (0.1-0.3 m) away, is no longer a match
-  (a rejector of incompatible normals, as PCL's and libpointmatcher's);
+  nearest of its 4 nearest map points whose outward normal faces the same way: a wall's far face, a
+  wall thickness (0.1-0.3 m) away, is no longer a match (a rejector of incompatible normals, as
+  PCL's and libpointmatcher's). The map's normals are the cloud's own (the twin's PCD carries them:
+  ``normal_x normal_y normal_z``); at the coarse stages the map is downsampled per voxel and normal
+  direction (its dominant axis and sign: a thin wall's two faces stay two points, each with its mean
+  normal). ``--map-normals mesh``: the model's instead (the surface nearest each downsampled point, by
+  the meshes' winding), as this benchmark's first runs took them;
 - ``p2l``: Open3D's point-to-plane ICP in 6 degrees of freedom, as ``hdl_localization`` and Autoware's
   ``ndt_scan_matcher`` estimate (with NDT, which Open3D lacks);
 - ``gicp``: Open3D's generalized ICP in 6 degrees of freedom (plane-to-plane covariances);
@@ -48,7 +52,7 @@ Needs ``open3d`` (PyPI; not a project dependency)::
 
     python benchmarks/localize.py --store STORE_DIR [--poses 20] [--seed 5]
         [--methods planar_oriented,planar,p2l] [--clouds twin,twin_furniture,baseline]
-        [--storeys a,b] [--degenerate 50] [--json OUT.json]
+        [--storeys a,b] [--degenerate 50] [--map-normals cloud|mesh] [--json OUT.json]
 """
 
 from __future__ import annotations
@@ -244,23 +248,34 @@ class Target:
     """A map cloud per stage voxel size, with normals and covariances, and its xy for cropping."""
 
     levels: dict[float, tuple[Any, Array]]
-    outward: dict[float, Array]
-    """Per level, the model's outward normal at each point (when built with a world)."""
+    outward: dict[float, tuple[Array, Array]]
+    """Per level, points with outward normals (``planar_oriented``'s map): the cloud's own normals,
+    downsampled per voxel and normal direction, or the model's at the level's points."""
 
     @classmethod
     def build(
-        cls, xyz: Array, voxels: set[float], *, covariances: bool, world: World | None = None
+        cls,
+        xyz: Array,
+        voxels: set[float],
+        *,
+        covariances: bool,
+        normals: Array | None = None,
+        world: World | None = None,
     ) -> Target:
-        """With ``world``, the normals are the model's outward ones (which side of a wall a point is on),
-        else estimated from 20 neighbours (either sign)."""
+        """With ``normals`` (the cloud's outward normals), or else ``world`` (the model's, at the nearest
+        surface), the oriented levels; the others' normals are estimated from 20 neighbours (either
+        sign)."""
         full = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz))
         levels: dict[float, tuple[Any, Array]] = {}
-        outward: dict[float, Array] = {}
+        outward: dict[float, tuple[Array, Array]] = {}
         for v in sorted(voxels):
             pc = o3d.geometry.PointCloud(full) if v <= 0.1 + 1e-9 else full.voxel_down_sample(v)
             pc.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=3 * v, max_nn=20))
-            if world is not None:
-                outward[v] = world.surface_normals(np.asarray(pc.points))
+            if normals is not None:
+                outward[v] = (xyz, normals) if v <= 0.1 + 1e-9 else downsample_oriented(xyz, normals, v)
+            elif world is not None:
+                pts = np.asarray(pc.points)
+                outward[v] = (pts, world.surface_normals(pts))
             if covariances:
                 pc.estimate_covariances(o3d.geometry.KDTreeSearchParamKNN(20))
                 pc.covariances = o3d.utility.Matrix3dVector(plane_covariances(np.asarray(pc.covariances)))
@@ -273,11 +288,33 @@ class Target:
         return pc.select_by_index(keep)
 
     def near_arrays(self, voxel: float, xy: Array, *, outward: bool) -> tuple[Array, Array]:
-        """``(points, normals)`` within reach of ``xy``; the outward normals or the estimated ones."""
-        pc, pts = self.levels[voxel]
-        keep = np.flatnonzero((np.abs(pts - xy) < CROP).all(axis=1))
-        normals = self.outward[voxel] if outward else np.asarray(pc.normals)
-        return np.asarray(pc.points)[keep], normals[keep]
+        """``(points, normals)`` within reach of ``xy``; with outward normals or the estimated ones."""
+        if outward:
+            points, normals = self.outward[voxel]
+        else:
+            pc, _ = self.levels[voxel]
+            points, normals = np.asarray(pc.points), np.asarray(pc.normals)
+        keep = np.flatnonzero((np.abs(points[:, :2] - xy) < CROP).all(axis=1))
+        return points[keep], normals[keep]
+
+
+def downsample_oriented(xyz: Array, normals: Array, voxel: float) -> tuple[Array, Array]:
+    """One point per (voxel, normal direction): the mean of the points whose normal's dominant axis and
+    sign agree, with their mean normal (unit): a wall thinner than the voxel keeps both faces apart.
+    Points with a zero normal (a degenerate triangle's) are left out."""
+    ok = np.abs(normals).max(axis=1) > 0
+    xyz, normals = xyz[ok], normals[ok].astype(np.float64)
+    axis = np.argmax(np.abs(normals), axis=1)
+    direction = 2 * axis + (normals[np.arange(len(axis)), axis] < 0)
+    cell = np.floor(xyz / voxel).astype(np.int64)
+    groups = np.column_stack([cell, direction])
+    _, inverse = np.unique(groups, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    count = np.bincount(inverse).astype(np.float64)
+    pts = np.stack([np.bincount(inverse, xyz[:, a]) for a in range(3)], axis=1) / count[:, None]
+    nrm = np.stack([np.bincount(inverse, normals[:, a]) for a in range(3)], axis=1)
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1), 1e-12)[:, None]
+    return pts, nrm
 
 
 def register(scan_xyz: Array, target: Target, start: Array, method: str) -> Array:
@@ -460,6 +497,7 @@ def run(
     names: list[str],
     storeys: list[str] | None,
     degenerate: float,
+    map_normals: str = "cloud",
 ) -> dict[str, Any]:
     rng = np.random.default_rng(seed)
     store = EmbeddedStore.open(store_dir, read_only=True)
@@ -487,12 +525,14 @@ def run(
             cloud = build_points(scene, plan_points(scene, skills[name], storey.key, iris[name]))
             xyz = cloud.xyz.astype(np.float64)
             xyz[:, 2] += storey.elevation_m  # the cloud's z is above the storey's elevation
+            oriented = "planar_oriented" in methods
             targets[name], sizes[name] = (
                 Target.build(
                     xyz,
                     voxels,
                     covariances="gicp" in methods,
-                    world=world if "planar_oriented" in methods else None,
+                    normals=cloud.normals.astype(np.float64) if oriented and map_normals == "cloud" else None,
+                    world=world if oriented and map_normals == "mesh" else None,
                 ),
                 len(xyz),
             )
@@ -561,6 +601,7 @@ def run(
     store.close()
     return {
         "seed": seed,
+        "map_normals": map_normals,
         "stages": {m: STAGES[m] for m in methods},
         "degenerate_below": degenerate,
         "storeys": storey_rows,
@@ -580,6 +621,12 @@ def main() -> None:
     ap.add_argument("--clouds", default=",".join(CLOUDS), help="comma-separated, of: " + ", ".join(CLOUDS))
     ap.add_argument("--storeys", default="", help="comma-separated storey keys (default: all)")
     ap.add_argument("--degenerate", type=float, default=50.0)
+    ap.add_argument(
+        "--map-normals",
+        choices=("cloud", "mesh"),
+        default="cloud",
+        help="planar_oriented's map normals: the cloud's own (the PCD's) or the model's meshes'",
+    )
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
@@ -596,6 +643,7 @@ def main() -> None:
         names=names,
         storeys=[s for s in args.storeys.split(",") if s] or None,
         degenerate=args.degenerate,
+        map_normals=args.map_normals,
     )
     result["seconds"] = round(time.perf_counter() - t, 1)
     print(json.dumps({k: v for k, v in result.items() if k != "poses"}, indent=1))

@@ -2,8 +2,11 @@
 
 The PCD file is what PCL's ``pcl::io::loadPCDFile`` reads (``hdl_localization``,
 ``lidar_localization_ros2``, Autoware's ``pointcloud_map_loader``): PCL's v0.7 header, fields
-``x y z`` as float32, ``VIEWPOINT 0 0 0 1 0 0 0``, ``DATA binary``. Coordinates are the map frame's:
-world x, y (as in the 2D maps' YAML), z above the storey's elevation.
+``x y z normal_x normal_y normal_z`` as float32 (PCL's ``PointNormal`` names; a loader into ``PointXYZ``
+matches fields by name and skips the normals), ``VIEWPOINT 0 0 0 1 0 0 0``, ``DATA binary``.
+Coordinates are the map frame's: world x, y (as in the 2D maps' YAML), z above the storey's elevation;
+the normals are unit vectors, outward from the elements' closed surfaces (zero on a degenerate
+triangle).
 
 Offset: float32 keeps half a millimetre up to 8,192 m from the origin. When a cloud's x or y reaches
 :data:`OFFSET_LIMIT_M`, the file holds ``x - offset_x, y - offset_y`` with the offset the map frame's
@@ -11,13 +14,15 @@ origin (the 2D map's ``origin``, a multiple of the resolution), written in the h
 ``# building-twin ... offset_x=<m> offset_y=<m> offset_z=0``; give it to the localizer as the
 map -> cloud transform. Below the limit the offset is 0 and the file is in the map frame.
 
-The ``PointCloud2`` (``height 1``, ``width n``, fields ``x y z`` FLOAT32 at 0, 4, 8, ``point_step 12``,
-little-endian, dense) carries the same points in the map frame, without offset.
+The ``PointCloud2`` (``height 1``, ``width n``, fields ``x y z normal_x normal_y normal_z`` FLOAT32 at
+0, 4, ..., 20, ``point_step 24``, little-endian, dense) carries the same points and normals in the map
+frame, without offset.
 
 Example::
 
     files = write_points_files(cloud, Path("maps"), stamp_ns=time.time_ns())
     xyz, offset = read_pcd(files.pcd)            # float32 (n, 3), the file's offset
+    normals, _ = read_pcd(files.pcd, fields=NORMAL_FIELDS)
     payload = encode_point_cloud2(cloud, stamp_ns=0)
 """
 
@@ -38,6 +43,8 @@ from twin.errors import MapError
 from twin.maps.points import PointCloud
 
 __all__ = [
+    "FIELDS",
+    "NORMAL_FIELDS",
     "OFFSET_LIMIT_M",
     "POINT_CLOUD2",
     "PointsFiles",
@@ -54,6 +61,9 @@ logger = logging.getLogger(__name__)
 POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
 OFFSET_LIMIT_M = 8192.0
 """From this distance to the origin on, float32 steps exceed 0.5 mm: PCD files get an offset."""
+NORMAL_FIELDS = ("normal_x", "normal_y", "normal_z")
+FIELDS = ("x", "y", "z", *NORMAL_FIELDS)
+"""Every point's fields, float32 each, in files and messages (PCL's ``PointNormal`` names)."""
 _FLOAT32 = 7  # sensor_msgs/msg/PointField FLOAT32
 _UNSAFE = re.compile(r"[^\w.\-]")
 
@@ -66,12 +76,9 @@ def points_offset(cloud: PointCloud) -> tuple[float, float]:
 
 
 def pcd_bytes(cloud: PointCloud) -> bytes:
-    """The binary PCD file of ``cloud`` (x, y less :func:`points_offset`)."""
+    """The binary PCD file of ``cloud`` (x, y less :func:`points_offset`; normals)."""
     ox, oy = points_offset(cloud)
-    xyz = np.empty((len(cloud), 3), dtype="<f4")
-    xyz[:, 0] = cloud.xyz[:, 0] - ox
-    xyz[:, 1] = cloud.xyz[:, 1] - oy
-    xyz[:, 2] = cloud.xyz[:, 2]
+    rows = _rows(cloud, ox, oy)
     n = len(cloud)
     header = (
         "# .PCD v0.7 - Point Cloud Data file format\n"
@@ -79,24 +86,37 @@ def pcd_bytes(cloud: PointCloud) -> bytes:
         f"elevation_m={cloud.elevation_m!r} resolution_m={cloud.resolution_m!r} "
         f"offset_x={ox!r} offset_y={oy!r} offset_z=0\n"
         "VERSION 0.7\n"
-        "FIELDS x y z\n"
-        "SIZE 4 4 4\n"
-        "TYPE F F F\n"
-        "COUNT 1 1 1\n"
+        f"FIELDS {' '.join(FIELDS)}\n"
+        f"SIZE {' '.join('4' for _ in FIELDS)}\n"
+        f"TYPE {' '.join('F' for _ in FIELDS)}\n"
+        f"COUNT {' '.join('1' for _ in FIELDS)}\n"
         f"WIDTH {n}\n"
         "HEIGHT 1\n"
         "VIEWPOINT 0 0 0 1 0 0 0\n"
         f"POINTS {n}\n"
         "DATA binary\n"
     )
-    return header.encode("ascii") + xyz.tobytes()
+    return header.encode("ascii") + rows.tobytes()
 
 
-def read_pcd(path: Path) -> tuple[npt.NDArray[np.float32], tuple[float, float]]:
-    """Read a binary ``x y z`` float32 PCD file: ``(xyz (n, 3) float32, (offset_x, offset_y))``; the
-    offset is 0 unless the building-twin comment gives one. MapError names what is not supported."""
+def _rows(cloud: PointCloud, ox: float, oy: float) -> npt.NDArray[np.float32]:
+    """The cloud's :data:`FIELDS` per point, little-endian float32 ``(n, 6)`` (x, y less the offset)."""
+    out = np.empty((len(cloud), len(FIELDS)), dtype="<f4")
+    out[:, 0] = cloud.xyz[:, 0] - ox
+    out[:, 1] = cloud.xyz[:, 1] - oy
+    out[:, 2] = cloud.xyz[:, 2]
+    out[:, 3:] = cloud.normals
+    return out
+
+
+def read_pcd(
+    path: Path, *, fields: tuple[str, ...] = ("x", "y", "z")
+) -> tuple[npt.NDArray[np.float32], tuple[float, float]]:
+    """Read ``fields`` (default ``x y z``; :data:`NORMAL_FIELDS` for the normals) of a binary float32
+    PCD file: ``(values (n, len(fields)) float32, (offset_x, offset_y))``; the offset is 0 unless the
+    building-twin comment gives one. MapError names what is not supported or missing."""
     blob = path.read_bytes()
-    pos, fields, n, offset = 0, {}, None, (0.0, 0.0)
+    pos, header, n, offset = 0, {}, None, (0.0, 0.0)
     while True:
         end = blob.find(b"\n", pos)
         if end < 0:
@@ -110,62 +130,76 @@ def read_pcd(path: Path) -> tuple[npt.NDArray[np.float32], tuple[float, float]]:
                 offset = (float(found.get("offset_x", 0.0)), float(found.get("offset_y", 0.0)))
             continue
         key, _, value = line.partition(" ")
-        fields[key] = value
+        header[key] = value
         if key == "POINTS":
             n = int(value)
         if key == "DATA":
             break
-    wanted = {"FIELDS": "x y z", "SIZE": "4 4 4", "TYPE": "F F F", "DATA": "binary"}
+    names = header.get("FIELDS", "").split()
+    k = len(names)
+    wanted = {"SIZE": " ".join(["4"] * k), "TYPE": " ".join(["F"] * k), "DATA": "binary"}
     for key, value in wanted.items():
-        if fields.get(key) != value:
-            msg = f"{path}: PCD {key} is {fields.get(key)!r}; only {value!r} is read here."
+        if header.get(key) != value:
+            msg = f"{path}: PCD {key} is {header.get(key)!r}; only {value!r} (float32 fields) is read here."
             raise MapError(msg)
-    if n is None or len(blob) - pos != 12 * n:
+    missing = [f for f in fields if f not in names]
+    if missing or not k:
+        msg = f"{path}: PCD FIELDS are {header.get('FIELDS')!r}, without {' '.join(missing or fields)}."
+        raise MapError(msg)
+    if n is None or len(blob) - pos != 4 * k * n:
         msg = f"{path}: PCD says {n} points but holds {len(blob) - pos} bytes of data."
         raise MapError(msg)
-    return np.frombuffer(blob, dtype="<f4", offset=pos).reshape(n, 3).astype(np.float32), offset
+    data = np.frombuffer(blob, dtype="<f4", offset=pos).reshape(n, k)
+    return data[:, [names.index(f) for f in fields]].astype(np.float32), offset
 
 
 def encode_point_cloud2(cloud: PointCloud, *, stamp_ns: int, frame_id: str = "map") -> bytes:
-    """Serialise ``cloud`` as a CDR ``sensor_msgs/msg/PointCloud2`` (x y z float32, map frame)."""
+    """Serialise ``cloud`` as a CDR ``sensor_msgs/msg/PointCloud2`` (:data:`FIELDS` float32, map frame)."""
     types = _typestore().types
     field = types["sensor_msgs/msg/PointField"]
-    fields = [field(name=name, offset=4 * i, datatype=_FLOAT32, count=1) for i, name in enumerate("xyz")]
-    data = np.ascontiguousarray(cloud.xyz, dtype="<f4").view(np.uint8).reshape(-1)
+    fields = [field(name=name, offset=4 * i, datatype=_FLOAT32, count=1) for i, name in enumerate(FIELDS)]
+    step = 4 * len(FIELDS)
+    data = _rows(cloud, 0.0, 0.0).view(np.uint8).reshape(-1)
     message = types[POINT_CLOUD2](
         header=_header(stamp_ns, frame_id),
         height=1,
         width=len(cloud),
         fields=fields,
         is_bigendian=False,
-        point_step=12,
-        row_step=12 * len(cloud),
+        point_step=step,
+        row_step=step * len(cloud),
         data=data,
         is_dense=True,
     )
     return _serialize(message, POINT_CLOUD2)
 
 
-def decode_point_cloud2(payload: bytes | bytearray | memoryview) -> tuple[npt.NDArray[np.float32], int, str]:
-    """Parse a CDR ``sensor_msgs/msg/PointCloud2`` of float32 ``x y z`` (any ``point_step``):
-    ``(xyz (n, 3) float32, stamp_ns, frame_id)``; MapError names a layout it cannot read."""
+def decode_point_cloud2(
+    payload: bytes | bytearray | memoryview, *, fields: tuple[str, ...] = ("x", "y", "z")
+) -> tuple[npt.NDArray[np.float32], int, str]:
+    """Parse a CDR ``sensor_msgs/msg/PointCloud2``'s float32 ``fields`` (default ``x y z``; any
+    ``point_step``): ``(values (n, len(fields)) float32, stamp_ns, frame_id)``; MapError names a layout
+    it cannot read."""
     m: Any = _deserialize(payload, POINT_CLOUD2)
     offsets = {f.name: (int(f.offset), int(f.datatype), int(f.count)) for f in m.fields}
     n = int(m.width) * int(m.height)
     step = int(m.point_step)
     data = np.asarray(m.data, dtype=np.uint8)
-    if m.is_bigendian or any(offsets.get(a, (0, 0, 0))[1:] != (_FLOAT32, 1) for a in "xyz"):
-        msg = f"{POINT_CLOUD2}: only little-endian FLOAT32 x, y, z fields are read (fields: {offsets})."
+    if m.is_bigendian or any(offsets.get(a, (0, 0, 0))[1:] != (_FLOAT32, 1) for a in fields):
+        msg = (
+            f"{POINT_CLOUD2}: only little-endian FLOAT32 {', '.join(fields)} fields are read "
+            f"(fields: {offsets})."
+        )
         raise MapError(msg)
     if len(data) < n * step:
         msg = f"{POINT_CLOUD2}: {n} points of {step} bytes need {n * step} bytes, the data has {len(data)}."
         raise MapError(msg)
     rows = data[: n * step].reshape(n, step)
-    xyz = np.empty((n, 3), dtype=np.float32)
-    for i, a in enumerate("xyz"):
+    out = np.empty((n, len(fields)), dtype=np.float32)
+    for i, a in enumerate(fields):
         o = offsets[a][0]
-        xyz[:, i] = rows[:, o : o + 4].copy().view("<f4").reshape(-1)
-    return xyz, _stamp_ns(m.header), str(m.header.frame_id)
+        out[:, i] = rows[:, o : o + 4].copy().view("<f4").reshape(-1)
+    return out, _stamp_ns(m.header), str(m.header.frame_id)
 
 
 @dataclass(frozen=True, slots=True)

@@ -111,7 +111,7 @@ def test_a_ros_robot_gets_its_storeys_cloud_on_points_map_in_both_layouts_and_th
             def on(layout: str) -> Callable[[object], None]:
                 def on_sample(sample: object) -> None:
                     msg = deserialize_message(bytes(sample.payload), RosPointCloud2)  # type: ignore[attr-defined]
-                    xyz = np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 3)
+                    xyz = np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 6)  # x y z, normal
                     extra = sample.attachment  # type: ignore[attr-defined]
                     with arrived:
                         got[layout].append((xyz, 0 if extra is None else len(bytes(extra))))
@@ -135,8 +135,9 @@ def test_a_ros_robot_gets_its_storeys_cloud_on_points_map_in_both_layouts_and_th
             assert ground["rmw_zenoh"][1] == 33 and ground["bridge"][1] == 0  # rmw_zenoh's attachment
             np.testing.assert_array_equal(ground["bridge"][0], ground["rmw_zenoh"][0])
             assert len(ground["bridge"][0]) > 1000
+            assert np.allclose(np.linalg.norm(ground["bridge"][0][:, 3:], axis=1), 1.0, atol=1e-6)
             xyz, _, _ = client.get_points("ground-floor", "lidar3d")  # the native get: the same points
-            np.testing.assert_array_equal(xyz, ground["rmw_zenoh"][0])
+            np.testing.assert_array_equal(xyz, ground["rmw_zenoh"][0][:, :3])
             assert client.robot_storey("robot1", "first-floor") == "first-floor"
             wait_for(2)
             first = got["bridge"][1][0]

@@ -2,13 +2,12 @@
 
 Each map keeps, per selected element, the voxels it touches with its own point in each
 (:func:`twin.maps.points.voxels_by_element`), and which of them it *wins* (its point is the voxel's: the
-nearest the voxel's centre, ties to the smallest point). A changed element replaces only the voxels it
-touched before and touches now: its old voxels are dropped, its new ones computed from its triangles
-alone, and the winners of just those voxels are decided again among the elements that touch them (the
-rows and their index by voxel: :mod:`twin.live.point_rows`). The
-cloud (:meth:`PointsMap.cloud`) is the winners, sorted by voxel: it equals a full rebuild from the
-triangles voxel for voxel (:meth:`LivePoints.rebuild` is that reference; the tests hold the two
-together).
+nearest the voxel's centre, ties to the smallest point, then normal). A changed element replaces only the
+voxels it touched before and touches now: its old voxels are dropped, its new ones computed from its
+triangles alone, and the winners of just those voxels are decided again among the elements that touch them
+(the rows and their index by voxel: :mod:`twin.live.point_rows`). The cloud (:meth:`PointsMap.cloud`) is
+the winners, sorted by voxel: it equals a full rebuild from the triangles voxel for voxel
+(:meth:`LivePoints.rebuild` is that reference; the tests hold the two together).
 
 The geometry is the live scene's (:class:`~twin.live.drawing.Drawing`: the imported base less what
 robots hid, plus the overlay); selection changes come as the 2D maps get them (per skill name, per
@@ -53,7 +52,7 @@ __all__ = ["POINTS_INTERVAL_S", "RECENT", "LivePoints", "PointsMap", "PointsPubl
 RECENT = 256
 """Elements left out whose voxels a points map keeps, in case they come back unchanged."""
 POINTS_INTERVAL_S = 1.0
-"""A changed cloud is published again at most this often (seconds): clouds are large (12 bytes a point)
+"""A changed cloud is published again at most this often (seconds): clouds are large (24 bytes a point)
 and have no update message."""
 
 
@@ -96,7 +95,7 @@ class PointsMap:
         return self.rows.won()
 
     def packed(self) -> tuple[list[str], dict[str, npt.NDArray[np.generic]]]:
-        """The parts as flat arrays (for a snapshot): element IRIs, and per-row ``keys, q, d2, wins``
+        """The parts as flat arrays (for a snapshot): element IRIs, and per-row ``keys, q, d2, n, wins``
         with each element's row count ``counts`` (base mask and overlay are copied by the caller)."""
         return self.rows.packed()
 
@@ -126,7 +125,7 @@ class PointsMap:
         part = self.rows.get(iri)
         if part is not None:
             self.recent.pop(iri, None)
-            self.recent[iri] = Voxels(part.keys.copy(), part.q.copy(), part.d2.copy())
+            self.recent[iri] = Voxels(part.keys.copy(), part.q.copy(), part.d2.copy(), part.n.copy())
             while len(self.recent) > RECENT:
                 del self.recent[next(iter(self.recent))]
 

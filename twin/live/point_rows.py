@@ -1,12 +1,12 @@
 """The rows of one live points map: every selected element's own voxels in one arena, indexed by voxel.
 
-A points map keeps, per selected element (a *part*), the voxels it touches with its own point in each and
-whether that point is the voxel's (it *wins*). A change must find, for the voxels it concerns, every
-part's row there: the rows live in flat arrays (an arena: each part one contiguous slice, a dropped
-part's slice dead until the arena is compacted) and are found by voxel key through a sorted index (a
-large sorted base and a small sorted delta of the rows added since the base was merged, so that a change
-costs its own rows, not the map's). Winners are decided with whole-array operations on the rows of the
-concerned voxels only.
+A points map keeps, per selected element (a *part*), the voxels it touches with its own point (and the
+point's normal, float32) in each and whether that point is the voxel's (it *wins*). A change must find,
+for the voxels it concerns, every part's row there: the rows live in flat arrays (an arena: each part one
+contiguous slice, a dropped part's slice dead until the arena is compacted) and are found by voxel key
+through a sorted index (a large sorted base and a small sorted delta of the rows added since the base was
+merged, so that a change costs its own rows, not the map's). Winners are decided with whole-array
+operations on the rows of the concerned voxels only.
 
 Example::
 
@@ -82,6 +82,8 @@ class PointRows(Mapping[str, Voxels]):
         self._delta_min = delta
         self._keys = np.empty(0, dtype=np.int64)
         self._q = np.empty((0, 3))
+        self._n = np.empty((0, 3), dtype=np.float32)
+        """Each row's normal (12 bytes: what the files carry, so no rounding between map and file)."""
         self._own = np.empty(0, dtype=np.int32)
         """Each row's part (slot), -1 once the part is dropped."""
         self._wins = np.empty(0, dtype=np.bool_)
@@ -118,7 +120,7 @@ class PointRows(Mapping[str, Voxels]):
         for slot, i in enumerate(keep):  # each part straight into the arena (no flat copy first)
             part = parts[i]
             stop = start + len(part)
-            out._keys[start:stop], out._q[start:stop] = part.keys, part.q
+            out._keys[start:stop], out._q[start:stop], out._n[start:stop] = part.keys, part.q, part.n
             out._slot[names[i]] = slot
             out._names.append(names[i])
             out._start.append(start)
@@ -141,6 +143,7 @@ class PointRows(Mapping[str, Voxels]):
             raise ValueError(msg)
         self._keys = np.empty(cap, dtype=np.int64)
         self._q = np.empty((cap, 3))
+        self._n = np.empty((cap, 3), dtype=np.float32)
         self._own = np.full(cap, -1, dtype=np.int32)
         self._wins = np.zeros(cap, dtype=np.bool_)
 
@@ -149,7 +152,7 @@ class PointRows(Mapping[str, Voxels]):
         slot = self._slot[iri]
         start, stop = self._start[slot], self._stop[slot]
         keys, q = self._keys[start:stop], self._q[start:stop]
-        return Voxels(keys, q, self._distance(keys, q))
+        return Voxels(keys, q, self._distance(keys, q), self._n[start:stop])
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._slot)
@@ -191,7 +194,8 @@ class PointRows(Mapping[str, Voxels]):
         first = np.ones(len(keys), dtype=np.bool_)
         first[1:] = keys[1:] != keys[:-1]
         won = won[first]
-        return Voxels(self._keys[won], self._q[won], np.zeros(len(won)))  # (compared by key and point)
+        # (compared by key, point and normal)
+        return Voxels(self._keys[won], self._q[won], np.zeros(len(won)), self._n[won])
 
     def winners(self) -> Voxels:
         """Every winning voxel, one point per key, sorted by key."""
@@ -207,18 +211,18 @@ class PointRows(Mapping[str, Voxels]):
         first[1:] = keys[1:] != keys[:-1]
         rows = rows[first]
         keys, q = self._keys[rows], self._q[rows]
-        return Voxels(keys, q, self._distance(keys, q))
+        return Voxels(keys, q, self._distance(keys, q), self._n[rows])
 
     def _decide(self, rows: IntArray) -> None:
         """Decide the winners among ``rows`` (every live row of their keys)."""
         if not len(rows):
             return
-        keys, q = self._keys[rows], self._q[rows]
+        keys, q, n = self._keys[rows], self._q[rows], self._n[rows]
         d2 = self._distance(keys, q)
-        best = best_rows(keys, q, d2)  # sorted by key
+        best = best_rows(keys, q, d2, n)  # sorted by key
         at = np.searchsorted(keys[best], keys)
         b = best[at]
-        self._wins[rows] = (d2 == d2[b]) & (q == q[b]).all(axis=1)
+        self._wins[rows] = (d2 == d2[b]) & (q == q[b]).all(axis=1) & (n == n[b]).all(axis=1)
 
     # --- changes -------------------------------------------------------------------------------------
     def replace(self, changes: Mapping[str, Voxels | None]) -> bool:
@@ -247,7 +251,11 @@ class PointRows(Mapping[str, Voxels]):
         after = self._best(rows)
         if len(self._delta[0]) > max(self._delta_min, len(self._base[0]) // 8):
             self._merge_index()
-        return not (np.array_equal(before.keys, after.keys) and np.array_equal(before.q, after.q))
+        return not (
+            np.array_equal(before.keys, after.keys)
+            and np.array_equal(before.q, after.q)
+            and np.array_equal(before.n, after.n)
+        )
 
     def _drop(self, iri: str) -> None:
         slot = self._slot.pop(iri, None)
@@ -265,7 +273,7 @@ class PointRows(Mapping[str, Voxels]):
         """Append a part (the arena has room: see :meth:`replace`)."""
         n = len(part)
         start, stop = self._end, self._end + n
-        self._keys[start:stop], self._q[start:stop] = part.keys, part.q
+        self._keys[start:stop], self._q[start:stop], self._n[start:stop] = part.keys, part.q, part.n
         self._wins[start:stop] = False
         if self._free:
             slot = self._free.pop()
@@ -295,9 +303,9 @@ class PointRows(Mapping[str, Voxels]):
         live = int(keep.sum())
         new_row = (np.cumsum(keep) - 1).astype(_ROW)
         old_own = self._own
-        old: tuple[npt.NDArray[np.generic], ...] = (self._keys, self._q, self._own, self._wins)
+        old: tuple[npt.NDArray[np.generic], ...] = (self._keys, self._q, self._n, self._own, self._wins)
         self._alloc(live + extra)
-        fresh: tuple[npt.NDArray[np.generic], ...] = (self._keys, self._q, self._own, self._wins)
+        fresh: tuple[npt.NDArray[np.generic], ...] = (self._keys, self._q, self._n, self._own, self._wins)
         for new, was in zip(fresh, old, strict=True):
             np.compress(keep, was[:end], axis=0, out=new[:live])
         if self._start:
@@ -314,7 +322,7 @@ class PointRows(Mapping[str, Voxels]):
 
     # --- snapshots -----------------------------------------------------------------------------------
     def packed(self) -> tuple[list[str], dict[str, npt.NDArray[np.generic]]]:
-        """The parts by name as flat arrays: ``keys, q, d2, wins`` per row, ``counts`` per part."""
+        """The parts by name as flat arrays: ``keys, q, d2, n, wins`` per row, ``counts`` per part."""
         names = sorted(self._slot)
         spans = [(self._start[self._slot[n]], self._stop[self._slot[n]]) for n in names]
         counts = np.array([stop - start for start, stop in spans], dtype=np.int64)
@@ -327,6 +335,7 @@ class PointRows(Mapping[str, Voxels]):
             "keys": self._keys[rows],
             "q": self._q[rows],
             "d2": self._distance(self._keys[rows], self._q[rows]),
+            "n": self._n[rows],
             "wins": self._wins[rows],
             "counts": counts,
         }
@@ -345,10 +354,11 @@ class PointRows(Mapping[str, Voxels]):
         start = np.concatenate([[0], np.cumsum(counts)])
         keys = np.asarray(arrays["keys"], dtype=np.int64)
         q = np.asarray(arrays["q"], dtype=np.float64).reshape(n, 3)
+        normals = np.asarray(arrays["n"], dtype=np.float32).reshape(n, 3)
         wins = np.asarray(arrays["wins"], dtype=np.bool_)
         parts, won = [], []
         for i in range(len(names)):
             rows = slice(int(start[i]), int(start[i + 1]))
-            parts.append(Voxels(keys[rows], q[rows], np.empty(0)))  # (d2 unused: of() keeps keys, q)
+            parts.append(Voxels(keys[rows], q[rows], np.empty(0), normals[rows]))  # (d2 unused by of())
             won.append(wins[rows])
         return cls.of(names, parts, won, distance=distance)

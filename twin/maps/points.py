@@ -7,9 +7,12 @@ within the height band (from ``band_bottom_m`` to ``band_top_m`` above the store
 default from just below the floor's top to the next storey's elevation): the 3D analogue of the 2D
 rule, so thin elements never vanish and touching elements leave no gaps. The touch test is exact
 (:mod:`twin.maps.voxels`). Each voxel holds one point: the point of the selected surfaces, within the voxel,
-nearest its centre (a centre would bias the cloud by up to half a voxel); ties go to the smallest
-point, so the cloud does not depend on the order elements are processed in (incremental updates equal
-a full rebuild voxel for voxel).
+nearest its centre (a centre would bias the cloud by up to half a voxel), with the unit normal of the
+triangle it lies on, oriented by the triangle's winding (outward for the importer's closed shells;
+float32). Ties (a point on an edge or vertex several triangles share, or equal points of several
+elements) go to the smallest point, then to the smallest normal (x, then y, then z; a degenerate
+triangle's zero normal last), so the cloud does not depend on the order triangles and elements are
+processed in (incremental updates equal a full rebuild voxel for voxel, normals included).
 
 Frames: the voxels' x, y are the cells of the storey's 2D maps at this resolution (same origin, the
 ``map`` frame); z is metres above the storey's elevation, voxel layer ``k`` covering
@@ -19,7 +22,7 @@ clouds are sorted by key.
 Example::
 
     plan = plan_points(scene, skill, "ground-floor", iris, margin_m=1.0)
-    cloud = build_points(scene, plan)   # keys, xyz: x, y in the map frame, z above the storey
+    cloud = build_points(scene, plan)   # keys, xyz: x, y in the map frame, z above the storey; normals
 """
 
 from __future__ import annotations
@@ -48,6 +51,7 @@ __all__ = [
     "cloud_of",
     "plan_points",
     "sorted_unique",
+    "triangle_normals",
     "voxels_by_element",
     "voxels_of",
 ]
@@ -173,24 +177,30 @@ def plan_points(
     return plan
 
 
+Float32Array = npt.NDArray[np.float32]
+
+
 @dataclass(frozen=True, eq=False, slots=True)
 class Voxels:
     """Touched voxels and their points: ``keys (n,)`` sorted, unique; ``q (n, 3)`` the point in cell
-    coordinates; ``d2 (n,)`` its squared distance to the voxel's centre (cell units)."""
+    coordinates; ``d2 (n,)`` its squared distance to the voxel's centre (cell units); ``n (n, 3)
+    float32`` the unit normal of the triangle the point lies on (zero for a degenerate triangle)."""
 
     keys: IntArray
     q: FloatArray
     d2: FloatArray
+    n: Float32Array
 
     @classmethod
     def empty(cls) -> Voxels:
-        return cls(np.empty(0, dtype=np.int64), np.empty((0, 3)), np.empty(0))
+        f32 = np.empty((0, 3), dtype=np.float32)
+        return cls(np.empty(0, dtype=np.int64), np.empty((0, 3)), np.empty(0), f32)
 
     def __len__(self) -> int:
         return len(self.keys)
 
     def take(self, rows: IntArray | npt.NDArray[np.bool_] | slice) -> Voxels:
-        return Voxels(self.keys[rows], self.q[rows], self.d2[rows])
+        return Voxels(self.keys[rows], self.q[rows], self.d2[rows], self.n[rows])
 
     @classmethod
     def concat(cls, parts: Sequence[Voxels]) -> Voxels:
@@ -200,7 +210,25 @@ class Voxels:
             np.concatenate([p.keys for p in parts]),
             np.concatenate([p.q for p in parts]),
             np.concatenate([p.d2 for p in parts]),
+            np.concatenate([p.n for p in parts]),
         )
+
+
+def triangle_normals(triangles: FloatArray) -> Float32Array:
+    """The unit normals ``(n, 3) float32`` of triangles ``(n, 3, 3)``, by their winding (right hand:
+    ``(b - a) x (c - a)``); zero for a triangle of no area; no negative zeros."""
+    t = np.asarray(triangles, dtype=np.float64)
+    u, v = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    c = np.empty((len(t), 3))
+    c[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
+    c[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
+    c[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+    length = np.sqrt(c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1] + c[:, 2] * c[:, 2])
+    ok = length > 0.0
+    c[ok] /= length[ok, None]
+    c[~ok] = 0.0
+    out: Float32Array = (c + 0.0).astype(np.float32)  # (+ 0.0: no -0.0, equal normals equal bits)
+    return out
 
 
 def sorted_unique(keys: IntArray) -> IntArray:
@@ -214,9 +242,12 @@ def sorted_unique(keys: IntArray) -> IntArray:
     return s[first]
 
 
-def best_rows(keys: IntArray, q: FloatArray, d2: FloatArray, owner: IndexArray | None = None) -> IntArray:
-    """The row of each key's best point (nearest the voxel's centre, ties to the smallest ``(x, y, z)``),
-    one per key, in the order of the keys; with ``owner``, one per (owner, key), in that order."""
+def best_rows(
+    keys: IntArray, q: FloatArray, d2: FloatArray, normals: Float32Array, owner: IndexArray | None = None
+) -> IntArray:
+    """The row of each key's best point (nearest the voxel's centre, ties to the smallest ``(x, y, z)``,
+    then to the smallest of their ``normals`` (x, y, z; zero normals last)), one per key, in the order of the
+    keys; with ``owner``, one per (owner, key), in that order."""
     n = len(keys)
     if n < 2:
         return np.arange(n, dtype=np.int64)
@@ -248,7 +279,9 @@ def best_rows(keys: IntArray, q: FloatArray, d2: FloatArray, owner: IndexArray |
     in_tie = tied_group[g]
     sub = pick[in_tie]
     sub_g = g[in_tie]
-    sub = sub[np.lexsort((q[sub, 2], q[sub, 1], q[sub, 0], sub_g))]
+    ns = normals[sub]
+    zero = ~ns.any(axis=1)
+    sub = sub[np.lexsort((ns[:, 2], ns[:, 1], ns[:, 0], zero, q[sub, 2], q[sub, 1], q[sub, 0], sub_g))]
     sg = np.sort(sub_g)
     keep = np.ones(len(sub), dtype=np.bool_)
     keep[1:] = sg[1:] != sg[:-1]
@@ -258,10 +291,11 @@ def best_rows(keys: IntArray, q: FloatArray, d2: FloatArray, owner: IndexArray |
 
 
 def best_per_voxel(v: Voxels) -> Voxels:
-    """One point per key: the nearest the voxel's centre, ties to the smallest (x, y, z); sorted by key."""
+    """One point per key: the nearest the voxel's centre, ties to the smallest (x, y, z), then normal;
+    sorted by key."""
     if not len(v):
         return v
-    return v.take(best_rows(v.keys, v.q, v.d2))
+    return v.take(best_rows(v.keys, v.q, v.d2, v.n))
 
 
 def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
@@ -275,7 +309,7 @@ def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
     for s in range(0, len(tri), _CHUNK):  # element-wise: the same values in any chunks, less memory
         e = s + _CHUNK
         q[s:e], d2[s:e] = nearest_points_of(cells, tri[s:e], ijk[s:e], w_band=plan.w_band, hint=hint[s:e])
-    return tri, Voxels(plan.keys(ijk), q, d2)
+    return tri, Voxels(plan.keys(ijk), q, d2, triangle_normals(triangles)[tri])
 
 
 def _near_band(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> tuple[FloatArray, IndexArray]:
@@ -309,7 +343,7 @@ def voxels_by_element(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> lis
     if not len(v):
         return out
     own = owner[tri]
-    rows = best_rows(v.keys, v.q, v.d2, own if len(ids) > 1 else None)
+    rows = best_rows(v.keys, v.q, v.d2, v.n, own if len(ids) > 1 else None)
     own, v = own[rows], v.take(rows)
     bounds = np.searchsorted(own, np.arange(len(ids) + 1))
     for i in range(len(ids)):
@@ -321,7 +355,8 @@ def voxels_by_element(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> lis
 @dataclass(frozen=True, eq=False, slots=True)
 class PointCloud:
     """A points map: ``xyz (n, 3) float64`` (x, y in the map frame, z above the storey's elevation),
-    one per touched voxel, sorted by the voxels' ``keys``."""
+    one per touched voxel, sorted by the voxels' ``keys``; ``normals (n, 3) float32``: each point's
+    surface normal (unit, outward for closed shells; zero where the surface is degenerate)."""
 
     storey: str
     skill: str
@@ -330,6 +365,7 @@ class PointCloud:
     frame: GridFrame
     keys: IntArray
     xyz: FloatArray
+    normals: Float32Array
 
     def __len__(self) -> int:
         return len(self.keys)
@@ -345,6 +381,7 @@ def cloud_of(plan: PointsPlan, v: Voxels) -> PointCloud:
         frame=plan.frame,
         keys=v.keys,
         xyz=plan.to_xyz(v.q),
+        normals=v.n,
     )
 
 

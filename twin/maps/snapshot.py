@@ -34,10 +34,10 @@ import numpy.typing as npt
 from twin.errors import SnapshotError
 
 MAGIC = b"TWINSNAP"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 """Bump when what a snapshot holds, or how it is laid out, changes: older files are then rebuilt. (2: the
 points maps' points computed more directly where a voxel's column lies inside a triangle, a last-bit
-difference from 1's.)"""
+difference from 1's; 3: the points maps' rows hold each point's normal.)"""
 _DTYPES = frozenset({"bool", "int8", "uint8", "int32", "int64", "float32", "float64"})
 _LEVEL = 1  # zlib: fast; maps and mesh pools compress well even so
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,8 @@ from sensor_msgs.msg import PointField as RosPointField
 from std_msgs.msg import Header
 
 from adapters.ros.pcd import (
+    FIELDS,
+    NORMAL_FIELDS,
     OFFSET_LIMIT_M,
     POINT_CLOUD2,
     decode_point_cloud2,
@@ -32,9 +35,9 @@ from twin.maps.points import PointCloud
 STAMP_NS = 1_700_000_123_456_789_012
 
 
-def padding_of_point_cloud2(frame_id: str, names: str) -> set[int]:
-    """Byte positions of our x y z PointCloud2 that are CDR alignment padding (offsets after the 4-byte
-    encapsulation header): after each string, after ``datatype`` and after ``is_bigendian``."""
+def padding_of_point_cloud2(frame_id: str, names: Sequence[str]) -> set[int]:
+    """Byte positions of our PointCloud2 (fields ``names``) that are CDR alignment padding (offsets after
+    the 4-byte encapsulation header): after each string, after ``datatype`` and after ``is_bigendian``."""
     pad: set[int] = set()
     o = 8  # stamp
 
@@ -72,10 +75,14 @@ def _cloud(n: int = 500, *, far: float = 0.0, seed: int = 1) -> PointCloud:
             rng.uniform(-0.05, 3.0, n),
         ]
     )
-    return PointCloud("ground floor", "lidar3d", 3.2, 0.1, frame, np.arange(n, dtype=np.int64), xyz)
+    normals = rng.normal(size=(n, 3))
+    normals = (normals / np.linalg.norm(normals, axis=1)[:, None]).astype(np.float32)
+    return PointCloud("ground floor", "lidar3d", 3.2, 0.1, frame, np.arange(n, dtype=np.int64), xyz, normals)
 
 
-def test_the_pcd_file_has_pcls_header_and_the_float32_points_in_the_map_frame(tmp_path: Path) -> None:
+def test_the_pcd_file_has_pcls_header_and_the_float32_points_and_normals_in_the_map_frame(
+    tmp_path: Path,
+) -> None:
     cloud = _cloud()
     files = write_points_files(cloud, tmp_path, stamp_ns=STAMP_NS)
     assert files.pcd.name == "ground_floor__lidar3d.pcd" and files.cdr.name == "ground_floor__lidar3d.cdr"
@@ -83,20 +90,24 @@ def test_the_pcd_file_has_pcls_header_and_the_float32_points_in_the_map_frame(tm
     head = blob[: blob.index(b"DATA binary\n") + len(b"DATA binary\n")].decode().splitlines()
     assert [line for line in head if not line.startswith("#")] == [
         "VERSION 0.7",
-        "FIELDS x y z",
-        "SIZE 4 4 4",
-        "TYPE F F F",
-        "COUNT 1 1 1",
+        "FIELDS x y z normal_x normal_y normal_z",
+        "SIZE 4 4 4 4 4 4",
+        "TYPE F F F F F F",
+        "COUNT 1 1 1 1 1 1",
         "WIDTH 500",
         "HEIGHT 1",
         "VIEWPOINT 0 0 0 1 0 0 0",
         "POINTS 500",
         "DATA binary",
     ]
-    assert len(blob) == len("\n".join(head)) + 1 + 12 * 500
+    assert len(blob) == len("\n".join(head)) + 1 + 24 * 500
     xyz, offset = read_pcd(files.pcd)
     assert offset == (0.0, 0.0)
     np.testing.assert_array_equal(xyz, cloud.xyz.astype(np.float32))
+    normals, _ = read_pcd(files.pcd, fields=NORMAL_FIELDS)
+    np.testing.assert_array_equal(normals, cloud.normals)
+    rows = np.frombuffer(blob[len("\n".join(head)) + 1 :], dtype="<f4").reshape(500, 6)  # interleaved
+    np.testing.assert_array_equal(rows[:, 3:], cloud.normals)
 
 
 def test_far_from_the_origin_the_pcd_holds_points_less_the_documented_offset_to_the_millimetre(
@@ -111,6 +122,7 @@ def test_far_from_the_origin_the_pcd_holds_points_less_the_documented_offset_to_
     back = xyz.astype(np.float64) + np.array([ox, oy, 0.0])
     assert np.abs(back - cloud.xyz).max() < 1e-5  # without the offset, float32 would lose ~1 mm
     assert np.abs(cloud.xyz.astype(np.float32).astype(np.float64) - cloud.xyz).max() > 2e-4
+    np.testing.assert_array_equal(read_pcd(files.pcd, fields=NORMAL_FIELDS)[0], cloud.normals)  # no offset
 
 
 def test_a_pcd_file_that_is_not_binary_xyz_float32_is_refused_naming_the_field(tmp_path: Path) -> None:
@@ -118,29 +130,39 @@ def test_a_pcd_file_that_is_not_binary_xyz_float32_is_refused_naming_the_field(t
     path.write_bytes(pcd_bytes(_cloud(3)).replace(b"DATA binary", b"DATA ascii"))
     with pytest.raises(Exception, match="PCD DATA is 'ascii'"):
         read_pcd(path)
+    path.write_bytes(pcd_bytes(_cloud(3)).replace(b"normal_y", b"curvature"))
+    assert read_pcd(path)[0].shape == (3, 3)  # x y z are there
+    with pytest.raises(Exception, match="without normal_y"):
+        read_pcd(path, fields=NORMAL_FIELDS)
 
 
-def test_rclpy_deserializes_our_point_cloud2_to_the_same_points_and_fields() -> None:
+def test_rclpy_deserializes_our_point_cloud2_to_the_same_points_normals_and_fields() -> None:
     cloud = _cloud()
     payload = encode_point_cloud2(cloud, stamp_ns=STAMP_NS, frame_id="map")
     msg = deserialize_message(payload, RosPointCloud2)
     assert (msg.header.frame_id, msg.header.stamp.sec, msg.header.stamp.nanosec) == (
         "map", STAMP_NS // 10**9, STAMP_NS % 10**9,
     )  # fmt: skip
-    assert (msg.height, msg.width, msg.point_step, msg.row_step) == (1, 500, 12, 6000)
+    assert (msg.height, msg.width, msg.point_step, msg.row_step) == (1, 500, 24, 12000)
     assert [(f.name, f.offset, f.datatype, f.count) for f in msg.fields] == [
         ("x", 0, RosPointField.FLOAT32, 1),
         ("y", 4, RosPointField.FLOAT32, 1),
         ("z", 8, RosPointField.FLOAT32, 1),
+        ("normal_x", 12, RosPointField.FLOAT32, 1),
+        ("normal_y", 16, RosPointField.FLOAT32, 1),
+        ("normal_z", 20, RosPointField.FLOAT32, 1),
     ]
     assert not msg.is_bigendian and msg.is_dense
-    xyz = np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 3)
+    rows = np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 6)
+    xyz = rows[:, :3]
     np.testing.assert_array_equal(xyz, cloud.xyz.astype(np.float32))
+    np.testing.assert_array_equal(rows[:, 3:], cloud.normals)
     again = serialize_message(msg)  # Fast-CDR leaves alignment padding uninitialised: ours is 0 there
     assert len(again) == len(payload)
     differ = [i for i, (a, b) in enumerate(zip(again, payload, strict=True)) if a != b]
-    assert set(differ) <= padding_of_point_cloud2("map", "xyz"), differ
+    assert set(differ) <= padding_of_point_cloud2("map", FIELDS), differ
     np.testing.assert_array_equal(decode_point_cloud2(again)[0], xyz)
+    np.testing.assert_array_equal(decode_point_cloud2(again, fields=NORMAL_FIELDS)[0], cloud.normals)
 
 
 def test_a_point_cloud2_made_by_rclpy_with_padding_decodes_to_the_same_points() -> None:
@@ -195,3 +217,8 @@ def test_twin_map_writes_a_points_skill_as_a_pcd_beside_the_2d_maps(tmp_path: Pa
     assert xyz[:, 2].min() >= -0.05 - 1e-6  # z above the storey: from just below the floor's top
     again = decode_point_cloud2(pcd.with_suffix(".cdr").read_bytes())[0]
     np.testing.assert_array_equal(again, xyz)
+    normals = read_pcd(pcd, fields=NORMAL_FIELDS)[0]
+    assert np.allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-6)
+    np.testing.assert_array_equal(
+        decode_point_cloud2(pcd.with_suffix(".cdr").read_bytes(), fields=NORMAL_FIELDS)[0], normals
+    )

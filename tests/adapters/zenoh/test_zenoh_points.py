@@ -44,8 +44,12 @@ ros = ["rmw_zenoh"]
 
 
 def cloud(storey: str, n: int, seed: int) -> PointCloud:
-    xyz = np.round(np.random.default_rng(seed).uniform(0, 20, size=(n, 3)), 3)
-    return PointCloud(storey, "lidar3d", 0.0, 0.1, GridFrame(0.0, 0.0, 0.1, 200, 200), np.arange(n), xyz)
+    rng = np.random.default_rng(seed)
+    xyz = np.round(rng.uniform(0, 20, size=(n, 3)), 3)
+    normals = np.zeros((n, 3), dtype=np.float32)
+    normals[np.arange(n), rng.integers(0, 3, n)] = rng.choice([-1.0, 1.0], n)  # axis-aligned faces
+    frame = GridFrame(0.0, 0.0, 0.1, 200, 200)
+    return PointCloud(storey, "lidar3d", 0.0, 0.1, frame, np.arange(n), xyz, normals)
 
 
 def until(predicate: Callable[[], bool], timeout_s: float = 10.0) -> None:
@@ -119,7 +123,7 @@ def test_a_get_answers_each_storeys_latest_cloud_and_rclpy_reads_the_robots_topi
             def on_sample(sample: zenoh.Sample) -> None:
                 msg = deserialize_message(sample.payload.to_bytes(), RosPointCloud2)
                 with lock:
-                    got.append(np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 3).copy())
+                    got.append(np.frombuffer(bytes(msg.data), dtype="<f4").reshape(-1, 6).copy())
 
             sub = declare_latched_subscriber(robot, topic.data_key, on_sample)
             deadline = time.monotonic() + wait_s
@@ -128,10 +132,15 @@ def test_a_get_answers_each_storeys_latest_cloud_and_rclpy_reads_the_robots_topi
             sub.undeclare()
             return got[-1] if got else None
 
-        np.testing.assert_array_equal(late_joiner(), xyz)  # rclpy: the same points as the get
+        joined = late_joiner()
+        assert joined is not None
+        np.testing.assert_array_equal(joined[:, :3], xyz)  # rclpy: the same points as the get
+        np.testing.assert_array_equal(joined[:, 3:], ground2.normals)  # and their normals
         emit(RobotStoreyChanged("robot1", "first-floor", "ground-floor", "zenoh", 5, 250))
         ros.drain()
-        np.testing.assert_array_equal(late_joiner(), first.xyz.astype(np.float32))  # the robot's storey's
+        joined = late_joiner()
+        assert joined is not None
+        np.testing.assert_array_equal(joined[:, :3], first.xyz.astype(np.float32))  # the robot's storey's
 
         emit(MapRemoved("first-floor", "lidar3d", 6, 300))  # a removed skill's cloud: no longer answered
         assert set(get(f"{PREFIX}/points/**")) == {f"{PREFIX}/points/ground-floor/lidar3d"}

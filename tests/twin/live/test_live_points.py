@@ -45,10 +45,16 @@ def _same_cloud(service: TwinService, other: TwinService | None = None) -> None:
         cloud, ref = m.cloud(), points.rebuild(m)
         np.testing.assert_array_equal(cloud.keys, ref.keys, err_msg=f"{key}: voxels vs its own rebuild")
         np.testing.assert_array_equal(cloud.xyz, ref.xyz, err_msg=f"{key}: points vs its own rebuild")
+        np.testing.assert_array_equal(  # to the bit (what the files carry)
+            cloud.normals.view(np.int32), ref.normals.view(np.int32), err_msg=f"{key}: normals vs its rebuild"
+        )
         if other is not None:
             fresh = other.live_maps.points.clouds[key].cloud()
             np.testing.assert_array_equal(cloud.keys, fresh.keys, err_msg=f"{key}: voxels vs a restart")
             np.testing.assert_array_equal(cloud.xyz, fresh.xyz, err_msg=f"{key}: points vs a restart")
+            np.testing.assert_array_equal(
+                cloud.normals, fresh.normals, err_msg=f"{key}: normals vs a restart"
+            )
 
 
 @settings(max_examples=examples(12), deadline=None, suppress_health_check=list(HealthCheck))
@@ -152,6 +158,9 @@ def test_the_snapshot_holds_the_clouds_and_a_restart_replays_what_changed_since(
     restored = again.live.maps.points.clouds[key]  # before the scene's triangles are computed
     np.testing.assert_array_equal(restored.cloud().keys, first.live_maps.points.clouds[key].cloud().keys)
     np.testing.assert_array_equal(restored.cloud().xyz, first.live_maps.points.clouds[key].cloud().xyz)
+    np.testing.assert_array_equal(
+        restored.cloud().normals, first.live_maps.points.clouds[key].cloud().normals
+    )
     assert observe(again, "robot1", f"<{DOOR}> <{TWIN}isOpen> true .".encode()).ok  # then no clean stop
     third = _start(store, path, config)  # from the snapshot of revision 1, the door replayed
     assert third.restored_from == 1 and third.revision == 2

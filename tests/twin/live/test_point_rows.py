@@ -22,6 +22,7 @@ from twin.selection.skill_selection import selection_query
 from twin.selection.skills import parse_skill
 
 NAMES = ["a", "b", "c", "d", "e"]
+NORMALS = np.array([[0, 0, 1], [0, 0, -1], [1, 0, 0], [0, -1, 0], [0, 0, 0]], dtype=np.float32)
 
 
 def _distance(keys: npt.NDArray[np.int64], q: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
@@ -32,20 +33,27 @@ def _distance(keys: npt.NDArray[np.int64], q: npt.NDArray[np.float64]) -> npt.ND
 
 @st.composite
 def parts(draw: st.DrawFn) -> Voxels:
-    """A part's voxels: few keys, few distinct points (so few distances), so that parts tie."""
+    """A part's voxels: few keys, few distinct points (so few distances) and normals, so that parts tie
+    on the point and the normal decides (a zero normal: a degenerate triangle's)."""
     keys = np.array(sorted(draw(st.sets(st.integers(0, 40), max_size=25))), dtype=np.int64)
     n = len(keys)
     q = np.array(draw(st.lists(st.sampled_from([0.0, 0.5, 1.0]), min_size=3 * n, max_size=3 * n))).reshape(
         n, 3
     )
-    return Voxels(keys, q, _distance(keys, q))
+    n_of = draw(st.lists(st.integers(0, len(NORMALS) - 1), min_size=n, max_size=n))
+    return Voxels(keys, q, _distance(keys, q), NORMALS[np.array(n_of, dtype=np.int64)])
 
 
 CHANGES = st.dictionaries(st.sampled_from(NAMES), st.none() | parts(), min_size=1, max_size=3)
 
 
 def _same(a: Voxels, b: Voxels) -> bool:
-    return bool(np.array_equal(a.keys, b.keys) and np.array_equal(a.q, b.q) and np.array_equal(a.d2, b.d2))
+    return bool(
+        np.array_equal(a.keys, b.keys)
+        and np.array_equal(a.q, b.q)
+        and np.array_equal(a.d2, b.d2)
+        and np.array_equal(a.n, b.n)
+    )
 
 
 @settings(max_examples=examples(200), deadline=None, suppress_health_check=list(HealthCheck))
@@ -97,6 +105,7 @@ def test_a_door_left_out_and_selected_again_unchanged_takes_back_its_voxels_and_
     back, ref = m.cloud(), live.points.rebuild(m)
     assert np.array_equal(back.keys, start.keys) and np.array_equal(back.xyz, start.xyz)
     assert np.array_equal(back.keys, ref.keys) and np.array_equal(back.xyz, ref.xyz)
+    assert np.array_equal(back.normals, start.normals) and np.array_equal(back.normals, ref.normals)
     # moved while left out: what it had is stale and forgotten
     live.redraw([], {"lidar3d": {door: False}})
     shape = live.shape_of(door)
@@ -109,3 +118,4 @@ def test_a_door_left_out_and_selected_again_unchanged_takes_back_its_voxels_and_
     assert not np.array_equal(m.parts[door].keys, own)
     ref = live.points.rebuild(m)
     assert np.array_equal(m.cloud().keys, ref.keys) and np.array_equal(m.cloud().xyz, ref.xyz)
+    assert np.array_equal(m.cloud().normals, ref.normals)

@@ -19,6 +19,7 @@ from twin.maps.points import (
     PointsPlan,
     Voxels,
     best_per_voxel,
+    best_rows,
     build_points,
     plan_points,
     voxels_by_element,
@@ -221,3 +222,90 @@ def test_the_cloud_is_the_union_of_its_elements_voxels_each_with_its_nearest_poi
         mine = np.isin(p.keys, shared)
         rows = np.searchsorted(merged.keys, p.keys[mine])
         assert np.all(merged.d2[rows] <= p.d2[mine])
+    assert np.array_equal(merged.n, cloud.normals)
+
+
+def _box(lo: npt.NDArray[np.float64], hi: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """A closed box's 12 triangles, wound counter-clockwise seen from outside (outward normals)."""
+    c = np.array([[(hi if (i >> a) & 1 else lo)[a] for a in range(3)] for i in range(8)])
+    quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
+    return np.array([c[[a, b, d]] for a, b, e, d in quads] + [c[[b, e, d]] for a, b, e, d in quads])
+
+
+FACES = np.array([[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1]], dtype=np.float32)
+
+
+@settings(max_examples=examples(40), deadline=None, suppress_health_check=list(HealthCheck))
+@given(
+    st.tuples(*(st.integers(lo, 16).map(lambda v: v / 8) for lo in (-4, -4, 0))),  # in the band
+    st.lists(st.integers(1, 16).map(lambda v: v / 8), min_size=3, max_size=3),
+    st.randoms(use_true_random=False),
+)
+def test_each_point_has_the_outward_normal_of_a_face_it_lies_on_whatever_the_triangles_order(
+    box_store: GraphStore, corner: tuple[float, float, float], size: list[float], rnd: object
+) -> None:
+    import random
+
+    assert isinstance(rnd, random.Random)
+    _, plan = _plan(box_store, resolution_m=0.25)
+    lo = np.array(corner) + np.array([plan.frame.origin_x + 1.0, plan.frame.origin_y + 1.0, 0.0])
+    hi = lo + np.array(size)
+    tris = _box(lo, hi)
+    v = voxels_of(plan, tris)
+    assert len(v)
+    # the same cloud, normals included, whatever the order of the triangles and of their vertices
+    order = list(range(len(tris)))
+    rnd.shuffle(order)
+    shuffled = np.array([np.roll(tris[i], rnd.randrange(3), axis=0) for i in order])
+    again = voxels_of(plan, shuffled)
+    assert np.array_equal(again.keys, v.keys) and np.array_equal(again.q, v.q)
+    assert np.array_equal(again.n, v.n)
+    # each normal is the outward normal of a face the point lies on (on an edge or a corner of the box,
+    # one of the faces there: the point nearest the centre, to the bit, then the smallest normal)
+    p = plan.to_xyz(v.q)
+    p[:, 2] += plan.storey.elevation_m
+    offsets = np.array([-lo[0], hi[0], -lo[1], hi[1], -lo[2], hi[2]])
+    on = np.abs(p @ FACES.T.astype(np.float64) - offsets) < 1e-9  # (points, faces)
+    face = (v.n[:, None, :] == FACES[None, :, :]).all(axis=2)
+    assert (face.sum(axis=1) == 1).all(), "not an axis-aligned unit normal"
+    assert on[face].all(), "a normal of a face the point is not on"
+
+
+def test_the_lab_clouds_normals_are_unit_and_the_floor_seen_from_above_faces_up(
+    box_store: GraphStore,
+) -> None:
+    scene, plan = _plan(box_store)
+    cloud = build_points(scene, plan)
+    assert cloud.normals.dtype == np.float32 and cloud.normals.shape == (len(cloud), 3)
+    assert np.allclose(np.linalg.norm(cloud.normals, axis=1), 1.0, atol=1e-6)
+    assert not np.signbit(cloud.normals[cloud.normals == 0]).any()  # no -0.0: equal normals, equal bits
+    # the floor's top (z = 0 above the storey) away from the walls: its outward normal is +z
+    top = np.isclose(cloud.xyz[:, 2], 0.0)
+    up = (cloud.normals[top] == np.array([0, 0, 1], dtype=np.float32)).all(axis=1)
+    assert up.mean() > 0.9
+
+
+def test_a_tie_on_the_point_goes_to_the_smallest_normal_and_a_degenerate_triangles_zero_normal_last() -> None:
+    keys = np.array([7, 7, 7, 7, 9, 9], dtype=np.int64)
+    q = np.array([[0.5, 0.5, 0.0]] * 4 + [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    d2 = np.array([0.25, 0.25, 0.25, 0.25, 0.5, 0.5])
+    n = np.array([[0, 0, 1], [0, 0, 0], [0, 0, -1], [1, 0, 0], [0, 0, 0], [0, 1, 0]], dtype=np.float32)
+    for order in ([0, 1, 2, 3, 4, 5], [5, 4, 3, 2, 1, 0], [3, 1, 0, 2, 5, 4]):
+        rows = np.array(order)
+        best = rows[best_rows(keys[rows], q[rows], d2[rows], n[rows])]
+        assert n[best].tolist() == [[0, 0, -1], [0, 1, 0]]
+
+
+def test_two_boxes_sharing_a_face_give_its_voxels_the_smaller_of_the_two_outward_normals(
+    box_store: GraphStore,
+) -> None:
+    _, plan = _plan(box_store, resolution_m=0.25)
+    o = np.array([plan.frame.origin_x + 1.0, plan.frame.origin_y + 1.0, 0.5])
+    a = _box(o, o + np.array([1.0, 1.0, 1.0]))
+    b = _box(o + np.array([1.0, 0.0, 0.0]), o + np.array([2.0, 1.0, 1.0]))
+    one, two = voxels_of(plan, np.concatenate([a, b])), voxels_of(plan, np.concatenate([b, a]))
+    assert np.array_equal(one.keys, two.keys) and np.array_equal(one.n, two.n)
+    x = plan.to_xyz(one.q)[:, 0]
+    shared = np.isclose(x, o[0] + 1.0) & (one.n[:, 0] != 0)  # on the shared face, the faces' normals x
+    assert shared.sum() > 10
+    assert (one.n[shared] == np.array([-1, 0, 0], dtype=np.float32)).all()  # b's -x, not a's +x

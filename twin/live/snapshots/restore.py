@@ -233,7 +233,7 @@ def restore(
             if skill is None or skill.kind != "points" or skill_digest(skill) != entry["skill_digest"]:
                 continue
             cloud_plan = plan_points(scene, skill, str(entry["storey"]), (), margin_m=margin_m)
-            parts = {n: arrays[f"p{j}_{n}"] for n in ("keys", "q", "d2", "wins", "counts")}
+            parts = {n: arrays[f"p{j}_{n}"] for n in ("keys", "q", "d2", "n", "wins", "counts")}
             points.append(
                 PointsMap.unpacked(
                     cloud_plan,
