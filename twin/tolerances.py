@@ -37,12 +37,20 @@ class Tolerances:
         same_position_m: a re-reported geometry whose every world vertex is within this of the held
             one (1 mm) is the same.
         same_angle_rad: ... and whose orientation is within this of the held one (0.1 mrad).
+        voxel_tie: points maps (:mod:`twin.maps.voxels`): the rounding bound, relative to the magnitudes
+            involved (~450 ulp), under which a triangle's projection on a separating axis counts as a
+            possible tie with a voxel's face, decided then in exact integer arithmetic.
+        sliver_sin2: a triangle whose squared sine at its first corner is below this (its area is
+            rounding: under a micrometre of width per metre) is taken as its edges when the nearest
+            point to a voxel's centre is sought.
     """
 
     cell_m: float = 1e-9
     join_m: float = 1e-6
     same_position_m: float = 1e-3
     same_angle_rad: float = 1e-4
+    voxel_tie: float = 1e-13
+    sliver_sin2: float = 1e-12
 
 
 TOLERANCES = Tolerances()

@@ -161,6 +161,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         ros: RosMapPublisher | None = None
         ingest: RosIngest | None = None
         ros_points: RosPointsPublisher | None = None
+        points: ZenohPoints | None = None
         try:
             frame_id = cfg.section(RosSettings).frame_id
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=frame_id)
@@ -205,7 +206,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             service.serve_forever(stop)
         finally:
             t1 = time.perf_counter()
-            for closable in (ingest, daemon, ros, ros_points):
+            for closable in (ingest, daemon, points, ros, ros_points):
                 if closable is not None:
                     closable.close()
             session.close()

@@ -191,6 +191,11 @@ def decode_point_cloud2(
             f"(fields: {offsets})."
         )
         raise MapError(msg)
+    outside = [a for a in fields if offsets[a][0] + 4 > step]
+    if n and outside:
+        where = offsets[outside[0]][0]
+        msg = f"{POINT_CLOUD2}: field {outside[0]!r} at offset {where} lies outside its point_step {step}."
+        raise MapError(msg)
     if len(data) < n * step:
         msg = f"{POINT_CLOUD2}: {n} points of {step} bytes need {n * step} bytes, the data has {len(data)}."
         raise MapError(msg)

@@ -72,7 +72,9 @@ class RosSettings(ConfigSection):
 
     table = "ros"
 
-    frame_id: Text = Field("map", description="header.frame_id of the OccupancyGrid messages.")
+    frame_id: Text = Field(
+        "map", description="header.frame_id of the OccupancyGrid and PointCloud2 messages."
+    )
 
 
 # --- [robots.NAME] ------------------------------------------------------------------------------------
@@ -107,7 +109,8 @@ class RosRobot:
     ``maps`` pairs a topic name under the namespace with a skill, e.g. ``(("map", "localization"),
     ("navigation_map", "navigation"))``: each topic carries that skill's map of the robot's current
     ``storey`` (latched), and ``<topic>_updates`` its changed rectangles. Without a namespace: no
-    topics, and no storey (the robot's storey key still works over Zenoh).
+    topics; its ``storey`` (the one it starts on, as the writer has it) is still its storey key's
+    answer over Zenoh.
     """
 
     name: str
@@ -318,7 +321,7 @@ class RosRobotSettings(ConfigSection):
             name=name,
             namespace=("/" + ns.strip("/")) if ns else None,
             maps=maps,
-            storey=self.storey if ns is not None else None,
+            storey=self.storey,
             domain_id=self.domain_id,
             ros=tuple(dict.fromkeys(self.ros)),
             full_every_s=tuple(sorted((self.full_every_s or {}).items())),

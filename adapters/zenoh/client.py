@@ -436,7 +436,15 @@ class TwinClient:
         """The current cloud of a points skill: ``(xyz, revision, version)``, xyz (n, 3) float32 in the
         map frame."""
         key = self.keys.points_map(storey, skill)
-        sample = self._get(key, what=f"the cloud {storey}/{skill}")[0]
+        try:
+            sample = self._get(key, what=f"the cloud {storey}/{skill}")[0]
+        except DaemonTimeoutError as err:  # a daemon answers nothing for a cloud it does not hold (yet)
+            msg = (
+                f"{err} A daemon that serves the site answers nothing there until it holds that cloud: "
+                f"{skill!r} is not a points skill, {storey!r} not a storey, or the clouds are still being "
+                "built after start (subscribe to the key instead: it is latched)."
+            )
+            raise DaemonTimeoutError(msg) from None
         xyz, _, _ = decode_point_cloud2(sample.payload.to_bytes())
         revision, version = _meta(sample)
         return xyz, revision, version

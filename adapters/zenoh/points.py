@@ -1,7 +1,8 @@
 """Points maps on Zenoh: each (storey, points skill) cloud, latched, on ``<prefix>/points/<storey>/<skill>``.
 
 A :class:`~twin.live.events.TwinSink` for :class:`~twin.live.events.PointsPublished`: the payload is the CDR
-``sensor_msgs/msg/PointCloud2`` (x y z float32 in the map frame, ``frame_id`` from ``[ros] frame_id``)
+``sensor_msgs/msg/PointCloud2`` (x y z normal_x normal_y normal_z float32, 24-byte points, in the map
+frame, ``frame_id`` from ``[ros] frame_id``)
 from a :class:`~adapters.zenoh.latched.LatchedPublisher` (late joiners get the latest cloud, as with the
 2D maps' ``map/`` keys); each sample carries the attachment
 ``{"revision": R, "version": V}``. A queryable on ``<prefix>/points/**`` answers a ``get`` with the

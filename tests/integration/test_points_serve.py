@@ -20,6 +20,7 @@ from sensor_msgs.msg import PointCloud2 as RosPointCloud2
 from adapters.ros.pcd import POINT_CLOUD2, decode_point_cloud2
 from adapters.ros.rmw_zenoh import RosTopic
 from adapters.zenoh.client import TwinClient
+from adapters.zenoh.errors import DaemonTimeoutError
 from adapters.zenoh.latched import declare_latched_subscriber
 from adapters.zenoh.points import points_key
 from tests.integration.conftest import start_daemon
@@ -83,6 +84,8 @@ def test_the_daemon_latches_each_storeys_cloud_and_republishes_it_when_a_door_op
             xyz, revision, version = client.get_points("ground-floor", "lidar3d")  # a get: the latest cloud
             assert (revision, version) == (meta2["revision"], 2)
             np.testing.assert_array_equal(xyz, after)
+            with pytest.raises(DaemonTimeoutError, match="'navigation' is not a points skill"):
+                client.get_points("ground-floor", "navigation")  # a 2D skill has no cloud: said so
     finally:
         d.process.terminate()
         d.process.wait(timeout=30)

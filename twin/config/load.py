@@ -118,7 +118,9 @@ class Config:
         """The keys ``kind`` (an ``each`` section, e.g. a robot's ROS keys) of every
         ``[<kind.table>.NAME]``, by name: validated at load time if the loader was given ``kind``,
         else parsed now (a :class:`ConfigError` naming the table and key if bad; keys that ``kind``
-        does not know are left to their owners)."""
+        does not know are left to their owners). So a key that no table knows (a typo) is refused
+        only when the loader is given every section, as the ``twin`` command's loader is; loaded
+        without sections, it is ignored."""
         found = self.named_sections.get(kind)
         if found is not None:
             return cast(Mapping[str, S], found)

@@ -15,7 +15,7 @@ element: selected or not).
 
 Example::
 
-    points = LivePoints(drawing)
+    points = LivePoints(drawing, margin_m=1.0)
     points.add_map(skill, "ground-floor", selected_iris)
     changed = points.redraw({iri}, {skill.name: {iri: True}})     # [(storey, skill, version)]
     publication.flush(points, revision, due_only=True)            # PointsPublished, bounded rate

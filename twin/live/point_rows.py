@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.maps.points import Voxels, best_rows, sorted_unique
+from twin.maps.raster.settings import BoolArray
 from twin.maps.voxels import FloatArray, IntArray
 
 __all__ = ["Distance", "PointRows"]
@@ -35,7 +36,6 @@ _MAX_ROWS = 2**31 - 1
 _DELTA = 1 << 16
 """Index rows kept in the delta before it is merged into the base (at least; or an eighth of the base)."""
 
-BoolArray = npt.NDArray[np.bool_]
 RowArray = npt.NDArray[np.int32]
 Distance = Callable[[IntArray, FloatArray], FloatArray]
 """``(keys (n,), points (n, 3)) -> (n,)``: each point's squared distance to its voxel's centre."""

@@ -38,6 +38,8 @@ from collections.abc import Iterator
 import numpy as np
 import numpy.typing as npt
 
+from twin.tolerances import TOLERANCES
+
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
@@ -51,12 +53,6 @@ level along that (dominant) axis; ``_INSIDE``: certain, the triangle lies in the
 _PLANE = -1
 _INSIDE = -3
 _LEVEL = 3
-"""(A hint: certain, the triangle lies inside the voxel.)"""
-_TOL = 1e-13
-"""Rounding bound (relative to the magnitudes involved, ~450 ulp) under which a projection counts
-as a possible tie (decided exactly)."""
-_SLIVER = 1e-12
-"""A triangle whose squared sine at its first corner is below this is taken as its edges."""
 
 
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -471,7 +467,7 @@ def _ten_axes(
     bv = big_v[:, None]
     ax_err = np.repeat(bv, 10, axis=1)  # the axis's own rounding, in units of ulp
     ax_err[:, 0] = big_v * reach
-    tol = _TOL * ((size_ax + ax_err) * big_r[:, None] + size_ax * bv)
+    tol = TOLERANCES.voxel_tie * ((size_ax + ax_err) * big_r[:, None] + size_ax * bv)
     apart = oblique & ((tmin > bmax + tol) | (tmax < bmin - tol))
     near = oblique & ((np.abs(tmin - bmax) <= tol) | (np.abs(tmax - bmin) <= tol))
     return apart.any(axis=1), near
@@ -520,7 +516,7 @@ def _one_axis(
     size_ax = np.abs(ax0) + np.abs(ax1) + np.abs(ax2)
     bv = big_v[idx]
     ax_err = bv * (reach[idx] if n_axis == 0 else 1.0)  # the axis's own rounding, in units of ulp
-    tol = _TOL * ((size_ax + ax_err) * big_r[idx] + size_ax * bv)
+    tol = TOLERANCES.voxel_tie * ((size_ax + ax_err) * big_r[idx] + size_ax * bv)
     apart[idx] = (tmin > bmax + tol) | (tmax < bmin - tol)
     near[idx, n_axis] = (np.abs(tmin - bmax) <= tol) | (np.abs(tmax - bmin) <= tol)
 
@@ -733,7 +729,7 @@ def _closest_on_triangle(p: FloatArray, a: FloatArray, b: FloatArray, c: FloatAr
     out = a + ab * v[:, None] + ac * w[:, None]
     # degenerate triangles (and slivers whose area is rounding: the regions' signs are noise there,
     # sin^2 of the angle at a below 1e-12, under a micrometre of width per metre): their nearest edge
-    bad = ~np.isfinite(out).all(axis=1) | ~(denom > _SLIVER * _dot(ab, ab) * _dot(ac, ac))
+    bad = ~np.isfinite(out).all(axis=1) | ~(denom > TOLERANCES.sliver_sin2 * _dot(ab, ab) * _dot(ac, ac))
     if bad.any():
         corners = np.stack([a[bad], b[bad], c[bad]], axis=1)
         out[bad] = _closest_on_segments(p[bad], corners, np.full(int(bad.sum()), 3))

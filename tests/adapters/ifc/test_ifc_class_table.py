@@ -1,4 +1,4 @@
-"""The core's IFC class table (twin/ifc_classes.json) matches ifcopenshell's schemas."""
+"""The core's IFC class table (twin/graph/ifc_classes.json) matches ifcopenshell's schemas."""
 
 from __future__ import annotations
 

@@ -29,6 +29,7 @@ from adapters.ros.pcd import (
 )
 from adapters.ros.rmw_zenoh import type_hash
 from tests.adapters.rosidl_build import shipped_hash
+from twin.errors import MapError
 from twin.maps.grid import GridFrame
 from twin.maps.points import PointCloud
 
@@ -181,6 +182,22 @@ def test_a_point_cloud2_made_by_rclpy_with_padding_decodes_to_the_same_points() 
     back, stamp, frame_id = decode_point_cloud2(serialize_message(msg))
     np.testing.assert_array_equal(back, xyz)
     assert (stamp, frame_id) == (0, "map")
+
+
+@pytest.mark.parametrize(("z_offset", "step"), [(12, 12), (8, 0)])
+def test_a_point_cloud2_whose_field_lies_outside_its_point_step_is_refused_naming_the_field(
+    z_offset: int, step: int
+) -> None:
+    fields = [
+        RosPointField(name=a, offset=o, datatype=RosPointField.FLOAT32, count=1)
+        for a, o in (("x", 0), ("y", 4), ("z", z_offset))
+    ]
+    msg = RosPointCloud2(
+        header=Header(frame_id="map"), height=1, width=2, fields=fields, is_bigendian=False,
+        point_step=step, row_step=2 * step, data=bytes(32), is_dense=True,
+    )  # fmt: skip
+    with pytest.raises(MapError, match=f"field '[xyz]' at offset [0-9]+ lies outside its point_step {step}"):
+        decode_point_cloud2(serialize_message(msg))
 
 
 def test_the_point_cloud2_hash_equals_the_one_the_sensor_msgs_wheel_ships() -> None:

@@ -78,6 +78,15 @@ def test_a_robot_without_namespace_has_no_topics(tmp_path: Path) -> None:
     assert (robot.maps, robot.storey, robot.namespace) == ((), None, None)
 
 
+def test_a_robot_without_namespace_keeps_its_starting_storey_on_both_sides(tmp_path: Path) -> None:
+    path = tmp_path / "robots.toml"
+    path.write_text('[robots.r2]\nstorey = "ground-floor"\n')
+    cfg = load(path)
+    # the writer starts r2 there, and its storey key over Zenoh answers the same
+    assert cfg.robots["r2"].storey == ros_robots(cfg)["r2"].storey == "ground-floor"
+    assert ros_robots(cfg)["r2"].maps == ()
+
+
 def test_full_every_s_names_topics_of_the_robot_with_seconds(tmp_path: Path) -> None:
     text = '[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\n[robots.r1.full_every_s]\nmap = 10\n'
     assert robots(tmp_path, text)["r1"].full_every_s == (("map", 10.0),)

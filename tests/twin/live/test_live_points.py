@@ -1,6 +1,6 @@
 """The live twin keeps a points skill's cloud per storey: a changed element replaces only the voxels it
 touched before and touches now, and the cloud equals a full rebuild voxel for voxel (property test on
-the box lab, as the 2D maps' tests/twin/live/test_engine.py)."""
+the box lab, as the 2D maps' tests/twin/live/test_live_maps.py)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from tests.conftest import examples, imported
 from tests.twin.box_lab import box_lab, element_iri, spec
-from tests.twin.live.test_engine import steps
+from tests.twin.live.test_live_maps import steps
 from tests.twin.live_helpers import TWIN, Recorder, box_turtle, observe, started
 from twin.config import Config, load_config
 from twin.graph.store import GraphStore
