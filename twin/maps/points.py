@@ -36,8 +36,9 @@ import numpy.typing as npt
 
 from twin.errors import MapError
 from twin.maps.grid import GridFrame
+from twin.maps.nearest import distance_to_centres, nearest_points_of
 from twin.maps.scene import IndexArray, MeshSet, Scene, StoreyInfo
-from twin.maps.voxels import FloatArray, IntArray, distance_to_centres, nearest_points_of, touched_pairs
+from twin.maps.voxels import FloatArray, IntArray, touched_pairs
 from twin.selection.skills import SkillProfile
 
 __all__ = [

@@ -15,6 +15,7 @@ from tests.twin.reference_voxels import reference_voxels
 from twin.errors import MapError, SkillError
 from twin.graph.rdf import literal_value
 from twin.graph.store import GraphStore
+from twin.maps.nearest import nearest_points
 from twin.maps.points import (
     PointsPlan,
     Voxels,
@@ -26,7 +27,7 @@ from twin.maps.points import (
     voxels_of,
 )
 from twin.maps.scene import Scene, load_scene
-from twin.maps.voxels import _max3, _min3, _one_axis, _ten_axes, nearest_points, touched_voxels
+from twin.maps.voxels import _max3, _min3, _one_axis, _ten_axes, touched_voxels
 from twin.selection.skill_selection import selection_query
 from twin.selection.skills import SkillProfile, parse_skill
 
