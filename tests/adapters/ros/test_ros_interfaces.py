@@ -19,6 +19,8 @@ TF_MESSAGE_MSG = "geometry_msgs/TransformStamped[] transforms\n"  # ros2/geometr
 
 def upstream(package: str, names: list[str]) -> dict[str, str]:
     folder = UPSTREAM / package / "msg"
+    if not UPSTREAM.parent.is_dir():
+        pytest.skip(f"the upstream .msg files come from ../shared/ros-msgs, and {UPSTREAM.parent} is absent")
     assert folder.is_dir(), f"the upstream definitions are missing: {folder}"
     return {name: (folder / f"{name}.msg").read_text() for name in names}
 
