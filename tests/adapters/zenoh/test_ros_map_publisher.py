@@ -15,11 +15,11 @@ import pytest
 import zenoh
 import zenoh.ext
 
-from adapters.ros import decode_occupancy_grid, decode_occupancy_grid_update
 from adapters.ros.cdr import STRING, encode_string
 from adapters.ros.rmw_zenoh import RosTopic
 from adapters.zenoh.session import client_config
 from tests.adapters.served_twin import KEYS, ServedTwin, robots_config, served_twin, until
+from tests.adapters.zenoh.test_zenoh_maps import Follower
 from tests.twin.live_helpers import box_turtle
 from twin.live.events import RobotStoreyChanged, TwinEvent
 
@@ -37,51 +37,12 @@ class Storeys:
             self.seen.append((event, threading.get_ident()))
 
 
-class Topic:
-    """A robot's copy of ``/robot1/navigation_map`` as zenoh-bridge-ros2dds routes it (latched, history),
-    with its ``_updates`` applied."""
-
-    def __init__(self, session: zenoh.Session) -> None:
-        self.lock = threading.Lock()
-        self.grid: np.ndarray | None = None
-        self.maps = self.updates = 0
-        self.entities = [
-            session.declare_subscriber("robot1/navigation_map_updates", self._on_update),
-            zenoh.ext.declare_advanced_subscriber(
-                session,
-                "robot1/navigation_map",
-                self._on_map,
-                history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
-            ),
-        ]
-
-    def _on_map(self, sample: zenoh.Sample) -> None:
-        grid, _ = decode_occupancy_grid(sample.payload.to_bytes())
-        with self.lock:
-            self.grid, self.maps = grid.data.copy(), self.maps + 1
-
-    def _on_update(self, sample: zenoh.Sample) -> None:
-        window, cells, _ = decode_occupancy_grid_update(sample.payload.to_bytes())
-        with self.lock:
-            self.updates += 1
-            if self.grid is not None:
-                self.grid[window.row0 : window.row1, window.col0 : window.col1] = cells
-
-    def shows(self, cells: np.ndarray) -> bool:
-        with self.lock:
-            return self.grid is not None and np.array_equal(self.grid, cells)
-
-    def close(self) -> None:
-        for e in self.entities:
-            e.undeclare()
-
-
 @pytest.fixture
-def served(tmp_path: Path) -> Iterator[tuple[ServedTwin, zenoh.Session, Topic, Storeys]]:
+def served(tmp_path: Path) -> Iterator[tuple[ServedTwin, zenoh.Session, Follower, Storeys]]:
     storeys = Storeys()
     with served_twin(robots_config(tmp_path), sinks=[storeys]) as twin:
         robot = zenoh.open(client_config([twin.endpoint]))
-        topic = Topic(robot)
+        topic = Follower(twin.endpoint, "/robot1", "navigation_map", "bridge")  # latched, history
         try:
             until(lambda: topic.shows(twin.live_map(GROUND, "navigation")), what="the ground floor's map")
             yield twin, robot, topic, storeys
@@ -98,7 +59,7 @@ def put_storey(robot: zenoh.Session, layout: str, storey: str) -> None:
 
 @pytest.mark.parametrize("layout", ["bridge", "rmw_zenoh"])
 def test_a_storey_a_ros_robot_publishes_is_decided_by_the_writer_and_its_topic_then_carries_that_floor(
-    served: tuple[ServedTwin, zenoh.Session, Topic, Storeys], layout: str
+    served: tuple[ServedTwin, zenoh.Session, Follower, Storeys], layout: str
 ) -> None:
     twin, robot, topic, storeys = served
     first = twin.live_map(FIRST, "navigation")
@@ -119,7 +80,7 @@ def test_a_storey_a_ros_robot_publishes_is_decided_by_the_writer_and_its_topic_t
 
 
 def test_an_unknown_storey_from_a_ros_robot_is_refused_by_the_writer_and_its_topic_keeps_its_floor(
-    served: tuple[ServedTwin, zenoh.Session, Topic, Storeys],
+    served: tuple[ServedTwin, zenoh.Session, Follower, Storeys],
 ) -> None:
     twin, robot, topic, storeys = served
     put_storey(robot, "bridge", "attic")
@@ -135,7 +96,7 @@ def test_an_unknown_storey_from_a_ros_robot_is_refused_by_the_writer_and_its_top
 
 
 def test_a_change_on_the_robots_floor_reaches_its_topic_as_an_update_and_one_on_another_floor_does_not(
-    served: tuple[ServedTwin, zenoh.Session, Topic, Storeys],
+    served: tuple[ServedTwin, zenoh.Session, Follower, Storeys],
 ) -> None:
     twin, robot, topic, _ = served
 

@@ -148,6 +148,10 @@ class Follower:
             if self.grid is not None:
                 self.grid[window.row0 : window.row1, window.col0 : window.col1] = cells
 
+    def shows(self, cells: np.ndarray) -> bool:
+        with self.lock:
+            return self.grid is not None and np.array_equal(self.grid, cells)
+
     def close(self) -> None:
         for e in self.entities:
             e.undeclare()
