@@ -240,6 +240,17 @@ def _split_level_runs(
     return t[rs], ijk, *rest
 
 
+def _batches(counts: IntArray) -> Iterator[IntArray]:
+    """Consecutive runs of indices whose ``counts`` add up to about ``_BATCH`` (at least one index a run)."""
+    cum = np.cumsum(counts)
+    start = 0
+    while start < len(counts):
+        base = cum[start - 1] if start else 0
+        stop = max(int(np.searchsorted(cum, base + _BATCH, side="right")), start + 1)
+        yield np.arange(start, stop)
+        start = stop
+
+
 def _candidates(
     cells: FloatArray, lo: IntArray, hi: IntArray, w_band: tuple[float, float] = (-np.inf, np.inf)
 ) -> Iterator[tuple[IntArray, IntArray, IntArray]]:
@@ -317,13 +328,7 @@ def _candidates(
         )
         if len(run_t):
             yield run_t, run_ijk, d[run_t]
-    cum = np.cumsum(nb)
-    start = 0
-    while start < len(ts):
-        base = cum[start - 1] if start else 0
-        stop = max(int(np.searchsorted(cum, base + _BATCH, side="right")), start + 1)
-        sel = np.arange(start, stop)
-        start = stop
+    for sel in _batches(nb):
         counts = nb[sel]
         total_cols = int(counts.sum())
         if not total_cols:
@@ -373,13 +378,7 @@ def _candidates(
         k1 = np.minimum(np.floor(w_hi).astype(np.int64), hi_d[tri])
         nk = np.maximum(k1 - k0 + 1, 0)
         # expand each column into its voxels (in chunks: a steep column can hold many)
-        cstart = 0
-        ccum = np.cumsum(nk)
-        while cstart < len(nk):
-            cbase = ccum[cstart - 1] if cstart else 0
-            cstop = max(int(np.searchsorted(ccum, cbase + _BATCH, side="right")), cstart + 1)
-            cs = np.arange(cstart, cstop)
-            cstart = cstop
+        for cs in _batches(nk):
             kk = nk[cs]
             total = int(kk.sum())
             if not total:
