@@ -1,9 +1,10 @@
-"""Run the README's ``twin`` command lines in order, as typed, in a fresh directory.
+"""Run the README's and the docs' ``twin`` command lines in order, as typed, in a fresh directory.
 
     python -m tests.readme_commands [--workdir DIR]
 
-Every line of a README ``sh`` block that starts with ``twin`` runs as a real process, in the order of
-the README, in an empty directory (the lines build on each other: ``twin sample lab lab.ifc``, then
+Every line of a README or docs ``sh`` block that starts with ``twin`` runs as a real process: the
+README's tour in one empty directory, then the docs pages, in the order the README links them, in
+another (their lines build on each other: ``twin sample lab lab.ifc``, then
 ``twin import lab.ifc --store lab.store``, ...). What the runner changes, and only this:
 
 - optional parts in brackets (``[--json]``) are left out; a line that still holds a placeholder
@@ -37,6 +38,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
+DOCS = ROOT / "docs"
 PORTS = (7447, 7450, 7451)
 OTHER_TOOLS = ("pip ", "oxigraph ", "ros2 ", "rerun ", "make ")
 EXPECTED = {
@@ -141,6 +143,14 @@ class Runner:
         self.background.clear()
 
 
+def documents() -> list[Path]:
+    """The README, then every docs page in the order the README links them (unlinked pages last)."""
+    linked = re.findall(r"\]\(docs/([\w-]+\.md)\)", README.read_text())
+    pages = [DOCS / name for name in dict.fromkeys(linked)]
+    pages += sorted(p for p in DOCS.glob("*.md") if p not in pages)
+    return [README, *pages]
+
+
 def readme_blocks(text: str) -> list[list[str]]:
     """The README's ``sh`` blocks, each as its lines (continuation lines joined)."""
     blocks = re.findall(r"^```sh\n(.*?)^```", text, re.S | re.M)
@@ -173,32 +183,47 @@ def free_port() -> int:
 
 
 def run_readme(workdir: Path) -> list[Outcome]:
-    """Run every ``twin`` line of the README in ``workdir`` (empty); the outcome of each."""
+    """Run every ``twin`` line of the README, then of the docs, in ``workdir`` (empty); each outcome.
+
+    The README's tour runs in ``workdir/readme``, the docs in ``workdir/docs``: each is a reader's
+    session from an empty folder (the docs' pages build on each other in the README's link order)."""
     ports = {p: free_port() for p in PORTS}
     config = workdir / "readme-run.toml"
     config.write_text(f'[zenoh]\nlisten = ["tcp/127.0.0.1:{ports[7447]}"]\n')
-    runner = Runner(workdir, config, ports)
+    pages = documents()
     outcomes: list[Outcome] = []
-    try:
-        for block in readme_blocks(README.read_text()):
-            lines = [ln for ln in block if ln.strip().startswith("twin ")]
-            if not lines:
+    for name, docs in (("readme", pages[:1]), ("docs", pages[1:])):
+        folder = workdir / name
+        folder.mkdir()
+        runner = Runner(folder, config, ports)
+        try:
+            blocks = [b for doc in docs for b in readme_blocks(doc.read_text())]
+            outcomes += run_blocks(runner, blocks)
+        finally:
+            runner.stop_background()
+    return outcomes
+
+
+def run_blocks(runner: Runner, blocks: list[list[str]]) -> list[Outcome]:
+    """Run the ``twin`` lines of ``blocks`` in order with ``runner``; the outcome of each."""
+    outcomes: list[Outcome] = []
+    for block in blocks:
+        lines = [ln for ln in block if ln.strip().startswith("twin ")]
+        if not lines:
+            continue
+        if any(ln.strip().startswith(OTHER_TOOLS) for ln in block):
+            outcomes += [Outcome(ln.strip(), "skipped", "needs another tool first") for ln in lines]
+            continue
+        typed = [(ln.strip(), as_typed(ln)) for ln in lines]
+        if any(t is not None and t.split()[1:2] in (["serve"], ["router"]) for _, t in typed):
+            runner.stop_background()  # a new topology: the previous daemons stop
+        for original, command in typed:
+            if command is None:
+                outcomes.append(Outcome(original, "skipped", "a synopsis with placeholders"))
                 continue
-            if any(ln.strip().startswith(OTHER_TOOLS) for ln in block):
-                outcomes += [Outcome(ln.strip(), "skipped", "needs another tool first") for ln in lines]
-                continue
-            typed = [(ln.strip(), as_typed(ln)) for ln in lines]
-            if any(t is not None and t.split()[1:2] in (["serve"], ["router"]) for _, t in typed):
-                runner.stop_background()  # a new topology: the previous daemons stop
-            for original, command in typed:
-                if command is None:
-                    outcomes.append(Outcome(original, "skipped", "a synopsis with placeholders"))
-                    continue
-                outcome = runner.run(command)
-                log.info("%s %s: %s", outcome.status, command, outcome.detail)
-                outcomes.append(outcome)
-    finally:
-        runner.stop_background()
+            outcome = runner.run(command)
+            log.info("%s %s: %s", outcome.status, command, outcome.detail)
+            outcomes.append(outcome)
     return outcomes
 
 

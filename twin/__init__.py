@@ -14,7 +14,7 @@ The core is grouped as the paper's pipeline, a one-way stack of small subpackage
 
 The ``twin`` command, the Zenoh daemon, the IFC reader and the Rerun recorder live in ``adapters``.
 ``twin`` never imports ifcopenshell, Zenoh or Rerun: ``adapters`` translate between those and the
-core's records. See ``README.md`` for the data flow.
+core's records. See ``docs/concepts.md`` for the data flow.
 """
 
 from __future__ import annotations

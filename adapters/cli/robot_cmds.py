@@ -27,7 +27,7 @@ from twin.maps.grid import OccupancyGrid
 
 
 def box_turtle(iri: str, box: list[float], *, ifc_class: str, storey: str, label: str | None = None) -> str:
-    """An observation of one oriented box ``[x, y, z, sx, sy, sz, yaw]`` (see README, "Observations")."""
+    """An observation of one oriented box ``[x, y, z, sx, sy, sz, yaw]`` (see docs/observations.md)."""
     t = vocab.TWIN
     text = f"<{iri}> <{t}ifcClass> {json.dumps(ifc_class)} ; <{t}storey> {json.dumps(storey)} ; "
     if label is not None:

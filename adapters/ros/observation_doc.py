@@ -1,4 +1,4 @@
-"""Observation documents (Turtle, the wire format of ``README.md``, "Observations") written from what a
+"""Observation documents (Turtle, the wire format of ``docs/observations.md``) written from what a
 ROS 2 message said: boxes, door states, removals and the view a sensor had (the fusion terms
 ``twin:View``, ``twin:polygon``, ``twin:detects``, ``twin:senseTime``).
 

@@ -81,7 +81,7 @@ class RosSettings(ConfigSection):
 @dataclass(frozen=True, slots=True)
 class DetectionConfig:
     """``[robots.NAME.detections]``: the robot's ``vision_msgs/msg/Detection3DArray`` topic and how its
-    detections become observations (see ``README.md``, "ROS 2 robots report back")."""
+    detections become observations (see ``docs/ros2-reporting.md``)."""
 
     topic: str
     classes: tuple[tuple[str, str], ...]

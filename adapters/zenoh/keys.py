@@ -1,4 +1,4 @@
-"""The Zenoh key expressions of one site (see README.md, "Zenoh keys").
+"""The Zenoh key expressions of one site (see docs/zenoh-keys.md).
 
 Example::
 

@@ -199,10 +199,10 @@ def observe_process(
 
 
 def readme_robot_snippet(site: str, endpoint: str) -> str:
-    """The README's "A robot in a few lines", for ``site`` at ``endpoint``."""
-    readme = (ROOT / "README.md").read_text()
-    found = re.search(r"### A robot in a few lines.*?```python\n(.*?)```", readme, re.S)
-    assert found, "the README's robot snippet is gone"
+    """The docs' "A robot in a few lines" (docs/robot-client.md), for ``site`` at ``endpoint``."""
+    page = (ROOT / "docs" / "robot-client.md").read_text()
+    found = re.search(r"# A robot in a few lines.*?```python\n(.*?)```", page, re.S)
+    assert found, "the robot snippet of docs/robot-client.md is gone"
     code = found.group(1)
     assert 'site = "lab"' in code and "tcp/127.0.0.1:7447" in code
     return code.replace('site = "lab"', f'site = "{site}"').replace("tcp/127.0.0.1:7447", endpoint)

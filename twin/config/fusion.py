@@ -1,5 +1,5 @@
 """``[fusion]``: how observations from many robots become one twin (association, confirmation,
-absence, sense time). See the README, "Many robots, one twin".
+absence, sense time). See docs/fusion.md.
 
 Example::
 

@@ -224,7 +224,7 @@ def file_model(sections: Sequence[type[ConfigSection]] = (), *, strict: bool = T
         fields[f"{name}_" if name == "import" else name] = (model, Field(default_factory=model, alias=name))
     fields["skills"] = (
         dict[str, Annotated[dict[str, Any], WithJsonSchema(_skill_schema())]],
-        Field(default_factory=dict, description="Skill profiles: [skills.NAME] (README, 'Skills')."),
+        Field(default_factory=dict, description="Skill profiles: [skills.NAME] (docs/skills.md)."),
     )
     for name, owners in named.items():
         fields[name] = (dict[RobotName, _merged(name, owners)], Field(default_factory=dict))  # type: ignore[misc]

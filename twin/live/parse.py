@@ -1,7 +1,7 @@
 """Observations: what robots report about elements, parsed from Turtle into typed records.
 
 An observation is a Turtle document (N-Triples is valid Turtle) with one or more element
-descriptions; the subjects are element IRIs (see ``README.md``, "Observations", for the wire format).
+descriptions; the subjects are element IRIs (see ``docs/observations.md`` for the wire format).
 This module checks everything that needs no graph: the syntax, the known terms, one value per term,
 finite numbers, sizes and counts within :class:`~twin.config.Limits`. What needs the graph (does the
 element exist, is it static, may this robot change it) is checked by :mod:`twin.live`.
