@@ -35,6 +35,8 @@ from twin.config.tables import (
     StoreTable,
 )
 from twin.errors import ConfigError, SkillError
+from twin.routes.errors import RouteError
+from twin.routes.settings import RouteProfile, RoutesTable, check_routes, parse_routes
 from twin.selection.skills import SkillProfile, parse_skill
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "default.toml"  # package data: installs with twin
@@ -68,6 +70,7 @@ class Config:
     margin_m: float
     maps_out: Path
     skills: Mapping[str, SkillProfile]
+    """The map skills; ``kind = "routes"`` skills are in :attr:`routes`."""
     limits: Limits = field(default_factory=Limits)
     default_rights: frozenset[Right] = frozenset({"create", "dynamic", "doors"})
     robots: Mapping[str, RobotConfig] = field(default_factory=dict)
@@ -82,6 +85,8 @@ class Config:
     """``[store] snapshot``: keep the daemon's derived state (scene, maps) in ``<store>.snapshot``."""
     store_snapshot_every_s: float = 300.0
     """``[store] snapshot_every_s``: how often the daemon rewrites it while anything changes."""
+    routes: Mapping[str, RouteProfile] = field(default_factory=dict)
+    """``[skills.NAME]`` of ``kind = "routes"``: fleets' route graphs (:mod:`twin.routes`)."""
     fusion: FusionRules = field(default_factory=FusionRules)
     """``[fusion]``: association, confirmation, absence and sense time (many robots, one twin)."""
     tables: Mapping[str, Any] = field(default_factory=dict, repr=False)
@@ -173,7 +178,7 @@ def load_config(
         site_table = own.get("site")
         site_set = isinstance(site_table, Mapping) and "name" in site_table
         raw = _merge(raw, own)
-    skills = _skills(raw.get("skills", {}))
+    skills, routes = _skills(raw.get("skills", {}))
     model = file_model(sections or (), strict=sections is not None)
     data = raw if sections is not None else _core_keys(raw)
     context = {"skills": set(skills)}
@@ -195,6 +200,7 @@ def load_config(
         margin_m=checked.maps.margin_m,
         maps_out=checked.maps.out,
         skills=skills,
+        routes=routes,
         limits=checked.limits,
         default_rights=default_rights,
         robots={name: table.record(name, default_rights) for name, table in checked.robots.items()},
@@ -252,6 +258,11 @@ def _skill_schema() -> dict[str, Any]:
     schema = TypeAdapter(SkillProfile).json_schema()
     properties = {k: v for k, v in schema["properties"].items() if k != "name"}
     properties["sparql"] = {"type": "string", "description": "A group graph pattern binding ?element."}
+    routes = RoutesTable.model_json_schema()
+    for key, value in routes["properties"].items():  # kind = "routes" (twin.routes.settings)
+        if key not in properties:
+            properties[key] = _inline(value, routes.get("$defs", {}))
+    properties["kind"] = {**properties["kind"], "enum": [*properties["kind"]["enum"], "routes"]}
     return {
         "type": "object",
         "properties": properties,
@@ -259,6 +270,18 @@ def _skill_schema() -> dict[str, Any]:
         "additionalProperties": False,
         "description": schema.get("description", ""),
     }
+
+
+def _inline(node: Any, defs: Mapping[str, Any]) -> Any:
+    """``node`` with its ``$ref``s to ``defs`` replaced by what they name."""
+    if isinstance(node, dict):
+        ref = node.get("$ref")
+        if isinstance(ref, str) and ref.startswith("#/$defs/"):
+            return _inline(defs[ref.removeprefix("#/$defs/")], defs)
+        return {k: _inline(v, defs) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_inline(v, defs) for v in node]
+    return node
 
 
 def _plain(node: Any) -> Any:
@@ -315,15 +338,27 @@ def _owned(model: type[ConfigTable], table: Any) -> Any:
     return {k: v for k, v in table.items() if k in model.model_fields}
 
 
-def _skills(raw: Any) -> dict[str, SkillProfile]:
+def _skills(raw: Any) -> tuple[dict[str, SkillProfile], dict[str, RouteProfile]]:
+    """The map skills and the routes skills (``kind = "routes"``, checked against the map skills)."""
     if not isinstance(raw, Mapping):
         msg = f"Configuration [skills]: expected a table of skill profiles, got {raw!r}."
         raise ConfigError(msg)
+    is_routes = {
+        name: isinstance(table, Mapping) and table.get("kind") == "routes" for name, table in raw.items()
+    }
     try:
-        return {name: parse_skill(name, table) for name, table in raw.items()}
+        skills = {name: parse_skill(name, table) for name, table in raw.items() if not is_routes[name]}
     except SkillError as err:
         msg = f"Configuration [skills]: {err}"
         raise ConfigError(msg) from err
+    routes = {name: parse_routes(name, table) for name, table in raw.items() if is_routes[name]}
+    for profile in routes.values():
+        try:
+            check_routes(profile, skills)
+        except RouteError as err:
+            msg = f"Configuration [skills.{profile.name}]: {err}"
+            raise ConfigError(msg) from err
+    return skills, routes
 
 
 def _read(path: Path) -> dict[str, Any]:

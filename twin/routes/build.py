@@ -1,0 +1,433 @@
+"""A fleet's route graph from the twin: its navigation skill's maps, doors, spaces and lifts.
+
+For each storey the fleet serves, the free cells are those of its navigation skill's map (inflated by
+the robot's radius, the robot's height band) drawn with every door open and every lift car left out
+(``IfcDoor`` and ``IfcTransportElement`` elements are not drawn), less the cells of its keepout
+skills' zones. :func:`twin.routes.storey.build_storey` makes each storey's graph from them; lifts join
+the storeys: a vertex at the cabin's centre on every storey the lift serves, at the same x, y.
+
+Doors and lifts are the elements of those IFC classes (subtypes included) with geometry. The model's
+``PredefinedType`` is not imported, so every ``IfcTransportElement`` counts as a lift (an escalator
+modelled as one would too). A lift serves the storeys whose floor lies within its geometry's height,
+with at least a storey's robot height above.
+
+Example::
+
+    graph = build_routes(store, scene, cfg.routes["cleaners"], cfg.skills, margin_m=cfg.margin_m)
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy import ndimage
+from scipy.spatial import ConvexHull, QhullError
+
+from twin.graph.rdf import literal_value
+from twin.graph.store import GraphStore
+from twin.maps.grid import GridFrame
+from twin.maps.render import MapPlan, build_map, occupancy, plan_map
+from twin.maps.scene import Scene, StoreyInfo
+from twin.routes.errors import RouteError
+from twin.routes.graph import DoorCrossing, Lift, RouteGraph, RouteVertex, StoreyRoutes
+from twin.routes.settings import RouteProfile, Waypoint, check_routes
+from twin.routes.storey import DoorShape, SpaceArea, StoreyInput, build_storey
+from twin.selection.skill_selection import selection_query
+from twin.selection.skills import SkillProfile
+
+log = logging.getLogger(__name__)
+
+DOOR_TYPES = ("IfcDoor",)
+LIFT_TYPES = ("IfcTransportElement",)
+_UNSAFE = re.compile(r"[^A-Za-z0-9_]+")
+
+_ELEMENTS = """SELECT ?e ?name ?gid WHERE {{
+  ?e twin:ifcType "{ifc_type}" ; omg:hasGeometry ?g .
+  OPTIONAL {{ ?e rdfs:label ?name }}
+  OPTIONAL {{ ?e props:globalIdIfcRoot_attribute_simple ?gid }}
+  FILTER NOT EXISTS {{ ?e twin:removed true }}
+}} ORDER BY ?e"""
+_SPACES = "SELECT ?sp ?name WHERE { ?sp a bot:Space . OPTIONAL { ?sp rdfs:label ?name } } ORDER BY ?sp"
+_BUILDING = "SELECT ?name WHERE { ?b a bot:Building . OPTIONAL { ?b rdfs:label ?name } } ORDER BY ?b LIMIT 1"
+
+
+@dataclass(frozen=True, slots=True)
+class _Named:
+    iri: str
+    name: str
+
+
+def sanitise(text: str) -> str:
+    """A name RMF and nav2 take as is: letters, digits and ``_`` (runs of anything else become one
+    ``_``), never empty."""
+    return _UNSAFE.sub("_", text).strip("_") or "unnamed"
+
+
+def unique(name: str, taken: set[str]) -> str:
+    """``name``, or ``name_2``, ``name_3``, ... whichever is not in ``taken`` (which it joins)."""
+    out, k = name, 2
+    while out in taken:
+        out, k = f"{name}_{k}", k + 1
+    taken.add(out)
+    return out
+
+
+def build_routes(
+    store: GraphStore,
+    scene: Scene,
+    routes: RouteProfile,
+    skills: Mapping[str, SkillProfile],
+    *,
+    margin_m: float = 1.0,
+    door_names: Mapping[str, str] | None = None,
+    level_names: Mapping[str, str] | None = None,
+) -> RouteGraph:
+    """The fleet's route graph of the building.
+
+    Args:
+        door_names: door IRI -> the name its lanes carry (the RMF door names of the configured door
+            tables); other doors are named after their IFC name (sanitised, unique).
+        level_names: storey key -> RMF level name (the prefix of space and lift vertex names);
+            default: the storey key.
+
+    Raises:
+        RouteError: a missing navigation or keepout skill, an unknown storey, a robot wider than every
+            door, a storey with no free space, a waypoint off the served storeys.
+    """
+    check_routes(routes, skills)
+    nav = skills[routes.navigation]
+    radius = nav.inflation_radius_m
+    levels = dict(level_names or {})
+    storeys = _served(scene, routes)
+    doors = _elements(store, DOOR_TYPES[0])
+    lifts = _elements(store, LIFT_TYPES[0])
+    exempt = {d.iri for d in doors} | {lift.iri for lift in lifts}
+    iris = [
+        i
+        for r in store.select(selection_query(nav))
+        if (i := literal_value(r["element"]) or "") not in exempt
+    ]
+    keepouts = [replace(skills[k], resolution_m=nav.resolution_m) for k in routes.keepout]
+    keepout_iris = {
+        k.name: [literal_value(r["element"]) or "" for r in store.select(selection_query(k))]
+        for k in keepouts
+    }
+    door_shapes = _door_shapes(scene, doors, door_names or {})
+    lift_records = _lifts(scene, lifts, storeys, nav)
+    space_names = {
+        literal_value(r["sp"]) or "": literal_value(r["name"]) or "" for r in store.select(_SPACES)
+    }
+    taken: set[str] = {w.name for w in routes.waypoints}
+    results: list[StoreyRoutes] = []
+    crossings: list[DoorCrossing] = []
+    notes: list[str] = []
+    frees: list[tuple[MapPlan, np.ndarray]] = []
+    for storey in storeys:
+        plan = plan_map(scene, nav, storey.key, iris, margin_m=margin_m)
+        free = build_map(scene, plan).data == 0
+        for k in keepouts:
+            kplan = plan_map(scene, k, storey.key, keepout_iris[k.name], margin_m=margin_m)
+            free &= build_map(scene, kplan).data == 0
+        if not free.any():
+            msg = (
+                f"Routes skill {routes.name!r}: storey {storey.key!r} has no free space for its robot "
+                f"(navigation skill {nav.name!r}: radius {radius} m, height {nav.robot_height_m} m)."
+            )
+            raise RouteError(msg)
+        frees.append((plan, free))
+    if door_shapes and 2 * radius > max(d.width_m for _, d in door_shapes) + 1e-6:
+        widest = max(d.width_m for _, d in door_shapes)
+        msg = (
+            f"Routes skill {routes.name!r}: a robot of radius {radius} m (navigation skill "
+            f"{nav.name!r}) fits through none of the model's {len(door_shapes)} doors (the widest is "
+            f"{widest:.2f} m)."
+        )
+        raise RouteError(msg)
+    for storey, (plan, free) in zip(storeys, frees, strict=True):
+        level = levels.get(storey.key, storey.key)
+        on_storey = [d for st, d in door_shapes if _on(scene, st, plan)]
+        spaces = _space_areas(scene, plan, space_names, level, taken)
+        points = [
+            RouteVertex(
+                lift.x,
+                lift.y,
+                name=unique(f"{sanitise(level)}_{lift.name}", taken),
+                kind="lift",
+                lift=lift.name,
+            )
+            for lift in lift_records
+            if storey.key in lift.storeys
+        ]
+        points += _waypoints(scene, routes, storey=storey, plan=plan, free=free, space_names=space_names)
+        result = build_storey(
+            StoreyInput(
+                storey=storey.key,
+                elevation_m=storey.elevation_m,
+                frame=plan.frame,
+                free=free,
+                doors=on_storey,
+                spaces=spaces,
+                points=points,
+                max_lane_m=routes.max_lane_m,
+                door_reach_m=max(radius, 0.25) + 0.25,
+            )
+        )
+        results.append(result.routes)
+        notes += result.notes
+        crossings += [
+            DoorCrossing(d.name, d.iri, storey.key, d.endpoints, d.width_m, d.name in result.passable)
+            for d in on_storey
+        ]
+    rows = store.select(_BUILDING)
+    building = (literal_value(rows[0]["name"]) if rows else None) or "building"
+    for note in notes:
+        log.info("Routes %s: %s", routes.name, note)
+    return RouteGraph(
+        skill=routes.name,
+        fleet=routes.fleet,
+        graph_name=routes.graph_name,
+        building=building,
+        speed_m_s=routes.speed_m_s,
+        robot_radius_m=radius,
+        storeys=tuple(results),
+        doors=tuple(crossings),
+        lifts=tuple(lift_records),
+        notes=tuple(notes),
+    )
+
+
+def _served(scene: Scene, routes: RouteProfile) -> list[StoreyInfo]:
+    if not scene.storeys:
+        msg = "The model has no storey (IfcBuildingStorey): route graphs are made per storey."
+        raise RouteError(msg)
+    if not routes.storeys:
+        return list(scene.storeys)
+    known = {s.key: s for s in scene.storeys}
+    for key in routes.storeys:
+        if key not in known:
+            msg = (
+                f"Routes skill {routes.name!r}: storey {key!r} is not a storey of this model; "
+                f"storeys: {', '.join(known)}."
+            )
+            raise RouteError(msg)
+    return [s for s in scene.storeys if s.key in routes.storeys]
+
+
+def _elements(store: GraphStore, ifc_type: str) -> list[_Named]:
+    out = []
+    for r in store.select(_ELEMENTS.format(ifc_type=ifc_type)):
+        iri = literal_value(r["e"]) or ""
+        out.append(_Named(iri, literal_value(r["name"]) or literal_value(r["gid"]) or iri.rsplit("#", 1)[-1]))
+    return out
+
+
+def _door_shapes(scene: Scene, doors: list[_Named], names: Mapping[str, str]) -> list[tuple[int, DoorShape]]:
+    """Each door with geometry: its element index and its shape in plan (centre, width direction,
+    width and thickness from the principal axes of its vertices' x, y)."""
+    out: list[tuple[int, DoorShape]] = []
+    taken: set[str] = set()
+    for door in doors:
+        i = scene.elements.index.get(door.iri)
+        if i is None:
+            continue
+        triangles, _ = scene.elements.triangles_of(np.array([i], dtype=np.intp))
+        xy = triangles.reshape(-1, 3)[:, :2]
+        if len(xy) < 3:
+            continue
+        u, _, along, across, mid = _min_rectangle(xy)
+        name = unique(sanitise(names.get(door.iri, door.name)), taken)
+        out.append(
+            (
+                i,
+                DoorShape(
+                    name=name,
+                    iri=door.iri,
+                    x=float(mid[0]),
+                    y=float(mid[1]),
+                    ux=float(u[0]),
+                    uy=float(u[1]),
+                    width_m=float(along.max() - along.min()),
+                    thickness_m=float(across.max() - across.min()),
+                ),
+            )
+        )
+    return out
+
+
+def _min_rectangle(
+    xy: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The smallest rectangle around points ``xy`` (``(n, 2)``): its long axis ``u``, short axis ``n``,
+    the points' coordinates along each (from the points' mean) and the rectangle's centre."""
+    centre = xy.mean(axis=0)
+    try:
+        hull = xy[ConvexHull(xy).vertices]
+    except QhullError:  # flat: every point on a line
+        hull = xy
+    edges = np.roll(hull, -1, axis=0) - hull
+    lengths = np.hypot(*edges.T)
+    dirs = edges[lengths > 1e-9] / lengths[lengths > 1e-9, None]
+    if not len(dirs):
+        dirs = np.array([[1.0, 0.0]])
+    best: tuple[float, np.ndarray] | None = None
+    for d in dirs:
+        nd = np.array([-d[1], d[0]])
+        a, c = (hull - centre) @ d, (hull - centre) @ nd
+        area = float(np.ptp(a) * np.ptp(c))
+        if best is None or area < best[0] - 1e-12:
+            best = (area, d if np.ptp(a) >= np.ptp(c) else nd)
+    assert best is not None
+    u = best[1]
+    if u[0] < -1e-9 or (abs(u[0]) <= 1e-9 and u[1] < 0):
+        u = -u
+    n = np.array([-u[1], u[0]])
+    along, across = (xy - centre) @ u, (xy - centre) @ n
+    mid = centre + u * (along.max() + along.min()) / 2 + n * (across.max() + across.min()) / 2
+    return u, n, along, across, mid
+
+
+def _on(scene: Scene, index: int, plan: MapPlan) -> bool:
+    """Whether element ``index`` reaches into the plan's height band and lies on its grid."""
+    b = scene.elements.bounds[index]
+    f = plan.frame
+    return bool(
+        b[2] <= plan.z_hi
+        and b[5] >= plan.z_lo
+        and b[0] < f.origin_x + f.width * f.resolution_m
+        and b[3] > f.origin_x
+        and b[1] < f.origin_y + f.height * f.resolution_m
+        and b[4] > f.origin_y
+    )
+
+
+def _lifts(scene: Scene, lifts: list[_Named], storeys: list[StoreyInfo], nav: SkillProfile) -> list[Lift]:
+    out: list[Lift] = []
+    taken: set[str] = set()
+    for lift in lifts:
+        i = scene.elements.index.get(lift.iri)
+        if i is None or np.isnan(scene.elements.bounds[i]).any():
+            continue
+        b = scene.elements.bounds[i]
+        served = tuple(s.key for s in storeys if b[2] - 0.05 <= s.elevation_m <= b[5] - nav.robot_height_m)
+        if not served:
+            continue
+        out.append(
+            Lift(
+                name=unique(sanitise(lift.name), taken),
+                iri=lift.iri,
+                x=round(float(b[0] + b[3]) / 2, 6),
+                y=round(float(b[1] + b[4]) / 2, 6),
+                yaw=0.0,
+                width_m=round(float(b[3] - b[0]), 6),
+                depth_m=round(float(b[4] - b[1]), 6),
+                storeys=served,
+            )
+        )
+    return out
+
+
+def _space_areas(
+    scene: Scene, plan: MapPlan, names: Mapping[str, str], level: str, taken: set[str]
+) -> list[SpaceArea]:
+    """The storey's spaces and their cells (their geometry in the map's height band)."""
+    out = []
+    frame = plan.frame
+    for iri, storey_iri in sorted(scene.space_storey.items()):
+        if storey_iri != plan.storey.iri or iri not in scene.spaces.index:
+            continue
+        i = scene.spaces.index[iri]
+        b = scene.spaces.bounds[i]
+        if np.isnan(b).any():
+            continue
+        window = frame.window_for(float(b[0]), float(b[1]), float(b[3]), float(b[4]))
+        if window.empty:
+            continue
+        cells = np.zeros(frame.shape, dtype=np.bool_)
+        cells[window.row0 : window.row1, window.col0 : window.col1] = occupancy(
+            scene.spaces, np.array([i], dtype=np.intp), plan, window
+        )
+        name = unique(f"{sanitise(level)}_{sanitise(names.get(iri) or iri.rsplit('#', 1)[-1])}", taken)
+        out.append(SpaceArea(name, cells))
+    return out
+
+
+def _waypoints(
+    scene: Scene,
+    routes: RouteProfile,
+    *,
+    storey: StoreyInfo,
+    plan: MapPlan,
+    free: np.ndarray,
+    space_names: Mapping[str, str],
+) -> list[RouteVertex]:
+    """The configured waypoints on this storey, each at its position (``at``: the named space's most
+    interior free point)."""
+    out = []
+    for wp in routes.waypoints:
+        where = _where(scene, routes, wp, plan=plan, free=free, space_names=space_names)
+        if where is None:
+            continue
+        out.append(
+            RouteVertex(
+                where[0],
+                where[1],
+                name=wp.name,
+                kind="waypoint",
+                charger=wp.charger,
+                holding_point=wp.holding_point,
+                parking_spot=wp.parking_spot,
+                dock=wp.dock,
+            )
+        )
+    return out
+
+
+def _where(
+    scene: Scene,
+    routes: RouteProfile,
+    wp: Waypoint,
+    *,
+    plan: MapPlan,
+    free: np.ndarray,
+    space_names: Mapping[str, str],
+) -> tuple[float, float] | None:
+    storey = plan.storey
+    if wp.at is None:
+        if wp.storey not in {s.key for s in scene.storeys} or (
+            routes.storeys and wp.storey not in routes.storeys
+        ):
+            msg = (
+                f"Routes skill {routes.name!r}: waypoint {wp.name!r} is on storey {wp.storey!r}, "
+                "which the fleet does not serve."
+            )
+            raise RouteError(msg)
+        return (wp.x, wp.y) if wp.storey == storey.key else None
+    frame = plan.frame
+    spaces = [iri for iri, name in space_names.items() if name == wp.at]
+    if spaces:
+        on = [
+            iri for iri in spaces if scene.space_storey.get(iri) == storey.iri and iri in scene.spaces.index
+        ]
+        if not on:
+            return None
+        i = scene.spaces.index[on[0]]
+        cells = occupancy(scene.spaces, np.array([i], dtype=np.intp), plan, frame.full) & free
+        if not cells.any():
+            return None
+        depth = ndimage.distance_transform_edt(np.pad(cells, 1))[1:-1, 1:-1]
+        r, c = np.unravel_index(int(np.argmax(depth)), depth.shape)
+        return _centre(frame, int(r), int(c))
+    msg = (
+        f"Routes skill {routes.name!r}: waypoint {wp.name!r} is at {wp.at!r}, which names no space "
+        "of the model."
+    )
+    raise RouteError(msg)
+
+
+def _centre(frame: GridFrame, row: int, col: int) -> tuple[float, float]:
+    res = frame.resolution_m
+    return (round(frame.origin_x + (col + 0.5) * res, 6), round(frame.origin_y + (row + 0.5) * res, 6))

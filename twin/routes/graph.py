@@ -1,0 +1,180 @@
+"""A fleet's route graph as plain records: waypoints and lanes per storey, doors and lifts.
+
+Coordinates are the twin's map frame (the building's XY plane, metres), as the skill maps' grids;
+the writers for Open-RMF and nav2 (``adapters/ros/routes.py``) move them into each RMF level's frame.
+Lanes are undirected here (every lane is two-way); the writers write each one in both directions.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+from typing import Any
+
+import networkx as nx
+
+__all__ = ["DoorCrossing", "Lift", "RouteGraph", "RouteLane", "RouteVertex", "StoreyRoutes"]
+
+
+@dataclass(frozen=True, slots=True)
+class RouteVertex:
+    """A waypoint: position (m), its unique name (``""``: none) and what RMF should know of it."""
+
+    x: float
+    y: float
+    name: str = ""
+    kind: str = "lane"
+    """``lane`` (on the medial axis), ``door`` (beside a door), ``space`` (an IfcSpace's most interior
+    point), ``lift`` (in a lift's cabin) or ``waypoint`` (configured)."""
+    lift: str = ""
+    charger: bool = False
+    holding_point: bool = False
+    parking_spot: bool = False
+    dock: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class RouteLane:
+    """A two-way lane between vertices ``a`` and ``b`` (indices into the storey's vertices)."""
+
+    a: int
+    b: int
+    door: str = ""
+    """The name of the door the lane passes through (``""``: none)."""
+
+
+@dataclass(frozen=True, slots=True)
+class DoorCrossing:
+    """A door on a storey: its name, where its leaf lies (two endpoints, m) and whether the fleet's
+    robot fits through it (then a lane passes it, carrying its name)."""
+
+    name: str
+    iri: str
+    storey: str
+    endpoints: tuple[tuple[float, float], tuple[float, float]]
+    width_m: float
+    passable: bool
+
+
+@dataclass(frozen=True, slots=True)
+class Lift:
+    """A lift: its name, cabin centre (m), yaw (rad), cabin size (width, depth, m), the storeys it
+    serves (keys, bottom up)."""
+
+    name: str
+    iri: str
+    x: float
+    y: float
+    yaw: float
+    width_m: float
+    depth_m: float
+    storeys: tuple[str, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class StoreyRoutes:
+    """One storey's part of the graph."""
+
+    storey: str
+    elevation_m: float
+    vertices: tuple[RouteVertex, ...]
+    lanes: tuple[RouteLane, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class RouteGraph:
+    """A fleet's route graph of the building: every storey it serves, its doors and lifts."""
+
+    skill: str
+    fleet: str
+    graph_name: str
+    building: str
+    speed_m_s: float
+    robot_radius_m: float
+    storeys: tuple[StoreyRoutes, ...]
+    doors: tuple[DoorCrossing, ...] = ()
+    lifts: tuple[Lift, ...] = ()
+    notes: tuple[str, ...] = field(default=())
+    """What the graph could not do (a door too narrow, a space not reachable), one line each."""
+
+    def storey(self, key: str) -> StoreyRoutes:
+        for s in self.storeys:
+            if s.storey == key:
+                return s
+        msg = f"The route graph {self.skill!r} serves no storey {key!r}."
+        raise KeyError(msg)
+
+    def to_networkx(self) -> nx.Graph:
+        """The whole graph (every storey, joined at the lifts) as a weighted networkx graph: nodes
+        ``(storey, index)`` with ``x``, ``y``; lanes weighted by their length, lift hops by 0."""
+        g = nx.Graph()
+        for s in self.storeys:
+            for i, v in enumerate(s.vertices):
+                g.add_node((s.storey, i), x=v.x, y=v.y, name=v.name, lift=v.lift)
+            for lane in s.lanes:
+                a, b = s.vertices[lane.a], s.vertices[lane.b]
+                g.add_edge((s.storey, lane.a), (s.storey, lane.b), weight=_dist(a, b), door=lane.door)
+        for lift in self.lifts:
+            stops = [
+                (s.storey, i) for s in self.storeys for i, v in enumerate(s.vertices) if v.lift == lift.name
+            ]
+            for u, w in itertools.pairwise(stops):
+                g.add_edge(u, w, weight=0.0, lift=lift.name)
+        return g
+
+    def to_json(self) -> dict[str, Any]:
+        """The graph as JSON (what ``twin/<site>/routes/<skill>`` carries)."""
+        return {
+            "skill": self.skill,
+            "fleet": self.fleet,
+            "graph_name": self.graph_name,
+            "building": self.building,
+            "speed_m_s": self.speed_m_s,
+            "robot_radius_m": self.robot_radius_m,
+            "storeys": [
+                {
+                    "storey": s.storey,
+                    "elevation_m": s.elevation_m,
+                    "vertices": [_vertex_json(v) for v in s.vertices],
+                    "lanes": [[lane.a, lane.b, lane.door] for lane in s.lanes],
+                }
+                for s in self.storeys
+            ],
+            "doors": [
+                {
+                    "name": d.name,
+                    "iri": d.iri,
+                    "storey": d.storey,
+                    "endpoints": [list(p) for p in d.endpoints],
+                    "width_m": d.width_m,
+                    "passable": d.passable,
+                }
+                for d in self.doors
+            ],
+            "lifts": [
+                {
+                    "name": lift.name,
+                    "iri": lift.iri,
+                    "position": [lift.x, lift.y, lift.yaw],
+                    "dims": [lift.width_m, lift.depth_m],
+                    "storeys": list(lift.storeys),
+                }
+                for lift in self.lifts
+            ],
+            "notes": list(self.notes),
+        }
+
+
+def _vertex_json(v: RouteVertex) -> dict[str, Any]:
+    out: dict[str, Any] = {"x": v.x, "y": v.y, "kind": v.kind}
+    for key in ("name", "lift", "dock"):
+        if getattr(v, key):
+            out[key] = getattr(v, key)
+    for key in ("charger", "holding_point", "parking_spot"):
+        if getattr(v, key):
+            out[key] = True
+    return out
+
+
+def _dist(a: RouteVertex, b: RouteVertex) -> float:
+    return float(((a.x - b.x) ** 2 + (a.y - b.y) ** 2) ** 0.5)

@@ -1,0 +1,55 @@
+"""Straight segments against an occupancy mask: is a lane's centre line free?
+
+Points are in cell coordinates: ``(row, col)`` floats, the centre of cell ``(r, c)`` at ``(r, c)``. A
+segment is free when every cell its centre line passes through is free: it is sampled every quarter
+cell (and at both ends), which finds every cell it crosses by more than a sliver; a line through a
+cell's corner (two diagonal neighbours) counts as free, as an 8-connected grid path does. The
+benchmark's safety check (``benchmarks/routes.py``) uses the same test.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+BoolArray = npt.NDArray[np.bool_]
+FloatArray = npt.NDArray[np.float64]
+
+SAMPLES_PER_CELL = 4
+_PHASE = 0.381966  # samples at (k + phase) / n: never exactly half way, so never on a cell's corner
+
+
+def segments_free(free: BoolArray, a: FloatArray, b: FloatArray) -> BoolArray:
+    """``(n,) bool``: whether each segment ``a[i] -> b[i]`` (``(n, 2)`` cell coordinates) is free.
+
+    Points outside the mask are not free.
+    """
+    a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
+    b = np.asarray(b, dtype=np.float64).reshape(-1, 2)
+    n = len(a)
+    out = np.ones(n, dtype=np.bool_)
+    if n == 0:
+        return out
+    length = np.hypot(*(b - a).T)
+    inner = np.ceil(length * SAMPLES_PER_CELL).astype(np.int64)
+    steps = inner + 2  # both ends, and samples between at an offset that never hits a cell's corner
+    owner = np.repeat(np.arange(n), steps)
+    start = np.cumsum(steps) - steps
+    k = np.arange(len(owner)) - start[owner]
+    t = np.clip((k - 1 + _PHASE) / np.maximum(inner[owner], 1), 0.0, 1.0)
+    t[k == 0] = 0.0
+    t[k == steps[owner] - 1] = 1.0
+    pts = a[owner] + (b - a)[owner] * t[:, None]
+    rc = np.rint(pts).astype(np.int64)
+    h, w = free.shape
+    inside = (rc[:, 0] >= 0) & (rc[:, 0] < h) & (rc[:, 1] >= 0) & (rc[:, 1] < w)
+    ok = np.zeros(len(rc), dtype=np.bool_)
+    ok[inside] = free[rc[inside, 0], rc[inside, 1]]
+    bad = np.unique(owner[~ok])
+    out[bad] = False
+    return out
+
+
+def segment_free(free: BoolArray, a: tuple[float, float], b: tuple[float, float]) -> bool:
+    """Whether the one segment ``a -> b`` (cell coordinates) is free."""
+    return bool(segments_free(free, np.array([a]), np.array([b]))[0])

@@ -1,0 +1,337 @@
+"""One storey's route graph from its free space: medial-axis lanes, doors, spaces and attached points.
+
+Given the cells a robot's centre may occupy (``free``: the fleet's inflated navigation map with doors
+open and lift cars exempt, keepout zones removed), the lanes follow the pruned skeleton of free space
+(:mod:`twin.routes.skeleton`): vertices at its junctions and dead ends, the runs between simplified to
+straight lanes whose centre lines are free (:mod:`twin.routes.lines`), none longer than
+``max_lane_m``. Then:
+
+- **doors**: where the skeleton crosses a door's plane within the door's width, a vertex on each side
+  (where the skeleton leaves a band of ``door_reach_m`` about the door) and one straight lane between
+  them carrying the door's name; a door the skeleton does not cross is not passable for this robot;
+- **spaces**: a named vertex at the skeleton point of the space most interior to its free part;
+- **points** (lift cabins, configured waypoints): a vertex exactly there, joined by a straight lane
+  to the nearest skeleton point it sees;
+- **shortcuts**: a straight lane between two vertices within ``max_lane_m`` that see each other when
+  the graph's way between them is much longer (open rooms: the skeleton's way is a detour).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import networkx as nx
+import numpy as np
+import numpy.typing as npt
+from scipy import ndimage
+from scipy.spatial import cKDTree
+
+from twin.maps.grid import GridFrame
+from twin.routes.graph import RouteLane, RouteVertex, StoreyRoutes
+from twin.routes.lines import BoolArray, FloatArray, segments_free
+from twin.routes.skeleton import Chain, IntArray, pruned_skeleton, simplify, trace
+
+log = logging.getLogger(__name__)
+
+SIMPLIFY_M = 0.1
+"""How far a lane may stray from the medial axis it replaces (m)."""
+SHORTCUT_RATIO = 1.15
+"""A shortcut is added where the graph's way is longer than this many times the straight line."""
+
+
+@dataclass(frozen=True, slots=True)
+class DoorShape:
+    """A door on the storey: centre (m), unit vector along its width, width and thickness (m)."""
+
+    name: str
+    iri: str
+    x: float
+    y: float
+    ux: float
+    uy: float
+    width_m: float
+    thickness_m: float
+
+    @property
+    def endpoints(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        h = self.width_m / 2
+        return ((self.x - h * self.ux, self.y - h * self.uy), (self.x + h * self.ux, self.y + h * self.uy))
+
+
+@dataclass(frozen=True, slots=True)
+class SpaceArea:
+    """An IfcSpace on the storey: its vertex's name and its cells (``(h, w) bool`` over the frame)."""
+
+    name: str
+    cells: BoolArray
+
+
+@dataclass(frozen=True, slots=True)
+class StoreyInput:
+    """What one storey's graph is made from."""
+
+    storey: str
+    elevation_m: float
+    frame: GridFrame
+    free: BoolArray
+    doors: Sequence[DoorShape] = ()
+    spaces: Sequence[SpaceArea] = ()
+    points: Sequence[RouteVertex] = ()
+    max_lane_m: float = 3.0
+    door_reach_m: float = 0.6
+
+
+@dataclass(slots=True)
+class StoreyResult:
+    routes: StoreyRoutes
+    passable: set[str] = field(default_factory=set)
+    """Names of the doors a lane passes through."""
+    notes: list[str] = field(default_factory=list)
+
+
+def build_storey(inp: StoreyInput) -> StoreyResult:
+    """The storey's graph (see the module's docstring)."""
+    frame, free = inp.frame, inp.free
+    res = frame.resolution_m
+    h, w = free.shape
+    notes: list[str] = []
+    clearance: FloatArray = ndimage.distance_transform_edt(free)
+    skeleton = pruned_skeleton(free, clearance)
+    sk_idx = np.flatnonzero(skeleton)
+    sk_rc = np.stack(np.divmod(sk_idx, w), axis=1).astype(np.float64)
+    forced: list[IntArray] = []
+    # doors: skeleton pixels in each door's band; the band's edge pixels become nodes
+    band_of = np.full(h * w, -1, dtype=np.int64)
+    side_of = np.zeros(h * w, dtype=np.int8)
+    for k, door in enumerate(inp.doors):
+        cx, cy = _cell(frame, door.x, door.y)
+        dr, dc = sk_rc[:, 0] - cy, sk_rc[:, 1] - cx
+        along = (dc * door.ux + dr * door.uy) * res
+        across = (dc * -door.uy + dr * door.ux) * res
+        reach = door.thickness_m / 2 + inp.door_reach_m
+        inside = (np.abs(along) <= door.width_m / 2) & (np.abs(across) <= reach)
+        band_of[sk_idx[inside]] = k
+        side_of[sk_idx[inside]] = np.where(across[inside] >= 0, 1, -1)
+    if inp.doors:
+        in_band = (band_of >= 0).reshape(h, w)
+        outside = skeleton & ~in_band
+        near_out = ndimage.binary_dilation(outside, structure=np.ones((3, 3), dtype=bool))
+        edge = np.flatnonzero(in_band & near_out)
+        forced.append(edge)
+    # spaces: the skeleton point most interior to the space's free cells
+    space_node: dict[int, str] = {}
+    for space in inp.spaces:
+        cells = space.cells & free
+        on = skeleton & cells
+        if not on.any():
+            if cells.any():
+                notes.append(f"{inp.storey}: space {space.name} has free cells but no lane reaches them")
+            continue
+        depth = ndimage.distance_transform_edt(np.pad(cells, 1))[1:-1, 1:-1]
+        idx = np.flatnonzero(on)
+        d = depth.flat[idx]
+        deep = idx[d >= d.max() - 1.0]  # the deepest skeleton points (within a cell): the most central
+        rows, cols = np.nonzero(cells)
+        centre = np.array([rows.mean(), cols.mean()])
+        rc = np.stack(np.divmod(deep, w), axis=1)
+        best = int(deep[np.argmin(np.hypot(*(rc - centre).T))])
+        if best in space_node:
+            notes.append(f"{inp.storey}: spaces {space_node[best]} and {space.name} share a vertex")
+            continue
+        space_node[best] = space.name
+        forced.append(np.array([best], dtype=np.int64))
+    # points: attach each to the nearest skeleton pixel it sees
+    tree = cKDTree(sk_rc) if len(sk_rc) else None
+    attach: list[tuple[RouteVertex, int]] = []
+    for point in inp.points:
+        cx, cy = _cell(frame, point.x, point.y)
+        r, c = round(cy), round(cx)
+        if not (0 <= r < h and 0 <= c < w and free[r, c]):
+            notes.append(
+                f"{inp.storey}: {point.kind} {point.name or point.lift} at ({point.x:.2f}, "
+                f"{point.y:.2f}) is not in free space for this robot"
+            )
+            continue
+        target = _visible_pixel(tree, sk_idx, free, (cy, cx)) if tree is not None else None
+        if target is None:
+            notes.append(f"{inp.storey}: {point.kind} {point.name or point.lift} sees no lane")
+            continue
+        attach.append((point, target))
+        forced.append(np.array([target], dtype=np.int64))
+    forced_px = np.unique(np.concatenate(forced)) if forced else np.empty(0, dtype=np.int64)
+    nodes, chains = trace(skeleton, forced_px)
+    # vertices of nodes
+    vertices: list[RouteVertex] = []
+    vertex_of: dict[int, int] = {}
+    node_rc: dict[int, tuple[float, float]] = {}
+    for node, pixels in nodes.items():
+        rc = np.stack(np.divmod(pixels, w), axis=1).astype(np.float64)
+        pick = int(np.argmin(np.hypot(*(rc - rc.mean(axis=0)).T)))
+        node_rc[node] = (float(rc[pick, 0]), float(rc[pick, 1]))
+        x, y = _world(frame, *node_rc[node])
+        name = space_node.get(node, "")
+        vertex_of[node] = len(vertices)
+        vertices.append(RouteVertex(x, y, name=name, kind="space" if name else "lane"))
+    lanes: dict[tuple[int, int], str] = {}
+    tol = max(SIMPLIFY_M / res, 1.5)
+    max_cells = inp.max_lane_m / res
+    door_kinds: set[int] = set()
+    passable: set[str] = set()
+    for chain in chains:
+        rc = np.stack(np.divmod(chain.pixels, w), axis=1).astype(np.float64)
+        rc[0], rc[-1] = node_rc[chain.start], node_rc[chain.end]
+        door_k = _door_of(chain.pixels, band_of, side_of)
+        if door_k is not None and segments_free(free, rc[:1], rc[-1:])[0]:
+            keep = np.array([0, len(rc) - 1])
+        else:
+            keep = simplify(rc, free, tolerance=tol)
+        ids = [vertex_of[chain.start]]
+        for k in keep[1:-1]:
+            x, y = _world(frame, *rc[k])
+            ids.append(len(vertices))
+            vertices.append(RouteVertex(x, y))
+        ids.append(vertex_of[chain.end])
+        pts = rc[keep]
+        crossing = np.zeros(len(pts) - 1, dtype=np.bool_)
+        if door_k is not None:
+            d = inp.doors[door_k]
+            cx, cy = _cell(frame, d.x, d.y)
+            across = np.sign((pts[:, 1] - cx) * -d.uy + (pts[:, 0] - cy) * d.ux)
+            crossing = (across[:-1] != across[1:]) | (across[:-1] == 0)
+        for s in range(len(ids) - 1):
+            a, b = ids[s], ids[s + 1]
+            name = ""
+            if door_k is not None and crossing[s]:
+                name = inp.doors[door_k].name
+                door_kinds.update((a, b))
+                passable.add(name)
+            n_parts = 1 if name else max(1, math.ceil(float(np.hypot(*(pts[s + 1] - pts[s]))) / max_cells))
+            prev = a
+            for part in range(1, n_parts):
+                p = pts[s] + (pts[s + 1] - pts[s]) * part / n_parts
+                x, y = _world(frame, float(p[0]), float(p[1]))
+                vertices.append(RouteVertex(x, y))
+                _add_lane(lanes, prev, len(vertices) - 1, "")
+                prev = len(vertices) - 1
+            _add_lane(lanes, prev, b, name)
+    for i in door_kinds:
+        if vertices[i].kind == "lane":
+            vertices[i] = replace(vertices[i], kind="door")
+    for point, target in attach:
+        vertices.append(point)
+        _add_lane(lanes, len(vertices) - 1, vertex_of[target], "")
+    _shortcuts(vertices, lanes, frame, free, inp.max_lane_m)
+    used = sorted({i for ab in lanes for i in ab} | {i for i, v in enumerate(vertices) if v.name or v.lift})
+    if len(used) < len(vertices):  # drop vertices no lane uses (isolated skeleton specks) but named ones
+        keep_vertex = set(used) | {vertex_of[n] for n in nodes if len(nodes[n]) > 0 and _alone(n, chains)}
+        remap = {old: new for new, old in enumerate(sorted(keep_vertex))}
+        vertices = [vertices[i] for i in sorted(keep_vertex)]
+        lanes = {(remap[a], remap[b]): d for (a, b), d in lanes.items()}
+    for door in inp.doors:
+        if door.name not in passable:
+            notes.append(
+                f"{inp.storey}: door {door.name} ({door.width_m:.2f} m wide) is not passable for this robot"
+            )
+    routes = StoreyRoutes(
+        storey=inp.storey,
+        elevation_m=inp.elevation_m,
+        vertices=tuple(vertices),
+        lanes=tuple(RouteLane(a, b, d) for (a, b), d in sorted(lanes.items())),
+    )
+    return StoreyResult(routes, passable, notes)
+
+
+def _alone(node: int, chains: Sequence[Chain]) -> bool:
+    """A node no chain touches: an isolated free speck, still a place the robot can be."""
+    return not any(node in (c.start, c.end) for c in chains)
+
+
+def _add_lane(lanes: dict[tuple[int, int], str], a: int, b: int, door: str) -> None:
+    if a == b:
+        return
+    key = (min(a, b), max(a, b))
+    if door or key not in lanes:
+        lanes[key] = door
+
+
+def _door_of(pixels: IntArray, band_of: IntArray, side_of: npt.NDArray[np.int8]) -> int | None:
+    """The door a chain passes through: all its pixels in one door's band, on both of its sides."""
+    bands = band_of[pixels]
+    inner = bands[1:-1] if len(bands) > 2 else bands
+    if len(inner) == 0 or inner[0] < 0 or not np.all(inner == inner[0]):
+        return None
+    sides = side_of[pixels][band_of[pixels] == inner[0]]
+    if (sides > 0).any() and (sides < 0).any():
+        return int(inner[0])
+    return None
+
+
+def _visible_pixel(
+    tree: cKDTree, sk_idx: IntArray, free: BoolArray, rc: tuple[float, float], k: int = 64
+) -> int | None:
+    """The nearest skeleton pixel that the point ``rc`` (cell coordinates) sees."""
+    k = min(k, len(sk_idx))
+    _, near = tree.query(np.array(rc), k=k)
+    near = np.atleast_1d(near)
+    w = free.shape[1]
+    targets = np.stack(np.divmod(sk_idx[near], w), axis=1).astype(np.float64)
+    ok = segments_free(free, np.repeat(np.array([rc]), len(near), axis=0), targets)
+    hits = np.flatnonzero(ok)
+    return int(sk_idx[near[hits[0]]]) if len(hits) else None
+
+
+def _shortcuts(
+    vertices: list[RouteVertex],
+    lanes: dict[tuple[int, int], str],
+    frame: GridFrame,
+    free: BoolArray,
+    max_lane_m: float,
+) -> None:
+    """Add straight lanes between vertices within ``max_lane_m`` that see each other where the graph's
+    way is more than :data:`SHORTCUT_RATIO` times longer (door vertices excepted: a door's lane is
+    the way through it)."""
+    if len(vertices) < 3:
+        return
+    xy = np.array([(v.x, v.y) for v in vertices])
+    g = nx.Graph()
+    g.add_nodes_from(range(len(vertices)))
+    for a, b in lanes:
+        g.add_edge(a, b, weight=float(np.hypot(*(xy[a] - xy[b]))))
+    pairs = np.array(sorted(cKDTree(xy).query_pairs(max_lane_m)), dtype=np.int64).reshape(-1, 2)
+    if not len(pairs):
+        return
+    blocked = np.array([vertices[i].kind in ("door", "lift") for i in range(len(vertices))])
+    pairs = pairs[~blocked[pairs].any(axis=1)]
+    pairs = pairs[[(int(a), int(b)) not in lanes for a, b in pairs]] if len(pairs) else pairs
+    if not len(pairs):
+        return
+    straight = np.hypot(*(xy[pairs[:, 0]] - xy[pairs[:, 1]]).T)
+    res = frame.resolution_m
+    cells = np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
+    visible = segments_free(free, cells[pairs[:, 0]], cells[pairs[:, 1]])
+    pairs, straight = pairs[visible], straight[visible]
+    order = np.lexsort((straight, pairs[:, 0]))
+    cutoff = SHORTCUT_RATIO * max_lane_m
+    source, dist = -1, {}
+    for (pa, pb), d in zip(pairs[order], straight[order], strict=True):
+        a, b = int(pa), int(pb)
+        if a != source:
+            source, dist = a, nx.single_source_dijkstra_path_length(g, a, cutoff=cutoff, weight="weight")
+        if dist.get(b, math.inf) > SHORTCUT_RATIO * d:
+            lanes[(a, b)] = ""
+            g.add_edge(a, b, weight=float(d))
+            dist[b] = float(d)
+
+
+def _cell(frame: GridFrame, x: float, y: float) -> tuple[float, float]:
+    """``(col, row)`` cell coordinates of world ``(x, y)`` (cell centres at whole numbers)."""
+    res = frame.resolution_m
+    return (x - frame.origin_x) / res - 0.5, (y - frame.origin_y) / res - 0.5
+
+
+def _world(frame: GridFrame, row: float, col: float) -> tuple[float, float]:
+    res = frame.resolution_m
+    return (round(frame.origin_x + (col + 0.5) * res, 6), round(frame.origin_y + (row + 0.5) * res, 6))
