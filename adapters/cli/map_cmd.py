@@ -1,5 +1,6 @@
-"""``twin map``: write skill maps of a store as nav2 map_server files, PNG previews and CDR messages, and
-``points`` skills' clouds as PCD files and CDR ``sensor_msgs/PointCloud2`` messages."""
+"""``twin map``: write skill maps of a store as nav2 map_server files, PNG previews and CDR messages,
+``points`` skills' clouds as PCD files and CDR ``sensor_msgs/PointCloud2`` messages, and ``routes``
+skills' route graphs as an Open-RMF nav graph and nav2 GeoJSON (:mod:`adapters.cli.map_routes`)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from adapters.cli.common import add_store_args, open_store
+from adapters.cli.map_routes import write_routes
 from adapters.ros import write_map_files
 from adapters.ros.pcd import points_offset, write_points_files
 from twin.config import Config
@@ -24,7 +26,9 @@ def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
     if args.all_skills == bool(args.skill):
         msg = "Give either --skill NAME (repeatable) or --all-skills."
         raise SkillError(msg)
-    skills = [cfg.skill(name) for name in (args.skill or sorted(cfg.skills))]
+    names = args.skill or sorted([*cfg.skills, *cfg.routes])
+    routes = [name for name in names if name in cfg.routes]  # kind = "routes": route graphs
+    skills = [cfg.skill(name) for name in names if name not in cfg.routes]
     out = Path(args.out) if args.out else cfg.maps_out
     stamp_ns = time.time_ns()
     with open_store(args, cfg, read_only=True) as store:
@@ -34,6 +38,8 @@ def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
             f"loaded {len(scene.elements)} elements ({len(scene.elements.triangles):,} triangles) "
             f"in {time.perf_counter() - t0:.2f} s"
         )
+        for name in routes:
+            write_routes(cfg, store, scene, name, out)
         storeys = [scene.storey(args.storey)] if args.storey else list(scene.storeys)
         if not storeys:
             msg = "The model has no storey (IfcBuildingStorey): maps are made per storey."

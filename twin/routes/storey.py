@@ -334,4 +334,5 @@ def _cell(frame: GridFrame, x: float, y: float) -> tuple[float, float]:
 
 def _world(frame: GridFrame, row: float, col: float) -> tuple[float, float]:
     res = frame.resolution_m
-    return (round(frame.origin_x + (col + 0.5) * res, 6), round(frame.origin_y + (row + 0.5) * res, 6))
+    x, y = frame.origin_x + (col + 0.5) * res, frame.origin_y + (row + 0.5) * res
+    return (round(float(x), 6), round(float(y), 6))

@@ -1,0 +1,74 @@
+"""``twin map --skill <routes skill>``: a fleet's route graph as Open-RMF and nav2 files.
+
+The RMF door names come from the configured ``[sources.NAME] doors`` tables (RMF name -> the twin
+door's IRI, GlobalId or name), the RMF levels from their ``levels`` tables, the GeoJSON's frame from
+``[ros] frame_id``.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from adapters.ros.rmf import DoorIndex
+from adapters.ros.routes import RouteFiles, rmf_levels, write_route_files
+from adapters.ros.settings import RosSettings, ros_sources
+from twin.config import Config
+from twin.graph.rdf import literal_value
+from twin.graph.store import GraphStore
+from twin.maps.scene import Scene
+from twin.routes.build import build_routes
+from twin.routes.graph import RouteGraph
+
+_DOORS = """SELECT ?e ?name WHERE { ?e twin:ifcType "IfcDoor" . OPTIONAL { ?e rdfs:label ?name } }"""
+
+
+def rmf_door_names(cfg: Config, store: GraphStore) -> dict[str, str]:
+    """Door IRI -> the RMF door name a configured door table gives it."""
+    rows = store.select(_DOORS)
+    index = DoorIndex((literal_value(r["e"]) or "", literal_value(r["name"]) or "") for r in rows)
+    out: dict[str, str] = {}
+    for source in ros_sources(cfg).values():
+        for rmf_name, key in source.doors:
+            iri = index.find(key)
+            if iri is not None:
+                out.setdefault(iri, rmf_name)
+    return out
+
+
+def route_graph(cfg: Config, store: GraphStore, scene: Scene, name: str) -> RouteGraph:
+    """The routes skill ``name``'s graph of the store's building."""
+    levels = rmf_levels(ros_sources(cfg).values())
+    return build_routes(
+        store,
+        scene,
+        cfg.routes[name],
+        cfg.skills,
+        margin_m=cfg.margin_m,
+        door_names=rmf_door_names(cfg, store),
+        level_names={storey: level for storey, (level, _) in levels.items()},
+    )
+
+
+def write_routes(cfg: Config, store: GraphStore, scene: Scene, name: str, out: Path) -> RouteFiles:
+    """Build and write the routes skill ``name``'s files; prints what it made."""
+    t0 = time.perf_counter()
+    graph = route_graph(cfg, store, scene, name)
+    files = write_route_files(
+        graph,
+        out,
+        levels=rmf_levels(ros_sources(cfg).values()),
+        frame_id=cfg.section(RosSettings).frame_id,
+        open_door_operations=cfg.routes[name].open_door_operations,
+    )
+    passable = sum(d.passable for d in graph.doors)
+    vertices = sum(len(s.vertices) for s in graph.storeys)
+    lanes = sum(len(s.lanes) for s in graph.storeys)
+    print(
+        f"{name}: {vertices} waypoints, {lanes} two-way lanes on {len(graph.storeys)} storeys, "
+        f"{passable}/{len(graph.doors)} doors passable, {len(graph.lifts)} lifts, "
+        f"{time.perf_counter() - t0:.2f} s -> {files.nav_graph}"
+    )
+    for note in graph.notes:
+        print(f"  {note}")
+    return files
