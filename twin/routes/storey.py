@@ -40,6 +40,9 @@ SIMPLIFY_M = 0.1
 """How far a lane may stray from the medial axis it replaces (m)."""
 SHORTCUT_RATIO = 1.15
 """A shortcut is added where the graph's way is longer than this many times the straight line."""
+OPEN_SPACE_FRACTION = 0.75
+"""Open space gets lattice vertices where it lies this many lattice spacings from every lane."""
+"""A shortcut is added where the graph's way is longer than this many times the straight line."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -223,6 +226,7 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
     for point, target in attach:
         vertices.append(point)
         _add_lane(lanes, len(vertices) - 1, vertex_of[target], "")
+    _open_space(vertices, lanes, frame, free, inp.max_lane_m)
     _shortcuts(vertices, lanes, frame, free, inp.max_lane_m)
     used = sorted({i for ab in lanes for i in ab} | {i for i, v in enumerate(vertices) if v.name or v.lift})
     if len(used) < len(vertices):  # drop vertices no lane uses (isolated skeleton specks) but named ones
@@ -281,6 +285,63 @@ def _visible_pixel(
     ok = segments_free(free, np.repeat(np.array([rc]), len(near), axis=0), targets)
     hits = np.flatnonzero(ok)
     return int(sk_idx[near[hits[0]]]) if len(hits) else None
+
+
+def _open_space(
+    vertices: list[RouteVertex],
+    lanes: dict[tuple[int, int], str],
+    frame: GridFrame,
+    free: BoolArray,
+    max_lane_m: float,
+) -> None:
+    """Fill open space: a lattice of vertices (spacing :func:`lattice_m`) where free space lies farther
+    from every lane than most of a spacing, each joined to the vertices within 1.5 spacings it sees.
+
+    The medial axis of a wide room is one line (or an X) down its middle: a route between two points
+    near one wall would go to the middle and back. The lattice gives such rooms lanes where robots
+    actually cross them."""
+    if not vertices or not lanes:
+        return
+    res = frame.resolution_m
+    step = lattice_m(max_lane_m)
+    lane_cells = np.zeros_like(free)
+    xy = np.array([(v.x, v.y) for v in vertices])
+    cells = np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
+    for a, b in lanes:
+        n = max(2, math.ceil(float(np.hypot(*(cells[b] - cells[a]))) * 2) + 1)
+        pts = np.rint(cells[a] + (cells[b] - cells[a]) * np.linspace(0.0, 1.0, n)[:, None]).astype(np.int64)
+        lane_cells[pts[:, 0], pts[:, 1]] = True
+    far = ndimage.distance_transform_edt(~lane_cells) * res >= OPEN_SPACE_FRACTION * step
+    k = max(1, round(step / res))
+    h, w = free.shape
+    # lattice nodes anchored to the world (not the grid's origin): the same cells whatever the extent
+    r0 = (-round(frame.origin_y / res)) % k
+    c0 = (-round(frame.origin_x / res)) % k
+    rows, cols = np.meshgrid(np.arange(r0, h, k), np.arange(c0, w, k), indexing="ij")
+    keep = free[rows, cols] & far[rows, cols]
+    new = np.stack([rows[keep], cols[keep]], axis=1).astype(np.float64)
+    if not len(new):
+        return
+    first = len(vertices)
+    for r, c in new:
+        x, y = _world(frame, float(r), float(c))
+        vertices.append(RouteVertex(x, y))
+    every = np.concatenate([cells, new])
+    tree = cKDTree(every)
+    pairs = np.array(sorted(tree.query_pairs(1.5 * step / res + 1e-6)), dtype=np.int64).reshape(-1, 2)
+    pairs = pairs[(pairs >= first).any(axis=1)]
+    if not len(pairs):
+        return
+    blocked = np.array([v.kind in ("door", "lift") for v in vertices])
+    pairs = pairs[~blocked[pairs].any(axis=1)]
+    visible = segments_free(free, every[pairs[:, 0]], every[pairs[:, 1]])
+    for a, b in pairs[visible]:
+        _add_lane(lanes, int(a), int(b), "")
+
+
+def lattice_m(max_lane_m: float) -> float:
+    """The spacing of the open-space lattice: a third of the longest lane, 0.75 to 1.5 m."""
+    return min(max(max_lane_m / 3, 0.75), 1.5)
 
 
 def _shortcuts(
