@@ -3,8 +3,8 @@
 For a model (the sample lab, ``--lab``, or an IFC file, ``--model``) and robot radii (default 0.25 m and
 0.45 m, each a navigation skill like the shipped one with that ``inflation_radius_m``), builds a routes
 skill's graph storey by storey (:func:`twin.routes.build.build_routes`, one storey at a time, timed)
-and measures it against the cells it was made from (the inflated navigation map with doors open and
-lift cars exempt):
+and measures it against the cells it was made from (:func:`twin.routes.build.routable_cells`: the
+inflated navigation map with doors open and lift cars exempt, over the storey's floor):
 
 - **safe**: lanes whose centre line crosses a blocked cell (the sampling of ``twin.routes.lines``);
 - **complete**: free regions (8-connected) without a vertex, graph components that join two regions,
@@ -15,7 +15,8 @@ lift cars exempt):
   pairs and of the pairs at least 2 m apart;
 - **covering**: the farthest free cell from a lane (target <= max_lane_m), and the share of 2,000
   random free cells that see a vertex among their 32 nearest;
-- **fast**: seconds per storey (map rendering included).
+- **fast**: seconds per storey, wall and CPU (the navigation map's rendering included; ``cells_s``:
+  the wall seconds of the routable cells alone, map included).
 
 Usage::
 
@@ -49,37 +50,24 @@ from adapters.ifc import read_model  # noqa: E402
 from adapters.ifc.sample_lab import write_lab  # noqa: E402
 from twin.config import load_config  # noqa: E402
 from twin.graph.import_model import import_model  # noqa: E402
-from twin.graph.rdf import literal_value  # noqa: E402
 from twin.graph.store import EmbeddedStore, GraphStore  # noqa: E402
 from twin.maps.grid import GridFrame  # noqa: E402
-from twin.maps.render import build_map, plan_map  # noqa: E402
-from twin.maps.scene import Scene, load_scene  # noqa: E402
-from twin.routes.build import build_routes  # noqa: E402
+from twin.maps.scene import load_scene  # noqa: E402
+from twin.routes.build import RouteContext, build_routes, prepare_routes, routable_cells  # noqa: E402
 from twin.routes.errors import RouteError  # noqa: E402
 from twin.routes.graph import RouteGraph, StoreyRoutes  # noqa: E402
 from twin.routes.lines import segments_free  # noqa: E402
 from twin.routes.settings import parse_routes  # noqa: E402
-from twin.selection.skill_selection import selection_query  # noqa: E402
-from twin.selection.skills import SkillProfile  # noqa: E402
 
 LONG_PAIR_M = 2.0
 """Pairs at least this far apart (grid path) are also reported on their own: closer pairs are within a
 lattice spacing or two, where joining the graph at both ends dominates the route."""
-_EXEMPT = 'SELECT ?e WHERE { { ?e twin:ifcType "IfcDoor" } UNION { ?e twin:ifcType "IfcTransportElement" } }'
 
 
-def free_cells(
-    store: GraphStore, scene: Scene, nav: SkillProfile, storey: str
-) -> tuple[np.ndarray, GridFrame]:
-    """The cells the graph is made from: the inflated navigation map, doors open, lift cars exempt."""
-    exempt = {literal_value(r["e"]) for r in store.select(_EXEMPT)}
-    iris = [
-        i
-        for r in store.select(selection_query(nav))
-        if (i := literal_value(r["element"]) or "") not in exempt
-    ]
-    grid = build_map(scene, plan_map(scene, nav, storey, iris))
-    return grid.data == 0, grid.frame
+def free_cells(ctx: RouteContext, storey: str) -> tuple[np.ndarray, GridFrame]:
+    """The cells the graph is made from (:func:`twin.routes.build.routable_cells`)."""
+    plan, free = routable_cells(ctx, storey)
+    return free, plan.frame
 
 
 def to_cells(frame: GridFrame, xy: np.ndarray) -> np.ndarray:
@@ -262,7 +250,18 @@ def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespa
             wall, cpu = time.perf_counter() - t0, time.process_time() - c0
             (s,) = graph.storeys
             storeys.append(s)
-            free, frame = free_cells(store, scene, nav, storey.key)
+            row = {
+                "model": name,
+                "radius_m": radius,
+                "storey": storey.key,
+                "wall_s": round(wall, 3),
+                "cpu_s": round(cpu, 3),
+            }
+            t1 = time.perf_counter()
+            free, frame = free_cells(
+                prepare_routes(store, scene, routes, skills, margin_m=cfg.margin_m), storey.key
+            )
+            row["cells_s"] = round(time.perf_counter() - t1, 3)
             frees[storey.key] = (free, frame)
             row = {
                 "model": name,

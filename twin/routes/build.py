@@ -98,26 +98,11 @@ def build_routes(
         RouteError: a missing navigation or keepout skill, an unknown storey, a robot wider than every
             door, a storey with no free space, a waypoint off the served storeys.
     """
-    check_routes(routes, skills)
-    nav = skills[routes.navigation]
-    radius = nav.inflation_radius_m
+    ctx = prepare_routes(store, scene, routes, skills, margin_m=margin_m, door_names=door_names)
+    nav, radius, door_shapes = ctx.nav, ctx.nav.inflation_radius_m, ctx.door_shapes
     levels = dict(level_names or {})
-    storeys = _served(scene, routes)
-    doors = _elements(store, DOOR_TYPES[0])
-    lifts = _elements(store, LIFT_TYPES[0])
-    exempt = {d.iri for d in doors} | {lift.iri for lift in lifts}
-    iris = [
-        i
-        for r in store.select(selection_query(nav))
-        if (i := literal_value(r["element"]) or "") not in exempt
-    ]
-    keepouts = [replace(skills[k], resolution_m=nav.resolution_m) for k in routes.keepout]
-    keepout_iris = {
-        k.name: [literal_value(r["element"]) or "" for r in store.select(selection_query(k))]
-        for k in keepouts
-    }
-    door_shapes = _door_shapes(scene, doors, door_names or {})
-    lift_records = _lifts(scene, lifts, storeys, nav)
+    storeys = ctx.storeys
+    lift_records = _lifts(scene, ctx.lifts, storeys, nav)
     space_names = {
         literal_value(r["sp"]) or "": literal_value(r["name"]) or "" for r in store.select(_SPACES)
     }
@@ -125,20 +110,7 @@ def build_routes(
     results: list[StoreyRoutes] = []
     crossings: list[DoorCrossing] = []
     notes: list[str] = []
-    frees: list[tuple[MapPlan, np.ndarray]] = []
-    for storey in storeys:
-        plan = plan_map(scene, nav, storey.key, iris, margin_m=margin_m)
-        free = build_map(scene, plan).data == 0
-        for k in keepouts:
-            kplan = plan_map(scene, k, storey.key, keepout_iris[k.name], margin_m=margin_m)
-            free &= build_map(scene, kplan).data == 0
-        if not free.any():
-            msg = (
-                f"Routes skill {routes.name!r}: storey {storey.key!r} has no free space for its robot "
-                f"(navigation skill {nav.name!r}: radius {radius} m, height {nav.robot_height_m} m)."
-            )
-            raise RouteError(msg)
-        frees.append((plan, free))
+    frees = [routable_cells(ctx, storey.key) for storey in storeys]
     if door_shapes and 2 * radius > max(d.width_m for _, d in door_shapes) + 1e-6:
         widest = max(d.width_m for _, d in door_shapes)
         msg = (
@@ -173,7 +145,7 @@ def build_routes(
                 spaces=spaces,
                 points=points,
                 max_lane_m=routes.max_lane_m,
-                door_reach_m=max(radius, 0.25) + 0.25,
+                door_reach_m=door_reach(radius),
             )
         )
         results.append(result.routes)
@@ -198,6 +170,139 @@ def build_routes(
         lifts=tuple(lift_records),
         notes=tuple(notes),
     )
+
+
+@dataclass(frozen=True, slots=True)
+class RouteContext:
+    """What every storey of a routes skill's graph is made from (see :func:`prepare_routes`)."""
+
+    store: GraphStore
+    scene: Scene
+    routes: RouteProfile
+    nav: SkillProfile
+    margin_m: float
+    storeys: list[StoreyInfo]
+    iris: list[str]
+    """The navigation skill's elements but doors and lifts."""
+    keepouts: list[tuple[SkillProfile, list[str]]]
+    door_shapes: list[tuple[int, DoorShape]]
+    lifts: list[_Named]
+    slabs: np.ndarray
+    """Element indices of the slabs (floors) of the model."""
+
+
+def door_reach(radius_m: float) -> float:
+    """How far from a door's leaf its side vertices lie (the robot's radius + 0.25 m, at least 0.5 m)."""
+    return max(radius_m, 0.25) + 0.25
+
+
+def prepare_routes(
+    store: GraphStore,
+    scene: Scene,
+    routes: RouteProfile,
+    skills: Mapping[str, SkillProfile],
+    *,
+    margin_m: float = 1.0,
+    door_names: Mapping[str, str] | None = None,
+) -> RouteContext:
+    """Check the routes skill against the skills and the model, and gather its elements."""
+    check_routes(routes, skills)
+    nav = skills[routes.navigation]
+    storeys = _served(scene, routes)
+    doors = _elements(store, DOOR_TYPES[0])
+    lifts = _elements(store, LIFT_TYPES[0])
+    exempt = {d.iri for d in doors} | {lift.iri for lift in lifts}
+    iris = [
+        i
+        for r in store.select(selection_query(nav))
+        if (i := literal_value(r["element"]) or "") not in exempt
+    ]
+    keepouts = []
+    for k in routes.keepout:
+        keepout = replace(skills[k], resolution_m=nav.resolution_m)
+        keepouts.append(
+            (keepout, [literal_value(r["element"]) or "" for r in store.select(selection_query(keepout))])
+        )
+    slabs = scene.elements.indices_of([s.iri for s in _elements(store, "IfcSlab")])
+    return RouteContext(
+        store=store,
+        scene=scene,
+        routes=routes,
+        nav=nav,
+        margin_m=margin_m,
+        storeys=storeys,
+        iris=iris,
+        keepouts=keepouts,
+        door_shapes=_door_shapes(scene, doors, door_names or {}),
+        lifts=lifts,
+        slabs=slabs,
+    )
+
+
+def routable_cells(ctx: RouteContext, storey_key: str) -> tuple[MapPlan, np.ndarray]:
+    """The plan of the storey's navigation map and the cells where the robot's centre may be: free in
+    that map drawn with doors open and lift cars left out, outside the keepout zones and, unless the
+    skill sets ``outdoors``, over the storey's floor (its slabs and spaces, and the ground about its
+    doors)."""
+    scene, nav = ctx.scene, ctx.nav
+    plan = plan_map(scene, nav, storey_key, ctx.iris, margin_m=ctx.margin_m)
+    free = build_map(scene, plan).data == 0
+    for keepout, iris in ctx.keepouts:
+        kplan = plan_map(scene, keepout, storey_key, iris, margin_m=ctx.margin_m)
+        free &= build_map(scene, kplan).data == 0
+    if not ctx.routes.outdoors:
+        floor = _floor(ctx, plan)
+        if floor is not None:
+            free &= floor
+    if not free.any():
+        msg = (
+            f"Routes skill {ctx.routes.name!r}: storey {storey_key!r} has no free space for its robot "
+            f"(navigation skill {nav.name!r}: radius {nav.inflation_radius_m} m, height "
+            f"{nav.robot_height_m} m)."
+        )
+        raise RouteError(msg)
+    return plan, free
+
+
+FLOOR_BAND_M = (-0.6, 0.05)
+"""A slab is the storey's floor where it lies in this band about the storey's elevation (m)."""
+
+
+def _floor(ctx: RouteContext, plan: MapPlan) -> np.ndarray | None:
+    """The cells over the storey's floor: its slabs' and spaces' footprints (small gaps closed), and
+    a disc about each of its doors (the ground outside an entrance); None: the storey has neither."""
+    scene, frame = ctx.scene, plan.frame
+    elev = plan.storey.elevation_m
+    lo, hi = elev + FLOOR_BAND_M[0], elev + FLOOR_BAND_M[1]
+    b = scene.elements.bounds[ctx.slabs] if len(ctx.slabs) else np.empty((0, 6))
+    slabs = ctx.slabs[(b[:, 5] >= lo) & (b[:, 5] <= hi + 0.3)] if len(b) else ctx.slabs
+    if not len(slabs) and not len(plan.spaces):
+        return None
+    floor = np.zeros(frame.shape, dtype=np.bool_)
+    if len(slabs):
+        floor |= occupancy(scene.elements, slabs, replace(plan, z_lo=lo, z_hi=hi), frame.full)
+    if len(plan.spaces):
+        floor |= occupancy(
+            scene.spaces, plan.spaces, replace(plan, z_lo=elev + 0.1, z_hi=elev + 0.5), frame.full
+        )
+    if not floor.any():
+        return None
+    gap = max(1, round(0.25 / frame.resolution_m))
+    floor = np.asarray(ndimage.binary_closing(floor, structure=np.ones((3, 3), dtype=bool), iterations=gap))
+    res = frame.resolution_m
+    reach = door_reach(ctx.nav.inflation_radius_m) + ctx.nav.inflation_radius_m
+    for index, door in ctx.door_shapes:
+        if not _on(scene, index, plan):
+            continue
+        r = (door.width_m / 2 + reach) / res
+        cx, cy = (door.x - frame.origin_x) / res - 0.5, (door.y - frame.origin_y) / res - 0.5
+        window = frame.window_for(door.x - r * res, door.y - r * res, door.x + r * res, door.y + r * res)
+        rows = np.arange(window.row0, window.row1)[:, None]
+        cols = np.arange(window.col0, window.col1)[None, :]
+        floor[window.row0 : window.row1, window.col0 : window.col1] |= (rows - cy) ** 2 + (
+            cols - cx
+        ) ** 2 <= r * r
+    return floor
 
 
 def _served(scene: Scene, routes: RouteProfile) -> list[StoreyInfo]:

@@ -13,6 +13,7 @@ need to know about the fleet::
     storeys = ["ground-floor"]       # storeys served (default: every storey)
     keepout = ["keepout"]            # keepout skills whose zones no lane crosses
     max_lane_m = 3.0                 # no lane longer than this
+    outdoors = false                 # lanes only over the storeys' floors (slabs, spaces, entrances)
     waypoints.charger1 = { storey = "ground-floor", x = 12.0, y = 8.0, charger = true }
     waypoints.desk = { at = "Room A", parking_spot = true }    # an IfcSpace's name
 
@@ -83,6 +84,10 @@ class RoutesTable(ConfigTable):
     open_door_operations: Flag = Field(
         False, description="nav2 GeoJSON: an open_door operation on door edges (the plugin must exist)."
     )
+    outdoors: Flag = Field(
+        False,
+        description="Lanes also where the storey has no floor (slab or space): outside the building.",
+    )
     waypoints: dict[str, WaypointTable] = Field(default_factory=dict, description="Named waypoints.")
     description: Text = ""
 
@@ -119,6 +124,7 @@ class RouteProfile:
     keepout: tuple[str, ...] = ()
     max_lane_m: float = 3.0
     open_door_operations: bool = False
+    outdoors: bool = False
     waypoints: tuple[Waypoint, ...] = ()
     description: str = ""
 
@@ -143,6 +149,7 @@ def parse_routes(name: str, data: Mapping[str, Any]) -> RouteProfile:
         keepout=tuple(dict.fromkeys(table.keepout)),
         max_lane_m=table.max_lane_m,
         open_door_operations=table.open_door_operations,
+        outdoors=table.outdoors,
         waypoints=tuple(
             Waypoint(
                 name=wp,

@@ -27,6 +27,8 @@ import networkx as nx
 import numpy as np
 import numpy.typing as npt
 from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
 from twin.maps.grid import GridFrame
@@ -133,7 +135,7 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
             if cells.any():
                 notes.append(f"{inp.storey}: space {space.name} has free cells but no lane reaches them")
             continue
-        depth = ndimage.distance_transform_edt(np.pad(cells, 1))[1:-1, 1:-1]
+        depth = _depth(cells)
         idx = np.flatnonzero(on)
         d = depth.flat[idx]
         deep = idx[d >= d.max() - 1.0]  # the deepest skeleton points (within a cell): the most central
@@ -200,9 +202,9 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         pts = rc[keep]
         crossing = np.zeros(len(pts) - 1, dtype=np.bool_)
         if door_k is not None:
-            d = inp.doors[door_k]
-            cx, cy = _cell(frame, d.x, d.y)
-            across = np.sign((pts[:, 1] - cx) * -d.uy + (pts[:, 0] - cy) * d.ux)
+            crossed = inp.doors[door_k]
+            cx, cy = _cell(frame, crossed.x, crossed.y)
+            across = np.sign((pts[:, 1] - cx) * -crossed.uy + (pts[:, 0] - cy) * crossed.ux)
             crossing = (across[:-1] != across[1:]) | (across[:-1] == 0)
         for s in range(len(ids) - 1):
             a, b = ids[s], ids[s + 1]
@@ -246,6 +248,16 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         lanes=tuple(RouteLane(a, b, d) for (a, b), d in sorted(lanes.items())),
     )
     return StoreyResult(routes, passable, notes)
+
+
+def _depth(cells: BoolArray) -> FloatArray:
+    """``(h, w)``: each cell's distance (cells) to the nearest cell outside ``cells``, computed on
+    ``cells``' bounding box only."""
+    rows, cols = np.nonzero(cells)
+    r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
+    depth = np.zeros(cells.shape)
+    depth[r0:r1, c0:c1] = ndimage.distance_transform_edt(np.pad(cells[r0:r1, c0:c1], 1))[1:-1, 1:-1]
+    return depth
 
 
 def _alone(node: int, chains: Sequence[Chain]) -> bool:
@@ -370,6 +382,19 @@ def _shortcuts(
     if not len(pairs):
         return
     straight = np.hypot(*(xy[pairs[:, 0]] - xy[pairs[:, 1]]).T)
+    # first the graph's ways as they are (cheap, all sources in chunks): only detours need a sight test
+    n = len(vertices)
+    ab = np.array(list(lanes), dtype=np.int64).reshape(-1, 2)
+    w = np.hypot(*(xy[ab[:, 0]] - xy[ab[:, 1]]).T) + 1e-9
+    adjacency = coo_matrix((w, (ab[:, 0], ab[:, 1])), shape=(n, n)).tocsr()
+    way = np.empty(len(pairs))
+    sources = np.unique(pairs[:, 0])
+    for chunk in np.array_split(sources, max(1, len(sources) // 256)):
+        rows = dijkstra(adjacency, directed=False, indices=chunk, limit=SHORTCUT_RATIO * max_lane_m)
+        at = np.isin(pairs[:, 0], chunk)
+        way[at] = rows[np.searchsorted(chunk, pairs[at, 0]), pairs[at, 1]]
+    detour = way > SHORTCUT_RATIO * straight
+    pairs, straight = pairs[detour], straight[detour]
     res = frame.resolution_m
     cells = np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
     visible = segments_free(free, cells[pairs[:, 0]], cells[pairs[:, 1]])

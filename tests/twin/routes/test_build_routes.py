@@ -19,7 +19,7 @@ from twin.maps.render import build_map, plan_map
 from twin.maps.scene import Scene, load_scene
 from twin.records import Element, Relation
 from twin.routes import RouteError, parse_routes
-from twin.routes.build import build_routes, sanitise, unique
+from twin.routes.build import build_routes, prepare_routes, routable_cells, sanitise, unique
 from twin.routes.graph import RouteGraph
 from twin.routes.lines import segments_free
 from twin.samples.lab_plan import Box
@@ -112,7 +112,9 @@ def test_the_graph_connects_what_the_map_connects_and_nothing_else(
     graph = _graph(store, scene, radius)
     g = graph.to_networkx()
     for s in graph.storeys:
-        free, frame = _free(store, scene, _skills(radius)["nav"], s.storey)
+        routes = parse_routes("fleet", {"kind": "routes", "navigation": "nav"})
+        _, free = routable_cells(prepare_routes(store, scene, routes, _skills(radius)), s.storey)
+        frame = _free(store, scene, _skills(radius)["nav"], s.storey)[1]
         labels, count = ndimage.label(free, structure=np.ones((3, 3)))
         res = frame.resolution_m
         label_of = {
@@ -240,6 +242,19 @@ def test_an_unknown_storey_or_waypoint_space_is_refused(lab_with_lift: tuple[Gra
         _graph(store, scene, 0.25, storeys=["roof"])
     with pytest.raises(RouteError, match="waypoint 'w' is at 'Attic', which names no space"):
         _graph(store, scene, 0.25, waypoints={"w": {"at": "Attic"}})
+
+
+def test_lanes_stay_over_the_floor_unless_the_skill_goes_outdoors(
+    lab_with_lift: tuple[GraphStore, Scene],
+) -> None:
+    store, scene = lab_with_lift
+    inside = _graph(store, scene, 0.25).storey("first-floor")  # the hall floats: no ground around it
+    outside = _graph(store, scene, 0.25, outdoors=True).storey("first-floor")
+    assert all(10.0 <= v.x <= 22.0 and 5.0 <= v.y <= 9.0 for v in inside.vertices)
+    assert any(v.y < 4.5 for v in outside.vertices)  # the map's free margin round the building
+    ground = _graph(store, scene, 0.25).storey("ground-floor")  # Door A's outside: a pad of ground
+    assert min(v.y for v in ground.vertices) < 4.9 < max(v.y for v in ground.vertices)
+    assert all(v.y > 3.0 for v in ground.vertices)
 
 
 def test_names_are_sanitised_and_made_unique() -> None:
