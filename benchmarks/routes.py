@@ -49,15 +49,15 @@ sys.path.insert(0, str(ROOT))
 from adapters.ifc import read_model  # noqa: E402
 from adapters.ifc.sample_lab import write_lab  # noqa: E402
 from twin.config import load_config  # noqa: E402
+from twin.config.routes import parse_routes  # noqa: E402
+from twin.errors import RouteError  # noqa: E402
 from twin.graph.import_model import import_model  # noqa: E402
 from twin.graph.store import EmbeddedStore, GraphStore  # noqa: E402
 from twin.maps.grid import GridFrame  # noqa: E402
 from twin.maps.scene import load_scene  # noqa: E402
 from twin.routes.build import RouteContext, build_routes, prepare_routes, routable_cells  # noqa: E402
-from twin.routes.errors import RouteError  # noqa: E402
 from twin.routes.graph import RouteGraph, StoreyRoutes  # noqa: E402
 from twin.routes.lines import segments_free  # noqa: E402
-from twin.routes.settings import parse_routes  # noqa: E402
 
 LONG_PAIR_M = 2.0
 """Pairs at least this far apart (grid path) are also reported on their own: closer pairs are within a

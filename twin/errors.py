@@ -53,3 +53,8 @@ class ExplainError(TwinError):
 
 class SnapshotError(TwinError):
     """A derived-state snapshot is missing, damaged, of another format, or does not match the store."""
+
+
+class RouteError(SkillError):
+    """A routes skill is invalid, or cannot make a route graph of the building (e.g. a storey with no
+    free space for its robot, a robot wider than every door)."""

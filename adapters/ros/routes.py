@@ -51,7 +51,7 @@ import yaml
 
 from adapters.ros._common import write_atomic
 from adapters.ros.settings import LevelConfig, RosSource
-from twin.routes.errors import RouteError
+from twin.errors import RouteError
 from twin.routes.graph import RouteGraph, RouteVertex, StoreyRoutes
 
 __all__ = ["MAX_GEOJSON_ID", "RouteFiles", "nav_graph", "rmf_levels", "route_geojson", "write_route_files"]

@@ -24,6 +24,7 @@ from twin.config.base import ConfigSection, ConfigTable
 from twin.config.fusion import FusionRules, FusionTable
 from twin.config.messages import config_error
 from twin.config.robots import RobotConfig, RobotName, RobotTable
+from twin.config.routes import RouteProfile, RoutesTable, check_routes, parse_routes
 from twin.config.sources import SourceConfig, SourceTable
 from twin.config.tables import (
     ImportConfig,
@@ -34,9 +35,7 @@ from twin.config.tables import (
     SiteTable,
     StoreTable,
 )
-from twin.errors import ConfigError, SkillError
-from twin.routes.errors import RouteError
-from twin.routes.settings import RouteProfile, RoutesTable, check_routes, parse_routes
+from twin.errors import ConfigError, RouteError, SkillError
 from twin.selection.skills import SkillProfile, parse_skill
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "default.toml"  # package data: installs with twin
@@ -259,7 +258,7 @@ def _skill_schema() -> dict[str, Any]:
     properties = {k: v for k, v in schema["properties"].items() if k != "name"}
     properties["sparql"] = {"type": "string", "description": "A group graph pattern binding ?element."}
     routes = RoutesTable.model_json_schema()
-    for key, value in routes["properties"].items():  # kind = "routes" (twin.routes.settings)
+    for key, value in routes["properties"].items():  # kind = "routes" (twin.config.routes)
         if key not in properties:
             properties[key] = _inline(value, routes.get("$defs", {}))
     properties["kind"] = {**properties["kind"], "enum": [*properties["kind"]["enum"], "routes"]}

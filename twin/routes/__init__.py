@@ -1,7 +1,7 @@
 """Route graphs: the waypoints and lanes fleet managers plan on, generated from the twin.
 
 Open-RMF (fleet adapters, the traffic schedule, door and lift sessions) and nav2's Route Server plan
-on a route graph. A ``kind = "routes"`` skill (:mod:`twin.routes.settings`) makes one per fleet from
+on a route graph. A ``kind = "routes"`` skill (:mod:`twin.config.routes`) makes one per fleet from
 the twin: lanes along the middle of the free space of the fleet's navigation map (its robot's radius
 and height), a lane through every door the robot fits through carrying the door's name, a named
 vertex per space, lifts joining the storeys (:mod:`twin.routes.build`, :mod:`twin.routes.storey`).
@@ -15,7 +15,7 @@ Example::
 
 from __future__ import annotations
 
-from twin.routes.errors import RouteError
-from twin.routes.settings import RouteProfile, Waypoint, check_routes, parse_routes
+from twin.config.routes import RouteProfile, Waypoint, check_routes, parse_routes
+from twin.errors import RouteError
 
 __all__ = ["RouteError", "RouteProfile", "Waypoint", "check_routes", "parse_routes"]

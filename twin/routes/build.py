@@ -27,14 +27,14 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import ConvexHull, QhullError
 
+from twin.config.routes import RouteProfile, Waypoint, check_routes
+from twin.errors import RouteError
 from twin.graph.rdf import literal_value
 from twin.graph.store import GraphStore
 from twin.maps.grid import GridFrame
 from twin.maps.render import MapPlan, build_map, occupancy, plan_map
 from twin.maps.scene import Scene, StoreyInfo
-from twin.routes.errors import RouteError
 from twin.routes.graph import DoorCrossing, Lift, RouteGraph, RouteVertex, StoreyRoutes
-from twin.routes.settings import RouteProfile, Waypoint, check_routes
 from twin.routes.storey import DoorShape, SpaceArea, StoreyInput, build_storey
 from twin.selection.skill_selection import selection_query
 from twin.selection.skills import SkillProfile

@@ -24,8 +24,9 @@ def segments_free(free: BoolArray, a: FloatArray, b: FloatArray) -> BoolArray:
 
     Points outside the mask are not free.
     """
-    a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
-    b = np.asarray(b, dtype=np.float64).reshape(-1, 2)
+    # to a millionth of a cell: a point given in metres and converted back tests as the cell centre
+    a = np.round(np.asarray(a, dtype=np.float64).reshape(-1, 2), 6)
+    b = np.round(np.asarray(b, dtype=np.float64).reshape(-1, 2), 6)
     n = len(a)
     out = np.ones(n, dtype=np.bool_)
     if n == 0:

@@ -187,7 +187,12 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
     passable: set[str] = set()
     for chain in chains:
         rc = np.stack(np.divmod(chain.pixels, w), axis=1).astype(np.float64)
-        rc[0], rc[-1] = node_rc[chain.start], node_rc[chain.end]
+        # from the start node's vertex to the end node's, through the chain's own pixels
+        rc = np.concatenate([[node_rc[chain.start]], rc, [node_rc[chain.end]]])
+        step = np.r_[True, np.any(rc[1:] != rc[:-1], axis=1)]
+        rc = rc[step]
+        if len(rc) == 1:
+            continue
         door_k = _door_of(chain.pixels, band_of, side_of)
         if door_k is not None and segments_free(free, rc[:1], rc[-1:])[0]:
             keep = np.array([0, len(rc) - 1])

@@ -19,8 +19,7 @@ from adapters.ifc.sample_lab import build_lab
 from adapters.ros.routes import MAX_GEOJSON_ID, nav_graph, route_geojson
 from adapters.ros.settings import LevelConfig
 from tests.adapters.ros.route_readers import read_nav2_geojson, read_rmf_nav_graph
-from twin.errors import TwinError
-from twin.routes.errors import RouteError
+from twin.errors import RouteError, TwinError
 from twin.routes.graph import Lift, RouteGraph, RouteLane, RouteVertex, StoreyRoutes
 from twin.samples.lab_plan import GROUND_FLOOR
 

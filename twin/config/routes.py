@@ -32,8 +32,7 @@ from pydantic import Field, ValidationError, model_validator
 
 from twin.config.base import ConfigTable, Flag, Number, Text, list_of
 from twin.config.messages import config_error
-from twin.errors import ConfigError
-from twin.routes.errors import RouteError
+from twin.errors import ConfigError, RouteError
 from twin.selection.skills import SkillProfile
 
 __all__ = ["RouteProfile", "RoutesTable", "Waypoint", "WaypointTable", "check_routes", "parse_routes"]
