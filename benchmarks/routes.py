@@ -59,6 +59,7 @@ from twin.routes.build import RouteContext, build_routes, prepare_routes, routab
 from twin.routes.graph import RouteGraph, StoreyRoutes  # noqa: E402
 from twin.routes.lines import segments_free  # noqa: E402
 
+NOTES_SHOWN = 5
 LONG_PAIR_M = 2.0
 """Pairs at least this far apart (grid path) are also reported on their own: closer pairs are within a
 lattice spacing or two, where joining the graph at both ends dominates the route."""
@@ -316,6 +317,8 @@ def main() -> int:
         "radius_m",
         "storey",
         "wall_s",
+        "cpu_s",
+        "cells_s",
         "vertices",
         "lanes",
         "doors",
@@ -340,8 +343,10 @@ def main() -> int:
             print(f"| {row['radius_m']} | {row['storey']} | error: {row['error']} |")
             continue
         print("| " + " | ".join(str(row.get(k, "")) for k in keys) + " |")
-        for note in row["notes"]:
+        for note in row["notes"][:NOTES_SHOWN]:
             print(f"  note: {note}")
+        if len(row["notes"]) > NOTES_SHOWN:
+            print(f"  ... and {len(row['notes']) - NOTES_SHOWN} more notes (--json has them all)")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
     return 0

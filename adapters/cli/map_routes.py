@@ -1,4 +1,5 @@
-"""``twin map --skill <routes skill>``: a fleet's route graph as Open-RMF and nav2 files.
+"""``twin map --skill <routes skill>``: a fleet's route graph as Open-RMF and nav2 files; and ``twin
+serve``'s route graphs on Zenoh (:func:`serve_routes`).
 
 The RMF door names come from the configured ``[sources.NAME] doors`` tables (RMF name -> the twin
 door's IRI, GlobalId or name), the RMF levels from their ``levels`` tables, the GeoJSON's frame from
@@ -7,18 +8,25 @@ door's IRI, GlobalId or name), the RMF levels from their ``levels`` tables, the 
 
 from __future__ import annotations
 
+import logging
 import time
 from pathlib import Path
+
+import zenoh
 
 from adapters.ros.rmf import DoorIndex
 from adapters.ros.routes import RouteFiles, rmf_levels, write_route_files
 from adapters.ros.settings import RosSettings, ros_sources
+from adapters.zenoh.routes import ZenohRoutes
 from twin.config import Config
+from twin.errors import TwinError
 from twin.graph.rdf import literal_value
 from twin.graph.store import GraphStore
 from twin.maps.scene import Scene
 from twin.routes.build import build_routes
 from twin.routes.graph import RouteGraph
+
+log = logging.getLogger(__name__)
 
 _DOORS = """SELECT ?e ?name WHERE { ?e twin:ifcType "IfcDoor" . OPTIONAL { ?e rdfs:label ?name } }"""
 
@@ -72,3 +80,31 @@ def write_routes(cfg: Config, store: GraphStore, scene: Scene, name: str, out: P
     for note in graph.notes:
         print(f"  {note}")
     return files
+
+
+def serve_routes(
+    session: zenoh.Session, cfg: Config, store: GraphStore, scene: Scene, *, prefix: str
+) -> ZenohRoutes | None:
+    """Build every routes skill's graph and publish it on ``<prefix>/routes/<skill>`` (latched JSON).
+    A skill that cannot make a graph is logged in one line and left out: the others are served.
+    None when no routes skill is configured."""
+    if not cfg.routes:
+        return None
+    routes = ZenohRoutes(session, prefix=prefix)
+    for name in sorted(cfg.routes):
+        t0 = time.perf_counter()
+        try:
+            graph = route_graph(cfg, store, scene, name)
+        except TwinError as err:
+            log.error("Routes skill %s is not served: %s", name, err)
+            continue
+        version = routes.publish(name, graph.to_json())
+        log.info(
+            "Routes skill %s: version %d on %s/routes/%s (%.2f s)",
+            name,
+            version,
+            prefix,
+            name,
+            time.perf_counter() - t0,
+        )
+    return routes

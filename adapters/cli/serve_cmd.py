@@ -26,6 +26,7 @@ from adapters.cli.common import (
     stored_site,
     zenoh_of,
 )
+from adapters.cli.map_routes import serve_routes
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
 from adapters.rerun.settings import RerunSettings
@@ -38,6 +39,7 @@ from adapters.zenoh.points import ZenohPoints
 from adapters.zenoh.ros_ingest import RosIngest
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.ros_points import RosPointsPublisher
+from adapters.zenoh.routes import ZenohRoutes
 from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.errors import StoreNotFoundError
@@ -162,6 +164,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         ingest: RosIngest | None = None
         ros_points: RosPointsPublisher | None = None
         points: ZenohPoints | None = None
+        routes: ZenohRoutes | None = None
         try:
             frame_id = cfg.section(RosSettings).frame_id
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=frame_id)
@@ -191,6 +194,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
                 finally:
                     service.sinks.remove(progress)
             daemon.drain()  # every map is declared and sent before we say so
+            routes = serve_routes(session, cfg, store, service.live_maps.scene, prefix=keys.prefix)
             maps = service.published_maps()
             endpoints = ", ".join(args.listen or zenoh_of(cfg).listen) or "(no listener)"
             print(
@@ -206,7 +210,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             service.serve_forever(stop)
         finally:
             t1 = time.perf_counter()
-            for closable in (ingest, daemon, points, ros, ros_points):
+            for closable in (ingest, daemon, points, ros, ros_points, routes):
                 if closable is not None:
                     closable.close()
             session.close()
