@@ -96,7 +96,9 @@ def build_routes(
 
     Raises:
         RouteError: a missing navigation or keepout skill, an unknown storey, a robot wider than every
-            door, a storey with no free space, a waypoint off the served storeys.
+            door, a storey named in ``storeys`` (or the model's only one) with no free space, a
+            waypoint off the served storeys. Without ``storeys``, a storey with no free space (a
+            roof) is left out with a note.
     """
     ctx = prepare_routes(store, scene, routes, skills, margin_m=margin_m, door_names=door_names)
     nav, radius, door_shapes = ctx.nav, ctx.nav.inflation_radius_m, ctx.door_shapes
@@ -110,7 +112,20 @@ def build_routes(
     results: list[StoreyRoutes] = []
     crossings: list[DoorCrossing] = []
     notes: list[str] = []
-    frees = [routable_cells(ctx, storey.key) for storey in storeys]
+    storeys = list(storeys)
+    frees: list[tuple[MapPlan, np.ndarray]] = []
+    refused: list[RouteError] = []
+    for storey in list(storeys):
+        try:
+            frees.append(routable_cells(ctx, storey.key))
+        except RouteError as err:
+            if routes.storeys:  # asked for by name: an error
+                raise
+            refused.append(err)
+            notes.append(f"{storey.key}: not served, no free space for this robot")
+            storeys.remove(storey)
+    if not storeys:  # no storey at all: the first one's error
+        raise refused[0]
     if door_shapes and 2 * radius > max(d.width_m for _, d in door_shapes) + 1e-6:
         widest = max(d.width_m for _, d in door_shapes)
         msg = (
@@ -121,7 +136,7 @@ def build_routes(
         raise RouteError(msg)
     for storey, (plan, free) in zip(storeys, frees, strict=True):
         level = levels.get(storey.key, storey.key)
-        on_storey = [d for st, d in door_shapes if _on(scene, st, plan)]
+        on_storey = [d for st, d in door_shapes if _on(scene, st, plan) and _sill_on(scene, st, plan)]
         spaces = _space_areas(scene, plan, space_names, level, taken)
         points = [
             RouteVertex(
@@ -292,7 +307,7 @@ def _floor(ctx: RouteContext, plan: MapPlan) -> np.ndarray | None:
     res = frame.resolution_m
     reach = door_reach(ctx.nav.inflation_radius_m) + ctx.nav.inflation_radius_m
     for index, door in ctx.door_shapes:
-        if not _on(scene, index, plan):
+        if not (_on(scene, index, plan) and _sill_on(scene, index, plan)):
             continue
         r = (door.width_m / 2 + reach) / res
         cx, cy = (door.x - frame.origin_x) / res - 0.5, (door.y - frame.origin_y) / res - 0.5
@@ -407,6 +422,17 @@ def _on(scene: Scene, index: int, plan: MapPlan) -> bool:
         and b[1] < f.origin_y + f.height * f.resolution_m
         and b[4] > f.origin_y
     )
+
+
+DOOR_SILL_M = (-0.3, 0.5)
+"""A door is on a storey when its bottom lies in this band about the storey's elevation (m)."""
+
+
+def _sill_on(scene: Scene, index: int, plan: MapPlan) -> bool:
+    """Whether element ``index`` (a door) stands on the plan's storey: its bottom near the floor."""
+    bottom = float(scene.elements.bounds[index][2])
+    elev = plan.storey.elevation_m
+    return elev + DOOR_SILL_M[0] <= bottom <= elev + DOOR_SILL_M[1]
 
 
 def _lifts(scene: Scene, lifts: list[_Named], storeys: list[StoreyInfo], nav: SkillProfile) -> list[Lift]:

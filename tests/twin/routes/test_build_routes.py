@@ -234,6 +234,8 @@ def test_a_storey_without_free_space_is_refused_in_one_line(lab_with_lift: tuple
         RouteError, match=r"storey 'ground-floor' has no free space for its robot .*radius 3.0 m"
     ):
         _graph(store, scene, 3.0)
+    with pytest.raises(RouteError, match=r"storey 'first-floor' has no free space"):
+        _graph(store, scene, 3.0, storeys=["first-floor"])
 
 
 def test_an_unknown_storey_or_waypoint_space_is_refused(lab_with_lift: tuple[GraphStore, Scene]) -> None:
