@@ -1,6 +1,7 @@
 """ROS 2 interfaces the daemon subscribes to that rosbags' type stores lack, registered from their
 upstream ``.msg`` definitions: ``vision_msgs/msg/Detection3DArray`` (and the messages it is made of),
-``rmf_obstacle_msgs/msg/Obstacles`` and ``rmf_door_msgs/msg/DoorState``.
+``rmf_obstacle_msgs/msg/Obstacles`` and ``rmf_door_msgs/msg/DoorState``; and the one it publishes,
+``rmf_building_map_msgs/msg/BuildingMap`` (:mod:`adapters.ros.building_map_msgs`).
 
 The texts are the upstream files byte for byte (``../shared/ros-msgs/``, ros-perception/vision_msgs @
 e77fa2d9, open-rmf/rmf_internal_msgs @ 3d4df023, Apache-2.0), so the RIHS01 type hashes rosbags computes
@@ -19,6 +20,8 @@ from __future__ import annotations
 from typing import Any
 
 from rosbags.typesys import get_types_from_msg
+
+from adapters.ros.building_map_msgs import BUILDING_MAP_INTERFACES
 
 __all__ = [
     "DETECTION_3D_ARRAY",
@@ -187,6 +190,9 @@ DoorMode current_mode
 """,
 }
 """Upstream ``.msg`` text of every registered type, dependencies before the types that use them."""
+
+
+INTERFACES.update(BUILDING_MAP_INTERFACES)  # rmf_building_map_msgs (adapters/ros/building_map_msgs.py)
 
 
 def register_interfaces(store: Any) -> None:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from adapters.ros.building_map_msgs import BUILDING_MAP
 from adapters.ros.interfaces import DETECTION_3D_ARRAY, DIAGNOSTIC_ARRAY, DOOR_STATE, OBSTACLES, TF_MESSAGE
 from adapters.ros.rmw_zenoh import type_hash
 from tests.adapters.rosidl_build import generated_package_hashes, shipped_hash
@@ -47,6 +48,23 @@ def upstream(package: str, names: list[str]) -> dict[str, str]:
             OBSTACLES,
         ),
         ("rmf_door_msgs", ["DoorMode", "DoorState"], ("builtin_interfaces",), DOOR_STATE),
+        (
+            "rmf_building_map_msgs",
+            [
+                "Param",
+                "GraphNode",
+                "GraphEdge",
+                "Graph",
+                "AffineImage",
+                "Place",
+                "Door",
+                "Level",
+                "Lift",
+                "BuildingMap",
+            ],
+            (),
+            BUILDING_MAP,
+        ),
     ],
 )
 def test_hashes_of_the_registered_interfaces_equal_what_rosidl_generates_from_upstream(
