@@ -1,5 +1,5 @@
 """``twin map --skill <routes skill>``: a fleet's route graph as Open-RMF and nav2 files; and ``twin
-serve``'s route graphs on Zenoh (:func:`serve_routes`).
+serve``'s route graphs on Zenoh and as Open-RMF's ``BuildingMap`` on ``/map`` (:func:`serve_routes`).
 
 The RMF door names come from the configured ``[sources.NAME] doors`` tables (RMF name -> the twin
 door's IRI, GlobalId or name), the RMF levels from their ``levels`` tables, the GeoJSON's frame from
@@ -14,17 +14,22 @@ from pathlib import Path
 
 import zenoh
 
+from adapters.ros.building_map import encode_building_map
 from adapters.ros.rmf import DoorIndex
 from adapters.ros.routes import RouteFiles, rmf_levels, write_route_files
 from adapters.ros.settings import RosSettings, ros_sources
+from adapters.zenoh.ros_building_map import RosBuildingMap
 from adapters.zenoh.routes import ZenohRoutes
 from twin.config import Config
 from twin.errors import TwinError
 from twin.graph.rdf import literal_value
 from twin.graph.store import GraphStore
+from twin.maps.grid import OccupancyGrid
+from twin.maps.render import build_map, plan_map
 from twin.maps.scene import Scene
 from twin.routes.build import build_routes
 from twin.routes.graph import RouteGraph
+from twin.selection.skill_selection import selection_query
 
 log = logging.getLogger(__name__)
 
@@ -82,15 +87,30 @@ def write_routes(cfg: Config, store: GraphStore, scene: Scene, name: str, out: P
     return files
 
 
+class ServedRoutes:
+    """What ``twin serve`` serves of the route graphs: the Zenoh keys and Open-RMF's ``/map``."""
+
+    def __init__(self, zenoh_routes: ZenohRoutes, building_map: RosBuildingMap | None) -> None:
+        self.zenoh = zenoh_routes
+        self.building_map = building_map
+
+    def close(self) -> None:
+        if self.building_map is not None:
+            self.building_map.close()
+        self.zenoh.close()
+
+
 def serve_routes(
     session: zenoh.Session, cfg: Config, store: GraphStore, scene: Scene, *, prefix: str
-) -> ZenohRoutes | None:
-    """Build every routes skill's graph and publish it on ``<prefix>/routes/<skill>`` (latched JSON).
+) -> ServedRoutes | None:
+    """Build every routes skill's graph and publish it on ``<prefix>/routes/<skill>`` (latched JSON),
+    and all of them as Open-RMF's ``BuildingMap`` on ``/map`` (both ROS 2 layouts, domain 0).
     A skill that cannot make a graph is logged in one line and left out: the others are served.
     None when no routes skill is configured."""
     if not cfg.routes:
         return None
     routes = ZenohRoutes(session, prefix=prefix)
+    graphs = []
     for name in sorted(cfg.routes):
         t0 = time.perf_counter()
         try:
@@ -98,6 +118,7 @@ def serve_routes(
         except TwinError as err:
             log.error("Routes skill %s is not served: %s", name, err)
             continue
+        graphs.append(graph)
         version = routes.publish(name, graph.to_json())
         log.info(
             "Routes skill %s: version %d on %s/routes/%s (%.2f s)",
@@ -107,4 +128,22 @@ def serve_routes(
             name,
             time.perf_counter() - t0,
         )
-    return routes
+    if not graphs:
+        return ServedRoutes(routes, None)
+    payload = encode_building_map(
+        graphs,
+        storey_maps(cfg, store, scene, graphs[0]),
+        building=graphs[0].building,
+        levels=rmf_levels(ros_sources(cfg).values()),
+    )
+    return ServedRoutes(routes, RosBuildingMap(session, payload))
+
+
+def storey_maps(cfg: Config, store: GraphStore, scene: Scene, graph: RouteGraph) -> dict[str, OccupancyGrid]:
+    """Each storey's map of ``graph``'s navigation skill: the levels' images of the building map."""
+    nav = cfg.skills[cfg.routes[graph.skill].navigation]
+    iris = [literal_value(r["element"]) or "" for r in store.select(selection_query(nav))]
+    return {
+        s.storey: build_map(scene, plan_map(scene, nav, s.storey, iris, margin_m=cfg.margin_m))
+        for s in graph.storeys
+    }

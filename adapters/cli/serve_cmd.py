@@ -26,7 +26,7 @@ from adapters.cli.common import (
     stored_site,
     zenoh_of,
 )
-from adapters.cli.map_routes import serve_routes
+from adapters.cli.map_routes import ServedRoutes, serve_routes
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
 from adapters.rerun.settings import RerunSettings
@@ -39,7 +39,6 @@ from adapters.zenoh.points import ZenohPoints
 from adapters.zenoh.ros_ingest import RosIngest
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.ros_points import RosPointsPublisher
-from adapters.zenoh.routes import ZenohRoutes
 from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.errors import StoreNotFoundError
@@ -164,7 +163,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         ingest: RosIngest | None = None
         ros_points: RosPointsPublisher | None = None
         points: ZenohPoints | None = None
-        routes: ZenohRoutes | None = None
+        routes: ServedRoutes | None = None
         try:
             frame_id = cfg.section(RosSettings).frame_id
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=frame_id)

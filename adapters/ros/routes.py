@@ -81,7 +81,7 @@ def rmf_levels(sources: Iterable[RosSource]) -> dict[str, tuple[str, LevelConfig
     return out
 
 
-def _to_level(config: LevelConfig | None, x: float, y: float) -> tuple[float, float]:
+def to_level(config: LevelConfig | None, x: float, y: float) -> tuple[float, float]:
     """Twin (x, y) in the level's frame: the inverse of ``twin_from_level``."""
     if config is None:
         return float(x), float(y)
@@ -104,7 +104,7 @@ def nav_graph(
         config = levels.get(s.storey, (s.storey, None))[1]
         vertices = []
         for v in s.vertices:
-            x, y = _to_level(config, v.x, v.y)
+            x, y = to_level(config, v.x, v.y)
             vertices.append(_Row([x, y, _vertex_params(v)]))
         lanes = []
         for lane in s.lanes:
@@ -121,7 +121,7 @@ def nav_graph(
     lifts: dict[str, Any] = {}
     for lift in graph.lifts:
         stops = {
-            names[st]: _to_level(levels.get(st, (st, None))[1], lift.x, lift.y)
+            names[st]: to_level(levels.get(st, (st, None))[1], lift.x, lift.y)
             for st in lift.storeys
             if st in names
         }
@@ -135,13 +135,13 @@ def nav_graph(
             raise RouteError(msg)
         first = lift.storeys[0]
         config = levels.get(first, (first, None))[1]
-        x, y = _to_level(config, lift.x, lift.y)
+        x, y = to_level(config, lift.x, lift.y)
         yaw = lift.yaw - (config.yaw_rad if config is not None else 0.0)
         lifts[lift.name] = {"position": [x, y, round(yaw, 6)], "dims": [lift.width_m, lift.depth_m]}
     doors: dict[str, Any] = {}
     for door in graph.doors:
         config = levels.get(door.storey, (door.storey, None))[1]
-        ends = [list(_to_level(config, *p)) for p in door.endpoints]
+        ends = [list(to_level(config, *p)) for p in door.endpoints]
         doors[door.name] = {"endpoints": ends, "map": names.get(door.storey, door.storey)}
     return {"building_name": graph.building, "levels": out_levels, "lifts": lifts, "doors": doors}
 

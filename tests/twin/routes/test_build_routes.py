@@ -10,45 +10,23 @@ import pytest
 from scipy import ndimage
 
 from tests.conftest import imported
-from tests.twin.box_lab import _boxes_geometry, box_lab
+from tests.twin.routes.lift_lab import lift_lab
 from twin.config import load_config
-from twin.graph.ifc_classes import supertypes
 from twin.graph.rdf import literal_value
 from twin.graph.store import GraphStore
 from twin.maps.render import build_map, plan_map
 from twin.maps.scene import Scene, load_scene
-from twin.records import Element, Relation
 from twin.routes import RouteError, parse_routes
 from twin.routes.build import build_routes, prepare_routes, routable_cells, sanitise, unique
 from twin.routes.graph import RouteGraph
 from twin.routes.lines import segments_free
-from twin.samples.lab_plan import Box
 from twin.selection.skill_selection import selection_query
 from twin.selection.skills import SkillProfile
-
-LIFT = Box(19.0, 7.0, 0.0, 20.4, 8.4, 5.6)
-"""A lift's car (the shaft's extent, both storeys) in Room B and the hall above, world metres."""
 
 
 @pytest.fixture(scope="module")
 def lab_with_lift() -> tuple[GraphStore, Scene]:
-    model = box_lab(storeys=2)
-    lift = Element(
-        guid="2LiftCar000000000000AA",
-        ifc_class="IfcTransportElement",
-        name="Lift 1",
-        materials=("Steel",),
-        is_static=True,
-        geometry=_boxes_geometry((LIFT,)),
-        ifc_types=supertypes("IFC4", "IfcTransportElement"),
-    )
-    ground = model.storeys[0].guid
-    model = replace(
-        model,
-        elements=(*model.elements, lift),
-        contained=model.contained | {Relation(ground, lift.guid)},
-    )
-    store = imported(model)
+    store = imported(lift_lab())
     return store, load_scene(store)
 
 
