@@ -13,9 +13,8 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from adapters.cli.map_routes import serve_routes
+from adapters.cli.map_routes import ServedRoutes, serve_routes
 from adapters.zenoh.latched import declare_latched_subscriber
-from adapters.zenoh.routes import ZenohRoutes
 from adapters.zenoh.session import client_config, session_config
 from adapters.zenoh.settings import ZenohSettings
 from tests.conftest import imported
@@ -60,11 +59,11 @@ def test_the_daemons_graphs_are_latched_and_answered_and_a_bad_skill_is_left_out
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     daemon = zenoh.open(session_config(ZenohSettings(), mode="peer", listen=[endpoint], connect=[]))
     fleet = zenoh.open(client_config([endpoint]))
-    routes: ZenohRoutes | None = None
+    routes: ServedRoutes | None = None
     try:
         with caplog.at_level(logging.ERROR):
             routes = serve_routes(daemon, cfg, store, load_scene(store), prefix=PREFIX)
-        assert routes is not None
+        assert routes is not None and routes.building_map is not None  # and Open-RMF's /map
         errors = [r.getMessage() for r in caplog.records if r.levelno == logging.ERROR]
         assert len(errors) == 1 and "Routes skill huge is not served" in errors[0]
         assert "fits through none of the model's 1 doors" in errors[0] and "\n" not in errors[0]
@@ -89,7 +88,7 @@ def test_the_daemons_graphs_are_latched_and_answered_and_a_bad_skill_is_left_out
             assert arrived.wait(10.0)  # a fleet manager that starts later gets the current graph
             assert late[0]["skill"] == "small" and late[0]["version"] == 1
             arrived.clear()
-            assert routes.publish("small", {"skill": "small"}) == 2  # a new version replaces it
+            assert routes.zenoh.publish("small", {"skill": "small"}) == 2  # a new version replaces it
             assert arrived.wait(10.0)
             assert late[-1] == {"skill": "small", "version": 2}
         finally:
