@@ -56,7 +56,7 @@ from twin.graph.store import EmbeddedStore, GraphStore  # noqa: E402
 from twin.maps.grid import GridFrame  # noqa: E402
 from twin.maps.scene import load_scene  # noqa: E402
 from twin.routes.build import RouteContext, build_routes, prepare_routes, routable_cells  # noqa: E402
-from twin.routes.graph import RouteGraph, StoreyRoutes  # noqa: E402
+from twin.routes.graph import DoorCrossing, RouteGraph, StoreyRoutes  # noqa: E402
 from twin.routes.lines import segments_free  # noqa: E402
 
 NOTES_SHOWN = 5
@@ -236,6 +236,7 @@ def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespa
         skills = {**cfg.skills, "nav": nav}
         frees: dict[str, tuple[np.ndarray, GridFrame]] = {}
         storeys: list[StoreyRoutes] = []
+        doors: list[DoorCrossing] = []
         graph = None
         for storey in scene.storeys:
             routes = parse_routes(
@@ -251,6 +252,7 @@ def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespa
             wall, cpu = time.perf_counter() - t0, time.process_time() - c0
             (s,) = graph.storeys
             storeys.append(s)
+            doors += graph.doors
             row = {
                 "model": name,
                 "radius_m": radius,
@@ -269,7 +271,7 @@ def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespa
             row["notes"] = list(graph.notes)
             rows.append(row)
         if args.png_dir and graph is not None and storeys:
-            whole = replace(graph, storeys=tuple(storeys))
+            whole = replace(graph, storeys=tuple(storeys), doors=tuple(doors))
             path = Path(args.png_dir) / f"routes-{name}-{int(radius * 100):02d}.png"
             draw(whole, frees, path, f"{name}, radius {radius} m")
             print(f"wrote {path}")
