@@ -35,7 +35,7 @@ from twin.live.live_points import PointsPublication
 from twin.live.loading import catch_up, load_live_or_restore
 from twin.live.observe import Observer, element_shapes
 from twin.live.publication import Publication, PublishedVersion
-from twin.live.query import run_query
+from twin.live.query import QueryWorkers, run_query
 from twin.live.requests import (
     ExplainRequest,
     ObserveRequest,
@@ -100,6 +100,8 @@ class TwinService:
         self.started_ns = 0
         self._flushed_at = (0.0, 0)  # (monotonic time, revision) of the last flush
         self._base_iri = ""
+        self.queries = QueryWorkers()
+        """The SPARQL queries' worker threads: a stop closes it (no new query) and waits for them."""
 
     # --- start ----------------------------------------------------------------------------------------
     def start(self) -> None:
@@ -293,8 +295,11 @@ class TwinService:
         self.flush_full_maps(due_only=True)
         return handled
 
-    def serve_forever(self, stop: threading.Event, *, poll_s: float = 0.05) -> None:
-        """Handle requests until ``stop`` is set, then finish what is queued and publish every map."""
+    def serve_forever(
+        self, stop: threading.Event, *, poll_s: float = 0.05, on_stop: Callable[[], None] | None = None
+    ) -> None:
+        """Handle requests until ``stop`` is set, then finish what is queued and publish every map.
+        ``on_stop`` runs first when the stop is seen (e.g. let no new request in)."""
         aliases_checked = time.monotonic()
         while not stop.is_set():
             self.process(timeout_s=poll_s)
@@ -305,6 +310,8 @@ class TwinService:
                 self.observer.expire_unconfirmed()
             if self.snapshot is not None and self.snapshot.due(self.revision):
                 self.snapshot.save_in_background(self.live)
+        if on_stop is not None:
+            on_stop()
         self.process()
         self.flush_full_maps()
         self.flush_store()
@@ -387,7 +394,7 @@ class TwinService:
 
     def query(self, sparql: str) -> tuple[str, bytes]:
         """A read-only SPARQL query, bounded in time and result size; QueryError names the problem."""
-        return run_query(self.store, sparql, limits=self.config.limits)
+        return run_query(self.store, sparql, limits=self.config.limits, workers=self.queries)
 
 
 def _send(request: Request, reply: Reply) -> None:
