@@ -23,8 +23,8 @@ from twin.config import Config, ConfigSection, config_schema, load_config
 SECTIONS: tuple[type[ConfigSection], ...] = (
     ZenohSettings, RerunSettings, RemoteStoreSettings, ServeSettings, *ROS_SECTIONS
 )  # fmt: skip
-"""The adapters' tables: ``[zenoh]``, ``[rerun]``, ``[serve]``, the remote store's keys of ``[store]``, ``[ros]`` and
-the ROS 2 keys of every ``[robots.NAME]`` and ``[sources.NAME]``."""
+"""The adapters' tables: ``[zenoh]``, ``[rerun]``, ``[serve]``, the remote store's keys of ``[store]``,
+``[ros]`` and the ROS 2 keys of every ``[robots.NAME]`` and ``[sources.NAME]``."""
 
 
 def load(path: Path | None = None) -> Config:

@@ -310,10 +310,18 @@ class ZenohDaemon:
         )
 
     def _on_status(self, query: zenoh.Query) -> None:
-        status = self.service.status()
-        status["maps"] = self.maps.versions()  # the latest versions, updates included
-        for source in self.status_sources:
-            status.update(source())
+        """Always answered, whatever the store's state (its ``store`` field says it)."""
+        try:
+            status = self.service.status()
+            status["maps"] = self.maps.versions()  # the latest versions, updates included
+            for source in self.status_sources:
+                status.update(source())
+        except Exception as err:  # a bug must cost this answer its content, never the answer
+            log.exception("Could not make the status")
+            query.reply_err(
+                Reply.error(f"Internal error ({type(err).__name__}): {err}").to_json(), encoding=JSON
+            )
+            return
         query.reply(self.keys.status, json.dumps(status).encode(), encoding=JSON)
 
     # --- lifecycle ----------------------------------------------------------------------------------

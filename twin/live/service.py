@@ -50,6 +50,7 @@ from twin.live.skill_changes import apply_skill, publish_all_maps
 from twin.live.snapshots import Restored, Snapshots
 from twin.live.state import ElementState, LiveState
 from twin.live.status import service_status
+from twin.live.store_health import WatchedStore
 from twin.selection.skills import SkillProfile
 
 log = logging.getLogger(__name__)
@@ -57,6 +58,8 @@ log = logging.getLogger(__name__)
 Clock = Callable[[], int]
 _ALIAS_CHECK_S = 10.0
 """How often the writer looks for aliases unused for ``[fusion] alias_ttl_s``."""
+STORE_RETRY_S = 2.0
+"""How often the writer tries to make a failed store work again (reopen and probe, or ask)."""
 
 
 class TwinService:
@@ -81,7 +84,10 @@ class TwinService:
         back to the system). ``snapshot``: where the derived state is kept between runs (read by
         :meth:`start`, written on a clean stop and in the background; see :mod:`twin.live.snapshots`).
         ``warm_ups``: named steps :meth:`start` runs last, after the maps (see :meth:`warm_up`)."""
-        self.store = store
+        self.store = store if isinstance(store, WatchedStore) else WatchedStore(store)
+        """The store, watched: :attr:`store_health` says what it can do (:mod:`twin.live.store_health`)."""
+        self.store_health = self.store.health
+        self._store_tried = 0.0  # monotonic time of the last attempt to make a failed store work again
         self.config = config
         self.sinks = list(sinks)
         self.clock = clock
@@ -227,11 +233,24 @@ class TwinService:
             self.publication.flush(self._live.maps.skill_maps, self._live.revision, due_only=due_only)
             self.points_publication.flush(self._live.maps.points, self._live.revision, due_only=due_only)
 
+    def recover_store(self, *, due_only: bool = False) -> bool:
+        """If the store has failed (read-only: a full disk; unreachable), try to make it work again (at
+        most every :data:`STORE_RETRY_S` with ``due_only``); True if it is ok. On the writer's thread:
+        an embedded store is reopened, which no write may overlap."""
+        if self.store_health.ok:
+            return True
+        if due_only and time.monotonic() - self._store_tried < STORE_RETRY_S:
+            return False
+        self._store_tried = time.monotonic()
+        return self.store.recover()
+
     def flush_store(self, *, due_only: bool = False) -> None:
         """Flush the store's buffers if anything was committed since the last flush (with ``due_only``:
         and ``flush_every_s`` has passed)."""
         at, revision = self._flushed_at
         if self.revision == revision or (due_only and time.monotonic() - at < self.flush_every_s):
+            return
+        if not self.store_health.ok:  # nothing was committed since it failed; a flush would fail too
             return
         try:
             self.store.flush()
@@ -320,6 +339,7 @@ class TwinService:
         aliases_checked = time.monotonic()
         while not stop.is_set():
             self.process(timeout_s=poll_s)
+            self.recover_store(due_only=True)
             self.flush_store(due_only=True)
             if time.monotonic() - aliases_checked > _ALIAS_CHECK_S:
                 aliases_checked = time.monotonic()
