@@ -243,7 +243,9 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
                 ros = RosMapPublisher.following(daemon, cfg)  # on the dispatcher, a lane per robot
             if cfg.sources or any(r.detections is not None for r in ros_robots(cfg).values()):
                 storey_of = ros.storey_of if ros is not None else (lambda _robot: None)
-                ingest = RosIngest(session, cfg, service.submit_observation, storey_of=storey_of)
+                ingest = RosIngest(  # the obstacles of a previous run from the graph, on TwinStarted
+                    session, cfg, service.submit_observation, storey_of=storey_of, select=service.store.select
+                )
                 daemon.status_sources.append(ingest.status)
                 service.sinks.append(ingest)  # storeys, doors and occluding maps: cheap, on the writer
             service.sinks += [sink for sink in (daemon, recorder) if sink is not None]
