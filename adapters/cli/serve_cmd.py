@@ -7,6 +7,7 @@ import argparse
 import contextlib
 import dataclasses
 import logging
+import multiprocessing
 import os
 import signal
 import sys
@@ -128,7 +129,23 @@ class _Signals:
             return
         self.stop.set()
         if not self.serving:
+            threading.Thread(target=_interrupt_deadline, name="twin-stop-watchdog", daemon=True).start()
             raise KeyboardInterrupt
+
+
+INTERRUPT_DEADLINE_S = 3.0
+"""How long an interrupted start-up may take to close what it opened before the process just ends."""
+
+
+def _interrupt_deadline() -> None:
+    """The start-up was interrupted: if it has not ended in :data:`INTERRUPT_DEADLINE_S` (a native call
+    that does not return, a lock the interrupt left held), end it now: kill the meshing children and
+    leave with 130. The store then recovers as after ``kill -9`` (nothing was acked yet)."""
+    time.sleep(INTERRUPT_DEADLINE_S)
+    for child in multiprocessing.active_children():
+        with contextlib.suppress(Exception):
+            child.kill()
+    _leave(INTERRUPTED, f"the interrupted start-up did not end in {INTERRUPT_DEADLINE_S:g} s")
 
 
 class _Stop:
