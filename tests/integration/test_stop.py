@@ -23,8 +23,8 @@ pytestmark = pytest.mark.slow
 TWIN = "https://w3id.org/building-twin#"
 ENDLESS = "SELECT (COUNT(*) AS ?n) WHERE { ?a ?p ?o . ?b ?q ?v . ?c ?r ?w . ?d ?s ?x }"
 """A query that runs for hours on the lab (every triple four times over: 2e11 rows)."""
-SECONDS = "SELECT (COUNT(*) AS ?n) WHERE { ?a ?p ?o . ?b ?q ?v . ?c a ?w }"
-"""A query that runs for about 4 s on the lab (4e7 rows)."""
+SECONDS = f"SELECT (COUNT(*) AS ?n) WHERE {{ ?a ?p ?o . ?b ?q ?v . ?c <{TWIN}ifcClass> ?w }}"
+"""A query that runs for about a second on the lab (1e7 rows)."""
 
 
 def _table(x: float) -> str:
@@ -100,13 +100,13 @@ def test_a_stop_waits_for_an_abandoned_query_that_ends_in_time_and_exits_0(
     fresh_store: Path, tmp_path: Path
 ) -> None:
     config = tmp_path / "stop.toml"
-    config.write_text("[serve]\nstop_timeout_s = 30.0\n[limits]\nsparql_timeout_s = 0.5\n")
+    config.write_text("[serve]\nstop_timeout_s = 30.0\n[limits]\nsparql_timeout_s = 0.3\n")
     d = start_daemon(fresh_store, "--no-record", config=config)
     with (
         TwinClient.connect([d.endpoint], prefix="twin/lab", timeout_s=30) as asker,
-        pytest.raises(RemoteError, match=r"longer than 0.5 s and was abandoned"),
+        pytest.raises(RemoteError, match=r"longer than 0.3 s and was abandoned"),
     ):
-        asker.sparql(SECONDS)  # its worker runs on in the daemon for a few seconds
+        asker.sparql(SECONDS)  # its worker runs on in the daemon for most of a second
     code, seconds = d.stop(signal.SIGINT, timeout=60)
     assert code == 0 and any("stopped cleanly" in line for line in d.log), d.log
-    assert seconds > 1.0  # it waited for the query's worker
+    assert seconds >= 0.4  # it waited for the query's worker
