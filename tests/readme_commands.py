@@ -131,7 +131,9 @@ class Runner:
             return Outcome(line, "failed", "printed no map version")
         return outcome
 
-    def stop_background(self) -> None:
+    def stop_background(self) -> list[Outcome]:
+        """SIGTERM every daemon and router started; a stop that does not exit 0 is a failed outcome."""
+        failed: list[Outcome] = []
         for process in self.background:
             if process.poll() is None:
                 process.send_signal(signal.SIGTERM)
@@ -140,7 +142,11 @@ class Runner:
                 except subprocess.TimeoutExpired:
                     process.kill()
                     process.communicate(timeout=10)
+            if process.returncode != 0:
+                what = " ".join(str(a) for a in process.args[3:])  # type: ignore[index]
+                failed.append(Outcome(f"stop of {what}", "failed", f"exit {process.returncode}"))
         self.background.clear()
+        return failed
 
 
 def documents() -> list[Path]:
@@ -200,7 +206,7 @@ def run_readme(workdir: Path) -> list[Outcome]:
             blocks = [b for doc in docs for b in readme_blocks(doc.read_text())]
             outcomes += run_blocks(runner, blocks)
         finally:
-            runner.stop_background()
+            outcomes += runner.stop_background()
     return outcomes
 
 
@@ -216,7 +222,7 @@ def run_blocks(runner: Runner, blocks: list[list[str]]) -> list[Outcome]:
             continue
         typed = [(ln.strip(), as_typed(ln)) for ln in lines]
         if any(t is not None and t.split()[1:2] in (["serve"], ["router"]) for _, t in typed):
-            runner.stop_background()  # a new topology: the previous daemons stop
+            outcomes += runner.stop_background()  # a new topology: the previous daemons stop
         for original, command in typed:
             if command is None:
                 outcomes.append(Outcome(original, "skipped", "a synopsis with placeholders"))

@@ -27,6 +27,10 @@ class StoreUnavailableError(StoreError):
     """A remote graph store (a SPARQL endpoint) cannot be reached, or did not answer in time."""
 
 
+class StoreWriteError(StoreError):
+    """The store could not write (e.g. its file system is full: ENOSPC); nothing of the change is kept."""
+
+
 class QueryError(StoreError):
     """A SPARQL query does not parse, or is not allowed (e.g. an update on a read-only endpoint)."""
 

@@ -266,6 +266,9 @@ class ElementReport:
     """``twin:distinct true``: a new object, never associated with an element the twin holds."""
     unmerge: bool = False
     """``twin:unmerge true``: this IRI was merged into another element; make it its own again."""
+    lifetime_s: float | None = None
+    """``twin:lifetime``: how long the report holds from its observation, seconds (kept in the graph
+    for its reporter, e.g. an Open-RMF obstacle's lifetime); None: left as it is."""
 
     @property
     def changes_geometry(self) -> bool:

@@ -13,15 +13,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from adapters.cli.serve_settings import ServeSettings
 from adapters.rerun.settings import RerunSettings
 from adapters.ros.settings import ROS_SECTIONS
 from adapters.sparql.settings import RemoteStoreSettings
 from adapters.zenoh.settings import ZenohSettings
 from twin.config import Config, ConfigSection, config_schema, load_config
 
-SECTIONS: tuple[type[ConfigSection], ...] = (ZenohSettings, RerunSettings, RemoteStoreSettings, *ROS_SECTIONS)
-"""The adapters' tables: ``[zenoh]``, ``[rerun]``, the remote store's keys of ``[store]``, ``[ros]`` and
-the ROS 2 keys of every ``[robots.NAME]`` and ``[sources.NAME]``."""
+SECTIONS: tuple[type[ConfigSection], ...] = (
+    ZenohSettings, RerunSettings, RemoteStoreSettings, ServeSettings, *ROS_SECTIONS
+)  # fmt: skip
+"""The adapters' tables: ``[zenoh]``, ``[rerun]``, ``[serve]``, the remote store's keys of ``[store]``,
+``[ros]`` and the ROS 2 keys of every ``[robots.NAME]`` and ``[sources.NAME]``."""
 
 
 def load(path: Path | None = None) -> Config:

@@ -4,14 +4,17 @@ publishes every skill map, serves robots over Zenoh until SIGINT/SIGTERM, then s
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import logging
+import multiprocessing
+import os
 import signal
 import sys
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import zenoh
 
@@ -29,6 +32,7 @@ from adapters.cli.common import (
 from adapters.cli.map_routes import ServedRoutes, serve_routes
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
+from adapters.cli.serve_settings import ServeSettings
 from adapters.rerun.settings import RerunSettings
 from adapters.ros.settings import RosSettings, ros_robots
 from adapters.zenoh.access import site_access_control
@@ -107,7 +111,97 @@ class _StartProgress:
             self.advance(self.published, self.total)
 
 
+STOP_TIMED_OUT = 124
+"""The exit code of a stop that did not end within ``[serve] stop_timeout_s`` (as timeout(1) exits)."""
+INTERRUPTED = 130
+"""The exit code of a start-up interrupted by SIGINT or SIGTERM (as the other commands)."""
+
+
+class _Signals:
+    """SIGINT and SIGTERM: during start-up they interrupt it (KeyboardInterrupt, exit 130); once the
+    daemon serves, they ask for a clean stop (:attr:`stop`). A second signal during a stop is ignored."""
+
+    def __init__(self) -> None:
+        self.stop = threading.Event()
+        self.serving = False
+
+    def __call__(self, signum: int, frame: Any) -> None:
+        if self.stop.is_set():
+            return
+        self.stop.set()
+        if not self.serving:
+            threading.Thread(target=_interrupt_deadline, name="twin-stop-watchdog", daemon=True).start()
+            raise KeyboardInterrupt
+
+
+INTERRUPT_DEADLINE_S = 3.0
+"""How long an interrupted start-up may take to close what it opened before the process just ends."""
+
+
+def _interrupt_deadline() -> None:
+    """The start-up was interrupted: if it has not ended in :data:`INTERRUPT_DEADLINE_S` (a native call
+    that does not return, a lock the interrupt left held), end it now: kill the meshing children and
+    leave with 130. The store then recovers as after ``kill -9`` (nothing was acked yet)."""
+    time.sleep(INTERRUPT_DEADLINE_S)
+    for child in multiprocessing.active_children():
+        with contextlib.suppress(Exception):
+            child.kill()
+    _leave(INTERRUPTED, f"the interrupted start-up did not end in {INTERRUPT_DEADLINE_S:g} s")
+
+
+class _Stop:
+    """The stop's deadline (``[serve] stop_timeout_s`` from the signal), what it is doing, and what it
+    found still running. A watchdog ends the process if the stop itself hangs (a native call that
+    never returns) for twice the timeout."""
+
+    def __init__(self, timeout_s: float) -> None:
+        self.timeout_s = timeout_s
+        self.deadline = time.monotonic() + timeout_s
+        self.phase = "finishing the queued requests"
+        self.left: list[str] = []
+        self._done = threading.Event()
+        self._watchdog = threading.Thread(target=self._watch, name="twin-stop-watchdog", daemon=True)
+        self._watchdog.start()
+
+    def remaining(self) -> float:
+        return max(0.0, self.deadline - time.monotonic())
+
+    def _watch(self) -> None:
+        if not self._done.wait(2 * self.timeout_s):
+            _leave(STOP_TIMED_OUT, f"the stop hung for {2 * self.timeout_s:.0f} s while {self.phase}")
+
+    def done(self) -> None:
+        self._done.set()
+        self._watchdog.join()
+
+
+def _leave(code: int, reason: str | None = None) -> NoReturn:
+    """End the process now, without the interpreter's finalization: Zenoh's and RocksDB's native
+    threads outlive the closed session and store, and one that calls into Python while the
+    interpreter finalizes aborts the process (glibc's ``FATAL: exception not rethrown``, SIGABRT).
+    Everything the daemon owns is closed and joined before this is called; ``reason`` (a stop that
+    did not end in time) is printed as one line."""
+    if reason is not None:
+        print(f"twin: stop: {reason}; exiting with code {code}", file=sys.stderr, flush=True)
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(code)
+
+
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
+    signals = _Signals()
+    signal.signal(signal.SIGINT, signals)
+    signal.signal(signal.SIGTERM, signals)
+    try:
+        return _serve(args, cfg, signals)
+    except KeyboardInterrupt:  # during start-up: what was opened is closed again on the way out
+        print("twin: interrupted", file=sys.stderr, flush=True)
+        _leave(INTERRUPTED)
+
+
+def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
     if args.site:
         cfg = dataclasses.replace(cfg, site=args.site, site_set=True)
     if args.ifc and _needs_import(args, cfg):
@@ -123,13 +217,8 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
         )
         cmd_import(ns, cfg)  # before any Zenoh or store thread exists: meshing forks a child
     fix_heap_thresholds()  # before the store and Zenoh allocate: RSS stays flat all day
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: Any) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
+    stop_timeout_s = cfg.section(ServeSettings).stop_timeout_s
+    stopping: _Stop | None = None
     with open_store(args, cfg, create=False) as store:
         if store.is_empty():
             msg = f"The store at {store_label(args, cfg)} is empty."
@@ -150,28 +239,32 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             endpoints = ", ".join(args.listen or zenoh_of(cfg).listen)
             msg = f"Cannot open the Zenoh session (listening on {endpoints}): {err}"
             raise TransportError(msg) from err
-        recorder = _recorder(args, cfg, cfg.site)
-        release = free_memory_releaser()
-        service = TwinService(
-            store,
-            cfg,
-            housekeeping=[release] if release is not None else [],
-            snapshot=_snapshots(args, cfg),
-        )
+        recorder: RerunRecorder | None = None
         daemon: ZenohDaemon | None = None
         ros: RosMapPublisher | None = None
         ingest: RosIngest | None = None
         ros_points: RosPointsPublisher | None = None
         points: ZenohPoints | None = None
         routes: ServedRoutes | None = None
+        service: TwinService | None = None
         try:
+            recorder = _recorder(args, cfg, cfg.site)
+            release = free_memory_releaser()
+            service = TwinService(
+                store,
+                cfg,
+                housekeeping=[release] if release is not None else [],
+                snapshot=_snapshots(args, cfg),
+            )
             frame_id = cfg.section(RosSettings).frame_id
             daemon = ZenohDaemon(session, service, keys=keys, frame_id=frame_id)
             if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
                 ros = RosMapPublisher.following(daemon, cfg)  # on the dispatcher, a lane per robot
             if cfg.sources or any(r.detections is not None for r in ros_robots(cfg).values()):
                 storey_of = ros.storey_of if ros is not None else (lambda _robot: None)
-                ingest = RosIngest(session, cfg, service.submit_observation, storey_of=storey_of)
+                ingest = RosIngest(  # the obstacles of a previous run from the graph, on TwinStarted
+                    session, cfg, service.submit_observation, storey_of=storey_of, select=service.store.select
+                )
                 daemon.status_sources.append(ingest.status)
                 service.sinks.append(ingest)  # storeys, doors and occluding maps: cheap, on the writer
             service.sinks += [sink for sink in (daemon, recorder) if sink is not None]
@@ -196,6 +289,9 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             routes = serve_routes(session, cfg, store, service.live_maps.scene, prefix=keys.prefix)
             maps = service.published_maps()
             endpoints = ", ".join(args.listen or zenoh_of(cfg).listen) or "(no listener)"
+            signals.serving = True  # from here a signal asks for a clean stop
+            if signals.stop.is_set():  # one came in the last moment of the start
+                raise KeyboardInterrupt
             print(
                 f"serving site {cfg.site!r} at revision {service.revision} on {endpoints} "
                 f"under {keys.prefix}/: {len(maps)} maps published in {time.perf_counter() - t0:.2f} s "
@@ -206,18 +302,63 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
                 ),
                 flush=True,
             )
-            service.serve_forever(stop)
+
+            def shut() -> None:  # the stop is seen: no new request; those queued are answered
+                nonlocal stopping
+                stopping = _Stop(stop_timeout_s)
+                if daemon is not None:
+                    daemon.gate.shut()
+
+            service.serve_forever(signals.stop, on_stop=shut)
         finally:
+            if stopping is None:  # start-up interrupted, or an error: the same closing, on a deadline
+                stopping = _Stop(stop_timeout_s)
             t1 = time.perf_counter()
-            for closable in (ingest, daemon, points, ros, ros_points, routes):
+            stopping.phase = "closing the Zenoh side"
+            for closable in (ingest, points, ros, ros_points, routes):
                 if closable is not None:
                     closable.close()
+            if daemon is not None:
+                daemon.close(stopping.remaining())
+            stopping.phase = "waiting for SPARQL queries in flight"
+            if service is not None and (n := service.queries.close(stopping.remaining())):
+                stopping.left.append(
+                    f"{n} SPARQL quer{'y' if n == 1 else 'ies'} (pyoxigraph cannot cancel one)"
+                )
+            if service is not None and service.snapshot is not None:
+                stopping.phase = "writing the snapshot"
+                service.snapshot.join()
+            stopping.phase = "closing the Zenoh session"
             session.close()
             if recorder is not None:
-                recorder.close()
+                stopping.phase = "closing the Rerun recording"
+                recorder.close(max(1.0, stopping.remaining()))
+            stopping.phase = "closing the store"
+    # the store is closed: every acked change is in its files
+    assert stopping is not None
+    stopping.phase = "joining the daemon's threads"
+    left = stopping.left + _threads_left(stopping)
+    stopping.done()
+    if left:
+        _leave(
+            STOP_TIMED_OUT,
+            f"{', '.join(left)} still running after {stop_timeout_s:g} s ([serve] stop_timeout_s)",
+        )
     print(f"stopped cleanly in {time.perf_counter() - t1:.2f} s", flush=True)
-    sys.stdout.flush()
-    return 0
+    _leave(0)
+
+
+def _threads_left(stopping: _Stop) -> list[str]:
+    """The Python threads other than this one and the watchdog still running at the deadline (each
+    joined until then): a thread left to the interpreter's finalization is a bug, named here."""
+    names: list[str] = []
+    for thread in threading.enumerate():
+        if thread is threading.current_thread() or thread.name == "twin-stop-watchdog":
+            continue
+        thread.join(stopping.remaining())
+        if thread.is_alive():
+            names.append(f"thread {thread.name!r}")
+    return names
 
 
 def add_parser(sub: Any) -> None:

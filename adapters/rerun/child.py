@@ -2,7 +2,8 @@
 
 It owns the Rerun SDK (a :class:`RecordingWriter`), so logging, Arrow encoding and compression never
 take the daemon's GIL. It reads length-prefixed pickled messages on stdin, in order:
-``("open", options, max_failures, log_level)``, ``("event", event)``, ``("set", attribute, value)``,
+``("open", options, max_failures, log_level)``, ``("event", event)``, ``("note", text, level)`` (a line
+in the recording's event log), ``("set", attribute, value)``,
 ``("sync", n)``, ``("close",)``; and answers each ``sync`` and the end with one JSON line on its own
 stdout: ``{"sync": n, "files": [...], "failures": k, "disabled": bool}``. End of input closes the file
 too (the daemon died), so a recording is never left unflushed. A failing event is logged and counted;
@@ -49,6 +50,8 @@ def serve(source: IO[bytes], replies: IO[str]) -> int:
                 if failures >= max_failures:
                     disabled = True
                     log.error("The Rerun recorder is disabled after %d failures", failures)
+        elif kind == "note" and writer is not None and not disabled:
+            writer.note(message[1], message[2])
         elif kind == "set" and writer is not None:
             setattr(writer, message[1], message[2])
         elif kind == "sync":

@@ -168,6 +168,10 @@ class RecordingWriter:
             self._rotate()
         self._record(event)
 
+    def note(self, text: str, level: str = "INFO") -> None:
+        """A line in the recording's event log, at the time of the last recorded event."""
+        self._text(text, level)
+
     def close(self) -> None:
         """Flush and close the file (and the viewer connection)."""
         self.stream.flush()

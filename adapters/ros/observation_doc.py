@@ -60,6 +60,8 @@ class BoxReport:
     storey: str
     box: tuple[float, float, float, float, float, float, float]
     label: str | None = None
+    lifetime_s: float | None = None
+    """How long the report holds (``twin:lifetime``; an Open-RMF obstacle's lifetime, 0: for ever)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -138,6 +140,8 @@ def observation_turtle(
         cx, cy, cz, sx, sy, sz, yaw = b.box
         numbers = " ".join([*(_metres(v) for v in (cx, cy, cz, sx, sy, sz)), _radians(yaw)])
         label = f" ;\n    rdfs:label {literal(b.label)}" if b.label else ""
+        if b.lifetime_s is not None:
+            label += f' ;\n    twin:lifetime "{b.lifetime_s:.9f}"^^xsd:decimal'
         lines.append(
             f"<{b.iri}> twin:ifcClass {literal(b.ifc_class)} ; twin:storey {literal(b.storey)} ;\n"
             f'    twin:box "{numbers}"{label} .'

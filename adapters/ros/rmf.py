@@ -28,6 +28,7 @@ from collections import Counter
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
+from urllib.parse import unquote
 
 from adapters.ros.cdr import _deserialize
 from adapters.ros.detections import box_in_map
@@ -36,13 +37,16 @@ from adapters.ros.observation_doc import BoxReport, RosInputError, Translation, 
 from adapters.ros.tf import matrix
 from twin.errors import MapError, ModelError
 from twin.graph import vocab
+from twin.live.parse import sense_time_ns
 
 __all__ = [
+    "HELD_OBSTACLES",
     "DoorIndex",
     "DoorSettings",
     "Level",
     "ObstacleSettings",
     "ObstacleTracker",
+    "held_obstacles",
     "translate_door_state",
 ]
 
@@ -159,7 +163,10 @@ class ObstacleTracker:
                 continue
             lifetime_ns = int(o.lifetime.sec) * _NS_PER_S + int(o.lifetime.nanosec)
             expiry = now_ns + lifetime_ns if lifetime_ns > 0 else None
-            boxes[iri] = BoxReport(iri, ifc_class, level.storey, box, label=str(o.classification) or None)
+            boxes[iri] = BoxReport(
+                iri, ifc_class, level.storey, box, label=str(o.classification) or None,
+                lifetime_s=lifetime_ns / _NS_PER_S,
+            )  # fmt: skip
             removed.pop(iri, None)
             added[iri] = (rmf_source, expiry)
         for iri in removed:
@@ -169,6 +176,24 @@ class ObstacleTracker:
             self._known.setdefault(rmf_source, {})[iri] = expiry
         document = observation_turtle(boxes=list(boxes.values()), fusion_terms=fusion_terms)
         return Translation(document, tuple(boxes), dict(ignored), tuple(refused), _removals(removed))
+
+    @property
+    def prefix(self) -> str:
+        """The start of the IRI of every obstacle this twin source adds."""
+        return robot_iri(self.settings.source, "obstacle", "")
+
+    def restore(self, held: Iterable[tuple[str, int | None]]) -> int:
+        """Take back the obstacles a previous run added and the twin still holds, ``(iri, expiry ns or
+        None)`` each (from the graph: see :func:`held_obstacles`), so that DELETE, DELETEALL and
+        lifetimes hold across a restart. Returns how many were taken."""
+        n = 0
+        for iri, expiry in held:
+            if not iri.startswith(self.prefix):
+                continue
+            rmf_source, _, _ = unquote(iri[len(self.prefix) :]).rpartition("/")
+            self._known.setdefault(rmf_source, {})[iri] = expiry
+            n += 1
+        return n
 
     def next_expiry(self) -> int | None:
         """When the next held obstacle lapses (ns), or None."""
@@ -184,6 +209,32 @@ class ObstacleTracker:
             for iri in lapsed:
                 held.pop(iri, None)
         return Translation(None, (), extra=_removals(lapsed))
+
+
+HELD_OBSTACLES = (
+    "SELECT ?e ?at ?life WHERE { ?e twin:observedAt ?at . OPTIONAL { ?e twin:lifetime ?life } "
+    'FILTER(STRSTARTS(STR(?e), "urn:twin-ros:")) FILTER NOT EXISTS { ?e twin:removed true } }'
+)
+"""Every element a ROS source or robot minted that the twin holds, with when it last changed and its
+``twin:lifetime``."""
+
+
+def held_obstacles(rows: Iterable[Mapping[str, str | None]]) -> list[tuple[str, int | None]]:
+    """``(iri, expiry ns or None)`` of the rows of :data:`HELD_OBSTACLES`: the expiry is the last change
+    plus the lifetime (none: 0 or no lifetime). An obstacle re-sent since its last change lapses at most
+    that much earlier than it would have in the previous run; one still reported is added again."""
+    out: list[tuple[str, int | None]] = []
+    for row in rows:
+        iri, at, life = row.get("e"), row.get("at"), row.get("life")
+        if not iri or not at:
+            continue
+        try:
+            lifetime_ns = round(float(life) * _NS_PER_S) if life else 0
+            expiry = sense_time_ns(at) + lifetime_ns if lifetime_ns > 0 else None
+        except ValueError:
+            continue
+        out.append((iri, expiry))
+    return out
 
 
 def _removals(iris: Iterable[str]) -> tuple[bytes, ...]:

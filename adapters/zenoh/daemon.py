@@ -44,6 +44,7 @@ from typing import Any
 import zenoh
 
 from adapters.ros import encode_update_cells
+from adapters.zenoh.gate import CallbackGate
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.latched import BLOCK, CDR, MAP_PRIORITY, Answer, LatchedPublisher
 from adapters.zenoh.latest import LatestMaps
@@ -100,16 +101,19 @@ class ZenohDaemon:
         is up to date; they make their sends on lanes of their own."""
         self.status_sources: list[Callable[[], dict[str, object]]] = []
         """More sections of the status reply (e.g. the ROS robots' storeys), merged over the service's."""
+        self.gate = CallbackGate()
+        """The callbacks below, counted: :meth:`close` lets no new one in and waits for the running."""
+        gate = self.gate.wrap
         self._declared: list[Any] = [
             session.liveliness().declare_token(keys.daemon),
-            session.declare_subscriber(keys.all_observations, self._on_observation),
-            session.declare_queryable(keys.all_observe, self._on_observe),
-            session.declare_subscriber(keys.skills, self._on_skill),
-            session.declare_queryable(keys.skills_listing, self._on_list_skills),
-            session.declare_queryable(keys.maps, self._on_get_map),
-            session.declare_queryable(keys.sparql, self._on_sparql),
-            session.declare_queryable(keys.status, self._on_status),
-            session.declare_queryable(keys.explain, self._on_explain),
+            session.declare_subscriber(keys.all_observations, gate(self._on_observation)),
+            session.declare_queryable(keys.all_observe, gate(self._on_observe)),
+            session.declare_subscriber(keys.skills, gate(self._on_skill)),
+            session.declare_queryable(keys.skills_listing, gate(self._on_list_skills)),
+            session.declare_queryable(keys.maps, gate(self._on_get_map)),
+            session.declare_queryable(keys.sparql, gate(self._on_sparql)),
+            session.declare_queryable(keys.status, gate(self._on_status)),
+            session.declare_queryable(keys.explain, gate(self._on_explain)),
         ]
 
     # --- sink ---------------------------------------------------------------------------------------
@@ -306,15 +310,26 @@ class ZenohDaemon:
         )
 
     def _on_status(self, query: zenoh.Query) -> None:
-        status = self.service.status()
-        status["maps"] = self.maps.versions()  # the latest versions, updates included
-        for source in self.status_sources:
-            status.update(source())
+        """Always answered, whatever the store's state (its ``store`` field says it)."""
+        try:
+            status = self.service.status()
+            status["maps"] = self.maps.versions()  # the latest versions, updates included
+            for source in self.status_sources:
+                status.update(source())
+        except Exception as err:  # a bug must cost this answer its content, never the answer
+            log.exception("Could not make the status")
+            query.reply_err(
+                Reply.error(f"Internal error ({type(err).__name__}): {err}").to_json(), encoding=JSON
+            )
+            return
         query.reply(self.keys.status, json.dumps(status).encode(), encoding=JSON)
 
     # --- lifecycle ----------------------------------------------------------------------------------
-    def close(self) -> None:
-        """Send what is queued, then undeclare everything (the session stays open; its owner closes it)."""
+    def close(self, timeout_s: float = 30.0) -> None:
+        """Let no new request in and wait (up to ``timeout_s``) for the callbacks running, send what is
+        queued, then undeclare everything (the session stays open; its owner closes it)."""
+        if running := self.gate.close(timeout_s):
+            log.error("%d Zenoh callback(s) still running after %.1f s", running, timeout_s)
         self.outbox.close()
         self.site.close()
         outs = list(self._outs.values())

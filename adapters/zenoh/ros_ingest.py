@@ -42,11 +42,13 @@ from adapters.ros.diagnostics import Counts, encode_diagnostics
 from adapters.ros.interfaces import DETECTION_3D_ARRAY, DIAGNOSTIC_ARRAY, DOOR_STATE, OBSTACLES, TF_MESSAGE
 from adapters.ros.observation_doc import BoxReport, RosInputError, Translation, ViewReport, observation_turtle
 from adapters.ros.rmf import (
+    HELD_OBSTACLES,
     DoorIndex,
     DoorSettings,
     Level,
     ObstacleSettings,
     ObstacleTracker,
+    held_obstacles,
     translate_door_state,
 )
 from adapters.ros.rmw_zenoh import (
@@ -65,6 +67,7 @@ from adapters.ros.tf import TfBuffer, decode_tf_message
 from adapters.zenoh.latched import CDR, declare_latched_subscriber
 from twin.config import Config, Limits
 from twin.errors import MapError, ObservationError
+from twin.graph.rdf import Row
 from twin.live.events import MapPublished, MapUpdated, TwinEvent, TwinStarted
 from twin.live.parse import parse_observation
 from twin.live.requests import Reply, ReplyFn
@@ -161,8 +164,16 @@ class RosIngest:
         clock: Callable[[], int] = time.time_ns,
         fusion_terms: bool | None = None,
         queue_depth: int = QUEUE_DEPTH,
+        select: Callable[[str], list[Row]] | None = None,
     ) -> None:
+        """``select``: a read-only SPARQL SELECT on the twin's store (the daemon's): with it, the
+        obstacle trackers take back at start-up (on TwinStarted, before any message is handled) the
+        obstacles a previous run added, with their lifetimes (:func:`~adapters.ros.rmf.held_obstacles`)."""
         self.submit = submit
+        self.select = select
+        self._held: list[tuple[str, int | None]] = []
+        self._restored = threading.Event()
+        """Set once the obstacles of a previous run are known (at once without ``select``)."""
         self.storey_of = storey_of
         self.clock = clock
         self.fusion_terms = core_reads_fusion_terms(config.limits) if fusion_terms is None else fusion_terms
@@ -224,6 +235,8 @@ class RosIngest:
             )
             if source.diagnostics:
                 entity = self._declare_diagnostics(session, source.name, node, source.ros, entity)
+        if self.select is None or not self._obstacles:
+            self._restored.set()
         self._worker = threading.Thread(target=self._run, name="ros-ingest", daemon=True)
         self._worker.start()
         log.info(
@@ -327,6 +340,10 @@ class RosIngest:
 
     # --- the worker --------------------------------------------------------------------------------
     def _run(self) -> None:
+        self._restored.wait()  # the obstacles of a previous run first: a DELETE may name one
+        for name, tracker in self._obstacles.items():
+            if n := tracker.restore(self._held):
+                log.info("RMF source %s: %d obstacle(s) of a previous run held again", name, n)
         while True:
             timeout = 0.05 if any(r.waiting for r in self._robots.values()) else self._next_expiry_s()
             if self._diagnostics:
@@ -491,6 +508,11 @@ class RosIngest:
                 with self._lock:
                     self._elevations = {key: elevation for key, _, elevation in event.storeys}
                     self._door_index = DoorIndex(doors)
+                if not self._restored.is_set() and self.select is not None:
+                    try:
+                        self._held = held_obstacles(self.select(HELD_OBSTACLES))
+                    finally:
+                        self._restored.set()
             elif isinstance(event, MapPublished):
                 g = event.grid
                 if self._wants(g.skill):
@@ -528,6 +550,7 @@ class RosIngest:
         }
 
     def close(self) -> None:
+        self._restored.set()  # a start that never came: the worker must not wait for it
         for entity in [*self._entities, *(o.publisher for outs in self._diagnostics.values() for o in outs)]:
             try:
                 entity.undeclare()

@@ -410,12 +410,12 @@ class RosMapPublisher:
             return
         timer = threading.Timer(delay, self._owed_due, args=(r, t))
         timer.daemon = True
+        r.timers = {other for other in r.timers if other.is_alive()}  # kept until ended: close joins them
         r.timers.add(timer)
         timer.start()
 
     def _owed_due(self, r: _Robot, t: _Topic) -> None:
         with self._lock:
-            r.timers.discard(threading.current_thread())  # type: ignore[arg-type, unused-ignore]
             if t.owed and r.config.name in self._robots:
                 self._send_full(r, t)
 
@@ -555,9 +555,11 @@ class RosMapPublisher:
             self._robots.clear()
             entities = [*self._declared]
             self._declared.clear()
-            for r in robots:
-                for timer in r.timers:
-                    timer.cancel()
+            timers = [timer for r in robots for timer in r.timers]
+            for timer in timers:
+                timer.cancel()
+        for timer in timers:  # one that was already sending: it finds its robot gone, or ends its send
+            timer.join(5.0)
         for r in robots:
             if r.lane is not None:
                 r.lane.close()

@@ -51,6 +51,20 @@ class Daemon:
         self.log += out.splitlines()
         return self.process.returncode, time.monotonic() - t0
 
+    def stop_cleanly(self, sig: int = signal.SIGTERM, timeout: float = 30.0) -> None:
+        """Stop the daemon if it still runs, and assert that the stop was clean: exit 0, no ``FATAL``
+        (a thread that re-entered Python while the interpreter finalized aborts the process)."""
+        if self.process.poll() is not None:
+            return
+        try:
+            code, _ = self.stop(sig, timeout)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait(timeout=10)
+            raise AssertionError(f"the daemon did not stop within {timeout} s") from None
+        fatal = [line for line in self.log if "FATAL" in line]
+        assert code == 0 and not fatal, f"stop by {sig}: exit {code}:\n" + "\n".join(self.log[-30:])
+
 
 def start_daemon(store: Path | None, *extra: str, config: Path | None = None, scheme: str = "tcp") -> Daemon:
     """``twin serve`` on ``store`` (None: the store named in ``extra``, e.g. ``--store-url URL``)."""
@@ -112,9 +126,7 @@ def fresh_store(lab_store_dir: Path, tmp_path: Path) -> Path:
 def daemon(fresh_store: Path) -> Iterator[Daemon]:
     d = start_daemon(fresh_store, "--no-record")
     yield d
-    if d.process.poll() is None:
-        d.process.kill()
-        d.process.wait(timeout=10)
+    d.stop_cleanly()
 
 
 class JsonLinesProcess:

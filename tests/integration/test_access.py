@@ -45,9 +45,7 @@ def exists(client: TwinClient, iri: str) -> bool:
 
 
 def stopped(d: Daemon) -> None:
-    if d.process.poll() is None:
-        d.process.kill()
-        d.process.wait(timeout=10)
+    d.stop_cleanly()
 
 
 # --- user/password identities and the ACL ------------------------------------------------------------

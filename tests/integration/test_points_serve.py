@@ -87,8 +87,7 @@ def test_the_daemon_latches_each_storeys_cloud_and_republishes_it_when_a_door_op
             with pytest.raises(DaemonTimeoutError, match="'navigation' is not a points skill"):
                 client.get_points("ground-floor", "navigation")  # a 2D skill has no cloud: said so
     finally:
-        d.process.terminate()
-        d.process.wait(timeout=30)
+        d.stop_cleanly()
 
 
 ROBOT = """
@@ -149,5 +148,4 @@ def test_a_ros_robot_gets_its_storeys_cloud_on_points_map_in_both_layouts_and_th
             for s in subs:
                 s.undeclare()
     finally:
-        d.process.terminate()
-        d.process.wait(timeout=30)
+        d.stop_cleanly()

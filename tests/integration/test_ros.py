@@ -50,9 +50,7 @@ def _daemon(store: Path, tmp_path: Path, *extra: str) -> Iterator[Daemon]:
     config.write_text(CONFIG)
     d = start_daemon(store, *extra, "-v", config=config)  # -v after the command: info logs
     yield d
-    if d.process.poll() is None:
-        d.process.kill()
-        d.process.wait(timeout=10)
+    d.stop_cleanly()
 
 
 class RosSubscriber(JsonLinesProcess):

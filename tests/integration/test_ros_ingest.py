@@ -82,9 +82,7 @@ def layout_daemon(
     path.write_text(config(request.param))
     d = start_daemon(fresh_store, "--no-record", "-v", config=path)
     yield request.param, d
-    if d.process.poll() is None:
-        d.process.kill()
-        d.process.wait(timeout=10)
+    d.stop_cleanly()
 
 
 class Publisher(JsonLinesProcess):

@@ -51,10 +51,8 @@ def site_daemon(store_dir: Path, root: Path, site: str, router: Router, config: 
     )
 
 
-def kill(d: Daemon) -> None:
-    if d.process.poll() is None:
-        d.process.kill()
-        d.process.wait(timeout=10)
+def stopped(d: Daemon) -> None:
+    d.stop_cleanly()
 
 
 @pytest.fixture
@@ -117,8 +115,8 @@ def test_a_robot_at_the_router_gets_both_sites_maps_and_an_observation_changes_o
             north_watch.close()
             south_watch.close()
     finally:
-        kill(north)
-        kill(south)
+        stopped(north)
+        stopped(south)
     assert router.stop() == 0
 
 
@@ -168,7 +166,7 @@ def test_the_routers_storage_serves_a_sites_maps_and_clouds_while_its_daemon_is_
             assert latest[2] > live[2]
             assert len(latest_cloud[0]) > len(live_cloud[0])  # the table's voxels
     finally:
-        kill(north)
+        stopped(north)
     time.sleep(0.5)
     with TwinClient.connect([router.endpoint], prefix="twin/north", mode="client") as late:
         assert not late.daemon_alive()
@@ -237,5 +235,5 @@ def test_robot_commands_through_a_router_get_their_ack_every_time_and_honour_the
         )  # fmt: skip
         assert snippet.returncode == 0 and "'ok': True" in snippet.stdout, snippet.stdout + snippet.stderr
     finally:
-        kill(north)
-        kill(south)
+        stopped(north)
+        stopped(south)

@@ -46,9 +46,7 @@ def _daemon(store: Path, tmp_path: Path, name: str) -> Daemon:
 def wing(wing_store_dir: Path, tmp_path: Path) -> Iterator[Daemon]:
     d = _daemon(wing_store_dir, tmp_path, "wing")
     yield d
-    if d.process.poll() is None:
-        d.process.kill()
-        d.process.wait(timeout=10)
+    d.stop_cleanly()
 
 
 def test_a_daemon_serves_the_site_its_store_was_imported_as(wing: Daemon) -> None:

@@ -52,9 +52,7 @@ def two_robots(fresh_store: Path, tmp_path: Path) -> Iterator[Daemon]:
     config.write_text(CONFIG)
     d = start_daemon(fresh_store, "--no-record", config=config)
     yield d
-    if d.process.poll() is None:
-        d.process.kill()
-        d.process.wait(timeout=10)
+    d.stop_cleanly()
 
 
 class RosFollower:

@@ -36,9 +36,7 @@ def zones_daemon(fresh_store: Path, tmp_path: Path) -> Iterator[Daemon]:
     config.write_text(CONFIG)
     d = start_daemon(fresh_store, "--no-record", config=config)
     yield d
-    if d.process.poll() is None:
-        d.process.kill()
-        d.process.wait(timeout=10)
+    d.stop_cleanly()
 
 
 def zone(d: Daemon, robot: str, *args: str) -> tuple[int, dict[str, object]]:

@@ -15,9 +15,13 @@ Example::
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import io
 import json
 import logging
+import shutil
+import threading
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +30,7 @@ from typing import IO, Protocol, Self, runtime_checkable
 
 import pyoxigraph as ox
 
-from twin.errors import QueryError, StoreError, StoreNotFoundError
+from twin.errors import QueryError, StoreError, StoreNotFoundError, StoreWriteError
 from twin.graph import vocab
 from twin.graph.rdf import (
     ByteCounter,
@@ -39,6 +43,12 @@ from twin.graph.rdf import (
 )
 
 log = logging.getLogger(__name__)
+
+REOPEN_FREE_BYTES = 1 << 20
+"""A store is reopened after a write error only once its file system has this much room (a new
+write-ahead log, manifest and options files)."""
+REOPEN_WAIT_S = 5.0
+"""How long a reader waits for a reopen to hand it the new handle."""
 
 # twin.live still imports these records from here; their home is twin.graph.rdf.
 __all__ = ["EmbeddedStore", "GraphStore", "StoreInfo", "TextLoader"]
@@ -93,13 +103,20 @@ class EmbeddedStore:
     def __init__(self, store: ox.Store, info: StoreInfo) -> None:
         self._handle: ox.Store | None = store
         self.info = info
+        self._reopened_read_only: str | None = None
+        """Why a store opened for writing holds a read-only handle now (a failed :meth:`reopen`)."""
+        self._open = threading.Event()
+        self._open.set()  # cleared while :meth:`reopen` swaps the handle: readers wait for it
 
     @property
     def _store(self) -> ox.Store:
         if self._handle is None:
+            self._open.wait(REOPEN_WAIT_S)
+        handle = self._handle
+        if handle is None:
             msg = f"The store at {self.info.path or 'memory'} is closed."
             raise StoreError(msg)
-        return self._handle
+        return handle
 
     # --- lifecycle --------------------------------------------------------------------------------
     @classmethod
@@ -128,9 +145,39 @@ class EmbeddedStore:
         """Flush and release the store; closing twice is harmless."""
         if self._handle is None:
             return
-        if not self.info.read_only and self.info.path is not None:
-            self._handle.flush()
+        try:
+            if not self.info.read_only and self.info.path is not None and self._reopened_read_only is None:
+                self._handle.flush()
+        except OSError as err:  # a full disk: the commits are in the write-ahead log already
+            log.warning("Could not flush the store at %s on closing: %s", self.info.path, err)
         self._handle = None
+
+    def reopen(self) -> None:
+        """Close the on-disk store and open it again: RocksDB keeps a write error (e.g. ENOSPC) until
+        then. If it cannot be opened for writing (a disk still full, a query still holding the old
+        handle) it is opened read-only, so reads go on, and StoreWriteError says why."""
+        path = self.info.path
+        if path is None or self.info.read_only:
+            return
+        free = shutil.disk_usage(path).free
+        if free < REOPEN_FREE_BYTES:  # keep the handle (reads go on) until there is room to write
+            msg = f"No space left on device: {free:,} bytes free for the store at {path}."
+            raise StoreWriteError(msg)
+        self._open.clear()
+        try:
+            self._handle = None
+            gc.collect()  # the old handle's last references: its RocksDB lock goes with it
+            try:
+                self._handle = ox.Store(str(path))
+                self._reopened_read_only = None
+            except OSError as err:
+                msg = f"Cannot open the store at {path} for writing again: {err}"
+                self._reopened_read_only = msg
+                with contextlib.suppress(OSError):
+                    self._handle = ox.Store.read_only(str(path))
+                raise StoreWriteError(msg) from err
+        finally:
+            self._open.set()
 
     def __enter__(self) -> Self:
         return self
@@ -145,6 +192,8 @@ class EmbeddedStore:
         if self.info.read_only:
             msg = f"The store at {self.info.path} is open read-only."
             raise StoreError(msg)
+        if self._reopened_read_only is not None:
+            raise StoreWriteError(self._reopened_read_only)
         return self._store
 
     def bulk_add(self, quads: Iterable[ox.Quad]) -> None:
@@ -178,7 +227,12 @@ class EmbeddedStore:
 
         Commits are durable without it (the write-ahead log); the daemon calls it now and then so that
         neither the memory the buffers hold nor the log grows with the number of changes."""
-        if self._handle is not None and not self.info.read_only and self.info.path is not None:
+        if (
+            self._handle is not None
+            and not self.info.read_only
+            and self.info.path is not None
+            and self._reopened_read_only is None
+        ):
             self._handle.flush()
 
     def update(self, sparql_update: str) -> None:
@@ -188,6 +242,9 @@ class EmbeddedStore:
         except SyntaxError as err:
             msg = f"SPARQL update does not parse: {err}"
             raise QueryError(msg) from err
+        except OSError as err:  # RocksDB: a full disk, an I/O error; it keeps refusing until reopened
+            msg = f"The store at {self.info.path or 'memory'} could not write: {err}"
+            raise StoreWriteError(msg) from err
 
     def clear(self) -> None:
         self._writable().clear()

@@ -172,7 +172,10 @@ _ELEMENT_TERMS = {
     vocab.TWIN_SENSE_TIME,
     vocab.TWIN_DISTINCT,
     vocab.TWIN_UNMERGE,
+    vocab.TWIN_LIFETIME,
 }
+MAX_LIFETIME_S = 7 * 86400.0
+"""The longest ``twin:lifetime`` taken (a week): beyond it a report is not transient."""
 _VIEW_TERMS = {
     vocab.RDF_TYPE,
     vocab.TWIN_STOREY,
@@ -239,7 +242,7 @@ def _report(
                 f"Element <{subject}>: unknown term <{predicate}> (known: twin:ifcClass, twin:storey, "
                 "twin:box, omg:hasGeometry, twin:placement, twin:isOpen, twin:removed, twin:keepout, "
                 "twin:speedLimit, rdfs:label, twin:material, rdf:type, twin:senseTime, twin:distinct, "
-                "twin:unmerge)."
+                "twin:unmerge, twin:lifetime)."
             )
     args: dict[str, object] = {"iri": subject}
     if vocab.TWIN_IFC_CLASS in props:
@@ -314,6 +317,19 @@ def _report(
         args["distinct"] = _flag(subject, vocab.TWIN_DISTINCT, props[vocab.TWIN_DISTINCT])
     if vocab.TWIN_UNMERGE in props:
         args["unmerge"] = _flag(subject, vocab.TWIN_UNMERGE, props[vocab.TWIN_UNMERGE])
+    if vocab.TWIN_LIFETIME in props:
+        numeric = (vocab.XSD_DECIMAL, vocab.XSD_DOUBLE, vocab.XSD_INTEGER)
+        text = _literal(subject, vocab.TWIN_LIFETIME, props[vocab.TWIN_LIFETIME], numeric).value
+        try:
+            lifetime = float(text)
+        except ValueError:
+            lifetime = math.nan
+        if not 0.0 <= lifetime <= MAX_LIFETIME_S:
+            raise _fail(
+                f"Element <{subject}>: twin:lifetime must be seconds from 0 to {MAX_LIFETIME_S:g}, "
+                f"got {text[:80]!r}."
+            )
+        args["lifetime_s"] = lifetime
     report = ElementReport(**args)  # type: ignore[arg-type]
     geometries = [k for k in ("box", "geometry", "placement") if k in args]
     if len(geometries) > 1:

@@ -259,6 +259,12 @@ def plan_observation(
                         w.delete.append(Triple(old.iri, vocab.BOT_CONTAINS_ELEMENT, r.iri))
                     w.add.append(Triple(storey.iri, vocab.BOT_CONTAINS_ELEMENT, r.iri))
                     state = replace(state, storey=r.storey)
+            if r.lifetime_s is not None:  # single-valued: written only when it differs from the held one
+                lifetime = literal(f"{r.lifetime_s:.9f}".rstrip("0").rstrip("."), vocab.XSD_DECIMAL)
+                mark = w.changed()
+                w.set(r.iri, vocab.TWIN_LIFETIME, lifetime)
+                if exists and w.changed() != mark:
+                    _need(rights, change, robot, f"change <{r.iri}>")
             labels = [v for v in r.labels if v not in state.labels]
             materials = [
                 v for v in r.materials if v not in state.materials or v not in state.facing_materials

@@ -35,7 +35,7 @@ from twin.live.live_points import PointsPublication
 from twin.live.loading import catch_up, load_live_or_restore
 from twin.live.observe import Observer, element_shapes
 from twin.live.publication import Publication, PublishedVersion
-from twin.live.query import run_query
+from twin.live.query import QueryWorkers, run_query
 from twin.live.requests import (
     ExplainRequest,
     ObserveRequest,
@@ -50,6 +50,7 @@ from twin.live.skill_changes import apply_skill, publish_all_maps
 from twin.live.snapshots import Restored, Snapshots
 from twin.live.state import ElementState, LiveState
 from twin.live.status import service_status
+from twin.live.store_health import WatchedStore
 from twin.selection.skills import SkillProfile
 
 log = logging.getLogger(__name__)
@@ -57,6 +58,8 @@ log = logging.getLogger(__name__)
 Clock = Callable[[], int]
 _ALIAS_CHECK_S = 10.0
 """How often the writer looks for aliases unused for ``[fusion] alias_ttl_s``."""
+STORE_RETRY_S = 2.0
+"""How often the writer tries to make a failed store work again (reopen and probe, or ask)."""
 
 
 class TwinService:
@@ -73,13 +76,18 @@ class TwinService:
         flush_every_s: float | None = None,
         housekeeping: Sequence[Callable[[], None]] = (),
         snapshot: Snapshots | None = None,
+        warm_ups: Sequence[tuple[str, Callable[[LiveState], None]]] = (),
     ) -> None:
         """``max_batch``: at most this many queued observations share one commit and one map pass
         (group commit). ``flush_every_s``: flush the store's buffers this often (if anything changed;
         default ``[store] flush_every_s``), then run each of ``housekeeping`` (e.g. give freed memory
         back to the system). ``snapshot``: where the derived state is kept between runs (read by
-        :meth:`start`, written on a clean stop and in the background; see :mod:`twin.live.snapshots`)."""
-        self.store = store
+        :meth:`start`, written on a clean stop and in the background; see :mod:`twin.live.snapshots`).
+        ``warm_ups``: named steps :meth:`start` runs last, after the maps (see :meth:`warm_up`)."""
+        self.store = store if isinstance(store, WatchedStore) else WatchedStore(store)
+        """The store, watched: :attr:`store_health` says what it can do (:mod:`twin.live.store_health`)."""
+        self.store_health = self.store.health
+        self._store_tried = 0.0  # monotonic time of the last attempt to make a failed store work again
         self.config = config
         self.sinks = list(sinks)
         self.clock = clock
@@ -100,6 +108,10 @@ class TwinService:
         self.started_ns = 0
         self._flushed_at = (0.0, 0)  # (monotonic time, revision) of the last flush
         self._base_iri = ""
+        self.warm_ups = list(warm_ups)
+        """What the first request would otherwise build lazily, as (name, step): :meth:`warm_up`."""
+        self.queries = QueryWorkers()
+        """The SPARQL queries' worker threads: a stop closes it (no new query) and waits for them."""
 
     # --- start ----------------------------------------------------------------------------------------
     def start(self) -> None:
@@ -135,6 +147,7 @@ class TwinService:
             )
         )
         self._completing = publish_all_maps(self.store, live, self.publication, restored, stamp)
+        self.warm_up()
         log.info(
             "Twin started at revision %d: %d maps of %d skills on %d storeys in %.2f s",
             live.revision,
@@ -147,6 +160,18 @@ class TwinService:
             restored is None or restored.skills != frozenset(live.skills) or restored.revision < live.revision
         ):
             self.snapshot.save_in_background(live)  # rebuilt or replayed: keep the result
+
+    def warm_up(self) -> None:
+        """Build now what the first request would otherwise wait for, so that a started service is
+        ready (``twin serve`` says ``serving`` after this): the world triangles of a scene restored
+        from the snapshot (1.2-1.5 s on Janesville, else paid by the first observation), then each of
+        :attr:`warm_ups` in turn (the place for any other state built on first use, e.g. fusion's
+        per-storey poses). Called by :meth:`start`; each step runs once per start."""
+        self.complete_scene()
+        for name, step in self.warm_ups:
+            t = time.perf_counter()
+            step(self.live)
+            log.info("Start-up step %r done in %.2f s", name, time.perf_counter() - t)
 
     def save_snapshot(self) -> None:
         """Write the snapshot now (a clean stop); a failure is logged, never raised."""
@@ -208,11 +233,24 @@ class TwinService:
             self.publication.flush(self._live.maps.skill_maps, self._live.revision, due_only=due_only)
             self.points_publication.flush(self._live.maps.points, self._live.revision, due_only=due_only)
 
+    def recover_store(self, *, due_only: bool = False) -> bool:
+        """If the store has failed (read-only: a full disk; unreachable), try to make it work again (at
+        most every :data:`STORE_RETRY_S` with ``due_only``); True if it is ok. On the writer's thread:
+        an embedded store is reopened, which no write may overlap."""
+        if self.store_health.ok:
+            return True
+        if due_only and time.monotonic() - self._store_tried < STORE_RETRY_S:
+            return False
+        self._store_tried = time.monotonic()
+        return self.store.recover()
+
     def flush_store(self, *, due_only: bool = False) -> None:
         """Flush the store's buffers if anything was committed since the last flush (with ``due_only``:
         and ``flush_every_s`` has passed)."""
         at, revision = self._flushed_at
         if self.revision == revision or (due_only and time.monotonic() - at < self.flush_every_s):
+            return
+        if not self.store_health.ok:  # nothing was committed since it failed; a flush would fail too
             return
         try:
             self.store.flush()
@@ -293,11 +331,15 @@ class TwinService:
         self.flush_full_maps(due_only=True)
         return handled
 
-    def serve_forever(self, stop: threading.Event, *, poll_s: float = 0.05) -> None:
-        """Handle requests until ``stop`` is set, then finish what is queued and publish every map."""
+    def serve_forever(
+        self, stop: threading.Event, *, poll_s: float = 0.05, on_stop: Callable[[], None] | None = None
+    ) -> None:
+        """Handle requests until ``stop`` is set, then finish what is queued and publish every map.
+        ``on_stop`` runs first when the stop is seen (e.g. let no new request in)."""
         aliases_checked = time.monotonic()
         while not stop.is_set():
             self.process(timeout_s=poll_s)
+            self.recover_store(due_only=True)
             self.flush_store(due_only=True)
             if time.monotonic() - aliases_checked > _ALIAS_CHECK_S:
                 aliases_checked = time.monotonic()
@@ -305,6 +347,8 @@ class TwinService:
                 self.observer.expire_unconfirmed()
             if self.snapshot is not None and self.snapshot.due(self.revision):
                 self.snapshot.save_in_background(self.live)
+        if on_stop is not None:
+            on_stop()
         self.process()
         self.flush_full_maps()
         self.flush_store()
@@ -387,7 +431,7 @@ class TwinService:
 
     def query(self, sparql: str) -> tuple[str, bytes]:
         """A read-only SPARQL query, bounded in time and result size; QueryError names the problem."""
-        return run_query(self.store, sparql, limits=self.config.limits)
+        return run_query(self.store, sparql, limits=self.config.limits, workers=self.queries)
 
 
 def _send(request: Request, reply: Reply) -> None:

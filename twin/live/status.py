@@ -9,22 +9,38 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from twin.errors import StoreError
+
 if TYPE_CHECKING:
     from twin.live.service import TwinService
 
 
+def _triples(service: TwinService) -> int | None:
+    """The store's triple count (None: it cannot be counted now; not asked while it is unreachable,
+    which would cost each status its time-out)."""
+    if service.store_health.state == "unreachable":
+        return None
+    try:
+        return len(service.store)
+    except StoreError:
+        return None
+
+
 def service_status(service: TwinService) -> dict[str, object]:
-    """Site, revision, element and triple counts, skills, storeys, every map's version, every points
-    map's latest published cloud (version, size), observation counts, queue depth and uptime of a
-    started service."""
+    """Site, revision, the store's state (``ok``, ``read-only: <reason>``, ``unreachable: <reason>``:
+    see :mod:`twin.live.store_health`), element and triple counts, skills, storeys, every map's
+    version, every points map's latest published cloud (version, size), observation counts, queue
+    depth and uptime of a started service."""
     live = service.live
     obs = service.observer
     now = service.clock()
+    triples = _triples(service)  # first: asking the store is what finds it unreachable
     return {
         "site": service.config.site,
         "revision": live.revision,
+        "store": service.store_health.text,
         "elements": sum(1 for s in list(live.states.values()) if not s.removed),
-        "triples": len(service.store),
+        "triples": triples,
         "skills": sorted(live.skills),
         "storeys": [s.key for s in live.maps.scene.storeys],
         "maps": [

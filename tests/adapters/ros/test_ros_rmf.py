@@ -14,6 +14,7 @@ from adapters.ros.rmf import (
     Level,
     ObstacleSettings,
     ObstacleTracker,
+    held_obstacles,
     translate_door_state,
 )
 from tests.adapters.ros_reports import Obstacle, cdr_door_state, cdr_obstacles
@@ -115,3 +116,23 @@ def test_an_unknown_or_ambiguous_door_is_refused_naming_it() -> None:
     assert err.value.cause == "unknown_door"
     with pytest.raises(RosInputError, match="several doors have that name"):
         translate_door_state(cdr_door_state(NOW, "Twin", 2), DoorSettings("doors", {}), INDEX)
+
+
+def test_a_tracker_takes_back_the_obstacles_of_a_previous_run_from_the_graph_rows() -> None:
+    before = ObstacleTracker(SETTINGS)
+    doc = before.translate(cdr_obstacles(NOW, [human(1, lifetime_ns=2_000_000_000), human(2)]), now_ns=NOW)
+    assert b'twin:lifetime "2.000000000"^^xsd:decimal' in (doc.document or b"")
+    at = "2023-11-14T22:13:20Z"  # NOW as the graph's twin:observedAt
+    rows = [
+        {"e": "urn:twin-ros:rmf:obstacle:cam1%2F1", "at": at, "life": "2"},
+        {"e": "urn:twin-ros:rmf:obstacle:cam1%2F2", "at": at, "life": "0"},
+        {"e": "urn:twin-ros:other:obstacle:cam1%2F3", "at": at, "life": None},  # another twin source's
+        {"e": "urn:twin-ros:rmf:obstacle:cam1%2F4", "at": "not a time", "life": "1"},
+    ]
+    after = ObstacleTracker(SETTINGS)
+    assert after.restore(held_obstacles(rows)) == 2
+    assert after.held == 2 and after.next_expiry() == NOW + 2_000_000_000
+    (deleted,) = after.translate(cdr_obstacles(NOW, [human(2, action=2)]), now_ns=NOW).documents
+    assert b"cam1%2F2> twin:removed true" in deleted  # a DELETE of a previous run's obstacle
+    (gone,) = after.expire(now_ns=NOW + 2_000_000_000).documents
+    assert b"cam1%2F1> twin:removed true" in gone and after.held == 0

@@ -77,3 +77,12 @@ def test_more_elements_than_the_limit_are_refused() -> None:
 def test_box_sizes_and_angles_are_finite_numbers() -> None:
     r = _one('<urn:t> twin:box "-1e3 2.5e1 0 0.01 0.01 0.01 -3.1" ; twin:storey "g" .')
     assert all(math.isfinite(v) for v in (r.box.cx, r.box.cy, r.box.cz, r.box.yaw))
+
+
+def test_a_lifetime_is_read_as_seconds_and_a_negative_or_endless_one_is_refused() -> None:
+    r = _one('<urn:o> twin:ifcClass "IfcFurniture" ; twin:storey "g" ; twin:box "1 2 0.5 1 1 1 0" ; '
+             'twin:lifetime 2.5 .')  # fmt: skip
+    assert r.lifetime_s == 2.5
+    for bad in ("-1.0", '"NaN"^^<http://www.w3.org/2001/XMLSchema#double>', "1e9", '"5"'):
+        with pytest.raises(ObservationError, match="twin:lifetime"):
+            _one(f"<urn:o> twin:lifetime {bad} .")

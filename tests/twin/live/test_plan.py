@@ -94,3 +94,22 @@ def test_an_element_cannot_change_its_class() -> None:
     assert observe(service, "robot1", box_turtle("urn:r:t1", 5.0, 2.0)).ok
     with pytest.raises(ObservationError, match="cannot make it IfcWall"):
         _plan(service, box_turtle("urn:r:t1", 5.0, 2.0, cls="IfcWall"))
+
+
+def test_a_lifetime_is_kept_in_the_graph_and_the_same_one_again_writes_nothing() -> None:
+    from tests.twin.live_helpers import box_turtle, observe, started
+
+    service, _ = started()
+    box = box_turtle("urn:rmf:obstacle:1", 2.0, 1.0)
+    assert box.endswith(b" .\n")
+    doc = box[:-3] + b' ; twin:lifetime "5.0"^^<http://www.w3.org/2001/XMLSchema#decimal> .\n'
+    first = observe(service, "robot1", doc)
+    assert first.ok and "unchanged" not in first.body
+    assert observe(service, "robot1", doc).body.get("unchanged") is True
+    rows = service.store.select("SELECT ?l WHERE { <urn:rmf:obstacle:1> twin:lifetime ?l }")
+    assert [r["l"] for r in rows] == ["5"]
+    moved = box_turtle("urn:rmf:obstacle:1", 4.0, 1.0)  # a move with another lifetime writes both
+    longer = moved[:-3] + b' ; twin:lifetime "7.5"^^<http://www.w3.org/2001/XMLSchema#decimal> .\n'
+    assert "unchanged" not in observe(service, "robot1", longer).body
+    rows = service.store.select("SELECT ?l WHERE { <urn:rmf:obstacle:1> twin:lifetime ?l }")
+    assert [r["l"] for r in rows] == ["7.5"]

@@ -1,0 +1,22 @@
+"""``[serve]``: how ``twin serve`` runs as a service. The CLI owns this table."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import Field
+
+from twin.config import ConfigSection
+from twin.config.base import Number
+
+
+class ServeSettings(ConfigSection):
+    """``[serve]``: the daemon's stop."""
+
+    table = "serve"
+
+    stop_timeout_s: Annotated[Number, Field(gt=0.0, le=3600.0)] = Field(
+        10.0,
+        description="How long a stop (SIGINT, SIGTERM) waits for queries in flight and threads to end; "
+        "past it the daemon exits with code 124 after closing the store.",
+    )
