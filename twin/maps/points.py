@@ -6,13 +6,19 @@ the set of voxels (cubes of ``resolution_m``, half-open) that the selected eleme
 within the height band (from ``band_bottom_m`` to ``band_top_m`` above the storey's elevation, by
 default from just below the floor's top to the next storey's elevation): the 3D analogue of the 2D
 rule, so thin elements never vanish and touching elements leave no gaps. The touch test is exact
-(:mod:`twin.maps.voxels`). Each voxel holds one point: the point of the selected surfaces, within the voxel,
-nearest its centre (a centre would bias the cloud by up to half a voxel), with the unit normal of the
-triangle it lies on, oriented by the triangle's winding (outward for the importer's closed shells;
-float32). Ties (a point on an edge or vertex several triangles share, or equal points of several
-elements) go to the smallest point, then to the smallest normal (x, then y, then z; a degenerate
-triangle's zero normal last), so the cloud does not depend on the order triangles and elements are
-processed in (incremental updates equal a full rebuild voxel for voxel, normals included).
+(:mod:`twin.maps.voxels`), on coordinates whose grid planes are decided in world metres (within 1 um
+of a plane is on it: :func:`twin.maps.grid.grid_coordinates`), so the voxels do not depend on where
+the building sits. Each voxel holds one point: the point of the selected surfaces nearest the voxel's
+centre within the voxel's *closed* box (a centre would bias the cloud by up to half a voxel; the point
+may lie on the box's boundary, its upper faces included, which the half-open voxel does not hold), with
+the unit
+normal of the triangle it lies on, oriented by the triangle's winding (outward for the importer's closed
+shells, which it orients outward; float32). Ties (a point on an edge or vertex several triangles share,
+or equal points of several elements) go to the smallest point, then to the smallest normal (x, then y,
+then z; a degenerate triangle's zero normal last), distances and points compared rounded to 2**-20 of a
+voxel (:func:`best_rows`), so the cloud depends neither on the order triangles and elements are
+processed in (incremental updates equal a full rebuild voxel for voxel, normals included) nor on float
+noise.
 
 Frames: the voxels' x, y are the cells of the storey's 2D maps at this resolution (same origin, the
 ``map`` frame); z is metres above the storey's elevation, voxel layer ``k`` covering
@@ -35,11 +41,12 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.errors import MapError
-from twin.maps.grid import GridFrame
+from twin.maps.grid import GridFrame, grid_coordinates, grid_units
 from twin.maps.nearest import distance_to_centres, nearest_points_of
 from twin.maps.scene import IndexArray, MeshSet, Scene, StoreyInfo
 from twin.maps.voxels import FloatArray, IntArray, touched_pairs
 from twin.selection.skills import SkillProfile
+from twin.tolerances import TOLERANCES
 
 __all__ = [
     "MAX_POINTS_VOXELS",
@@ -80,8 +87,9 @@ class PointsPlan:
 
     @property
     def w_band(self) -> tuple[float, float]:
-        """The band in cell units of z (above the elevation)."""
-        return (self.band[0] / self.resolution_m, self.band[1] / self.resolution_m)
+        """The band in cell units of z (above the elevation); an end within 1 um of a layer's plane is
+        on it (``grid_units``)."""
+        return (grid_units(self.band[0], self.resolution_m), grid_units(self.band[1], self.resolution_m))
 
     @property
     def layers(self) -> tuple[int, int]:
@@ -104,12 +112,13 @@ class PointsPlan:
 
     def cells(self, triangles: FloatArray) -> FloatArray:
         """World triangles ``(n, 3, 3)`` in cell coordinates (the voxels' units; see
-        :mod:`twin.maps.voxels`)."""
+        :mod:`twin.maps.voxels`), grid planes and the band's ends decided in world metres
+        (:func:`twin.maps.grid.grid_coordinates`: within 1 um of one is on it)."""
         out = np.empty_like(triangles, dtype=np.float64)
         res = self.resolution_m
-        out[..., 0] = (triangles[..., 0] - self.frame.origin_x) / res
-        out[..., 1] = (triangles[..., 1] - self.frame.origin_y) / res
-        out[..., 2] = (triangles[..., 2] - self.storey.elevation_m) / res
+        out[..., 0] = grid_coordinates(triangles[..., 0], self.frame.origin_x, res)
+        out[..., 1] = grid_coordinates(triangles[..., 1], self.frame.origin_y, res)
+        out[..., 2] = grid_coordinates(triangles[..., 2], self.storey.elevation_m, res, ends=self.band)
         return out
 
     def keys(self, ijk: IntArray) -> IntArray:
@@ -243,12 +252,24 @@ def sorted_unique(keys: IntArray) -> IntArray:
     return s[first]
 
 
+def _quantised(values: FloatArray) -> IntArray:
+    """Values in voxels (squared distances, points) rounded to ``TOLERANCES.point_quantum``: the ranks
+    ties are decided by (float noise of a few ulp does not change them)."""
+    out: IntArray = np.rint(values / TOLERANCES.point_quantum).astype(np.int64)
+    return out
+
+
 def best_rows(
     keys: IntArray, q: FloatArray, d2: FloatArray, normals: Float32Array, owner: IndexArray | None = None
 ) -> IntArray:
-    """The row of each key's best point (nearest the voxel's centre, ties to the smallest ``(x, y, z)``,
-    then to the smallest of their ``normals`` (x, y, z; zero normals last)), one per key, in the order of the
-    keys; with ``owner``, one per (owner, key), in that order."""
+    """The row of each key's best point, one per key, in the order of the keys; with ``owner``, one per
+    (owner, key), in that order.
+
+    The order is total and on quantised values (:data:`TOLERANCES.point_quantum` of a voxel), so that
+    the points of a voxel that are equal but for rounding (one point of an edge two triangles share,
+    a building moved by whole voxels) are ranked by what they are, not by their noise: the smallest
+    squared distance to the voxel's centre, then the smallest point (x, y, z), then the smallest normal
+    (x, y, z; zero normals last), then the exact values (point, then distance)."""
     n = len(keys)
     if n < 2:
         return np.arange(n, dtype=np.int64)
@@ -262,7 +283,7 @@ def best_rows(
     starts = np.flatnonzero(first)
     if len(starts) == n:
         return order.astype(np.int64)
-    dk = d2[order]
+    dk = _quantised(d2[order])
     group = np.cumsum(first) - 1
     at_min = dk == np.minimum.reduceat(dk, starts)[group]
     # the first row at the minimum of each group; groups with two rows at it are tie-broken by the point
@@ -282,7 +303,9 @@ def best_rows(
     sub_g = g[in_tie]
     ns = normals[sub]
     zero = ~ns.any(axis=1)
-    sub = sub[np.lexsort((ns[:, 2], ns[:, 1], ns[:, 0], zero, q[sub, 2], q[sub, 1], q[sub, 0], sub_g))]
+    qs, rq = q[sub], _quantised(q[sub])
+    ranks = (d2[sub], qs[:, 2], qs[:, 1], qs[:, 0], ns[:, 2], ns[:, 1], ns[:, 0], zero)
+    sub = sub[np.lexsort((*ranks, rq[:, 2], rq[:, 1], rq[:, 0], sub_g))]
     sg = np.sort(sub_g)
     keep = np.ones(len(sub), dtype=np.bool_)
     keep[1:] = sg[1:] != sg[:-1]
@@ -292,8 +315,8 @@ def best_rows(
 
 
 def best_per_voxel(v: Voxels) -> Voxels:
-    """One point per key: the nearest the voxel's centre, ties to the smallest (x, y, z), then normal;
-    sorted by key."""
+    """One point per key: the nearest the voxel's centre, ties to the smallest (x, y, z), then normal
+    (compared quantised: :func:`best_rows`); sorted by key."""
     if not len(v):
         return v
     return v.take(best_rows(v.keys, v.q, v.d2, v.n))
@@ -319,13 +342,14 @@ def _near_band(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> tuple[Floa
     tb = meshes.triangle_bounds[rows]
     f = plan.frame
     z_lo, z_hi = plan.world_band
+    g = TOLERANCES.grid_m  # (a vertex that near a bound may be on it)
     keep = (
-        (tb[:, 0] <= f.origin_x + f.width * f.resolution_m)
-        & (tb[:, 3] >= f.origin_x)
-        & (tb[:, 1] <= f.origin_y + f.height * f.resolution_m)
-        & (tb[:, 4] >= f.origin_y)
-        & (tb[:, 2] <= z_hi)
-        & (tb[:, 5] >= z_lo)
+        (tb[:, 0] <= f.origin_x + f.width * f.resolution_m + g)
+        & (tb[:, 3] >= f.origin_x - g)
+        & (tb[:, 1] <= f.origin_y + f.height * f.resolution_m + g)
+        & (tb[:, 4] >= f.origin_y - g)
+        & (tb[:, 2] <= z_hi + g)
+        & (tb[:, 5] >= z_lo - g)
     )
     return meshes.triangles[rows[keep]], owner[keep]
 
