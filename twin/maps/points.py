@@ -66,6 +66,8 @@ __all__ = [
 
 _CHUNK = 100_000
 """Pairs whose nearest points are computed at once (bounds the temporaries to ~100 MB)."""
+_NORMAL_STEPS = float(2**20)
+"""Normals' components are multiples of 1 / this (:func:`triangle_normals`)."""
 MAX_POINTS_VOXELS = 2**62
 """Keys are int64: a points map's frame (columns x rows x layers) must have fewer voxels."""
 
@@ -226,7 +228,10 @@ class Voxels:
 
 def triangle_normals(triangles: FloatArray) -> Float32Array:
     """The unit normals ``(n, 3) float32`` of triangles ``(n, 3, 3)``, by their winding (right hand:
-    ``(b - a) x (c - a)``); zero for a triangle of no area; no negative zeros."""
+    ``(b - a) x (c - a)``); zero for a triangle of no area; no negative zeros. Components are rounded to
+    multiples of 2**-20 (about 1e-6, a microradian) before float32 takes them: a small component's own
+    float32 step is far finer, and the rounding noise of world coordinates (a building moved by 10 km)
+    would otherwise change its last bits."""
     t = np.asarray(triangles, dtype=np.float64)
     u, v = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
     c = np.empty((len(t), 3))
@@ -237,6 +242,7 @@ def triangle_normals(triangles: FloatArray) -> Float32Array:
     ok = length > 0.0
     c[ok] /= length[ok, None]
     c[~ok] = 0.0
+    c = np.rint(c * _NORMAL_STEPS) / _NORMAL_STEPS
     out: Float32Array = (c + 0.0).astype(np.float32)  # (+ 0.0: no -0.0, equal normals equal bits)
     return out
 
