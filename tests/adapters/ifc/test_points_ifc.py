@@ -18,7 +18,7 @@ from tests.conftest import SHARED_MODELS, imported, shared_model
 from tests.twin.reference_voxels import reference_voxels
 from tests.twin.world_reference import WorldGrid
 from twin.graph.rdf import literal_value
-from twin.maps.points import PointsPlan, _near_band, build_points, plan_points
+from twin.maps.points import PointsPlan, _near_band, build_points, estimate_points, plan_points
 from twin.maps.scene import load_scene
 from twin.maps.voxels import IntArray, touched_voxels
 from twin.records import BuildingModel
@@ -128,3 +128,20 @@ def test_every_storeys_voxels_equal_the_reference_on_a_sample_of_triangles(
             assert (sorted(ref - got), sorted(got - ref)) == ([], []), f"{name} {storey.key} triangle {t}"
             checked += 1
     assert checked >= min(SAMPLE, 20)
+
+
+@pytest.mark.parametrize("name", ["lab", *SHARED_MODELS])
+def test_the_estimated_points_are_within_a_factor_of_two_of_the_built_cloud(
+    name: str, lab2: tuple[Path, LabLayout], read_cached: Callable[[Path], BuildingModel]
+) -> None:
+    store = imported(read_cached(lab2[0] if name == "lab" else shared_model(name)))
+    scene = load_scene(store)
+    skills = [parse_skill("all3d", {"kind": "points", "resolution_m": 0.2})]
+    if "janesville" not in name:  # (its 0.1 m clouds take half a minute to build)
+        skills.append(parse_skill("lidar3d", LIDAR))
+    for skill in skills:
+        iris = [literal_value(r["element"]) or "" for r in store.select(selection_query(skill))]
+        for storey in scene.storeys:
+            plan = plan_points(scene, skill, storey.key, iris)
+            built, estimate = len(build_points(scene, plan)), estimate_points(scene, plan)
+            assert built / 2 <= estimate <= 2 * built, (skill.name, storey.key, estimate, built)
