@@ -1,24 +1,22 @@
 """Point-cloud maps for 3D lidars: one point per voxel the selected surfaces touch, in a storey's band.
 
 A ``points`` skill (:mod:`twin.selection.skills`) selects elements like the 2D skills do. Its map of a
-storey is
-the set of voxels (cubes of ``resolution_m``, half-open) that the selected elements' triangles touch
-within the height band (from ``band_bottom_m`` to ``band_top_m`` above the storey's elevation, by
-default from just below the floor's top to the next storey's elevation): the 3D analogue of the 2D
-rule, so thin elements never vanish and touching elements leave no gaps. The touch test is exact
-(:mod:`twin.maps.voxels`), on coordinates whose grid planes are decided in world metres (within 1 um
-of a plane is on it: :func:`twin.maps.grid.grid_coordinates`), so the voxels do not depend on where
-the building sits. Each voxel holds one point: the point of the selected surfaces nearest the voxel's
-centre within the voxel's *closed* box (a centre would bias the cloud by up to half a voxel; the point
-may lie on the box's boundary, its upper faces included, which the half-open voxel does not hold), with
-the unit
-normal of the triangle it lies on, oriented by the triangle's winding (outward for the importer's closed
-shells, which it orients outward; float32). Ties (a point on an edge or vertex several triangles share,
-or equal points of several elements) go to the smallest point, then to the smallest normal (x, then y,
-then z; a degenerate triangle's zero normal last), distances and points compared rounded to 2**-20 of a
-voxel (:func:`best_rows`), so the cloud depends neither on the order triangles and elements are
-processed in (incremental updates equal a full rebuild voxel for voxel, normals included) nor on float
-noise.
+storey is the set of voxels (cubes of ``resolution_m``, half-open) that the selected elements' triangles
+touch within the height band (from ``band_bottom_m`` to ``band_top_m`` above the storey's elevation, by
+default from just below the floor's top to the next storey's elevation): the 3D analogue of the 2D rule,
+so thin elements never vanish and touching elements leave no gaps. The touch test is exact
+(:mod:`twin.maps.voxels`), on coordinates whose grid planes are decided in world metres (within 1 um of
+a plane is on it: :func:`twin.maps.grid.grid_coordinates`), so the voxels do not depend on where the
+building sits. Each voxel holds one point: the point of the selected surfaces nearest the voxel's centre
+within the voxel's *closed* box (a centre would bias the cloud by up to half a voxel; the point may lie
+on the box's boundary, its upper faces included, which the half-open voxel does not hold), with the unit
+normal of the triangle it lies on, oriented by the triangle's winding (outward: the importer turns every
+closed shell outward; float32, rounded to 2**-20). Ties (a point on an edge or vertex several triangles
+share, or equal points of several elements) go to the smallest point, then to the smallest normal (x,
+then y, then z; a degenerate triangle's zero normal last), distances and points compared rounded to
+2**-20 of a voxel (:func:`best_rows`), so the cloud depends neither on the order triangles and elements
+are processed in (incremental updates equal a full rebuild voxel for voxel, normals included) nor on
+float noise.
 
 Frames: the voxels' x, y are the cells of the storey's 2D maps at this resolution (same origin, the
 ``map`` frame); z is metres above the storey's elevation, voxel layer ``k`` covering
