@@ -67,6 +67,13 @@ def test_every_triangle_of_the_sample_lab_touches_exactly_the_voxels_of_the_worl
         ref = _world_grid(plan).voxels(triangles, lo=plan.lo, hi=plan.hi)
         assert (len(ref - got), len(got - ref)) == (0, 0), storey.key
         assert len(ref) > 20_000
+        # the reference sees what cell coordinates taken from float64 as they come (the old way) did
+        origin = np.array([plan.frame.origin_x, plan.frame.origin_y, storey.elevation_m])
+        naive = (triangles - origin) / plan.resolution_m
+        w_band = (plan.band[0] / plan.resolution_m, plan.band[1] / plan.resolution_m)
+        tri, ijk = touched_voxels(naive, lo=plan.lo, hi=plan.hi, w_band=w_band)
+        old = _ijk(np.zeros(len(tri), dtype=np.int64), ijk, 0)
+        assert len(ref ^ old) > 1000, storey.key
 
 
 @pytest.mark.parametrize("name", SHARED_MODELS)
