@@ -43,6 +43,14 @@ class Tolerances:
         sliver_sin2: a triangle whose squared sine at its first corner is below this (its area is
             rounding: under a micrometre of width per metre) is taken as its edges when the nearest
             point to a voxel's centre is sought.
+        grid_m: a coordinate within this (1 um) of a grid plane is on it (:mod:`twin.maps.grid`): of a
+            grid line ``origin + i * resolution`` (the origin and the resolution read as the decimals
+            they print as), of a voxel layer ``elevation + k * resolution``, of a band's end. The
+            half-open rule then decides which cell it is in, so that where the building sits (a site
+            moved by a whole number of cells, kilometres away) never changes a map.
+        point_quantum: points maps' ties (:func:`twin.maps.points.best_rows`): squared distances and
+            points (in voxels) are compared rounded to this fraction of a voxel (2**-20, about 1e-6),
+            so float noise of a few ulp never decides which of two equally near points a voxel keeps.
     """
 
     cell_m: float = 1e-9
@@ -51,6 +59,8 @@ class Tolerances:
     same_angle_rad: float = 1e-4
     voxel_tie: float = 1e-13
     sliver_sin2: float = 1e-12
+    grid_m: float = 1e-6
+    point_quantum: float = 2.0**-20
 
 
 TOLERANCES = Tolerances()

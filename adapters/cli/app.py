@@ -94,6 +94,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--all-skills", action="store_true", help="every configured skill")
     sp.add_argument("--storey", help="one storey key (see 'twin stats'); default: every storey")
     sp.add_argument("--out", help="output directory (default: maps.out of the configuration)")
+    sp.add_argument(
+        "--force", action="store_true", help="build points clouds estimated over [maps] max_points_per_storey"
+    )
     sp.set_defaults(func=map_cmd.cmd_map)
 
     serve_cmd.add_parser(sub)

@@ -16,10 +16,23 @@ from adapters.ros.pcd import points_offset, write_points_files
 from twin.config import Config
 from twin.errors import MapError, SkillError
 from twin.graph.rdf import literal_value
-from twin.maps.points import build_points, plan_points
+from twin.maps.points import PointsPlan, build_points, estimate_points, plan_points
 from twin.maps.render import build_map, plan_map
 from twin.maps.scene import load_scene
 from twin.selection.skill_selection import selection_query
+
+
+def check_points_size(plan: PointsPlan, estimate: int, cfg: Config, *, force: bool) -> None:
+    """MapError (one line: the skill, the estimate, the limit) when a cloud is estimated over
+    ``[maps] max_points_per_storey``, unless ``force``."""
+    limit = cfg.max_points_per_storey
+    if estimate > limit and not force:
+        msg = (
+            f"Skill {plan.skill.name!r} on storey {plan.storey.key!r}: about {estimate:,} points at "
+            f"resolution_m={plan.resolution_m}, over the limit of {limit:,} ([maps] max_points_per_storey); "
+            "use a coarser resolution_m, raise the limit, or give --force."
+        )
+        raise MapError(msg)
 
 
 def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
@@ -49,9 +62,9 @@ def cmd_map(args: argparse.Namespace, cfg: Config) -> int:
             for storey in storeys:
                 t1 = time.perf_counter()
                 if skill.kind == "points":
-                    cloud = build_points(
-                        scene, plan_points(scene, skill, storey.key, iris, margin_m=cfg.margin_m)
-                    )
+                    plan = plan_points(scene, skill, storey.key, iris, margin_m=cfg.margin_m)
+                    check_points_size(plan, estimate_points(scene, plan), cfg, force=args.force)
+                    cloud = build_points(scene, plan)
                     pfiles = write_points_files(cloud, out, stamp_ns=stamp_ns)
                     ox, oy = points_offset(cloud)
                     shift = f" (offset {ox}, {oy} m)" if (ox, oy) != (0.0, 0.0) else ""
@@ -79,4 +92,7 @@ def add_map_parser(sub: Any) -> None:
     sp.add_argument("--all-skills", action="store_true", help="every configured skill")
     sp.add_argument("--storey", help="one storey key (see 'twin stats'); default: every storey")
     sp.add_argument("--out", help="output directory (default: maps.out of the configuration)")
+    sp.add_argument(
+        "--force", action="store_true", help="build points clouds estimated over [maps] max_points_per_storey"
+    )
     sp.set_defaults(func=cmd_map)

@@ -46,8 +46,10 @@ from twin.maps.meshops import (
     closes_around,
     is_closed,
     orient_faces,
+    orient_outward,
     orient_shells,
     seal_t_junctions,
+    signed_volumes,
 )
 from twin.records import Mesh, check_placement
 
@@ -162,7 +164,9 @@ _Raw = tuple[np.ndarray, np.ndarray, bool]  # vertices, faces, solid
 def _meshes(raw: list[_Raw]) -> list[tuple[Mesh | None, float]]:
     """(the Mesh, its largest absolute coordinate) of each raw ``(vertices, faces, solid)``; (None, 0)
     if it has no triangles or invalid coordinates, so that the next kernel tries. Closedness is tested
-    for all at once (the common case, a closed solid, then needs nothing more)."""
+    for all at once (the common case, a closed solid, then needs nothing more), and so is the turn of
+    the shells of closed surfaces and of closed solids that come inside out: each is turned outward
+    (:func:`~twin.maps.meshops.orient_outward`)."""
     closed = are_closed([faces for _, faces, _ in raw])
     out: list[tuple[Mesh | None, float]] = []
     for (verts, faces, solid), is_closed_ in zip(raw, closed, strict=True):
@@ -179,6 +183,14 @@ def _meshes(raw: list[_Raw]) -> list[tuple[Mesh | None, float]]:
             out.append((None, 0.0))
             continue
         out.append((mesh, float(np.abs(mesh.vertices).max(initial=0.0))))
+    # a kernel's solid comes outward, unless it is inside out; a surface's shells may turn either way
+    closed_meshes = [(k, m) for k, (m, _) in enumerate(out) if m is not None and m.closed]
+    volumes = signed_volumes([(m.vertices, m.faces) for _, m in closed_meshes])
+    closed_meshes = [km for km, vol in zip(closed_meshes, volumes, strict=True) if vol < 0 or not km[1].solid]
+    outward = orient_outward([(m.vertices, m.faces) for _, m in closed_meshes])
+    for (k, m), faces in zip(closed_meshes, outward, strict=True):
+        if faces is not m.faces:
+            out[k] = (Mesh(m.vertices, faces, m.closed, m.solid), out[k][1])
     return out
 
 

@@ -27,6 +27,7 @@ from twin.config.robots import RobotConfig, RobotName, RobotTable
 from twin.config.routes import RouteProfile, RoutesTable, check_routes, parse_routes
 from twin.config.sources import SourceConfig, SourceTable
 from twin.config.tables import (
+    DEFAULT_MAX_POINTS,
     ImportConfig,
     Limits,
     MapsTable,
@@ -77,6 +78,8 @@ class Config:
     """``[sources.NAME]``: the building's systems that report to the twin (Open-RMF doors, obstacles)."""
     store_flush_every_s: float = 60.0
     """``[store] flush_every_s``: how often the daemon flushes the embedded store's buffers."""
+    max_points_per_storey: int = DEFAULT_MAX_POINTS
+    """``[maps] max_points_per_storey``: the largest points cloud of a storey built without --force."""
     site_set: bool = False
     """True when the configuration file sets ``site.name``; otherwise ``site`` is the packaged default
     (``lab``) and commands name the site after the model file, the store or the running daemon."""
@@ -197,6 +200,7 @@ def load_config(
         store_path=checked.store.path,
         import_=checked.import_,
         margin_m=checked.maps.margin_m,
+        max_points_per_storey=checked.maps.max_points_per_storey,
         maps_out=checked.maps.out,
         skills=skills,
         routes=routes,

@@ -28,6 +28,8 @@ STATIC_TYPES = (
 )  # fmt: skip
 
 SiteName = Annotated[Text, Field(pattern=NAME_PATTERN)]
+DEFAULT_MAX_POINTS = 6_000_000
+"""``[maps] max_points_per_storey`` unless set: about 1 GB while a storey's cloud is built."""
 IfcClassName = Annotated[
     Text, check(lambda v: isinstance(v, str) and v.startswith("Ifc"), "an IFC class name")
 ]
@@ -79,12 +81,22 @@ class ImportConfig(ConfigTable):
 
 
 class MapsTable(ConfigTable):
-    """``[maps]``: the map frame's margin and where ``twin map`` writes files."""
+    """``[maps]``: the map frame's margin, where ``twin map`` writes files, and the points clouds' size
+    limit."""
 
     margin_m: Annotated[Number, Field(ge=0.0, le=100.0)] = Field(
         1.0, description="Free space around a storey's extent, metres (the origin snaps to the resolution)."
     )
     out: PathSetting = Field(Path("var/maps"), description="Where 'twin map' writes its files.")
+    max_points_per_storey: Annotated[Whole, Field(ge=1)] = Field(
+        DEFAULT_MAX_POINTS,
+        description=(
+            "The most points a points skill's cloud of one storey may have, as estimated from the "
+            "selected surfaces' area before building it (building takes about 160 bytes a point: "
+            "the default fits in about 1 GB). Over it, 'twin map' refuses unless given --force and "
+            "'twin serve' skips that cloud."
+        ),
+    )
 
 
 class Limits(ConfigTable):

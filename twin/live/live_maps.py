@@ -58,10 +58,10 @@ class LiveMaps(Drawing):
     """The live scene (base + overlay, drawn as :class:`~twin.live.drawing.Drawing` draws it) and every
     map over it, kept current. Not thread-safe: one writer."""
 
-    def __init__(self, scene: Scene, *, margin_m: float) -> None:
+    def __init__(self, scene: Scene, *, margin_m: float, max_points: int | None = None) -> None:
         super().__init__(scene)
         self.margin_m = margin_m
-        self.points = LivePoints(self, margin_m=margin_m)
+        self.points = LivePoints(self, margin_m=margin_m, max_points=max_points)
         """The ``points`` skills' clouds over the same live scene (kept current by :meth:`redraw`)."""
 
     @classmethod

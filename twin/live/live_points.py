@@ -24,9 +24,10 @@ Example::
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -41,6 +42,7 @@ from twin.maps.points import (
     Voxels,
     best_per_voxel,
     cloud_of,
+    estimate_points,
     plan_points,
     voxels_by_element,
 )
@@ -48,6 +50,8 @@ from twin.maps.scene import MeshSet
 from twin.selection.skills import SkillProfile
 
 __all__ = ["POINTS_INTERVAL_S", "RECENT", "LivePoints", "PointsMap", "PointsPublication"]
+
+log = logging.getLogger(__name__)
 
 RECENT = 256
 """Elements left out whose voxels a points map keeps, in case they come back unchanged."""
@@ -139,9 +143,13 @@ class LivePoints:
     """Every points map over the live scene, kept current. Not thread-safe: one writer (the one that
     changes the :class:`Drawing`)."""
 
-    def __init__(self, drawing: Drawing, *, margin_m: float) -> None:
+    def __init__(self, drawing: Drawing, *, margin_m: float, max_points: int | None = None) -> None:
         self.drawing = drawing
         self.margin_m = margin_m
+        self.max_points = max_points
+        """``[maps] max_points_per_storey``: a cloud estimated over it is not built (None: no limit)."""
+        self.skipped: dict[MapKey, int] = {}
+        """The clouds not built for :attr:`max_points`: their estimated points."""
         self.clouds: dict[MapKey, PointsMap] = {}
         self.pending: dict[MapKey, int] = {}
         """Maps built or changed since :class:`PointsPublication` last published them: their version."""
@@ -183,13 +191,21 @@ class LivePoints:
         part = m.recent.pop(iri, None)
         return self._voxels(m, iri, meshes) if part is None else part
 
-    def add_map(self, skill: SkillProfile, storey: str, selected: Iterable[str]) -> PointsMap:
-        """Plan and build the points map of ``skill`` on ``storey`` from the selected IRIs."""
+    def add_map(self, skill: SkillProfile, storey: str, selected: Iterable[str]) -> PointsMap | None:
+        """Plan and build the points map of ``skill`` on ``storey`` from the selected IRIs; None when its
+        cloud is estimated over :attr:`max_points` (noted in :attr:`skipped`): the twin serves on without
+        it."""
         chosen = set(selected)
         scene = self.drawing.scene
         plan = plan_points(scene, skill, storey, (), margin_m=self.margin_m)
         mask = np.zeros(len(scene.elements), dtype=np.bool_)
         mask[scene.elements.indices_of(tuple(chosen))] = True
+        if self.max_points is not None:
+            estimate = estimate_points(scene, replace(plan, selected=np.flatnonzero(mask)))
+            if estimate > self.max_points:
+                self.skipped[(storey, skill.name)] = estimate
+                return None
+        self.skipped.pop((storey, skill.name), None)
         m = PointsMap(plan, mask, {i for i in chosen if i not in scene.elements.index})
         base, others = self._members(m)
         names = [scene.elements.iris[int(i)] for i in base] + others
@@ -199,8 +215,28 @@ class LivePoints:
         self.pending[m.key] = m.version
         return m
 
+    def add_maps(
+        self, skill: SkillProfile, storeys: Iterable[str], selected: Iterable[str]
+    ) -> list[PointsMap]:
+        """:meth:`add_map` on each storey; the clouds skipped for :attr:`max_points` are named in one
+        warning."""
+        chosen = set(selected)
+        built = [self.add_map(skill, storey, chosen) for storey in storeys]
+        over = {k[0]: n for k, n in self.skipped.items() if k[1] == skill.name}
+        if over:
+            log.warning(
+                "Skipping the points clouds of skill %r at resolution_m=%s: about %s, over the limit of "
+                "%s points ([maps] max_points_per_storey); the twin serves on without them",
+                skill.name,
+                skill.resolution_m,
+                ", ".join(f"{n:,} points on {k}" for k, n in over.items()),
+                f"{self.max_points:,}",
+            )
+        return [m for m in built if m is not None]
+
     def remove_skill(self, name: str) -> list[MapKey]:
         gone = [k for k in self.clouds if k[1] == name]
+        self.skipped = {k: n for k, n in self.skipped.items() if k[1] != name}
         for k in gone:
             del self.clouds[k]
             self.pending.pop(k, None)

@@ -81,6 +81,7 @@ def load_live_or_restore(
     restored = _restore(store, config, snapshots, revision, skills) if snapshots is not None else None
     if restored is not None:
         scene, states = restored.maps.scene, restored.states
+        restored.maps.points.max_points = config.max_points_per_storey  # (for skills added later)
     else:
         with ThreadPoolExecutor(1, thread_name_prefix="twin-load") as pool:
             # the store answers on its own threads: read the states while the meshes are decoded
@@ -96,7 +97,9 @@ def load_live_or_restore(
     )
     live = LiveState(
         site=site,
-        maps=restored.maps if restored is not None else LiveMaps(scene, margin_m=config.margin_m),
+        maps=restored.maps
+        if restored is not None
+        else LiveMaps(scene, margin_m=config.margin_m, max_points=config.max_points_per_storey),
         states=states,
         skills=skills,
         revision=revision,

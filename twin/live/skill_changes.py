@@ -55,8 +55,7 @@ def add_skill_maps(store: GraphStore, live: LiveState, skill: SkillProfile) -> l
     skill's clouds go to ``live.maps.points`` (no 2D map: the list is empty)."""
     selected = {r["element"] or "" for r in store.select(selection_query(skill))}
     if skill.kind == "points":
-        for s in live.maps.scene.storeys:
-            live.maps.points.add_map(skill, s.key, selected)
+        live.maps.points.add_maps(skill, [s.key for s in live.maps.scene.storeys], selected)
         return []
     return [live.maps.add_map(skill, s.key, selected) for s in live.maps.scene.storeys]
 

@@ -6,6 +6,13 @@ and ``y in [origin_y + row*res, origin_y + (row+1)*res]``. Row 0 is at the origi
 y): the same row-major layout as ``nav_msgs/OccupancyGrid``, so image writers flip rows.
 
 Values follow ``nav_msgs/OccupancyGrid``: 0 free, 100 occupied, -1 unknown.
+
+Grid planes are decided in the model's coordinates, not in float cell coordinates: the planes are
+``origin + i * resolution`` (both read as the decimals they print as: 8.8 and 0.1, not their binary
+neighbours), and a coordinate within ``TOLERANCES.grid_m`` (1 um) of a plane is on it
+(:func:`grid_coordinates`); the half-open rule of the maps then decides. So ``(22.2 - 8.8) / 0.1``,
+133.99999999999997 in float64, is line 134, and a building moved by whole cells (by (-1.1, 0.3) m or
+by 10 km) keeps every cell. Frames are snapped the same way (:meth:`GridFrame.around`).
 """
 
 from __future__ import annotations
@@ -17,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.errors import MapError
+from twin.tolerances import TOLERANCES
 
 FREE = np.int8(0)
 OCCUPIED = np.int8(100)
@@ -27,6 +35,45 @@ GridData = npt.NDArray[np.int8]
 MAX_FRAME_CELLS = 400_000_000
 """The largest grid a frame may have (20,000 x 20,000 cells: a square kilometre at 5 cm, 400 MB).
 An extent that needs more comes from an element far from the rest of its building."""
+
+
+def grid_coordinates(
+    values: npt.ArrayLike, origin: float, resolution_m: float, *, ends: tuple[float, ...] = ()
+) -> npt.NDArray[np.float64]:
+    """World coordinates ``values`` (metres) in grid units, ``(v - origin) / resolution_m``, where a value
+    within ``TOLERANCES.grid_m`` of a plane ``origin + i * resolution_m`` is exactly ``i``, and one within
+    it of an extra plane ``origin + e`` (``e`` in ``ends``, metres: a height band's ends) exactly
+    :func:`grid_units` ``(e)``. Any shape.
+
+    Example::
+
+        grid_coordinates([22.2, 22.25], 8.8, 0.1)   # [134.0, 134.5] (float64 says 133.99999999999997)
+    """
+    v = np.asarray(values, dtype=np.float64)
+    c = (v - origin) / resolution_m
+    n = np.rint(c)
+    tol = TOLERANCES.grid_m
+    out: npt.NDArray[np.float64] = np.where(np.abs(v - (origin + n * resolution_m)) <= tol, n, c)
+    for e in ends:
+        if math.isfinite(e):
+            out = np.where(np.abs(v - (origin + e)) <= tol, grid_units(e, resolution_m), out)
+    return out
+
+
+def grid_units(length_m: float, resolution_m: float) -> float:
+    """A length in grid units: a whole number of cells when it is one within ``TOLERANCES.grid_m``
+    (3.3000000000000007 m at 0.1 m is 33 cells, not 33.00000000000001)."""
+    return float(grid_coordinates(length_m, 0.0, resolution_m))
+
+
+def _plane(value: float, resolution_m: float, *, up: bool) -> int:
+    """The grid plane ``i * resolution_m`` at or below (``up``: at or above) ``value``, a value within
+    ``TOLERANCES.grid_m`` of a plane being on it."""
+    c = value / resolution_m
+    n = round(c)
+    if abs(value - n * resolution_m) <= TOLERANCES.grid_m:
+        return n
+    return math.ceil(c) if up else math.floor(c)
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,7 +134,9 @@ class GridFrame:
         resolution_m: float,
         margin_m: float = 1.0,
     ) -> GridFrame:
-        """The frame covering ``[xmin, xmax] x [ymin, ymax]`` plus ``margin_m``, origin snapped to cells.
+        """The frame covering ``[xmin, xmax] x [ymin, ymax]`` plus ``margin_m``, origin snapped to cells:
+        on the planes ``i * resolution_m``, a bound within ``TOLERANCES.grid_m`` of one being on it (so a
+        building moved by whole cells has its frame moved by as many cells, whatever float says).
 
         Example::
 
@@ -106,11 +155,10 @@ class GridFrame:
                 f"cells, more than the limit of {MAX_FRAME_CELLS:,}."
             )
             raise MapError(msg)
-        ox = math.floor((xmin - margin_m) / res) * res
-        oy = math.floor((ymin - margin_m) / res) * res
-        width = math.ceil((xmax + margin_m - ox) / res - 1e-9)
-        height = math.ceil((ymax + margin_m - oy) / res - 1e-9)
-        return cls(round(ox, 9), round(oy, 9), res, max(width, 1), max(height, 1))
+        col0, row0 = _plane(xmin - margin_m, res, up=False), _plane(ymin - margin_m, res, up=False)
+        width = _plane(xmax + margin_m, res, up=True) - col0
+        height = _plane(ymax + margin_m, res, up=True) - row0
+        return cls(round(col0 * res, 9), round(row0 * res, 9), res, max(width, 1), max(height, 1))
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -2,7 +2,10 @@
 :mod:`twin.maps.nearest`).
 
 Coordinates here are *cell coordinates*: world metres minus the grid origin, divided by the voxel size,
-computed once per vertex in float64 (``(x - origin) / resolution``). Voxel ``(i, j, k)`` is the
+computed once per vertex in float64 (``(x - origin) / resolution``), a coordinate within 1 um of a grid
+plane (or of the band's ends) being exactly on it (:func:`twin.maps.grid.grid_coordinates`, applied by
+:meth:`twin.maps.points.PointsPlan.cells`): ties with the grid are decided in the model's coordinates,
+not by the float rounding of that division. Voxel ``(i, j, k)`` is the
 half-open box ``[i, i+1) x [j, j+1) x [max(k, w_lo), min(k+1, w_hi))``: the cell, cut by the height
 band ``[w_lo, w_hi)``. A triangle (a closed set) *touches* a voxel when they share a point.
 
