@@ -31,6 +31,8 @@ import datetime
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
+import numpy as np
+
 from twin.config import FusionRules, Right
 from twin.config.fusion import FusionClassRules
 from twin.errors import ObservationError
@@ -41,15 +43,15 @@ from twin.fusion.footprints import (
     centre_distance,
     corners,
     heights_overlap,
-    inside,
     iou,
     yaw_difference,
 )
 from twin.fusion.memory import TENTATIVE_TTL_NS, Alias, FusionMemory, Miss, Refinement, Track
+from twin.fusion.visibility import Solids, visible_in_view
 from twin.graph.ifc_classes import supertypes
 from twin.graph.store import GraphStore
 from twin.live.state import ElementState, LiveState
-from twin.records import ElementReport, Observation, ObservedBox, Shape
+from twin.records import ElementReport, FloatArray, Observation, ObservedBox, ObservedView, Shape
 from twin.selection.skill_selection import VIRTUAL_TYPE
 
 Effect = Callable[[FusionMemory], None]
@@ -469,9 +471,8 @@ def fuse(
         _absence(
             out,
             ctx,
-            storey=view.storey,
-            polygons=view.polygons,
-            detects=view.detects,
+            view=view,
+            sightings=_sightings(obs, live),
             sense=default_sense,
             detected=detected,
             reports=reports,
@@ -575,27 +576,44 @@ def _merge(out: Fused, ctx: _Context, gone: str, kept: str, *, sense: int, robot
     return ElementReport(gone, removed=True)
 
 
+def _sightings(obs: Observation, live: LiveState) -> list[Pose]:
+    """The boxes an observation reports, as poses (whatever they resolve to)."""
+    out = []
+    for r in obs.reports:
+        storey = live.site.storeys.get(r.storey or "")
+        pose = _report_pose(r, storey.elevation_m) if storey is not None else None
+        if pose is not None:
+            out.append(pose)
+    return out
+
+
 def _absence(
     out: Fused,
     ctx: _Context,
     *,
-    storey: str,
-    polygons: tuple[object, ...],
-    detects: tuple[str, ...],
+    view: ObservedView,
+    sightings: list[Pose],
     sense: int,
     detected: set[str],
     reports: list[ElementReport],
 ) -> None:
     memory = ctx.live.fusion
-    for iri, pose in _candidates(ctx, storey).items():
+    held = _candidates(ctx, view.storey)
+    looked: list[tuple[str, Pose, ElementState]] = []
+    for iri, pose in held.items():
         if iri in detected or iri in out.merged:
             continue
         state = ctx.states.get(iri)
         if state is None or not is_candidate(state):
             continue
-        if not any(d in state.ifc_types for d in detects):  # the element is of a class it detects
+        if not any(d in state.ifc_types for d in view.detects):  # the element is of a class it detects
             continue
-        if not inside(corners(pose, inset=VIEW_INSET_M), polygons):  # type: ignore[arg-type]
+        looked.append((iri, pose, state))
+    if not looked:
+        return
+    visible = _visible(ctx, view, looked, held, sightings)
+    for (iri, _, state), seen in zip(looked, visible, strict=True):
+        if not seen:
             continue
         track = memory.tracks.get(iri)
         if sense <= max(state.sensed_ns, track.seen_ns if track is not None else 0):
@@ -615,6 +633,48 @@ def _absence(
             out.effects.append(_forget(iri))
         else:
             out.effects.append(_miss(iri, ctx.robot, sense))
+
+
+def _visible(
+    ctx: _Context,
+    view: ObservedView,
+    looked: list[tuple[str, Pose, ElementState]],
+    held: dict[str, Pose],
+    sightings: list[Pose],
+) -> list[bool]:
+    """Which of ``looked`` the view should have seen (:func:`twin.fusion.visibility.visible_in_view`):
+    inside its region by area, overlapping no box reported with it, and with an origin, visible
+    from there past the other elements the twin holds and the reported boxes."""
+    ring = np.concatenate(view.polygons)
+    lo, hi = ring.min(axis=0), ring.max(axis=0)
+
+    def near(p: Pose, lo: FloatArray, hi: FloatArray) -> bool:
+        r = (p.sx + p.sy) / 2  # at least half the diagonal
+        return bool(lo[0] - r <= p.cx <= hi[0] + r and lo[1] - r <= p.cy <= hi[1] + r)
+
+    seen = np.zeros(len(looked), dtype=bool)
+    picked = [i for i, (_, p, _) in enumerate(looked) if near(p, lo, hi)]
+    if not picked:
+        return [False] * len(looked)
+    origin, occluders, own = None, None, None
+    if view.origin is not None:
+        x, y, z = view.origin
+        origin = (x, y, ctx.live.site.storeys[view.storey].elevation_m + z)
+        lo, hi = np.minimum(lo, (x, y)), np.maximum(hi, (x, y))  # what may stand between
+        between = [(iri, p) for iri, p in held.items() if near(p, lo, hi)]
+        rows = {iri: i for i, (iri, _) in enumerate(between)}
+        occluders = Solids.of([p for _, p in between] + sightings)
+        own = np.array([rows.get(looked[i][0], -1) for i in picked], dtype=np.int64)
+    seen[picked] = visible_in_view(
+        np.stack([corners(looked[i][1], inset=VIEW_INSET_M) for i in picked]),
+        view.polygons,
+        holes=view.holes,
+        origin=origin,
+        mid_z=np.array([looked[i][1].cz for i in picked]),
+        occluders=occluders,
+        own=own,
+    )
+    return [bool(v) for v in seen]
 
 
 # --- effects on the memory (applied once the plan is accepted) -------------------------------------------
