@@ -7,12 +7,18 @@ Its ``bbox`` (centre pose, size) is taken to the map frame through the robot's T
 small roll and pitch are dropped, a box tilted beyond ``max_tilt_rad`` is refused. ``id`` (a tracker's
 id) makes a stable robot IRI ``urn:twin-ros:<robot>:det:<id>``, so a tracked object is one element;
 an empty ``id`` gets a one-off IRI (``once:<stamp>-<index>``), never reused. The array's
-``header.stamp`` is the sense time, and the sensor's field of view and range cut by the building's
-structure (:func:`~adapters.ros.view.visibility_polygon`) is the view, with the classes of the table
-as what the detector reports.
+``header.stamp`` is the sense time, and the view is what the camera saw
+(:func:`~adapters.ros.view.camera_view`): the floor where its frustum (the sensor frame's pose from TF,
+pitch and roll included; ``optical`` says whether that frame looks along +z or +x; the horizontal and
+vertical field of view configured or from ``sensor_msgs/CameraInfo``) holds the band of heights of what
+it detects, beyond its near blind zone and within its range, cut by the building's structure and by
+the footprint of every detection of the array, of any class and score (what stands behind a person is
+not seen). The view carries the sensor's position (``twin:origin``), so the twin also leaves out what
+the elements it holds hide; and the classes of the table as what the detector reports.
 
-A view is only claimed when every detection of a known class could be used: if one was refused (a bad
-pose, a tilted box), the boxes go without a view, so nothing the robot did see collects a miss.
+A view is only claimed when every detection could be placed: if one of a known class was refused (a
+bad pose, a tilted box), or any detection's frame does not resolve (its shadow is unknown), the boxes
+go without a view, so nothing the robot did see collects a miss.
 
 Example::
 
@@ -44,7 +50,7 @@ from adapters.ros.observation_doc import (
 )
 from adapters.ros.settings import DetectionConfig
 from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
-from adapters.ros.view import polygon_area, visibility_polygon
+from adapters.ros.view import Camera, camera_view
 from twin.config import Limits
 from twin.errors import MapError
 from twin.maps.grid import OccupancyGrid
@@ -86,8 +92,16 @@ class DetectionSettings:
     """A stamp later than now + this is refused (clock skew allowed)."""
     map_frame: str = "map"
     sensor_frame: str | None = None
-    """The frame whose pose is the view's origin and heading (default: the array's ``frame_id``);
-    its forward axis is +z for an optical frame (name containing ``optical``), else +x."""
+    """The frame whose pose is the view's origin and heading (default: the array's ``frame_id``)."""
+    optical: bool = False
+    """The sensor frame looks along +z (x right, y down: a camera's optical frame, REP 103); False:
+    along +x (x forward, y left, z up). Configured, never guessed from the frame's name."""
+    vfov_rad: float | None = None
+    """Vertical field of view (None: no vertical limit, unless CameraInfo gives one)."""
+    near_m: float = 0.0
+    """The detector sees nothing nearer than this (horizontal distance from the sensor)."""
+    band_m: tuple[float, float] = (0.1, 0.5)
+    """Heights above the floor the camera's frame must hold for a place to be in its view."""
     z_reference: Literal["storey", "building"] = "storey"
     """What z = 0 of the map frame is: the robot's storey's floor (a per-floor ROS map, the default)
     or the building's z = 0 (then the storey's elevation is subtracted)."""
@@ -113,6 +127,10 @@ class DetectionSettings:
             map_frame=d.map_frame,
             sensor_frame=d.sensor_frame,
             z_reference=d.z_reference,
+            optical=d.optical,
+            vfov_rad=None if d.vfov_deg is None else math.radians(d.vfov_deg),
+            near_m=d.near_m,
+            band_m=d.heights_m,
         )
 
 
@@ -129,6 +147,9 @@ class DetectionContext:
     occlusion_known: bool = True
     """False when the structure that hides parts of the view is not known (its map not yet built):
     then no view is claimed at all, rather than one that sees through walls."""
+    fov_rad: tuple[float, float] | None = None
+    """The camera's (horizontal, vertical) field of view from its ``sensor_msgs/CameraInfo``, if it
+    publishes one: it takes the place of the configured ones."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -250,29 +271,50 @@ def box_in_map(
     return (cx, cy, cz, size[0], size[1], size[2], yaw)
 
 
+def _shadow(map_from_frame: Matrix, d: _Detection) -> tuple[float, float, float, float, float]:
+    """``(cx, cy, sx, sy, 0)``: the map-axis-aligned footprint of a detection's box, however tilted;
+    RosInputError for a pose or size that is not finite or out of range."""
+    values = (*d.position, *d.orientation, *d.size)
+    if not all(math.isfinite(v) for v in values) or any(abs(v) > MAX_COORDINATE_M for v in values):
+        raise RosInputError("pose", f"Box pose or size is not finite or out of range: {values}.")
+    norm = math.sqrt(sum(v * v for v in d.orientation))
+    if not norm > 0:
+        raise RosInputError("pose", f"Box orientation {d.orientation} is not a rotation.")
+    local = matrix(d.position, [v / norm for v in d.orientation])
+    half = np.abs(np.asarray(d.size)) / 2
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
+    corners = (signs * half) @ local[:3, :3].T + local[:3, 3]
+    world = corners @ map_from_frame[:3, :3].T + map_from_frame[:3, 3]
+    lo, hi = world[:, :2].min(axis=0), world[:, :2].max(axis=0)
+    c = (lo + hi) / 2
+    return (float(c[0]), float(c[1]), float(hi[0] - lo[0]), float(hi[1] - lo[1]), 0.0)
+
+
 def _view(
-    settings: DetectionSettings, ctx: DetectionContext, frame: str, stamp_ns: int, storey: str
+    settings: DetectionSettings,
+    ctx: DetectionContext,
+    frame: str,
+    stamp_ns: int,
+    *,
+    storey: str,
+    shadows: list[tuple[float, float, float, float, float]],
+    drop_z: float,
 ) -> ViewReport | None:
-    """The view of the sensor (``sensor_frame`` or the array's frame); None if that is the map frame."""
+    """The view of the sensor (``sensor_frame`` or the array's frame); None if that is the map frame
+    or it saw no floor."""
     sensor = settings.sensor_frame or frame
     if sensor.lstrip("/") == settings.map_frame.lstrip("/"):
         return None
     pose = _resolve(ctx.tf, settings.map_frame, sensor, stamp_ns)
-    forward = pose[:3, 2] if "optical" in sensor else pose[:3, 0]
-    if math.hypot(float(forward[0]), float(forward[1])) < 1e-6:
-        return None  # looking straight up or down: no horizontal heading
-    heading = math.atan2(float(forward[1]), float(forward[0]))
-    polygon = visibility_polygon(
-        ctx.occluders,
-        (float(pose[0, 3]), float(pose[1, 3])),
-        heading_rad=heading,
-        fov_rad=settings.fov_rad,
-        range_m=settings.range_m,
-        rays=settings.rays,
-    )
-    if polygon_area(polygon) < 1e-2:
+    hfov, vfov = ctx.fov_rad if ctx.fov_rad is not None else (settings.fov_rad, settings.vfov_rad)
+    cam = Camera.from_pose(
+        pose, optical=settings.optical, hfov_rad=hfov, vfov_rad=vfov, range_m=settings.range_m,
+        near_m=settings.near_m, z_offset_m=drop_z,
+    )  # fmt: skip
+    seen = camera_view(ctx.occluders, cam, band_m=settings.band_m, shadows=shadows, rays=settings.rays)
+    if seen is None:
         return None
-    return ViewReport(storey, polygon, settings.detects)
+    return ViewReport(storey, seen.polygons, settings.detects, seen.holes, origin=cam.position)
 
 
 def translate_detections(
@@ -298,30 +340,36 @@ def translate_detections(
     seen: set[str] = set()
     transforms: dict[tuple[str, int], Matrix] = {}
     drop_z = ctx.elevation_m if settings.z_reference == "building" else 0.0
+    shadows: list[tuple[float, float, float, float, float]] = []
+    blind = False  # a detection whose place is unknown: what it hides is unknown, so no view
     for index, d in enumerate(detections):
+        ifc_class = settings.classes.get(d.class_id) if d.class_id is not None else None
         if d.class_id is None:
             ignored["no_hypothesis"] += 1
-            continue
-        ifc_class = settings.classes.get(d.class_id)
-        if ifc_class is None:
+        elif ifc_class is None:
             ignored["unknown_class"] += 1
-            continue
-        if not d.score >= settings.min_score:
+        elif not d.score >= settings.min_score:
             ignored["low_score"] += 1
-            continue
+            ifc_class = None
         try:
-            if d.stamp_ns > ctx.now_ns + settings.future_ns:
+            if ifc_class is not None and d.stamp_ns > ctx.now_ns + settings.future_ns:
                 raise RosInputError("future", f"Detection stamp {d.stamp_ns} ns is in the future.")
             key = (d.frame_id, d.stamp_ns)
             if key not in transforms:  # the detections of an array share their frame: one lookup
                 transforms[key] = _resolve(ctx.tf, settings.map_frame, d.frame_id, d.stamp_ns)
             map_from_frame = transforms[key]
+            shadows.append(_shadow(map_from_frame, d))  # any detection hides what stands behind it
+            if ifc_class is None:
+                continue
             cx, cy, cz, sx, sy, sz, yaw = box_in_map(
                 map_from_frame, d.position, d.orientation, d.size,
                 max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m,
             )  # fmt: skip
         except RosInputError as err:
-            refused.append((err.cause, str(err)))
+            if ifc_class is not None:
+                refused.append((err.cause, str(err)))
+            else:
+                blind = True
             continue
         iri = (
             robot_iri(settings.robot, "det", d.id)
@@ -334,8 +382,8 @@ def translate_detections(
         seen.add(iri)
         boxes.append(BoxReport(iri, ifc_class, ctx.storey, (cx, cy, cz - drop_z, sx, sy, sz, yaw)))
     view = None
-    if ctx.fusion_terms and ctx.occlusion_known and not refused:
-        view = _view(settings, ctx, frame, stamp, ctx.storey)
+    if ctx.fusion_terms and ctx.occlusion_known and not refused and not blind:
+        view = _view(settings, ctx, frame, stamp, storey=ctx.storey, shadows=shadows, drop_z=drop_z)
     document = observation_turtle(
         boxes=boxes, view=view, sense_ns=stamp or None, fusion_terms=ctx.fusion_terms
     )

@@ -91,7 +91,7 @@ def core_reads_fusion_terms(limits: Limits) -> bool:
     """Whether the core's observation parser accepts a view and a sense time (issue 28's terms)."""
     doc = observation_turtle(
         boxes=[BoxReport("urn:twin-ros:probe:det:1", "IfcFurniture", "s", (0, 0, 0.5, 1, 1, 1, 0))],
-        view=ViewReport("s", ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0)), ("IfcFurniture",)),
+        view=ViewReport("s", (((0.0, 0.0), (1.0, 0.0), (0.0, 1.0)),), ("IfcFurniture",), origin=(0, 0, 1)),
         sense_ns=1_700_000_000_000_000_000,
     )
     assert doc is not None
