@@ -39,7 +39,7 @@ from typing import Any, Literal
 import numpy as np
 
 from adapters.ros.cdr import _deserialize
-from adapters.ros.interfaces import DETECTION_3D_ARRAY
+from adapters.ros.interfaces import CAMERA_INFO, DETECTION_3D_ARRAY
 from adapters.ros.observation_doc import (
     BoxReport,
     RosInputError,
@@ -60,6 +60,7 @@ __all__ = [
     "DetectionSettings",
     "array_header",
     "box_in_map",
+    "camera_fov",
     "decode_detections",
     "translate_detections",
 ]
@@ -203,6 +204,28 @@ def decode_detections(
             )
         )
     return frame, stamp, out
+
+
+def camera_fov(payload: bytes | bytearray | memoryview) -> tuple[float, float]:
+    """``(horizontal, vertical)`` field of view (radians) of a CDR ``sensor_msgs/msg/CameraInfo``: from
+    its intrinsics ``k`` (fx, fy, cx, cy) and image size, each the narrower side's angle twice (an
+    off-centre principal point gives no side more than it sees); RosInputError if malformed or it
+    describes no camera (zero size or focal length, as an uncalibrated driver publishes)."""
+    try:
+        message = _deserialize(payload, CAMERA_INFO)
+    except MapError as err:
+        raise RosInputError("malformed", str(err)) from err
+    k = [float(v) for v in message.k]
+    width, height = int(message.width), int(message.height)
+    fx, cx, fy, cy = k[0], k[2], k[4], k[5]
+    if not (all(math.isfinite(v) for v in k) and fx > 0 and fy > 0 and width > 0 and height > 0):
+        msg = f"CameraInfo describes no camera: width {width}, height {height}, k {k}."
+        raise RosInputError("malformed", msg)
+    half_x = min(cx, width - cx)
+    half_y = min(cy, height - cy)
+    if half_x <= 0 or half_y <= 0:
+        raise RosInputError("malformed", f"CameraInfo's principal point ({cx}, {cy}) lies outside its image.")
+    return 2 * math.atan(half_x / fx), 2 * math.atan(half_y / fy)
 
 
 def array_header(payload: bytes | bytearray | memoryview) -> tuple[str, int] | None:

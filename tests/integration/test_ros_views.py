@@ -1,8 +1,9 @@
 """Views that saw it, through the ROS adapter against the daemon process: a robot in a storage room of
 20 boxes in rows detects the front four, and the 16 behind them collect no misses (a box in plain
 view that is gone is removed); a camera pitched down in a z-forward frame not named ``optical``
-(``optical = true`` in its configuration) does not claim the floor under its frame: a box in its
-blind zone stays, one in its view that is gone is removed.
+(``optical = true`` in its configuration), whose fields of view come from its
+``sensor_msgs/msg/CameraInfo``, does not claim the floor under its frame: a box in its blind zone
+stays, one in its view that is gone is removed.
 
 The robots are one process (``ros_report_publisher``) publishing on rmw_zenoh's keys; the boxes are
 seeded over Zenoh by another identity before the robots look.
@@ -17,8 +18,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from rclpy.serialization import serialize_message
+from sensor_msgs.msg import CameraInfo
 
-from adapters.ros.interfaces import DETECTION_3D_ARRAY, TF_MESSAGE
+from adapters.ros.interfaces import CAMERA_INFO, DETECTION_3D_ARRAY, TF_MESSAGE
 from adapters.zenoh.client import TwinClient
 from tests.adapters.ros_reports import OPTICAL, Det, Tf, cdr_detections, cdr_tf
 from tests.integration.conftest import Daemon, start_daemon
@@ -43,11 +46,10 @@ storey = "ground-floor"
 ros = ["rmw_zenoh"]
 [robots.pitched.detections]
 classes = { box = "IfcFurniture" }
-fov_deg = 60
-vfov_deg = 50
 range_m = 6.0
 optical = true                    # front_cam looks along +z, whatever its name
 heights_m = [0.1, 0.5]
+camera_info = "front_cam/camera_info"   # 60 x 50 deg: the fields of view it publishes
 """
 
 ROWS_X = (19.6, 20.1, 20.6, 21.1, 21.6)  # Room B (x 18..22, y 5..9): five rows of four 0.5 m boxes
@@ -125,7 +127,21 @@ def test_boxes_behind_the_front_row_and_under_a_pitched_camera_s_frame_are_not_m
         "/pitched/tf_static", TF_MESSAGE, cdr_tf([Tf("base_link", "front_cam", (0.0, 0.0, 1.2), down)]),
         latched=True,
     )  # fmt: skip
+    info = CameraInfo(width=640, height=480)
+    info.k = [
+        320 / math.tan(math.radians(30)),
+        0.0,
+        320.0,
+        0.0,
+        240 / math.tan(math.radians(25)),
+        240.0,
+        0,
+        0,
+        1,
+    ]
+    robot.send("/pitched/front_cam/camera_info", CAMERA_INFO, serialize_message(info), latched=True)
     with TwinClient.connect([views_daemon.endpoint]) as client:
+        wait_until(client, lambda s: counts(s, "pitched")["messages"].get("camera_info") == 1)
         ack = client.observe("seeder", seed)
         assert ack["ok"] and len(ack["upserted"]) == 23, ack
         front = [  # the front row in camera_link (x forward, y left, z up), tracked

@@ -12,7 +12,13 @@ import pytest
 from shapely.geometry import Point, Polygon
 from shapely.ops import unary_union
 
-from adapters.ros.detections import DetectionContext, DetectionSettings, array_header, translate_detections
+from adapters.ros.detections import (
+    DetectionContext,
+    DetectionSettings,
+    array_header,
+    camera_fov,
+    translate_detections,
+)
 from adapters.ros.observation_doc import RosInputError
 from adapters.ros.tf import TfBuffer, TfError, decode_tf_message
 from adapters.ros.view import polygon_area, visibility_polygon
@@ -329,3 +335,16 @@ def test_camera_info_s_fields_of_view_take_the_place_of_the_configured_ones() ->
     assert wide.contains(Point(17.0, 8.2)) and not narrow.contains(Point(17.0, 8.2))
     assert narrow.contains(Point(18.5, 7.0))
     assert not narrow.contains(Point(16.5, 7.0))  # the floor under its 34 deg vertical field of view
+
+
+def test_camera_info_gives_the_narrower_side_s_fields_of_view_and_an_uncalibrated_one_is_refused() -> None:
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import CameraInfo
+
+    info = CameraInfo(width=640, height=480)
+    info.k = [500.0, 0.0, 300.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0]  # the principal point 20 px left
+    h, v = camera_fov(serialize_message(info))
+    assert h == pytest.approx(2 * math.atan(300 / 500)) and v == pytest.approx(2 * math.atan(240 / 500))
+    with pytest.raises(RosInputError, match="describes no camera: width 0") as err:
+        camera_fov(serialize_message(CameraInfo()))
+    assert err.value.cause == "malformed"
