@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
+import numpy.typing as npt
 
 from adapters.ros.cdr import _deserialize
 from adapters.ros.interfaces import CAMERA_INFO, DETECTION_3D_ARRAY
@@ -66,6 +67,8 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
 _NS_PER_S = 1_000_000_000
 MIN_SIZE_M = 0.001
 """A box side shorter than this (1 mm, the precision boxes are written with) is refused."""
@@ -294,23 +297,40 @@ def box_in_map(
     return (cx, cy, cz, size[0], size[1], size[2], yaw)
 
 
-def _shadow(map_from_frame: Matrix, d: _Detection) -> tuple[float, float, float, float, float]:
-    """``(cx, cy, sx, sy, 0)``: the map-axis-aligned footprint of a detection's box, however tilted;
-    RosInputError for a pose or size that is not finite or out of range."""
-    values = (*d.position, *d.orientation, *d.size)
-    if not all(math.isfinite(v) for v in values) or any(abs(v) > MAX_COORDINATE_M for v in values):
-        raise RosInputError("pose", f"Box pose or size is not finite or out of range: {values}.")
-    norm = math.sqrt(sum(v * v for v in d.orientation))
-    if not norm > 0:
-        raise RosInputError("pose", f"Box orientation {d.orientation} is not a rotation.")
-    local = matrix(d.position, [v / norm for v in d.orientation])
-    half = np.abs(np.asarray(d.size)) / 2
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
-    corners = (signs * half) @ local[:3, :3].T + local[:3, 3]
-    world = corners @ map_from_frame[:3, :3].T + map_from_frame[:3, 3]
-    lo, hi = world[:, :2].min(axis=0), world[:, :2].max(axis=0)
-    c = (lo + hi) / 2
-    return (float(c[0]), float(c[1]), float(hi[0] - lo[0]), float(hi[1] - lo[1]), 0.0)
+def _shadows(frames: list[Matrix], dets: list[_Detection]) -> tuple[FloatArray, BoolArray]:
+    """``(n, 5)`` ``(cx, cy, sx, sy, 0)``: the map-axis-aligned footprints of detections' boxes, however
+    tilted (``frames[i]``: map from detection ``i``'s frame), and which could be placed (a pose or size
+    that is not finite or out of range, or an orientation that is no rotation, cannot)."""
+    n = len(dets)
+    if n == 0:
+        return np.zeros((0, 5)), np.zeros(0, dtype=bool)
+    p = np.array([d.position for d in dets], dtype=np.float64)
+    q = np.array([d.orientation for d in dets], dtype=np.float64)
+    size = np.array([d.size for d in dets], dtype=np.float64)
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        norm = np.linalg.norm(q, axis=1)
+        ok = (
+            np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1) & np.isfinite(size).all(axis=1)
+            & (np.abs(p) <= MAX_COORDINATE_M).all(axis=1) & (np.abs(size) <= MAX_COORDINATE_M).all(axis=1)
+            & (norm > 0)
+        )  # fmt: skip
+        q = np.where(ok[:, None], q / np.where(ok, norm, 1.0)[:, None], (0.0, 0.0, 0.0, 1.0))
+    p, size = np.where(ok[:, None], p, 0.0), np.where(ok[:, None], size, 0.0)
+    x, y, z, w = q.T
+    rot = np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1),
+        ],
+        axis=1,
+    )  # (n, 3, 3): frame from box
+    m = np.stack(frames)  # (n, 4, 4): map from frame
+    centre = np.einsum("nij,nj->ni", m[:, :3, :3], p) + m[:, :3, 3]
+    world = np.einsum("nij,njk->nik", m[:, :3, :3], rot)
+    extent = np.einsum("nij,nj->ni", np.abs(world), np.abs(size) / 2)  # half extents along map axes
+    out = np.stack([centre[:, 0], centre[:, 1], 2 * extent[:, 0], 2 * extent[:, 1], np.zeros(n)], axis=1)
+    return out, np.asarray(ok)
 
 
 def _view(
@@ -320,7 +340,7 @@ def _view(
     stamp_ns: int,
     *,
     storey: str,
-    shadows: list[tuple[float, float, float, float, float]],
+    shadows: FloatArray,
     drop_z: float,
 ) -> ViewReport | None:
     """The view of the sensor (``sensor_frame`` or the array's frame); None if that is the map frame
@@ -363,7 +383,7 @@ def translate_detections(
     seen: set[str] = set()
     transforms: dict[tuple[str, int], Matrix] = {}
     drop_z = ctx.elevation_m if settings.z_reference == "building" else 0.0
-    shadows: list[tuple[float, float, float, float, float]] = []
+    placed: tuple[list[Matrix], list[_Detection]] = ([], [])  # every detection, for its shadow
     blind = False  # a detection whose place is unknown: what it hides is unknown, so no view
     for index, d in enumerate(detections):
         ifc_class = settings.classes.get(d.class_id) if d.class_id is not None else None
@@ -381,7 +401,8 @@ def translate_detections(
             if key not in transforms:  # the detections of an array share their frame: one lookup
                 transforms[key] = _resolve(ctx.tf, settings.map_frame, d.frame_id, d.stamp_ns)
             map_from_frame = transforms[key]
-            shadows.append(_shadow(map_from_frame, d))  # any detection hides what stands behind it
+            placed[0].append(map_from_frame)  # any detection hides what stands behind it
+            placed[1].append(d)
             if ifc_class is None:
                 continue
             cx, cy, cz, sx, sy, sz, yaw = box_in_map(
@@ -405,7 +426,8 @@ def translate_detections(
         seen.add(iri)
         boxes.append(BoxReport(iri, ifc_class, ctx.storey, (cx, cy, cz - drop_z, sx, sy, sz, yaw)))
     view = None
-    if ctx.fusion_terms and ctx.occlusion_known and not refused and not blind:
+    shadows, ok = _shadows(*placed)
+    if ctx.fusion_terms and ctx.occlusion_known and not refused and not blind and ok.all():
         view = _view(settings, ctx, frame, stamp, storey=ctx.storey, shadows=shadows, drop_z=drop_z)
     document = observation_turtle(
         boxes=boxes, view=view, sense_ns=stamp or None, fusion_terms=ctx.fusion_terms

@@ -152,6 +152,36 @@ def _covered_bearings(cam: Camera, band: tuple[float, float], count: int) -> npt
     return np.asarray(hit[fine])
 
 
+def _pinhole_reach(
+    cam: Camera, band: tuple[float, float], angles: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """``(lo, hi)`` ``(rays,)``: for a pinhole camera (horizontal field of view under 180°), the
+    distances along each bearing between which both heights of ``band`` lie in its frustum, within
+    ``[near_m, range_m]`` (empty where ``lo >= hi``). Along a ray at a fixed height each side of the
+    frustum is a linear inequality in the distance, so the interval is exact."""
+    cos, sin = np.cos(angles), np.sin(angles)
+    f, r, d = (np.asarray(v) for v in (cam.forward, cam.right, cam.down))
+    af, ar, ad = cos * f[0] + sin * f[1], cos * r[0] + sin * r[1], cos * d[0] + sin * d[1]
+    th = math.tan(cam.hfov_rad / 2)
+    lo = np.full(len(angles), max(cam.near_m, 0.0))
+    hi = np.full(len(angles), float(cam.range_m))
+    for z in band:
+        dz = z - cam.position[2]
+        kf, kr, kd = dz * f[2], dz * r[2], dz * d[2]
+        sides = [(-kf, -af), (kr - th * kf, ar - th * af), (-kr - th * kf, -ar - th * af)]  # p + q t <= 0
+        if cam.vfov_rad is not None:
+            tv = math.tan(cam.vfov_rad / 2)
+            sides += [(kd - tv * kf, ad - tv * af), (-kd - tv * kf, -ad - tv * af)]
+        for p, q in sides:
+            p_arr = np.broadcast_to(p, q.shape)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = -p_arr / q
+            hi = np.where(q > 0, np.minimum(hi, t), hi)
+            lo = np.where(q < 0, np.maximum(lo, t), lo)
+            hi = np.where((q == 0) & (p_arr > 0), -np.inf, hi)
+    return lo, hi
+
+
 def _box_entry(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) -> FloatArray:
     """``(rays,)``: the distance at which each ray from ``(ox, oy)`` first enters a box footprint
     ``(k, 5)`` (cx, cy, sx, sy, yaw); inf if none. Boxes holding the sensor are ignored."""
@@ -218,31 +248,38 @@ def camera_view(
     cam: Camera,
     *,
     band_m: tuple[float, float] = (0.0, 0.0),
-    shadows: Sequence[tuple[float, float, float, float, float]] = (),
+    shadows: Sequence[tuple[float, float, float, float, float]] | FloatArray = (),
     rays: int = 64,
 ) -> FloorView | None:
     """The floor ``cam`` saw (see the module's docstring), or None when it claims less than 1 dm².
 
-    ``grid`` None: no structure occludes. ``shadows``: ``(cx, cy, sx, sy, yaw)`` box footprints.
+    ``grid`` None: no structure occludes. ``shadows``: ``(cx, cy, sx, sy, yaw)`` box footprints
+    (``(k, 5)``).
     """
     ox, oy, _ = cam.position
     res = grid.frame.resolution_m if grid is not None else 0.05
     per_fov = max(int(rays), 3) * 2 * math.pi / min(cam.hfov_rad, 2 * math.pi)
     count = int(min(MAX_RAYS, max(per_fov, math.ceil(2 * math.pi * cam.range_m / res) + 1)))
     angles_all = 2 * math.pi * np.arange(count) / count
-    covered = _covered_bearings(cam, band_m, count)
+    step = res / 2
+    near0 = max(res, 0.05)  # a ray's floor never starts closer than one cell (the sensor's own cell)
+    pinhole = cam.hfov_rad < math.pi
+    if pinhole:
+        lo_all, hi_all = _pinhole_reach(cam, band_m, angles_all)
+        lo_all = np.maximum(lo_all, near0)
+        covered = hi_all > lo_all + step
+    else:
+        covered = _covered_bearings(cam, band_m, count)
     if not covered.any():
         return None
     angles = angles_all[covered]
-    step = res / 2
-    near0 = max(res, 0.05)  # a ray's floor never starts closer than one cell (the sensor's own cell)
-    dist = np.arange(near0, cam.range_m + step, step)
-    dist = dist[dist <= cam.range_m + 1e-9]
+    reach = float(hi_all[covered].max()) if pinhole else cam.range_m
+    dist = np.arange(near0, reach + step, step)
+    dist = dist[dist <= reach + 1e-9]
     if len(dist) < 2:
         return None
     xs = ox + np.cos(angles)[:, None] * dist[None, :]  # (rays, k)
     ys = oy + np.sin(angles)[:, None] * dist[None, :]
-    seen = cam.sees(xs, ys, band_m[0]) & cam.sees(xs, ys, band_m[1]) & (dist >= cam.near_m)[None, :]
     if grid is not None:
         f = grid.frame
         cols = np.floor((xs - f.origin_x) / res).astype(np.int64)
@@ -256,12 +293,16 @@ def camera_view(
     wall = np.minimum(
         first_block, _box_entry(ox, oy, angles, np.asarray(shadows, dtype=np.float64).reshape(-1, 5)) - step
     )
-    has = seen.any(axis=1)
-    first = seen.argmax(axis=1)
-    after = np.where(np.arange(len(dist))[None, :] >= first[:, None], ~seen, False)
-    last = np.where(after.any(axis=1), after.argmax(axis=1) - 1, len(dist) - 1)
-    near = np.where(has, dist[first], np.inf)
-    far = np.where(has, np.minimum(dist[last], wall), -np.inf)
+    if pinhole:
+        near, far = lo_all[covered], np.minimum(hi_all[covered], wall)
+    else:  # sampled: the first run of samples in the frustum
+        seen = cam.sees(xs, ys, band_m[0]) & cam.sees(xs, ys, band_m[1]) & (dist >= cam.near_m)[None, :]
+        has = seen.any(axis=1)
+        first = seen.argmax(axis=1)
+        after = np.where(np.arange(len(dist))[None, :] >= first[:, None], ~seen, False)
+        last = np.where(after.any(axis=1), after.argmax(axis=1) - 1, len(dist) - 1)
+        near = np.where(has, dist[first], np.inf)
+        far = np.where(has, np.minimum(dist[last], wall), -np.inf)
     # conservative between rays: no farther and no nearer than the neighbours that claim floor too
     # (on the fine circle; next to a ray that claims none, the polygon's edge runs back to the sensor)
     far_all = np.full(count, -np.inf)
