@@ -32,14 +32,14 @@ Example::
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
 from twin.fusion.footprints import Pose, corners, points_in_polygon
-from twin.records import FloatArray
+from twin.records import FloatArray, ObservedView
 
 __all__ = [
     "AREA_SAMPLE_M",
@@ -48,6 +48,7 @@ __all__ = [
     "in_region",
     "inside_by_area",
     "line_of_sight",
+    "view_sees",
     "visible_in_view",
 ]
 
@@ -340,3 +341,53 @@ def visible_in_view(
             np.asarray(footprints)[idx], np.asarray(mid_z)[idx], origin, occluders, own=mine
         )
     return seen
+
+
+def view_sees(
+    view: ObservedView,
+    poses: Sequence[Pose],
+    *,
+    iris: Sequence[str],
+    held: Mapping[str, Pose],
+    sightings: Sequence[Pose] = (),
+    elevation_m: float,
+    inset_m: float,
+) -> list[bool]:
+    """Which elements (``poses``, named ``iris``) ``view`` should have seen: :func:`visible_in_view`
+    with their footprints ``inset_m`` smaller on each side, and with the view's origin (``twin:origin``,
+    z above ``elevation_m``, the storey's) past the elements ``held`` on the storey (by IRI; each
+    element's own pose among them is its own) and the boxes ``sightings`` reported with the view.
+    Only elements and occluders near the view's polygons (and its origin) are looked at."""
+    n = len(poses)
+    if n == 0:
+        return []
+    ring = np.concatenate(view.polygons)
+    lo, hi = ring.min(axis=0), ring.max(axis=0)
+
+    def near(p: Pose) -> bool:
+        r = (p.sx + p.sy) / 2  # at least half the diagonal
+        return bool(lo[0] - r <= p.cx <= hi[0] + r and lo[1] - r <= p.cy <= hi[1] + r)
+
+    picked = [i for i, p in enumerate(poses) if near(p)]
+    seen = np.zeros(n, dtype=bool)
+    if not picked:
+        return [False] * n
+    origin, occluders, own = None, None, None
+    if view.origin is not None:
+        x, y, z = view.origin
+        origin = (x, y, elevation_m + z)
+        lo, hi = np.minimum(lo, (x, y)), np.maximum(hi, (x, y))  # what may stand between
+        between = [(iri, p) for iri, p in held.items() if near(p)]
+        rows = {iri: i for i, (iri, _) in enumerate(between)}
+        occluders = Solids.of([p for _, p in between] + list(sightings))
+        own = np.array([rows.get(iris[i], -1) for i in picked], dtype=np.int64)
+    seen[picked] = visible_in_view(
+        np.stack([corners(poses[i], inset=inset_m) for i in picked]),
+        view.polygons,
+        holes=view.holes,
+        origin=origin,
+        mid_z=np.array([poses[i].cz for i in picked]),
+        occluders=occluders,
+        own=own,
+    )
+    return [bool(v) for v in seen]

@@ -31,8 +31,6 @@ import datetime
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
-import numpy as np
-
 from twin.config import FusionRules, Right
 from twin.config.fusion import FusionClassRules
 from twin.errors import ObservationError
@@ -41,17 +39,16 @@ from twin.fusion.footprints import (
     aligned,
     box_pose,
     centre_distance,
-    corners,
     heights_overlap,
     iou,
     yaw_difference,
 )
 from twin.fusion.memory import TENTATIVE_TTL_NS, Alias, FusionMemory, Miss, Refinement, Track
-from twin.fusion.visibility import Solids, visible_in_view
+from twin.fusion.visibility import view_sees
 from twin.graph.ifc_classes import supertypes
 from twin.graph.store import GraphStore
 from twin.live.state import ElementState, LiveState
-from twin.records import ElementReport, FloatArray, Observation, ObservedBox, ObservedView, Shape
+from twin.records import ElementReport, Observation, ObservedBox, ObservedView, Shape
 from twin.selection.skill_selection import VIRTUAL_TYPE
 
 Effect = Callable[[FusionMemory], None]
@@ -611,7 +608,15 @@ def _absence(
         looked.append((iri, pose, state))
     if not looked:
         return
-    visible = _visible(ctx, view, looked, held, sightings)
+    visible = view_sees(
+        view,
+        [pose for _, pose, _ in looked],
+        iris=[iri for iri, _, _ in looked],
+        held=held,
+        sightings=sightings,
+        elevation_m=ctx.live.site.storeys[view.storey].elevation_m,
+        inset_m=VIEW_INSET_M,
+    )
     for (iri, _, state), seen in zip(looked, visible, strict=True):
         if not seen:
             continue
@@ -633,48 +638,6 @@ def _absence(
             out.effects.append(_forget(iri))
         else:
             out.effects.append(_miss(iri, ctx.robot, sense))
-
-
-def _visible(
-    ctx: _Context,
-    view: ObservedView,
-    looked: list[tuple[str, Pose, ElementState]],
-    held: dict[str, Pose],
-    sightings: list[Pose],
-) -> list[bool]:
-    """Which of ``looked`` the view should have seen (:func:`twin.fusion.visibility.visible_in_view`):
-    inside its region by area, overlapping no box reported with it, and with an origin, visible
-    from there past the other elements the twin holds and the reported boxes."""
-    ring = np.concatenate(view.polygons)
-    lo, hi = ring.min(axis=0), ring.max(axis=0)
-
-    def near(p: Pose, lo: FloatArray, hi: FloatArray) -> bool:
-        r = (p.sx + p.sy) / 2  # at least half the diagonal
-        return bool(lo[0] - r <= p.cx <= hi[0] + r and lo[1] - r <= p.cy <= hi[1] + r)
-
-    seen = np.zeros(len(looked), dtype=bool)
-    picked = [i for i, (_, p, _) in enumerate(looked) if near(p, lo, hi)]
-    if not picked:
-        return [False] * len(looked)
-    origin, occluders, own = None, None, None
-    if view.origin is not None:
-        x, y, z = view.origin
-        origin = (x, y, ctx.live.site.storeys[view.storey].elevation_m + z)
-        lo, hi = np.minimum(lo, (x, y)), np.maximum(hi, (x, y))  # what may stand between
-        between = [(iri, p) for iri, p in held.items() if near(p, lo, hi)]
-        rows = {iri: i for i, (iri, _) in enumerate(between)}
-        occluders = Solids.of([p for _, p in between] + sightings)
-        own = np.array([rows.get(looked[i][0], -1) for i in picked], dtype=np.int64)
-    seen[picked] = visible_in_view(
-        np.stack([corners(looked[i][1], inset=VIEW_INSET_M) for i in picked]),
-        view.polygons,
-        holes=view.holes,
-        origin=origin,
-        mid_z=np.array([looked[i][1].cz for i in picked]),
-        occluders=occluders,
-        own=own,
-    )
-    return [bool(v) for v in seen]
 
 
 # --- effects on the memory (applied once the plan is accepted) -------------------------------------------
