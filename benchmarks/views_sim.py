@@ -87,7 +87,7 @@ def scene() -> dict[int, fleet_sim.Obj]:
         for c, y in enumerate(COLUMNS_Y):
             objs[4 * r + c] = fleet_sim.Obj(4 * r + c, x, y, 0.0, 0.5, 0.5, 1.2)
     objs[20] = fleet_sim.Obj(20, 10.5, 7.0, math.pi / 2, 2.4, 0.5, 0.5)  # the bench
-    objs[21] = fleet_sim.Obj(21, 12.9, 5.7, 0.3, 0.4, 0.4, 0.4)  # loose boxes
+    objs[21] = fleet_sim.Obj(21, 12.6, 7.3, 0.3, 0.4, 0.4, 0.4)  # loose boxes
     objs[22] = fleet_sim.Obj(22, 12.4, 6.6, 0.0, 0.45, 0.4, 0.4)
     objs[23] = fleet_sim.Obj(23, 13.05, 7.0, 0.0, 0.3, 0.3, 0.3)  # under the pitched camera's frame
     return objs
