@@ -115,3 +115,20 @@ def test_without_an_origin_the_view_is_taken_as_given() -> None:
     assert not visible_in_view(f, [ROOM], origin=SENSOR, mid_z=np.array([0.25]), occluders=wall_of_boxes)[0]
     with pytest.raises(ValueError, match="mid_z"):
         visible_in_view(f, [ROOM], origin=SENSOR, occluders=wall_of_boxes)
+
+
+def test_a_view_s_origin_is_taken_above_its_storey_s_elevation() -> None:
+    from twin.fusion.visibility import view_sees
+    from twin.records import ObservedView
+
+    up = 3.0  # a first floor: poses are world z, the origin's z is above the storey's floor
+    bench = box_pose(5.0, 6.0, up + 0.25, 2.4, 0.5, 0.5, yaw=0.0)
+    low = box_pose(5.0, 3.5, up + 0.2, 3.0, 0.5, 0.4, yaw=0.0)
+    view = ObservedView("first-floor", (ROOM,), ("IfcFurniture",), origin=(5.0, 0.5, 2.5))
+    held = {"bench": bench, "low": low}
+    seen = view_sees(view, [bench], iris=["bench"], held=held, elevation_m=up, inset_m=0.1)
+    assert seen == [True]  # 2.5 m above the floor: over the low box
+    low_sensor = ObservedView("first-floor", (ROOM,), ("IfcFurniture",), origin=(5.0, 0.5, 0.3))
+    assert view_sees(low_sensor, [bench], iris=["bench"], held=held, elevation_m=up, inset_m=0.1) == [False]
+    far = ObservedView("first-floor", (ROOM + 50.0,), ("IfcFurniture",))
+    assert view_sees(far, [bench], iris=["bench"], held=held, elevation_m=up, inset_m=0.1) == [False]
