@@ -278,8 +278,9 @@ class ElementReport:
 @dataclass(frozen=True, eq=False, slots=True)
 class ObservedView:
     """What a robot looked at (``a twin:View``): the floor it saw on a storey, when, and which classes
-    its detector reports. Elements of those classes inside ``polygons`` that the observation does not
-    describe were not seen there (a miss)."""
+    its detector reports. Elements of those classes inside ``polygons`` (less ``holes``; by area), and
+    visible from ``origin`` when it is given, that the observation does not describe were not seen
+    there (a miss: :mod:`twin.fusion.visibility`)."""
 
     storey: str
     polygons: tuple[FloatArray, ...]
@@ -287,6 +288,11 @@ class ObservedView:
     detects: tuple[str, ...]
     """IFC classes (subtypes included)."""
     sense_ns: int | None = None
+    holes: tuple[FloatArray, ...] = ()
+    """``(n, 2) float64`` simple polygons inside ``polygons`` that the sensor did not see (shadows)."""
+    origin: tuple[float, float, float] | None = None
+    """The sensor's position (``twin:origin``): x, y in the map frame, z above the storey's elevation;
+    with it, only elements visible from there past the others the twin holds collect misses."""
 
 
 @dataclass(frozen=True, eq=False, slots=True)

@@ -7,12 +7,18 @@ Its ``bbox`` (centre pose, size) is taken to the map frame through the robot's T
 small roll and pitch are dropped, a box tilted beyond ``max_tilt_rad`` is refused. ``id`` (a tracker's
 id) makes a stable robot IRI ``urn:twin-ros:<robot>:det:<id>``, so a tracked object is one element;
 an empty ``id`` gets a one-off IRI (``once:<stamp>-<index>``), never reused. The array's
-``header.stamp`` is the sense time, and the sensor's field of view and range cut by the building's
-structure (:func:`~adapters.ros.view.visibility_polygon`) is the view, with the classes of the table
-as what the detector reports.
+``header.stamp`` is the sense time, and the view is what the camera saw
+(:func:`~adapters.ros.view.camera_view`): the floor where its frustum (the sensor frame's pose from TF,
+pitch and roll included; ``optical`` says whether that frame looks along +z or +x; the horizontal and
+vertical field of view configured or from ``sensor_msgs/CameraInfo``) holds the band of heights of what
+it detects, beyond its near blind zone and within its range, cut by the building's structure and by
+the footprint of every detection of the array, of any class and score (what stands behind a person is
+not seen). The view carries the sensor's position (``twin:origin``), so the twin also leaves out what
+the elements it holds hide; and the classes of the table as what the detector reports.
 
-A view is only claimed when every detection of a known class could be used: if one was refused (a bad
-pose, a tilted box), the boxes go without a view, so nothing the robot did see collects a miss.
+A view is only claimed when every detection could be placed: if one of a known class was refused (a
+bad pose, a tilted box), or any detection's frame does not resolve (its shadow is unknown), the boxes
+go without a view, so nothing the robot did see collects a miss.
 
 Example::
 
@@ -31,9 +37,10 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
+import numpy.typing as npt
 
 from adapters.ros.cdr import _deserialize
-from adapters.ros.interfaces import DETECTION_3D_ARRAY
+from adapters.ros.interfaces import CAMERA_INFO, DETECTION_3D_ARRAY
 from adapters.ros.observation_doc import (
     BoxReport,
     RosInputError,
@@ -44,7 +51,7 @@ from adapters.ros.observation_doc import (
 )
 from adapters.ros.settings import DetectionConfig
 from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
-from adapters.ros.view import polygon_area, visibility_polygon
+from adapters.ros.view import Camera, camera_view
 from twin.config import Limits
 from twin.errors import MapError
 from twin.maps.grid import OccupancyGrid
@@ -54,11 +61,14 @@ __all__ = [
     "DetectionSettings",
     "array_header",
     "box_in_map",
+    "camera_fov",
     "decode_detections",
     "translate_detections",
 ]
 
 log = logging.getLogger(__name__)
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
 _NS_PER_S = 1_000_000_000
 MIN_SIZE_M = 0.001
 """A box side shorter than this (1 mm, the precision boxes are written with) is refused."""
@@ -86,8 +96,16 @@ class DetectionSettings:
     """A stamp later than now + this is refused (clock skew allowed)."""
     map_frame: str = "map"
     sensor_frame: str | None = None
-    """The frame whose pose is the view's origin and heading (default: the array's ``frame_id``);
-    its forward axis is +z for an optical frame (name containing ``optical``), else +x."""
+    """The frame whose pose is the view's origin and heading (default: the array's ``frame_id``)."""
+    optical: bool = False
+    """The sensor frame looks along +z (x right, y down: a camera's optical frame, REP 103); False:
+    along +x (x forward, y left, z up). Configured, never guessed from the frame's name."""
+    vfov_rad: float | None = None
+    """Vertical field of view (None: no vertical limit, unless CameraInfo gives one)."""
+    near_m: float = 0.0
+    """The detector sees nothing nearer than this (horizontal distance from the sensor)."""
+    band_m: tuple[float, float] = (0.1, 0.5)
+    """Heights above the floor the camera's frame must hold for a place to be in its view."""
     z_reference: Literal["storey", "building"] = "storey"
     """What z = 0 of the map frame is: the robot's storey's floor (a per-floor ROS map, the default)
     or the building's z = 0 (then the storey's elevation is subtracted)."""
@@ -113,6 +131,10 @@ class DetectionSettings:
             map_frame=d.map_frame,
             sensor_frame=d.sensor_frame,
             z_reference=d.z_reference,
+            optical=d.optical,
+            vfov_rad=None if d.vfov_deg is None else math.radians(d.vfov_deg),
+            near_m=d.near_m,
+            band_m=d.heights_m,
         )
 
 
@@ -129,6 +151,9 @@ class DetectionContext:
     occlusion_known: bool = True
     """False when the structure that hides parts of the view is not known (its map not yet built):
     then no view is claimed at all, rather than one that sees through walls."""
+    fov_rad: tuple[float, float] | None = None
+    """The camera's (horizontal, vertical) field of view from its ``sensor_msgs/CameraInfo``, if it
+    publishes one: it takes the place of the configured ones."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -182,6 +207,28 @@ def decode_detections(
             )
         )
     return frame, stamp, out
+
+
+def camera_fov(payload: bytes | bytearray | memoryview) -> tuple[float, float]:
+    """``(horizontal, vertical)`` field of view (radians) of a CDR ``sensor_msgs/msg/CameraInfo``: from
+    its intrinsics ``k`` (fx, fy, cx, cy) and image size, each the narrower side's angle twice (an
+    off-centre principal point gives no side more than it sees); RosInputError if malformed or it
+    describes no camera (zero size or focal length, as an uncalibrated driver publishes)."""
+    try:
+        message = _deserialize(payload, CAMERA_INFO)
+    except MapError as err:
+        raise RosInputError("malformed", str(err)) from err
+    k = [float(v) for v in message.k]
+    width, height = int(message.width), int(message.height)
+    fx, cx, fy, cy = k[0], k[2], k[4], k[5]
+    if not (all(math.isfinite(v) for v in k) and fx > 0 and fy > 0 and width > 0 and height > 0):
+        msg = f"CameraInfo describes no camera: width {width}, height {height}, k {k}."
+        raise RosInputError("malformed", msg)
+    half_x = min(cx, width - cx)
+    half_y = min(cy, height - cy)
+    if half_x <= 0 or half_y <= 0:
+        raise RosInputError("malformed", f"CameraInfo's principal point ({cx}, {cy}) lies outside its image.")
+    return 2 * math.atan(half_x / fx), 2 * math.atan(half_y / fy)
 
 
 def array_header(payload: bytes | bytearray | memoryview) -> tuple[str, int] | None:
@@ -250,29 +297,67 @@ def box_in_map(
     return (cx, cy, cz, size[0], size[1], size[2], yaw)
 
 
+def _shadows(frames: list[Matrix], dets: list[_Detection]) -> tuple[FloatArray, BoolArray]:
+    """``(n, 5)`` ``(cx, cy, sx, sy, 0)``: the map-axis-aligned footprints of detections' boxes, however
+    tilted (``frames[i]``: map from detection ``i``'s frame), and which could be placed (a pose or size
+    that is not finite or out of range, or an orientation that is no rotation, cannot)."""
+    n = len(dets)
+    if n == 0:
+        return np.zeros((0, 5)), np.zeros(0, dtype=bool)
+    p = np.array([d.position for d in dets], dtype=np.float64)
+    q = np.array([d.orientation for d in dets], dtype=np.float64)
+    size = np.array([d.size for d in dets], dtype=np.float64)
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        norm = np.linalg.norm(q, axis=1)
+        ok = (
+            np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1) & np.isfinite(size).all(axis=1)
+            & (np.abs(p) <= MAX_COORDINATE_M).all(axis=1) & (np.abs(size) <= MAX_COORDINATE_M).all(axis=1)
+            & (norm > 0)
+        )  # fmt: skip
+        q = np.where(ok[:, None], q / np.where(ok, norm, 1.0)[:, None], (0.0, 0.0, 0.0, 1.0))
+    p, size = np.where(ok[:, None], p, 0.0), np.where(ok[:, None], size, 0.0)
+    x, y, z, w = q.T
+    rot = np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1),
+        ],
+        axis=1,
+    )  # (n, 3, 3): frame from box
+    m = np.stack(frames)  # (n, 4, 4): map from frame
+    centre = np.einsum("nij,nj->ni", m[:, :3, :3], p) + m[:, :3, 3]
+    world = np.einsum("nij,njk->nik", m[:, :3, :3], rot)
+    extent = np.einsum("nij,nj->ni", np.abs(world), np.abs(size) / 2)  # half extents along map axes
+    out = np.stack([centre[:, 0], centre[:, 1], 2 * extent[:, 0], 2 * extent[:, 1], np.zeros(n)], axis=1)
+    return out, np.asarray(ok)
+
+
 def _view(
-    settings: DetectionSettings, ctx: DetectionContext, frame: str, stamp_ns: int, storey: str
+    settings: DetectionSettings,
+    ctx: DetectionContext,
+    frame: str,
+    stamp_ns: int,
+    *,
+    storey: str,
+    shadows: FloatArray,
+    drop_z: float,
 ) -> ViewReport | None:
-    """The view of the sensor (``sensor_frame`` or the array's frame); None if that is the map frame."""
+    """The view of the sensor (``sensor_frame`` or the array's frame); None if that is the map frame
+    or it saw no floor."""
     sensor = settings.sensor_frame or frame
     if sensor.lstrip("/") == settings.map_frame.lstrip("/"):
         return None
     pose = _resolve(ctx.tf, settings.map_frame, sensor, stamp_ns)
-    forward = pose[:3, 2] if "optical" in sensor else pose[:3, 0]
-    if math.hypot(float(forward[0]), float(forward[1])) < 1e-6:
-        return None  # looking straight up or down: no horizontal heading
-    heading = math.atan2(float(forward[1]), float(forward[0]))
-    polygon = visibility_polygon(
-        ctx.occluders,
-        (float(pose[0, 3]), float(pose[1, 3])),
-        heading_rad=heading,
-        fov_rad=settings.fov_rad,
-        range_m=settings.range_m,
-        rays=settings.rays,
-    )
-    if polygon_area(polygon) < 1e-2:
+    hfov, vfov = ctx.fov_rad if ctx.fov_rad is not None else (settings.fov_rad, settings.vfov_rad)
+    cam = Camera.from_pose(
+        pose, optical=settings.optical, hfov_rad=hfov, vfov_rad=vfov, range_m=settings.range_m,
+        near_m=settings.near_m, z_offset_m=drop_z,
+    )  # fmt: skip
+    seen = camera_view(ctx.occluders, cam, band_m=settings.band_m, shadows=shadows, rays=settings.rays)
+    if seen is None:
         return None
-    return ViewReport(storey, polygon, settings.detects)
+    return ViewReport(storey, seen.polygons, settings.detects, seen.holes, origin=cam.position)
 
 
 def translate_detections(
@@ -298,30 +383,37 @@ def translate_detections(
     seen: set[str] = set()
     transforms: dict[tuple[str, int], Matrix] = {}
     drop_z = ctx.elevation_m if settings.z_reference == "building" else 0.0
+    placed: tuple[list[Matrix], list[_Detection]] = ([], [])  # every detection, for its shadow
+    blind = False  # a detection whose place is unknown: what it hides is unknown, so no view
     for index, d in enumerate(detections):
+        ifc_class = settings.classes.get(d.class_id) if d.class_id is not None else None
         if d.class_id is None:
             ignored["no_hypothesis"] += 1
-            continue
-        ifc_class = settings.classes.get(d.class_id)
-        if ifc_class is None:
+        elif ifc_class is None:
             ignored["unknown_class"] += 1
-            continue
-        if not d.score >= settings.min_score:
+        elif not d.score >= settings.min_score:
             ignored["low_score"] += 1
-            continue
+            ifc_class = None
         try:
-            if d.stamp_ns > ctx.now_ns + settings.future_ns:
+            if ifc_class is not None and d.stamp_ns > ctx.now_ns + settings.future_ns:
                 raise RosInputError("future", f"Detection stamp {d.stamp_ns} ns is in the future.")
             key = (d.frame_id, d.stamp_ns)
             if key not in transforms:  # the detections of an array share their frame: one lookup
                 transforms[key] = _resolve(ctx.tf, settings.map_frame, d.frame_id, d.stamp_ns)
             map_from_frame = transforms[key]
+            placed[0].append(map_from_frame)  # any detection hides what stands behind it
+            placed[1].append(d)
+            if ifc_class is None:
+                continue
             cx, cy, cz, sx, sy, sz, yaw = box_in_map(
                 map_from_frame, d.position, d.orientation, d.size,
                 max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m,
             )  # fmt: skip
         except RosInputError as err:
-            refused.append((err.cause, str(err)))
+            if ifc_class is not None:
+                refused.append((err.cause, str(err)))
+            else:
+                blind = True
             continue
         iri = (
             robot_iri(settings.robot, "det", d.id)
@@ -334,8 +426,9 @@ def translate_detections(
         seen.add(iri)
         boxes.append(BoxReport(iri, ifc_class, ctx.storey, (cx, cy, cz - drop_z, sx, sy, sz, yaw)))
     view = None
-    if ctx.fusion_terms and ctx.occlusion_known and not refused:
-        view = _view(settings, ctx, frame, stamp, ctx.storey)
+    shadows, ok = _shadows(*placed)
+    if ctx.fusion_terms and ctx.occlusion_known and not refused and not blind and ok.all():
+        view = _view(settings, ctx, frame, stamp, storey=ctx.storey, shadows=shadows, drop_z=drop_z)
     document = observation_turtle(
         boxes=boxes, view=view, sense_ns=stamp or None, fusion_terms=ctx.fusion_terms
     )

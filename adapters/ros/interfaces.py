@@ -6,7 +6,8 @@ upstream ``.msg`` definitions: ``vision_msgs/msg/Detection3DArray`` (and the mes
 The texts are the upstream files byte for byte (``../shared/ros-msgs/``, ros-perception/vision_msgs @
 e77fa2d9, open-rmf/rmf_internal_msgs @ 3d4df023, Apache-2.0), so the RIHS01 type hashes rosbags computes
 from them equal those of a ROS 2 installation (the tests check them against rosidl's own generators).
-``tf2_msgs/msg/TFMessage`` and ``diagnostic_msgs/msg/DiagnosticArray`` are in rosbags' stores already.
+``tf2_msgs/msg/TFMessage``, ``sensor_msgs/msg/CameraInfo`` and ``diagnostic_msgs/msg/DiagnosticArray``
+are in rosbags' stores already.
 
 Example::
 
@@ -24,6 +25,7 @@ from rosbags.typesys import get_types_from_msg
 from adapters.ros.building_map_msgs import BUILDING_MAP_INTERFACES
 
 __all__ = [
+    "CAMERA_INFO",
     "DETECTION_3D_ARRAY",
     "DIAGNOSTIC_ARRAY",
     "DOOR_STATE",
@@ -37,6 +39,7 @@ DETECTION_3D_ARRAY = "vision_msgs/msg/Detection3DArray"
 OBSTACLES = "rmf_obstacle_msgs/msg/Obstacles"
 DOOR_STATE = "rmf_door_msgs/msg/DoorState"
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 
 INTERFACES: dict[str, str] = {

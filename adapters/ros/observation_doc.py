@@ -1,6 +1,6 @@
 """Observation documents (Turtle, the wire format of ``docs/observations.md``) written from what a
 ROS 2 message said: boxes, door states, removals and the view a sensor had (the fusion terms
-``twin:View``, ``twin:polygon``, ``twin:detects``, ``twin:senseTime``).
+``twin:View``, ``twin:polygon``, ``twin:hole``, ``twin:origin``, ``twin:detects``, ``twin:senseTime``).
 
 Pure functions and immutable records. Numbers are written in metres to 0.1 mm and radians to 1 µrad,
 so a message that is sent again gives the same bytes (the core acks a re-confirmation at once).
@@ -9,7 +9,7 @@ Example::
 
     doc = observation_turtle(
         boxes=[BoxReport("urn:r:7", "IfcFurniture", "ground-floor", (2, 3, 0.4, 1.2, 0.8, 0.75, 0))],
-        view=ViewReport("ground-floor", ((0, 0), (4, -2), (4, 2)), ("IfcFurniture",)),
+        view=ViewReport("ground-floor", (((0, 0), (4, -2), (4, 2)),), ("IfcFurniture",), origin=(0, 0, 1.2)),
         sense_ns=1_700_000_000_000_000_000,
     )
 """
@@ -66,12 +66,15 @@ class BoxReport:
 
 @dataclass(frozen=True, slots=True)
 class ViewReport:
-    """What a sensor looked at: the floor it saw on ``storey`` (a simple polygon, map frame, metres)
-    and the IFC classes its detector reports."""
+    """What a sensor looked at: the floor it saw on ``storey`` (the union of simple ``polygons`` less
+    ``holes``, map frame, metres), the IFC classes its detector reports and the sensor's ``origin``
+    (x, y, z above the storey's floor)."""
 
     storey: str
-    polygon: tuple[tuple[float, float], ...]
+    polygons: tuple[tuple[tuple[float, float], ...], ...]
     detects: tuple[str, ...]
+    holes: tuple[tuple[tuple[float, float], ...], ...] = ()
+    origin: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,6 +118,10 @@ def _metres(v: float) -> str:
     return "0" if text in ("-0", "") else text
 
 
+def _points(ring: Sequence[tuple[float, float]]) -> str:
+    return " ".join(f"{_metres(x)} {_metres(y)}" for x, y in ring)
+
+
 def _radians(v: float) -> str:
     v = math.remainder(v, 2 * math.pi)
     text = f"{v:.6f}".rstrip("0").rstrip(".")
@@ -148,12 +155,15 @@ def observation_turtle(
         )
     lines += [f"<{iri}> twin:isOpen {'true' if is_open else 'false'} ." for iri, is_open in doors]
     lines += [f"<{iri}> twin:removed true ." for iri in removed]
-    if fusion_terms and view is not None and len(view.polygon) >= 3:
-        points = " ".join(f"{_metres(x)} {_metres(y)}" for x, y in view.polygon)
+    rings = [p for p in view.polygons if len(p) >= 3] if view is not None else []
+    if fusion_terms and view is not None and rings:
         parts = [f"[] a twin:View ;\n    twin:storey {literal(view.storey)}"]
         if sense_ns is not None:
             parts.append(f"twin:senseTime {sense_time(sense_ns)}")
-        parts.append(f'twin:polygon "{points}"')
+        if view.origin is not None:
+            parts.append(f'twin:origin "{" ".join(_metres(v) for v in view.origin)}"')
+        parts += [f'twin:polygon "{_points(p)}"' for p in rings]
+        parts += [f'twin:hole "{_points(h)}"' for h in view.holes if len(h) >= 3]
         if view.detects:
             parts.append("twin:detects " + " , ".join(literal(c) for c in view.detects))
         lines.append(" ;\n    ".join(parts) + " .")

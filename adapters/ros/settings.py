@@ -100,6 +100,11 @@ class DetectionConfig:
     tf: str = "tf"
     tf_static: str = "tf_static"
     diagnostics: bool = False
+    optical: bool = False
+    vfov_deg: float | None = None
+    near_m: float = 0.0
+    heights_m: tuple[float, float] = (0.1, 0.5)
+    camera_info: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -153,6 +158,27 @@ class DetectionTable(ConfigTable):
             description="At least this many rays for the view (more to be a cell apart at full range).",
         ),
     ] = 64
+    vfov_deg: (
+        Annotated[Number, Field(gt=0, le=180, description="Vertical field of view (default: none).")] | None
+    ) = None
+    optical: Flag = Field(
+        False,
+        description="The sensor frame looks along +z (x right, y down: a camera's optical frame, REP 103); "
+        "false: along +x (x forward, y left, z up). Never guessed from the frame's name.",
+    )
+    near_m: Annotated[
+        Number, Field(ge=0, le=100, description="Blind zone: the detector sees nothing nearer, m.")
+    ] = 0.0
+    heights_m: Annotated[tuple[Number, Number], list_of("two heights, low and high, in m")] = Field(
+        (0.1, 0.5),
+        description="Heights above the floor the camera's frame must hold for a place to be in its view "
+        "(the band where the detected classes stand).",
+    )
+    camera_info: Text | None = Field(
+        None,
+        description='sensor_msgs/CameraInfo topic under the namespace (e.g. "camera/camera_info"): its '
+        "K, width and height give both fields of view once it is received.",
+    )
     max_tilt_deg: Annotated[Number, Field(ge=0, le=90, description="Boxes tilted more are refused.")] = 15.0
     max_detections: Annotated[Whole, Field(ge=1, le=10_000)] = 256
     future_s: Annotated[Number, Field(ge=0, le=3600, description="Clock skew allowed for stamps.")] = 2.0
@@ -170,9 +196,20 @@ class DetectionTable(ConfigTable):
         False, description="Publish the ingestion's counts on /<ns>/diagnostics (DiagnosticArray, 1 Hz)."
     )
 
-    @field_validator("topic", "tf", "tf_static")
+    @field_validator("heights_m")
     @classmethod
-    def _topic(cls, topic: str) -> str:
+    def _heights(cls, heights: tuple[float, float]) -> tuple[float, float]:
+        lo, hi = heights
+        if not 0 <= lo <= hi <= 10:
+            msg = f"expected [low, high] heights with 0 <= low <= high <= 10 m, got [{lo}, {hi}]"
+            raise ValueError(msg)
+        return heights
+
+    @field_validator("topic", "tf", "tf_static", "camera_info")
+    @classmethod
+    def _topic(cls, topic: str | None) -> str | None:
+        if topic is None:
+            return None
         if not _TOPIC.match(topic.removeprefix("/")):
             msg = (
                 f'expected a ROS topic name such as "detections" (under the namespace) or "/tf" '
@@ -210,6 +247,11 @@ class DetectionTable(ConfigTable):
             tf=self.tf,
             tf_static=self.tf_static,
             diagnostics=self.diagnostics,
+            optical=self.optical,
+            vfov_deg=self.vfov_deg,
+            near_m=self.near_m,
+            heights_m=(float(self.heights_m[0]), float(self.heights_m[1])),
+            camera_info=self.camera_info or None,
         )
 
 
@@ -302,7 +344,7 @@ class RosRobotSettings(ConfigSection):
             mapped = self.maps or ({"map": self.skill} if self.skill else dict(DEFAULT_ROBOT_MAPS))
             used = set(mapped) | {f"{t}_updates" for t in mapped} | {f"{t}_info" for t in mapped}
             d = self.detections
-            if {d.topic, d.tf, d.tf_static} & (used | {"storey", "diagnostics"}):
+            if {d.topic, d.tf, d.tf_static, d.camera_info} & (used | {"storey", "diagnostics"}):
                 names = f"{d.topic!r}, {d.tf!r}, {d.tf_static!r}"
                 msg = f"detection topics {names} clash with its map or storey topics"
                 raise ValueError(msg)

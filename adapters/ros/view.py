@@ -1,37 +1,362 @@
-"""The floor a sensor saw: its field of view cut by the building's structure, as a 2D visibility polygon.
+"""The floor a camera saw: its field of view on the floor at the heights of what it detects, cut by the
+building's structure and by the shadows of what it detected.
 
-Rays fan out over the horizontal field of view from the sensor's position (at least ``rays``, and
-dense enough that neighbours are a cell apart at full range, so no wall fits between two); each
-is marched over an occupancy grid of the structure (e.g. the localization map: walls at lidar height)
-at half a cell's step and stops at the first occupied cell or the grid's edge, else at ``range_m``.
-Each ray then reaches no farther than its neighbours (conservative: what lies between two rays is
-claimed only as far as both saw), and runs of rays of one reach keep only their ends and a ray every 22.5°
-(the chord lies inside). The polygon is the sensor's position followed by the rays' ends in angular order
-(star-shaped around the sensor, hence simple; for a full 360° view the ends alone). Everything at
-once in numpy: ``(rays, samples)``.
+A camera (:class:`Camera`: its pose in the map frame from TF, pitch and roll included; its horizontal
+and vertical field of view; its range and near blind zone) sees an object standing at a point of the
+floor when its frustum holds the object's band of heights there (``band_m``, e.g. 0.1 to 0.5 m
+above the floor): both the band's bottom and its top must be in the frame, no nearer than ``near_m``
+and no farther than ``range_m`` (horizontal distances from the sensor). A camera pitched down thus
+does not claim the floor just in front of it (under its frame), nor the floor beyond where the band's
+top leaves its frame.
+
+Rays fan out from the sensor's position over the bearings the frustum covers (found on a coarse
+1-degree pass, then a cell apart at full range, at least ``rays`` per field of view): along each, at
+half a cell's step, the floor it claims runs from the first sample in the frustum to the last
+contiguous one, and stops short of the first occupied cell of the structure grid (e.g. the
+localization map) or the grid's edge, and of the footprint of every box in ``shadows`` (each
+detection of the array, of any class: what stands behind a person is not seen). Each ray then claims
+no farther and no nearer than its neighbours (conservative between rays), and runs of rays of one
+reach keep only their ends and a ray every 22.5° (the chord lies inside). Each run of rays that claim
+something is one polygon: the far ends in angular order, then the near ends back (or the sensor's
+position when the camera has neither a blind zone nor a vertical limit and the run starts at its
+first cell); a full circle with a blind zone is a ring and its hole.
+Everything at once in numpy: ``(rays, samples)``.
 
 Example::
 
-    polygon = visibility_polygon(grid, (2.0, 3.0), heading_rad=0.0, fov_rad=1.2, range_m=6.0)
-    # ((2.0, 3.0), (x1, y1), ..., (xn, yn))
+    cam = Camera.from_pose(map_from_sensor, optical=True, hfov_rad=1.5, vfov_rad=1.0, range_m=6.0)
+    seen = camera_view(grid, cam, band_m=(0.1, 0.5), shadows=[(3.0, 1.0, 0.5, 0.4, 0.0)])
+    seen.polygons, seen.holes      # map frame, metres
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from twin.maps.grid import OccupancyGrid
 
-__all__ = ["OCCUPIED_AT", "polygon_area", "visibility_polygon"]
+__all__ = ["OCCUPIED_AT", "Camera", "FloorView", "camera_view", "polygon_area", "visibility_polygon"]
 
+Point = tuple[float, float]
+Ring = tuple[Point, ...]
+FloatArray = npt.NDArray[np.float64]
 MAX_RAYS = 4096
 """At most this many rays, however wide and long the view."""
 MAX_CHORD_RAD = math.pi / 8
 """Merged rays span at most this angle (the chord of a 5 m arc over it is 10 cm inside)."""
 OCCUPIED_AT = 50
 """Cells at or above this value block a ray (``nav_msgs/OccupancyGrid``: 100 occupied, 0 free)."""
+COARSE_BEARINGS = 360
+COARSE_SAMPLES = 48
+MIN_AREA_M2 = 1e-2
+"""A view smaller than this claims nothing."""
+
+
+@dataclass(frozen=True, slots=True)
+class Camera:
+    """A sensor in the map frame: its ``position`` (z in the same frame as the band's heights), its
+    unit axes ``forward``, ``right`` and ``down``, its fields of view (``vfov_rad`` None: no vertical
+    limit), ``range_m`` and the near blind zone ``near_m`` (horizontal distances)."""
+
+    position: tuple[float, float, float]
+    forward: tuple[float, float, float]
+    right: tuple[float, float, float]
+    down: tuple[float, float, float]
+    hfov_rad: float
+    vfov_rad: float | None
+    range_m: float
+    near_m: float = 0.0
+
+    @classmethod
+    def from_pose(
+        cls,
+        map_from_sensor: FloatArray,
+        *,
+        optical: bool,
+        hfov_rad: float,
+        vfov_rad: float | None = None,
+        range_m: float,
+        near_m: float = 0.0,
+        z_offset_m: float = 0.0,
+    ) -> Camera:
+        """The camera of a sensor frame: ``optical`` (z forward, x right, y down: REP 103's camera
+        optical frame) or not (x forward, y left, z up); ``z_offset_m`` is subtracted from its z."""
+        r = np.asarray(map_from_sensor, dtype=np.float64)[:3, :3]
+        if optical:
+            forward, right, down = r[:, 2], r[:, 0], r[:, 1]
+        else:
+            forward, right, down = r[:, 0], -r[:, 1], -r[:, 2]
+        x, y, z = (float(v) for v in map_from_sensor[:3, 3])
+
+        def vec(v: FloatArray) -> tuple[float, float, float]:
+            return (float(v[0]), float(v[1]), float(v[2]))
+
+        return cls(
+            (x, y, z - z_offset_m), vec(forward), vec(right), vec(down), hfov_rad, vfov_rad, range_m, near_m
+        )
+
+    def sees(self, x: FloatArray, y: FloatArray, z: float) -> npt.NDArray[np.bool_]:
+        """Which points ``(x, y)`` at height ``z`` lie in the field of view (distance limits apart)."""
+        px, py, pz = self.position
+        vx, vy, vz = x - px, y - py, z - pz
+        f, r, d = self.forward, self.right, self.down
+        a = vx * f[0] + vy * f[1] + vz * f[2]
+        b = vx * r[0] + vy * r[1] + vz * r[2]
+        c = vx * d[0] + vy * d[1] + vz * d[2]
+        h = self.hfov_rad / 2
+        pinhole = self.hfov_rad < math.pi
+        if pinhole:
+            ok = (a > 0) & (np.abs(b) <= a * math.tan(h))
+        elif self.hfov_rad >= 2 * math.pi - 1e-9:
+            ok = np.ones(np.shape(a), dtype=bool)
+        else:
+            ok = np.abs(np.arctan2(b, a)) <= h
+        if self.vfov_rad is not None:
+            v = self.vfov_rad / 2
+            if pinhole:
+                ok &= np.abs(c) <= a * math.tan(v)
+            else:
+                ok &= np.abs(np.arctan2(c, np.hypot(a, b))) <= v
+        return np.asarray(ok)
+
+
+@dataclass(frozen=True, slots=True)
+class FloorView:
+    """The floor a sensor saw: the union of ``polygons`` less ``holes`` (map frame, metres)."""
+
+    polygons: tuple[Ring, ...]
+    holes: tuple[Ring, ...] = ()
+
+    @property
+    def area(self) -> float:
+        return sum(polygon_area(p) for p in self.polygons) - sum(polygon_area(h) for h in self.holes)
+
+
+def _covered_bearings(cam: Camera, band: tuple[float, float], count: int) -> npt.NDArray[np.bool_]:
+    """``(count,) bool``: which of ``count`` bearings round the circle meet the frustum, from a coarse
+    pass (each coarse bearing widened by its neighbours)."""
+    px, py, _ = cam.position
+    bearings = 2 * math.pi * np.arange(COARSE_BEARINGS) / COARSE_BEARINGS
+    start = max(cam.near_m, 0.02)
+    dist = np.linspace(start, max(cam.range_m, start), COARSE_SAMPLES)
+    xs = px + np.cos(bearings)[:, None] * dist[None, :]
+    ys = py + np.sin(bearings)[:, None] * dist[None, :]
+    hit = (cam.sees(xs, ys, band[0]) & cam.sees(xs, ys, band[1])).any(axis=1)
+    hit = hit | np.roll(hit, 1) | np.roll(hit, -1)
+    fine = np.floor(np.arange(count) * COARSE_BEARINGS / count).astype(np.int64)
+    return np.asarray(hit[fine])
+
+
+def _pinhole_reach(
+    cam: Camera, band: tuple[float, float], angles: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """``(lo, hi)`` ``(rays,)``: for a pinhole camera (horizontal field of view under 180°), the
+    distances along each bearing between which both heights of ``band`` lie in its frustum, within
+    ``[near_m, range_m]`` (empty where ``lo >= hi``). Along a ray at a fixed height each side of the
+    frustum is a linear inequality in the distance, so the interval is exact."""
+    cos, sin = np.cos(angles), np.sin(angles)
+    f, r, d = (np.asarray(v) for v in (cam.forward, cam.right, cam.down))
+    af, ar, ad = cos * f[0] + sin * f[1], cos * r[0] + sin * r[1], cos * d[0] + sin * d[1]
+    th = math.tan(cam.hfov_rad / 2)
+    lo = np.full(len(angles), max(cam.near_m, 0.0))
+    hi = np.full(len(angles), float(cam.range_m))
+    for z in band:
+        dz = z - cam.position[2]
+        kf, kr, kd = dz * f[2], dz * r[2], dz * d[2]
+        sides = [(-kf, -af), (kr - th * kf, ar - th * af), (-kr - th * kf, -ar - th * af)]  # p + q t <= 0
+        if cam.vfov_rad is not None:
+            tv = math.tan(cam.vfov_rad / 2)
+            sides += [(kd - tv * kf, ad - tv * af), (-kd - tv * kf, -ad - tv * af)]
+        for p, q in sides:
+            p_arr = np.broadcast_to(p, q.shape)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = -p_arr / q
+            hi = np.where(q > 0, np.minimum(hi, t), hi)
+            lo = np.where(q < 0, np.maximum(lo, t), lo)
+            hi = np.where((q == 0) & (p_arr > 0), -np.inf, hi)
+    return lo, hi
+
+
+def _box_entry(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) -> FloatArray:
+    """``(rays,)``: the distance at which each ray from ``(ox, oy)`` first enters a box footprint
+    ``(k, 5)`` (cx, cy, sx, sy, yaw); inf if none. Boxes holding the sensor are ignored."""
+    out = np.full(len(angles), np.inf)
+    if len(boxes) == 0:
+        return out
+    cx, cy, sx, sy, yaw = (boxes[:, i][None, :] for i in range(5))
+    c, s = np.cos(yaw), np.sin(yaw)
+    lx, ly = (ox - cx) * c + (oy - cy) * s, -(ox - cx) * s + (oy - cy) * c  # sensor in the box's frame
+    dx = np.cos(angles)[:, None] * c + np.sin(angles)[:, None] * s
+    dy = -np.cos(angles)[:, None] * s + np.sin(angles)[:, None] * c
+    hx, hy = sx / 2, sy / 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1x, t2x = (-hx - lx) / dx, (hx - lx) / dx
+        t1y, t2y = (-hy - ly) / dy, (hy - ly) / dy
+    inside_x = np.abs(lx) < hx
+    inside_y = np.abs(ly) < hy
+    tminx = np.where(dx == 0, np.where(inside_x, -np.inf, np.inf), np.minimum(t1x, t2x))
+    tmaxx = np.where(dx == 0, np.where(inside_x, np.inf, -np.inf), np.maximum(t1x, t2x))
+    tminy = np.where(dy == 0, np.where(inside_y, -np.inf, np.inf), np.minimum(t1y, t2y))
+    tmaxy = np.where(dy == 0, np.where(inside_y, np.inf, -np.inf), np.maximum(t1y, t2y))
+    t_in, t_out = np.maximum(tminx, tminy), np.minimum(tmaxx, tmaxy)
+    holds_sensor = inside_x & inside_y
+    hit = (t_in <= t_out) & (t_in >= 0) & ~holds_sensor
+    return np.asarray(np.where(hit, t_in, np.inf).min(axis=1))
+
+
+def _runs(valid: npt.NDArray[np.bool_], full: bool) -> list[npt.NDArray[np.int64]]:
+    """Index runs of consecutive valid rays (wrapping round when ``full``)."""
+    n = len(valid)
+    if not valid.any():
+        return []
+    if full and valid.all():
+        return [np.arange(n)]
+    if full:  # start after an invalid ray so that no run is cut at index 0
+        shift = int(np.argmin(valid))
+        order = (np.arange(n) + shift) % n
+    else:
+        order = np.arange(n)
+    v = valid[order]
+    edges = np.diff(np.concatenate([[0], v.astype(np.int8), [0]]))
+    starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+    return [order[a:b] for a, b in zip(starts, ends, strict=True) if b - a >= 2]
+
+
+def _thin(angles: FloatArray, near: FloatArray, far: FloatArray, step_rad: float) -> npt.NDArray[np.bool_]:
+    """Rays to keep: the ends of runs of one reach (near and far), and a ray every MAX_CHORD_RAD."""
+    n = len(far)
+    keep = np.ones(n, dtype=bool)
+    if n > 2:
+        same = (
+            (far[1:-1] == far[:-2])
+            & (far[1:-1] == far[2:])
+            & (near[1:-1] == near[:-2])
+            & (near[1:-1] == near[2:])
+        )
+        keep[1:-1] = ~same
+        keep[:: max(1, int(MAX_CHORD_RAD / max(step_rad, 1e-9)))] = True
+    return keep
+
+
+def camera_view(
+    grid: OccupancyGrid | None,
+    cam: Camera,
+    *,
+    band_m: tuple[float, float] = (0.0, 0.0),
+    shadows: Sequence[tuple[float, float, float, float, float]] | FloatArray = (),
+    rays: int = 64,
+) -> FloorView | None:
+    """The floor ``cam`` saw (see the module's docstring), or None when it claims less than 1 dm².
+
+    ``grid`` None: no structure occludes. ``shadows``: ``(cx, cy, sx, sy, yaw)`` box footprints
+    (``(k, 5)``).
+    """
+    ox, oy, _ = cam.position
+    res = grid.frame.resolution_m if grid is not None else 0.05
+    per_fov = max(int(rays), 3) * 2 * math.pi / min(cam.hfov_rad, 2 * math.pi)
+    count = int(min(MAX_RAYS, max(per_fov, math.ceil(2 * math.pi * cam.range_m / res) + 1)))
+    angles_all = 2 * math.pi * np.arange(count) / count
+    step = res / 2
+    near0 = max(res, 0.05)  # a ray's floor never starts closer than one cell (the sensor's own cell)
+    pinhole = cam.hfov_rad < math.pi
+    if pinhole:
+        lo_all, hi_all = _pinhole_reach(cam, band_m, angles_all)
+        lo_all = np.maximum(lo_all, near0)
+        covered = hi_all > lo_all + step
+    else:
+        covered = _covered_bearings(cam, band_m, count)
+    if not covered.any():
+        return None
+    angles = angles_all[covered]
+    reach = float(hi_all[covered].max()) if pinhole else cam.range_m
+    dist = np.arange(near0, reach + step, step)
+    dist = dist[dist <= reach + 1e-9]
+    if len(dist) < 2:
+        return None
+    xs = ox + np.cos(angles)[:, None] * dist[None, :]  # (rays, k)
+    ys = oy + np.sin(angles)[:, None] * dist[None, :]
+    if grid is not None:
+        f = grid.frame
+        cols = np.floor((xs - f.origin_x) / res).astype(np.int64)
+        rows = np.floor((ys - f.origin_y) / res).astype(np.int64)
+        inside = (cols >= 0) & (cols < f.width) & (rows >= 0) & (rows < f.height)
+        blocked = ~inside
+        blocked[inside] = grid.data[rows[inside], cols[inside]] >= OCCUPIED_AT
+        first_block = np.where(blocked.any(axis=1), dist[blocked.argmax(axis=1)] - step, np.inf)
+    else:
+        first_block = np.full(len(angles), np.inf)
+    wall = np.minimum(
+        first_block, _box_entry(ox, oy, angles, np.asarray(shadows, dtype=np.float64).reshape(-1, 5)) - step
+    )
+    if pinhole:
+        near, far = lo_all[covered], np.minimum(hi_all[covered], wall)
+    else:  # sampled: the first run of samples in the frustum
+        seen = cam.sees(xs, ys, band_m[0]) & cam.sees(xs, ys, band_m[1]) & (dist >= cam.near_m)[None, :]
+        has = seen.any(axis=1)
+        first = seen.argmax(axis=1)
+        after = np.where(np.arange(len(dist))[None, :] >= first[:, None], ~seen, False)
+        last = np.where(after.any(axis=1), after.argmax(axis=1) - 1, len(dist) - 1)
+        near = np.where(has, dist[first], np.inf)
+        far = np.where(has, np.minimum(dist[last], wall), -np.inf)
+    # conservative between rays: no farther and no nearer than the neighbours that claim floor too
+    # (on the fine circle; next to a ray that claims none, the polygon's edge runs back to the sensor)
+    far_all = np.full(count, -np.inf)
+    near_all = np.full(count, np.inf)
+    far_all[covered], near_all[covered] = far, near
+    claims = far_all > near_all + step
+    far_all = np.where(claims, far_all, -np.inf)
+    for side in (1, -1):
+        other = np.roll(claims, side)
+        far_all = np.where(other, np.minimum(far_all, np.roll(far_all, side)), far_all)
+    near_n = np.where(claims, near_all, -np.inf)
+    near_all = np.maximum(near_all, np.maximum(np.roll(near_n, 1), np.roll(near_n, -1)))
+    valid = far_all > near_all + step
+    whole_circle = bool(valid.all())
+    polygons: list[Ring] = []
+    holes: list[Ring] = []
+    step_rad = 2 * math.pi / count
+    for run in _runs(valid, full=True):
+        a, lo, hi = angles_all[run], near_all[run], far_all[run]
+        keep = _thin(a, lo, hi, step_rad)
+        keep[0] = keep[-1] = True
+        a, lo, hi = a[keep], lo[keep], hi[keep]
+        at_sensor = cam.near_m <= 0 and cam.vfov_rad is None and bool((lo <= near0 + 1e-9).all())
+        # a chord between two near ends cuts into the blind zone: push each out to clear its chords
+        gaps = np.diff(a) % (2 * math.pi)
+        wrap = float((a[0] - a[-1]) % (2 * math.pi)) if whole_circle else 0.0
+        before = np.concatenate([[wrap], gaps])
+        after = np.concatenate([gaps, [wrap]])
+        half = np.minimum(np.maximum(before, after), 2.0) / 2
+        lo = np.minimum(lo / np.cos(half), hi - 1e-6)
+        outer = [
+            (float(ox + math.cos(t) * r), float(oy + math.sin(t) * r)) for t, r in zip(a, hi, strict=True)
+        ]
+        if whole_circle:
+            if len(outer) < 3:
+                continue
+            polygons.append(tuple(outer))
+            if not at_sensor:
+                inner = [
+                    (float(ox + math.cos(t) * r), float(oy + math.sin(t) * r))
+                    for t, r in zip(a, lo, strict=True)
+                ]
+                holes.append(tuple(inner))
+        elif at_sensor:
+            polygons.append(((float(ox), float(oy)), *outer))
+        else:
+            inner = [
+                (float(ox + math.cos(t) * r), float(oy + math.sin(t) * r)) for t, r in zip(a, lo, strict=True)
+            ]
+            polygons.append((*outer, *inner[::-1]))
+    view = FloorView(tuple(polygons), tuple(holes))
+    if not polygons or view.area < MIN_AREA_M2:
+        return None
+    return view
 
 
 def visibility_polygon(
@@ -43,57 +368,18 @@ def visibility_polygon(
     range_m: float,
     rays: int = 64,
 ) -> tuple[tuple[float, float], ...]:
-    """The floor polygon the sensor at ``origin_xy`` (map frame) looking along ``heading_rad`` saw.
-
-    ``grid`` None: nothing occludes (the field of view's sector). A ray's end is never closer than one
-    cell (or 5 cm) to the sensor, so a sensor standing in an occupied cell still gives a simple polygon.
-    """
-    ox, oy = float(origin_xy[0]), float(origin_xy[1])
-    full = fov_rad >= 2 * math.pi - 1e-9
-    span = 2 * math.pi if full else fov_rad
-    res = grid.frame.resolution_m if grid is not None else 0.05
-    count = max(int(rays), 3)
-    if grid is not None:  # dense enough that neighbouring rays are a cell apart at full range
-        count = min(max(count, math.ceil(span * range_m / res) + 1), MAX_RAYS)
-    angles = (
-        heading_rad - span / 2 + span * (np.arange(count) / count if full else np.linspace(0.0, 1.0, count))
-    )
-    near = max(res, 0.05)
-    if grid is None:
-        reach = np.full(count, range_m)
-    else:
-        step = res / 2
-        dist = np.arange(near, range_m + step, step)[None, :]  # (1, k)
-        xs = ox + np.cos(angles)[:, None] * dist  # (rays, k)
-        ys = oy + np.sin(angles)[:, None] * dist
-        f = grid.frame
-        cols = np.floor((xs - f.origin_x) / res).astype(np.int64)
-        rows = np.floor((ys - f.origin_y) / res).astype(np.int64)
-        inside = (cols >= 0) & (cols < f.width) & (rows >= 0) & (rows < f.height)
-        blocked = ~inside
-        blocked[inside] = grid.data[rows[inside], cols[inside]] >= OCCUPIED_AT
-        hit = blocked.any(axis=1)
-        first = blocked.argmax(axis=1)
-        reach = np.where(hit, np.maximum(dist[0, first] - step, near), range_m)
-        reach = np.minimum(reach, range_m)
-        # conservative between rays: each ray no farther than its neighbours
-        padded = np.concatenate([reach[-1:], reach, reach[:1]]) if full else np.pad(reach, 1, mode="edge")
-        reach = np.minimum(np.minimum(padded[:-2], padded[1:-1]), padded[2:])
-    keep = np.ones(count, dtype=bool)  # runs of one reach: their ends (the chord between is closer),
-    if count > 2:  # and a ray every MAX_CHORD_RAD so that no chord swings round the sensor
-        same = (reach[1:-1] == reach[:-2]) & (reach[1:-1] == reach[2:])
-        keep[1:-1] = ~same
-        keep[:: max(1, int(MAX_CHORD_RAD / (span / count)))] = True
-    angles, reach = angles[keep], reach[keep]
-    if full and len(reach) < 3:  # a full circle of one reach: a triangle inside it is still inside
-        angles = heading_rad + 2 * math.pi * np.arange(3) / 3
-        reach = np.full(3, float(reach.min()) / 2)
-    ends = np.stack([ox + np.cos(angles) * reach, oy + np.sin(angles) * reach], axis=1)
-    points = [(float(x), float(y)) for x, y in ends]
-    return tuple(points) if full else ((ox, oy), *points)
+    """The floor polygon a level sensor at ``origin_xy`` looking along ``heading_rad`` saw, with no
+    vertical limit and no blind zone (the first polygon of :func:`camera_view`; empty if none)."""
+    c, s = math.cos(heading_rad), math.sin(heading_rad)
+    cam = Camera(
+        (float(origin_xy[0]), float(origin_xy[1]), 0.0), (c, s, 0.0), (s, -c, 0.0), (0.0, 0.0, -1.0),
+        fov_rad, None, range_m,
+    )  # fmt: skip
+    view = camera_view(grid, cam, rays=rays)
+    return view.polygons[0] if view is not None else ()
 
 
-def polygon_area(polygon: tuple[tuple[float, float], ...]) -> float:
+def polygon_area(polygon: Sequence[tuple[float, float]]) -> float:
     """The area of a simple polygon (shoelace), m²."""
     if len(polygon) < 3:
         return 0.0

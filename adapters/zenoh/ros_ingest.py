@@ -2,7 +2,8 @@
 publish: subscribed in their layouts, translated into observations, submitted on the core's path.
 
 - per robot with ``[robots.NAME.detections]``: ``/<ns>/<topic>`` (``vision_msgs/msg/Detection3DArray``),
-  ``/<ns>/tf`` and ``/<ns>/tf_static`` (``tf2_msgs/msg/TFMessage``, the latter latched);
+  ``/<ns>/tf`` and ``/<ns>/tf_static`` (``tf2_msgs/msg/TFMessage``, the latter latched), and with
+  ``camera_info`` its ``sensor_msgs/msg/CameraInfo`` (latched: its fields of view for the views);
 - per ``[sources.NAME]``: ``/<ns>/door_states`` (``rmf_door_msgs/msg/DoorState``) or
   ``/<ns>/rmf_obstacles`` (``rmf_obstacle_msgs/msg/Obstacles``).
 
@@ -37,9 +38,22 @@ from typing import Any
 
 import zenoh
 
-from adapters.ros.detections import DetectionContext, DetectionSettings, array_header, translate_detections
+from adapters.ros.detections import (
+    DetectionContext,
+    DetectionSettings,
+    array_header,
+    camera_fov,
+    translate_detections,
+)
 from adapters.ros.diagnostics import Counts, encode_diagnostics
-from adapters.ros.interfaces import DETECTION_3D_ARRAY, DIAGNOSTIC_ARRAY, DOOR_STATE, OBSTACLES, TF_MESSAGE
+from adapters.ros.interfaces import (
+    CAMERA_INFO,
+    DETECTION_3D_ARRAY,
+    DIAGNOSTIC_ARRAY,
+    DOOR_STATE,
+    OBSTACLES,
+    TF_MESSAGE,
+)
 from adapters.ros.observation_doc import BoxReport, RosInputError, Translation, ViewReport, observation_turtle
 from adapters.ros.rmf import (
     HELD_OBSTACLES,
@@ -94,7 +108,7 @@ def core_reads_fusion_terms(limits: Limits) -> bool:
     """Whether the core's observation parser accepts a view and a sense time (issue 28's terms)."""
     doc = observation_turtle(
         boxes=[BoxReport("urn:twin-ros:probe:det:1", "IfcFurniture", "s", (0, 0, 0.5, 1, 1, 1, 0))],
-        view=ViewReport("s", ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0)), ("IfcFurniture",)),
+        view=ViewReport("s", (((0.0, 0.0), (1.0, 0.0), (0.0, 1.0)),), ("IfcFurniture",), origin=(0, 0, 1)),
         sense_ns=1_700_000_000_000_000_000,
     )
     assert doc is not None
@@ -132,12 +146,14 @@ class _Robot:
     tf: TfBuffer = field(default_factory=TfBuffer)
     waiting: list[tuple[float, _Message]] = field(default_factory=list)
     """Arrays whose transform is not in yet: (monotonic deadline, message), oldest first."""
+    fov_rad: tuple[float, float] | None = None
+    """The camera's fields of view from its latest CameraInfo (``camera_info``), if any."""
 
 
 @dataclass(frozen=True, slots=True)
 class _Message:
     owner: str
-    kind: str  # "detections", "tf", "tf_static", "doors", "obstacles", "wrong_type"
+    kind: str  # "detections", "tf", "tf_static", "camera_info", "doors", "obstacles", "wrong_type"
     payload: bytes
     note: str = ""
 
@@ -207,6 +223,8 @@ class RosIngest:
                 (d.tf, TF_MESSAGE, "tf", False),
                 (d.tf_static, TF_MESSAGE, "tf_static", True),
             ]
+            if d.camera_info is not None:
+                topics.append((d.camera_info, CAMERA_INFO, "camera_info", True))
             entity = self._subscribe(
                 session, owner=robot.name, node=node, layouts=robot.ros, topics=topics, entity=entity
             )
@@ -427,6 +445,15 @@ class RosIngest:
             if robot.waiting:
                 self._retry_waiting(robot)
             return
+        if m.kind == "camera_info":
+            try:
+                fov = camera_fov(m.payload)
+            except RosInputError as err:
+                with self._lock:
+                    self._refuse(self._counts[m.owner], m.owner, err.cause, str(err))
+                return
+            self._robots[m.owner].fov_rad = fov
+            return
         if m.kind == "detections":
             robot = self._robots[m.owner]
             if len(robot.waiting) < MAX_WAITING and (robot.waiting or self._must_wait(robot, m)):
@@ -463,7 +490,9 @@ class RosIngest:
             elevation = self._elevations.get(storey or "", 0.0)
             grid = self._grids.get((storey, robot.view_skill)) if storey and robot.view_skill else None
         known = robot.view_skill is None or grid is not None
-        ctx = DetectionContext(storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known)
+        ctx = DetectionContext(
+            storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known, fov_rad=robot.fov_rad
+        )
         return translate_detections(m.payload, robot.settings, ctx)
 
     def _deliver(self, owner: str, t: Translation) -> None:

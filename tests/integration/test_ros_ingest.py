@@ -60,6 +60,7 @@ ros = ["{layout}"]
 classes = {{ table = "IfcFurniture" }}
 fov_deg = 87
 range_m = 6.0
+optical = true
 
 [sources.doors]
 kind = "rmf_doors"

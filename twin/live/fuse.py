@@ -39,17 +39,16 @@ from twin.fusion.footprints import (
     aligned,
     box_pose,
     centre_distance,
-    corners,
     heights_overlap,
-    inside,
     iou,
     yaw_difference,
 )
 from twin.fusion.memory import TENTATIVE_TTL_NS, Alias, FusionMemory, Miss, Refinement, Track
+from twin.fusion.visibility import view_sees
 from twin.graph.ifc_classes import supertypes
 from twin.graph.store import GraphStore
 from twin.live.state import ElementState, LiveState
-from twin.records import ElementReport, Observation, ObservedBox, Shape
+from twin.records import ElementReport, Observation, ObservedBox, ObservedView, Shape
 from twin.selection.skill_selection import VIRTUAL_TYPE
 
 Effect = Callable[[FusionMemory], None]
@@ -469,9 +468,8 @@ def fuse(
         _absence(
             out,
             ctx,
-            storey=view.storey,
-            polygons=view.polygons,
-            detects=view.detects,
+            view=view,
+            sightings=_sightings(obs, live),
             sense=default_sense,
             detected=detected,
             reports=reports,
@@ -575,27 +573,52 @@ def _merge(out: Fused, ctx: _Context, gone: str, kept: str, *, sense: int, robot
     return ElementReport(gone, removed=True)
 
 
+def _sightings(obs: Observation, live: LiveState) -> list[Pose]:
+    """The boxes an observation reports, as poses (whatever they resolve to)."""
+    out = []
+    for r in obs.reports:
+        storey = live.site.storeys.get(r.storey or "")
+        pose = _report_pose(r, storey.elevation_m) if storey is not None else None
+        if pose is not None:
+            out.append(pose)
+    return out
+
+
 def _absence(
     out: Fused,
     ctx: _Context,
     *,
-    storey: str,
-    polygons: tuple[object, ...],
-    detects: tuple[str, ...],
+    view: ObservedView,
+    sightings: list[Pose],
     sense: int,
     detected: set[str],
     reports: list[ElementReport],
 ) -> None:
     memory = ctx.live.fusion
-    for iri, pose in _candidates(ctx, storey).items():
+    held = _candidates(ctx, view.storey)
+    looked: list[tuple[str, Pose, ElementState]] = []
+    for iri, pose in held.items():
         if iri in detected or iri in out.merged:
             continue
         state = ctx.states.get(iri)
         if state is None or not is_candidate(state):
             continue
-        if not any(d in state.ifc_types for d in detects):  # the element is of a class it detects
+        if not any(d in state.ifc_types for d in view.detects):  # the element is of a class it detects
             continue
-        if not inside(corners(pose, inset=VIEW_INSET_M), polygons):  # type: ignore[arg-type]
+        looked.append((iri, pose, state))
+    if not looked:
+        return
+    visible = view_sees(
+        view,
+        [pose for _, pose, _ in looked],
+        iris=[iri for iri, _, _ in looked],
+        held=held,
+        sightings=sightings,
+        elevation_m=ctx.live.site.storeys[view.storey].elevation_m,
+        inset_m=VIEW_INSET_M,
+    )
+    for (iri, _, state), seen in zip(looked, visible, strict=True):
+        if not seen:
             continue
         track = memory.tracks.get(iri)
         if sense <= max(state.sensed_ns, track.seen_ns if track is not None else 0):

@@ -180,6 +180,8 @@ _VIEW_TERMS = {
     vocab.RDF_TYPE,
     vocab.TWIN_STOREY,
     vocab.TWIN_POLYGON,
+    vocab.TWIN_HOLE,
+    vocab.TWIN_ORIGIN,
     vocab.TWIN_DETECTS,
     vocab.TWIN_SENSE_TIME,
 }
@@ -349,25 +351,35 @@ def _view(name: str, props: dict[str, list[object]]) -> ObservedView:
     for predicate in props:
         if predicate not in _VIEW_TERMS:
             raise _fail(
-                f"{where}: unknown term <{predicate}> (known: twin:storey, twin:polygon, twin:detects, "
-                "twin:senseTime)."
+                f"{where}: unknown term <{predicate}> (known: twin:storey, twin:polygon, twin:hole, "
+                "twin:origin, twin:detects, twin:senseTime)."
             )
     if vocab.TWIN_STOREY not in props:
         raise _fail(f"{where} has no twin:storey.")
     storey = _literal(name, vocab.TWIN_STOREY, props[vocab.TWIN_STOREY], (vocab.XSD_STRING,)).value
-    polygons = []
     points = 0
-    for text in _strings(name, vocab.TWIN_POLYGON, props.get(vocab.TWIN_POLYGON, []), limit=1 << 17):
-        parts = text.split()
-        if len(parts) < 6 or len(parts) % 2:
-            raise _fail(
-                f"{where}: twin:polygon must be x y pairs of at least 3 points, got {len(parts)} numbers."
-            )
-        values = _numbers(name, "twin:polygon", text, len(parts))
-        points += len(values) // 2
-        if points > MAX_VIEW_POINTS:
-            raise _fail(f"{where}: its polygons have more than {MAX_VIEW_POINTS} points.")
-        polygons.append(np.asarray(values, dtype=np.float64).reshape(-1, 2))
+    rings: dict[str, list[FloatArray]] = {}
+    for term, predicate in (("twin:polygon", vocab.TWIN_POLYGON), ("twin:hole", vocab.TWIN_HOLE)):
+        rings[term] = []
+        for text in _strings(name, predicate, props.get(predicate, []), limit=1 << 17):
+            parts = text.split()
+            if len(parts) < 6 or len(parts) % 2:
+                raise _fail(
+                    f"{where}: {term} must be x y pairs of at least 3 points, got {len(parts)} numbers."
+                )
+            values = _numbers(name, term, text, len(parts))
+            points += len(values) // 2
+            if points > MAX_VIEW_POINTS:
+                raise _fail(f"{where}: its polygons have more than {MAX_VIEW_POINTS} points.")
+            rings[term].append(np.asarray(values, dtype=np.float64).reshape(-1, 2))
+    polygons, holes = rings["twin:polygon"], rings["twin:hole"]
+    origin = None
+    if vocab.TWIN_ORIGIN in props:
+        texts = _strings(name, vocab.TWIN_ORIGIN, props[vocab.TWIN_ORIGIN])
+        if len(texts) != 1:
+            raise _fail(f"{where}: give one twin:origin, got {len(texts)}.")
+        x, y, z = _numbers(name, "twin:origin", texts[0], 3)
+        origin = (x, y, z)
     if not polygons:
         raise _fail(f"{where} has no twin:polygon (the floor its sensor saw).")
     detects = _strings(name, vocab.TWIN_DETECTS, props.get(vocab.TWIN_DETECTS, []))
@@ -377,7 +389,9 @@ def _view(name: str, props: dict[str, list[object]]) -> ObservedView:
     if not detects:
         raise _fail(f"{where} has no twin:detects (the IFC classes its detector reports).")
     sense = _sense(name, props[vocab.TWIN_SENSE_TIME]) if vocab.TWIN_SENSE_TIME in props else None
-    return ObservedView(storey, tuple(polygons), tuple(dict.fromkeys(detects)), sense)
+    return ObservedView(
+        storey, tuple(polygons), tuple(dict.fromkeys(detects)), sense, holes=tuple(holes), origin=origin
+    )
 
 
 def parse_observation(payload: bytes | str, *, limits: Limits) -> tuple[ElementReport, ...]:

@@ -4,22 +4,31 @@ visibility polygon on their own."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pyoxigraph as ox
 import pytest
+from shapely.geometry import Point, Polygon
+from shapely.ops import unary_union
 
-from adapters.ros.detections import DetectionContext, DetectionSettings, array_header, translate_detections
+from adapters.ros.detections import (
+    DetectionContext,
+    DetectionSettings,
+    array_header,
+    camera_fov,
+    translate_detections,
+)
 from adapters.ros.observation_doc import RosInputError
 from adapters.ros.tf import TfBuffer, TfError, decode_tf_message
 from adapters.ros.view import polygon_area, visibility_polygon
-from tests.adapters.ros_reports import OPTICAL, Det, Tf, cdr_detections, cdr_tf, yaw_quaternion
+from tests.adapters.ros_reports import OPTICAL, Cdr, Det, Tf, cdr_detections, cdr_tf, yaw_quaternion
 from twin.maps.grid import GridFrame, OccupancyGrid
 
 NOW = 1_700_000_000_000_000_000
 TWIN = "https://w3id.org/building-twin#"
 SETTINGS = DetectionSettings(
-    robot="robot1", classes={"table": "IfcFurniture", "chair": "IfcSystemFurnitureElement"}
+    robot="robot1", classes={"table": "IfcFurniture", "chair": "IfcSystemFurnitureElement"}, optical=True
 )
 
 
@@ -262,3 +271,80 @@ def test_no_view_is_claimed_while_the_structure_that_hides_its_parts_is_unknown(
         and b"twin:View" not in t.document
         and b"<urn:twin-ros:robot1:det:7>" in t.document
     )
+
+
+def seen_region(doc: bytes | None) -> tuple[Any, list[str]]:
+    """The view's floor (shapely: its polygons less its holes) and its origin triple."""
+    found = triples(doc)
+    (view,) = [s for (s, p), v in found.items() if p.endswith("#type") and TWIN + "View" in v]
+
+    def ring(text: str) -> Polygon:
+        return Polygon(np.array(text.split(), dtype=float).reshape(-1, 2))
+
+    region = unary_union([ring(p) for p in found[(view, "polygon")]])
+    for hole in found.get((view, "hole"), []):
+        region = region.difference(ring(hole))
+    return region, found.get((view, "origin"), [])
+
+
+PERSON_IN_CAMERA = Det((("person", 0.95),), (0.0, 0.1, 2.0), (0.5, 1.8, 0.4))
+"""A person 2 m ahead of the camera (map (16.2, 7.0)), of a class the robot does not map."""
+
+
+def test_the_view_leaves_out_the_shadow_of_every_detection_and_carries_the_sensor_s_origin() -> None:
+    payload = cdr_detections(NOW, "camera_optical_frame", [PERSON_IN_CAMERA])
+    t = translate_detections(payload, SETTINGS, ctx())
+    region, origin = seen_region(t.document)
+    assert t.ignored == {"unknown_class": 1} and t.iris == ()
+    assert origin == ["14.2 7 1"]  # map x, y and z above the storey's floor
+    assert not region.contains(Point(18.0, 7.0))  # behind the person
+    assert not region.contains(Point(16.2, 7.0))  # under the person
+    assert region.contains(Point(18.0, 8.0)) and region.contains(Point(15.5, 7.0))
+
+
+def test_a_z_forward_frame_not_named_optical_looks_where_the_setting_says() -> None:
+    tf = robot_tf()
+    tf.add(decode_tf_message(cdr_tf([Tf("camera_link", "cam_front", (0, 0, 0), OPTICAL)])), static=True)
+    payload = cdr_detections(NOW, "cam_front", [])
+    ahead, _ = seen_region(translate_detections(payload, SETTINGS, ctx(tf)).document)
+    default = DetectionSettings(robot="robot1", classes={"table": "IfcFurniture"})  # optical = false
+    aside, _ = seen_region(translate_detections(payload, default, ctx(tf)).document)
+    assert ahead.contains(Point(17.0, 7.0)) and not ahead.contains(Point(14.2, 4.5))
+    assert aside.contains(Point(14.2, 4.5)) and not aside.contains(Point(17.0, 7.0))  # its x: map -y
+
+
+def test_a_detection_whose_frame_does_not_resolve_leaves_the_array_without_a_view() -> None:
+    person = Det((("person", 0.95),), (0.0, 0.1, 2.0), (0.5, 1.8, 0.4))
+    far_away = cdr_detections(NOW, "camera_optical_frame", [TABLE_IN_CAMERA])
+    t = translate_detections(far_away, SETTINGS, ctx())
+    assert b"twin:View" in (t.document or b"")
+    c = Cdr().header(NOW, "camera_optical_frame").u32(2)
+    for frame, d in (("camera_optical_frame", TABLE_IN_CAMERA), ("lidar_link", person)):
+        c.header(NOW, frame).u32(1).string(d.results[0][0]).f64(d.results[0][1])
+        c.pose((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)).f64(*([0.0] * 36))
+        c.pose(d.position, d.orientation).f64(*d.size).string(d.id)
+    t = translate_detections(c.bytes(), SETTINGS, ctx())
+    assert b"twin:View" not in (t.document or b"") and t.iris == ("urn:twin-ros:robot1:det:7",)
+    assert t.refused == ()  # an unmapped class: nothing refused, but its shadow is unknown
+
+
+def test_camera_info_s_fields_of_view_take_the_place_of_the_configured_ones() -> None:
+    payload = cdr_detections(NOW, "camera_optical_frame", [])
+    wide, _ = seen_region(translate_detections(payload, SETTINGS, ctx()).document)
+    narrow, _ = seen_region(translate_detections(payload, SETTINGS, ctx(fov_rad=(0.5, 0.6))).document)
+    assert wide.contains(Point(17.0, 8.2)) and not narrow.contains(Point(17.0, 8.2))
+    assert narrow.contains(Point(18.5, 7.0))
+    assert not narrow.contains(Point(16.5, 7.0))  # the floor under its 34 deg vertical field of view
+
+
+def test_camera_info_gives_the_narrower_side_s_fields_of_view_and_an_uncalibrated_one_is_refused() -> None:
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import CameraInfo
+
+    info = CameraInfo(width=640, height=480)
+    info.k = [500.0, 0.0, 300.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0]  # the principal point 20 px left
+    h, v = camera_fov(serialize_message(info))
+    assert h == pytest.approx(2 * math.atan(300 / 500)) and v == pytest.approx(2 * math.atan(240 / 500))
+    with pytest.raises(RosInputError, match="describes no camera: width 0") as err:
+        camera_fov(serialize_message(CameraInfo()))
+    assert err.value.cause == "malformed"

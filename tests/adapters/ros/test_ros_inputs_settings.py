@@ -45,11 +45,41 @@ def test_a_robots_detections_table_gives_its_topic_class_table_camera_and_tf(tmp
         ('classes = { t = "IfcFurniture" }\nview_skill = "nope"', "unknown skill 'nope'"),
         ('classes = { t = "IfcFurniture" }\ntopic = "map"', "clash"),
         ('classes = { t = "IfcFurniture" }\ntopic = "a b"', "ROS topic name"),
+        ('classes = { t = "IfcFurniture" }\nheights_m = [0.5, 0.1]', r"low <= high.*\[0.5, 0.1\]"),
+        ('classes = { t = "IfcFurniture" }\nheights_m = 0.5', "two heights"),
+        ('classes = { t = "IfcFurniture" }\noptical = "yes"', "optical"),
+        ('classes = { t = "IfcFurniture" }\ncamera_info = "storey"', "clash"),
     ],
 )
 def test_a_bad_detections_table_is_refused_naming_the_key(tmp_path: Path, table: str, match: str) -> None:
     with pytest.raises(ConfigError, match=match):
         config(tmp_path, ROBOT + "[robots.r1.detections]\n" + table + "\n")
+
+
+def test_the_camera_s_axis_fields_of_view_blind_zone_and_band_are_configured(tmp_path: Path) -> None:
+    d = ros_robots(config(tmp_path, ROBOT + '[robots.r1.detections]\nclasses = { t = "IfcFurniture" }\n'))[
+        "r1"
+    ].detections
+    assert d is not None
+    assert (d.optical, d.vfov_deg, d.near_m, d.heights_m, d.camera_info) == (
+        False,
+        None,
+        0.0,
+        (0.1, 0.5),
+        None,
+    )
+    d = ros_robots(
+        config(
+            tmp_path,
+            ROBOT
+            + '[robots.r1.detections]\nclasses = { t = "IfcFurniture" }\noptical = true\nvfov_deg = 58\n'
+            'near_m = 0.3\nheights_m = [0.2, 0.8]\ncamera_info = "camera/camera_info"\n',
+        )
+    )["r1"].detections
+    assert d is not None
+    assert (d.optical, d.vfov_deg, d.near_m, d.heights_m, d.camera_info) == (
+        True, 58.0, 0.3, (0.2, 0.8), "camera/camera_info"
+    )  # fmt: skip
 
 
 def test_detections_without_a_namespace_are_refused(tmp_path: Path) -> None:

@@ -1,5 +1,7 @@
-"""The view polygon is what the fusion terms ask for: a simple polygon (shapely's validity), around
-the sensor, within its range and field of view, never through an occupied cell of the structure."""
+"""The view is what the camera saw: simple polygons (shapely's validity) within its range, outside its
+near blind zone, where its frustum holds the band of heights of what it detects, never through an
+occupied cell of the structure nor behind a detection; a pitched camera leaves out the floor under
+its frame."""
 
 from __future__ import annotations
 
@@ -9,13 +11,49 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Point, Polygon
+from shapely.ops import unary_union
 
 from adapters.ros.observation_doc import _metres
-from adapters.ros.view import OCCUPIED_AT, visibility_polygon
+from adapters.ros.tf import matrix
+from adapters.ros.view import OCCUPIED_AT, Camera, camera_view, visibility_polygon
 from tests.conftest import examples
 from twin.maps.grid import GridFrame, OccupancyGrid
 
 FRAME = GridFrame(0.0, 0.0, 0.1, 80, 60)  # 8 x 6 m
+OPTICAL = (-0.5, 0.5, -0.5, 0.5)
+"""``camera_link_from_camera_optical_frame``: z forward, x right, y down (REP 103)."""
+
+
+def rpy(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
+    """Quaternion (x, y, z, w) of roll about x, then pitch about y, then yaw about z (fixed axes)."""
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return (
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+        cr * cp * cy + sr * sp * sy,
+    )
+
+
+def camera(
+    x: float,
+    y: float,
+    z: float,
+    *,
+    yaw: float = 0.0,
+    pitch: float = 0.0,
+    roll: float = 0.0,
+    hfov: float = math.radians(87),
+    vfov: float | None = None,
+    reach: float = 6.0,
+    near: float = 0.0,
+    optical: bool = False,
+) -> Camera:
+    body = matrix((x, y, z), rpy(roll, pitch, yaw))
+    pose = body @ matrix((0, 0, 0), OPTICAL) if optical else body
+    return Camera.from_pose(pose, optical=optical, hfov_rad=hfov, vfov_rad=vfov, range_m=reach, near_m=near)
 
 
 @st.composite
@@ -28,34 +66,126 @@ def grids(draw: st.DrawFn) -> OccupancyGrid:
     return OccupancyGrid(FRAME, data, "s", "localization", 0.0)
 
 
-@settings(max_examples=examples(200), deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=list(HealthCheck))
 @given(
     grid=st.one_of(st.none(), grids()),
     x=st.floats(-1.0, 9.0),
     y=st.floats(-1.0, 7.0),
-    heading=st.floats(-10.0, 10.0),
-    fov=st.one_of(st.floats(0.05, 6.2), st.just(2 * math.pi)),
-    reach=st.floats(0.2, 12.0),
-    rays=st.integers(3, 100),
+    z=st.floats(0.2, 2.0),
+    yaw=st.floats(-4.0, 4.0),
+    pitch=st.floats(-0.3, 1.2),
+    roll=st.floats(-0.2, 0.2),
+    hfov=st.one_of(st.floats(0.3, 3.0), st.floats(3.2, 6.2), st.just(2 * math.pi)),
+    vfov=st.one_of(st.none(), st.floats(0.3, 2.5)),
+    reach=st.floats(0.5, 10.0),
+    near=st.floats(0.0, 1.0),
+    optical=st.booleans(),
+    shadow=st.one_of(st.none(), st.tuples(st.floats(-1, 9), st.floats(-1, 7), st.floats(0.1, 1.0))),
 )
-def test_the_view_is_a_simple_polygon_within_range_that_crosses_no_wall(  # noqa: PLR0917
-    grid: OccupancyGrid | None, x: float, y: float, heading: float, fov: float, reach: float, rays: int
+def test_the_view_is_simple_polygons_the_frustum_holds_past_no_wall_nor_detection(  # noqa: PLR0917
+    grid: OccupancyGrid | None,
+    x: float,
+    y: float,
+    z: float,
+    yaw: float,
+    pitch: float,
+    roll: float,
+    hfov: float,
+    vfov: float | None,
+    reach: float,
+    near: float,
+    optical: bool,
+    shadow: tuple[float, float, float] | None,
 ) -> None:
-    polygon = visibility_polygon(grid, (x, y), heading_rad=heading, fov_rad=fov, range_m=reach, rays=rays)
-    # as written on the wire (0.1 mm): still a valid, simple polygon
-    written = [(float(_metres(px)), float(_metres(py))) for px, py in polygon]
-    shape = Polygon(written)
-    assert shape.is_valid and shape.area > 0
-    ends = np.array(polygon if fov >= 2 * math.pi - 1e-9 else polygon[1:])
-    assert (np.hypot(ends[:, 0] - x, ends[:, 1] - y) <= reach + 1e-9).all()
+    cam = camera(x, y, z, yaw=yaw, pitch=pitch, roll=roll, hfov=hfov, vfov=vfov, reach=reach, near=near,
+                 optical=optical)  # fmt: skip
+    shadows = [(shadow[0], shadow[1], shadow[2], shadow[2], 0.3)] if shadow is not None else []
+    view = camera_view(grid, cam, band_m=(0.1, 0.5), shadows=shadows, rays=16)
+    if view is None:
+        return
+    parts = []
+    for ring in view.polygons:  # as written on the wire (0.1 mm): still valid, simple polygons
+        shape = Polygon([(float(_metres(px)), float(_metres(py))) for px, py in ring])
+        assert shape.is_valid and shape.area > 0
+        parts.append(shape)
+    region = unary_union(parts)
+    for hole in view.holes:
+        region = region.difference(Polygon(hole))
+    points = np.array([p for ring in view.polygons for p in ring])
+    d = np.hypot(points[:, 0] - x, points[:, 1] - y)
+    assert (d <= reach + 1e-9).all()
+    # every point of the view: in range, out of the blind zone, the band in the frustum
+    rng = np.random.default_rng(0)
+    lo, hi = np.array(region.bounds[:2]), np.array(region.bounds[2:])
+    probe = rng.uniform(lo, hi, size=(400, 2))
+    inner = region.buffer(-0.03)
+    probe = probe[[inner.contains(Point(p)) for p in probe]]
+    if len(probe):
+        dist = np.hypot(probe[:, 0] - x, probe[:, 1] - y)
+        assert (dist <= reach).all() and (dist >= near * math.cos(math.pi / 16) - 0.03).all()
+        assert cam.sees(probe[:, 0], probe[:, 1], 0.1).all() and cam.sees(probe[:, 0], probe[:, 1], 0.5).all()
+    if shadow is not None:  # nothing inside the detection's footprint is claimed
+        sx, sy, side = shadow
+        c, s = math.cos(0.3), math.sin(0.3)
+        h = side / 2
+        square = ((-h, -h), (h, -h), (h, h), (-h, h))
+        box = Polygon([(sx + c * u - s * v, sy + s * u + c * v) for u, v in square])
+        if not box.contains(Point(x, y)):
+            assert region.intersection(box.buffer(-0.03)).area < 1e-6
     if grid is not None:  # the sensor sees no occupied cell's centre strictly inside its view
         f = grid.frame
         rows, cols = np.nonzero(grid.data >= OCCUPIED_AT)
         centres = np.stack(
             [f.origin_x + (cols + 0.5) * f.resolution_m, f.origin_y + (rows + 0.5) * f.resolution_m], 1
         )
-        near = (
-            np.hypot(centres[:, 0] - x, centres[:, 1] - y) > 2 * f.resolution_m
-        )  # not the sensor's own cell
-        inner = shape.buffer(-f.resolution_m)
-        assert not any(inner.contains(Point(c)) for c in centres[near][:2000])
+        far = np.hypot(centres[:, 0] - x, centres[:, 1] - y) > 2 * f.resolution_m  # not the sensor's cell
+        shrunk = region.buffer(-f.resolution_m)
+        assert not any(shrunk.contains(Point(c)) for c in centres[far][:2000])
+
+
+def test_a_camera_pitched_down_leaves_out_the_floor_under_its_frame_and_beyond_where_the_band_leaves_it() -> (
+    None
+):
+    # 1.2 m up, pitched 35 deg down, 60 deg vertical field of view: the band 0.1 .. 0.5 m is in the frame
+    # from (1.2 - 0.1) / tan(65 deg) = 0.51 m out to (1.2 - 0.5) / tan(5 deg) = 8.0 m (range 6 m)
+    cam = camera(0.0, 0.0, 1.2, pitch=math.radians(35), vfov=math.radians(60), hfov=math.radians(60))
+    view = camera_view(None, cam, band_m=(0.1, 0.5))
+    assert view is not None and len(view.polygons) == 1 and not view.holes
+    ring = np.array(view.polygons[0])
+    d = np.hypot(ring[:, 0], ring[:, 1])
+    assert 0.5 <= d.min() <= 0.6 and 5.9 <= d.max() <= 6.0 + 1e-9
+    assert not Polygon(ring).contains(Point(0.3, 0.0))  # the blind zone under the frame
+    assert Polygon(ring).contains(Point(1.0, 0.0))
+    # pitched 60 deg down: on its axis, the band's top leaves the frame at (1.2 - 0.5) / tan(30 deg) = 1.21 m
+    steep = camera(0.0, 0.0, 1.2, pitch=math.radians(60), vfov=math.radians(60), hfov=math.radians(60))
+    seen = camera_view(None, steep, band_m=(0.1, 0.5))
+    assert seen is not None
+    ring = np.array(seen.polygons[0])
+    ahead = np.abs(np.arctan2(ring[:, 1], ring[:, 0])) < 0.05  # along the axis (off it, farther)
+    far = np.hypot(ring[ahead, 0], ring[ahead, 1]).max()
+    assert 1.1 <= far <= 1.25
+
+
+def test_the_optical_axis_comes_from_the_setting_not_the_frame_s_name() -> None:
+    base = matrix((0.0, 0.0, 1.0), rpy(0.0, 0.0, 0.0)) @ matrix((0, 0, 0), OPTICAL)  # z along map +x
+    forward = Camera.from_pose(base, optical=True, hfov_rad=1.5, range_m=4.0)
+    sideways = Camera.from_pose(base, optical=False, hfov_rad=1.5, range_m=4.0)  # x: map -y
+    a, b = camera_view(None, forward), camera_view(None, sideways)
+    assert a is not None and b is not None
+    assert np.array(a.polygons[0])[1:, 0].min() > 0  # ahead: +x
+    assert np.array(b.polygons[0])[1:, 1].max() < 1e-9  # its x axis points along map -y
+
+
+def test_a_full_circle_with_a_blind_zone_is_a_ring_and_its_hole() -> None:
+    cam = camera(2.0, 2.0, 0.5, hfov=2 * math.pi, reach=3.0, near=0.8)
+    view = camera_view(None, cam, band_m=(0.1, 0.4))
+    assert view is not None and len(view.polygons) == 1 and len(view.holes) == 1
+    region = Polygon(view.polygons[0]).difference(Polygon(view.holes[0]))
+    assert region.contains(Point(3.5, 2.0)) and not region.contains(Point(2.5, 2.0))
+    assert math.isclose(region.area, math.pi * (3.0**2 - 0.8**2), rel_tol=0.03)
+
+
+def test_a_level_sensor_s_polygon_starts_at_the_sensor_and_a_sliver_claims_nothing() -> None:
+    polygon = visibility_polygon(None, (1.0, 1.0), heading_rad=0.0, fov_rad=math.radians(90), range_m=4.0)
+    assert polygon[0] == (1.0, 1.0) and math.isclose(Polygon(polygon).area, math.pi * 16 / 4, rel_tol=0.05)
+    assert visibility_polygon(None, (0.0, 0.0), heading_rad=0.0, fov_rad=0.05, range_m=0.3) == ()

@@ -34,7 +34,7 @@ def ingest(tmp_path: Path) -> Iterator[tuple[RosIngest, zenoh.Session, list[byte
     path.write_text(
         '[robots.robot1]\nnamespace = "/robot1"\nstorey = "ground-floor"\nros = ["bridge"]\n'
         '[robots.robot1.detections]\nclasses = { table = "IfcFurniture" }\nrange_m = 8.0\n'
-        "diagnostics = true\n"
+        "diagnostics = true\noptical = true\n"
     )
     docs: list[bytes] = []
 
