@@ -41,6 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="twin", description="building-twin: IFC -> graph world model -> robot maps, served live"
     )
     _global_options(p, after=False)
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     sp = sub.add_parser("import", help="build the graph world model of an IFC file into a store")
@@ -62,6 +63,13 @@ def build_parser() -> argparse.ArgumentParser:
     _store_arg(sp)
     sp.add_argument("out", help="the Turtle file to write")
     sp.set_defaults(func=model_cmds.cmd_export)
+
+    sp = sub.add_parser(
+        "backup", help="copy the store into a new directory (consistent, also while the daemon runs)"
+    )
+    _store_arg(sp)
+    sp.add_argument("out", help="the new directory to write the copy to")
+    sp.set_defaults(func=model_cmds.cmd_backup)
 
     sp = sub.add_parser(
         "query", help="run a read-only SPARQL query (prefixes bot, beo, twin, ... predefined)"
@@ -107,6 +115,16 @@ def build_parser() -> argparse.ArgumentParser:
     for command in sub.choices.values():  # `twin serve --config FILE` as well as `twin --config FILE serve`
         _global_options(command, after=True)
     return p
+
+
+def _version() -> str:
+    """The installed distribution's version (``0.1.0``); ``unknown`` in a checkout not installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("building-twin")
+    except PackageNotFoundError:
+        return "unknown (not installed: pip install -e .)"
 
 
 def _global_options(p: argparse.ArgumentParser, *, after: bool) -> None:

@@ -20,7 +20,7 @@ from adapters.cli.common import (
 )
 from adapters.cli.progress import progress_bar
 from twin.config import Config
-from twin.errors import ModelError, QueryError
+from twin.errors import ModelError, QueryError, StoreError
 from twin.live.snapshots import snapshot_path
 
 
@@ -140,6 +140,21 @@ def cmd_export(args: argparse.Namespace, cfg: Config) -> int:
     with open_store(args, cfg, read_only=True) as store:
         store.dump_turtle(out)
     print(f"wrote {out} ({human_size(out.stat().st_size)})")
+    return 0
+
+
+def cmd_backup(args: argparse.Namespace, cfg: Config) -> int:
+    out = Path(args.out)
+    from twin.graph.store import EmbeddedStore
+
+    with open_store(args, cfg, read_only=True) as store:
+        if not isinstance(store, EmbeddedStore):
+            msg = "twin backup copies an embedded store (--store DIR): back up the SPARQL server itself."
+            raise StoreError(msg)
+        store.backup(out)
+        triples = len(store)
+    size = sum(f.stat().st_size for f in out.rglob("*") if f.is_file())
+    print(f"wrote {out} ({triples:,} triples, {human_size(size)}): 'twin serve --store {out}' serves it")
     return 0
 
 

@@ -247,6 +247,19 @@ class EmbeddedStore:
             target, format=ox.RdfFormat.TURTLE, from_graph=ox.DefaultGraph(), prefixes=vocab.PREFIXES
         )
 
+    def backup(self, target: Path) -> None:
+        """Copy the on-disk store into the new directory ``target``: a consistent copy that opens as a store.
+
+        Works on a read-only handle while another process (the daemon) writes the store."""
+        if self.info.path is None:
+            msg = "An in-memory store has nothing on disk to back up."
+            raise StoreError(msg)
+        if target.exists():
+            msg = f"Backup target {target} exists: give a new directory."
+            raise StoreError(msg)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        self._store.backup(str(target))
+
     def turtle_size(self) -> int:
         """Bytes of :meth:`dump_turtle` output, without keeping it in memory."""
         sink = ByteCounter()

@@ -1,0 +1,29 @@
+"""The Makefile's promises to a newcomer."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="make is not installed")
+def test_make_demo_ends_by_saying_how_to_reach_the_twin_command() -> None:
+    # -n: print the recipes (the install's too, when the venv is missing) without running them
+    dry = subprocess.run(
+        ["make", "-n", "demo"],
+        cwd=ROOT, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    last = dry.stdout.strip().splitlines()[-2:]
+    assert any(". .venv/bin/activate" in line and ".venv/bin/twin" in line for line in last), last
+
+
+def test_the_docs_build_runs_strict_and_not_quiet_so_that_a_broken_link_fails() -> None:
+    recipe = (ROOT / "Makefile").read_text().split("\ndocs:")[1].split("\n\n")[0]
+    assert "mkdocs build --strict" in recipe
+    assert "--quiet" not in recipe.split("#")[0]  # --quiet hides the warnings that --strict counts
+    assert "make docs" in (ROOT / ".ci" / "run").read_text()
