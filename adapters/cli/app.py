@@ -23,6 +23,7 @@ from adapters.cli import (
     record_cmd,
     robot_cmds,
     serve_cmd,
+    watch_cmd,
     zone_cmd,
 )
 from adapters.cli.common import add_store_args
@@ -106,6 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     serve_cmd.add_parser(sub)
     robot_cmds.add_parsers(sub)
+    watch_cmd.add_parser(sub)
     zone_cmd.add_parsers(sub)
     explain_cmd.add_parser(sub)
     record_cmd.add_parser(sub)

@@ -323,7 +323,7 @@ def test_the_import_line_counts_in_agreeing_words(tmp_path: Path) -> None:
 def test_watch_counts_a_speed_masks_cells_by_their_limit() -> None:
     import numpy as np
 
-    from adapters.cli.robot_cmds import cell_counts
+    from adapters.cli.watch_cmd import cell_counts
 
     mask = np.zeros((10, 10), np.int8)
     mask[:3, :10] = 30
