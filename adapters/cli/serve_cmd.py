@@ -30,7 +30,7 @@ from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
 from adapters.rerun.settings import RerunSettings
 from adapters.ros.settings import RosSettings, ros_robots
-from adapters.zenoh.access import site_access_control
+from adapters.zenoh.access import access_summary, site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
@@ -141,7 +141,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             mode=args.mode,
             listen=args.listen or None,
             connect=args.connect or None,
-            access_control=site_access_control(cfg, keys),
+            access_control=(acl := site_access_control(cfg, keys)),
         )
         try:
             session = zenoh.open(conf)
@@ -195,7 +195,8 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             endpoints = ", ".join(args.listen or zenoh_of(cfg).listen) or "(no listener)"
             print(
                 f"serving site {cfg.site!r} at revision {service.revision} on {endpoints} "
-                f"under {keys.prefix}/: {len(maps)} maps published in {time.perf_counter() - t0:.2f} s "
+                f"under {keys.prefix}/, {access_summary(acl, keys, brief=True)}: "
+                f"{len(maps)} maps published in {time.perf_counter() - t0:.2f} s "
                 + (
                     "(built from the store)"
                     if service.restored_from is None

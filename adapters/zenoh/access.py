@@ -261,3 +261,12 @@ def site_acl(cfg: Config, keys: SiteKeys, *, identity: Identity | None = None) -
         ros_keys=ros_map_keys(robots.values()) + ros_points_keys(cfg) + ros_diagnostics_keys(cfg),
         robot_keys=robot_keys,
     )
+
+
+def access_summary(acl: dict[str, Any] | None, keys: SiteKeys, *, brief: bool = False) -> str:
+    """What a start line says of access control: off (anyone may do anything), or on, for whom."""
+    if acl is None:
+        why = "" if brief else " (anyone who connects may read and write everything)"
+        return f"access control off{why}"
+    names = [str(n) for s in acl["subjects"] for k, v in s.items() if k != "id" for n in v]
+    return f"access control on for {keys.prefix}/** (robots and operators: {', '.join(names)})"

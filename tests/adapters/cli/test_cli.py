@@ -121,8 +121,8 @@ def test_router_acl_without_robots_is_refused_as_twin_acl_refuses_it(tmp_path: P
     (tmp_path / "users.txt").write_text("robot1:secret\n")
     config = tmp_path / "site.toml"
     config.write_text(f'[zenoh.auth]\nusers_file = "{tmp_path / "users.txt"}"\n')
-    acl = twin("acl", "--config", config)
-    router = twin("router", "--acl", "--listen", "tcp/127.0.0.1:0", "--config", config)
+    acl = twin("acl", "--config", config, "--site", "lab")
+    router = twin("router", "--acl", "--listen", "tcp/127.0.0.1:0", "--config", config, "--site", "lab")
     assert acl.returncode == router.returncode == 1
     assert router.stderr == acl.stderr
     assert "Access control needs at least one robot ([robots.NAME]) or operator" in router.stderr

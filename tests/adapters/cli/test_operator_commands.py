@@ -1,4 +1,4 @@
-"""``twin backup`` and ``twin --version``: what an operator runs (real processes, real stores)."""
+"""What an operator runs: `twin backup`, `twin --version`, `twin acl` (real processes, real stores)."""
 
 from __future__ import annotations
 
@@ -49,3 +49,26 @@ def test_version_prints_the_installed_version_and_exits_0() -> None:
     r = twin("--version")
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == f"twin {version('building-twin')}"
+
+
+def test_acl_without_a_site_takes_the_one_its_store_was_imported_as(store: Path, tmp_path: Path) -> None:
+    (tmp_path / "users.txt").write_text("robot1:secret\n")
+    config = tmp_path / "site.toml"
+    config.write_text(f'[zenoh.auth]\nusers_file = "{tmp_path / "users.txt"}"\n[robots.robot1]\n')
+    r = twin("acl", "--config", config, "--store", store)
+    assert r.returncode == 0, r.stderr
+    assert '"twin/lab/observe/robot1"' in r.stdout  # the store's site, lab
+
+
+def test_acl_and_router_acl_without_site_or_store_are_refused_saying_how_to_give_one(tmp_path: Path) -> None:
+    (tmp_path / "users.txt").write_text("robot1:secret\n")
+    config = tmp_path / "site.toml"
+    config.write_text(f'[zenoh.auth]\nusers_file = "{tmp_path / "users.txt"}"\n[robots.robot1]\n')
+    acl = twin("acl", "--config", config, cwd=tmp_path)
+    router = twin("router", "--acl", "--listen", "tcp/127.0.0.1:0", "--config", config, cwd=tmp_path)
+    assert acl.returncode == router.returncode == 1
+    assert acl.stderr.strip().splitlines() == [
+        "twin: error: twin acl guards one site's keys: give --site NAME, site.name or --store DIR of the "
+        "site (there is no store at var/store)."
+    ]
+    assert router.stderr.startswith("twin: error: twin router --acl guards one site's keys: give --site")
