@@ -117,3 +117,11 @@ def test_status_prints_clouds_and_robots_as_text(daemon: Daemon) -> None:
     cloud = [line for line in lines if line.startswith("  ground-floor/lidar3d version ")]
     assert len(cloud) == 1 and cloud[0].endswith(" points")
     assert not any("{" in line for line in lines)
+
+
+def test_a_wrong_site_is_told_with_the_sites_whose_daemons_answer(daemon: Daemon) -> None:
+    r = twin("status", "--connect", daemon.endpoint, "--site", "lab2", "--timeout", "2", timeout=60)
+    assert r.returncode == 1
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1
+    assert lines[0].endswith("(no daemon of site 'lab2' there; daemons answer for the sites lab: --site?).")
