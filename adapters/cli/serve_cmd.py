@@ -42,7 +42,7 @@ from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.errors import StoreNotFoundError
 from twin.live import TwinService
-from twin.live.events import MapPublished, TwinEvent, TwinStarted
+from twin.live.events import MapPublished, PointsPublished, TwinEvent, TwinStarted
 from twin.live.snapshots import Snapshots, snapshot_path
 
 if TYPE_CHECKING:
@@ -97,13 +97,42 @@ class _StartProgress:
         self.published = 0
 
     def emit(self, event: TwinEvent) -> None:
-        if isinstance(event, TwinStarted):
-            self.total = len(event.storeys) * len(event.skills)
+        if isinstance(event, TwinStarted):  # clouds come after: _CloudProgress reports them
+            grids = [name for name, skill in event.skills.items() if skill.kind != "points"]
+            self.total = len(event.storeys) * len(grids)
             self.advance(0, self.total)
         elif isinstance(event, MapPublished):
             self.published += 1
             self.total = max(self.total, self.published)
             self.advance(self.published, self.total)
+
+
+class _CloudProgress:
+    """A sink that reports the points skills' clouds, built after the daemon serves its maps: a line on
+    stderr as each storey's first cloud is published (``cloud 1 of 4 ...``), then nothing more."""
+
+    def __init__(self) -> None:
+        self.total = 0
+        self.seen: set[tuple[str, str]] = set()
+        self.t0 = time.perf_counter()
+
+    def emit(self, event: TwinEvent) -> None:
+        if isinstance(event, TwinStarted):
+            points = [name for name, skill in event.skills.items() if skill.kind == "points"]
+            self.total = len(event.storeys) * len(points)
+        if not isinstance(event, PointsPublished) or len(self.seen) >= self.total:
+            return
+        key = (event.cloud.storey, event.cloud.skill)
+        if key in self.seen:
+            return
+        self.seen.add(key)
+        took = time.perf_counter() - self.t0
+        print(
+            f"cloud {len(self.seen)} of {self.total} ready: {key[0]}/{key[1]}, {len(event.cloud):,} points "
+            f"({took:.1f} s after loading)",
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
@@ -183,6 +212,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             t0 = time.perf_counter()
             source = store_label(args, cfg)
             print(f"loading site {cfg.site!r} from {source} ...", file=sys.stderr, flush=True)
+            service.sinks.append(_CloudProgress())  # clouds are built after the maps, while serving
             with progress_bar("preparing maps") as advance:
                 progress = _StartProgress(advance)
                 service.sinks.insert(0, progress)

@@ -42,6 +42,23 @@ def daemon(lab_store_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Ite
     d.stop()
 
 
+def test_start_up_counts_the_maps_and_then_reports_each_cloud(daemon: Daemon) -> None:
+    import select
+
+    assert "preparing maps: 8 of 8 in " in "\n".join(daemon.log)  # the 8 grid maps, not 10 with clouds
+    stream = daemon.process.stdout
+    assert stream is not None
+    lines: list[str] = []
+    deadline = time.monotonic() + 30
+    while len([ln for ln in lines if ln.startswith("cloud ")]) < 2 and time.monotonic() < deadline:
+        if select.select([stream], [], [], 1.0)[0]:
+            lines.append(stream.readline().rstrip())
+    clouds = [ln for ln in lines if ln.startswith("cloud ")]
+    assert [c.split(" ready: ")[0] for c in clouds] == ["cloud 1 of 2", "cloud 2 of 2"]
+    ready = {c.split(" ready: ")[1].split(",")[0] for c in clouds}
+    assert ready == {"ground-floor/lidar3d", "first-floor/lidar3d"}
+
+
 def watch(daemon: Daemon, *args: str | Path) -> subprocess.CompletedProcess[str]:
     return twin("--config", daemon_config(daemon), "watch", "--connect", daemon.endpoint, *args, timeout=60)
 
