@@ -178,7 +178,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.close(devnull)
         return BROKEN_PIPE
     except OSError as err:  # files the user named: unreadable, missing, a directory, disk full ...
-        where = f" {err.filename}" if getattr(err, "filename", None) else ""
+        where = f" {err.filename}:" if getattr(err, "filename", None) else ""
         print(f"twin: error:{where} {err.strerror or err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

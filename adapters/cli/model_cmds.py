@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 from adapters.cli.common import (
+    check_site,
     human_size,
     open_store,
     remote_store_of,
@@ -31,7 +32,7 @@ def import_site(args: argparse.Namespace, cfg: Config, model_path: Path) -> tupl
     from twin.graph.vocab import site_slug
 
     if args.site:
-        return args.site, "--site"
+        return check_site(args.site), "--site"
     if cfg.site_set:
         return cfg.site, "site.name of the configuration"
     return site_slug(model_path.name), "from the file name; --site to choose"

@@ -17,6 +17,7 @@ import zenoh
 
 from adapters.cli.common import (
     add_store_args,
+    check_site,
     key_prefix,
     open_store,
     remote_store_of,
@@ -137,7 +138,7 @@ class _CloudProgress:
 
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
     if args.site:
-        cfg = dataclasses.replace(cfg, site=args.site, site_set=True)
+        cfg = dataclasses.replace(cfg, site=check_site(args.site), site_set=True)
     if args.ifc and _needs_import(args, cfg):
         from adapters.cli.model_cmds import cmd_import
 

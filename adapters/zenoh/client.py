@@ -414,7 +414,7 @@ class TwinClient:
                 probed = _why_unreachable(self.endpoints, self.settings)
                 msg = (
                     f"No answer to {what}: nothing could be reached at {where} within {self.timeout_s} s"
-                    + (f": {probed}." if probed else ".")
+                    + (f": {probed.rstrip('?.')}." if probed else ".")
                 )
             else:
                 msg = (

@@ -111,6 +111,11 @@ def _check_inside(iri: str, shape: Shape, site: SiteFrame) -> None:
 def _create(
     r: ElementReport, site: SiteFrame, robot: str, rights: frozenset[Right], w: TripleWriter
 ) -> ElementState:
+    if r.ifc_class is None and r.box is None and r.geometry is None:  # a change to an element not there
+        raise _fail(
+            f"No element <{r.iri}> in the twin: only an element it holds can be opened, closed, moved or "
+            "marked (a new one needs twin:ifcClass, twin:storey and twin:box or omg:hasGeometry)."
+        )
     if r.ifc_class is None:
         raise _fail(f"Element <{r.iri}> is new: give its twin:ifcClass.")
     chain = supertypes(site.schema, r.ifc_class)

@@ -94,3 +94,13 @@ def test_an_element_cannot_change_its_class() -> None:
     assert observe(service, "robot1", box_turtle("urn:r:t1", 5.0, 2.0)).ok
     with pytest.raises(ObservationError, match="cannot make it IfcWall"):
         _plan(service, box_turtle("urn:r:t1", 5.0, 2.0, cls="IfcWall"))
+
+
+def test_opening_an_element_the_twin_does_not_hold_says_there_is_no_such_element() -> None:
+    service, _ = started()
+    with pytest.raises(ObservationError, match=r"^No element <urn:nothing> in the twin: only an element"):
+        _plan(service, f"<urn:nothing> <{vocab.TWIN}isOpen> true .\n".encode())
+    t = vocab.TWIN
+    boxed = f'<urn:r:t9> <{t}storey> "ground-floor" ; <{t}box> "5 2 0.4 1 1 0.8 0" .\n'.encode()
+    with pytest.raises(ObservationError, match=r"^Element <urn:r:t9> is new: give its twin:ifcClass\."):
+        _plan(service, boxed)
