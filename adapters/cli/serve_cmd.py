@@ -31,7 +31,7 @@ from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
 from adapters.rerun.settings import RerunSettings
 from adapters.ros.settings import RosSettings, ros_robots
-from adapters.zenoh.access import access_summary, site_access_control
+from adapters.zenoh.access import access_summary, log_refused_sessions, site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
@@ -173,6 +173,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
             connect=args.connect or None,
             access_control=(acl := site_access_control(cfg, keys)),
         )
+        log_refused_sessions(zenoh_of(cfg))
         try:
             session = zenoh.open(conf)
         except Exception as err:

@@ -20,7 +20,7 @@ from adapters.zenoh.errors import DaemonTimeoutError, TransportError
 from adapters.zenoh.latched import declare_latched_subscriber
 from adapters.zenoh.settings import AuthSettings, TlsSettings, ZenohSettings
 from tests.integration.certs import CertificateAuthority
-from tests.integration.conftest import Daemon, start_daemon
+from tests.integration.conftest import Daemon, lines_until, start_daemon
 
 pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
@@ -168,6 +168,13 @@ def test_a_wrong_password_or_an_unknown_robot_cannot_connect(guarded: Daemon, se
     (secrets / "intruder.password").write_text("guess\n")
     with pytest.raises(TransportError, match=REFUSED):
         as_robot(guarded, secrets, "intruder")
+
+
+def test_the_daemon_logs_a_session_it_refused(guarded: Daemon, secrets: Path) -> None:
+    with pytest.raises(TransportError):
+        as_robot(guarded, secrets, "robot2", password="wrong")
+    seen = lines_until(guarded, lambda line: "Invalid password" in line)
+    assert any("Invalid password" in line for line in seen), seen
 
 
 def test_a_port_where_nothing_listens_is_told_apart_from_a_refused_session() -> None:
