@@ -80,6 +80,8 @@ class Tally:
         self.lock = threading.Lock()
         self.got = 0
         self.ended = False
+        self.interrupted = False
+        """Ended by Ctrl-C or SIGTERM: the user's choice, not a failure (exit 0)."""
 
     def arrived(self, line: str) -> None:
         with self.lock:
@@ -101,18 +103,17 @@ class Tally:
                     if self.seen.acquire(timeout=min(left, 3600.0)):
                         self.got += 1
         except KeyboardInterrupt:
-            pass
+            self.interrupted = True
         with self.lock:
             self.ended = True
         return count is None or self.got >= count
 
 
 def _ended(tally: Tally, args: argparse.Namespace, what: str) -> int:
-    """Exit code of a watch: 1 with one line when ``--count`` was not reached."""
-    if args.count is None or tally.got >= args.count:
+    """Exit code of a watch: 1 with one line when ``--count`` was not reached before ``--for`` ended it."""
+    if args.count is None or tally.got >= args.count or tally.interrupted:
         return 0
-    limit = f" in {args.for_s:g} s (--for)" if args.for_s is not None and tally.got < args.count else ""
-    print(f"twin: error: {tally.got} of {args.count} {what}{limit}", file=sys.stderr)
+    print(f"twin: error: {tally.got} of {args.count} {what} in {args.for_s:g} s (--for)", file=sys.stderr)
     return 1
 
 

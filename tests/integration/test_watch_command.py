@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -91,6 +92,21 @@ def test_watch_count_gets_a_version_that_comes_after_its_timeout(daemon: Daemon,
     out, err = process.communicate(timeout=60)
     assert process.returncode == 0, err
     assert "version 2" in out
+
+
+def test_watch_count_ended_by_sigterm_writes_what_it_has_and_exits_0(daemon: Daemon, tmp_path: Path) -> None:
+    process = subprocess.Popen(
+        [sys.executable, "-m", "adapters.cli", "watch", "--connect", daemon.endpoint, "--skill",
+         "lab-navigation", "--storey", "first-floor", "--count", "5", "--out", str(tmp_path)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )  # fmt: skip
+    assert process.stdout is not None
+    assert "version 1" in process.stdout.readline()
+    process.send_signal(signal.SIGTERM)
+    out, err = process.communicate(timeout=30)
+    assert process.returncode == 0, err
+    assert f"wrote {tmp_path / 'first-floor__lab-navigation.yaml'}" in out
 
 
 def test_watch_of_a_points_skill_prints_each_cloud_and_writes_a_pcd(daemon: Daemon, tmp_path: Path) -> None:
