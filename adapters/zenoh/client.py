@@ -32,7 +32,7 @@ from adapters.ros.pcd import decode_point_cloud2
 from adapters.zenoh.errors import DaemonTimeoutError, RemoteError, TransportError
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.latched import LatchedSubscription
-from adapters.zenoh.probe import explain_unreachable
+from adapters.zenoh.probe import explain_unreachable, probe
 from adapters.zenoh.session import client_config
 from adapters.zenoh.settings import ZenohMode, ZenohSettings
 from twin.maps.grid import OccupancyGrid
@@ -233,10 +233,37 @@ def site_of(prefix: str, template: str) -> str:
     return parts[names.index("{site}")] if "{site}" in names and len(parts) == len(names) else prefix
 
 
+def _sentence(text: str) -> str:
+    return text if text.endswith(("?", ".")) else f"{text}."
+
+
 def _why_unreachable(endpoints: Sequence[str], settings: ZenohSettings) -> str:
     """The probe's sentence (:mod:`adapters.zenoh.probe`) for a session that reached nobody."""
     tls = settings.tls.certificate is not None or settings.tls.root_ca is not None
     return explain_unreachable(endpoints, credentials=settings.auth.user is not None, tls=tls)
+
+
+LINK_WAIT_S = 1.0
+"""How long a fresh session may take to link to its endpoints before a probe asks why it has not."""
+
+
+def _linked(session: zenoh.Session) -> bool:
+    info = session.info
+    return any(True for _ in info.peers_zid()) or any(True for _ in info.routers_zid())
+
+
+def _refused_at_once(session: zenoh.Session, endpoints: Sequence[str], settings: ZenohSettings) -> None:
+    """TransportError at once when the session linked to nobody within :data:`LINK_WAIT_S` although an
+    endpoint accepts connections: it refused the session, and waiting longer would not change that.
+    (Where nothing listens yet, the daemon may still start: the caller waits as before.)"""
+    deadline = time.monotonic() + LINK_WAIT_S
+    while not _linked(session):
+        if time.monotonic() >= deadline:
+            if any(probe(e) == "listening" for e in endpoints):
+                why = _sentence(_why_unreachable(endpoints, settings))
+                raise TransportError(f"No session with {', '.join(endpoints)}: {why}")
+            return
+        time.sleep(0.05)
 
 
 def _discovered_prefix(
@@ -249,6 +276,7 @@ def _discovered_prefix(
     """The prefix of the one daemon alive (see :meth:`TwinClient.connect`)."""
     if "{site}" not in template:
         return template.strip("/")
+    _refused_at_once(session, endpoints, settings or ZenohSettings())
     found = daemon_prefixes(session, template, timeout_s)
     if len(found) > 1:
         sites = ", ".join(site_of(p, template) for p in found)
@@ -258,7 +286,8 @@ def _discovered_prefix(
     if not found and not linked:
         probed = _why_unreachable(endpoints, settings or ZenohSettings())
         where = _endpoint_text(endpoints)
-        msg = f"No daemon found at {where} within {timeout_s} s: {probed or 'nothing could be reached'}."
+        why = _sentence(probed or "nothing could be reached")
+        msg = f"No daemon found at {where} within {timeout_s} s: {why}"
         raise DaemonTimeoutError(msg)
     if not found:
         tokens = SiteKeys(template.replace("{site}", "*").strip("/")).daemon
@@ -409,12 +438,14 @@ class TwinClient:
     def _get(self, selector: str, payload: bytes | None = None, *, what: str) -> list[zenoh.Sample]:
         deadline = time.monotonic() + self.timeout_s
         where = _endpoint_text(self.endpoints)
+        if self._own and not self.connected():
+            _refused_at_once(self.session, self.endpoints, self.settings)
         if not self.wait_for_route(selector, self.timeout_s):
             if not self.connected():
                 probed = _why_unreachable(self.endpoints, self.settings)
                 msg = (
                     f"No answer to {what}: nothing could be reached at {where} within {self.timeout_s} s"
-                    + (f": {probed.rstrip('?.')}." if probed else ".")
+                    + (f": {_sentence(probed)}" if probed else ".")
                 )
             else:
                 msg = (

@@ -170,6 +170,13 @@ def test_a_wrong_password_or_an_unknown_robot_cannot_connect(guarded: Daemon, se
         as_robot(guarded, secrets, "intruder")
 
 
+def test_a_peer_without_credentials_is_told_at_once_that_its_session_was_refused(guarded: Daemon) -> None:
+    t0 = time.monotonic()
+    with pytest.raises(TransportError, match=r"refused the Zenoh session: check whether it requires"):
+        TwinClient.connect([guarded.endpoint], timeout_s=60.0)  # peer mode, no site: finds the daemon
+    assert time.monotonic() - t0 < 30.0  # told once the probe says why, not after the 60 s timeout
+
+
 def test_the_daemon_logs_a_session_it_refused(guarded: Daemon, secrets: Path) -> None:
     with pytest.raises(TransportError):
         as_robot(guarded, secrets, "robot2", password="wrong")
