@@ -1,6 +1,7 @@
 """MkDocs hooks (``mkdocs.yml``: ``hooks``): the pages generated at build time, so that they cannot drift.
 
-- ``index.md``: the repository's README.md, its ``docs/`` links made relative to this folder;
+- ``index.md``: the repository's README.md, its ``docs/`` links made relative to this folder (and its
+  link to ``benchmarks/README.md`` made one to ``benchmarks.md``);
 - ``reference/cli.md``: every ``twin`` command, from its argument parser;
 - ``reference/configuration.md``: every table and key, from ``config/schema.json``;
 - ``benchmarks.md``: ``benchmarks/README.md``, its ``../docs/`` links made relative to this folder.
@@ -24,6 +25,7 @@ def generated_pages() -> dict[str, str]:
     from adapters.cli.reference import cli_markdown, config_markdown
 
     readme = (ROOT / "README.md").read_text().replace("](docs/", "](")
+    readme = readme.replace("](benchmarks/README.md)", "](benchmarks.md)")
     benchmarks = (ROOT / "benchmarks" / "README.md").read_text().replace("](../docs/", "](")
     schema = json.loads((ROOT / "config" / "schema.json").read_text())
     return {
