@@ -1,4 +1,4 @@
-"""The Makefile's promises to a newcomer."""
+"""The Makefile's and the README's promises to a newcomer."""
 
 from __future__ import annotations
 
@@ -27,3 +27,13 @@ def test_the_docs_build_runs_strict_and_not_quiet_so_that_a_broken_link_fails() 
     assert "mkdocs build --strict" in recipe
     assert "--quiet" not in recipe.split("#")[0]  # --quiet hides the warnings that --strict counts
     assert "make docs" in (ROOT / ".ci" / "run").read_text()
+
+
+def test_the_readme_is_a_front_page_that_links_every_docs_page() -> None:
+    import re
+
+    readme = (ROOT / "README.md").read_text()
+    assert len(readme.splitlines()) <= 250
+    linked = set(re.findall(r"\]\(docs/([\w-]+\.md)\)", readme))
+    pages = {p.name for p in (ROOT / "docs").glob("*.md")}
+    assert pages <= linked, f"docs pages the README does not link: {sorted(pages - linked)}"
