@@ -243,8 +243,9 @@ def _why_unreachable(endpoints: Sequence[str], settings: ZenohSettings) -> str:
     return explain_unreachable(endpoints, credentials=settings.auth.user is not None, tls=tls)
 
 
-LINK_WAIT_S = 1.0
-"""How long a fresh session may take to link to its endpoints before a probe asks why it has not."""
+LINK_WAIT_S = 2.0
+"""How long a fresh session may take to link to its endpoints before a probe asks why it has not (zenoh
+links a peer's endpoints while it opens, so a session that can link has, long before this)."""
 
 
 def _linked(session: zenoh.Session) -> bool:
@@ -259,7 +260,7 @@ def _refused_at_once(session: zenoh.Session, endpoints: Sequence[str], settings:
     deadline = time.monotonic() + LINK_WAIT_S
     while not _linked(session):
         if time.monotonic() >= deadline:
-            if any(probe(e) == "listening" for e in endpoints):
+            if any(probe(e) == "listening" for e in endpoints) and not _linked(session):
                 why = _sentence(_why_unreachable(endpoints, settings))
                 raise TransportError(f"No session with {', '.join(endpoints)}: {why}")
             return
