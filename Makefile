@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 VAR    := var
 
-.PHONY: demo test test-fast lint bench clean
+.PHONY: demo test test-fast lint docs bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -17,12 +17,14 @@ $(STAMP): pyproject.toml
 ## receives the map updates, the daemon stops cleanly; maps and the recording land in var/
 demo: $(STAMP)
 	$(BIN)/twin demo --workdir $(VAR)
+	@echo "The 'twin' command is in $(BIN)/: activate the venv ('. $(BIN)/activate') or run '$(BIN)/twin --help'."
+	@echo "Next: the five-minute tour in README.md; the documentation: 'make docs', then open site/index.html."
 
-## test: install, then run the whole test suite on both cores (what CI runs; ~5 min on 2 cores)
+## test: install, then run the whole test suite on both cores (what CI runs; about 8 min on 2 cores)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2
 
-## test-fast: the inner loop, without processes, shared models and the viewer (~30 s on 2 cores)
+## test-fast: the inner loop, without processes, shared models and the viewer (about 1 min on 2 cores)
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 -m "not slow"
 
@@ -31,9 +33,13 @@ lint: $(STAMP)
 	$(BIN)/ruff check twin adapters tests benchmarks references
 	$(BIN)/mypy
 
+## docs: the documentation site (MkDocs, Material theme) into site/, warnings as errors (broken links fail)
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict  # not --quiet: it hides the warnings that strict counts
+
 ## bench: the performance harness (prints a table, writes JSON)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py --json benchmarks/results/latest.json
 
 clean:
-	rm -rf $(VAR) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VAR) site .pytest_cache .mypy_cache .ruff_cache

@@ -14,7 +14,9 @@ another (their lines build on each other: ``twin sample lab lab.ifc``, then
   ``--config`` of a file whose ``[zenoh] listen`` is the free port that stands for 7447;
 - ``twin serve`` and ``twin router`` run in the background (until a later block starts its own, or the
   end); ``twin watch`` without ``--count`` is stopped after a few seconds with SIGTERM, as a user
-  stops it; blocks that need another tool first (``pip install``, ``oxigraph serve``) are skipped.
+  stops it; ``oxigraph serve`` runs in the background (its port moved too) when the ``oxigraph``
+  binary is installed (the dev extra has it), and ``pip install`` of an installed package is skipped;
+  blocks that need any other tool first, or a tool that is not installed, are skipped.
 
 Each command must exit 0, or give the refusal listed for it in ``EXPECTED`` (one line on stderr).
 Exits 1 and names the commands that did not.
@@ -27,6 +29,7 @@ import logging
 import os
 import re
 import shlex
+import shutil
 import signal
 import socket
 import subprocess
@@ -39,8 +42,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 DOCS = ROOT / "docs"
-PORTS = (7447, 7450, 7451)
+PORTS = (7447, 7450, 7451, 7878)
 OTHER_TOOLS = ("pip ", "oxigraph ", "ros2 ", "rerun ", "make ")
+PIP_INSTALLED = re.compile(r"^pip install (oxigraph|rerun-sdk\S*)\s*(#.*)?$")
 EXPECTED = {
     # the daemon of the README's sequence configures no robots: the refusal the README promises
     "twin storey --robot robot1": "Unknown robot 'robot1'",
@@ -131,6 +135,27 @@ class Runner:
             return Outcome(line, "failed", "printed no map version")
         return outcome
 
+    def oxigraph(self, line: str) -> Outcome:
+        """``oxigraph serve ...`` in the background, once its port answers."""
+        binary = shutil.which("oxigraph", path=_tool_path())
+        if binary is None:
+            return Outcome(line, "skipped", "oxigraph is not installed")
+        for readme_port, port in self.ports.items():
+            line = line.replace(f"127.0.0.1:{readme_port}", f"127.0.0.1:{port}")
+        words = shlex.split(re.sub(r"\s+#.*$", "", line))
+        process = subprocess.Popen(
+            [binary, *words[1:]], cwd=self.workdir, text=True,
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+        )  # fmt: skip
+        self.background.append(process)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and process.poll() is None:
+            with socket.socket() as s:
+                if s.connect_ex(("127.0.0.1", self.ports[7878])) == 0:
+                    return Outcome(line, "ok", "oxigraph serves")
+            time.sleep(0.1)
+        return Outcome(line, "failed", f"oxigraph did not serve: exit {process.poll()}")
+
     def stop_background(self) -> list[Outcome]:
         """SIGTERM every daemon and router started; a stop that does not exit 0 is a failed outcome."""
         failed: list[Outcome] = []
@@ -142,7 +167,7 @@ class Runner:
                 except subprocess.TimeoutExpired:
                     process.kill()
                     process.communicate(timeout=10)
-            if process.returncode != 0:
+            if process.returncode != 0 and "adapters.cli" in process.args:  # twin's own, not oxigraph
                 what = " ".join(str(a) for a in process.args[3:])  # type: ignore[index]
                 failed.append(Outcome(f"stop of {what}", "failed", f"exit {process.returncode}"))
         self.background.clear()
@@ -181,6 +206,11 @@ def as_typed(line: str) -> str | None:
     return shlex.join(kept)
 
 
+def _tool_path() -> str:
+    """Where other tools are looked for: the venv's bin (the dev extra's ``oxigraph``), then PATH."""
+    return f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -217,12 +247,15 @@ def run_blocks(runner: Runner, blocks: list[list[str]]) -> list[Outcome]:
         lines = [ln for ln in block if ln.strip().startswith("twin ")]
         if not lines:
             continue
-        if any(ln.strip().startswith(OTHER_TOOLS) for ln in block):
+        others = [ln.strip() for ln in block if ln.strip().startswith(OTHER_TOOLS)]
+        runnable = all(PIP_INSTALLED.match(ln) or ln.startswith("oxigraph serve ") for ln in others)
+        if not runnable or (others and shutil.which("oxigraph", path=_tool_path()) is None):
             outcomes += [Outcome(ln.strip(), "skipped", "needs another tool first") for ln in lines]
             continue
         typed = [(ln.strip(), as_typed(ln)) for ln in lines]
-        if any(t is not None and t.split()[1:2] in (["serve"], ["router"]) for _, t in typed):
-            outcomes += runner.stop_background()  # a new topology: the previous daemons stop
+        if others or any(t is not None and t.split()[1:2] in (["serve"], ["router"]) for _, t in typed):
+            outcomes += runner.stop_background()  # a new topology: the previous daemons (and servers) stop
+        outcomes += [runner.oxigraph(ln) for ln in others if ln.startswith("oxigraph serve ")]
         for original, command in typed:
             if command is None:
                 outcomes.append(Outcome(original, "skipped", "a synopsis with placeholders"))

@@ -23,6 +23,7 @@ from adapters.cli import (
     record_cmd,
     robot_cmds,
     serve_cmd,
+    watch_cmd,
     zone_cmd,
 )
 from adapters.cli.common import add_store_args
@@ -41,6 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="twin", description="building-twin: IFC -> graph world model -> robot maps, served live"
     )
     _global_options(p, after=False)
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     sp = sub.add_parser("import", help="build the graph world model of an IFC file into a store")
@@ -62,6 +64,13 @@ def build_parser() -> argparse.ArgumentParser:
     _store_arg(sp)
     sp.add_argument("out", help="the Turtle file to write")
     sp.set_defaults(func=model_cmds.cmd_export)
+
+    sp = sub.add_parser(
+        "backup", help="copy the store into a new directory (consistent, also while the daemon runs)"
+    )
+    _store_arg(sp)
+    sp.add_argument("out", help="the new directory to write the copy to")
+    sp.set_defaults(func=model_cmds.cmd_backup)
 
     sp = sub.add_parser(
         "query", help="run a read-only SPARQL query (prefixes bot, beo, twin, ... predefined)"
@@ -101,6 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     serve_cmd.add_parser(sub)
     robot_cmds.add_parsers(sub)
+    watch_cmd.add_parser(sub)
     zone_cmd.add_parsers(sub)
     explain_cmd.add_parser(sub)
     record_cmd.add_parser(sub)
@@ -110,6 +120,16 @@ def build_parser() -> argparse.ArgumentParser:
     for command in sub.choices.values():  # `twin serve --config FILE` as well as `twin --config FILE serve`
         _global_options(command, after=True)
     return p
+
+
+def _version() -> str:
+    """The installed distribution's version (``0.1.0``); ``unknown`` in a checkout not installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("building-twin")
+    except PackageNotFoundError:
+        return "unknown (not installed: pip install -e .)"
 
 
 def _global_options(p: argparse.ArgumentParser, *, after: bool) -> None:
@@ -161,7 +181,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.close(devnull)
         return BROKEN_PIPE
     except OSError as err:  # files the user named: unreadable, missing, a directory, disk full ...
-        where = f" {err.filename}" if getattr(err, "filename", None) else ""
+        where = f" {err.filename}:" if getattr(err, "filename", None) else ""
         print(f"twin: error:{where} {err.strerror or err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 from pathlib import Path
 
 from adapters.sparql.remote_store import RemoteStore
@@ -10,6 +11,8 @@ from adapters.sparql.settings import RemoteStoreSettings, remote_store_settings
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.settings import ZenohSettings
 from twin.config import Config
+from twin.config.tables import NAME_PATTERN
+from twin.errors import ConfigError
 from twin.graph import vocab
 from twin.graph.rdf import literal_value
 from twin.graph.store import EmbeddedStore, GraphStore
@@ -28,9 +31,23 @@ def zenoh_of(cfg: Config) -> ZenohSettings:
     return cfg.section(ZenohSettings)
 
 
+def check_site(site: str, option: str = "--site") -> str:
+    """``site`` if it is a site name (1-64 of ``A-Z a-z 0-9 _ -``: it is a key chunk and part of IRIs),
+    else ConfigError naming it and a name that would do."""
+    from twin.graph.vocab import site_slug
+
+    if re.fullmatch(NAME_PATTERN, site):
+        return site
+    msg = (
+        f"{option} {site!r} is not a site name: 1-64 of A-Z a-z 0-9 _ - (it is the key prefix "
+        f"twin/<site> and part of every IRI); e.g. {site_slug(site) or 'lab'!r}."
+    )
+    raise ConfigError(msg)
+
+
 def key_prefix(cfg: Config, site: str | None = None) -> str:
     """The Zenoh key prefix of ``site`` (default: the configured one), e.g. ``twin/lab``."""
-    return zenoh_of(cfg).key_prefix(site or cfg.site)
+    return zenoh_of(cfg).key_prefix(check_site(site) if site else cfg.site)
 
 
 def remote_store_of(args: argparse.Namespace, cfg: Config) -> RemoteStoreSettings | None:

@@ -105,7 +105,7 @@ def cmd_demo(args: argparse.Namespace, cfg: Config) -> int:
                 "3",
                 "--out",
                 str(maps / "watched"),
-                "--timeout",
+                "--for",  # the whole watch: it ends even if a version never came
                 "60",
             ),
             stdout=subprocess.PIPE,

@@ -14,33 +14,10 @@ import sys
 from typing import Any
 
 from adapters.cli.common import add_client_args, open_client
+from adapters.cli.render import describe_explain
 from adapters.zenoh.errors import RemoteError
 from twin.config import Config
 from twin.errors import ExplainError
-
-
-def _line(e: dict[str, Any]) -> str:
-    name = f"{e.get('name')!r} " if e.get("name") else ""
-    text = f"{name}{e.get('class') or ''} <{e['iri']}>"
-    if e.get("global_id"):
-        text += f" GlobalId {e['global_id']}"
-    seen = e.get("observed")
-    if seen:
-        text += f", observed by {seen['robot']} at {seen['at']} (revision {seen['revision']})"
-    return text
-
-
-def describe(answer: dict[str, Any]) -> str:
-    """The answer as an operator reads it."""
-    cell = answer["cell"]
-    out = [
-        f"{answer['storey']}/{answer['skill']} at ({answer['x']}, {answer['y']}), cell "
-        f"({cell['col']}, {cell['row']}): {answer['state']} ({answer['value']})"
-    ]
-    out += [f"  occupied by {_line(e)}" for e in answer["occupied_by"]]
-    out += [f"  within the inflation radius of {_line(e)}" for e in answer["within_inflation_of"]]
-    out += [f"  near ({e['distance_m']} m), not drawn: {e['why_not']}: {_line(e)}" for e in answer["near"]]
-    return "\n".join(out)
 
 
 def cmd_explain(args: argparse.Namespace, cfg: Config) -> int:
@@ -58,7 +35,7 @@ def cmd_explain(args: argparse.Namespace, cfg: Config) -> int:
             else:
                 print(f"twin: error: {err}", file=sys.stderr)
             return 1
-    print(json.dumps(answer, indent=2) if args.json else describe(answer))
+    print(json.dumps(answer, indent=2) if args.json else describe_explain(answer))
     return 0
 
 
@@ -68,5 +45,7 @@ def add_parser(sub: Any) -> None:
     sp.add_argument("--storey", required=True, help="the storey key (see 'twin stats')")
     sp.add_argument("--skill", required=True, help="the skill whose map to explain")
     sp.add_argument("--at", required=True, metavar="X,Y", help="the point, metres in the map's frame")
-    sp.add_argument("--json", action="store_true", help="print the daemon's JSON answer")
+    sp.add_argument(
+        "--json", action="store_true", help="print the daemon's JSON answer (times in ns), for machines"
+    )
     sp.set_defaults(func=cmd_explain)

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 from adapters.cli.common import (
+    check_site,
     human_size,
     open_store,
     remote_store_of,
@@ -20,7 +21,7 @@ from adapters.cli.common import (
 )
 from adapters.cli.progress import progress_bar
 from twin.config import Config
-from twin.errors import ModelError, QueryError
+from twin.errors import ModelError, QueryError, StoreError
 from twin.live.snapshots import snapshot_path
 
 
@@ -31,7 +32,7 @@ def import_site(args: argparse.Namespace, cfg: Config, model_path: Path) -> tupl
     from twin.graph.vocab import site_slug
 
     if args.site:
-        return args.site, "--site"
+        return check_site(args.site), "--site"
     if cfg.site_set:
         return cfg.site, "site.name of the configuration"
     return site_slug(model_path.name), "from the file name; --site to choose"
@@ -140,6 +141,21 @@ def cmd_export(args: argparse.Namespace, cfg: Config) -> int:
     with open_store(args, cfg, read_only=True) as store:
         store.dump_turtle(out)
     print(f"wrote {out} ({human_size(out.stat().st_size)})")
+    return 0
+
+
+def cmd_backup(args: argparse.Namespace, cfg: Config) -> int:
+    out = Path(args.out)
+    from twin.graph.store import EmbeddedStore
+
+    with open_store(args, cfg, read_only=True) as store:
+        if not isinstance(store, EmbeddedStore):
+            msg = "twin backup copies an embedded store (--store DIR): back up the SPARQL server itself."
+            raise StoreError(msg)
+        store.backup(out)
+        triples = len(store)
+    size = sum(f.stat().st_size for f in out.rglob("*") if f.is_file())
+    print(f"wrote {out} ({triples:,} triples, {human_size(size)}): 'twin serve --store {out}' serves it")
     return 0
 
 

@@ -9,17 +9,48 @@ import sys
 import threading
 from typing import Any
 
-from adapters.cli.common import key_prefix, zenoh_of
-from adapters.zenoh.access import site_access_control, site_acl
+from adapters.cli.common import (
+    add_store_args,
+    key_prefix,
+    open_store,
+    store_exists,
+    store_label,
+    stored_site,
+    zenoh_of,
+)
+from adapters.zenoh.access import access_summary, site_access_control, site_acl
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.router import MapStorage, open_router
 from twin.config import Config
+from twin.errors import ConfigError
+
+
+def guarded_site(args: argparse.Namespace, cfg: Config, command: str) -> str:
+    """The site whose keys access control guards: ``--site``, else ``site.name``, else the site the store
+    was imported as (``--store``, else ``store.path``); ConfigError when none of them names one (a
+    guess would guard another site's keys and leave this one's open)."""
+    if args.site:
+        return str(args.site)
+    if cfg.site_set:
+        return cfg.site
+    where = store_label(args, cfg)
+    if store_exists(args, cfg):
+        with open_store(args, cfg, read_only=True) as store:
+            site = stored_site(store)
+        if site is not None:
+            return site
+        why = f"the store at {where} names no site"
+    else:
+        why = f"there is no store at {where}"
+    msg = f"{command} guards one site's keys: give --site NAME, site.name or --store DIR of the site ({why})."
+    raise ConfigError(msg)
 
 
 def cmd_acl(args: argparse.Namespace, cfg: Config) -> int:
     """Print the ``access_control`` section the daemon and ``twin router --acl`` enforce (the same
     function makes both), for a zenohd's config file."""
-    acl = site_acl(cfg, SiteKeys(key_prefix(cfg, args.site)), identity=args.identity)
+    site = guarded_site(args, cfg, "twin acl")
+    acl = site_acl(cfg, SiteKeys(key_prefix(cfg, site)), identity=args.identity)
     json.dump({"access_control": acl}, sys.stdout, indent=2)
     print()
     return 0
@@ -28,7 +59,8 @@ def cmd_acl(args: argparse.Namespace, cfg: Config) -> int:
 def cmd_router(args: argparse.Namespace, cfg: Config) -> int:
     """Run a Zenoh router that daemons and robots connect to; optionally keep every site's maps and clouds."""
     listen = args.listen or list(zenoh_of(cfg).listen)
-    keys = SiteKeys(key_prefix(cfg, args.site))
+    site = guarded_site(args, cfg, "twin router --acl") if args.acl else args.site
+    keys = SiteKeys(key_prefix(cfg, site))
     acl = site_access_control(cfg, keys, enforce=True) if args.acl else None
     stop = threading.Event()
 
@@ -58,10 +90,8 @@ def cmd_router(args: argparse.Namespace, cfg: Config) -> int:
 
 def _access_line(acl: dict[str, Any] | None, keys: SiteKeys) -> str:
     """What the router's start line says of access control."""
-    if acl is None:
-        return "access control off (anyone who connects may read and write everything; --acl to enforce it)"
-    names = [str(n) for s in acl["subjects"] for k, v in s.items() if k != "id" for n in v]
-    return f"access control on for {keys.prefix}/** (robots and operators: {', '.join(names)})"
+    text = access_summary(acl, keys)
+    return text if acl is not None else text.removesuffix(")") + "; --acl to enforce it)"
 
 
 def add_parsers(sub: Any) -> None:
@@ -82,14 +112,18 @@ def add_parsers(sub: Any) -> None:
         help="enforce the access control of the configured robots and [zenoh.access] here (as 'twin acl')",
     )
     sp.add_argument(
-        "--site", help="with --acl: the site whose keys the access control guards (default: site.name)"
+        "--site",
+        help="with --acl: the site whose keys the access control guards (default: site.name, else the "
+        "site of --store)",
     )
+    add_store_args(sp)
     sp.set_defaults(func=cmd_router)
 
     sp = sub.add_parser(
         "acl", help="print the Zenoh access control the daemon enforces (JSON, for a zenohd config)"
     )
-    sp.add_argument("--site", help="site name (default: site.name)")
+    sp.add_argument("--site", help="site name (default: site.name, else the site of --store)")
+    add_store_args(sp)
     sp.add_argument(
         "--identity",
         choices=["username", "certificate"],

@@ -85,7 +85,26 @@ def _show(value: int | None, timeline: str) -> str:
     return str(np.datetime64(value, "ns").astype("datetime64[s]")) + "Z"
 
 
+def _output_of(args: argparse.Namespace) -> None:
+    """``twin record --from A.rrd OUT.rrd``: ``--from`` took every file, the last is the output (as
+    ``cp`` reads it) unless it exists (then which is meant cannot be told: refused)."""
+    if args.out is not None:
+        return
+    if not args.sources or len(args.sources) < 2:
+        msg = "Give the .rrd file to write: twin record OUT.rrd [--from FILE.rrd ...]."
+        raise ConfigError(msg)
+    *sources, out = args.sources
+    if Path(out).exists():
+        msg = (
+            f"Which file is the output? {out} exists (a recording to cut?): give it first, "
+            f"twin record OUT.rrd --from {' '.join(args.sources)}."
+        )
+        raise ConfigError(msg)
+    args.sources, args.out = sources, out
+
+
 def cmd_record(args: argparse.Namespace, cfg: Config) -> int:
+    _output_of(args)
     if args.sources:
         return cmd_cut(args, cfg)
     if args.revisions or args.since or args.until:
@@ -119,7 +138,9 @@ def add_parser(sub: Any) -> None:
         help="write the twin (building and every map) as a Rerun recording, or cut a range of recordings",
     )
     add_store_args(sp)
-    sp.add_argument("out", help="the .rrd file to write")
+    sp.add_argument(
+        "out", nargs="?", help="the .rrd file to write (after --from's files, the last name is the output)"
+    )
     cut = sp.add_argument_group("cut a range of the daemon's recordings (instead of the store)")
     cut.add_argument(
         "--from", dest="sources", nargs="+", metavar="FILE.rrd", help="recordings, in order (rotated files)"

@@ -20,6 +20,7 @@ import zenoh
 
 from adapters.cli.common import (
     add_store_args,
+    check_site,
     key_prefix,
     open_store,
     remote_store_of,
@@ -35,7 +36,7 @@ from adapters.cli.progress import Advance, progress_bar
 from adapters.cli.serve_settings import ServeSettings
 from adapters.rerun.settings import RerunSettings
 from adapters.ros.settings import RosSettings, ros_robots
-from adapters.zenoh.access import site_access_control
+from adapters.zenoh.access import access_summary, log_refused_sessions, site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
@@ -47,7 +48,7 @@ from adapters.zenoh.session import session_config
 from twin.config import Config
 from twin.errors import StoreNotFoundError
 from twin.live import TwinService
-from twin.live.events import MapPublished, TwinEvent, TwinStarted
+from twin.live.events import MapPublished, PointsPublished, TwinEvent, TwinStarted
 from twin.live.snapshots import Snapshots, snapshot_path
 
 if TYPE_CHECKING:
@@ -102,8 +103,9 @@ class _StartProgress:
         self.published = 0
 
     def emit(self, event: TwinEvent) -> None:
-        if isinstance(event, TwinStarted):
-            self.total = len(event.storeys) * len(event.skills)
+        if isinstance(event, TwinStarted):  # clouds come after: _CloudProgress reports them
+            grids = [name for name, skill in event.skills.items() if skill.kind != "points"]
+            self.total = len(event.storeys) * len(grids)
             self.advance(0, self.total)
         elif isinstance(event, MapPublished):
             self.published += 1
@@ -190,6 +192,34 @@ def _leave(code: int, reason: str | None = None) -> NoReturn:
     os._exit(code)
 
 
+class _CloudProgress:
+    """A sink that reports the points skills' clouds, built after the daemon serves its maps: a line on
+    stderr as each storey's first cloud is published (``cloud 1 of 4 ...``), then nothing more."""
+
+    def __init__(self) -> None:
+        self.total = 0
+        self.seen: set[tuple[str, str]] = set()
+        self.t0 = time.perf_counter()
+
+    def emit(self, event: TwinEvent) -> None:
+        if isinstance(event, TwinStarted):
+            points = [name for name, skill in event.skills.items() if skill.kind == "points"]
+            self.total = len(event.storeys) * len(points)
+        if not isinstance(event, PointsPublished) or len(self.seen) >= self.total:
+            return
+        key = (event.cloud.storey, event.cloud.skill)
+        if key in self.seen:
+            return
+        self.seen.add(key)
+        took = time.perf_counter() - self.t0
+        print(
+            f"cloud {len(self.seen)} of {self.total} ready: {key[0]}/{key[1]}, {len(event.cloud):,} points "
+            f"({took:.1f} s after loading)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
     signals = _Signals()
     signal.signal(signal.SIGINT, signals)
@@ -203,7 +233,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
 
 def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
     if args.site:
-        cfg = dataclasses.replace(cfg, site=args.site, site_set=True)
+        cfg = dataclasses.replace(cfg, site=check_site(args.site), site_set=True)
     if args.ifc and _needs_import(args, cfg):
         from adapters.cli.model_cmds import cmd_import
 
@@ -231,8 +261,9 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
             mode=args.mode,
             listen=args.listen or None,
             connect=args.connect or None,
-            access_control=site_access_control(cfg, keys),
+            access_control=(acl := site_access_control(cfg, keys)),
         )
+        log_refused_sessions(zenoh_of(cfg))
         try:
             session = zenoh.open(conf)
         except Exception as err:
@@ -278,6 +309,7 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
             t0 = time.perf_counter()
             source = store_label(args, cfg)
             print(f"loading site {cfg.site!r} from {source} ...", file=sys.stderr, flush=True)
+            service.sinks.append(_CloudProgress())  # clouds are built after the maps, while serving
             with progress_bar("preparing maps") as advance:
                 progress = _StartProgress(advance)
                 service.sinks.insert(0, progress)
@@ -294,7 +326,8 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
                 raise KeyboardInterrupt
             print(
                 f"serving site {cfg.site!r} at revision {service.revision} on {endpoints} "
-                f"under {keys.prefix}/: {len(maps)} maps published in {time.perf_counter() - t0:.2f} s "
+                f"under {keys.prefix}/, {access_summary(acl, keys, brief=True)}: "
+                f"{len(maps)} maps published in {time.perf_counter() - t0:.2f} s "
                 + (
                     "(built from the store)"
                     if service.restored_from is None

@@ -30,6 +30,7 @@ import rerun.blueprint as rrb
 import rerun.chunk as rc
 
 from adapters.rerun.style import blueprint, looking_down
+from twin.errors import TwinError
 
 log = logging.getLogger(__name__)
 
@@ -48,16 +49,38 @@ class CutSummary:
     last: int | None = None
 
 
+class RecordingError(TwinError):
+    """A file given as a recording that Rerun cannot read (not a recording, empty, truncated)."""
+
+
+def _unreadable(source: Path, err: Exception) -> RecordingError:
+    reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+    reason = reason.removeprefix(f"Failed to read RRD file at {source}: ")
+    if source.stat().st_size == 0:
+        reason = "the file is empty"
+    elif "exceeds file size" in reason:
+        reason = f"it ends early, cut short: {reason}"
+    msg = f"{source} is not a Rerun recording that can be read ({reason})."
+    return RecordingError(msg)
+
+
 def _chunks(sources: Sequence[Path]) -> Iterator[rc.Chunk]:
     for source in sources:
         if not source.exists():
             msg = f"Recording {source} does not exist."
             raise FileNotFoundError(msg)
-        with warnings.catch_warnings():  # the daemon's files have no footer
-            warnings.simplefilter("ignore")
-            reader = rc.RrdReader(str(source))
-        for store in reader.recordings():
-            yield from reader.stream(store=store)
+        try:
+            with warnings.catch_warnings():  # the daemon's files have no footer
+                warnings.simplefilter("ignore")
+                reader = rc.RrdReader(str(source))
+            stores = reader.recordings()
+        except (RuntimeError, ValueError, OSError) as err:  # Rerun's reader raises RuntimeError
+            raise _unreadable(source, err) from None
+        for store in stores:
+            try:
+                yield from reader.stream(store=store)
+            except (RuntimeError, ValueError) as err:
+                raise _unreadable(source, err) from None
 
 
 def _restamped(row: pa.RecordBatch, timeline: str, at: int, entity: str) -> rc.Chunk:

@@ -51,6 +51,7 @@ __all__ = [
     "decode_point_cloud2",
     "encode_point_cloud2",
     "pcd_bytes",
+    "pcd_of_points",
     "points_offset",
     "read_pcd",
     "write_points_files",
@@ -78,13 +79,26 @@ def points_offset(cloud: PointCloud) -> tuple[float, float]:
 def pcd_bytes(cloud: PointCloud) -> bytes:
     """The binary PCD file of ``cloud`` (x, y less :func:`points_offset`; normals)."""
     ox, oy = points_offset(cloud)
-    rows = _rows(cloud, ox, oy)
-    n = len(cloud)
+    comment = (
+        f"building-twin storey={_UNSAFE.sub('_', cloud.storey)} skill={_UNSAFE.sub('_', cloud.skill)} "
+        f"elevation_m={cloud.elevation_m!r} resolution_m={cloud.resolution_m!r} "
+        f"offset_x={ox!r} offset_y={oy!r} offset_z=0"
+    )
+    return _pcd(_rows(cloud, ox, oy), comment)
+
+
+def pcd_of_points(xyz: npt.ArrayLike, normals: npt.ArrayLike, *, comment: str) -> bytes:
+    """A binary PCD file of points as received (``xyz``, ``normals``: ``(n, 3)``; no offset), its header's
+    comment line ``# <comment>`` (e.g. the topic they came from)."""
+    rows = np.concatenate([np.asarray(xyz, "<f4"), np.asarray(normals, "<f4")], axis=1)
+    return _pcd(rows, " ".join(comment.split()) + " offset_x=0.0 offset_y=0.0 offset_z=0")
+
+
+def _pcd(rows: npt.NDArray[np.float32], comment: str) -> bytes:
+    n = len(rows)
     header = (
         "# .PCD v0.7 - Point Cloud Data file format\n"
-        f"# building-twin storey={_UNSAFE.sub('_', cloud.storey)} skill={_UNSAFE.sub('_', cloud.skill)} "
-        f"elevation_m={cloud.elevation_m!r} resolution_m={cloud.resolution_m!r} "
-        f"offset_x={ox!r} offset_y={oy!r} offset_z=0\n"
+        f"# {comment}\n"
         "VERSION 0.7\n"
         f"FIELDS {' '.join(FIELDS)}\n"
         f"SIZE {' '.join('4' for _ in FIELDS)}\n"
@@ -96,7 +110,7 @@ def pcd_bytes(cloud: PointCloud) -> bytes:
         f"POINTS {n}\n"
         "DATA binary\n"
     )
-    return header.encode("ascii") + rows.tobytes()
+    return header.encode("ascii") + np.ascontiguousarray(rows, dtype="<f4").tobytes()
 
 
 def _rows(cloud: PointCloud, ox: float, oy: float) -> npt.NDArray[np.float32]:

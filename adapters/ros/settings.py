@@ -324,11 +324,16 @@ class RosRobotSettings(ConfigSection):
                 else {t for t, _ in DEFAULT_ROBOT_MAPS}
             )
             unknown = sorted(set(self.full_every_s) - topics)
-            if unknown or self.namespace is None:
+            if self.namespace is None:
                 msg = (
-                    f"full_every_s names {', '.join(map(repr, unknown or sorted(self.full_every_s)))}, "
-                    f"not a map topic of this robot (its topics: {', '.join(sorted(topics))}"
-                    f"{'' if self.namespace is not None else '; and it has no namespace'})"
+                    f"full_every_s applies to a robot's ROS 2 map topics ({', '.join(sorted(topics))}), and "
+                    'this robot has none without a namespace: add namespace = "/<robot>" (and storey)'
+                )
+                raise ValueError(msg)
+            if unknown:
+                msg = (
+                    f"full_every_s names {', '.join(map(repr, unknown))}, not a map topic of this robot "
+                    f"(its topics: {', '.join(sorted(topics))})"
                 )
                 raise ValueError(msg)
         if self.namespace is not None and not self.storey:

@@ -25,6 +25,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+import zenoh
+
 from adapters.ros.rmw_zenoh import ADMIN_SPACE, RosTopic, resolve_name
 from adapters.ros.settings import RosRobot, RosSource, ros_robots, ros_sources
 from adapters.zenoh.errors import TransportError
@@ -261,3 +263,26 @@ def site_acl(cfg: Config, keys: SiteKeys, *, identity: Identity | None = None) -
         ros_keys=ros_map_keys(robots.values()) + ros_points_keys(cfg) + ros_diagnostics_keys(cfg),
         robot_keys=robot_keys,
     )
+
+
+def access_summary(acl: dict[str, Any] | None, keys: SiteKeys, *, brief: bool = False) -> str:
+    """What a start line says of access control: off (anyone may do anything), or on, for whom."""
+    if acl is None:
+        why = "" if brief else " (anyone who connects may read and write everything)"
+        return f"access control off{why}"
+    names = [str(n) for s in acl["subjects"] for k, v in s.items() if k != "id" for n in v]
+    return f"access control on for {keys.prefix}/** (robots and operators: {', '.join(names)})"
+
+
+REFUSALS_LOG = "off,zenoh_transport::unicast::establishment::accept=debug"
+"""Zenoh's own log filter for a daemon that checks who connects: zenoh reports a refused session
+(``UsrPwd extension - Recv OpenSyn. Invalid password.``) and each accepted one only at debug level of
+its accept module, and nothing else is turned on. ``RUST_LOG`` overrides it."""
+
+
+def log_refused_sessions(z: ZenohSettings) -> None:
+    """When this side checks credentials (a users file, or mutual TLS), turn on zenoh's log of the
+    sessions it accepts and refuses (on stderr, in zenoh's format); otherwise leave zenoh silent."""
+    if z.auth.users_file is None and not z.tls.mutual:
+        return
+    zenoh.init_log_from_env_or(REFUSALS_LOG)

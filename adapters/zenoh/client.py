@@ -32,6 +32,7 @@ from adapters.ros.pcd import decode_point_cloud2
 from adapters.zenoh.errors import DaemonTimeoutError, RemoteError, TransportError
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.latched import LatchedSubscription
+from adapters.zenoh.probe import explain_unreachable, probe
 from adapters.zenoh.session import client_config
 from adapters.zenoh.settings import ZenohMode, ZenohSettings
 from twin.maps.grid import OccupancyGrid
@@ -232,17 +233,63 @@ def site_of(prefix: str, template: str) -> str:
     return parts[names.index("{site}")] if "{site}" in names and len(parts) == len(names) else prefix
 
 
+def _sentence(text: str) -> str:
+    return text if text.endswith(("?", ".")) else f"{text}."
+
+
+def _why_unreachable(endpoints: Sequence[str], settings: ZenohSettings) -> str:
+    """The probe's sentence (:mod:`adapters.zenoh.probe`) for a session that reached nobody."""
+    tls = settings.tls.certificate is not None or settings.tls.root_ca is not None
+    return explain_unreachable(endpoints, credentials=settings.auth.user is not None, tls=tls)
+
+
+LINK_WAIT_S = 2.0
+"""How long a fresh session may take to link to its endpoints before a probe asks why it has not (zenoh
+links a peer's endpoints while it opens, so a session that can link has, long before this)."""
+
+
+def _linked(session: zenoh.Session) -> bool:
+    info = session.info
+    return any(True for _ in info.peers_zid()) or any(True for _ in info.routers_zid())
+
+
+def _refused_at_once(session: zenoh.Session, endpoints: Sequence[str], settings: ZenohSettings) -> None:
+    """TransportError at once when the session linked to nobody within :data:`LINK_WAIT_S` although an
+    endpoint accepts connections: it refused the session, and waiting longer would not change that.
+    (Where nothing listens yet, the daemon may still start: the caller waits as before.)"""
+    deadline = time.monotonic() + LINK_WAIT_S
+    while not _linked(session):
+        if time.monotonic() >= deadline:
+            if any(probe(e) == "listening" for e in endpoints) and not _linked(session):
+                why = _sentence(_why_unreachable(endpoints, settings))
+                raise TransportError(f"No session with {', '.join(endpoints)}: {why}")
+            return
+        time.sleep(0.05)
+
+
 def _discovered_prefix(
-    session: zenoh.Session, template: str, timeout_s: float, endpoints: Sequence[str]
+    session: zenoh.Session,
+    template: str,
+    timeout_s: float,
+    endpoints: Sequence[str],
+    settings: ZenohSettings | None = None,
 ) -> str:
     """The prefix of the one daemon alive (see :meth:`TwinClient.connect`)."""
     if "{site}" not in template:
         return template.strip("/")
+    _refused_at_once(session, endpoints, settings or ZenohSettings())
     found = daemon_prefixes(session, template, timeout_s)
     if len(found) > 1:
         sites = ", ".join(site_of(p, template) for p in found)
         msg = f"{len(found)} daemons are running, for the sites {sites}: choose one with --site."
         raise TransportError(msg)
+    linked = any(True for _ in session.info.peers_zid()) or any(True for _ in session.info.routers_zid())
+    if not found and not linked:
+        probed = _why_unreachable(endpoints, settings or ZenohSettings())
+        where = _endpoint_text(endpoints)
+        why = _sentence(probed or "nothing could be reached")
+        msg = f"No daemon found at {where} within {timeout_s} s: {why}"
+        raise DaemonTimeoutError(msg)
     if not found:
         tokens = SiteKeys(template.replace("{site}", "*").strip("/")).daemon
         msg = (
@@ -279,8 +326,10 @@ class TwinClient:
         timeout_s: float = 10.0,
         own: bool = False,
         endpoints: Sequence[str] = (),
+        settings: ZenohSettings | None = None,
     ) -> None:
         self.session = session
+        self.settings = settings or ZenohSettings()
         self.keys = SiteKeys(prefix.strip("/"))
         self.timeout_s = timeout_s
         self.endpoints = tuple(endpoints)
@@ -316,16 +365,19 @@ class TwinClient:
             raise
         except Exception as err:
             why = str(err).split("  at /")[0].strip()  # zenoh adds the Rust source location
-            msg = f"Cannot open a Zenoh session to {', '.join(connect)}: {why}"
+            probed = _why_unreachable(connect, settings)
+            msg = f"Cannot open a Zenoh session to {', '.join(connect)}: {probed or why}"
             raise TransportError(msg) from err
         log.info("zenoh session in %s mode to %s", mode or settings.mode, ", ".join(connect))
-        if prefix is None:
-            try:
-                prefix = _discovered_prefix(session, settings.prefix, timeout_s, connect)
-            except BaseException:
-                session.close()
-                raise
-        return cls(session, prefix=prefix, timeout_s=timeout_s, own=True, endpoints=connect)
+        try:
+            if prefix is None:
+                prefix = _discovered_prefix(session, settings.prefix, timeout_s, connect, settings)
+            return cls(
+                session, prefix=prefix, timeout_s=timeout_s, own=True, endpoints=connect, settings=settings
+            )
+        except BaseException:
+            session.close()
+            raise
 
     def close(self) -> None:
         with self._queriers_lock:
@@ -368,6 +420,17 @@ class TwinClient:
         finally:
             listener.undeclare()
 
+    def _other_sites(self) -> str:
+        """What to say when this site's daemon is not there: the sites whose daemons are (a short look)."""
+        template = self.settings.prefix
+        if "{site}" not in template:
+            return "is the daemon of this site running and connected there?"
+        found = [site_of(p, template) for p in daemon_prefixes(self.session, template, 1.0, settle_s=0.1)]
+        site = site_of(self.keys.prefix, template)
+        if not found:
+            return f"no daemon of any site answers there: is 'twin serve' for site {site!r} running?"
+        return f"no daemon of site {site!r} there; daemons answer for the sites {', '.join(found)}: --site?"
+
     def connected(self) -> bool:
         """Whether the session is linked to any peer or router."""
         info = self.session.info
@@ -376,13 +439,19 @@ class TwinClient:
     def _get(self, selector: str, payload: bytes | None = None, *, what: str) -> list[zenoh.Sample]:
         deadline = time.monotonic() + self.timeout_s
         where = _endpoint_text(self.endpoints)
+        if self._own and not self.connected():
+            _refused_at_once(self.session, self.endpoints, self.settings)
         if not self.wait_for_route(selector, self.timeout_s):
             if not self.connected():
-                msg = f"No answer to {what}: nothing could be reached at {where} within {self.timeout_s} s."
+                probed = _why_unreachable(self.endpoints, self.settings)
+                msg = (
+                    f"No answer to {what}: nothing could be reached at {where} within {self.timeout_s} s"
+                    + (f": {_sentence(probed)}" if probed else ".")
+                )
             else:
                 msg = (
                     f"No answer to {what}: nothing serves {selector} at {where} within {self.timeout_s} s "
-                    "(is the daemon of this site running and connected there?)."
+                    f"({self._other_sites()})."
                 )
             raise DaemonTimeoutError(msg)
         left = max(deadline - time.monotonic(), MIN_QUERY_S)

@@ -87,11 +87,18 @@ from twin.live.parse import parse_observation
 from twin.live.requests import Reply, ReplyFn
 from twin.maps.grid import OccupancyGrid
 
-__all__ = ["INGEST_NODE", "RosIngest", "core_reads_fusion_terms"]
+__all__ = ["INGEST_NODE", "RosIngest", "core_reads_fusion_terms", "source_node"]
 
 log = logging.getLogger(__name__)
 
 INGEST_NODE = "twin_ingest"
+
+
+def source_node(source: str) -> str:
+    """The ingest node's name for a source (``twin_ingest_building_doors``): sources share a namespace (the
+    root, by default), so each needs a name of its own (ROS warns of duplicate node names); a robot's is
+    :data:`INGEST_NODE` in its own namespace."""
+    return f"{INGEST_NODE}_{source.replace('-', '_')}"
 _NODE_ID_BASE = 10_000  # node ids of this session's ingest nodes (the map server's count from 0)
 QUEUE_DEPTH = 1024
 DIAGNOSTICS_TOPIC = "diagnostics"
@@ -241,7 +248,7 @@ class RosIngest:
                     ObstacleSettings(source.name, dict(source.classes), levels, max_size_m=source.max_size_m)
                 )
                 kind, type_name = "obstacles", OBSTACLES
-            node = RosNode(source.domain_id, source.namespace, INGEST_NODE, zid, node_id)
+            node = RosNode(source.domain_id, source.namespace, source_node(source.name), zid, node_id)
             node_id += 1
             entity = self._subscribe(
                 session,

@@ -8,8 +8,9 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -64,6 +65,27 @@ class Daemon:
             raise AssertionError(f"the daemon did not stop within {timeout} s") from None
         fatal = [line for line in self.log if "FATAL" in line]
         assert code == 0 and not fatal, f"stop by {sig}: exit {code}:\n" + "\n".join(self.log[-30:])
+
+
+def lines_until(daemon: Daemon, found: Callable[[str], bool], timeout_s: float = 10.0) -> list[str]:
+    """The daemon's next output lines, up to the first for which ``found`` is true (or ``timeout_s``).
+    A thread reads them (a text stream's buffer hides lines from ``select``); after a timeout it reads on
+    until the daemon exits."""
+    stream = daemon.process.stdout
+    assert stream is not None
+    seen: list[str] = []
+    done = threading.Event()
+
+    def read() -> None:
+        for line in stream:
+            seen.append(line.rstrip())
+            if found(line):
+                break
+        done.set()
+
+    threading.Thread(target=read, daemon=True).start()
+    done.wait(timeout_s)
+    return list(seen)
 
 
 def start_daemon(store: Path | None, *extra: str, config: Path | None = None, scheme: str = "tcp") -> Daemon:

@@ -20,7 +20,7 @@ from adapters.zenoh.errors import DaemonTimeoutError, TransportError
 from adapters.zenoh.latched import declare_latched_subscriber
 from adapters.zenoh.settings import AuthSettings, TlsSettings, ZenohSettings
 from tests.integration.certs import CertificateAuthority
-from tests.integration.conftest import Daemon, start_daemon
+from tests.integration.conftest import Daemon, lines_until, start_daemon
 
 pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
@@ -112,6 +112,12 @@ def _collect(session: zenoh.Session, key: str) -> tuple[list[bytes], zenoh.Subsc
     return got, session.declare_subscriber(key, on)
 
 
+def test_the_serving_line_says_that_access_control_is_on_and_for_whom(guarded: Daemon) -> None:
+    serving = next(line for line in guarded.log if line.startswith("serving site"))
+    assert ", access control on for twin/lab/** (robots and operators: " in serving
+    assert "robot1" in serving and "operator" in serving
+
+
 def test_no_robot_or_operator_can_publish_a_map_or_an_update(guarded: Daemon, secrets: Path) -> None:
     with as_robot(guarded, secrets, "robot1") as robot1:
         maps, sub_maps = _collect(robot1.session, MAP)
@@ -151,12 +157,37 @@ def test_skills_are_changed_by_operators_and_not_by_robots(guarded: Daemon, secr
         assert "robot-made" not in skills
 
 
+REFUSED = r"^Cannot open a Zenoh session to .*: .* accepted the connection but refused the Zenoh session:"
+
+
 def test_a_wrong_password_or_an_unknown_robot_cannot_connect(guarded: Daemon, secrets: Path) -> None:
-    with pytest.raises(TransportError, match="Cannot open a Zenoh session"):
+    with pytest.raises(TransportError, match=REFUSED + r" check the user and password \(\[zenoh.auth\]\)"):
         as_robot(guarded, secrets, "robot1", password="wrong")
     (secrets / "intruder.password").write_text("guess\n")
-    with pytest.raises(TransportError, match="Cannot open a Zenoh session"):
+    with pytest.raises(TransportError, match=REFUSED):
         as_robot(guarded, secrets, "intruder")
+
+
+def test_a_peer_without_credentials_is_told_at_once_that_its_session_was_refused(guarded: Daemon) -> None:
+    t0 = time.monotonic()
+    with pytest.raises(TransportError, match=r"refused the Zenoh session: check whether it requires"):
+        TwinClient.connect([guarded.endpoint], timeout_s=60.0)  # peer mode, no site: finds the daemon
+    assert time.monotonic() - t0 < 30.0  # told once the probe says why, not after the 60 s timeout
+
+
+def test_the_daemon_logs_a_session_it_refused(guarded: Daemon, secrets: Path) -> None:
+    with pytest.raises(TransportError):
+        as_robot(guarded, secrets, "robot2", password="wrong")
+    seen = lines_until(guarded, lambda line: "Invalid password" in line)
+    assert any("Invalid password" in line for line in seen), seen
+
+
+def test_a_port_where_nothing_listens_is_told_apart_from_a_refused_session() -> None:
+    from tests.integration.conftest import free_port
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    with pytest.raises(TransportError, match=rf"nothing listens at {endpoint} \(connection refused\)"):
+        TwinClient.connect([endpoint], mode="client", prefix=LAB)
 
 
 def test_without_access_control_a_clients_forged_map_would_reach_other_robots(daemon: Daemon) -> None:
@@ -224,7 +255,7 @@ def test_robots_reach_the_daemon_over_tls_and_a_foreign_authority_is_refused(
         with TwinClient.connect([d.endpoint], settings=tls_settings(pki), mode="client", prefix=LAB) as robot:
             assert robot.observe("robot1", table("urn:test:tls-table"))["ok"]
         other = CertificateAuthority.create(tmp_path / "other", "someone else's CA")
-        with pytest.raises(TransportError, match="Cannot open a Zenoh session"):
+        with pytest.raises(TransportError, match=REFUSED + r" check the certificates"):
             TwinClient.connect([d.endpoint], settings=tls_settings(pki, root=other.path), mode="client")
         plain = d.endpoint.replace("tls/", "tcp/")
         with pytest.raises(TransportError, match="Cannot open a Zenoh session"):

@@ -286,8 +286,13 @@ def test_detections_doors_and_obstacles_from_ros_reach_the_navigation_map(
         with zenoh.open(client_config([daemon.endpoint])) as session:
             keys = [str(r.ok.key_expr) for r in session.liveliness().get("@ros2_lv/0/**", timeout=5) if r.ok]
         tokens = [parse_token(k) for k in keys]
-        assert ("/robot1", "twin_ingest") in {(t.namespace, t.node) for t in tokens if t.kind == "NN"}
-        subscribed = {(t.topic, t.type_name) for t in tokens if t.kind == "MS" and t.node == "twin_ingest"}
+        nodes = [(t.namespace, t.node) for t in tokens if t.kind == "NN"]
+        assert ("/robot1", "twin_ingest") in nodes
+        assert {"twin_ingest_doors", "twin_ingest_obstacles"} <= {node for _, node in nodes}  # a name each
+        assert len(nodes) == len(set(nodes))  # no duplicate node names in the ROS graph
+        subscribed = {
+            (t.topic, t.type_name) for t in tokens if t.kind == "MS" and t.node.startswith("twin_ingest")
+        }
         assert {
             ("/robot1/detections", "vision_msgs::msg::dds_::Detection3DArray_"),
             ("/robot1/tf", "tf2_msgs::msg::dds_::TFMessage_"),

@@ -72,7 +72,7 @@ def test_the_routers_start_line_says_whether_access_control_is_on(tmp_path: Path
         f'[zenoh.auth]\nusers_file = "{tmp_path / "users.txt"}"\n'
         '[zenoh.access]\noperators = ["ops"]\n[robots.robot1]\n'
     )
-    guarded = Router("--acl", "--config", str(config))
+    guarded = Router("--acl", "--site", "lab", "--config", str(config))
     try:
         assert "access control on for twin/lab/** (robots and operators: robot1, ops)" in guarded.line
     finally:

@@ -20,6 +20,7 @@ import gc
 import io
 import json
 import logging
+import re
 import shutil
 import threading
 from collections.abc import Iterable, Iterator
@@ -95,6 +96,31 @@ class TextLoader(Protocol):
 class StoreInfo:
     path: Path | None
     read_only: bool
+
+
+_CHAR_CLASS = re.compile(r"\[[^\]]*\]")
+_POSITION = re.compile(r"^error at (\d+):(\d+): expected (?:one of )?(.*)$")
+
+
+def syntax_error_text(err: Exception, text: str) -> str:
+    """Oxigraph's SyntaxError in one readable line: ``at line 1, column 27 (after '{ ?e ?p ?o'):
+    expected one of ',', '.', '}', a letter or digit`` (its character classes named, not listed)."""
+    message = " ".join(str(err).split())
+    m = _POSITION.match(message)
+    if m is None:
+        return f": {message}"
+    line, column, expected = int(m[1]), int(m[2]), m[3]
+    classes = _CHAR_CLASS.findall(expected)
+    tokens = [t for t in (t.strip() for t in _CHAR_CLASS.sub("", expected).split(", ")) if t]
+    if any("'0'" in c for c in classes):
+        tokens.append("a digit")
+    if any("'A'" in c or "'a'" in c for c in classes):
+        tokens.append("a letter")
+    lines = text.splitlines() or [""]
+    before = lines[line - 1][: column - 1] if 0 < line <= len(lines) else ""
+    near = f" (after {before[-20:].strip()!r})" if before.strip() else ""
+    wanted = ", ".join(tokens) or "something else"
+    return f"at line {line}, column {column}{near}: expected {'one of ' if len(tokens) > 1 else ''}{wanted}"
 
 
 class EmbeddedStore:
@@ -240,7 +266,7 @@ class EmbeddedStore:
         try:
             self._writable().update(sparql_update, prefixes=vocab.PREFIXES)
         except SyntaxError as err:
-            msg = f"SPARQL update does not parse: {err}"
+            msg = f"SPARQL update does not parse {syntax_error_text(err, sparql_update)}"
             raise QueryError(msg) from err
         except OSError as err:  # RocksDB: a full disk, an I/O error; it keeps refusing until reopened
             msg = f"The store at {self.info.path or 'memory'} could not write: {err}"
@@ -261,7 +287,7 @@ class EmbeddedStore:
         try:
             return self._store.query(sparql, prefixes=vocab.PREFIXES)
         except SyntaxError as err:
-            msg = f"SPARQL query does not parse: {err}"
+            msg = f"SPARQL query does not parse {syntax_error_text(err, sparql)}"
             raise QueryError(msg) from err
         except OSError as err:
             msg = f"SPARQL query failed: {err}"
@@ -303,6 +329,19 @@ class EmbeddedStore:
         self._store.dump(
             target, format=ox.RdfFormat.TURTLE, from_graph=ox.DefaultGraph(), prefixes=vocab.PREFIXES
         )
+
+    def backup(self, target: Path) -> None:
+        """Copy the on-disk store into the new directory ``target``: a consistent copy that opens as a store.
+
+        Works on a read-only handle while another process (the daemon) writes the store."""
+        if self.info.path is None:
+            msg = "An in-memory store has nothing on disk to back up."
+            raise StoreError(msg)
+        if target.exists():
+            msg = f"Backup target {target} exists: give a new directory."
+            raise StoreError(msg)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        self._store.backup(str(target))
 
     def turtle_size(self) -> int:
         """Bytes of :meth:`dump_turtle` output, without keeping it in memory."""

@@ -111,6 +111,13 @@ def _check_inside(iri: str, shape: Shape, site: SiteFrame) -> None:
 def _create(
     r: ElementReport, site: SiteFrame, robot: str, rights: frozenset[Right], w: TripleWriter
 ) -> ElementState:
+    creating = any(v is not None for v in (r.ifc_class, r.storey, r.box, r.geometry))
+    changing = any(v is not None for v in (r.is_open, r.placement, r.keepout, r.speed_limit))
+    if changing and not creating:  # a change to an element that is not there
+        raise _fail(
+            f"No element <{r.iri}> in the twin: only an element it holds can be opened, closed, moved or "
+            "marked (a new one needs twin:ifcClass, twin:storey and twin:box or omg:hasGeometry)."
+        )
     if r.ifc_class is None:
         raise _fail(f"Element <{r.iri}> is new: give its twin:ifcClass.")
     chain = supertypes(site.schema, r.ifc_class)

@@ -33,6 +33,7 @@ Example::
 
 from __future__ import annotations
 
+import difflib
 import json
 import math
 import re
@@ -178,7 +179,14 @@ def parse_skill(name: str, data: Mapping[str, Any]) -> SkillProfile:
     unknown = sorted(set(data) - _FIELDS[kind])
     if unknown:
         others = [o for o in _FIELDS if o != kind and unknown[0] in _FIELDS[o]]
-        hint = f" ({unknown[0]} belongs to {' and '.join(others)} skills)" if others else ""
+        close = difflib.get_close_matches(unknown[0], sorted(_FIELDS[kind]), n=1, cutoff=0.75)
+        hint = (
+            f" ({unknown[0]} belongs to {' and '.join(others)} skills)"
+            if others
+            else f" (did you mean {close[0]}?)"
+            if close
+            else ""
+        )
         msg = f"Skill {name!r}: unknown field {unknown[0]!r}{hint}."
         raise SkillError(msg)
     args: dict[str, Any] = {"name": name, "kind": kind}

@@ -121,8 +121,8 @@ def test_router_acl_without_robots_is_refused_as_twin_acl_refuses_it(tmp_path: P
     (tmp_path / "users.txt").write_text("robot1:secret\n")
     config = tmp_path / "site.toml"
     config.write_text(f'[zenoh.auth]\nusers_file = "{tmp_path / "users.txt"}"\n')
-    acl = twin("acl", "--config", config)
-    router = twin("router", "--acl", "--listen", "tcp/127.0.0.1:0", "--config", config)
+    acl = twin("acl", "--config", config, "--site", "lab")
+    router = twin("router", "--acl", "--listen", "tcp/127.0.0.1:0", "--config", config, "--site", "lab")
     assert acl.returncode == router.returncode == 1
     assert router.stderr == acl.stderr
     assert "Access control needs at least one robot ([robots.NAME]) or operator" in router.stderr
@@ -323,7 +323,7 @@ def test_the_import_line_counts_in_agreeing_words(tmp_path: Path) -> None:
 def test_watch_counts_a_speed_masks_cells_by_their_limit() -> None:
     import numpy as np
 
-    from adapters.cli.robot_cmds import cell_counts
+    from adapters.cli.watch_cmd import cell_counts
 
     mask = np.zeros((10, 10), np.int8)
     mask[:3, :10] = 30

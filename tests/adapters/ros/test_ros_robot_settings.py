@@ -114,6 +114,16 @@ def test_a_bad_full_every_s_is_refused_naming_the_topic_or_value(
     assert error in str(err.value)
 
 
+def test_full_every_s_of_a_robot_without_a_namespace_says_it_needs_one_not_that_map_is_unknown(
+    tmp_path: Path,
+) -> None:
+    with pytest.raises(ConfigError, match="full_every_s") as err:
+        robots(tmp_path, "[robots.robot1.full_every_s]\nmap = 10.0\n")
+    text = str(err.value)
+    assert "not a map topic" not in text
+    assert 'this robot has none without a namespace: add namespace = "/<robot>"' in text
+
+
 def test_the_core_alone_keeps_a_robots_name_rights_and_storey_and_the_ros_side_reads_the_rest(
     tmp_path: Path,
 ) -> None:

@@ -95,8 +95,18 @@ def test_a_missing_store_is_not_created_for_reading(tmp_path: Path) -> None:
     assert not (tmp_path / "none").exists()
 
 
+def test_a_query_that_does_not_parse_is_one_line_naming_where_and_what_was_expected() -> None:
+    with EmbeddedStore.open(None) as store, pytest.raises(QueryError) as caught:
+        store.select("SELECT ?e WHERE {\n  ?e ?p ?o")
+    text = str(caught.value)
+    assert "\n" not in text and "\\u{" not in text and "'0'" not in text  # no character classes
+    where = "at line 2, column 11 (after '?e ?p ?o')"
+    assert text.startswith(f"SPARQL query does not parse {where}: expected one of")
+    assert text.endswith('"}", "~", a digit, a letter')
+
+
 def test_queries_that_do_not_parse_and_updates_are_query_errors(store: AnyStore) -> None:
-    with pytest.raises(QueryError, match=r"does not parse.*at 1:"):
+    with pytest.raises(QueryError, match=r"does not parse.*at (line )?1"):
         store.select("SELEKT ?s")
     with pytest.raises(QueryError, match="does not parse"):
         store.select("DELETE WHERE { ?s ?p ?o }")

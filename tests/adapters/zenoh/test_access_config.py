@@ -182,7 +182,7 @@ def test_twin_acl_prints_exactly_the_access_control_the_daemon_applies(
         '[sources.doors]\nkind = "rmf_doors"\nros = ["rmw_zenoh"]\ndiagnostics = true\n'
         '[skills.lidar3d]\nkind = "points"\n',
     )
-    assert main(["acl", "--config", str(path)]) == 0
+    assert main(["acl", "--config", str(path), "--site", "lab"]) == 0
     printed = json.loads(capsys.readouterr().out)["access_control"]
     cfg = load(path)
     assert printed == site_access_control(cfg, SiteKeys("twin/lab"))  # `twin serve`, `twin router --acl`

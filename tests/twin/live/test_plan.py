@@ -113,3 +113,17 @@ def test_a_lifetime_is_kept_in_the_graph_and_the_same_one_again_writes_nothing()
     assert "unchanged" not in observe(service, "robot1", longer).body
     rows = service.store.select("SELECT ?l WHERE { <urn:rmf:obstacle:1> twin:lifetime ?l }")
     assert [r["l"] for r in rows] == ["7.5"]
+
+
+def test_opening_an_element_the_twin_does_not_hold_says_there_is_no_such_element() -> None:
+    service, _ = started()
+    with pytest.raises(ObservationError, match=r"^No element <urn:nothing> in the twin: only an element"):
+        _plan(service, f"<urn:nothing> <{vocab.TWIN}isOpen> true .\n".encode())
+    identity = " ".join("1" if i % 5 == 0 else "0" for i in range(16))
+    moved = f'<urn:nothing> <{vocab.TWIN}placement> "{identity}"^^<{vocab.TWIN}Matrix4x4> .\n'
+    with pytest.raises(ObservationError, match=r"^No element <urn:nothing> in the twin"):
+        _plan(service, moved.encode())
+    t = vocab.TWIN
+    boxed = f'<urn:r:t9> <{t}storey> "ground-floor" ; <{t}box> "5 2 0.4 1 1 0.8 0" .\n'.encode()
+    with pytest.raises(ObservationError, match=r"^Element <urn:r:t9> is new: give its twin:ifcClass\."):
+        _plan(service, boxed)
