@@ -153,3 +153,14 @@ class FusionMemory:
 
     def aliases_of(self, target: str) -> list[str]:
         return sorted(a for a, v in self.aliases.items() if v.target == target)
+
+
+def expire_aliases(memory: FusionMemory, now_ns: int, ttl_ns: int) -> list[str]:
+    """Forget the aliases unused for ``ttl_ns`` (returned, for the writer to delete from the graph) and
+    the tentative IRIs older than :data:`TENTATIVE_TTL_NS`."""
+    old = [a for a, v in memory.aliases.items() if now_ns - v.used_ns > ttl_ns]
+    for a in old:
+        del memory.aliases[a]
+    for iri in [i for i, (_, since) in memory.tentative.items() if now_ns - since > TENTATIVE_TTL_NS]:
+        del memory.tentative[iri]
+    return sorted(old)

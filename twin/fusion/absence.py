@@ -1,0 +1,65 @@
+"""Absence: what a view should have seen and did not.
+
+An observation's view (``a twin:View``) names a storey, the floor its sensor saw and the classes its
+detector reports. Every candidate element of those classes inside the view that the observation does
+not describe gets a **miss**; ``misses_to_remove`` misses spread over ``miss_span_s`` of sense time,
+from any robots and with no sighting in between, remove it, with the reason.
+
+Example::
+
+    absence(ctx, storey="ground-floor", polygons=view.polygons, detects=view.detects, sense=sense_ns)
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from twin.fusion.clocks import when
+from twin.fusion.effects import forget, miss
+from twin.fusion.footprints import corners, inside
+from twin.fusion.gates import is_candidate
+from twin.fusion.memory import Miss
+from twin.records import ElementReport
+
+if TYPE_CHECKING:
+    from twin.fusion.context import FusionContext
+
+VIEW_INSET_M = 0.1
+"""An element is in a view when its footprint, this much smaller on each side, is: a view's edge stops
+at the walls, so an object against a wall is never wholly inside one."""
+
+
+def absence(
+    ctx: FusionContext, *, storey: str, polygons: tuple[object, ...], detects: tuple[str, ...], sense: int
+) -> None:
+    """Count a miss for every element the view should have seen and the observation does not describe;
+    plan the removal of those with enough misses."""
+    out, memory = ctx.out, ctx.memory
+    for iri, pose in ctx.candidates(storey).items():
+        if iri in ctx.detected or iri in out.merged:
+            continue
+        state = ctx.states.get(iri)
+        if state is None or not is_candidate(state):
+            continue
+        if not any(d in state.ifc_types for d in detects):  # the element is of a class it detects
+            continue
+        if not inside(corners(pose, inset=VIEW_INSET_M), polygons):  # type: ignore[arg-type]
+            continue
+        track = memory.tracks.get(iri)
+        if sense <= max(state.sensed_ns, track.seen_ns if track is not None else 0):
+            continue  # seen (or changed) at or after this view
+        rules = ctx.rules.of(state.ifc_types)
+        misses = [*(track.misses if track is not None else []), Miss(ctx.robot, sense)]
+        span = max(m.sense_ns for m in misses) - min(m.sense_ns for m in misses)
+        if len(misses) >= rules.misses_to_remove and span >= rules.miss_span_ns:
+            robots = ", ".join(sorted({m.robot for m in misses}))
+            out.reasons[iri] = (
+                f"absent: not seen in {len(misses)} views by {robots} "
+                f"between {when(min(m.sense_ns for m in misses))} and {when(sense)}"
+            )
+            out.notes.append(f"<{iri}> removed: {out.reasons[iri]}")
+            out.sense[iri] = sense
+            ctx.reports.append(ElementReport(iri, removed=True))
+            out.effects.append(forget(iri))
+        else:
+            out.effects.append(miss(iri, ctx.robot, sense))

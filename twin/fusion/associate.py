@@ -1,0 +1,101 @@
+"""Association: which element a robot's report is.
+
+A robot's IRI that is an alias resolves to its element. An IRI the twin does not know, with a box on
+a storey, resolves to the best-matching candidate element there (:mod:`twin.fusion.gates`), and becomes
+an alias of it. What resolves to nothing is a new element (held tentative until seen often enough when
+``tentative_sightings`` > 1).
+
+Example::
+
+    target, alias = through_alias(ctx, r)
+    match = associate(ctx, r, pose, "ground-floor")
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+from twin.fusion.effects import count_tentative, drop_alias, mark_distinct, set_alias, sighting, use_alias
+from twin.fusion.footprints import Pose
+from twin.fusion.gates import compatible, is_candidate, matches
+from twin.fusion.memory import Alias
+from twin.records import ElementReport
+
+if TYPE_CHECKING:
+    from twin.fusion.context import FusionContext
+
+
+def through_alias(ctx: FusionContext, r: ElementReport) -> tuple[str, Alias | None]:
+    """The element ``r``'s IRI stands for (itself unless an alias), and the alias."""
+    alias = ctx.memory.aliases.get(r.iri)
+    if alias is None or r.unmerge:
+        return r.iri, alias
+    ctx.out.resolved[r.iri] = alias.target
+    ctx.out.effects.append(use_alias(r.iri, ctx.arrival_ns))
+    return alias.target, alias
+
+
+def associate(ctx: FusionContext, r: ElementReport, pose: Pose, storey: str) -> str | None:
+    """The candidate element on ``storey`` that ``r`` (at ``pose``) is, if any: the best match of a
+    compatible class, not matched yet by this observation."""
+    schema = ctx.live.site.schema
+    best, best_score = None, 0.0
+    for iri, held in ctx.candidates(storey).items():
+        if iri in ctx.used:
+            continue
+        state = ctx.states.get(iri)
+        if state is None or not is_candidate(state) or not compatible(schema, r.ifc_class or "", state):
+            continue
+        score = matches(ctx.rules.of(state.ifc_types), pose, held)
+        if score > best_score:
+            best, best_score = iri, score
+    return best
+
+
+def adopt(ctx: FusionContext, r: ElementReport, match: str) -> ElementReport:
+    """``r`` is ``match``: its IRI becomes an alias of it (if not already); returns the report without
+    its class (the element has one)."""
+    if r.iri != match:
+        ctx.out.resolved[r.iri] = match
+        known = ctx.memory.aliases.get(r.iri)
+        if known is None or known.target != match:
+            ctx.out.aliases[r.iri] = match
+            ctx.out.effects.append(set_alias(r.iri, match, ctx.arrival_ns))
+    return replace(r, ifc_class=None, classes=())
+
+
+def new_element(
+    ctx: FusionContext,
+    r: ElementReport,
+    *,
+    alias: Alias | None,
+    target: str,
+    known: bool,
+    pose: Pose | None,
+    storey: str | None,
+    sense: int,
+) -> None:
+    """``r`` resolved to nothing the twin holds: an element of its own (``known``: the IRI names an
+    element, removed), created now or held tentative. An alias to a removed element is dropped."""
+    out = ctx.out
+    if alias is not None and target != r.iri:
+        out.effects.append(drop_alias(r.iri))
+        out.unaliased.append(r.iri)
+        out.resolved.pop(r.iri, None)
+        target = r.iri
+    if ctx.rules.tentative_sightings > 1 and (r.box is not None or r.geometry is not None):
+        seen, since = ctx.memory.tentative.get(r.iri, (0, ctx.arrival_ns))
+        if seen + 1 < ctx.rules.tentative_sightings:
+            out.tentative.append(r.iri)
+            out.effects.append(count_tentative(r.iri, (seen + 1, since)))
+            return
+        out.effects.append(count_tentative(r.iri, None))
+    if r.distinct:
+        out.effects.append(mark_distinct(r.iri))
+    ctx.reports.append(replace(r, iri=target))
+    out.sense[target] = sense
+    ctx.detected.add(target)
+    out.effects.append(sighting(target, ctx.robot, sense))
+    if pose is not None and storey is not None and not known:
+        ctx.pend(target, storey, pose, r=r)
