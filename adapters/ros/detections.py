@@ -27,7 +27,7 @@ import math
 import struct
 from collections import Counter
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -75,6 +75,8 @@ class DetectionSettings:
     robot: str
     classes: Mapping[str, str]
     """``class_id`` -> IFC class."""
+    types: Mapping[str, str] = field(default_factory=dict)
+    """``class_id`` -> descriptive type IRI (``furn:Chair``), for the ids that give one."""
     min_score: float = 0.5
     fov_rad: float = math.radians(90.0)
     range_m: float = 5.0
@@ -102,6 +104,7 @@ class DetectionSettings:
         return cls(
             robot=robot,
             classes=dict(d.classes),
+            types=dict(d.types),
             min_score=d.min_score,
             fov_rad=math.radians(d.fov_deg),
             range_m=d.range_m,
@@ -332,7 +335,8 @@ def translate_detections(
             ignored["duplicate_id"] += 1
             continue
         seen.add(iri)
-        boxes.append(BoxReport(iri, ifc_class, ctx.storey, (cx, cy, cz - drop_z, sx, sy, sz, yaw)))
+        box = (cx, cy, cz - drop_z, sx, sy, sz, yaw)
+        boxes.append(BoxReport(iri, ifc_class, ctx.storey, box, kind=settings.types.get(d.class_id)))
     view = None
     if ctx.fusion_terms and ctx.occlusion_known and not refused:
         view = _view(settings, ctx, frame, stamp, ctx.storey)

@@ -60,6 +60,8 @@ class BoxReport:
     storey: str
     box: tuple[float, float, float, float, float, float, float]
     label: str | None = None
+    kind: str | None = None
+    """A descriptive type IRI (``furn:Chair`` expanded), written as ``a <kind>``."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -138,6 +140,8 @@ def observation_turtle(
         cx, cy, cz, sx, sy, sz, yaw = b.box
         numbers = " ".join([*(_metres(v) for v in (cx, cy, cz, sx, sy, sz)), _radians(yaw)])
         label = f" ;\n    rdfs:label {literal(b.label)}" if b.label else ""
+        if b.kind:
+            label += f" ;\n    a <{b.kind}>"
         lines.append(
             f"<{b.iri}> twin:ifcClass {literal(b.ifc_class)} ; twin:storey {literal(b.storey)} ;\n"
             f'    twin:box "{numbers}"{label} .'

@@ -86,6 +86,8 @@ class DetectionConfig:
     topic: str
     classes: tuple[tuple[str, str], ...]
     """``(class_id, IFC class)`` pairs."""
+    types: tuple[tuple[str, str], ...] = ()
+    """``(class_id, descriptive type IRI)`` pairs (``furn:Chair`` expanded), for the ids that give one."""
     min_score: float = 0.5
     fov_deg: float = 90.0
     range_m: float = 5.0
@@ -130,14 +132,45 @@ class RosRobot:
         return tuple(dict.fromkeys(skill for _, skill in self.maps))
 
 
+_TYPE_PREFIXES = {
+    "furn:": "http://pi.pauwel.be/voc/furniture#",
+    "beo:": "https://pi.pauwel.be/voc/buildingelement#",
+}
+
+
+def _type_iri(value: str) -> str:
+    for prefix, iri in _TYPE_PREFIXES.items():
+        if value.startswith(prefix) and len(value) > len(prefix):
+            return iri + value.removeprefix(prefix)
+        if value.startswith(iri) and len(value) > len(iri):
+            return value
+    msg = f"expected a descriptive type such as furn:Chair or beo:Door (FURN or BEO), got {value!r}"
+    raise ValueError(msg)
+
+
+class DetectedClassTable(ConfigTable):
+    """One class id of ``[robots.NAME.detections] classes`` with a descriptive type:
+    ``chair = { ifc = "IfcFurniture", type = "furn:Chair" }``."""
+
+    ifc: IfcClassName = Field(description="The IFC class of what the detector reports as this id.")
+    type: Text = Field(description="Its descriptive type (furn:Chair, furn:Table, beo:Door ...).")
+
+    @field_validator("type")
+    @classmethod
+    def _type(cls, value: str) -> str:
+        return _type_iri(value)
+
+
 class DetectionTable(ConfigTable):
     """``[robots.NAME.detections]``: subscribe to the robot's detections (needs its ``namespace``)."""
 
     topic: Text = Field(
         "detections", description='Detection3DArray topic under the namespace ("/name": absolute).'
     )
-    classes: dict[str, IfcClassName] = Field(
-        description='class_id -> IFC class, e.g. { table = "IfcFurniture" }; other classes are ignored.',
+    classes: dict[str, IfcClassName | DetectedClassTable] = Field(
+        description='class_id -> IFC class, e.g. { table = "IfcFurniture" }, or with a descriptive type '
+        '(association then tells a chair from a table): { chair = { ifc = "IfcFurniture", '
+        'type = "furn:Chair" } }; other classes are ignored.',
         min_length=1,
     )
     min_score: Annotated[Number, Field(ge=0, le=1)] = 0.5
@@ -195,7 +228,8 @@ class DetectionTable(ConfigTable):
     def record(self) -> DetectionConfig:
         return DetectionConfig(
             topic=self.topic,
-            classes=tuple(self.classes.items()),
+            classes=tuple((k, v if isinstance(v, str) else v.ifc) for k, v in self.classes.items()),
+            types=tuple((k, v.type) for k, v in self.classes.items() if not isinstance(v, str)),
             min_score=self.min_score,
             fov_deg=self.fov_deg,
             range_m=self.range_m,

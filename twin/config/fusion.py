@@ -32,6 +32,8 @@ class FusionClassTable(ConfigTable):
     misses_to_remove: Annotated[Whole, Field(ge=1, le=1000)] | None = None
     miss_span_s: Annotated[Number, Field(ge=0.0, le=86400.0)] | None = None
     ttl_s: Annotated[Number, Field(ge=0.0)] | None = None
+    size_ratio: Annotated[Number, Field(ge=0.0, le=10.0)] | None = None
+    min_area_ratio: Annotated[Number, Field(ge=0.0, le=1.0)] | None = None
 
 
 class FusionTable(ConfigTable):
@@ -71,6 +73,14 @@ class FusionTable(ConfigTable):
     )
     centre_distance_m: Annotated[Number, Field(ge=0.0, le=10.0)] = Field(
         0.3, description="The centre distance that matches small objects, metres."
+    )
+    size_ratio: Annotated[Number, Field(ge=0.0, le=10.0)] = Field(
+        0.35,
+        description="A box is the element only if each horizontal side and the height differ from the "
+        "element's by at most this fraction of the element's (0.35: 35 %).",
+    )
+    min_area_ratio: Annotated[Number, Field(ge=0.0, le=1.0)] = Field(
+        0.5, description="... and the smaller footprint area is at least this fraction of the larger."
     )
     merge_iou: Annotated[Number, Field(gt=0.0, le=1.0)] = Field(
         0.5, description="Two elements whose footprints overlap this much after a change are merged."
@@ -127,6 +137,8 @@ def _class_rules(v: Mapping[str, Any]) -> FusionClassRules:
         misses_to_remove=int(v["misses_to_remove"]),
         miss_span_ns=int(v["miss_span_s"] * 1e9),
         ttl_ns=int(v["ttl_s"] * 1e9),
+        size_ratio=v["size_ratio"],
+        min_area_ratio=v["min_area_ratio"],
     )
 
 
@@ -142,6 +154,8 @@ class FusionClassRules:
     misses_to_remove: int
     miss_span_ns: int
     ttl_ns: int
+    size_ratio: float = 0.35
+    min_area_ratio: float = 0.5
 
 
 @dataclass(frozen=True, slots=True)

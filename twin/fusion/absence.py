@@ -16,17 +16,32 @@ from typing import TYPE_CHECKING
 
 from twin.fusion.clocks import when
 from twin.fusion.effects import forget, miss
-from twin.fusion.footprints import corners, inside
-from twin.fusion.gates import is_candidate
+from twin.fusion.footprints import Pose, corners, heights_overlap, inside
+from twin.fusion.gates import compatible, is_candidate, kinds_agree, lies_within
 from twin.fusion.memory import Miss
 from twin.records import ElementReport
 
 if TYPE_CHECKING:
     from twin.fusion.context import FusionContext
+    from twin.live.state import ElementState
 
 VIEW_INSET_M = 0.1
 """An element is in a view when its footprint, this much smaller on each side, is: a view's edge stops
 at the walls, so an object against a wall is never wholly inside one."""
+
+
+def covered(ctx: FusionContext, storey: str, pose: Pose, state: ElementState) -> bool:
+    """Whether a box of this observation, of the element's class and kind, covers its footprint."""
+    schema = ctx.live.site.schema
+    margin = ctx.rules.of(state.ifc_types).confirm_distance_m
+    return any(
+        s == storey
+        and compatible(schema, r.ifc_class or state.ifc_class, state)
+        and kinds_agree(schema, r.classes, r.ifc_class, state)
+        and heights_overlap(box, pose)
+        and lies_within(pose, box, margin_m=margin)
+        for s, r, box in ctx.boxes
+    )
 
 
 def absence(
@@ -45,6 +60,8 @@ def absence(
             continue
         if not inside(corners(pose, inset=VIEW_INSET_M), polygons):  # type: ignore[arg-type]
             continue
+        if covered(ctx, storey, pose, state):
+            continue  # a box over it and its neighbours (two desks pushed together seen as one)
         track = memory.tracks.get(iri)
         if sense <= max(state.sensed_ns, track.seen_ns if track is not None else 0):
             continue  # seen (or changed) at or after this view

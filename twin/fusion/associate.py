@@ -8,17 +8,17 @@ an alias of it. What resolves to nothing is a new element (held tentative until 
 Example::
 
     target, alias = through_alias(ctx, r)
-    match = associate(ctx, r, pose, "ground-floor")
+    found = associate(ctx, r, pose, "ground-floor")   # found.target: the element it is
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from twin.fusion.effects import count_tentative, drop_alias, mark_distinct, set_alias, sighting, use_alias
-from twin.fusion.footprints import Pose
-from twin.fusion.gates import compatible, is_candidate, matches
+from twin.fusion.footprints import Pose, heights_overlap, iou
+from twin.fusion.gates import compatible, is_candidate, kinds_agree, lies_within, matches, sizes_agree
 from twin.fusion.memory import Alias
 from twin.records import ElementReport
 
@@ -36,21 +36,45 @@ def through_alias(ctx: FusionContext, r: ElementReport) -> tuple[str, Alias | No
     return alias.target, alias
 
 
-def associate(ctx: FusionContext, r: ElementReport, pose: Pose, storey: str) -> str | None:
-    """The candidate element on ``storey`` that ``r`` (at ``pose``) is, if any: the best match of a
-    compatible class, not matched yet by this observation."""
+@dataclass(frozen=True, slots=True)
+class Association:
+    """What a report resolved to: an element (``target``), or one it is a partly hidden view of
+    (``within``: its box fails only the size gate and lies inside the element's footprint). Neither: a
+    separate object, which never resizes, moves or merges an element it overlaps."""
+
+    target: str | None = None
+    within: str | None = None
+
+
+def associate(ctx: FusionContext, r: ElementReport, pose: Pose, storey: str) -> Association:
+    """Which candidate element on ``storey`` ``r`` (at ``pose``) is: the best match of a compatible class
+    and kind, overlapping footprint and height, and compatible size (:mod:`twin.fusion.gates`), not
+    matched yet by this observation."""
     schema = ctx.live.site.schema
     best, best_score = None, 0.0
+    within, within_score = None, -1.0
     for iri, held in ctx.candidates(storey).items():
         if iri in ctx.used:
             continue
         state = ctx.states.get(iri)
         if state is None or not is_candidate(state) or not compatible(schema, r.ifc_class or "", state):
             continue
-        score = matches(ctx.rules.of(state.ifc_types), pose, held)
-        if score > best_score:
-            best, best_score = iri, score
-    return best
+        if not kinds_agree(schema, r.classes, r.ifc_class, state):
+            continue
+        rules = ctx.rules.of(state.ifc_types)
+        score = matches(rules, pose, held)
+        if score > 0.0 and sizes_agree(rules, pose, held):
+            if score > best_score:
+                best, best_score = iri, score
+        elif (
+            heights_overlap(pose, held)
+            and lies_within(pose, held, margin_m=rules.confirm_distance_m)
+            and iou(pose, held) > within_score
+        ):
+            within, within_score = iri, iou(pose, held)
+    if best is not None:
+        return Association(target=best)
+    return Association(within=within)
 
 
 def adopt(ctx: FusionContext, r: ElementReport, match: str) -> ElementReport:
@@ -99,3 +123,14 @@ def new_element(
     out.effects.append(sighting(target, ctx.robot, sense))
     if pose is not None and storey is not None and not known:
         ctx.pend(target, storey, pose, r=r)
+
+
+def seen_within(ctx: FusionContext, r: ElementReport, element: str, sense: int) -> None:
+    """``r`` is a partly hidden view of ``element``: it confirms the element is there (a sighting: no
+    miss, no move, no new element, no alias)."""
+    ctx.out.resolved[r.iri] = element
+    ctx.out.seen.append(element)
+    ctx.out.effects.append(sighting(element, ctx.robot, sense))
+    ctx.detected.add(element)
+    ctx.used.add(element)
+    ctx.out.notes.append(f"<{r.iri}> seen by {ctx.robot}: part of <{element}> (smaller, within it)")

@@ -102,6 +102,8 @@ class FusionContext:
     """Elements this observation describes (never missed by its view)."""
     used: set[str] = field(default_factory=set)
     """Elements already matched by a report of this observation (matched at most once)."""
+    boxes: list[tuple[str, ElementReport, Pose]] = field(default_factory=list)
+    """Every box this observation reports: (storey, the report as given, its world pose)."""
 
     @property
     def memory(self) -> FusionMemory:

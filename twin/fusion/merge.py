@@ -18,7 +18,7 @@ from twin.fusion.clocks import when
 from twin.fusion.confirm import confirms
 from twin.fusion.effects import drop_alias, forget, set_alias
 from twin.fusion.footprints import Pose, heights_overlap, iou
-from twin.fusion.gates import compatible, is_candidate
+from twin.fusion.gates import compatible, is_candidate, kinds_agree, sizes_agree
 from twin.records import ElementReport
 
 if TYPE_CHECKING:
@@ -39,6 +39,10 @@ def merge_target(ctx: FusionContext, iri: str, state: ElementState, pose: Pose, 
             continue
         if not (compatible(schema, state.ifc_class, o_state) or compatible(schema, o_state.ifc_class, state)):
             continue
+        if not kinds_agree(schema, tuple(state.classes), state.ifc_class, o_state):
+            continue  # a chair moved under a table stays a chair
+        if not sizes_agree(ctx.rules.of(o_state.ifc_types), pose, held):
+            continue  # a box over two desks is neither
         if heights_overlap(pose, held) and iou(pose, held) >= ctx.rules.merge_iou:
             return other
     return None

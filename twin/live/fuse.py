@@ -34,7 +34,7 @@ from dataclasses import replace
 from twin.config import FusionRules, Right
 from twin.errors import ObservationError
 from twin.fusion.absence import absence
-from twin.fusion.associate import adopt, associate, new_element, through_alias
+from twin.fusion.associate import adopt, associate, new_element, seen_within, through_alias
 from twin.fusion.clocks import default_sense, refuse_future, stale_change, stale_tombstone
 from twin.fusion.confirm import confirmation, confirms, hold, move, unsure_move
 from twin.fusion.context import Fused, FusionContext, Pending, report_pose
@@ -90,13 +90,18 @@ def _fuse_report(ctx: FusionContext, r: ElementReport, sense: int) -> None:
     storey_key = r.storey or (state.storey if state is not None else None)
     storey = ctx.live.site.storeys.get(storey_key or "")
     pose = report_pose(r, storey.elevation_m) if storey is not None else None
+    if pose is not None and storey_key is not None:
+        ctx.boxes.append((storey_key, r, pose))
     exists = state is not None and not state.removed
     known = state is not None
     if not exists and ctx.rules.enabled and pose is not None and storey_key is not None and not r.distinct:
-        match = associate(ctx, r, pose, storey_key)
-        if match is not None:
-            target, state, exists = match, ctx.states[match], True
-            r = adopt(ctx, r, match)
+        found = associate(ctx, r, pose, storey_key)
+        if found.target is not None:
+            target, state, exists = found.target, ctx.states[found.target], True
+            r = adopt(ctx, r, found.target)
+        elif found.within is not None:
+            seen_within(ctx, r, found.within, sense)  # a partly hidden view of it
+            return
     if not exists or state is None:
         new_element(
             ctx, r, alias=alias, target=target, known=known, pose=pose, storey=storey_key, sense=sense
