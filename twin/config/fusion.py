@@ -64,6 +64,15 @@ class FusionTable(ConfigTable):
     certain_move_m: Annotated[Number, Field(ge=0.0, le=100.0)] = Field(
         0.5, description="A sighting this far from the held pose moves the element at once."
     )
+    resize_sightings: Annotated[Whole, Field(ge=1, le=1000)] = Field(
+        5,
+        description="A robot-made box element takes other sizes only when two robots agree on them, or "
+        "one robot over this many sightings spanning resize_span_s (an element imported from IFC keeps "
+        "its mesh).",
+    )
+    resize_span_s: Annotated[Number, Field(ge=0.0, le=3600.0)] = Field(
+        1.0, description="... spanning at least this long (sense time)."
+    )
     min_iou: Annotated[Number, Field(gt=0.0, le=1.0)] = Field(
         0.25,
         description="A new robot IRI is an existing element if their footprints overlap this much (IoU).",
@@ -119,6 +128,8 @@ class FusionTable(ConfigTable):
             refine_fraction=self.refine_fraction,
             move_sightings=self.move_sightings,
             certain_move_m=self.certain_move_m,
+            resize_sightings=self.resize_sightings,
+            resize_span_ns=int(self.resize_span_s * 1e9),
             merge_iou=self.merge_iou,
             tentative_sightings=self.tentative_sightings,
             alias_ttl_ns=int(self.alias_ttl_s * 1e9),
@@ -169,6 +180,8 @@ class FusionRules:
     refine_fraction: float = 0.5
     move_sightings: int = 2
     certain_move_m: float = 0.5
+    resize_sightings: int = 5
+    resize_span_ns: int = 10**9
     merge_iou: float = 0.5
     tentative_sightings: int = 1
     alias_ttl_ns: int = 3600 * 10**9

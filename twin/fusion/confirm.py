@@ -14,20 +14,29 @@ Example::
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from twin.config import FusionRules
 from twin.config.fusion import FusionClassRules
 from twin.fusion.clocks import changes_something
-from twin.fusion.effects import hold_move, refine, reset_refinement
-from twin.fusion.footprints import Pose, aligned, centre_distance, yaw_difference
-from twin.fusion.memory import Refinement, Track
+from twin.fusion.effects import hold_move, refine, reset_refinement, size_evidence
+from twin.fusion.footprints import Pose, aligned, box_pose, centre_distance, yaw_difference
+from twin.fusion.memory import Refinement, SizeEvidence, Track
 from twin.records import ElementReport, ObservedBox
 
 if TYPE_CHECKING:
     from twin.fusion.context import FusionContext
     from twin.live.state import ElementState, StoreyFrame
+
+Sizes = tuple[float, float, float]
+"""An element's sizes (sx >= sy, sz), metres."""
+
+RESIZE_AGREEMENT_NS = 10 * 10**9
+"""Two robots agree on new sizes when their sightings are at most this far apart (sense time)."""
 
 
 def confirms(rules: FusionClassRules, seen: Pose, held: Pose, *, sizes: bool, fraction: float = 1.0) -> bool:
@@ -104,13 +113,20 @@ def only_sighting(r: ElementReport, state: ElementState) -> bool:
 
 
 def confirmation(
-    ctx: FusionContext, r: ElementReport, state: ElementState, *, seen: Pose, held: Pose, storey: StoreyFrame
+    ctx: FusionContext,
+    r: ElementReport,
+    state: ElementState,
+    *,
+    seen: Pose,
+    held: Pose,
+    storey: StoreyFrame,
+    sizes: Sizes | None = None,
 ) -> ElementReport | None:
     """A sighting that confirms the held pose: averaged in memory, or the mean committed once it is past
-    the hysteresis. Returns what is left to plan (None: nothing, the element was only seen)."""
+    the hysteresis (at the held sizes, or ``sizes`` once a resize is believed). Returns what is left to
+    plan (None: nothing, the element was only seen)."""
     rules, target = ctx.rules, state.iri
     class_rules = rules.of(state.ifc_types)
-    sizes = ctx.is_box_element(target)
     track = ctx.memory.tracks.get(target)
     refinement = track.refinement if track is not None else None
     sighted = aligned(seen, held)
@@ -118,45 +134,157 @@ def confirmation(
     if refinement is not None and refinement.n + 1 >= rules.refine_after:
         mean = mean_with(refinement, sighted)
     if mean is not None and not confirms(
-        class_rules, mean, held, sizes=sizes, fraction=rules.refine_fraction
+        class_rules, mean, held, sizes=False, fraction=rules.refine_fraction
     ):
-        r = replace(r, box=box_of(mean, storey.elevation_m))
+        r, at = placed(ctx, r, state, at=mean, held=held, storey=storey, sizes=sizes)
         ctx.out.refined.append(target)
-        ctx.out.notes.append(
-            f"<{target}>: pose refined from {refinement.n + 1 if refinement else 1} sightings"
-        )
+        n = refinement.n + 1 if refinement else 1
+        ctx.out.notes.append(f"<{target}>: pose refined from {n} sightings")
         ctx.out.effects.append(reset_refinement(target))
-        ctx.pend(target, storey.key, mean, r=r)
+        ctx.pend(target, storey.key, at, r=r)
         return r
-    r = replace(r, box=None, storey=None)  # where it stood: on its storey too
     ctx.out.effects.append(refine(target, sighted))
+    if sizes is not None:
+        return resized(ctx, r, state, held=held, storey=storey, sizes=sizes)
+    r = replace(r, box=None, storey=None)  # where it stood: on its storey too
     return _unless_only_seen(ctx, r, state)
 
 
 def hold(
-    ctx: FusionContext, r: ElementReport, state: ElementState, seen: Pose, held: Pose
+    ctx: FusionContext,
+    r: ElementReport,
+    state: ElementState,
+    *,
+    seen: Pose,
+    held: Pose,
+    storey: StoreyFrame,
+    sizes: Sizes | None = None,
 ) -> ElementReport | None:
     """A short move not yet believed: held in memory with the sightings that agree with it (or as a new
-    start). Returns what is left to plan (None: nothing)."""
+    start). Returns what is left to plan (None: nothing; a believed resize where it stands)."""
     target = state.iri
     track = ctx.memory.tracks.get(target)
-    sizes = ctx.is_box_element(target)
-    agree = agreeing(ctx.rules.of(state.ifc_types), seen, held, track, sizes=sizes) > 0
+    agree = agreeing(ctx.rules.of(state.ifc_types), seen, held, track, sizes=False) > 0
     ctx.out.effects.append(hold_move(target, aligned(seen, held), restart=not agree))
+    if sizes is not None:
+        return resized(ctx, r, state, held=held, storey=storey, sizes=sizes)
     return _unless_only_seen(ctx, replace(r, box=None, storey=None), state)
 
 
 def move(
-    ctx: FusionContext, r: ElementReport, state: ElementState, *, seen: Pose, held: Pose, storey: StoreyFrame
+    ctx: FusionContext,
+    r: ElementReport,
+    state: ElementState,
+    *,
+    seen: Pose,
+    held: Pose,
+    storey: StoreyFrame,
+    sizes: Sizes | None = None,
 ) -> tuple[ElementReport, Pose]:
-    """A move: at the sighting, or (a short one) at the mean of the sightings that agreed on it."""
+    """A move: to the sighting, or (a short one) to the mean of the sightings that agreed on it; the
+    element keeps its sizes (or takes ``sizes``, a believed resize) and, unless a robot's box, its mesh.
+    Returns the report to plan and the pose it gives the element."""
     target = state.iri
     track = ctx.memory.tracks.get(target)
     ctx.out.effects.append(reset_refinement(target))
     if track is not None and track.moving is not None and not far(ctx.rules, seen, held):
         seen = mean_with(track.moving, aligned(seen, held))  # the sightings that agreed
-        r = replace(r, box=box_of(seen, storey.elevation_m))
-    return r, seen
+    return placed(ctx, r, state, at=seen, held=held, storey=storey, sizes=sizes)
+
+
+def resizable(ctx: FusionContext, iri: str) -> bool:
+    """Whether robots' boxes may change the element's sizes: a box a robot made (an element imported
+    from IFC keeps its mesh, and so does one a robot sent as a mesh)."""
+    imported = bool(ctx.base_iri) and iri.startswith(ctx.base_iri)
+    return not imported and ctx.is_box_element(iri)
+
+
+def placed(
+    ctx: FusionContext,
+    r: ElementReport,
+    state: ElementState,
+    *,
+    at: Pose,
+    held: Pose,
+    storey: StoreyFrame,
+    sizes: Sizes | None,
+) -> tuple[ElementReport, Pose]:
+    """``r`` rewritten to put the element at ``at``'s centre (x, y) and yaw, on the floor it stood on,
+    at its held sizes (or ``sizes``): a box for a robot's box, a new placement (the same mesh) for any
+    other element. Returns it and the element's pose after it."""
+    a = aligned(at, held)
+    if resizable(ctx, state.iri):
+        sx, sy, sz = sizes or (held.sx, held.sy, held.sz)
+        pose = box_pose(a.cx, a.cy, held.zmin + sz / 2, sx, sy, sz, yaw=a.yaw)
+        return replace(r, box=box_of(pose, storey.elevation_m), storey=r.storey or storey.key), pose
+    shape = ctx.shape_of(state.iri)
+    assert shape is not None  # a held pose is a shape's
+    turn = a.yaw - held.yaw
+    c, s = math.cos(turn), math.sin(turn)
+    delta = np.eye(4)
+    delta[:2, :2] = [[c, -s], [s, c]]
+    delta[:2, 3] = (a.cx - (c * held.cx - s * held.cy), a.cy - (s * held.cx + c * held.cy))
+    placement = delta @ shape[1]
+    placement = np.round(placement, 9)
+    placement[:3, 3] = np.round(placement[:3, 3], 6)
+    pose = box_pose(a.cx, a.cy, held.cz, held.sx, held.sy, held.sz, yaw=a.yaw)
+    return replace(r, box=None, geometry=None, placement=placement), pose
+
+
+def resized(
+    ctx: FusionContext,
+    r: ElementReport,
+    state: ElementState,
+    *,
+    held: Pose,
+    storey: StoreyFrame,
+    sizes: Sizes,
+) -> ElementReport:
+    """A resize believed (two robots, or one robot over time, agree): the element where it stands, at
+    ``sizes``."""
+    r, pose = placed(ctx, r, state, at=held, held=held, storey=storey, sizes=sizes)
+    ctx.out.notes.append(f"<{state.iri}>: resized to {sizes[0]:.2f} x {sizes[1]:.2f} x {sizes[2]:.2f} m")
+    ctx.pend(state.iri, storey.key, pose, r=r)
+    return r
+
+
+def resize_evidence(
+    ctx: FusionContext, state: ElementState, seen: Pose, held: Pose, sense: int
+) -> Sizes | None:
+    """The sizes a robot's box element takes now, if this sighting makes the evidence strong: two robots
+    agree on other sizes (within the confirmation distance), or one robot over ``resize_sightings``
+    sightings spanning ``resize_span_s``. Else None (the evidence is kept, or cleared by a sighting at
+    the held sizes)."""
+    if not resizable(ctx, state.iri):
+        return None
+    rules, robot, iri = ctx.rules, ctx.robot, state.iri
+    d = rules.of(state.ifc_types).confirm_distance_m
+    a = aligned(seen, held)
+    size = (a.sx, a.sy, a.sz)
+    track = ctx.memory.tracks.get(iri)
+    evidence = track.sizes if track is not None else {}
+
+    def near(other: Sizes) -> bool:
+        return all(abs(x - y) <= d for x, y in zip(size, other, strict=True))
+
+    if near((held.sx, held.sy, held.sz)):
+        if robot in evidence:
+            ctx.out.effects.append(size_evidence(iri, robot, None))
+        return None
+    mine = evidence.get(robot)
+    ev = (mine if mine is not None and near(mine.mean()) else SizeEvidence()).added(*size, sense)
+    others = [
+        e
+        for who, e in evidence.items()
+        if who != robot and near(e.mean()) and abs(sense - e.last_ns) <= RESIZE_AGREEMENT_NS
+    ]
+    if others or (ev.n >= rules.resize_sightings and ev.last_ns - ev.first_ns >= rules.resize_span_ns):
+        n = ev.n + sum(e.n for e in others)
+        mean = tuple((getattr(ev, k) + sum(getattr(e, k) for e in others)) / n for k in ("sx", "sy", "sz"))
+        ctx.out.effects.append(size_evidence(iri, None, None))
+        return (mean[0], mean[1], mean[2])
+    ctx.out.effects.append(size_evidence(iri, robot, ev))
+    return None
 
 
 def _unless_only_seen(ctx: FusionContext, r: ElementReport, state: ElementState) -> ElementReport | None:

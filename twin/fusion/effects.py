@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from twin.fusion.footprints import Pose
-from twin.fusion.memory import Alias, FusionMemory, Miss, Refinement
+from twin.fusion.memory import Alias, FusionMemory, Miss, Refinement, SizeEvidence
 
 Effect = Callable[[FusionMemory], None]
 
@@ -115,3 +115,18 @@ def count_tentative(iri: str, seen: tuple[int, int] | None) -> Effect:
 
 def mark_distinct(iri: str) -> Effect:
     return lambda m: m.distinct.add(iri)
+
+
+def size_evidence(iri: str, robot: str | None, evidence: SizeEvidence | None) -> Effect:
+    """Keep ``robot``'s evidence of other sizes (None: forget it; robot None: forget everyone's)."""
+
+    def run(m: FusionMemory) -> None:
+        t = m.track(iri)
+        if robot is None:
+            t.sizes.clear()
+        elif evidence is None:
+            t.sizes.pop(robot, None)
+        else:
+            t.sizes[robot] = evidence
+
+    return run

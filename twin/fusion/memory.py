@@ -69,6 +69,29 @@ class Refinement:
 
 
 @dataclass(slots=True)
+class SizeEvidence:
+    """One robot's sightings of an element at sizes other than the held ones, that agree with each
+    other: how many, their summed sizes (aligned with the held pose), the first and last sense time."""
+
+    n: int = 0
+    sx: float = 0.0
+    sy: float = 0.0
+    sz: float = 0.0
+    first_ns: int = 0
+    last_ns: int = 0
+
+    def added(self, sx: float, sy: float, sz: float, sense_ns: int) -> SizeEvidence:
+        """A copy with one more sighting."""
+        first = sense_ns if self.n == 0 else min(self.first_ns, sense_ns)
+        return SizeEvidence(
+            self.n + 1, self.sx + sx, self.sy + sy, self.sz + sz, first, max(self.last_ns, sense_ns)
+        )
+
+    def mean(self) -> tuple[float, float, float]:
+        return (self.sx / self.n, self.sy / self.n, self.sz / self.n)
+
+
+@dataclass(slots=True)
 class Miss:
     robot: str
     sense_ns: int
@@ -86,6 +109,8 @@ class Track:
     refinement: Refinement = field(default_factory=Refinement)
     moving: Refinement | None = None
     """Sightings of a short move not yet believed (``[fusion] move_sightings``), aligned and summed."""
+    sizes: dict[str, SizeEvidence] = field(default_factory=dict)
+    """Per robot, its agreeing sightings at other sizes than the held ones (a resize not yet believed)."""
 
     def sighted(self, robot: str, sense_ns: int) -> None:
         """A sighting by ``robot`` seen at ``sense_ns``: counted, and misses before it are forgotten."""

@@ -63,9 +63,7 @@ def merge_or_move(
     ctx.detected.add(other)
     ctx.used.add(other)
     o_held = ctx.held_pose(other)
-    if o_held is not None and confirms(
-        ctx.rules.of(ctx.states[other].ifc_types), pose, o_held, sizes=ctx.is_box_element(other)
-    ):
+    if o_held is not None and confirms(ctx.rules.of(ctx.states[other].ifc_types), pose, o_held, sizes=False):
         r = replace(r, box=None, storey=None)
     return r
 

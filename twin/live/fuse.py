@@ -36,7 +36,7 @@ from twin.errors import ObservationError
 from twin.fusion.absence import absence
 from twin.fusion.associate import adopt, associate, new_element, seen_within, through_alias
 from twin.fusion.clocks import default_sense, refuse_future, stale_change, stale_tombstone
-from twin.fusion.confirm import confirmation, confirms, hold, move, unsure_move
+from twin.fusion.confirm import confirmation, confirms, hold, move, resize_evidence, unsure_move
 from twin.fusion.context import Fused, FusionContext, Pending, report_pose
 from twin.fusion.effects import sighting
 from twin.fusion.footprints import Pose
@@ -133,14 +133,15 @@ def _held_element(
         held = ctx.held_pose(target)
     if held is not None and pose is not None and storey is not None:
         class_rules = ctx.rules.of(state.ifc_types)
-        sizes = ctx.is_box_element(target)
         track = ctx.memory.tracks.get(target)
-        if confirms(class_rules, pose, held, sizes=sizes):
-            r = confirmation(ctx, r, state, seen=pose, held=held, storey=storey)
-        elif unsure_move(ctx.rules, class_rules, pose, held, track, sizes=sizes):
-            r = hold(ctx, r, state, pose, held)  # a short move seen once may be a detector's outlier
+        sizes = resize_evidence(ctx, state, pose, held, sense)  # new sizes only on strong evidence
+        if confirms(class_rules, pose, held, sizes=False):
+            r = confirmation(ctx, r, state, seen=pose, held=held, storey=storey, sizes=sizes)
+        elif unsure_move(ctx.rules, class_rules, pose, held, track, sizes=False):
+            # a short move seen once may be a detector's outlier
+            r = hold(ctx, r, state, seen=pose, held=held, storey=storey, sizes=sizes)
         else:
-            r, pose = move(ctx, r, state, seen=pose, held=held, storey=storey)
+            r, pose = move(ctx, r, state, seen=pose, held=held, storey=storey, sizes=sizes)
             r = merge_or_move(ctx, r, state, pose, storey.key, sense=sense)
         if r is None:
             return  # a confirmation: nothing to plan
