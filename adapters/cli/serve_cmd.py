@@ -29,6 +29,7 @@ from adapters.cli.common import (
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
 from adapters.rerun.settings import RerunSettings
+from adapters.ros.sessions import resume_sessions
 from adapters.ros.settings import RosSettings, ros_robots
 from adapters.zenoh.access import site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
@@ -169,7 +170,10 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
                 ros = RosMapPublisher.following(daemon, cfg)  # on the dispatcher, a lane per robot
             if cfg.sources or any(r.detections is not None for r in ros_robots(cfg).values()):
                 storey_of = ros.storey_of if ros is not None else (lambda _robot: None)
-                ingest = RosIngest(session, cfg, service.submit_observation, storey_of=storey_of)
+                sessions = resume_sessions(service.store.select, cfg.robots)  # a restart starts none
+                ingest = RosIngest(
+                    session, cfg, service.submit_observation, storey_of=storey_of, sessions=sessions
+                )
                 daemon.status_sources.append(ingest.status)
                 service.sinks.append(ingest)  # storeys, doors and occluding maps: cheap, on the writer
             service.sinks += [sink for sink in (daemon, recorder) if sink is not None]

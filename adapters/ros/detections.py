@@ -5,7 +5,8 @@ For each detection, its best hypothesis (highest ``score``) is looked up in the 
 (``class_id`` -> IFC class): an unknown class or a score under the threshold is ignored and counted.
 Its ``bbox`` (centre pose, size) is taken to the map frame through the robot's TF at the stamp; a
 small roll and pitch are dropped, a box tilted beyond ``max_tilt_rad`` is refused. ``id`` (a tracker's
-id) makes a stable robot IRI ``urn:twin-ros:<robot>:det:<id>``, so a tracked object is one element;
+id) makes a stable robot IRI ``urn:twin-ros:<robot>:det:s<session>:<id>`` (:mod:`adapters.ros.sessions`),
+so a tracked object is one element;
 an empty ``id`` gets a one-off IRI (``once:<stamp>-<index>``), never reused. The array's
 ``header.stamp`` is the sense time, and the sensor's field of view and range cut by the building's
 structure (:func:`~adapters.ros.view.visibility_polygon`) is the view, with the classes of the table
@@ -42,6 +43,7 @@ from adapters.ros.observation_doc import (
     observation_turtle,
     robot_iri,
 )
+from adapters.ros.sessions import TrackerSession, session_iri
 from adapters.ros.settings import DetectionConfig
 from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
 from adapters.ros.view import polygon_area, visibility_polygon
@@ -86,6 +88,8 @@ class DetectionSettings:
     max_size_m: float = 20.0
     future_ns: int = 2 * _NS_PER_S
     """A stamp later than now + this is refused (clock skew allowed)."""
+    session_gap_ns: int = 10 * _NS_PER_S
+    """Arrays stamped further apart than this are two tracker sessions (:mod:`adapters.ros.sessions`)."""
     map_frame: str = "map"
     sensor_frame: str | None = None
     """The frame whose pose is the view's origin and heading (default: the array's ``frame_id``);
@@ -113,6 +117,7 @@ class DetectionSettings:
             max_detections=min(d.max_detections, limits.elements_per_observation),
             max_size_m=limits.box_size_m,
             future_ns=int(d.future_s * _NS_PER_S),
+            session_gap_ns=int(d.session_gap_s * _NS_PER_S),
             map_frame=d.map_frame,
             sensor_frame=d.sensor_frame,
             z_reference=d.z_reference,
@@ -132,6 +137,9 @@ class DetectionContext:
     occlusion_known: bool = True
     """False when the structure that hides parts of the view is not known (its map not yet built):
     then no view is claimed at all, rather than one that sees through walls."""
+    session: TrackerSession | None = None
+    """The robot's tracker session (:mod:`adapters.ros.sessions`): its IRIs carry it. None: the IRIs
+    are ``det:<id>`` (no session)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -295,6 +303,9 @@ def translate_detections(
     if stamp > ctx.now_ns + settings.future_ns:
         msg = f"Detection3DArray stamp {stamp} ns is {(stamp - ctx.now_ns) / 1e9:.3f} s in the future."
         raise RosInputError("future", msg)
+    label = None
+    if ctx.session is not None:
+        label = ctx.session.observe(stamp, [d.id for d in detections if d.id], gap_ns=settings.session_gap_ns)
     ignored: Counter[str] = Counter()
     refused: list[tuple[str, str]] = []
     boxes: list[BoxReport] = []
@@ -327,7 +338,11 @@ def translate_detections(
             refused.append((err.cause, str(err)))
             continue
         iri = (
-            robot_iri(settings.robot, "det", d.id)
+            (
+                robot_iri(settings.robot, "det", d.id)
+                if label is None
+                else session_iri(settings.robot, label, d.id)
+            )
             if d.id
             else robot_iri(settings.robot, "once", f"{stamp}-{index}")
         )

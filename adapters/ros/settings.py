@@ -95,6 +95,7 @@ class DetectionConfig:
     max_tilt_deg: float = 15.0
     max_detections: int = 256
     future_s: float = 2.0
+    session_gap_s: float = 10.0
     map_frame: str = "map"
     sensor_frame: str | None = None
     z_reference: Literal["storey", "building"] = "storey"
@@ -189,6 +190,14 @@ class DetectionTable(ConfigTable):
     max_tilt_deg: Annotated[Number, Field(ge=0, le=90, description="Boxes tilted more are refused.")] = 15.0
     max_detections: Annotated[Whole, Field(ge=1, le=10_000)] = 256
     future_s: Annotated[Number, Field(ge=0, le=3600, description="Clock skew allowed for stamps.")] = 2.0
+    session_gap_s: Annotated[
+        Number,
+        Field(
+            gt=0,
+            le=86400,
+            description="Arrays stamped further apart are two tracker sessions (ids then name new objects).",
+        ),
+    ] = 10.0
     map_frame: Text = Field("map", description="The robot's map frame (the twin's building XY).")
     sensor_frame: Text | None = Field(None, description="Frame of the view (default: the array's frame).")
     z_reference: Literal["storey", "building"] = Field(
@@ -237,6 +246,7 @@ class DetectionTable(ConfigTable):
             max_tilt_deg=self.max_tilt_deg,
             max_detections=self.max_detections,
             future_s=self.future_s,
+            session_gap_s=self.session_gap_s,
             map_frame=self.map_frame,
             sensor_frame=self.sensor_frame or None,
             z_reference=self.z_reference,

@@ -31,7 +31,7 @@ import logging
 import queue
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -60,6 +60,7 @@ from adapters.ros.rmw_zenoh import (
     resolve_name,
     type_hash,
 )
+from adapters.ros.sessions import TrackerSession
 from adapters.ros.settings import ros_robots, ros_sources
 from adapters.ros.tf import TfBuffer, decode_tf_message
 from adapters.zenoh.latched import CDR, declare_latched_subscriber
@@ -129,6 +130,8 @@ class _Robot:
     tf: TfBuffer = field(default_factory=TfBuffer)
     waiting: list[tuple[float, _Message]] = field(default_factory=list)
     """Arrays whose transform is not in yet: (monotonic deadline, message), oldest first."""
+    session: TrackerSession = field(default_factory=TrackerSession)
+    """Its tracker's session (resumed from the twin at start: a daemon restart starts none)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -161,6 +164,7 @@ class RosIngest:
         clock: Callable[[], int] = time.time_ns,
         fusion_terms: bool | None = None,
         queue_depth: int = QUEUE_DEPTH,
+        sessions: Mapping[str, TrackerSession] | None = None,
     ) -> None:
         self.submit = submit
         self.storey_of = storey_of
@@ -187,7 +191,8 @@ class RosIngest:
             if d is None or robot.namespace is None:
                 continue
             settings = DetectionSettings.from_config(robot.name, d, config.limits)
-            self._robots[robot.name] = _Robot(robot.name, settings, d.view_skill)
+            resumed = (sessions or {}).get(robot.name) or TrackerSession()
+            self._robots[robot.name] = _Robot(robot.name, settings, d.view_skill, session=resumed)
             self._counts[robot.name] = Counts()
             node = RosNode(robot.domain_id, robot.namespace, INGEST_NODE, zid, node_id)
             node_id += 1
@@ -446,7 +451,9 @@ class RosIngest:
             elevation = self._elevations.get(storey or "", 0.0)
             grid = self._grids.get((storey, robot.view_skill)) if storey and robot.view_skill else None
         known = robot.view_skill is None or grid is not None
-        ctx = DetectionContext(storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known)
+        ctx = DetectionContext(
+            storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known, session=robot.session
+        )
         return translate_detections(m.payload, robot.settings, ctx)
 
     def _deliver(self, owner: str, t: Translation) -> None:
@@ -524,6 +531,10 @@ class RosIngest:
                 "views": self.fusion_terms,
                 "obstacles_held": sum(t.held for t in self._obstacles.values()),
                 "counts": counts,
+                "tracker_sessions": {
+                    name: {"session": r.session.label, "restarts": r.session.restarts}
+                    for name, r in sorted(self._robots.items())
+                },
             }
         }
 

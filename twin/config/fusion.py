@@ -106,6 +106,11 @@ class FusionTable(ConfigTable):
     ttl_s: Annotated[Number, Field(ge=0.0)] = Field(
         0.0, description="Remove robot-added elements nobody confirmed for this long (0: never)."
     )
+    alias_jump_m: Annotated[Number, Field(gt=0.0, le=1000.0)] = Field(
+        2.0,
+        description="A report through an alias farther than this from the element (or failing the size "
+        "and kind gates) drops the alias and is associated afresh (a reused tracker id is a new object).",
+    )
     alias_ttl_s: Annotated[Number, Field(gt=0.0)] = Field(
         3600.0, description="A robot IRI that resolved to an element is forgotten when unused this long."
     )
@@ -133,6 +138,7 @@ class FusionTable(ConfigTable):
             merge_iou=self.merge_iou,
             tentative_sightings=self.tentative_sightings,
             alias_ttl_ns=int(self.alias_ttl_s * 1e9),
+            alias_jump_m=self.alias_jump_m,
             max_skew_ns=int(self.max_clock_skew_s * 1e9),
         )
 
@@ -185,6 +191,7 @@ class FusionRules:
     merge_iou: float = 0.5
     tentative_sightings: int = 1
     alias_ttl_ns: int = 3600 * 10**9
+    alias_jump_m: float = 2.0
     max_skew_ns: int = 2 * 10**9
 
     def of(self, ifc_types: tuple[str, ...]) -> FusionClassRules:

@@ -14,16 +14,17 @@ Example::
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 from twin.fusion.effects import count_tentative, drop_alias, mark_distinct, set_alias, sighting, use_alias
-from twin.fusion.footprints import Pose, heights_overlap, iou
+from twin.fusion.footprints import Pose, centre_distance, heights_overlap, iou
 from twin.fusion.gates import compatible, is_candidate, kinds_agree, lies_within, matches, sizes_agree
 from twin.fusion.memory import Alias
 from twin.records import ElementReport
 
 if TYPE_CHECKING:
     from twin.fusion.context import FusionContext
+    from twin.live.state import ElementState
 
 
 def through_alias(ctx: FusionContext, r: ElementReport) -> tuple[str, Alias | None]:
@@ -44,6 +45,39 @@ class Association:
 
     target: str | None = None
     within: str | None = None
+
+
+def alias_fits(
+    ctx: FusionContext, r: ElementReport, state: ElementState, pose: Pose
+) -> Literal["fits", "within", "fails"]:
+    """Whether a report through an alias still fits the element it resolved to: its class and kind
+    agree, it is no farther than ``alias_jump_m`` and its size agrees (``"within"``: smaller, inside the
+    element's footprint, a partly hidden view of it). A reused tracker id fails."""
+    held = ctx.held_pose(state.iri)
+    schema = ctx.live.site.schema
+    if held is None or not is_candidate(state):
+        return "fits"  # nothing to compare with (a door, structure: the alias is as good as the IRI)
+    if r.ifc_class is not None and not compatible(schema, r.ifc_class, state):
+        return "fails"
+    if not kinds_agree(schema, r.classes, r.ifc_class, state):
+        return "fails"
+    if centre_distance(pose, held) > ctx.rules.alias_jump_m or not heights_overlap(pose, held):
+        return "fails"
+    rules = ctx.rules.of(state.ifc_types)
+    if sizes_agree(rules, pose, held):
+        return "fits"
+    return "within" if lies_within(pose, held, margin_m=rules.confirm_distance_m) else "fails"
+
+
+def drop_failed_alias(ctx: FusionContext, r: ElementReport, target: str) -> None:
+    """``r`` came through an alias it does not fit: the alias is dropped, ``r`` is associated afresh."""
+    ctx.out.resolved.pop(r.iri, None)
+    ctx.out.effects.append(drop_alias(r.iri))
+    ctx.out.unaliased.append(r.iri)
+    ctx.out.notes.append(
+        f"<{r.iri}> is no longer <{target}>: its report does not fit it (another object, e.g. a reused "
+        "tracker id); associated afresh"
+    )
 
 
 def associate(ctx: FusionContext, r: ElementReport, pose: Pose, storey: str) -> Association:

@@ -34,7 +34,15 @@ from dataclasses import replace
 from twin.config import FusionRules, Right
 from twin.errors import ObservationError
 from twin.fusion.absence import absence
-from twin.fusion.associate import adopt, associate, new_element, seen_within, through_alias
+from twin.fusion.associate import (
+    adopt,
+    alias_fits,
+    associate,
+    drop_failed_alias,
+    new_element,
+    seen_within,
+    through_alias,
+)
 from twin.fusion.clocks import default_sense, refuse_future, stale_change, stale_tombstone
 from twin.fusion.confirm import confirmation, confirms, hold, move, resize_evidence, unsure_move
 from twin.fusion.context import Fused, FusionContext, Pending, report_pose
@@ -92,6 +100,22 @@ def _fuse_report(ctx: FusionContext, r: ElementReport, sense: int) -> None:
     pose = report_pose(r, storey.elevation_m) if storey is not None else None
     if pose is not None and storey_key is not None:
         ctx.boxes.append((storey_key, r, pose))
+    fit = "fits"
+    if (
+        alias is not None
+        and state is not None
+        and not state.removed
+        and pose is not None
+        and ctx.rules.enabled
+    ):
+        fit = alias_fits(ctx, r, state, pose)  # an alias is checked, not trusted
+    if fit == "within":
+        seen_within(ctx, r, target, sense)  # a partly hidden view of it: no move
+        return
+    if fit == "fails":
+        drop_failed_alias(ctx, r, target)  # e.g. a reused tracker id: associated afresh
+        target, alias = r.iri, None
+        state = ctx.states.get(target)
     exists = state is not None and not state.removed
     known = state is not None
     if not exists and ctx.rules.enabled and pose is not None and storey_key is not None and not r.distinct:

@@ -64,3 +64,42 @@ def test_two_desks_pushed_together_seen_as_one_box_keep_their_sizes_and_are_not_
     assert (size_of(service, left), size_of(service, right)) == sizes
     assert not service.states[left].removed and not service.states[right].removed
     assert cell(service, 5.4, 2.0) == 100 and cell(service, 6.6, 2.0) == 100
+
+
+# --- aliases are checked (issue case 3) ----------------------------------------------------------------
+
+DET3 = "urn:twin-ros:robot1:det:3"
+
+
+def test_a_reused_tracker_id_that_is_now_a_chair_elsewhere_drops_its_alias_and_never_moves_the_table() -> (
+    None
+):
+    service, _ = started()
+    shape = service.live_maps.shape_of(TABLE)
+    first = observe(service, "robot1", box(DET3, 2.0, 3.0, sx=1.2, sy=0.8, cls="IfcFurnishingElement"))
+    assert first.body["resolved"] == {DET3: TABLE} and service.live.fusion.aliases[DET3].target == TABLE
+    chair = observe(service, "robot1", box(DET3, 6.0, 2.0, sx=0.5, sy=0.5, sz=0.9))  # perception restarted
+    assert chair.body["upserted"] == [DET3] and "resolved" not in chair.body
+    assert DET3 not in service.live.fusion.aliases and service.live_maps.shape_of(TABLE) is shape
+    assert not service.store.select(f"SELECT ?t WHERE {{ <{DET3}> twin:aliasOf ?t }}")
+    assert cell(service, 2.0, 3.0) == 100 and cell(service, 6.0, 2.0) == 100
+
+
+def test_a_report_through_an_alias_farther_than_the_jump_limit_is_another_object() -> None:
+    service, _ = started()
+    observe(service, "robot1", box("urn:robot1:desk", 5.0, 2.0, sx=1.0, sy=0.6))
+    observe(service, "robot2", box("urn:robot2:7", 5.02, 2.0, sx=1.0, sy=0.6))
+    far = observe(service, "robot2", box("urn:robot2:7", 7.5, 2.0, sx=1.0, sy=0.6))  # 2.5 m away
+    assert far.body["upserted"] == ["urn:robot2:7"] and "resolved" not in far.body
+    assert cell(service, 5.0, 2.0) == 100 and cell(service, 7.5, 2.0) == 100
+
+
+def test_a_report_through_an_alias_within_the_jump_limit_still_moves_the_element() -> None:
+    service, _ = started()
+    observe(service, "robot1", box("urn:robot1:desk", 5.0, 2.0, sx=1.0, sy=0.6))
+    observe(service, "robot2", box("urn:robot2:7", 5.02, 2.0, sx=1.0, sy=0.6))
+    moved = observe(service, "robot2", box("urn:robot2:7", 6.2, 2.0, sx=1.0, sy=0.6))  # 1.2 m: a move
+    assert moved.body["upserted"] == ["urn:robot1:desk"] and moved.body["resolved"] == {
+        "urn:robot2:7": "urn:robot1:desk"
+    }
+    assert cell(service, 5.0, 2.0) == 0 and cell(service, 6.2, 2.0) == 100
