@@ -115,7 +115,18 @@ class FusionTable(ConfigTable):
         3600.0, description="A robot IRI that resolved to an element is forgotten when unused this long."
     )
     max_clock_skew_s: Annotated[Number, Field(ge=0.0, le=3600.0)] = Field(
-        2.0, description="A sense time later than the daemon's clock plus this is refused."
+        2.0,
+        description="Until a robot's clock offset is known (clock_settle_s), a sense time later than the "
+        "daemon's clock plus this is refused.",
+    )
+    max_clock_offset_s: Annotated[Number, Field(ge=0.0, le=3600.0)] = Field(
+        0.5, description="The log warns once per robot whose clock offset estimate exceeds this."
+    )
+    clock_window_s: Annotated[Number, Field(gt=0.0, le=86400.0)] = Field(
+        60.0, description="A robot's clock offset: the least arrival - sense time over this long."
+    )
+    clock_settle_s: Annotated[Number, Field(ge=0.0, le=86400.0)] = Field(
+        5.0, description="Sense times are corrected by a robot's offset once its reports span this long."
     )
     classes: dict[str, FusionClassTable] = Field(
         default_factory=dict, description="Per IFC class (subtypes included): values that differ."
@@ -140,6 +151,9 @@ class FusionTable(ConfigTable):
             alias_ttl_ns=int(self.alias_ttl_s * 1e9),
             alias_jump_m=self.alias_jump_m,
             max_skew_ns=int(self.max_clock_skew_s * 1e9),
+            max_clock_offset_ns=int(self.max_clock_offset_s * 1e9),
+            clock_window_ns=int(self.clock_window_s * 1e9),
+            clock_settle_ns=int(self.clock_settle_s * 1e9),
         )
 
 
@@ -193,6 +207,9 @@ class FusionRules:
     alias_ttl_ns: int = 3600 * 10**9
     alias_jump_m: float = 2.0
     max_skew_ns: int = 2 * 10**9
+    max_clock_offset_ns: int = 5 * 10**8
+    clock_window_ns: int = 60 * 10**9
+    clock_settle_ns: int = 5 * 10**9
 
     def of(self, ifc_types: tuple[str, ...]) -> FusionClassRules:
         """The rules of the most specific configured class among ``ifc_types`` (class first)."""

@@ -1,24 +1,34 @@
-"""Sense time: when a report was seen, and whether it is news.
+"""Sense time: when a report was seen, on the daemon's clock, and whether it is news.
 
-A report's sense time is its own ``twin:senseTime``, else its view's, else its arrival. A change seen
-before what the twin already holds of the element (its last applied change, or any later sighting) is
-**stale**: not applied, listed in the ack's ``"stale"``.
+A report's sense time is its own ``twin:senseTime``, else its view's, else its arrival. Robots' clocks
+are off: each robot's **clock offset** is estimated as the least arrival - sense time over the last
+``clock_window_s`` (every observation counts, accepted or not), and once its reports span
+``clock_settle_s`` its sense times are corrected by it, so that sense times from different robots
+compare. A sense time (corrected) later than its arrival is taken as its arrival. Until the offset is
+known, a sense time more than ``max_clock_skew_s`` ahead of the daemon's clock is refused; the log warns
+once per robot whose offset exceeds ``max_clock_offset_s``.
+
+A change seen before what the twin already holds of the element (its last applied change, or any later
+sighting) is **stale**: not applied, listed in the ack's ``"stale"``.
 
 Example::
 
-    sense = default_sense(obs, arrival_ns)
-    refuse_future(obs, sense, now_ns=now, rules=rules)
+    clock = robot_clock(memory, "robot1", obs, arrival_ns=now, rules=rules)
+    refuse_future(obs, clock, now_ns=now, rules=rules)
+    sense = clock.sense(obs.view.sense_ns)     # on the daemon's clock
 """
 
 from __future__ import annotations
 
 import datetime
+import logging
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from twin.config import FusionRules
 from twin.errors import ObservationError
 from twin.fusion.effects import sighting
-from twin.fusion.memory import FusionMemory
+from twin.fusion.memory import ClockEstimate, FusionMemory
 from twin.records import ElementReport, Observation
 
 if TYPE_CHECKING:
@@ -31,15 +41,72 @@ def when(ns: int) -> str:
     return datetime.datetime.fromtimestamp(ns / 1e9, tz=datetime.UTC).isoformat(timespec="milliseconds")
 
 
-def default_sense(obs: Observation, arrival_ns: int) -> int:
-    """The sense time of the reports that carry none: the view's, else the arrival."""
-    view = obs.view
-    return view.sense_ns if view is not None and view.sense_ns is not None else arrival_ns
+log = logging.getLogger(__name__)
 
 
-def refuse_future(obs: Observation, default: int, *, now_ns: int, rules: FusionRules) -> None:
-    """ObservationError naming a sense time more than ``max_clock_skew_s`` ahead of the daemon's clock."""
-    for sense in [r.sense_ns for r in obs.reports if r.sense_ns is not None] + [default]:
+@dataclass(frozen=True, slots=True)
+class RobotClock:
+    """One observation's robot clock: its arrival and the robot's offset (0 until known)."""
+
+    arrival_ns: int
+    offset_ns: int
+    settled: bool
+
+    def sense(self, raw_ns: int | None) -> int:
+        """A sense time the robot gave, on the daemon's clock (never later than the arrival); None: the
+        arrival."""
+        if raw_ns is None:
+            return self.arrival_ns
+        return min(raw_ns + self.offset_ns, self.arrival_ns)
+
+
+def robot_clock(
+    memory: FusionMemory, robot: str, obs: Observation, *, arrival_ns: int, rules: FusionRules
+) -> RobotClock:
+    """Count this observation's sense times in ``robot``'s clock offset estimate (at once: a transport
+    fact, kept whether or not the observation is accepted) and return the robot's clock."""
+    raw = [r.sense_ns for r in obs.reports if r.sense_ns is not None]
+    if obs.view is not None and obs.view.sense_ns is not None:
+        raw.append(obs.view.sense_ns)
+    estimate = memory.clocks.get(robot)
+    if not raw:
+        if estimate is None:
+            return RobotClock(arrival_ns, 0, settled=False)
+        return RobotClock(arrival_ns, estimate.offset_ns, settled=_settled(estimate, arrival_ns, rules))
+    if estimate is None:
+        estimate = memory.clocks[robot] = ClockEstimate()
+    estimate.add(arrival_ns, arrival_ns - max(raw), window_ns=rules.clock_window_ns)
+    settled = _settled(estimate, arrival_ns, rules)
+    if settled and not estimate.warned and abs(estimate.offset_ns) > rules.max_clock_offset_ns:
+        estimate.warned = True
+        log.warning(
+            "Robot %r's clock is off by about %+.3f s (behind > 0, ahead < 0; latency included): its sense "
+            "times are corrected by it (more than [fusion] max_clock_offset_s = %g s; check its time sync).",
+            robot,
+            estimate.offset_ns / 1e9,
+            rules.max_clock_offset_ns / 1e9,
+        )
+    return RobotClock(arrival_ns, estimate.offset_ns if settled else 0, settled=settled)
+
+
+def _settled(estimate: ClockEstimate, arrival_ns: int, rules: FusionRules) -> bool:
+    return arrival_ns - estimate.first_ns >= rules.clock_settle_ns
+
+
+def clock_offsets(memory: FusionMemory) -> dict[str, float]:
+    """Each robot's clock offset estimate, seconds (behind > 0, ahead < 0; latency included)."""
+    return {robot: round(e.offset_ns / 1e9, 3) for robot, e in sorted(list(memory.clocks.items()))}
+
+
+def refuse_future(obs: Observation, clock: RobotClock, *, now_ns: int, rules: FusionRules) -> None:
+    """ObservationError naming a sense time more than ``max_clock_skew_s`` ahead of the daemon's clock,
+    while the robot's clock offset is not known yet (once it is, sense times are corrected)."""
+    if clock.settled:
+        return
+    raw = [r.sense_ns for r in obs.reports if r.sense_ns is not None]
+    if obs.view is not None and obs.view.sense_ns is not None:
+        raw.append(obs.view.sense_ns)
+    for sense in raw:
         if sense > now_ns + rules.max_skew_ns:
             raise ObservationError(
                 f"Observation sense time {when(sense)} is in the future: the daemon's clock says "

@@ -14,6 +14,7 @@ Example::
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -137,6 +138,32 @@ class Track:
 
 
 @dataclass(slots=True)
+class ClockEstimate:
+    """One robot's clock offset: the running minimum of arrival - sense time (ns) over a window of
+    arrival time (a monotonic queue: deltas increasing, the minimum first)."""
+
+    samples: deque[tuple[int, int]] = field(default_factory=deque)
+    """(arrival, arrival - sense) of the samples that can still be the window's minimum."""
+    first_ns: int = 0
+    """Arrival of the first sample since the window last ran empty (the estimate settles after it)."""
+    warned: bool = False
+
+    def add(self, arrival_ns: int, delta_ns: int, *, window_ns: int) -> None:
+        while self.samples and self.samples[0][0] < arrival_ns - window_ns:
+            self.samples.popleft()
+        if not self.samples:
+            self.first_ns = arrival_ns
+        while self.samples and self.samples[-1][1] >= delta_ns:
+            self.samples.pop()
+        self.samples.append((arrival_ns, delta_ns))
+
+    @property
+    def offset_ns(self) -> int:
+        """How far the robot's clock is behind the daemon's (negative: ahead), latency included."""
+        return self.samples[0][1] if self.samples else 0
+
+
+@dataclass(slots=True)
 class Alias:
     """A robot IRI that resolved to ``target``; forgotten when unused for ``alias_ttl_s``."""
 
@@ -158,6 +185,8 @@ class FusionMemory:
     the first one's time); forgotten after :data:`TENTATIVE_TTL_NS` (a false detection seen once)."""
     distinct: set[str] = field(default_factory=set)
     """Elements robots said are distinct objects (never merged into another)."""
+    clocks: dict[str, ClockEstimate] = field(default_factory=dict)
+    """Per robot, its clock offset estimate (:mod:`twin.fusion.clocks`)."""
     shape_poses: dict[str, tuple[object, object, Pose]] = field(default_factory=dict)
     """Element -> (mesh, placement, pose): the pose of the shape it has, computed once per shape."""
 

@@ -43,7 +43,7 @@ from twin.fusion.associate import (
     seen_within,
     through_alias,
 )
-from twin.fusion.clocks import default_sense, refuse_future, stale_change, stale_tombstone
+from twin.fusion.clocks import refuse_future, robot_clock, stale_change, stale_tombstone
 from twin.fusion.confirm import confirmation, confirms, hold, move, resize_evidence, unsure_move
 from twin.fusion.context import Fused, FusionContext, Pending, report_pose
 from twin.fusion.effects import sighting
@@ -71,15 +71,16 @@ def fuse(
     """Resolve, classify and complete ``obs`` (see the module's docstring); ObservationError names a
     sense time too far in the future or an unknown view storey. ``pending`` (created and moved elements
     earlier in the batch) is updated with this observation's."""
-    sense = default_sense(obs, arrival_ns)
-    refuse_future(obs, sense, now_ns=now_ns, rules=rules)
+    clock = robot_clock(live.fusion, robot, obs, arrival_ns=arrival_ns, rules=rules)
+    refuse_future(obs, clock, now_ns=now_ns, rules=rules)
     view = obs.view
+    sense = clock.sense(view.sense_ns if view is not None else None)
     if view is not None and view.storey not in live.site.storeys:
         known = ", ".join(sorted(live.site.storeys)) or "none"
         raise ObservationError(f"The view's storey {view.storey!r} is unknown; storeys: {known}.")
     ctx = FusionContext(robot, rights, live, states, shapes, rules, base_iri, pending, arrival_ns)
     for r in obs.reports:
-        _fuse_report(ctx, r, r.sense_ns if r.sense_ns is not None else sense)
+        _fuse_report(ctx, r, clock.sense(r.sense_ns) if r.sense_ns is not None else sense)
     if view is not None and rules.enabled and "dynamic" in rights:
         absence(ctx, storey=view.storey, polygons=view.polygons, detects=view.detects, sense=sense)
     ctx.out.reports = tuple(ctx.reports)
