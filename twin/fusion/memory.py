@@ -163,6 +163,19 @@ class ClockEstimate:
         return self.samples[0][1] if self.samples else 0
 
 
+@dataclass(frozen=True, slots=True)
+class PastPose:
+    """Where an element stood until a change seen at ``until_ns`` moved or removed it."""
+
+    storey: str
+    pose: Pose
+    until_ns: int
+
+
+HISTORY_PER_ELEMENT = 8
+"""Past poses kept per element (its last moves, or its removal)."""
+
+
 @dataclass(slots=True)
 class Alias:
     """A robot IRI that resolved to ``target``; forgotten when unused for ``alias_ttl_s``."""
@@ -185,6 +198,9 @@ class FusionMemory:
     the first one's time); forgotten after :data:`TENTATIVE_TTL_NS` (a false detection seen once)."""
     distinct: set[str] = field(default_factory=set)
     """Elements robots said are distinct objects (never merged into another)."""
+    history: dict[str, deque[PastPose]] = field(default_factory=dict)
+    """Per element, its previous poses and the sense times of the changes that ended them (the last
+    :data:`HISTORY_PER_ELEMENT`; a removed element's last pose too): late news is checked against them."""
     clocks: dict[str, ClockEstimate] = field(default_factory=dict)
     """Per robot, its clock offset estimate (:mod:`twin.fusion.clocks`)."""
     shape_poses: dict[str, tuple[object, object, Pose]] = field(default_factory=dict)
@@ -204,6 +220,13 @@ class FusionMemory:
         if t is None:
             t = self.tracks[iri] = Track()
         return t
+
+    def remember(self, iri: str, past: PastPose) -> None:
+        """``iri`` stood at ``past.pose`` until ``past.until_ns``."""
+        kept = self.history.get(iri)
+        if kept is None:
+            kept = self.history[iri] = deque(maxlen=HISTORY_PER_ELEMENT)
+        kept.append(past)
 
     def aliases_of(self, target: str) -> list[str]:
         return sorted(a for a, v in self.aliases.items() if v.target == target)

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 from twin.fusion.footprints import Pose
 from twin.fusion.gates import is_candidate
+from twin.fusion.memory import FusionMemory, PastPose
 
 if TYPE_CHECKING:
     from twin.live.state import ElementState, LiveState
@@ -54,9 +55,9 @@ def index_element(live: LiveState, iri: str, state: ElementState | None) -> None
     memory = live.fusion
     if memory.poses is None:
         return  # built on first use
-    for poses in memory.poses.values():
-        poses.pop(iri, None)
+    before = [(storey, poses.pop(iri)) for storey, poses in memory.poses.items() if iri in poses]
     if state is None or not is_candidate(state):
+        _remember(memory, iri, before, None, state)
         return
     shape = live.maps.shape_of(iri)
     if shape is None:
@@ -64,5 +65,20 @@ def index_element(live: LiveState, iri: str, state: ElementState | None) -> None
         return
     pose = memory.pose(iri, shape)
     storey = state.storey or storey_at(live, pose.zmin)
+    _remember(memory, iri, before, pose, state)
     if storey is not None:
         memory.poses.setdefault(storey, {})[iri] = pose
+
+
+def _remember(
+    memory: FusionMemory,
+    iri: str,
+    before: list[tuple[str, Pose]],
+    now: Pose | None,
+    state: ElementState | None,
+) -> None:
+    """Keep where ``iri`` stood before a change that moved or removed it (late news is checked against
+    it: :mod:`twin.fusion.history`)."""
+    for storey, pose in before:
+        if pose != now:
+            memory.remember(iri, PastPose(storey, pose, state.sensed_ns if state is not None else 0))

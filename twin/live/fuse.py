@@ -49,6 +49,7 @@ from twin.fusion.context import Fused, FusionContext, Pending, report_pose
 from twin.fusion.effects import sighting
 from twin.fusion.footprints import Pose
 from twin.fusion.gates import compatible, is_candidate
+from twin.fusion.history import late_news, seen_late
 from twin.fusion.merge import merge_or_move, unmerge
 from twin.live.state import ElementState, LiveState, StoreyFrame
 from twin.records import ElementReport, Observation, Shape
@@ -126,6 +127,9 @@ def _fuse_report(ctx: FusionContext, r: ElementReport, sense: int) -> None:
             r = adopt(ctx, r, found.target)
         elif found.within is not None:
             seen_within(ctx, r, found.within, sense)  # a partly hidden view of it
+            return
+        elif not known and (late := late_news(ctx, r, pose, storey_key, sense)) is not None:
+            seen_late(ctx, r, late, sense)  # seen before it moved or went: no ghost at the old place
             return
     if not exists or state is None:
         new_element(
