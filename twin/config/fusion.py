@@ -64,6 +64,11 @@ class FusionTable(ConfigTable):
     certain_move_m: Annotated[Number, Field(ge=0.0, le=100.0)] = Field(
         0.5, description="A sighting this far from the held pose moves the element at once."
     )
+    disagreement_window_s: Annotated[Number, Field(ge=0.0, le=86400.0)] = Field(
+        10.0,
+        description="A short move is held while another robot confirmed the held pose within this long, "
+        "unless a second robot agrees with it (two biased detectors do not flap a still object).",
+    )
     resize_sightings: Annotated[Whole, Field(ge=1, le=1000)] = Field(
         5,
         description="A robot-made box element takes other sizes only when two robots agree on them, or "
@@ -144,6 +149,7 @@ class FusionTable(ConfigTable):
             refine_fraction=self.refine_fraction,
             move_sightings=self.move_sightings,
             certain_move_m=self.certain_move_m,
+            disagreement_window_ns=int(self.disagreement_window_s * 1e9),
             resize_sightings=self.resize_sightings,
             resize_span_ns=int(self.resize_span_s * 1e9),
             merge_iou=self.merge_iou,
@@ -200,6 +206,7 @@ class FusionRules:
     refine_fraction: float = 0.5
     move_sightings: int = 2
     certain_move_m: float = 0.5
+    disagreement_window_ns: int = 10 * 10**9
     resize_sightings: int = 5
     resize_span_ns: int = 10**9
     merge_iou: float = 0.5

@@ -50,13 +50,14 @@ def absence(
     """Count a miss for every element the view should have seen and the observation does not describe;
     plan the removal of those with enough misses."""
     out, memory = ctx.out, ctx.memory
+    schema = ctx.live.site.schema
     for iri, pose in ctx.candidates(storey).items():
         if iri in ctx.detected or iri in out.merged:
             continue
         state = ctx.states.get(iri)
         if state is None or not is_candidate(state):
             continue
-        if not any(d in state.ifc_types for d in detects):  # the element is of a class it detects
+        if not any(compatible(schema, d, state) for d in detects):  # kinds agree, as in association
             continue
         if not inside(corners(pose, inset=VIEW_INSET_M), polygons):  # type: ignore[arg-type]
             continue

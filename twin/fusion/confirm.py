@@ -120,6 +120,7 @@ def confirmation(
     seen: Pose,
     held: Pose,
     storey: StoreyFrame,
+    sense: int,
     sizes: Sizes | None = None,
 ) -> ElementReport | None:
     """A sighting that confirms the held pose: averaged in memory, or the mean committed once it is past
@@ -143,7 +144,7 @@ def confirmation(
         ctx.out.effects.append(reset_refinement(target))
         ctx.pend(target, storey.key, at, r=r)
         return r
-    ctx.out.effects.append(refine(target, sighted))
+    ctx.out.effects.append(refine(target, sighted, robot=ctx.robot, sense=sense))
     if sizes is not None:
         return resized(ctx, r, state, held=held, storey=storey, sizes=sizes)
     r = replace(r, box=None, storey=None)  # where it stood: on its storey too
@@ -165,10 +166,27 @@ def hold(
     target = state.iri
     track = ctx.memory.tracks.get(target)
     agree = agreeing(ctx.rules.of(state.ifc_types), seen, held, track, sizes=False) > 0
-    ctx.out.effects.append(hold_move(target, aligned(seen, held), restart=not agree))
+    ctx.out.effects.append(hold_move(target, aligned(seen, held), restart=not agree, robot=ctx.robot))
     if sizes is not None:
         return resized(ctx, r, state, held=held, storey=storey, sizes=sizes)
     return _unless_only_seen(ctx, replace(r, box=None, storey=None), state)
+
+
+def disputed(ctx: FusionContext, state: ElementState, seen: Pose, held: Pose, sense: int) -> bool:
+    """Whether a short move must wait: another robot confirmed the held pose within
+    ``disagreement_window_s`` of it, and no second robot agrees with the move (two detectors biased
+    against each other do not flap a still object). A move beyond ``certain_move_m`` never waits."""
+    if far(ctx.rules, seen, held):
+        return False
+    track = ctx.memory.tracks.get(state.iri)
+    if track is None:
+        return False
+    window = ctx.rules.disagreement_window_ns
+    against = {r for r, t in track.confirmed.items() if r != ctx.robot and sense - t <= window}
+    if not against:
+        return False
+    movers = (track.movers if track.moving is not None else set()) | {ctx.robot}
+    return len(movers - against) < 2
 
 
 def move(

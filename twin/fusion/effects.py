@@ -47,25 +47,35 @@ def forget(iri: str) -> Effect:
     return run
 
 
-def refine(iri: str, pose: Pose) -> Effect:
+def refine(iri: str, pose: Pose, *, robot: str = "", sense: int = 0) -> Effect:
+    """A confirmation by ``robot`` seen at ``sense``: averaged, and whatever seemed to move did not."""
+
     def run(m: FusionMemory) -> None:
         t = m.track(iri)
         t.refinement.add(pose)
-        t.moving = None  # a confirmation: whatever seemed to move did not
+        t.moving = None
+        t.movers.clear()
+        if robot:
+            t.confirmed[robot] = max(sense, t.confirmed.get(robot, sense))
 
     return run
 
 
-def hold_move(iri: str, pose: Pose, *, restart: bool) -> Effect:
-    """Another sighting of a move not yet believed: added to those it agrees with, or a new start."""
+def hold_move(iri: str, pose: Pose, *, restart: bool, robot: str = "") -> Effect:
+    """Another sighting of a move not yet believed (by ``robot``): added to those it agrees with, or a
+    new start."""
 
     def run(m: FusionMemory) -> None:
         t = m.track(iri)
         moving = t.moving
         if restart or moving is None:
             moving = Refinement()
+            t.movers.clear()
         moving.add(pose)
         t.moving = moving
+        if robot:
+            t.movers.add(robot)
+            t.confirmed.pop(robot, None)
 
     return run
 
@@ -76,6 +86,8 @@ def reset_refinement(iri: str) -> Effect:
         if t is not None:
             t.refinement = Refinement()
             t.moving = None
+            t.movers.clear()
+            t.confirmed.clear()
 
     return run
 

@@ -110,6 +110,11 @@ class Track:
     refinement: Refinement = field(default_factory=Refinement)
     moving: Refinement | None = None
     """Sightings of a short move not yet believed (``[fusion] move_sightings``), aligned and summed."""
+    movers: set[str] = field(default_factory=set)
+    """The robots whose sightings are in ``moving``."""
+    confirmed: dict[str, int] = field(default_factory=dict)
+    """Robot -> the sense time of its latest sighting, while that sighting confirmed the held pose
+    (a robot that then reports a move leaves): who disagrees with a short move."""
     sizes: dict[str, SizeEvidence] = field(default_factory=dict)
     """Per robot, its agreeing sightings at other sizes than the held ones (a resize not yet believed)."""
 

@@ -44,7 +44,7 @@ from twin.fusion.associate import (
     through_alias,
 )
 from twin.fusion.clocks import refuse_future, robot_clock, stale_change, stale_tombstone
-from twin.fusion.confirm import confirmation, confirms, hold, move, resize_evidence, unsure_move
+from twin.fusion.confirm import confirmation, confirms, disputed, hold, move, resize_evidence, unsure_move
 from twin.fusion.context import Fused, FusionContext, Pending, report_pose
 from twin.fusion.effects import sighting
 from twin.fusion.footprints import Pose
@@ -165,9 +165,10 @@ def _held_element(
         track = ctx.memory.tracks.get(target)
         sizes = resize_evidence(ctx, state, pose, held, sense)  # new sizes only on strong evidence
         if confirms(class_rules, pose, held, sizes=False):
-            r = confirmation(ctx, r, state, seen=pose, held=held, storey=storey, sizes=sizes)
-        elif unsure_move(ctx.rules, class_rules, pose, held, track, sizes=False):
-            # a short move seen once may be a detector's outlier
+            r = confirmation(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes)
+        elif unsure_move(ctx.rules, class_rules, pose, held, track, sizes=False) or disputed(
+            ctx, state, pose, held, sense
+        ):  # a short move seen once may be an outlier; one another robot contradicts, a bias
             r = hold(ctx, r, state, seen=pose, held=held, storey=storey, sizes=sizes)
         else:
             r, pose = move(ctx, r, state, seen=pose, held=held, storey=storey, sizes=sizes)

@@ -4,7 +4,17 @@ pushed together never resizes one of them (issue cases 1 and 2)."""
 from __future__ import annotations
 
 from tests.twin.box_lab import element_iri, spec
-from tests.twin.fusion.fusion_helpers import CORRIDOR, box, cell, sensed, size_of, typed, view
+from tests.twin.fusion.fusion_helpers import (
+    CORRIDOR,
+    ROOM_A,
+    box,
+    cell,
+    sensed,
+    size_of,
+    typed,
+    view,
+    view_only,
+)
 from tests.twin.live_helpers import observe, started
 
 TABLE = element_iri(spec("Table"))  # 1.2 x 0.8 x 0.75 at lab (1.4-2.6, 2.6-3.4), IfcFurnishingElement
@@ -103,3 +113,16 @@ def test_a_report_through_an_alias_within_the_jump_limit_still_moves_the_element
         "urn:robot2:7": "urn:robot1:desk"
     }
     assert cell(service, 5.0, 2.0) == 0 and cell(service, 6.2, 2.0) == 100
+
+
+# --- kinds agree in misses (issue case 7) -------------------------------------------------------------
+
+
+def test_a_detector_of_ifc_furniture_that_resolves_to_the_imported_table_also_misses_it() -> None:
+    service, _ = started()
+    t = service.clock() - 10 * 10**9
+    seen = observe(service, "robot1", sensed(box("urn:robot1:t", 2.0, 3.0, sx=1.2, sy=0.8), t))
+    assert seen.body["resolved"] == {"urn:robot1:t": TABLE}  # IfcFurniture resolves to IfcFurnishingElement
+    for i in range(1, 5):  # the table is gone: the same detector's views of room A miss it
+        observe(service, "robot1", view_only(t + i * 5 * 10**8, ROOM_A, detects=("IfcFurniture",)))
+    assert service.states[TABLE].removed
