@@ -81,3 +81,4 @@ def absence(
             out.effects.append(forget(iri))
         else:
             out.effects.append(miss(iri, ctx.robot, sense))
+            ctx.decide(iri, f"absence: miss {len(misses)} of misses_to_remove, by {ctx.robot}'s view")

@@ -139,12 +139,14 @@ def confirmation(
     ):
         r, at = placed(ctx, r, state, at=mean, held=held, storey=storey, sizes=sizes)
         ctx.out.refined.append(target)
+        ctx.decide(target, f"refined: the mean of {refinement.n + 1 if refinement else 1} confirmations")
         n = refinement.n + 1 if refinement else 1
         ctx.out.notes.append(f"<{target}>: pose refined from {n} sightings")
         ctx.out.effects.append(reset_refinement(target))
         ctx.pend(target, storey.key, at, r=r)
         return r
     ctx.out.effects.append(refine(target, sighted, robot=ctx.robot, sense=sense))
+    ctx.decide(target, f"confirmation by {ctx.robot}: within confirm_distance_m and confirm_angle_deg")
     if sizes is not None:
         return resized(ctx, r, state, held=held, storey=storey, sizes=sizes)
     r = replace(r, box=None, storey=None)  # where it stood: on its storey too
@@ -160,10 +162,14 @@ def hold(
     held: Pose,
     storey: StoreyFrame,
     sizes: Sizes | None = None,
+    why: str = "",
 ) -> ElementReport | None:
-    """A short move not yet believed: held in memory with the sightings that agree with it (or as a new
-    start). Returns what is left to plan (None: nothing; a believed resize where it stands)."""
+    """A short move not yet believed (``why``): held in memory with the sightings that agree with it (or
+    as a new start), listed in the ack's ``"pending"``. Returns what is left to plan (None: nothing; a
+    believed resize where it stands)."""
     target = state.iri
+    ctx.out.pending.append(target)
+    ctx.decide(target, f"move by {ctx.robot} held: {why}")
     track = ctx.memory.tracks.get(target)
     agree = agreeing(ctx.rules.of(state.ifc_types), seen, held, track, sizes=False) > 0
     ctx.out.effects.append(hold_move(target, aligned(seen, held), restart=not agree, robot=ctx.robot))
@@ -205,6 +211,7 @@ def move(
     target = state.iri
     track = ctx.memory.tracks.get(target)
     ctx.out.effects.append(reset_refinement(target))
+    ctx.decide(target, f"move by {ctx.robot}")
     if track is not None and track.moving is not None and not far(ctx.rules, seen, held):
         seen = mean_with(track.moving, aligned(seen, held))  # the sightings that agreed
     return placed(ctx, r, state, at=seen, held=held, storey=storey, sizes=sizes)
@@ -261,6 +268,7 @@ def resized(
     """A resize believed (two robots, or one robot over time, agree): the element where it stands, at
     ``sizes``."""
     r, pose = placed(ctx, r, state, at=held, held=held, storey=storey, sizes=sizes)
+    ctx.decide(state.iri, "resized: two robots, or one over resize_sightings, agree on its sizes")
     ctx.out.notes.append(f"<{state.iri}>: resized to {sizes[0]:.2f} x {sizes[1]:.2f} x {sizes[2]:.2f} m")
     ctx.pend(state.iri, storey.key, pose, r=r)
     return r
@@ -302,6 +310,7 @@ def resize_evidence(
         ctx.out.effects.append(size_evidence(iri, None, None))
         return (mean[0], mean[1], mean[2])
     ctx.out.effects.append(size_evidence(iri, robot, ev))
+    ctx.out.pending.append(iri)
     return None
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from twin.config import FusionRules, Right
-from twin.fusion.effects import Effect
+from twin.fusion.effects import Effect, decided
 from twin.fusion.footprints import Pose, box_pose
 from twin.fusion.gates import is_candidate
 from twin.fusion.memory import FusionMemory
@@ -44,6 +44,8 @@ class Fused:
     """Robot IRI -> the element it is (only those that differ)."""
     stale: list[str] = field(default_factory=list)
     tentative: list[str] = field(default_factory=list)
+    pending: list[str] = field(default_factory=list)
+    """Elements whose reported move (or resize) is noted but not yet confirmed."""
     sense: dict[str, int] = field(default_factory=dict)
     """Element -> when the change planned for it was seen (ns)."""
     reasons: dict[str, str] = field(default_factory=dict)
@@ -74,6 +76,8 @@ class Fused:
             out["stale"] = list(self.stale)
         if self.tentative:
             out["tentative"] = list(self.tentative)
+        if self.pending:
+            out["pending"] = list(dict.fromkeys(self.pending))
         if self.refined:
             out["refined"] = list(self.refined)
         if self.merged:
@@ -128,6 +132,10 @@ class FusionContext:
             if s == storey and is_candidate(state):
                 out[iri] = pose
         return out
+
+    def decide(self, iri: str, rule: str) -> None:
+        """Note the rule that decided ``iri``'s report (``twin explain`` shows the latest)."""
+        self.out.effects.append(decided(iri, rule))
 
     def is_box_element(self, iri: str) -> bool:
         shape = self.shape_of(iri)

@@ -142,3 +142,12 @@ def size_evidence(iri: str, robot: str | None, evidence: SizeEvidence | None) ->
             t.sizes[robot] = evidence
 
     return run
+
+
+def decided(iri: str, rule: str) -> Effect:
+    """Remember which rule decided the latest report of ``iri`` (shown by ``twin explain``)."""
+
+    def run(m: FusionMemory) -> None:
+        m.track(iri).decided = rule
+
+    return run

@@ -57,6 +57,7 @@ def seen_late(ctx: FusionContext, r: ElementReport, element: str, sense: int) ->
     out.effects.append(set_alias(r.iri, element, ctx.arrival_ns))
     out.effects.append(sighting(element, ctx.robot, sense, latest=False))
     ctx.used.add(element)
+    ctx.decide(element, f"late news: {r.iri} by {ctx.robot}, seen where it stood before its last change")
     out.notes.append(
         f"stale: <{r.iri}> seen by {ctx.robot} at {when(sense)} is <{element}> where it stood before its "
         "last change (late news)"

@@ -117,6 +117,8 @@ class Track:
     (a robot that then reports a move leaves): who disagrees with a short move."""
     sizes: dict[str, SizeEvidence] = field(default_factory=dict)
     """Per robot, its agreeing sightings at other sizes than the held ones (a resize not yet believed)."""
+    decided: str = ""
+    """The rule that decided the latest report of it (for ``twin explain``)."""
 
     def sighted(self, robot: str, sense_ns: int) -> None:
         """A sighting by ``robot`` seen at ``sense_ns``: counted, and misses before it are forgotten."""
@@ -139,6 +141,28 @@ class Track:
             },
             "misses": [{"robot": m.robot, "sense_ns": m.sense_ns} for m in self.misses],
             "seen_ns": self.seen_ns,
+            **({"decided": self.decided} if self.decided else {}),
+            **(
+                {
+                    "pending_move": {
+                        "sightings": self.moving.n,
+                        "robots": sorted(self.movers),
+                        "to": [round(v, 3) for v in (self.moving.mean().cx, self.moving.mean().cy)],
+                    }
+                }
+                if self.moving is not None and self.moving.n
+                else {}
+            ),
+            **(
+                {
+                    "pending_resize": {
+                        r: {"sightings": e.n, "sizes": [round(v, 3) for v in e.mean()]}
+                        for r, e in sorted(self.sizes.items())
+                    }
+                }
+                if self.sizes
+                else {}
+            ),
         }
 
 

@@ -72,6 +72,7 @@ def merge(ctx: FusionContext, gone: str, kept: str, *, sense: int) -> ElementRep
     """``gone`` is ``kept``: its IRI and aliases resolve to ``kept``; returns its removal to plan."""
     out = ctx.out
     out.merged[gone] = kept
+    ctx.decide(kept, f"merge: <{gone}> merged into it")
     out.reasons[gone] = f"merged into <{kept}>: seen by {ctx.robot} at {when(sense)} where <{kept}> stands"
     out.notes.append(f"<{gone}> merged into <{kept}>")
     out.sense[gone] = sense

@@ -8,6 +8,7 @@ import numpy as np
 from tests.twin.box_lab import element_iri, spec
 from tests.twin.fusion.fusion_helpers import box, cell, sensed, size_of
 from tests.twin.live_helpers import observe, started
+from twin.live.explain import fusion_of
 
 DESK = "urn:robot1:desk-1"
 TABLE = element_iri(spec("Table"))  # 1.2 x 0.8 x 0.75 at lab (1.4-2.6, 2.6-3.4)
@@ -66,3 +67,16 @@ def test_the_imported_table_moved_by_robots_keeps_its_mesh_and_never_takes_their
     np.testing.assert_allclose(new_placement[:3, 3] - placement[:3, 3], [0.0, -1.0, 0.0], atol=1e-6)
     assert size_of(service, TABLE)[:2] == (1.2, 0.8) and cell(service, 2.0, 2.0) == 100
     assert cell(service, 2.0, 3.2) == 0
+
+
+def test_a_noted_short_move_is_acked_pending_and_explain_shows_it_with_the_deciding_rule() -> None:
+    service, _ = started()
+    observe(service, "robot1", box(DESK, 6.0, 2.0, sx=1.0, sy=0.6))
+    first = observe(service, "robot2", box("urn:robot2:d", 6.25, 2.0, sx=1.0, sy=0.6))  # 25 cm, once
+    assert first.body["pending"] == [DESK] and first.body["unchanged"] is True
+    fused = fusion_of(service.live, DESK)
+    assert fused["pending_move"]["robots"] == ["robot2"] and fused["pending_move"]["sightings"] == 1
+    assert "move_sightings" in fused["decided"] and "robot2" in fused["decided"]
+    second = observe(service, "robot2", box("urn:robot2:d", 6.26, 2.0, sx=1.0, sy=0.6))
+    assert "pending" not in second.body and second.body["upserted"] == [DESK]
+    assert fusion_of(service.live, DESK)["decided"] == "move by robot2"
