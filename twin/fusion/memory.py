@@ -1,15 +1,19 @@
 """What the writer remembers of robots' sightings: per element, who saw it and when, what views missed
-it, the confirmations not yet committed; and the robot IRIs that resolved to elements (aliases).
+it, the confirmations, moves and resizes not yet committed, its previous poses; per robot, its clock
+offset; and the robot IRIs that resolved to elements (aliases).
 
 In memory only, except aliases (``twin:aliasOf``, written by the writer) and each element's last
 applied sense time (``twin:senseTime``, on the element): it changes many times a second and the graph
-does not grow with how often an element is seen. One writer mutates it.
+does not grow with how often an element is seen. One writer mutates it. :meth:`FusionMemory.to_json`
+and :meth:`FusionMemory.from_json` are its one serialiser (everything but the pose index and the pose
+cache, which start-up code rebuilds from the shapes: :func:`twin.fusion.poses.build_poses`).
 
 Example::
 
     memory = FusionMemory()
     track = memory.track(iri)
     track.sighted("robot1", sense_ns)
+    again = FusionMemory.from_json(json.loads(json.dumps(memory.to_json())))
 """
 
 from __future__ import annotations
@@ -257,6 +261,17 @@ class FusionMemory:
             kept = self.history[iri] = deque(maxlen=HISTORY_PER_ELEMENT)
         kept.append(past)
 
+    def to_json(self) -> dict[str, Any]:
+        """Everything fusion remembers (tracks, aliases, tentative IRIs, distinct elements, previous
+        poses, clock offsets) as JSON-able values; not the pose index nor the pose cache (start-up code
+        rebuilds them from the shapes)."""
+        return memory_to_json(self)
+
+    @classmethod
+    def from_json(cls, value: dict[str, Any]) -> FusionMemory:
+        """The memory :meth:`to_json` gave (its pose index not built: ``poses`` is None)."""
+        return memory_from_json(value)
+
     def aliases_of(self, target: str) -> list[str]:
         return sorted(a for a, v in self.aliases.items() if v.target == target)
 
@@ -270,3 +285,97 @@ def expire_aliases(memory: FusionMemory, now_ns: int, ttl_ns: int) -> list[str]:
     for iri in [i for i, (_, since) in memory.tentative.items() if now_ns - since > TENTATIVE_TTL_NS]:
         del memory.tentative[iri]
     return sorted(old)
+
+
+# --- the one serialiser ------------------------------------------------------------------------------------
+
+MEMORY_FORMAT = 1
+"""The version of :meth:`FusionMemory.to_json`'s layout."""
+
+
+def _pose_json(p: Pose) -> list[float]:
+    return [p.cx, p.cy, p.cz, p.sx, p.sy, p.sz, p.yaw]
+
+
+def _pose(v: Any) -> Pose:
+    return Pose(*(float(x) for x in v))
+
+
+def _refinement_json(r: Refinement) -> list[float]:
+    return [r.n, r.cx, r.cy, r.cz, r.sx, r.sy, r.sz, r.yaw]
+
+
+def _refinement(v: Any) -> Refinement:
+    return Refinement(int(v[0]), *(float(x) for x in v[1:]))
+
+
+def _track_json(t: Track) -> dict[str, Any]:
+    return {
+        "seen_ns": t.seen_ns,
+        "robots": {r: [s.count, s.first_ns, s.last_ns] for r, s in t.robots.items()},
+        "misses": [[m.robot, m.sense_ns] for m in t.misses],
+        "refinement": _refinement_json(t.refinement),
+        "moving": None if t.moving is None else _refinement_json(t.moving),
+        "movers": sorted(t.movers),
+        "confirmed": dict(t.confirmed),
+        "sizes": {r: [e.n, e.sx, e.sy, e.sz, e.first_ns, e.last_ns] for r, e in t.sizes.items()},
+        "decided": t.decided,
+    }
+
+
+def _track(v: dict[str, Any]) -> Track:
+    return Track(
+        seen_ns=int(v["seen_ns"]),
+        robots={r: RobotSightings(int(c), int(f), int(la)) for r, (c, f, la) in v["robots"].items()},
+        misses=[Miss(str(r), int(ns)) for r, ns in v["misses"]],
+        refinement=_refinement(v["refinement"]),
+        moving=None if v["moving"] is None else _refinement(v["moving"]),
+        movers=set(v["movers"]),
+        confirmed={r: int(ns) for r, ns in v["confirmed"].items()},
+        sizes={
+            r: SizeEvidence(int(n), float(sx), float(sy), float(sz), int(f), int(la))
+            for r, (n, sx, sy, sz, f, la) in v["sizes"].items()
+        },
+        decided=str(v["decided"]),
+    )
+
+
+def memory_to_json(m: FusionMemory) -> dict[str, Any]:
+    """Everything fusion remembers as JSON-able values (see :meth:`FusionMemory.to_json`)."""
+    return {
+        "format": MEMORY_FORMAT,
+        "tracks": {iri: _track_json(t) for iri, t in m.tracks.items()},
+        "aliases": {a: [v.target, v.used_ns] for a, v in m.aliases.items()},
+        "tentative": {iri: list(v) for iri, v in m.tentative.items()},
+        "distinct": sorted(m.distinct),
+        "history": {
+            iri: [[p.storey, _pose_json(p.pose), p.until_ns] for p in past] for iri, past in m.history.items()
+        },
+        "clocks": {
+            robot: {"samples": [list(s) for s in e.samples], "first_ns": e.first_ns, "warned": e.warned}
+            for robot, e in m.clocks.items()
+        },
+    }
+
+
+def memory_from_json(v: dict[str, Any]) -> FusionMemory:
+    """The memory :func:`memory_to_json` wrote; ValueError naming a layout it does not know."""
+    if v.get("format") != MEMORY_FORMAT:
+        msg = f"Fusion memory of format {v.get('format')!r}: this daemon reads format {MEMORY_FORMAT}."
+        raise ValueError(msg)
+    m = FusionMemory(
+        tracks={iri: _track(t) for iri, t in v["tracks"].items()},
+        aliases={a: Alias(str(t), int(ns)) for a, (t, ns) in v["aliases"].items()},
+        tentative={iri: (int(n), int(since)) for iri, (n, since) in v["tentative"].items()},
+        distinct=set(v["distinct"]),
+        clocks={
+            robot: ClockEstimate(
+                deque((int(a), int(d)) for a, d in e["samples"]), int(e["first_ns"]), bool(e["warned"])
+            )
+            for robot, e in v["clocks"].items()
+        },
+    )
+    for iri, past in v["history"].items():
+        for storey, pose, until in past:
+            m.remember(iri, PastPose(str(storey), _pose(pose), int(until)))
+    return m
