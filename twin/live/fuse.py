@@ -50,6 +50,7 @@ from twin.fusion.effects import sighting
 from twin.fusion.footprints import Pose
 from twin.fusion.gates import compatible, is_candidate
 from twin.fusion.history import late_news, seen_late
+from twin.fusion.memory import Alias
 from twin.fusion.merge import merge_or_move, unmerge
 from twin.live.state import ElementState, LiveState, StoreyFrame
 from twin.records import ElementReport, Observation, Shape
@@ -102,22 +103,10 @@ def _fuse_report(ctx: FusionContext, r: ElementReport, sense: int) -> None:
     pose = report_pose(r, storey.elevation_m) if storey is not None else None
     if pose is not None and storey_key is not None:
         ctx.boxes.append((storey_key, r, pose))
-    fit = "fits"
-    if (
-        alias is not None
-        and state is not None
-        and not state.removed
-        and pose is not None
-        and ctx.rules.enabled
-    ):
-        fit = alias_fits(ctx, r, state, pose)  # an alias is checked, not trusted
-    if fit == "within":
-        seen_within(ctx, r, target, sense)  # a partly hidden view of it: no move
-        return
-    if fit == "fails":
-        drop_failed_alias(ctx, r, target)  # e.g. a reused tracker id: associated afresh
-        target, alias = r.iri, None
-        state = ctx.states.get(target)
+    checked = _checked_alias(ctx, r, target, alias, state, pose, sense)
+    if checked is None:
+        return  # a partly hidden view of the element it names
+    target, alias, state = checked
     exists = state is not None and not state.removed
     known = state is not None
     if not exists and ctx.rules.enabled and pose is not None and storey_key is not None and not r.distinct:
@@ -137,6 +126,31 @@ def _fuse_report(ctx: FusionContext, r: ElementReport, sense: int) -> None:
         )
         return
     _held_element(ctx, r, state, pose=pose, storey=storey, sense=sense)
+
+
+def _checked_alias(  # noqa: PLR0917 (the report's state so far)
+    ctx: FusionContext,
+    r: ElementReport,
+    target: str,
+    alias: Alias | None,
+    state: ElementState | None,
+    pose: Pose | None,
+    sense: int,
+) -> tuple[str, Alias | None, ElementState | None] | None:
+    """Whether an alias still names the element it resolved to (association's alias check): one that
+    does not fit is dropped (associated afresh). An element's own IRI is trusted: a robot moves its
+    element by it, as far as it likes (robots that reuse tracker ids scope them by session, as the ROS
+    adapter does). Returns (target, alias, state), None when decided here."""
+    if alias is None or state is None or state.removed or pose is None or not ctx.rules.enabled:
+        return target, alias, state
+    fit = alias_fits(ctx, r, state, pose)  # an alias is checked, not trusted
+    if fit == "within":
+        seen_within(ctx, r, target, sense)  # a partly hidden view of it: no move
+        return None
+    if fit == "fails":
+        drop_failed_alias(ctx, r, target)  # e.g. a reused tracker id: associated afresh
+        return r.iri, None, ctx.states.get(r.iri)
+    return target, alias, state
 
 
 def _held_element(
