@@ -14,15 +14,19 @@ own in this process (fusion off), whose maps are the maps of the true world.
 
 Every second: the twin's IfcFurniture elements (SPARQL) against the true objects (within 0.5 m):
 duplicates, ghosts (elements where no object is), ghosts whose place a robot viewed 10 s ago or more
-(those fusion should have removed), objects missing, and the navigation map's cells that differ from
-the true world's. At the end: removals (precision and recall within 10 s of the first view without the
-object), the time from a move's first sighting to the ack that shows it, revisions per true change,
-acked sightings per second, and the daemon's CPU per acked observation. ``--saturate S`` adds S seconds
-in which the robots send as fast as acks come back (the acked sightings per second at saturation).
+(those fusion should have removed), objects missing, the navigation map's cells that differ from the
+true world's, and the **false-free cells**: the cells more than one cell inside a true object's
+footprint that the navigation map shows free, for objects a robot saw at least ``SETTLE_S`` ago since
+their last change (free floor where a real object stands: a robot would plan through it). At the
+end: removals (precision and recall within 10 s of the first view without the object), the time
+from a move's first sighting to the ack that shows it, revisions per true change, acked sightings
+per second, and the daemon's CPU per acked observation. ``--saturate S`` adds S seconds in which the
+robots send as fast as acks come back (the acked sightings per second at saturation).
 
     python benchmarks/fleet_sim.py --robots 10 --objects 30 --duration 600 --moves 20 --removals 10 \\
         --json fleet.json --plot fleet.png
     python benchmarks/fleet_sim.py --model janesville --robots 5 --objects 30 --duration 600
+    python benchmarks/fleet_sim.py --robots 6 --behaviours mixed --duration 120   # see BEHAVIOURS
 
 Exit code 1 when a duplicate or a viewed ghost remains at the end (the suite runs a short version:
 ``tests/integration/test_fleet.py``).
@@ -75,6 +79,8 @@ class Obj:
     present: bool = True
     changed_at: float = 0.0
     seen_at: float = -1.0
+    seen_since_change: float | None = None
+    """When a robot first saw it after its last change (its false-free cells count from then)."""
 
     def corners(self) -> np.ndarray:
         c, s = math.cos(self.yaw), math.sin(self.yaw)
@@ -187,6 +193,21 @@ class RobotStats:
     saturated_s: float = 0.0
 
 
+BEHAVIOURS = ("normal", "restart", "clock_behind", "clock_ahead", "late", "bias")
+"""What can be wrong with a robot (``--behaviours``, assigned round-robin): ``restart``: its detector
+restarts every 30 s and numbers its tracks from 1 again (its IRIs carry the tracker session, as the ROS
+adapter's do); ``clock_behind`` / ``clock_ahead``: its clock is 1.5 s behind / ahead; ``late``: its
+reports arrive 2 s late (sent 2 s after they were sensed); ``bias``: its detector places every object
+20 cm off (+x)."""
+RESTART_EVERY_S = 30.0
+CLOCK_OFFSET_S = 1.5
+LATE_S = 2.0
+BIAS_M = 0.2
+SETTLE_S = 3.0
+"""An object's false-free cells count from this long after a robot first saw it since its last change
+(the sightings a short move needs, the acks, and the maps' coalescing)."""
+
+
 def robot(  # noqa: PLR0917 (a thread's target)
     index: int,
     endpoint: str,
@@ -205,11 +226,16 @@ def robot(  # noqa: PLR0917 (a thread's target)
     rng = random.Random(1000 + index)
     world_t0 = time.time()
     name = f"robot{index}"
+    behaviour = args.behaviours[index % len(args.behaviours)]
     x, y = world.random_free(rng)
     goal = (x, y)
     epochs: dict[int, int] = {}
     last_seen: dict[int, float] = {}
     false_count = 0
+    tracks: dict[int, int] = {}  # object -> tracker id (restart behaviour)
+    next_track, session, restart_at = 1, 0, world_t0 + RESTART_EVERY_S
+    clock_offset_ns = {"clock_behind": -1, "clock_ahead": 1}.get(behaviour, 0) * int(CLOCK_OFFSET_S * 1e9)
+    outbox: list[tuple[float, str, list[int]]] = []  # late behaviour: (due, payload, seen)
     with TwinClient.connect([endpoint], prefix=prefix, timeout_s=30.0) as twin:
         period = 1.0 / args.rate
         due = time.time()
@@ -233,7 +259,10 @@ def robot(  # noqa: PLR0917 (a thread's target)
             if d > 1e-9:
                 x, y = x + (goal[0] - x) * min(1.0, step / d), y + (goal[1] - y) * min(1.0, step / d)
             polygon = world.view(x, y, args.range)
-            sense = time.time_ns()
+            sense = time.time_ns() + clock_offset_ns
+            if behaviour == "restart" and now >= restart_at:
+                tracks.clear()
+                next_track, session, restart_at = 1, session + 1, now + RESTART_EVERY_S
             with world.lock:
                 objs = [o for o in world.objects.values() if o.present]
                 world.views.append((time.time(), polygon))
@@ -256,10 +285,18 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         continue
                     if now - last_seen.get(o.key, -1e9) > 3.0:
                         epochs[o.key] = epochs.get(o.key, -1) + 1
+                        tracks.pop(o.key, None)
                     last_seen[o.key] = now
                     o.seen_at = now
-                    iri = f"urn:sim:{name}:trk-{o.key}-{epochs[o.key]}"
-                    bx = o.x + rng.gauss(0, args.sigma_pos)
+                    if o.seen_since_change is None:
+                        o.seen_since_change = now
+                    if behaviour == "restart":
+                        if o.key not in tracks:
+                            tracks[o.key], next_track = next_track, next_track + 1
+                        iri = f"urn:sim:{name}:s{session}:trk-{tracks[o.key]}"
+                    else:
+                        iri = f"urn:sim:{name}:trk-{o.key}-{epochs[o.key]}"
+                    bx = o.x + rng.gauss(0, args.sigma_pos) + (BIAS_M if behaviour == "bias" else 0.0)
                     by = o.y + rng.gauss(0, args.sigma_pos)
                     byaw = (
                         o.yaw
@@ -291,6 +328,11 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 f'twin:detects "IfcFurniture" ; twin:senseTime "{_iso(sense)}"^^xsd:dateTime .'
             )
             payload = PREFIX + "\n".join(lines)
+            if behaviour == "late":  # sensed now, arrives LATE_S later
+                outbox.append((now + LATE_S, payload, seen_now))
+                if outbox[0][0] > time.time():
+                    continue
+                _, payload, seen_now = outbox.pop(0)
             stats.sent += 1
             sent = time.time()
             try:
@@ -388,6 +430,11 @@ def sample(  # noqa: PLR0917
     grid, _, _ = client.get_map(storey, skill)
     truth = oracle.live_maps.skill_maps[(storey, skill)].data
     cells = int((grid.data != truth).sum()) if grid.data.shape == truth.shape else -1
+    with world.lock:
+        settled = [
+            o for o in present if o.seen_since_change is not None and now - o.seen_since_change >= SETTLE_S
+        ]
+    false_free = sum(false_free_cells(grid, o) for o in settled)
     status = client.status()
     return {
         "t": round(now - t0, 1),
@@ -398,10 +445,37 @@ def sample(  # noqa: PLR0917
         "viewed_ghosts": viewed_ghosts,
         "missing": missing,
         "cells_differ": cells,
+        "false_free_cells": false_free,
         "false_removals": false_removals,
         "revision": int(status["revision"]),
         "ghost_iris": sorted(ghosts),
     }
+
+
+def false_free_cells(grid: Any, o: Obj) -> int:
+    """The cells more than one cell inside ``o``'s true footprint that the map shows free."""
+    from twin.fusion.footprints import box_pose, corners
+    from twin.maps.grid import FREE
+
+    f = grid.frame
+    inner = corners(box_pose(o.x, o.y, 0.0, o.sx, o.sy, o.sz, yaw=o.yaw), inset=f.resolution_m)
+    lo, hi = inner.min(axis=0), inner.max(axis=0)
+    c0, c1 = int((lo[0] - f.origin_x) / f.resolution_m), int((hi[0] - f.origin_x) / f.resolution_m) + 1
+    r0, r1 = int((lo[1] - f.origin_y) / f.resolution_m), int((hi[1] - f.origin_y) / f.resolution_m) + 1
+    c0, r0 = max(c0, 0), max(r0, 0)
+    c1, r1 = min(c1, f.width), min(r1, f.height)
+    if c1 <= c0 or r1 <= r0:
+        return 0
+    cols, rows = np.meshgrid(np.arange(c0, c1), np.arange(r0, r1))
+    centres = np.stack(
+        [
+            f.origin_x + (cols.ravel() + 0.5) * f.resolution_m,
+            f.origin_y + (rows.ravel() + 0.5) * f.resolution_m,
+        ],
+        axis=1,
+    )
+    inside = _inside(centres, inner)
+    return int((grid.data[rows.ravel()[inside], cols.ravel()[inside]] == FREE).sum())
 
 
 # --- the run ---------------------------------------------------------------------------------------------
@@ -552,6 +626,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                             o.x, o.y, o.yaw = spot
                             apply_truth(oracle, truth_box(o, storey, elevation))
                         o.changed_at = now
+                        o.seen_since_change = None
                 if now >= next_sample and now < t_end:
                     samples.append(sample(client, world, storey, oracle, skill, t0, previous))
                     next_sample += 1.0
@@ -606,6 +681,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "max_duplicates": max((s["duplicates"] for s in late), default=0),
         "max_viewed_ghosts": max((s["viewed_ghosts"] for s in late), default=0),
         "mean_cells_differ": float(np.mean([s["cells_differ"] for s in late])) if late else 0.0,
+        "max_false_free_cells": max((s["false_free_cells"] for s in samples), default=0),
+        "samples_with_false_free": sum(1 for s in samples if s["false_free_cells"] > 0),
+        "behaviours": ",".join(args.behaviours),
         "removal_recall_10s": len(recall_hits) / len(viewed) if viewed else float("nan"),
         "removal_viewed": len(viewed),
         "removal_false": false_removals,
@@ -682,6 +760,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--removals", type=int, default=1)
     p.add_argument("--appears", type=int, default=0)
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument(
+        "--behaviours",
+        type=lambda v: tuple(v.split(",")),
+        default=("normal",),
+        help=f"robot behaviours, round-robin: {', '.join(BEHAVIOURS)}; 'mixed': all of them",
+    )
     p.add_argument("--json", type=Path)
     p.add_argument("--plot", type=Path)
     p.add_argument("-v", "--verbose", action="store_true")
@@ -690,6 +774,12 @@ def parser() -> argparse.ArgumentParser:
 
 def main() -> int:
     args = parser().parse_args()
+    if args.behaviours == ("mixed",):
+        args.behaviours = BEHAVIOURS
+    unknown = [b for b in args.behaviours if b not in BEHAVIOURS]
+    if unknown:
+        print(f"Unknown behaviours {unknown}; known: {', '.join(BEHAVIOURS)}", file=sys.stderr)
+        return 2
     result = run(args)
     if args.json:
         args.json.write_text(json.dumps(result, indent=1))

@@ -99,6 +99,10 @@ class FusionContext:
     base_iri: str
     pending: Pending
     arrival_ns: int
+    content_lag_ns: int = 0
+    """How much older than its (corrected) sense time a report's content may be: the robot's clock
+    correction when it moved sense times later (a robot whose reports are always late looks like one
+    whose clock is behind). Comparisons with previous poses use the earlier reading."""
     out: Fused = field(default_factory=lambda: Fused(reports=()))
     reports: list[ElementReport] = field(default_factory=list)
     """The reports left to plan, rewritten to the elements they resolved to."""
@@ -132,6 +136,10 @@ class FusionContext:
             if s == storey and is_candidate(state):
                 out[iri] = pose
         return out
+
+    def earliest(self, sense: int) -> int:
+        """The earliest a report sensed at ``sense`` (corrected) may have been seen."""
+        return sense - self.content_lag_ns
 
     def decide(self, iri: str, rule: str) -> None:
         """Note the rule that decided ``iri``'s report (``twin explain`` shows the latest)."""

@@ -17,12 +17,13 @@ from typing import TYPE_CHECKING
 
 from twin.fusion.clocks import when
 from twin.fusion.effects import set_alias, sighting
-from twin.fusion.footprints import Pose
+from twin.fusion.footprints import Pose, centre_distance
 from twin.fusion.gates import compatible, kinds_agree, matches, sizes_agree
 from twin.records import ElementReport
 
 if TYPE_CHECKING:
     from twin.fusion.context import FusionContext
+    from twin.live.state import ElementState
 
 
 def late_news(ctx: FusionContext, r: ElementReport, pose: Pose, storey: str, sense: int) -> str | None:
@@ -40,7 +41,7 @@ def late_news(ctx: FusionContext, r: ElementReport, pose: Pose, storey: str, sen
             continue
         rules = ctx.rules.of(state.ifc_types)
         for p in past:
-            if p.storey != storey or p.until_ns <= sense:
+            if p.storey != storey or p.until_ns <= ctx.earliest(sense):
                 continue
             score = matches(rules, pose, p.pose)
             if score > best_score and sizes_agree(rules, pose, p.pose):
@@ -61,4 +62,33 @@ def seen_late(ctx: FusionContext, r: ElementReport, element: str, sense: int) ->
     out.notes.append(
         f"stale: <{r.iri}> seen by {ctx.robot} at {when(sense)} is <{element}> where it stood before its "
         "last change (late news)"
+    )
+
+
+def echo(ctx: FusionContext, state: ElementState, pose: Pose, sense: int) -> bool:
+    """Whether a report of an element puts it back where it stood before a change that came after the
+    report may have been seen (:meth:`~twin.fusion.context.FusionContext.earliest`): late news of its
+    old place (a report delayed on the way, or a robot whose lateness looks like a clock behind), not a
+    move back."""
+    past = ctx.memory.history.get(state.iri)
+    if not past:
+        return False
+    held = ctx.held_pose(state.iri)
+    rules = ctx.rules.of(state.ifc_types)
+    earliest = ctx.earliest(sense)
+    for p in past:
+        if p.until_ns <= earliest or matches(rules, pose, p.pose) <= 0.0:
+            continue
+        if held is None or centre_distance(pose, p.pose) < centre_distance(pose, held):
+            return True
+    return False
+
+
+def seen_echo(ctx: FusionContext, r: ElementReport, state: ElementState, sense: int) -> None:
+    """``r`` is late news of where ``state`` stood before its last change: stale, nothing planned."""
+    ctx.out.stale.append(r.iri)
+    ctx.out.effects.append(sighting(state.iri, ctx.robot, sense, latest=False))
+    ctx.decide(state.iri, f"late news: {ctx.robot} saw it where it stood before its last change")
+    ctx.out.notes.append(
+        f"stale: <{r.iri}> by {ctx.robot} puts <{state.iri}> back where it stood before its last change"
     )

@@ -49,7 +49,7 @@ from twin.fusion.context import Fused, FusionContext, Pending, report_pose
 from twin.fusion.effects import sighting
 from twin.fusion.footprints import Pose
 from twin.fusion.gates import compatible, is_candidate
-from twin.fusion.history import late_news, seen_late
+from twin.fusion.history import echo, late_news, seen_echo, seen_late
 from twin.fusion.memory import Alias
 from twin.fusion.merge import merge_or_move, unmerge
 from twin.live.state import ElementState, LiveState, StoreyFrame
@@ -80,7 +80,9 @@ def fuse(
     if view is not None and view.storey not in live.site.storeys:
         known = ", ".join(sorted(live.site.storeys)) or "none"
         raise ObservationError(f"The view's storey {view.storey!r} is unknown; storeys: {known}.")
-    ctx = FusionContext(robot, rights, live, states, shapes, rules, base_iri, pending, arrival_ns)
+    ctx = FusionContext(
+        robot, rights, live, states, shapes, rules, base_iri, pending, arrival_ns, max(clock.offset_ns, 0)
+    )
     for r in obs.reports:
         _fuse_report(ctx, r, clock.sense(r.sense_ns) if r.sense_ns is not None else sense)
     if view is not None and rules.enabled and "dynamic" in rights:
@@ -96,11 +98,11 @@ def _fuse_report(ctx: FusionContext, r: ElementReport, sense: int) -> None:
         return
     target, alias = through_alias(ctx, r)
     state = ctx.states.get(target)
-    if stale_tombstone(ctx, r, state, sense):
-        return
     storey_key = r.storey or (state.storey if state is not None else None)
     storey = ctx.live.site.storeys.get(storey_key or "")
     pose = report_pose(r, storey.elevation_m) if storey is not None else None
+    if _stale_sighting_of_removed(ctx, r, state, pose, sense):
+        return
     if pose is not None and storey_key is not None:
         ctx.boxes.append((storey_key, r, pose))
     checked = _checked_alias(ctx, r, target, alias, state, pose, sense)
@@ -126,6 +128,19 @@ def _fuse_report(ctx: FusionContext, r: ElementReport, sense: int) -> None:
         )
         return
     _held_element(ctx, r, state, pose=pose, storey=storey, sense=sense)
+
+
+def _stale_sighting_of_removed(
+    ctx: FusionContext, r: ElementReport, state: ElementState | None, pose: Pose | None, sense: int
+) -> bool:
+    """A sighting of a removed element seen before its removal (noted stale), or its old place seen by
+    a robot whose content may be older than its removal (late news: :func:`twin.fusion.history.echo`)."""
+    if stale_tombstone(ctx, r, state, sense):
+        return True
+    if state is not None and state.removed and pose is not None and echo(ctx, state, pose, sense):
+        seen_echo(ctx, r, state, sense)
+        return True
+    return False
 
 
 def _checked_alias(  # noqa: PLR0917 (the report's state so far)
@@ -178,6 +193,9 @@ def _held_element(
         class_rules = ctx.rules.of(state.ifc_types)
         track = ctx.memory.tracks.get(target)
         sizes = resize_evidence(ctx, state, pose, held, sense)  # new sizes only on strong evidence
+        if not confirms(class_rules, pose, held, sizes=False) and echo(ctx, state, pose, sense):
+            seen_echo(ctx, r, state, sense)  # back where it stood before its last move, seen late
+            return
         if confirms(class_rules, pose, held, sizes=False):
             r = confirmation(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes)
         elif unsure_move(ctx.rules, class_rules, pose, held, track, sizes=False):

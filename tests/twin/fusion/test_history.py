@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from tests.twin.fusion.fusion_helpers import PREFIX, at, box, cell, sensed
+from tests.twin.fusion.test_clocks import FakeClock, with_clock
 from tests.twin.live_helpers import observe, started
 
 TABLE = "urn:robot1:table"
@@ -46,3 +47,21 @@ def test_a_new_sighting_after_the_move_at_the_old_place_is_a_new_object() -> Non
     observe(service, "robot1", sensed(box(TABLE, 6.4, 2.0, sx=1.0, sy=0.6), t + 3 * S))
     other = observe(service, "robot2", sensed(box("urn:robot2:t2", 5.0, 2.0, sx=1.0, sy=0.6), t + 4 * S))
     assert other.body["upserted"] == ["urn:robot2:t2"] and "stale" not in other.body
+
+
+def test_a_robot_whose_reports_are_always_2_s_late_never_puts_a_moved_table_back() -> None:
+    service, _ = started()
+    clock = FakeClock(service.clock())
+    with_clock(service, clock)
+    for _ in range(35):  # 7 s: the late robot's offset (2 s) is known; it sees the table at 5.0
+        observe(service, "late", sensed(box("urn:late:t", 5.0, 2.0, sx=1.0, sy=0.6), clock.now - 2 * S))
+        clock.now += S // 5
+    moved = observe(service, "robot1", sensed(box("urn:late:t", 6.4, 2.0, sx=1.0, sy=0.6), clock.now))
+    assert moved.body["upserted"] == ["urn:late:t"], moved.body  # robot1 saw it moved 1.4 m
+    for _ in range(8):  # the late robot's reports of the old place, sensed before the move, keep coming
+        clock.now += S // 5
+        echo = observe(
+            service, "late", sensed(box("urn:late:t", 5.0, 2.0, sx=1.0, sy=0.6), clock.now - 2 * S)
+        )
+        assert "upserted" not in echo.body or not echo.body["upserted"], echo.body
+    assert cell(service, 6.4, 2.0) == 100 and cell(service, 5.0, 2.0) == 0
