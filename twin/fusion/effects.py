@@ -88,6 +88,7 @@ def reset_refinement(iri: str) -> Effect:
             t.moving = None
             t.movers.clear()
             t.confirmed.clear()
+            t.means.clear()  # it moved: where robots put it starts again
 
     return run
 

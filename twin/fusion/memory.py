@@ -97,6 +97,22 @@ class SizeEvidence:
 
 
 @dataclass(slots=True)
+class RobotMean:
+    """A moving mean of positions (x, y), how many went into it and the last one's sense time."""
+
+    n: int = 0
+    x: float = 0.0
+    y: float = 0.0
+    last_ns: int = 0
+
+    def added(self, x: float, y: float, sense_ns: int, *, weight: float) -> RobotMean:
+        a = 1.0 if self.n == 0 else max(weight, 1.0 / (self.n + 1))
+        return RobotMean(
+            self.n + 1, self.x + a * (x - self.x), self.y + a * (y - self.y), max(self.last_ns, sense_ns)
+        )
+
+
+@dataclass(slots=True)
 class Miss:
     robot: str
     sense_ns: int
@@ -123,6 +139,9 @@ class Track:
     """Per robot, its agreeing sightings at other sizes than the held ones (a resize not yet believed)."""
     decided: str = ""
     """The rule that decided the latest report of it (for ``twin explain``)."""
+    means: dict[str, RobotMean] = field(default_factory=dict)
+    """Per robot, where its detector puts the element (a moving mean of its raw sightings since the
+    element's last move): the robots' detector biases are estimated from them."""
 
     def sighted(self, robot: str, sense_ns: int) -> None:
         """A sighting by ``robot`` seen at ``sense_ns``: counted, and misses before it are forgotten."""
@@ -236,6 +255,9 @@ class FusionMemory:
     :data:`HISTORY_PER_ELEMENT`; a removed element's last pose too): late news is checked against them."""
     clocks: dict[str, ClockEstimate] = field(default_factory=dict)
     """Per robot, its clock offset estimate (:mod:`twin.fusion.clocks`)."""
+    biases: dict[str, RobotMean] = field(default_factory=dict)
+    """Per robot, its detector's bias (x, y): where it puts objects against where the other robots do
+    (:mod:`twin.fusion.bias`)."""
     shape_poses: dict[str, tuple[object, object, Pose]] = field(default_factory=dict)
     """Element -> (mesh, placement, pose): the pose of the shape it has, computed once per shape."""
 
@@ -320,6 +342,7 @@ def _track_json(t: Track) -> dict[str, Any]:
         "confirmed": dict(t.confirmed),
         "sizes": {r: [e.n, e.sx, e.sy, e.sz, e.first_ns, e.last_ns] for r, e in t.sizes.items()},
         "decided": t.decided,
+        "means": {r: [m.n, m.x, m.y, m.last_ns] for r, m in t.means.items()},
     }
 
 
@@ -337,6 +360,7 @@ def _track(v: dict[str, Any]) -> Track:
             for r, (n, sx, sy, sz, f, la) in v["sizes"].items()
         },
         decided=str(v["decided"]),
+        means={r: RobotMean(int(n), float(x), float(y), int(ns)) for r, (n, x, y, ns) in v["means"].items()},
     )
 
 
@@ -355,6 +379,7 @@ def memory_to_json(m: FusionMemory) -> dict[str, Any]:
             robot: {"samples": [list(s) for s in e.samples], "first_ns": e.first_ns, "warned": e.warned}
             for robot, e in m.clocks.items()
         },
+        "biases": {r: [b.n, b.x, b.y, b.last_ns] for r, b in m.biases.items()},
     }
 
 
@@ -373,6 +398,9 @@ def memory_from_json(v: dict[str, Any]) -> FusionMemory:
                 deque((int(a), int(d)) for a, d in e["samples"]), int(e["first_ns"]), bool(e["warned"])
             )
             for robot, e in v["clocks"].items()
+        },
+        biases={
+            r: RobotMean(int(n), float(x), float(y), int(ns)) for r, (n, x, y, ns) in v["biases"].items()
         },
     )
     for iri, past in v["history"].items():

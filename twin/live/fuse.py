@@ -43,8 +43,18 @@ from twin.fusion.associate import (
     seen_within,
     through_alias,
 )
+from twin.fusion.bias import note_sighting, unbiased
 from twin.fusion.clocks import refuse_future, robot_clock, stale_change, stale_tombstone
-from twin.fusion.confirm import confirmation, confirms, disputed, hold, move, resize_evidence, unsure_move
+from twin.fusion.confirm import (
+    box_of,
+    confirmation,
+    confirms,
+    disputed,
+    hold,
+    move,
+    resize_evidence,
+    unsure_move,
+)
 from twin.fusion.context import Fused, FusionContext, Pending, report_pose
 from twin.fusion.effects import sighting
 from twin.fusion.footprints import Pose
@@ -100,7 +110,11 @@ def _fuse_report(ctx: FusionContext, r: ElementReport, sense: int) -> None:
     state = ctx.states.get(target)
     storey_key = r.storey or (state.storey if state is not None else None)
     storey = ctx.live.site.storeys.get(storey_key or "")
-    pose = report_pose(r, storey.elevation_m) if storey is not None else None
+    raw = pose = report_pose(r, storey.elevation_m) if storey is not None else None
+    if pose is not None and storey is not None and ctx.rules.enabled:
+        pose = unbiased(ctx, pose)  # the robot's detector bias, once known
+        if pose is not raw:
+            r = replace(r, box=box_of(pose, storey.elevation_m))
     if _stale_sighting_of_removed(ctx, r, state, pose, sense):
         return
     if pose is not None and storey_key is not None:
@@ -127,7 +141,7 @@ def _fuse_report(ctx: FusionContext, r: ElementReport, sense: int) -> None:
             ctx, r, alias=alias, target=target, known=known, pose=pose, storey=storey_key, sense=sense
         )
         return
-    _held_element(ctx, r, state, pose=pose, storey=storey, sense=sense)
+    _held_element(ctx, r, state, pose=pose, raw=raw, storey=storey, sense=sense)
 
 
 def _stale_sighting_of_removed(
@@ -174,6 +188,7 @@ def _held_element(
     state: ElementState,
     *,
     pose: Pose | None,
+    raw: Pose | None,
     storey: StoreyFrame | None,
     sense: int,
 ) -> None:
@@ -186,6 +201,8 @@ def _held_element(
     if stale_change(ctx, r, given.iri, state, sense):
         return
     ctx.out.effects.append(sighting(target, ctx.robot, sense))
+    if raw is not None and ctx.rules.enabled and is_candidate(state):
+        note_sighting(ctx, state, raw, sense)  # where this robot's detector puts it: its bias
     held = None
     if ctx.rules.enabled and pose is not None and storey is not None and is_candidate(state):
         held = ctx.held_pose(target)
