@@ -2,13 +2,13 @@
 
 Two robots whose detectors differ by 20 cm (a calibration offset) would move a still desk back and forth
 as they pass it in turns, and whichever moved it last leaves free cells where the desk stands. Each
-robot's mean sighting position of an element (a moving mean of its raw boxes since the element's last
-move) is compared with the median of the recent means of every robot that sees it; the difference,
-averaged slowly over every element several robots see, is the robot's **bias**. Once it rests on
-:data:`BIAS_MIN_SAMPLES` comparisons, the robot's boxes are shifted by it before anything else looks at
-them. The median makes the majority the reference: one biased robot among three or more carries its
-whole bias, the others none; with two robots only, each carries half of their difference (the twin
-cannot tell which is right, and takes the middle).
+robot's mean position of an element (a moving mean of its raw boxes since the element's last move) is
+compared with the median of the means of every robot that saw the element within :data:`RECENT_NS`
+(at least :data:`MIN_ROBOTS` robots: the majority is the reference; two alone cannot tell which one
+is off); the difference, averaged slowly over every element robots see together, is the robot's
+**bias**. Once it rests on :data:`BIAS_MIN_SAMPLES` comparisons and exceeds :data:`DEADBAND_M`, the
+robot's boxes are shifted by it before anything else looks at them: one robot 20 cm off among others
+that agree is corrected by 20 cm, the others by none.
 
 Example::
 
@@ -36,18 +36,31 @@ BIAS_WEIGHT = 0.02
 """The weight of a new comparison in a robot's bias (after the first 50)."""
 MEAN_MIN = 3
 """Sightings in a robot's mean of an element before it is compared."""
-BIAS_MIN_SAMPLES = 20
+BIAS_MIN_SAMPLES = 10
 """Comparisons before a robot's bias corrects its boxes."""
-RECENT_NS = 10 * 10**9
-"""Other robots' means count when their last sighting is at most this old."""
+MIN_ROBOTS = 3
+"""Robots whose means of an element are compared, at least (two alone cannot tell which one is off)."""
+DEADBAND_M = 0.05
+"""A bias this small is the detectors' noise, not a calibration error: not applied."""
+RECENT_NS = 60 * 10**9
+"""Other robots' means of an element count when their last sighting is at most this old (a move of
+the element starts its means again)."""
+
+
+def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None:
+    """The bias a robot's boxes are corrected by, once known (None: none)."""
+    b = memory.biases.get(robot)
+    if b is None or b.n < BIAS_MIN_SAMPLES or math.hypot(b.x, b.y) <= DEADBAND_M:
+        return None
+    return b.x, b.y
 
 
 def unbiased(ctx: FusionContext, pose: Pose) -> Pose:
     """``pose`` shifted by the robot's detector bias, once that is known."""
-    b = ctx.memory.biases.get(ctx.robot)
-    if b is None or b.n < BIAS_MIN_SAMPLES:
+    b = applied_bias(ctx.memory, ctx.robot)
+    if b is None:
         return pose
-    return replace(pose, cx=pose.cx - b.x, cy=pose.cy - b.y)
+    return replace(pose, cx=pose.cx - b[0], cy=pose.cy - b[1])
 
 
 def note_sighting(ctx: FusionContext, state: ElementState, raw: Pose, sense: int) -> None:
@@ -61,7 +74,7 @@ def note_sighting(ctx: FusionContext, state: ElementState, raw: Pose, sense: int
         (r, m) for r, m in means.items() if r != robot and m.n >= MEAN_MIN and sense - m.last_ns <= RECENT_NS
     ]
     bias = None
-    if mine.n >= MEAN_MIN and others:
+    if mine.n >= MEAN_MIN and len(others) + 1 >= MIN_ROBOTS:
         everyone = [mine, *(m for _, m in others)]
         dx = mine.x - statistics.median(m.x for m in everyone)
         dy = mine.y - statistics.median(m.y for m in everyone)
@@ -78,8 +91,9 @@ def note_sighting(ctx: FusionContext, state: ElementState, raw: Pose, sense: int
 
 def detector_biases(memory: FusionMemory) -> dict[str, list[float]]:
     """Each robot's detector bias (x, y, metres) once known (``twin status``)."""
-    return {
-        robot: [round(b.x, 3), round(b.y, 3)]
-        for robot, b in sorted(list(memory.biases.items()))
-        if b.n >= BIAS_MIN_SAMPLES
-    }
+    out = {}
+    for robot in sorted(list(memory.biases)):
+        b = applied_bias(memory, robot)
+        if b is not None:
+            out[robot] = [round(b[0], 3), round(b[1], 3)]
+    return out

@@ -23,7 +23,7 @@ import numpy as np
 from twin.config import FusionRules
 from twin.config.fusion import FusionClassRules
 from twin.fusion.clocks import changes_something
-from twin.fusion.effects import hold_move, refine, reset_refinement, size_evidence
+from twin.fusion.effects import hold_move, moved, refine, reset_refinement, size_evidence
 from twin.fusion.footprints import Pose, aligned, box_pose, centre_distance, yaw_difference
 from twin.fusion.memory import Refinement, SizeEvidence, Track
 from twin.records import ElementReport, ObservedBox
@@ -211,6 +211,7 @@ def move(
     target = state.iri
     track = ctx.memory.tracks.get(target)
     ctx.out.effects.append(reset_refinement(target))
+    ctx.out.effects.append(moved(target))
     ctx.decide(target, f"move by {ctx.robot}")
     if track is not None and track.moving is not None and not far(ctx.rules, seen, held):
         seen = mean_with(track.moving, aligned(seen, held))  # the sightings that agreed

@@ -88,7 +88,6 @@ def reset_refinement(iri: str) -> Effect:
             t.moving = None
             t.movers.clear()
             t.confirmed.clear()
-            t.means.clear()  # it moved: where robots put it starts again
 
     return run
 
@@ -150,5 +149,16 @@ def decided(iri: str, rule: str) -> Effect:
 
     def run(m: FusionMemory) -> None:
         m.track(iri).decided = rule
+
+    return run
+
+
+def moved(iri: str) -> Effect:
+    """The element moved: where robots put it (their means, :mod:`twin.fusion.bias`) starts again."""
+
+    def run(m: FusionMemory) -> None:
+        t = m.tracks.get(iri)
+        if t is not None:
+            t.means.clear()
 
     return run
