@@ -434,7 +434,24 @@ def sample(  # noqa: PLR0917
         settled = [
             o for o in present if o.seen_since_change is not None and now - o.seen_since_change >= SETTLE_S
         ]
-    false_free = sum(false_free_cells(grid, o) for o in settled)
+    free_by_object = {o.key: n for o in settled if (n := false_free_cells(grid, o))}
+    false_free = sum(free_by_object.values())
+    where_free = {
+        k: [
+            n,
+            round(world.objects[k].x, 2),
+            round(world.objects[k].y, 2),
+            min(
+                (
+                    [round(ex - world.objects[k].x, 2), round(ey - world.objects[k].y, 2)]
+                    for ex, ey in elements.values()
+                ),
+                key=lambda d: math.hypot(*d),
+                default=None,
+            ),
+        ]
+        for k, n in free_by_object.items()
+    }
     status = client.status()
     return {
         "t": round(now - t0, 1),
@@ -446,6 +463,7 @@ def sample(  # noqa: PLR0917
         "missing": missing,
         "cells_differ": cells,
         "false_free_cells": false_free,
+        "false_free_objects": where_free,
         "false_removals": false_removals,
         "revision": int(status["revision"]),
         "ghost_iris": sorted(ghosts),

@@ -58,19 +58,55 @@ def far(rules: FusionRules, seen: Pose, held: Pose) -> bool:
 
 
 def unsure_move(
-    rules: FusionRules,
+    ctx: FusionContext,
     class_rules: FusionClassRules,
     seen: Pose,
     held: Pose,
-    track: Track | None,
     *,
-    sizes: bool,
+    track: Track | None,
+    sense: int,
 ) -> bool:
-    """A move shorter than ``certain_move_m`` that fewer than ``move_sightings`` sightings agree on
-    (each within the confirmation distance and angle of their mean)."""
+    """A move shorter than ``certain_move_m`` that fewer than ``move_sightings`` sightings of this robot
+    agree on (each within the confirmation distance and angle of their mean), and that no other robot
+    stands behind (its own ``move_sightings`` sightings agree with it)."""
+    rules = ctx.rules
     if rules.move_sightings <= 1 or far(rules, seen, held):
         return False
-    return agreeing(class_rules, seen, held, track, sizes=sizes) + 1 < rules.move_sightings
+    if own_run(class_rules, seen, held, track, ctx.robot) + 1 >= rules.move_sightings:
+        return False
+    return not standing(ctx, class_rules, seen, held, track=track, sense=sense)
+
+
+def own_run(class_rules: FusionClassRules, seen: Pose, held: Pose, track: Track | None, robot: str) -> int:
+    """How many of ``robot``'s latest sightings of a move ``seen`` agrees with (0: it starts a new one)."""
+    run = track.runs.get(robot) if track is not None else None
+    if run is None or run[0].n == 0:
+        return 0
+    return run[0].n if confirms(class_rules, aligned(seen, held), run[0].mean(), sizes=False) else 0
+
+
+def standing(
+    ctx: FusionContext,
+    class_rules: FusionClassRules,
+    seen: Pose,
+    held: Pose,
+    *,
+    track: Track | None,
+    sense: int,
+) -> list[str]:
+    """The other robots that stand behind the move ``seen`` shows: ``move_sightings`` of their own latest
+    sightings agree with it, the last within ``disagreement_window_s``."""
+    if track is None:
+        return []
+    rules = ctx.rules
+    return [
+        r
+        for r, (ref, last) in track.runs.items()
+        if r != ctx.robot
+        and ref.n >= rules.move_sightings
+        and sense - last <= rules.disagreement_window_ns
+        and confirms(class_rules, aligned(seen, held), ref.mean(), sizes=False)
+    ]
 
 
 def agreeing(
@@ -161,6 +197,7 @@ def hold(
     seen: Pose,
     held: Pose,
     storey: StoreyFrame,
+    sense: int,
     sizes: Sizes | None = None,
     why: str = "",
 ) -> ElementReport | None:
@@ -171,17 +208,24 @@ def hold(
     ctx.out.pending.append(target)
     ctx.decide(target, f"move by {ctx.robot} held: {why}")
     track = ctx.memory.tracks.get(target)
-    agree = agreeing(ctx.rules.of(state.ifc_types), seen, held, track, sizes=False) > 0
-    ctx.out.effects.append(hold_move(target, aligned(seen, held), restart=not agree, robot=ctx.robot))
+    class_rules = ctx.rules.of(state.ifc_types)
+    agree = agreeing(class_rules, seen, held, track, sizes=False) > 0
+    mine = own_run(class_rules, seen, held, track, ctx.robot) > 0
+    ctx.out.effects.append(
+        hold_move(
+            target, aligned(seen, held), restart=not agree, robot=ctx.robot, restart_run=not mine, sense=sense
+        )
+    )
     if sizes is not None:
         return resized(ctx, r, state, held=held, storey=storey, sizes=sizes)
     return _unless_only_seen(ctx, replace(r, box=None, storey=None), state)
 
 
 def disputed(ctx: FusionContext, state: ElementState, seen: Pose, held: Pose, sense: int) -> bool:
-    """Whether a short move must wait: another robot confirmed the held pose within
-    ``disagreement_window_s`` of it, and no second robot agrees with the move (two detectors biased
-    against each other do not flap a still object). A move beyond ``certain_move_m`` never waits."""
+    """Whether a short move must wait: robots whose latest sighting confirmed the held pose within
+    ``disagreement_window_s`` are at least as many as the robots behind the move (this one and those
+    whose own sightings agree on it): two detectors biased against each other do not flap a still
+    object, and the majority decides. A move beyond ``certain_move_m`` never waits."""
     if far(ctx.rules, seen, held):
         return False
     track = ctx.memory.tracks.get(state.iri)
@@ -191,8 +235,8 @@ def disputed(ctx: FusionContext, state: ElementState, seen: Pose, held: Pose, se
     against = {r for r, t in track.confirmed.items() if r != ctx.robot and sense - t <= window}
     if not against:
         return False
-    movers = (track.movers if track.moving is not None else set()) | {ctx.robot}
-    return len(movers - against) < 2
+    behind = {ctx.robot, *standing(ctx, ctx.rules.of(state.ifc_types), seen, held, track=track, sense=sense)}
+    return len(behind - against) <= len(against)
 
 
 def move(
@@ -203,6 +247,7 @@ def move(
     seen: Pose,
     held: Pose,
     storey: StoreyFrame,
+    sense: int,
     sizes: Sizes | None = None,
 ) -> tuple[ElementReport, Pose]:
     """A move: to the sighting, or (a short one) to the mean of the sightings that agreed on it; the
@@ -213,9 +258,30 @@ def move(
     ctx.out.effects.append(reset_refinement(target))
     ctx.out.effects.append(moved(target))
     ctx.decide(target, f"move by {ctx.robot}")
-    if track is not None and track.moving is not None and not far(ctx.rules, seen, held):
+    class_rules = ctx.rules.of(state.ifc_types)
+    if (
+        track is not None
+        and not far(ctx.rules, seen, held)
+        and agreeing(class_rules, seen, held, track, sizes=False)
+    ):
+        assert track.moving is not None
         seen = mean_with(track.moving, aligned(seen, held))  # the sightings that agreed
+    elif track is not None and not far(ctx.rules, seen, held):
+        behind = set(standing(ctx, class_rules, seen, held, track=track, sense=sense))
+        if own_run(class_rules, seen, held, track, ctx.robot):
+            behind.add(ctx.robot)
+        agreed = Refinement()
+        for robot in sorted(behind):
+            agreed = _summed(agreed, track.runs[robot][0])
+        if agreed.n:
+            seen = mean_with(agreed, aligned(seen, held))  # the sightings that agreed
     return placed(ctx, r, state, at=seen, held=held, storey=storey, sizes=sizes)
+
+
+def _summed(a: Refinement, b: Refinement) -> Refinement:
+    return Refinement(
+        a.n + b.n, a.cx + b.cx, a.cy + b.cy, a.cz + b.cz, a.sx + b.sx, a.sy + b.sy, a.sz + b.sz, a.yaw + b.yaw
+    )
 
 
 def resizable(ctx: FusionContext, iri: str) -> bool:

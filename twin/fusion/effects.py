@@ -57,16 +57,24 @@ def refine(iri: str, pose: Pose, *, robot: str = "", sense: int = 0) -> Effect:
         t.movers.clear()
         if robot:
             t.confirmed[robot] = max(sense, t.confirmed.get(robot, sense))
+            t.runs.pop(robot, None)  # this robot sees it where it is held: its own run ends
 
     return run
 
 
-def hold_move(iri: str, pose: Pose, *, restart: bool, robot: str = "") -> Effect:
+def hold_move(
+    iri: str, pose: Pose, *, restart: bool, robot: str = "", restart_run: bool = True, sense: int = 0
+) -> Effect:
     """Another sighting of a move not yet believed (by ``robot``): added to those it agrees with, or a
-    new start."""
+    new start; and to the robot's own run (``restart_run``: a new one)."""
 
     def run(m: FusionMemory) -> None:
         t = m.track(iri)
+        if robot:
+            own = t.runs.get(robot)
+            ref = Refinement() if restart_run or own is None else own[0].copy()
+            ref.add(pose)
+            t.runs[robot] = (ref, max(sense, own[1] if own is not None and not restart_run else 0))
         moving = t.moving
         if restart or moving is None:
             moving = Refinement()
@@ -88,6 +96,7 @@ def reset_refinement(iri: str) -> Effect:
             t.moving = None
             t.movers.clear()
             t.confirmed.clear()
+            t.runs.clear()
 
     return run
 

@@ -132,6 +132,10 @@ class Track:
     """Sightings of a short move not yet believed (``[fusion] move_sightings``), aligned and summed."""
     movers: set[str] = field(default_factory=set)
     """The robots whose sightings are in ``moving``."""
+    runs: dict[str, tuple[Refinement, int]] = field(default_factory=dict)
+    """Per robot, its latest consecutive sightings that agree on a move not yet applied (summed,
+    aligned with the held pose) and the last one's sense time: a robot stands behind a move once
+    ``move_sightings`` of its own agree; another robot's confirmation does not erase it."""
     confirmed: dict[str, int] = field(default_factory=dict)
     """Robot -> the sense time of its latest sighting, while that sighting confirmed the held pose
     (a robot that then reports a move leaves): who disagrees with a short move."""
@@ -343,6 +347,7 @@ def _track_json(t: Track) -> dict[str, Any]:
         "sizes": {r: [e.n, e.sx, e.sy, e.sz, e.first_ns, e.last_ns] for r, e in t.sizes.items()},
         "decided": t.decided,
         "means": {r: [m.n, m.x, m.y, m.last_ns] for r, m in t.means.items()},
+        "runs": {r: [_refinement_json(ref), ns] for r, (ref, ns) in t.runs.items()},
     }
 
 
@@ -361,6 +366,7 @@ def _track(v: dict[str, Any]) -> Track:
         },
         decided=str(v["decided"]),
         means={r: RobotMean(int(n), float(x), float(y), int(ns)) for r, (n, x, y, ns) in v["means"].items()},
+        runs={r: (_refinement(ref), int(ns)) for r, (ref, ns) in v["runs"].items()},
     )
 
 

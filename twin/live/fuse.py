@@ -215,14 +215,14 @@ def _held_element(
             return
         if confirms(class_rules, pose, held, sizes=False):
             r = confirmation(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes)
-        elif unsure_move(ctx.rules, class_rules, pose, held, track, sizes=False):
+        elif unsure_move(ctx, class_rules, pose, held, track=track, sense=sense):
             why = "a short move needs move_sightings agreeing sightings"  # an outlier is no move
-            r = hold(ctx, r, state, seen=pose, held=held, storey=storey, sizes=sizes, why=why)
+            r = hold(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes, why=why)
         elif disputed(ctx, state, pose, held, sense):
             why = "another robot confirmed the held pose within disagreement_window_s"  # a bias
-            r = hold(ctx, r, state, seen=pose, held=held, storey=storey, sizes=sizes, why=why)
+            r = hold(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes, why=why)
         else:
-            r, pose = move(ctx, r, state, seen=pose, held=held, storey=storey, sizes=sizes)
+            r, pose = move(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes)
             r = merge_or_move(ctx, r, state, pose, storey.key, sense=sense)
         if r is None:
             return  # a confirmation: nothing to plan

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from tests.twin.box_lab import OX
 from tests.twin.fusion.fusion_helpers import box, cell, sensed
 from tests.twin.fusion.test_clocks import FakeClock, with_clock
 from tests.twin.live_helpers import observe, started
@@ -57,3 +58,17 @@ def test_a_short_move_one_robot_sees_long_after_the_others_last_sighting_is_appl
     clock.now += 20 * S
     pass_by(service, clock, "robot2", "urn:robot2:d", 5.25, sightings=2)
     assert service.revision == 2
+
+
+def test_a_desk_placed_by_a_biased_robot_follows_the_two_robots_that_agree_while_it_keeps_watching() -> None:
+    service, _ = started()
+    clock = FakeClock(service.clock())
+    with_clock(service, clock)
+    observe(service, "biased", sensed(box(DESK, 5.2, 2.0, sx=1.2, sy=0.6), clock.now))  # 20 cm off
+    for _ in range(4):  # all three watch, in turns: the biased robot confirms its own pose each time
+        for robot, x in (("biased", 5.2), ("robot1", 5.0), ("robot2", 5.0)):
+            observe(service, robot, sensed(box(f"urn:{robot}:d", x, 2.0, sx=1.2, sy=0.6), clock.now))
+            clock.now += 70 * MS
+    bounds = service.live_maps.bounds_of(DESK)
+    assert bounds is not None and abs((bounds[0] + bounds[3]) / 2 - (OX + 5.0)) < 0.02
+    assert service.revision == 2  # the creation and one move: the majority, then no flapping
