@@ -3,17 +3,18 @@
 Two robots whose detectors differ by 20 cm (a calibration offset) would move a still desk back and forth
 as they pass it in turns, and whichever moved it last leaves free cells where the desk stands. Each
 robot's mean position of an element (a moving mean of its raw boxes since the element's last move) is
-compared with the median of the means of every robot that saw the element within :data:`RECENT_NS`
-(at least :data:`MIN_ROBOTS` robots: the majority is the reference; two alone cannot tell which one
-is off); the difference, averaged slowly over every element robots see together, is the robot's
-**bias**. Once it rests on :data:`BIAS_MIN_SAMPLES` comparisons and exceeds :data:`DEADBAND_M`, the
-robot's boxes are shifted by it before anything else looks at them: one robot 20 cm off among others
-that agree is corrected by 20 cm, the others by none.
+compared with each other robot's recent mean of it: per pair of robots, the mean difference over the
+elements both see. A robot that differs by more than :data:`DEADBAND_M` from most of its partners (at
+least :data:`MIN_PARTNERS`, each with :data:`PAIR_MIN_SAMPLES` comparisons) is off: its **bias** is the
+median of those differences, and its boxes are shifted by it before anything else looks at them. A robot
+20 cm off differs from every partner; each of its partners differs from it and from no one else, so
+only the biased one is corrected. Two robots alone never correct each other (they cannot tell which one
+is off).
 
 Example::
 
     pose = unbiased(ctx, pose)                     # a robot's box as the others would see it
-    note_sighting(ctx, state, raw_pose, sense_ns)  # its means and bias, updated once accepted
+    note_sighting(ctx, state, raw_pose, sense_ns)  # its means and pair differences, once accepted
 """
 
 from __future__ import annotations
@@ -32,14 +33,14 @@ if TYPE_CHECKING:
 
 MEAN_WEIGHT = 0.2
 """The weight of a new sighting in a robot's mean of an element (after the first five, a plain mean)."""
-BIAS_WEIGHT = 0.02
-"""The weight of a new comparison in a robot's bias (after the first 50)."""
+PAIR_WEIGHT = 0.05
+"""The weight of a new comparison in a pair's mean difference (after the first 20)."""
 MEAN_MIN = 3
 """Sightings in a robot's mean of an element before it is compared."""
-BIAS_MIN_SAMPLES = 10
-"""Comparisons before a robot's bias corrects its boxes."""
-MIN_ROBOTS = 3
-"""Robots whose means of an element are compared, at least (two alone cannot tell which one is off)."""
+PAIR_MIN_SAMPLES = 5
+"""Comparisons before a pair's difference counts."""
+MIN_PARTNERS = 2
+"""Partners a robot's bias needs (with one, the twin cannot tell which of the two is off)."""
 DEADBAND_M = 0.05
 """A bias this small is the detectors' noise, not a calibration error: not applied."""
 RECENT_NS = 60 * 10**9
@@ -48,11 +49,15 @@ the element starts its means again)."""
 
 
 def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None:
-    """The bias a robot's boxes are corrected by, once known (None: none)."""
-    b = memory.biases.get(robot)
-    if b is None or b.n < BIAS_MIN_SAMPLES or math.hypot(b.x, b.y) <= DEADBAND_M:
+    """The bias a robot's boxes are corrected by (None: none): the median of its differences with its
+    partners, when it differs by more than :data:`DEADBAND_M` from most of them (at least
+    :data:`MIN_PARTNERS`). A robot that agrees with some partners and differs from one is not the one
+    that is off."""
+    diffs = [d for (a, _), d in list(memory.pairs.items()) if a == robot and d.n >= PAIR_MIN_SAMPLES]
+    differing = [d for d in diffs if math.hypot(d.x, d.y) > DEADBAND_M]
+    if len(differing) < MIN_PARTNERS or 2 * len(differing) <= len(diffs):
         return None
-    return b.x, b.y
+    return statistics.median(d.x for d in differing), statistics.median(d.y for d in differing)
 
 
 def unbiased(ctx: FusionContext, pose: Pose) -> Pose:
@@ -73,18 +78,22 @@ def note_sighting(ctx: FusionContext, state: ElementState, raw: Pose, sense: int
     others = [
         (r, m) for r, m in means.items() if r != robot and m.n >= MEAN_MIN and sense - m.last_ns <= RECENT_NS
     ]
-    bias = None
-    if mine.n >= MEAN_MIN and len(others) + 1 >= MIN_ROBOTS:
-        everyone = [mine, *(m for _, m in others)]
-        dx = mine.x - statistics.median(m.x for m in everyone)
-        dy = mine.y - statistics.median(m.y for m in everyone)
-        if math.hypot(dx, dy) <= ctx.rules.certain_move_m:  # not a move the others have not seen yet
-            bias = memory.biases.get(robot, RobotMean()).added(dx, dy, sense, weight=BIAS_WEIGHT)
+    pairs = {}
+    if mine.n >= MEAN_MIN:
+        for other, m in others:
+            dx, dy = mine.x - m.x, mine.y - m.y
+            if math.hypot(dx, dy) > ctx.rules.certain_move_m:
+                continue  # a move the other has not seen yet
+            pairs[robot, other] = memory.pairs.get((robot, other), RobotMean()).added(
+                dx, dy, sense, weight=PAIR_WEIGHT
+            )
+            pairs[other, robot] = memory.pairs.get((other, robot), RobotMean()).added(
+                -dx, -dy, sense, weight=PAIR_WEIGHT
+            )
 
     def run(m: FusionMemory) -> None:
         m.track(iri).means[robot] = mine
-        if bias is not None:
-            m.biases[robot] = bias
+        m.pairs.update(pairs)
 
     ctx.out.effects.append(run)
 
@@ -92,7 +101,7 @@ def note_sighting(ctx: FusionContext, state: ElementState, raw: Pose, sense: int
 def detector_biases(memory: FusionMemory) -> dict[str, list[float]]:
     """Each robot's detector bias (x, y, metres) once known (``twin status``)."""
     out = {}
-    for robot in sorted(list(memory.biases)):
+    for robot in sorted({a for a, _ in list(memory.pairs)}):
         b = applied_bias(memory, robot)
         if b is not None:
             out[robot] = [round(b[0], 3), round(b[1], 3)]

@@ -259,8 +259,8 @@ class FusionMemory:
     :data:`HISTORY_PER_ELEMENT`; a removed element's last pose too): late news is checked against them."""
     clocks: dict[str, ClockEstimate] = field(default_factory=dict)
     """Per robot, its clock offset estimate (:mod:`twin.fusion.clocks`)."""
-    biases: dict[str, RobotMean] = field(default_factory=dict)
-    """Per robot, its detector's bias (x, y): where it puts objects against where the other robots do
+    pairs: dict[tuple[str, str], RobotMean] = field(default_factory=dict)
+    """(robot, other robot) -> the mean difference (x, y) between where they put the elements both see
     (:mod:`twin.fusion.bias`)."""
     shape_poses: dict[str, tuple[object, object, Pose]] = field(default_factory=dict)
     """Element -> (mesh, placement, pose): the pose of the shape it has, computed once per shape."""
@@ -385,7 +385,7 @@ def memory_to_json(m: FusionMemory) -> dict[str, Any]:
             robot: {"samples": [list(s) for s in e.samples], "first_ns": e.first_ns, "warned": e.warned}
             for robot, e in m.clocks.items()
         },
-        "biases": {r: [b.n, b.x, b.y, b.last_ns] for r, b in m.biases.items()},
+        "pairs": [[a, b, d.n, d.x, d.y, d.last_ns] for (a, b), d in m.pairs.items()],
     }
 
 
@@ -405,8 +405,9 @@ def memory_from_json(v: dict[str, Any]) -> FusionMemory:
             )
             for robot, e in v["clocks"].items()
         },
-        biases={
-            r: RobotMean(int(n), float(x), float(y), int(ns)) for r, (n, x, y, ns) in v["biases"].items()
+        pairs={
+            (str(a), str(b)): RobotMean(int(n), float(x), float(y), int(ns))
+            for a, b, n, x, y, ns in v["pairs"]
         },
     )
     for iri, past in v["history"].items():
