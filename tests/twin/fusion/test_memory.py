@@ -36,7 +36,7 @@ def test_a_memory_with_every_kind_of_entry_survives_a_json_round_trip() -> None:
     text = json.dumps(memory.to_json())
     again = FusionMemory.from_json(json.loads(text))
     assert again.to_json() == memory.to_json()
-    for name in ("tracks", "aliases", "tentative", "distinct", "history"):
+    for name in ("tracks", "aliases", "tentative", "distinct", "history", "pairs"):
         assert getattr(again, name) == getattr(memory, name), name
     assert {r: list(e.samples) for r, e in again.clocks.items()} == {
         r: list(e.samples) for r, e in memory.clocks.items()
