@@ -499,6 +499,52 @@ def false_free_cells(grid: Any, o: Obj) -> int:
 # --- the run ---------------------------------------------------------------------------------------------
 
 
+PULL_AFTER_S = 8.0
+"""A chair tucked under a table is pulled out this long after."""
+CHAIR = (0.45, 0.45, 0.9)
+
+
+def tuck_chair(  # noqa: PLR0917
+    world: World, rng: random.Random, now: float, oracle: Any, storey: str, elevation: float
+) -> tuple[int, int] | None:
+    """A new chair tucked under a present table-sized object (a 0.45 m chair inside its footprint,
+    taller than it): returns (chair, table), or None when no object is large enough."""
+    tables = [o for o in world.objects.values() if o.present and o.sx >= 0.75 and o.sy >= 0.5]
+    if not tables:
+        return None
+    t = rng.choice(tables)
+    shift = t.sx / 2 - CHAIR[0] / 2 - 0.05
+    c, s = math.cos(t.yaw), math.sin(t.yaw)
+    k = max(world.objects) + 1
+    chair = Obj(k, t.x + shift * c, t.y + shift * s, t.yaw, *CHAIR, changed_at=now)
+    world.objects[k] = chair
+    world.events.append(Event("tuck", k, now, (chair.x, chair.y), chair.corners()))
+    apply_truth(oracle, truth_box(chair, storey, elevation))
+    return k, t.key
+
+
+def pull_out(  # noqa: PLR0917
+    world: World, chair_key: int, table_key: int, now: float, oracle: Any, storey: str, elevation: float
+) -> None:
+    """The chair pulled out from under its table, beside it (if the floor there is free)."""
+    chair, table = world.objects[chair_key], world.objects[table_key]
+    c, s = math.cos(table.yaw), math.sin(table.yaw)
+    sides = [(-s, c), (s, -c), (c, s), (-c, -s)]  # beside the table's long sides first, then its ends
+    for (ux, uy), half in zip(sides, (table.sy, table.sy, table.sx, table.sx), strict=True):
+        d = half / 2 + CHAIR[1] / 2 + 0.2
+        x, y = table.x + d * ux, table.y + d * uy
+        probe = Obj(-1, x, y, chair.yaw, *CHAIR)
+        crowded = any(
+            o.present and o.key not in (chair_key, table_key) and math.dist((o.x, o.y), (x, y)) < 0.7
+            for o in world.objects.values()
+        )
+        if all(world.is_free(*p) for p in probe.corners()) and world.is_free(x, y) and not crowded:
+            world.events.append(Event("pull", chair_key, now, (chair.x, chair.y), chair.corners()))
+            chair.x, chair.y, chair.changed_at, chair.seen_since_change = x, y, now, None
+            apply_truth(oracle, truth_box(chair, storey, elevation))
+            return
+
+
 def oracle_service(store: Path, work: Path) -> Any:
     from dataclasses import replace
 
@@ -579,7 +625,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     placed = len(world.objects)
     # the script: moves, removals, appearances over the middle of the run
     t_first, t_last = args.duration * 0.2, args.duration * 0.75
-    kinds = ["move"] * args.moves + ["remove"] * args.removals + ["appear"] * args.appears
+    kinds = (
+        ["move"] * args.moves + ["remove"] * args.removals + ["appear"] * args.appears + ["tuck"] * args.tucks
+    )
     rng.shuffle(kinds)
     script = [(t_first + (t_last - t_first) * i / max(1, len(kinds)), k) for i, k in enumerate(kinds)]
 
@@ -612,15 +660,25 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             for t in threads:
                 t.start()
             next_sample, step = t0 + 1.0, 0
+            pulls: list[tuple[float, int, int]] = []  # (when, chair, table): a tucked chair pulled out
             previous: dict[str, tuple[float, float]] = {}
             cpu_main = None
             while time.time() < sat_end:
                 now = time.time()
+                while pulls and now >= pulls[0][0]:
+                    _, chair_key, table_key = pulls.pop(0)
+                    with world.lock:
+                        pull_out(world, chair_key, table_key, now, oracle, storey, elevation)
                 while step < len(script) and now - t0 >= script[step][0]:
                     _, kind = script[step]
                     step += 1
                     with world.lock:
                         present = [o for o in world.objects.values() if o.present]
+                        if kind == "tuck":
+                            tucked = tuck_chair(world, rng, now, oracle, storey, elevation)
+                            if tucked is not None:
+                                pulls.append((now + PULL_AFTER_S, *tucked))
+                            continue
                         if kind == "appear" or not present:
                             spot = world.place(rng)
                             if spot is None:
@@ -695,6 +753,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "moves": sum(e.kind == "move" for e in world.events),
         "removals": sum(e.kind == "remove" for e in world.events),
         "appears": sum(e.kind == "appear" for e in world.events),
+        "tucks": sum(e.kind == "tuck" for e in world.events),
+        "pulls": sum(e.kind == "pull" for e in world.events),
         "final": final,
         "max_duplicates": max((s["duplicates"] for s in late), default=0),
         "max_viewed_ghosts": max((s["viewed_ghosts"] for s in late), default=0),
@@ -777,6 +837,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--moves", type=int, default=2)
     p.add_argument("--removals", type=int, default=1)
     p.add_argument("--appears", type=int, default=0)
+    p.add_argument("--tucks", type=int, default=0, help="chairs tucked under tables, pulled out 8 s later")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument(
         "--behaviours",
