@@ -32,7 +32,7 @@ import logging
 import queue
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -76,6 +76,7 @@ from adapters.ros.rmw_zenoh import (
     resolve_name,
     type_hash,
 )
+from adapters.ros.sessions import TrackerSession
 from adapters.ros.settings import ros_robots, ros_sources
 from adapters.ros.tf import TfBuffer, decode_tf_message
 from adapters.zenoh.latched import CDR, declare_latched_subscriber
@@ -155,6 +156,8 @@ class _Robot:
     """Arrays whose transform is not in yet: (monotonic deadline, message), oldest first."""
     fov_rad: tuple[float, float] | None = None
     """The camera's fields of view from its latest CameraInfo (``camera_info``), if any."""
+    session: TrackerSession = field(default_factory=TrackerSession)
+    """Its tracker's session (resumed from the twin at start: a daemon restart starts none)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -188,6 +191,7 @@ class RosIngest:
         fusion_terms: bool | None = None,
         queue_depth: int = QUEUE_DEPTH,
         select: Callable[[str], list[Row]] | None = None,
+        sessions: Mapping[str, TrackerSession] | None = None,
     ) -> None:
         """``select``: a read-only SPARQL SELECT on the twin's store (the daemon's): with it, the
         obstacle trackers take back at start-up (on TwinStarted, before any message is handled) the
@@ -221,7 +225,8 @@ class RosIngest:
             if d is None or robot.namespace is None:
                 continue
             settings = DetectionSettings.from_config(robot.name, d, config.limits)
-            self._robots[robot.name] = _Robot(robot.name, settings, d.view_skill)
+            resumed = (sessions or {}).get(robot.name) or TrackerSession()
+            self._robots[robot.name] = _Robot(robot.name, settings, d.view_skill, session=resumed)
             self._counts[robot.name] = Counts()
             node = RosNode(robot.domain_id, robot.namespace, INGEST_NODE, zid, node_id)
             node_id += 1
@@ -498,7 +503,15 @@ class RosIngest:
             grid = self._grids.get((storey, robot.view_skill)) if storey and robot.view_skill else None
         known = robot.view_skill is None or grid is not None
         ctx = DetectionContext(
-            storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known, fov_rad=robot.fov_rad
+            storey,
+            elevation,
+            self.clock(),
+            robot.tf,
+            grid,
+            self.fusion_terms,
+            known,
+            fov_rad=robot.fov_rad,
+            session=robot.session,
         )
         return translate_detections(m.payload, robot.settings, ctx)
 
@@ -582,6 +595,10 @@ class RosIngest:
                 "views": self.fusion_terms,
                 "obstacles_held": sum(t.held for t in self._obstacles.values()),
                 "counts": counts,
+                "tracker_sessions": {
+                    name: {"session": r.session.label, "restarts": r.session.restarts}
+                    for name, r in sorted(self._robots.items())
+                },
             }
         }
 

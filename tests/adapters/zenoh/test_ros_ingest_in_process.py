@@ -93,7 +93,8 @@ def test_the_view_stops_at_the_structure_and_follows_its_map_updates(
     stamp = time.time_ns()
     send_array(session, stamp)
     wait(lambda: len(docs) == 1)
-    assert b"<urn:twin-ros:robot1:det:7> twin:ifcClass" in docs[0]
+    session_label = f"s{stamp // 10**9}".encode()  # the tracker session: the first array's stamp
+    assert b"<urn:twin-ros:robot1:det:" + session_label + b":7> twin:ifcClass" in docs[0]
     xs = view_xs(docs[0])
     assert xs[0] == pytest.approx(12.2) and xs.max() <= 16.0 and xs.max() > 15.9  # cut at the wall
     cleared = np.zeros((FRAME.height, 10), dtype=np.int8)  # the wall's column and its neighbours: free
