@@ -105,10 +105,29 @@ def load_live_or_restore(
         revision=revision,
         last_seen={},
         held={},
-        fusion=load_fusion(store, time.time_ns()),
+        fusion=_fusion(store, restored),
         robot_storeys={n: r.storey for n, r in config.robots.items() if r.storey},
     )
     return live, model_iri.removesuffix("model"), restored
+
+
+def _fusion(store: GraphStore, restored: Restored | None) -> FusionMemory:
+    """Fusion's memory: what the snapshot kept of it (sightings, misses, previous poses, clocks, the
+    robots' detector comparisons), with the aliases and distinct elements as the graph holds them (the
+    graph is their truth: a snapshot older than the store may lack the latest)."""
+    now_ns = time.time_ns()
+    from_graph = load_fusion(store, now_ns)
+    if restored is None or restored.fusion is None:
+        return from_graph
+    try:
+        memory = FusionMemory.from_json(restored.fusion)
+    except (KeyError, TypeError, ValueError) as err:
+        log.info("Fusion's memory starts empty: the snapshot's could not be read (%s)", err)
+        return from_graph
+    memory.aliases = {a: Alias(v.target, now_ns) for a, v in from_graph.aliases.items()}
+    memory.distinct = from_graph.distinct
+    log.info("Fusion's memory restored from the snapshot: %d tracks", len(memory.tracks))
+    return memory
 
 
 def _restore(

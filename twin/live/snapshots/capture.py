@@ -65,6 +65,8 @@ class Captured:
     maps: tuple[_MapCopy, ...]
     states: dict[str, ElementState]
     points: tuple[_PointsCopy, ...] = ()
+    fusion: dict[str, Any] | None = None
+    """Fusion's memory (:meth:`twin.fusion.memory.FusionMemory.to_json`): sightings, misses, clocks."""
 
 
 def capture(live: LiveState, keys: dict[str, Any]) -> Captured:
@@ -107,6 +109,7 @@ def capture(live: LiveState, keys: dict[str, Any]) -> Captured:
         maps,
         dict(live.states),  # the states themselves are immutable
         tuple(points),
+        live.fusion.to_json(),  # new values: a copy
     )
 
 
@@ -205,6 +208,7 @@ def save(path: Path, snap: Captured) -> int:
         "maps": maps,
         "points": points,
         "states": [_state_json(st) for st in snap.states.values()],
+        "fusion": snap.fusion,
     }
     return write_snapshot(path, header, arrays)
 

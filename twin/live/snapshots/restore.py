@@ -83,6 +83,8 @@ class Restored:
     items: list[tuple[str, Mesh, FloatArray]]
     states: dict[str, ElementState]
     filled: AnyArray = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
+    fusion: dict[str, Any] | None = None
+    """Fusion's memory as the snapshot kept it (:meth:`twin.fusion.memory.FusionMemory.from_json`)."""
 
     def _fill(self, ids: AnyArray) -> None:
         els = self.maps.scene.elements
@@ -256,7 +258,8 @@ def restore(
         live.points.pending[p.key] = p.version  # published at the first flush
     filled = np.zeros(len(items), dtype=np.bool_)
     names = frozenset(m.plan.skill.name for m in maps) | frozenset(p.plan.skill.name for p in points)
-    return Restored(live, at, names, items, states, filled)
+    fusion = header.get("fusion")
+    return Restored(live, at, names, items, states, filled, fusion if isinstance(fusion, dict) else None)
 
 
 # --- replay ------------------------------------------------------------------------------------------

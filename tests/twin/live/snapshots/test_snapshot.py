@@ -263,3 +263,37 @@ def test_a_snapshot_written_by_other_core_code_is_rebuilt_not_served(
     again = start(store, path)
     assert again.restored_from is None
     assert_same_as_a_rebuild(again)
+
+
+def test_fusions_memory_survives_a_restart_from_the_snapshot_so_misses_count_on(tmp_path: Path) -> None:
+    from tests.twin.live.test_views import ROOM_B, SPOT, misses, room_b_with, view
+
+    store, path = imported(box_lab()), tmp_path / "store.snapshot"
+    first = start(store, path)
+    t = room_b_with(first)
+    assert observe(first, "robot2", view(t + 5 * 10**8, [ROOM_B])).ok
+    assert misses(first, SPOT) == 1
+    kept = first.live.fusion.to_json()
+    stop_cleanly(first)  # writes the snapshot, fusion's memory in it
+
+    again = start(store, path)
+    assert again.restored_from is not None
+    assert again.live.fusion.to_json()["tracks"] == kept["tracks"]
+    assert again.live.fusion.to_json()["clocks"] == kept["clocks"]
+    assert misses(again, SPOT) == 1  # counted on from where the last run left it, not from zero
+    for i in (2, 3):
+        assert observe(again, "robot2", view(t + i * 5 * 10**8, [ROOM_B])).ok
+    assert again.states[SPOT].removed  # three misses over 1 s, across the restart
+
+
+def test_a_start_without_a_snapshot_starts_fusions_memory_from_the_graph_alone(tmp_path: Path) -> None:
+    from tests.twin.live.test_views import ROOM_B, SPOT, misses, room_b_with, view
+
+    store, path = imported(box_lab()), tmp_path / "store.snapshot"
+    first = start(store, path)
+    t = room_b_with(first)
+    assert observe(first, "robot2", view(t + 5 * 10**8, [ROOM_B])).ok
+    stop_cleanly(first)
+    path.unlink()
+    again = start(store, path)
+    assert again.restored_from is None and misses(again, SPOT) == 0
