@@ -86,6 +86,7 @@ from twin.live.events import MapPublished, MapUpdated, TwinEvent, TwinStarted
 from twin.live.parse import parse_observation
 from twin.live.requests import Reply, ReplyFn
 from twin.maps.grid import OccupancyGrid
+from twin.records import Observation
 
 __all__ = ["INGEST_NODE", "RosIngest", "core_reads_fusion_terms", "source_node"]
 
@@ -108,7 +109,7 @@ TF_WAIT_S = 0.5
 """How long an array whose transform is not in yet waits for newer TF (tf2's message filter does so too)."""
 MAX_WAITING = 64
 """Arrays per robot waiting for TF at most; more are translated at once (and refused if still unresolved)."""
-Submit = Callable[[str, bytes, ReplyFn], None]
+Submit = Callable[[str, "bytes | Observation", ReplyFn], None]
 
 
 def core_reads_fusion_terms(limits: Limits) -> bool:
@@ -188,11 +189,17 @@ class RosIngest:
         fusion_terms: bool | None = None,
         queue_depth: int = QUEUE_DEPTH,
         select: Callable[[str], list[Row]] | None = None,
+        typed: bool = True,
     ) -> None:
         """``select``: a read-only SPARQL SELECT on the twin's store (the daemon's): with it, the
         obstacle trackers take back at start-up (on TwinStarted, before any message is handled) the
-        obstacles a previous run added, with their lifetimes (:func:`~adapters.ros.rmf.held_obstacles`)."""
+        obstacles a previous run added, with their lifetimes (:func:`~adapters.ros.rmf.held_obstacles`).
+        ``typed``: detection arrays go to ``submit`` as the core's typed records (an
+        :class:`~twin.records.Observation`, checked by the same validator as a parsed document) rather
+        than as Turtle text that the core would parse again; False: Turtle (a ``submit`` that only takes
+        documents)."""
         self.submit = submit
+        self.typed = typed
         self.select = select
         self._held: list[tuple[str, int | None]] = []
         self._restored = threading.Event()
@@ -500,7 +507,7 @@ class RosIngest:
         ctx = DetectionContext(
             storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known, fov_rad=robot.fov_rad
         )
-        return translate_detections(m.payload, robot.settings, ctx)
+        return translate_detections(m.payload, robot.settings, ctx, typed=self.typed)
 
     def _deliver(self, owner: str, t: Translation) -> None:
         with self._lock:

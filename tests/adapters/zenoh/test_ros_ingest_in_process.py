@@ -45,7 +45,8 @@ def ingest(tmp_path: Path) -> Iterator[tuple[RosIngest, zenoh.Session, list[byte
 
     with zenoh.open(client_config([])) as session:
         ing = RosIngest(
-            session, load_config(path), submit, storey_of=lambda _: "ground-floor", fusion_terms=True
+            session, load_config(path), submit, storey_of=lambda _: "ground-floor", fusion_terms=True,
+            typed=False,  # Turtle: the test reads the documents
         )
         ing.emit(TwinStarted("lab", 0, 0, (("ground-floor", "Ground floor", 0.0),), (), {}))
         data = np.zeros((FRAME.height, FRAME.width), dtype=np.int8)
