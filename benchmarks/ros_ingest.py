@@ -51,9 +51,11 @@ def tables(robots: int, per_robot: int) -> list[list[tuple[float, float]]]:
 
 
 def publisher(
-    endpoint: str, *, robots: int, rate: float, per_robot: int, duration: float, layout: str
+    endpoint: str, *, robots: int, rate: float, per_robot: int, duration: float, layout: str,
+    first: int = 0, count: int | None = None,
 ) -> int:
-    """Publish every robot's TF and detections at ``rate`` for ``duration`` seconds."""
+    """Publish the TF and detections of robots ``first`` .. ``first + count`` (of ``robots``) at
+    ``rate`` for ``duration`` seconds."""
     import zenoh
 
     from adapters.ros.interfaces import DETECTION_3D_ARRAY, TF_MESSAGE
@@ -64,7 +66,8 @@ def publisher(
     spots = tables(robots, per_robot)
     with zenoh.open(client_config([endpoint])) as session:
         outs = []
-        for r in range(robots):
+        mine = range(first, robots if count is None else min(robots, first + count))
+        for r in mine:
             keys = []
             for name, type_name in (("tf", TF_MESSAGE), ("detections", DETECTION_3D_ARRAY)):
                 topic = RosTopic(0, f"/robot{r}", name, type_name)
@@ -84,7 +87,7 @@ def publisher(
             moved = tick > 0 and tick % MOVE_EVERY == 0
             if moved:
                 shift = 0.0 if shift else 0.3  # robot0's first table moves 0.3 m along x and back
-            for r, (tf_pub, det_pub) in enumerate(outs):
+            for r, (tf_pub, det_pub) in zip(mine, outs, strict=True):
                 tf_pub.put(cdr_tf([Tf("map", "base_link", (15.0, 7.0, 0.0), stamp_ns=stamp)]), **extra)
                 dets = [
                     Det(
@@ -143,6 +146,20 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def _children_cpu_s(pid: int) -> dict[int, float]:
+    """CPU seconds of each live child process of ``pid`` (the ingest workers)."""
+    import psutil
+
+    out: dict[int, float] = {}
+    for child in psutil.Process(pid).children(recursive=True):
+        try:
+            t = child.cpu_times()
+            out[child.pid] = t.user + t.system
+        except psutil.Error:
+            continue
+    return out
+
+
 def _status(endpoint: str) -> dict[str, Any]:
     from adapters.zenoh.client import TwinClient
 
@@ -151,14 +168,16 @@ def _status(endpoint: str) -> dict[str, Any]:
 
 
 def run(
-    *, robots: int, rate: float, per_robot: int, duration: float, warmup: float, layout: str
+    *, robots: int, rate: float, per_robot: int, duration: float, warmup: float, layout: str,
+    publishers: int, root: Path = ROOT, workers: int | None = None,
 ) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         store = live.prepare_store("lab", work)
         cfg = work / "robots.toml"
+        ros = "" if workers is None else f"[ros]\ningest_workers = {workers}\n"
         cfg.write_text(
-            "".join(
+            ros + "".join(
                 f'[robots.robot{r}]\nnamespace = "/robot{r}"\nstorey = "ground-floor"\nros = ["{layout}"]\n'
                 f'[robots.robot{r}.detections]\nclasses = {{ table = "IfcFurniture" }}\n'
                 f"max_detections = {max(per_robot, 1)}\n"
@@ -167,20 +186,26 @@ def run(
         )
         port = live._free_port()
         endpoint = f"tcp/127.0.0.1:{port}"
-        daemon = _serve(cfg, store, endpoint)
+        daemon = _serve(cfg, store, endpoint, root)
         drain = threading.Thread(target=lambda: [None for _ in daemon.stdout or []], daemon=True)
         drain.start()
-        pub = subprocess.Popen(
-            [sys.executable, __file__, "--child", endpoint, str(robots), str(rate), str(per_robot),
-             str(duration), layout],
-            stdout=subprocess.PIPE, text=True, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
-        )  # fmt: skip
-        assert pub.stdout is not None
-        json.loads(pub.stdout.readline())
+        per = -(-robots // max(1, publishers))
+        args = [endpoint, str(robots), str(rate), str(per_robot), str(duration), layout]
+        env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        pubs = [
+            subprocess.Popen(
+                [sys.executable, __file__, "--child", *args, str(first), str(per)],
+                stdout=subprocess.PIPE, text=True, cwd=ROOT, env=env,
+            )
+            for first in range(0, robots, per)
+        ]
+        for pub in pubs:
+            assert pub.stdout is not None
+            json.loads(pub.stdout.readline())
         moves: list[float] = []
         lines: list[dict[str, Any]] = []
 
-        def read_publisher() -> None:
+        def read_publisher(pub: subprocess.Popen[str]) -> None:
             assert pub.stdout is not None
             for line in pub.stdout:
                 item = json.loads(line)
@@ -189,8 +214,9 @@ def run(
                 else:
                     lines.append(item)
 
-        reader = threading.Thread(target=read_publisher, daemon=True)
-        reader.start()
+        readers = [threading.Thread(target=read_publisher, args=(p,), daemon=True) for p in pubs]
+        for reader in readers:
+            reader.start()
         import zenoh
 
         from adapters.zenoh.session import client_config
@@ -202,16 +228,18 @@ def run(
         )
         t_start = time.monotonic()
         time.sleep(warmup)
-        s0, c0, w0 = _status(endpoint), _cpu_s(daemon.pid), time.monotonic()
+        s0, c0, k0, w0 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
         depths: list[tuple[int, int]] = []
         while time.monotonic() - t_start < duration - 0.5:
             time.sleep(1.0)
             s = _status(endpoint)
             depths.append((int(s["ros_ingest"]["queue_depth"]), int(s["queue_depth"])))
-        s1, c1, w1 = _status(endpoint), _cpu_s(daemon.pid), time.monotonic()
-        pub.wait(timeout=30)
-        reader.join(timeout=10)
-        sent = lines[-1]
+        s1, c1, k1, w1 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
+        for pub in pubs:
+            pub.wait(timeout=30)
+        for reader in readers:
+            reader.join(timeout=10)
+        sent = {"sent": sum(int(x.get("sent", 0)) for x in lines)}
         watch.undeclare()
         watcher.close()
         time.sleep(1.0)
@@ -233,6 +261,7 @@ def run(
     for c in final["ros_ingest"]["counts"].values():
         for cause, n in c["refused"].items():
             refused[cause] = refused.get(cause, 0) + int(n)
+    workers_s = sum(k1[p] - k0.get(p, 0.0) for p in k1)
     latencies = []
     for t in moves:
         after = [u for u in updates if u >= t]
@@ -248,28 +277,35 @@ def run(
         "arrays_received_per_s": round(received / window, 1),
         "acked_per_s": round(acked / window, 1),
         "cpu_ms_per_array": round(1000 * (c1 - c0) / max(received, 1), 3),
+        "workers_ms_per_array": round(1000 * workers_s / max(received, 1), 3),
+        "total_ms_per_array": round(1000 * (c1 - c0 + workers_s) / max(received, 1), 3),
         "daemon_cpu_pct": round(100 * (c1 - c0) / window, 1),
+        "workers_cpu_pct": round(100 * workers_s / window, 1),
+        "publishers": len(pubs),
         "accepted_total": total(final, "accepted"),
         "unchanged_total": total(final, "unchanged"),
         "refused": refused,
         "sent_total": sent["sent"],
         "arrays_received_total": total(final, "arrays"),
         "waited_for_tf": sum(int(c["waited_for_tf"]) for c in final["ros_ingest"]["counts"].values()),
+        "overflow": sum(int(c["refused"].get("overflow", 0)) for c in final["ros_ingest"]["counts"].values()),
         "queue_depth_max": max((d[0] for d in depths), default=0),
         "service_queue_max": max((d[1] for d in depths), default=0),
         "queue_depth_last": depths[-1] if depths else None,
         "revision": final["revision"],
         "moves": len(moves),
         "move_update_ms_p50": round(float(live._pct(latencies, 50)), 1),
+        "move_update_ms_p99": round(float(live._pct(latencies, 99)), 1),
         "move_update_ms_max": round(max(latencies, default=float("nan")), 1),
     }
 
 
-def _serve(cfg: Path, store: Path, endpoint: str) -> subprocess.Popen[str]:
+def _serve(cfg: Path, store: Path, endpoint: str, root: Path = ROOT) -> subprocess.Popen[str]:
+    """``twin serve`` of the code in ``root`` (another tree: a baseline of an earlier commit)."""
     daemon = subprocess.Popen(
         live._twin("--config", str(cfg), "serve", "--store", str(store), "--listen", endpoint, "--no-record"),
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=root,
+        env={**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": str(root)},
     )  # fmt: skip
     assert daemon.stdout is not None
     line = ""
@@ -282,10 +318,10 @@ def _serve(cfg: Path, store: Path, endpoint: str) -> subprocess.Popen[str]:
 
 def main() -> int:
     if len(sys.argv) > 1 and sys.argv[1] == "--child":
-        endpoint, robots, rate, per_robot, duration, layout = sys.argv[2:]
+        endpoint, robots, rate, per_robot, duration, layout, first, count = sys.argv[2:]
         return publisher(
             endpoint, robots=int(robots), rate=float(rate), per_robot=int(per_robot),
-            duration=float(duration), layout=layout,
+            duration=float(duration), layout=layout, first=int(first), count=int(count),
         )  # fmt: skip
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--robots", type=int, default=10)
@@ -295,15 +331,23 @@ def main() -> int:
     p.add_argument("--warmup", type=float, default=8.0)
     p.add_argument("--layout", choices=["bridge", "rmw_zenoh"], default="rmw_zenoh")
     p.add_argument("--json", type=Path)
+    p.add_argument("--publishers", type=int, default=0,
+                   help="publisher processes, the robots shared among them (default: one per robot)")
+    p.add_argument("--workers", type=int, default=None, help="[ros] ingest_workers (default: the daemon's)")
+    p.add_argument("--baseline", metavar="TREE", type=Path,
+                   help="also run the daemon of this code tree (e.g. `git archive cd19a56 | tar -x -C TREE`)")
     p.add_argument("--translate-only", action="store_true", help="time the translation in-process only")
     a = p.parse_args()
     if a.translate_only:
         print(json.dumps(translate_only(a.detections), indent=1))
         return 0
-    result = run(
-        robots=a.robots, rate=a.rate, per_robot=a.detections, duration=a.duration, warmup=a.warmup,
-        layout=a.layout,
-    )  # fmt: skip
+    common = {
+        "robots": a.robots, "rate": a.rate, "per_robot": a.detections, "duration": a.duration,
+        "warmup": a.warmup, "layout": a.layout, "publishers": a.publishers or a.robots,
+    }  # fmt: skip
+    result: dict[str, Any] = {"this": run(**common, workers=a.workers)}
+    if a.baseline is not None:
+        result["baseline"] = run(**common, root=a.baseline.resolve())
     print(json.dumps(result, indent=1))
     if a.json:
         a.json.write_text(json.dumps(result, indent=1))
