@@ -51,8 +51,15 @@ def tables(robots: int, per_robot: int) -> list[list[tuple[float, float]]]:
 
 
 def publisher(
-    endpoint: str, *, robots: int, rate: float, per_robot: int, duration: float, layout: str,
-    first: int = 0, count: int | None = None,
+    endpoint: str,
+    *,
+    robots: int,
+    rate: float,
+    per_robot: int,
+    duration: float,
+    layout: str,
+    first: int = 0,
+    count: int | None = None,
 ) -> int:
     """Publish the TF and detections of robots ``first`` .. ``first + count`` (of ``robots``) at
     ``rate`` for ``duration`` seconds."""
@@ -168,8 +175,16 @@ def _status(endpoint: str) -> dict[str, Any]:
 
 
 def run(
-    *, robots: int, rate: float, per_robot: int, duration: float, warmup: float, layout: str,
-    publishers: int, root: Path = ROOT, workers: int | None = None,
+    *,
+    robots: int,
+    rate: float,
+    per_robot: int,
+    duration: float,
+    warmup: float,
+    layout: str,
+    publishers: int,
+    root: Path = ROOT,
+    workers: int | None = None,
 ) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -177,7 +192,8 @@ def run(
         cfg = work / "robots.toml"
         ros = "" if workers is None else f"[ros]\ningest_workers = {workers}\n"
         cfg.write_text(
-            ros + "".join(
+            ros
+            + "".join(
                 f'[robots.robot{r}]\nnamespace = "/robot{r}"\nstorey = "ground-floor"\nros = ["{layout}"]\n'
                 f'[robots.robot{r}.detections]\nclasses = {{ table = "IfcFurniture" }}\n'
                 f"max_detections = {max(per_robot, 1)}\n"
@@ -195,7 +211,10 @@ def run(
         pubs = [
             subprocess.Popen(
                 [sys.executable, __file__, "--child", *args, str(first), str(per)],
-                stdout=subprocess.PIPE, text=True, cwd=ROOT, env=env,
+                stdout=subprocess.PIPE,
+                text=True,
+                cwd=ROOT,
+                env=env,
             )
             for first in range(0, robots, per)
         ]
@@ -245,7 +264,7 @@ def run(
         time.sleep(1.0)
         final = _status(endpoint)
         daemon.terminate()
-        daemon.wait(timeout=30)
+        exit_code = daemon.wait(timeout=30)
 
     def total(s: dict[str, Any], key: str) -> int:
         if key == "arrays":
@@ -293,6 +312,7 @@ def run(
         "service_queue_max": max((d[1] for d in depths), default=0),
         "queue_depth_last": depths[-1] if depths else None,
         "revision": final["revision"],
+        "daemon_exit": exit_code,
         "moves": len(moves),
         "move_update_ms_p50": round(float(live._pct(latencies, 50)), 1),
         "move_update_ms_p99": round(float(live._pct(latencies, 99)), 1),
@@ -305,7 +325,7 @@ def _serve(cfg: Path, store: Path, endpoint: str, root: Path = ROOT) -> subproce
     daemon = subprocess.Popen(
         live._twin("--config", str(cfg), "serve", "--store", str(store), "--listen", endpoint, "--no-record"),
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=root,
-        env={**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": str(root)},
+        env={**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])},
     )  # fmt: skip
     assert daemon.stdout is not None
     line = ""
@@ -331,11 +351,19 @@ def main() -> int:
     p.add_argument("--warmup", type=float, default=8.0)
     p.add_argument("--layout", choices=["bridge", "rmw_zenoh"], default="rmw_zenoh")
     p.add_argument("--json", type=Path)
-    p.add_argument("--publishers", type=int, default=0,
-                   help="publisher processes, the robots shared among them (default: one per robot)")
+    p.add_argument(
+        "--publishers",
+        type=int,
+        default=0,
+        help="publisher processes, the robots shared among them (default: one per robot)",
+    )
     p.add_argument("--workers", type=int, default=None, help="[ros] ingest_workers (default: the daemon's)")
-    p.add_argument("--baseline", metavar="TREE", type=Path,
-                   help="also run the daemon of this code tree (e.g. `git archive cd19a56 | tar -x -C TREE`)")
+    p.add_argument(
+        "--baseline",
+        metavar="TREE",
+        type=Path,
+        help="also run the daemon of this code tree (e.g. `git archive cd19a56 | tar -x -C TREE`)",
+    )
     p.add_argument("--translate-only", action="store_true", help="time the translation in-process only")
     a = p.parse_args()
     if a.translate_only:

@@ -45,6 +45,8 @@ __all__ = ["Outcome", "Refused", "RobotTranslator", "Translated", "Waited", "Wor
 log = logging.getLogger(__name__)
 
 ROBOT_KINDS = ("detections", "tf", "tf_static", "camera_info")
+SUPERVISE_S = 0.25
+"""How often the pool looks for a worker that died."""
 """The messages of a robot that its translator handles."""
 
 
@@ -322,6 +324,7 @@ class WorkerPool:
 
     def _run(self) -> None:
         finished = 0
+        next_check = 0.0
         while finished < len(self.workers):
             try:
                 item = self.outbox.get(timeout=0.25)
@@ -337,7 +340,9 @@ class WorkerPool:
                     self.deliver(item)
                 except Exception:
                     log.exception("Delivering a ROS 2 ingest worker's outcomes failed")
-            if not self._closing.is_set():
+            now = time.monotonic()
+            if not self._closing.is_set() and now >= next_check:  # a waitpid per worker: not per item
+                next_check = now + SUPERVISE_S
                 self._supervise()
 
     def _supervise(self) -> None:
