@@ -281,6 +281,7 @@ def run(
         for cause, n in c["refused"].items():
             refused[cause] = refused.get(cause, 0) + int(n)
     workers_s = sum(k1[p] - k0.get(p, 0.0) for p in k1)
+    counts = list(final["ros_ingest"]["counts"].values())
     latencies = []
     for t in moves:
         after = [u for u in updates if u >= t]
@@ -306,8 +307,8 @@ def run(
         "refused": refused,
         "sent_total": sent["sent"],
         "arrays_received_total": total(final, "arrays"),
-        "waited_for_tf": sum(int(c["waited_for_tf"]) for c in final["ros_ingest"]["counts"].values()),
-        "overflow": sum(int(c["refused"].get("overflow", 0)) for c in final["ros_ingest"]["counts"].values()),
+        "waited_for_tf": sum(int(c["waited_for_tf"]) for c in counts),
+        "overflow": sum(int(c["refused"].get("overflow", 0)) for c in counts),
         "queue_depth_max": max((d[0] for d in depths), default=0),
         "service_queue_max": max((d[1] for d in depths), default=0),
         "queue_depth_last": depths[-1] if depths else None,
