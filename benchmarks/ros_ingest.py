@@ -323,10 +323,11 @@ def run(
 
 def _serve(cfg: Path, store: Path, endpoint: str, root: Path = ROOT) -> subprocess.Popen[str]:
     """``twin serve`` of the code in ``root`` (another tree: a baseline of an earlier commit)."""
+    path = os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])
     daemon = subprocess.Popen(
         live._twin("--config", str(cfg), "serve", "--store", str(store), "--listen", endpoint, "--no-record"),
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=root,
-        env={**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])},
+        env={**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": path},
     )  # fmt: skip
     assert daemon.stdout is not None
     line = ""
