@@ -2,16 +2,19 @@
 mostly confirmations, against the daemon process.
 
 The daemon (``twin serve``, on-disk store of the generated lab, no recording) is configured with
-``--robots`` robots, each with a ``[robots.NAME.detections]`` table, on one layout. One publisher
-process plays all robots on loopback: every ``1 / --rate`` s each robot publishes its TF
+``--robots`` robots, each with a ``[robots.NAME.detections]`` table (views and sense times on: the
+view cut at the localization map), on one layout. Publisher processes (``--publishers``, default one
+per robot) play the robots on loopback: every ``1 / --rate`` s each robot publishes its TF
 (``map -> base_link`` at the array's stamp) and one array of ``--detections`` tables in ``base_link``,
-each with a tracker id and the same pose every time (so after the first array each one is a
-confirmation). The publisher's own CPU is not counted.
+everything its view holds, each with a tracker id; all but one keep their pose (confirmations), the
+last moves 1.0 m every 2 s (beyond ``certain_move_m``, into free floor). Publishers' CPU is not counted.
 
-Measured over the steady window (after ``--warmup`` s): the daemon's CPU time (utime + stime from
-``/proc``) per published array, the acked rate (accepted + unchanged acks per second, from the
-status's ``ros_ingest`` counts), refusals (``overflow`` = the ingestion queue was full), and the
-ingestion and service queue depths sampled every second (no growth = keeping up).
+Measured over the steady window (after ``--warmup`` s): the daemon process's CPU time (utime + stime)
+per array received, its ingest workers' (child processes), the total, the acked rate (accepted +
+unchanged acks per second, from the status's ``ros_ingest`` counts), refusals (``overflow`` = an
+ingestion queue was full), the ingestion and service queue depths sampled every second (no growth =
+keeping up) and the latency from robot0's array that moves the table to the navigation map update's
+receipt by a subscriber. ``--baseline TREE`` runs the same against the daemon of another code tree.
 
     python benchmarks/ros_ingest.py --robots 10 --rate 10 --detections 20 --duration 30 --json ros.json
 """
@@ -33,21 +36,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import live  # benchmarks/ is not a package
 
 ROOT = live.ROOT
-CORRIDOR = (11.2, 20.8, 5.7, 8.3)  # x0, x1, y0, y1 of free floor on the lab's ground floor
-MOVE_EVERY = 20
-"""Every this many ticks (2 s at 10 Hz) robot0 moves one table: a change among the confirmations, whose
-navigation map update is timed from the publisher's send to the update's receipt."""
+ROBOT = (15.0, 7.0)  # every robot's base_link in the map: in the lab's corridor (free floor), facing +x
+MOVE_S = 2.0
+"""Every this many seconds (of the wall clock, which every publisher process shares) the last table
+moves 1.0 m across the corridor and back (beyond ``[fusion] certain_move_m``, into free floor): a change
+among the confirmations, whose navigation map update is timed from robot0's send to the update's
+receipt."""
+MOVER = (19.0, 6.6, 1.0)  # x, y and the y shift of the table that moves
 
 
-def tables(robots: int, per_robot: int) -> list[list[tuple[float, float]]]:
-    """``per_robot`` table positions per robot on a grid over the corridor, none shared."""
-    x0, x1, y0, y1 = CORRIDOR
-    total = robots * per_robot
-    cols = max(1, int((x1 - x0) / 0.3))
-    rows = -(-total // cols)
-    pitch_y = (y1 - y0) / max(rows, 1)
-    spots = [(x0 + 0.15 + 0.3 * (i % cols), y0 + pitch_y / 2 + pitch_y * (i // cols)) for i in range(total)]
-    return [spots[r * per_robot : (r + 1) * per_robot] for r in range(robots)]
+def tables(per_robot: int) -> list[tuple[float, float]]:
+    """``per_robot`` table positions (the last one the mover) in front of the robots, inside their view
+    (90 deg, 5 m): every robot reports everything it sees, so its views miss nothing."""
+    spots = [(16.0 + 0.6 * (i % 5), 6.4 + 0.4 * (i // 5)) for i in range(max(0, per_robot - 1))]
+    return [*spots, MOVER[:2]][:per_robot]
 
 
 def publisher(
@@ -70,7 +72,7 @@ def publisher(
     from adapters.zenoh.session import client_config
     from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
 
-    spots = tables(robots, per_robot)
+    spots = tables(per_robot)
     with zenoh.open(client_config([endpoint])) as session:
         outs = []
         mine = range(first, robots if count is None else min(robots, first + count))
@@ -83,30 +85,32 @@ def publisher(
             outs.append(keys)
         time.sleep(1.0)
         print(json.dumps({"ready": True}), flush=True)
-        sent, seq, shift = 0, 0, 0.0
+        sent, seq = 0, 0
         gid = bytes(16)
+        phase = int(time.time() / MOVE_S)
         start = time.monotonic()
         tick = 0
         while time.monotonic() - start < duration:
             stamp = time.time_ns()
             seq += 1
             extra = {"attachment": attachment(seq, stamp, gid)} if layout == "rmw_zenoh" else {}
-            moved = tick > 0 and tick % MOVE_EVERY == 0
-            if moved:
-                shift = 0.0 if shift else 0.3  # robot0's first table moves 0.3 m along x and back
+            now = int(stamp / 1e9 / MOVE_S)
+            moved, phase = now != phase, now
+            shift = MOVER[2] * (now % 2)
+            last = len(spots) - 1
             for r, (tf_pub, det_pub) in zip(mine, outs, strict=True):
-                tf_pub.put(cdr_tf([Tf("map", "base_link", (15.0, 7.0, 0.0), stamp_ns=stamp)]), **extra)
+                tf_pub.put(cdr_tf([Tf("map", "base_link", (*ROBOT, 0.0), stamp_ns=stamp)]), **extra)
                 dets = [
                     Det(
                         (("table", 0.9),),
-                        (x - 15.0 + (shift if r == 0 and i == 0 else 0.0), y - 7.0, 0.375),
+                        (x - ROBOT[0], y - ROBOT[1] + (shift if i == last else 0.0), 0.375),
                         (0.2, 0.2, 0.75),
                         id=f"t{i}",
                     )
-                    for i, (x, y) in enumerate(spots[r])
+                    for i, (x, y) in enumerate(spots)
                 ]
-                if moved and r == 0:
-                    print(json.dumps({"moved": time.time()}), flush=True)
+                if moved and r == mine[0]:  # the first send of the move by this process
+                    print(json.dumps({"moved": time.time(), "phase": now}), flush=True)
                 det_pub.put(cdr_detections(stamp, "base_link", dets), **extra)
                 sent += 1
             tick += 1
@@ -221,7 +225,7 @@ def run(
         for pub in pubs:
             assert pub.stdout is not None
             json.loads(pub.stdout.readline())
-        moves: list[float] = []
+        moved_at: dict[int, float] = {}  # phase -> the first send of that move by any publisher
         lines: list[dict[str, Any]] = []
 
         def read_publisher(pub: subprocess.Popen[str]) -> None:
@@ -229,7 +233,8 @@ def run(
             for line in pub.stdout:
                 item = json.loads(line)
                 if "moved" in item:
-                    moves.append(item["moved"])
+                    phase = int(item["phase"])
+                    moved_at[phase] = min(moved_at.get(phase, item["moved"]), item["moved"])
                 else:
                     lines.append(item)
 
@@ -283,6 +288,7 @@ def run(
     workers_s = sum(k1[p] - k0.get(p, 0.0) for p in k1)
     counts = list(final["ros_ingest"]["counts"].values())
     latencies = []
+    moves = sorted(moved_at.values())
     for t in moves:
         after = [u for u in updates if u >= t]
         if after:
