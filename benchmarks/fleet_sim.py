@@ -14,15 +14,19 @@ own in this process (fusion off), whose maps are the maps of the true world.
 
 Every second: the twin's IfcFurniture elements (SPARQL) against the true objects (within 0.5 m):
 duplicates, ghosts (elements where no object is), ghosts whose place a robot viewed 10 s ago or more
-(those fusion should have removed), objects missing, and the navigation map's cells that differ from
-the true world's. At the end: removals (precision and recall within 10 s of the first view without the
-object), the time from a move's first sighting to the ack that shows it, revisions per true change,
-acked sightings per second, and the daemon's CPU per acked observation. ``--saturate S`` adds S seconds
-in which the robots send as fast as acks come back (the acked sightings per second at saturation).
+(those fusion should have removed), objects missing, the navigation map's cells that differ from the
+true world's, and the **false-free cells**: the cells more than one cell inside a true object's
+footprint that the navigation map shows free, for objects a robot saw at least ``SETTLE_S`` ago since
+their last change (free floor where a real object stands: a robot would plan through it). At the
+end: removals (precision and recall within 10 s of the first view without the object), the time
+from a move's first sighting to the ack that shows it, revisions per true change, acked sightings
+per second, and the daemon's CPU per acked observation. ``--saturate S`` adds S seconds in which the
+robots send as fast as acks come back (the acked sightings per second at saturation).
 
     python benchmarks/fleet_sim.py --robots 10 --objects 30 --duration 600 --moves 20 --removals 10 \\
         --json fleet.json --plot fleet.png
     python benchmarks/fleet_sim.py --model janesville --robots 5 --objects 30 --duration 600
+    python benchmarks/fleet_sim.py --robots 6 --behaviours mixed --duration 120   # see BEHAVIOURS
 
 Exit code 1 when a duplicate or a viewed ghost remains at the end (the suite runs a short version:
 ``tests/integration/test_fleet.py``).
@@ -75,6 +79,8 @@ class Obj:
     present: bool = True
     changed_at: float = 0.0
     seen_at: float = -1.0
+    seen_since_change: float | None = None
+    """When a robot first saw it after its last change (its false-free cells count from then)."""
 
     def corners(self) -> np.ndarray:
         c, s = math.cos(self.yaw), math.sin(self.yaw)
@@ -187,6 +193,21 @@ class RobotStats:
     saturated_s: float = 0.0
 
 
+BEHAVIOURS = ("normal", "restart", "clock_behind", "clock_ahead", "late", "bias")
+"""What can be wrong with a robot (``--behaviours``, assigned round-robin): ``restart``: its detector
+restarts every 30 s and numbers its tracks from 1 again (its IRIs carry the tracker session, as the ROS
+adapter's do); ``clock_behind`` / ``clock_ahead``: its clock is 1.5 s behind / ahead; ``late``: its
+reports arrive 2 s late (sent 2 s after they were sensed); ``bias``: its detector places every object
+20 cm off (+x)."""
+RESTART_EVERY_S = 30.0
+CLOCK_OFFSET_S = 1.5
+LATE_S = 2.0
+BIAS_M = 0.2
+SETTLE_S = 3.0
+"""An object's false-free cells count from this long after a robot first saw it since its last change
+(the sightings a short move needs, the acks, and the maps' coalescing)."""
+
+
 def robot(  # noqa: PLR0917 (a thread's target)
     index: int,
     endpoint: str,
@@ -205,11 +226,16 @@ def robot(  # noqa: PLR0917 (a thread's target)
     rng = random.Random(1000 + index)
     world_t0 = time.time()
     name = f"robot{index}"
+    behaviour = args.behaviours[index % len(args.behaviours)]
     x, y = world.random_free(rng)
     goal = (x, y)
     epochs: dict[int, int] = {}
     last_seen: dict[int, float] = {}
     false_count = 0
+    tracks: dict[int, int] = {}  # object -> tracker id (restart behaviour)
+    next_track, session, restart_at = 1, 0, world_t0 + RESTART_EVERY_S
+    clock_offset_ns = {"clock_behind": -1, "clock_ahead": 1}.get(behaviour, 0) * int(CLOCK_OFFSET_S * 1e9)
+    outbox: list[tuple[float, str, list[int]]] = []  # late behaviour: (due, payload, seen)
     with TwinClient.connect([endpoint], prefix=prefix, timeout_s=30.0) as twin:
         period = 1.0 / args.rate
         due = time.time()
@@ -233,7 +259,10 @@ def robot(  # noqa: PLR0917 (a thread's target)
             if d > 1e-9:
                 x, y = x + (goal[0] - x) * min(1.0, step / d), y + (goal[1] - y) * min(1.0, step / d)
             polygon = world.view(x, y, args.range)
-            sense = time.time_ns()
+            sense = time.time_ns() + clock_offset_ns
+            if behaviour == "restart" and now >= restart_at:
+                tracks.clear()
+                next_track, session, restart_at = 1, session + 1, now + RESTART_EVERY_S
             with world.lock:
                 objs = [o for o in world.objects.values() if o.present]
                 world.views.append((time.time(), polygon))
@@ -256,10 +285,18 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         continue
                     if now - last_seen.get(o.key, -1e9) > 3.0:
                         epochs[o.key] = epochs.get(o.key, -1) + 1
+                        tracks.pop(o.key, None)
                     last_seen[o.key] = now
                     o.seen_at = now
-                    iri = f"urn:sim:{name}:trk-{o.key}-{epochs[o.key]}"
-                    bx = o.x + rng.gauss(0, args.sigma_pos)
+                    if o.seen_since_change is None:
+                        o.seen_since_change = now
+                    if behaviour == "restart":
+                        if o.key not in tracks:
+                            tracks[o.key], next_track = next_track, next_track + 1
+                        iri = f"urn:sim:{name}:s{session}:trk-{tracks[o.key]}"
+                    else:
+                        iri = f"urn:sim:{name}:trk-{o.key}-{epochs[o.key]}"
+                    bx = o.x + rng.gauss(0, args.sigma_pos) + (BIAS_M if behaviour == "bias" else 0.0)
                     by = o.y + rng.gauss(0, args.sigma_pos)
                     byaw = (
                         o.yaw
@@ -291,6 +328,11 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 f'twin:detects "IfcFurniture" ; twin:senseTime "{_iso(sense)}"^^xsd:dateTime .'
             )
             payload = PREFIX + "\n".join(lines)
+            if behaviour == "late":  # sensed now, arrives LATE_S later
+                outbox.append((now + LATE_S, payload, seen_now))
+                if outbox[0][0] > time.time():
+                    continue
+                _, payload, seen_now = outbox.pop(0)
             stats.sent += 1
             sent = time.time()
             try:
@@ -388,6 +430,28 @@ def sample(  # noqa: PLR0917
     grid, _, _ = client.get_map(storey, skill)
     truth = oracle.live_maps.skill_maps[(storey, skill)].data
     cells = int((grid.data != truth).sum()) if grid.data.shape == truth.shape else -1
+    with world.lock:
+        settled = [
+            o for o in present if o.seen_since_change is not None and now - o.seen_since_change >= SETTLE_S
+        ]
+    free_by_object = {o.key: n for o in settled if (n := false_free_cells(grid, o))}
+    false_free = sum(free_by_object.values())
+    where_free = {
+        k: [
+            n,
+            round(world.objects[k].x, 2),
+            round(world.objects[k].y, 2),
+            min(
+                (
+                    [round(ex - world.objects[k].x, 2), round(ey - world.objects[k].y, 2)]
+                    for ex, ey in elements.values()
+                ),
+                key=lambda d: math.hypot(*d),
+                default=None,
+            ),
+        ]
+        for k, n in free_by_object.items()
+    }
     status = client.status()
     return {
         "t": round(now - t0, 1),
@@ -398,13 +462,87 @@ def sample(  # noqa: PLR0917
         "viewed_ghosts": viewed_ghosts,
         "missing": missing,
         "cells_differ": cells,
+        "false_free_cells": false_free,
+        "false_free_objects": where_free,
         "false_removals": false_removals,
         "revision": int(status["revision"]),
         "ghost_iris": sorted(ghosts),
     }
 
 
+def false_free_cells(grid: Any, o: Obj) -> int:
+    """The cells more than one cell inside ``o``'s true footprint that the map shows free."""
+    from twin.fusion.footprints import box_pose, corners
+    from twin.maps.grid import FREE
+
+    f = grid.frame
+    inner = corners(box_pose(o.x, o.y, 0.0, o.sx, o.sy, o.sz, yaw=o.yaw), inset=f.resolution_m)
+    lo, hi = inner.min(axis=0), inner.max(axis=0)
+    c0, c1 = int((lo[0] - f.origin_x) / f.resolution_m), int((hi[0] - f.origin_x) / f.resolution_m) + 1
+    r0, r1 = int((lo[1] - f.origin_y) / f.resolution_m), int((hi[1] - f.origin_y) / f.resolution_m) + 1
+    c0, r0 = max(c0, 0), max(r0, 0)
+    c1, r1 = min(c1, f.width), min(r1, f.height)
+    if c1 <= c0 or r1 <= r0:
+        return 0
+    cols, rows = np.meshgrid(np.arange(c0, c1), np.arange(r0, r1))
+    centres = np.stack(
+        [
+            f.origin_x + (cols.ravel() + 0.5) * f.resolution_m,
+            f.origin_y + (rows.ravel() + 0.5) * f.resolution_m,
+        ],
+        axis=1,
+    )
+    inside = _inside(centres, inner)
+    return int((grid.data[rows.ravel()[inside], cols.ravel()[inside]] == FREE).sum())
+
+
 # --- the run ---------------------------------------------------------------------------------------------
+
+
+PULL_AFTER_S = 8.0
+"""A chair tucked under a table is pulled out this long after."""
+CHAIR = (0.45, 0.45, 0.9)
+
+
+def tuck_chair(  # noqa: PLR0917
+    world: World, rng: random.Random, now: float, oracle: Any, storey: str, elevation: float
+) -> tuple[int, int] | None:
+    """A new chair tucked under a present table-sized object (a 0.45 m chair inside its footprint,
+    taller than it): returns (chair, table), or None when no object is large enough."""
+    tables = [o for o in world.objects.values() if o.present and o.sx >= 0.75 and o.sy >= 0.5]
+    if not tables:
+        return None
+    t = rng.choice(tables)
+    shift = t.sx / 2 - CHAIR[0] / 2 - 0.05
+    c, s = math.cos(t.yaw), math.sin(t.yaw)
+    k = max(world.objects) + 1
+    chair = Obj(k, t.x + shift * c, t.y + shift * s, t.yaw, *CHAIR, changed_at=now)
+    world.objects[k] = chair
+    world.events.append(Event("tuck", k, now, (chair.x, chair.y), chair.corners()))
+    apply_truth(oracle, truth_box(chair, storey, elevation))
+    return k, t.key
+
+
+def pull_out(  # noqa: PLR0917
+    world: World, chair_key: int, table_key: int, now: float, oracle: Any, storey: str, elevation: float
+) -> None:
+    """The chair pulled out from under its table, beside it (if the floor there is free)."""
+    chair, table = world.objects[chair_key], world.objects[table_key]
+    c, s = math.cos(table.yaw), math.sin(table.yaw)
+    sides = [(-s, c), (s, -c), (c, s), (-c, -s)]  # beside the table's long sides first, then its ends
+    for (ux, uy), half in zip(sides, (table.sy, table.sy, table.sx, table.sx), strict=True):
+        d = half / 2 + CHAIR[1] / 2 + 0.2
+        x, y = table.x + d * ux, table.y + d * uy
+        probe = Obj(-1, x, y, chair.yaw, *CHAIR)
+        crowded = any(
+            o.present and o.key not in (chair_key, table_key) and math.dist((o.x, o.y), (x, y)) < 0.7
+            for o in world.objects.values()
+        )
+        if all(world.is_free(*p) for p in probe.corners()) and world.is_free(x, y) and not crowded:
+            world.events.append(Event("pull", chair_key, now, (chair.x, chair.y), chair.corners()))
+            chair.x, chair.y, chair.changed_at, chair.seen_since_change = x, y, now, None
+            apply_truth(oracle, truth_box(chair, storey, elevation))
+            return
 
 
 def oracle_service(store: Path, work: Path) -> Any:
@@ -487,7 +625,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     placed = len(world.objects)
     # the script: moves, removals, appearances over the middle of the run
     t_first, t_last = args.duration * 0.2, args.duration * 0.75
-    kinds = ["move"] * args.moves + ["remove"] * args.removals + ["appear"] * args.appears
+    kinds = (
+        ["move"] * args.moves + ["remove"] * args.removals + ["appear"] * args.appears + ["tuck"] * args.tucks
+    )
     rng.shuffle(kinds)
     script = [(t_first + (t_last - t_first) * i / max(1, len(kinds)), k) for i, k in enumerate(kinds)]
 
@@ -520,15 +660,25 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             for t in threads:
                 t.start()
             next_sample, step = t0 + 1.0, 0
+            pulls: list[tuple[float, int, int]] = []  # (when, chair, table): a tucked chair pulled out
             previous: dict[str, tuple[float, float]] = {}
             cpu_main = None
             while time.time() < sat_end:
                 now = time.time()
+                while pulls and now >= pulls[0][0]:
+                    _, chair_key, table_key = pulls.pop(0)
+                    with world.lock:
+                        pull_out(world, chair_key, table_key, now, oracle, storey, elevation)
                 while step < len(script) and now - t0 >= script[step][0]:
                     _, kind = script[step]
                     step += 1
                     with world.lock:
                         present = [o for o in world.objects.values() if o.present]
+                        if kind == "tuck":
+                            tucked = tuck_chair(world, rng, now, oracle, storey, elevation)
+                            if tucked is not None:
+                                pulls.append((now + PULL_AFTER_S, *tucked))
+                            continue
                         if kind == "appear" or not present:
                             spot = world.place(rng)
                             if spot is None:
@@ -552,6 +702,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                             o.x, o.y, o.yaw = spot
                             apply_truth(oracle, truth_box(o, storey, elevation))
                         o.changed_at = now
+                        o.seen_since_change = None
                 if now >= next_sample and now < t_end:
                     samples.append(sample(client, world, storey, oracle, skill, t0, previous))
                     next_sample += 1.0
@@ -602,10 +753,15 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "moves": sum(e.kind == "move" for e in world.events),
         "removals": sum(e.kind == "remove" for e in world.events),
         "appears": sum(e.kind == "appear" for e in world.events),
+        "tucks": sum(e.kind == "tuck" for e in world.events),
+        "pulls": sum(e.kind == "pull" for e in world.events),
         "final": final,
         "max_duplicates": max((s["duplicates"] for s in late), default=0),
         "max_viewed_ghosts": max((s["viewed_ghosts"] for s in late), default=0),
         "mean_cells_differ": float(np.mean([s["cells_differ"] for s in late])) if late else 0.0,
+        "max_false_free_cells": max((s["false_free_cells"] for s in samples), default=0),
+        "samples_with_false_free": sum(1 for s in samples if s["false_free_cells"] > 0),
+        "behaviours": ",".join(args.behaviours),
         "removal_recall_10s": len(recall_hits) / len(viewed) if viewed else float("nan"),
         "removal_viewed": len(viewed),
         "removal_false": false_removals,
@@ -681,7 +837,14 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--moves", type=int, default=2)
     p.add_argument("--removals", type=int, default=1)
     p.add_argument("--appears", type=int, default=0)
+    p.add_argument("--tucks", type=int, default=0, help="chairs tucked under tables, pulled out 8 s later")
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument(
+        "--behaviours",
+        type=lambda v: tuple(v.split(",")),
+        default=("normal",),
+        help=f"robot behaviours, round-robin: {', '.join(BEHAVIOURS)}; 'mixed': all of them",
+    )
     p.add_argument("--json", type=Path)
     p.add_argument("--plot", type=Path)
     p.add_argument("-v", "--verbose", action="store_true")
@@ -690,6 +853,12 @@ def parser() -> argparse.ArgumentParser:
 
 def main() -> int:
     args = parser().parse_args()
+    if args.behaviours == ("mixed",):
+        args.behaviours = BEHAVIOURS
+    unknown = [b for b in args.behaviours if b not in BEHAVIOURS]
+    if unknown:
+        print(f"Unknown behaviours {unknown}; known: {', '.join(BEHAVIOURS)}", file=sys.stderr)
+        return 2
     result = run(args)
     if args.json:
         args.json.write_text(json.dumps(result, indent=1))

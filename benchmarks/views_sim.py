@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # tests.adapters.ros_reports: the ROS messages
 import fleet_sim
 import live  # benchmarks/ is not a package
 

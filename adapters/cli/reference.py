@@ -130,6 +130,8 @@ def _is_table(node: dict[str, Any], defs: dict[str, Any]) -> bool:
     node = _resolve(node, defs)
     if "properties" in node:
         return True
+    if any(_is_table(option, defs) for option in node.get("anyOf", [])):  # a string or a table
+        return True
     named = [*node.get("patternProperties", {}).values()]
     if isinstance(node.get("additionalProperties"), dict):
         named.append(node["additionalProperties"])
@@ -139,6 +141,9 @@ def _is_table(node: dict[str, Any], defs: dict[str, Any]) -> bool:
 def _tables(name: str, node: dict[str, Any], defs: dict[str, Any]) -> Iterator[tuple[str, dict[str, Any]]]:
     """Every table under ``name`` (``skills`` -> ``skills.NAME``), the table itself first."""
     node = _resolve(node, defs)
+    for option in node.get("anyOf", []):  # a value that is a string or a table: the table's keys
+        if _is_table(option, defs):
+            yield from _tables(name, option, defs)
     if "properties" in node:
         yield name, node
         for key, child in node["properties"].items():

@@ -35,6 +35,7 @@ from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
 from adapters.cli.serve_settings import ServeSettings
 from adapters.rerun.settings import RerunSettings
+from adapters.ros.sessions import resume_sessions
 from adapters.ros.settings import RosSettings, ros_robots
 from adapters.zenoh.access import access_summary, log_refused_sessions, site_access_control
 from adapters.zenoh.daemon import ZenohDaemon
@@ -293,8 +294,14 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
                 ros = RosMapPublisher.following(daemon, cfg)  # on the dispatcher, a lane per robot
             if cfg.sources or any(r.detections is not None for r in ros_robots(cfg).values()):
                 storey_of = ros.storey_of if ros is not None else (lambda _robot: None)
+                sessions = resume_sessions(service.store.select, cfg.robots)  # a restart starts none
                 ingest = RosIngest(  # the obstacles of a previous run from the graph, on TwinStarted
-                    session, cfg, service.submit_observation, storey_of=storey_of, select=service.store.select
+                    session,
+                    cfg,
+                    service.submit_observation,
+                    storey_of=storey_of,
+                    select=service.store.select,
+                    sessions=sessions,
                 )
                 daemon.status_sources.append(ingest.status)
                 service.sinks.append(ingest)  # storeys, doors and occluding maps: cheap, on the writer

@@ -5,7 +5,8 @@ For each detection, its best hypothesis (highest ``score``) is looked up in the 
 (``class_id`` -> IFC class): an unknown class or a score under the threshold is ignored and counted.
 Its ``bbox`` (centre pose, size) is taken to the map frame through the robot's TF at the stamp; a
 small roll and pitch are dropped, a box tilted beyond ``max_tilt_rad`` is refused. ``id`` (a tracker's
-id) makes a stable robot IRI ``urn:twin-ros:<robot>:det:<id>``, so a tracked object is one element;
+id) makes a stable robot IRI ``urn:twin-ros:<robot>:det:s<session>:<id>`` (:mod:`adapters.ros.sessions`),
+so a tracked object is one element;
 an empty ``id`` gets a one-off IRI (``once:<stamp>-<index>``), never reused. The array's
 ``header.stamp`` is the sense time, and the view is what the camera saw
 (:func:`~adapters.ros.view.camera_view`): the floor where its frustum (the sensor frame's pose from TF,
@@ -33,7 +34,7 @@ import math
 import struct
 from collections import Counter
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -50,6 +51,7 @@ from adapters.ros.observation_doc import (
     observation_turtle,
     robot_iri,
 )
+from adapters.ros.sessions import TrackerSession, session_iri
 from adapters.ros.settings import DetectionConfig
 from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
 from adapters.ros.view import Camera, camera_view
@@ -86,6 +88,8 @@ class DetectionSettings:
     robot: str
     classes: Mapping[str, str]
     """``class_id`` -> IFC class."""
+    types: Mapping[str, str] = field(default_factory=dict)
+    """``class_id`` -> descriptive type IRI (``furn:Chair``), for the ids that give one."""
     min_score: float = 0.5
     fov_rad: float = math.radians(90.0)
     range_m: float = 5.0
@@ -95,6 +99,8 @@ class DetectionSettings:
     max_size_m: float = 20.0
     future_ns: int = 2 * _NS_PER_S
     """A stamp later than now + this is refused (clock skew allowed)."""
+    session_gap_ns: int = 10 * _NS_PER_S
+    """Arrays stamped further apart than this are two tracker sessions (:mod:`adapters.ros.sessions`)."""
     map_frame: str = "map"
     sensor_frame: str | None = None
     """The frame whose pose is the view's origin and heading (default: the array's ``frame_id``)."""
@@ -121,6 +127,7 @@ class DetectionSettings:
         return cls(
             robot=robot,
             classes=dict(d.classes),
+            types=dict(d.types),
             min_score=d.min_score,
             fov_rad=math.radians(d.fov_deg),
             range_m=d.range_m,
@@ -129,6 +136,7 @@ class DetectionSettings:
             max_detections=min(d.max_detections, limits.elements_per_observation),
             max_size_m=limits.box_size_m,
             future_ns=int(d.future_s * _NS_PER_S),
+            session_gap_ns=int(d.session_gap_s * _NS_PER_S),
             map_frame=d.map_frame,
             sensor_frame=d.sensor_frame,
             z_reference=d.z_reference,
@@ -155,6 +163,9 @@ class DetectionContext:
     fov_rad: tuple[float, float] | None = None
     """The camera's (horizontal, vertical) field of view from its ``sensor_msgs/CameraInfo``, if it
     publishes one: it takes the place of the configured ones."""
+    session: TrackerSession | None = None
+    """The robot's tracker session (:mod:`adapters.ros.sessions`): its IRIs carry it. None: the IRIs
+    are ``det:<id>`` (no session)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -383,6 +394,9 @@ def translate_detections(
     if stamp > ctx.now_ns + settings.future_ns:
         msg = f"Detection3DArray stamp {stamp} ns is {(stamp - ctx.now_ns) / 1e9:.3f} s in the future."
         raise RosInputError("future", msg)
+    label = None
+    if ctx.session is not None:
+        label = ctx.session.observe(stamp, [d.id for d in detections if d.id], gap_ns=settings.session_gap_ns)
     ignored: Counter[str] = Counter()
     refused: list[tuple[str, str]] = []
     boxes: list[BoxReport] = []
@@ -422,7 +436,11 @@ def translate_detections(
                 blind = True
             continue
         iri = (
-            robot_iri(settings.robot, "det", d.id)
+            (
+                robot_iri(settings.robot, "det", d.id)
+                if label is None
+                else session_iri(settings.robot, label, d.id)
+            )
             if d.id
             else robot_iri(settings.robot, "once", f"{stamp}-{index}")
         )
@@ -430,7 +448,8 @@ def translate_detections(
             ignored["duplicate_id"] += 1
             continue
         seen.add(iri)
-        boxes.append(BoxReport(iri, ifc_class, ctx.storey, (cx, cy, cz - drop_z, sx, sy, sz, yaw)))
+        box = (cx, cy, cz - drop_z, sx, sy, sz, yaw)
+        boxes.append(BoxReport(iri, ifc_class, ctx.storey, box, kind=settings.types.get(d.class_id or "")))
     view = None
     shadows, ok = _shadows(*placed)
     if ctx.fusion_terms and ctx.occlusion_known and not refused and not blind and ok.all():

@@ -67,6 +67,8 @@ class BoxReport:
     label: str | None = None
     lifetime_s: float | None = None
     """How long the report holds (``twin:lifetime``; an Open-RMF obstacle's lifetime, 0: for ever)."""
+    kind: str | None = None
+    """A descriptive type IRI (``furn:Chair`` expanded), written as ``a <kind>``."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -155,6 +157,8 @@ def observation_turtle(
         label = f" ;\n    rdfs:label {literal(b.label)}" if b.label else ""
         if b.lifetime_s is not None:
             label += f' ;\n    twin:lifetime "{b.lifetime_s:.9f}"^^xsd:decimal'
+        if b.kind:
+            label += f" ;\n    a <{b.kind}>"
         lines.append(
             f"<{b.iri}> twin:ifcClass {literal(b.ifc_class)} ; twin:storey {literal(b.storey)} ;\n"
             f'    twin:box "{numbers}"{label} .'
@@ -221,6 +225,7 @@ def observation_records(
             storey=b.storey,
             box=ObservedBox(_m(cx), _m(cy), _m(cz), _m(sx), _m(sy), _m(sz), _rad(yaw)),
             labels=(b.label,) if b.label else (),
+            classes=(b.kind,) if b.kind else (),
             lifetime_s=None if b.lifetime_s is None else round(b.lifetime_s, 9),
             sense_ns=each_sense,
         )

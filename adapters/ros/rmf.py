@@ -38,6 +38,7 @@ from adapters.ros.tf import matrix
 from twin.errors import MapError, ModelError
 from twin.graph import vocab
 from twin.live.parse import sense_time_ns
+from twin.live.validate import MAX_LIFETIME_S
 
 __all__ = [
     "HELD_OBSTACLES",
@@ -162,6 +163,10 @@ class ObstacleTracker:
                 refused.append((err.cause, f"Obstacle {iri}: {err}"))
                 continue
             lifetime_ns = int(o.lifetime.sec) * _NS_PER_S + int(o.lifetime.nanosec)
+            if not 0 <= lifetime_ns <= MAX_LIFETIME_S * _NS_PER_S:
+                why = f"lifetime {lifetime_ns / _NS_PER_S:g} s is outside 0 to {MAX_LIFETIME_S:g} s"
+                refused.append(("malformed", f"Obstacle {iri}: {why}"))
+                continue
             expiry = now_ns + lifetime_ns if lifetime_ns > 0 else None
             boxes[iri] = BoxReport(
                 iri, ifc_class, level.storey, box, label=str(o.classification) or None,

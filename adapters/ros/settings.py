@@ -115,6 +115,8 @@ class DetectionConfig:
     topic: str
     classes: tuple[tuple[str, str], ...]
     """``(class_id, IFC class)`` pairs."""
+    types: tuple[tuple[str, str], ...] = ()
+    """``(class_id, descriptive type IRI)`` pairs (``furn:Chair`` expanded), for the ids that give one."""
     min_score: float = 0.5
     fov_deg: float = 90.0
     range_m: float = 5.0
@@ -122,6 +124,7 @@ class DetectionConfig:
     max_tilt_deg: float = 15.0
     max_detections: int = 256
     future_s: float = 2.0
+    session_gap_s: float = 10.0
     map_frame: str = "map"
     sensor_frame: str | None = None
     z_reference: Literal["storey", "building"] = "storey"
@@ -164,14 +167,45 @@ class RosRobot:
         return tuple(dict.fromkeys(skill for _, skill in self.maps))
 
 
+_TYPE_PREFIXES = {
+    "furn:": "http://pi.pauwel.be/voc/furniture#",
+    "beo:": "https://pi.pauwel.be/voc/buildingelement#",
+}
+
+
+def _type_iri(value: str) -> str:
+    for prefix, iri in _TYPE_PREFIXES.items():
+        if value.startswith(prefix) and len(value) > len(prefix):
+            return iri + value.removeprefix(prefix)
+        if value.startswith(iri) and len(value) > len(iri):
+            return value
+    msg = f"expected a descriptive type such as furn:Chair or beo:Door (FURN or BEO), got {value!r}"
+    raise ValueError(msg)
+
+
+class DetectedClassTable(ConfigTable):
+    """One class id of ``[robots.NAME.detections] classes`` with a descriptive type:
+    ``chair = { ifc = "IfcFurniture", type = "furn:Chair" }``."""
+
+    ifc: IfcClassName = Field(description="The IFC class of what the detector reports as this id.")
+    type: Text = Field(description="Its descriptive type (furn:Chair, furn:Table, beo:Door ...).")
+
+    @field_validator("type")
+    @classmethod
+    def _type(cls, value: str) -> str:
+        return _type_iri(value)
+
+
 class DetectionTable(ConfigTable):
     """``[robots.NAME.detections]``: subscribe to the robot's detections (needs its ``namespace``)."""
 
     topic: Text = Field(
         "detections", description='Detection3DArray topic under the namespace ("/name": absolute).'
     )
-    classes: dict[str, IfcClassName] = Field(
-        description='class_id -> IFC class, e.g. { table = "IfcFurniture" }; other classes are ignored.',
+    classes: dict[str, IfcClassName | DetectedClassTable] = Field(
+        description='class_id -> IFC class, e.g. { table = "IfcFurniture" }, or with a descriptive type '
+        '(association then tells a chair from a table): { chair = { ifc = "IfcFurniture", '
+        'type = "furn:Chair" } }; other classes are ignored.',
         min_length=1,
     )
     min_score: Annotated[Number, Field(ge=0, le=1)] = 0.5
@@ -211,6 +245,14 @@ class DetectionTable(ConfigTable):
     max_tilt_deg: Annotated[Number, Field(ge=0, le=90, description="Boxes tilted more are refused.")] = 15.0
     max_detections: Annotated[Whole, Field(ge=1, le=10_000)] = 256
     future_s: Annotated[Number, Field(ge=0, le=3600, description="Clock skew allowed for stamps.")] = 2.0
+    session_gap_s: Annotated[
+        Number,
+        Field(
+            gt=0,
+            le=86400,
+            description="Arrays stamped further apart are two tracker sessions (ids then name new objects).",
+        ),
+    ] = 10.0
     map_frame: Text = Field("map", description="The robot's map frame (the twin's building XY).")
     sensor_frame: Text | None = Field(None, description="Frame of the view (default: the array's frame).")
     z_reference: Literal["storey", "building"] = Field(
@@ -261,7 +303,8 @@ class DetectionTable(ConfigTable):
     def record(self) -> DetectionConfig:
         return DetectionConfig(
             topic=self.topic,
-            classes=tuple(self.classes.items()),
+            classes=tuple((k, v if isinstance(v, str) else v.ifc) for k, v in self.classes.items()),
+            types=tuple((k, v.type) for k, v in self.classes.items() if not isinstance(v, str)),
             min_score=self.min_score,
             fov_deg=self.fov_deg,
             range_m=self.range_m,
@@ -269,6 +312,7 @@ class DetectionTable(ConfigTable):
             max_tilt_deg=self.max_tilt_deg,
             max_detections=self.max_detections,
             future_s=self.future_s,
+            session_gap_s=self.session_gap_s,
             map_frame=self.map_frame,
             sensor_frame=self.sensor_frame or None,
             z_reference=self.z_reference,

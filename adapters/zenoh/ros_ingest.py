@@ -32,7 +32,7 @@ import logging
 import queue
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -70,6 +70,7 @@ from adapters.ros.rmw_zenoh import (
     resolve_name,
     type_hash,
 )
+from adapters.ros.sessions import TrackerSession
 from adapters.ros.settings import RosSettings, ros_robots, ros_sources
 from adapters.zenoh.latched import CDR, declare_latched_subscriber
 from adapters.zenoh.ros_workers import (
@@ -200,6 +201,7 @@ class RosIngest:
         select: Callable[[str], list[Row]] | None = None,
         typed: bool = True,
         workers: int | None = None,
+        sessions: Mapping[str, TrackerSession] | None = None,
     ) -> None:
         """``select``: a read-only SPARQL SELECT on the twin's store (the daemon's): with it, the
         obstacle trackers take back at start-up (on TwinStarted, before any message is handled) the
@@ -230,6 +232,8 @@ class RosIngest:
         """Each robot's latest ``tf_static`` messages and camera info, to feed a restarted worker."""
         self._camera: dict[str, bytes] = {}
         self._lost: dict[str, int] = {}
+        self._sessions: dict[str, TrackerSession] = {}
+        """Each robot's tracker session as its translator last told (the status; a restarted worker)."""
         self._doors: dict[str, DoorSettings] = {}
         self._obstacles: dict[str, ObstacleTracker] = {}
         self._door_index = DoorIndex(())
@@ -247,7 +251,9 @@ class RosIngest:
             if d is None or robot.namespace is None:
                 continue
             settings = DetectionSettings.from_config(robot.name, d, config.limits)
-            self._robots[robot.name] = RobotSpec(robot.name, settings, d.view_skill)
+            resumed = (sessions or {}).get(robot.name) or TrackerSession()
+            self._robots[robot.name] = RobotSpec(robot.name, settings, d.view_skill, session=resumed)
+            self._sessions[robot.name] = resumed
             self._counts[robot.name] = Counts()
             node = RosNode(robot.domain_id, robot.namespace, INGEST_NODE, zid, node_id)
             node_id += 1
@@ -492,6 +498,9 @@ class RosIngest:
         """What the robots' translator (here or in a worker) made of their messages."""
         for o in outcomes:
             if isinstance(o, Translated):
+                if o.session is not None:
+                    with self._lock:
+                        self._sessions[o.owner] = o.session
                 self._deliver(o.owner, o.translation, o.received_ns)
             elif isinstance(o, Refused):
                 with self._lock:
@@ -518,6 +527,7 @@ class RosIngest:
             items: list[tuple[Any, ...]] = [("elevations", dict(self._elevations))]
             items += [("grid", g) for g in grids]
             items += [("storey", r, self.storey_of(r)) for r in robots]
+            items += [("session", r, self._sessions[r]) for r in robots if r in self._sessions]
             for r in robots:
                 items += [("msg", r, "tf_static", p, self.clock()) for p in self._static.get(r, [])]
                 if r in self._camera:
@@ -623,6 +633,7 @@ class RosIngest:
         """``{"ros_ingest": {"queue_depth": n, "views": bool, "counts": {owner: {...}}}}``."""
         with self._lock:
             counts = {name: c.as_dict() for name, c in sorted(self._counts.items())}
+            sessions = dict(self._sessions)
         pool = self._pool
         return {
             "ros_ingest": {
@@ -638,6 +649,9 @@ class RosIngest:
                 "views": self.fusion_terms,
                 "obstacles_held": sum(t.held for t in self._obstacles.values()),
                 "counts": counts,
+                "tracker_sessions": {
+                    name: {"session": t.label, "restarts": t.restarts} for name, t in sorted(sessions.items())
+                },
             }
         }
 

@@ -19,6 +19,7 @@ never submitted twice: only what a worker put out reaches the twin.
 from __future__ import annotations
 
 import contextlib
+import copy
 import logging
 import multiprocessing as mp
 import queue
@@ -36,6 +37,7 @@ from adapters.ros.detections import (
     translate_detections,
 )
 from adapters.ros.observation_doc import RosInputError, Translation
+from adapters.ros.sessions import TrackerSession
 from adapters.ros.tf import TfBuffer, decode_tf_message
 from twin.errors import MapError
 from twin.maps.grid import OccupancyGrid
@@ -55,6 +57,8 @@ class Translated:
     owner: str
     translation: Translation
     received_ns: int
+    session: TrackerSession | None = None
+    """The robot's tracker session after this array (a copy when it comes from a worker)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,6 +83,8 @@ class RobotSpec:
     name: str
     settings: DetectionSettings
     view_skill: str | None
+    session: TrackerSession = field(default_factory=TrackerSession)
+    """Its tracker's session to resume (from the twin at start, or from a worker that died)."""
 
 
 @dataclass(eq=False, slots=True)
@@ -88,6 +94,7 @@ class _Robot:
     waiting: list[tuple[float, bytes, int]] = field(default_factory=list)
     """Arrays whose transform is not in yet: (monotonic deadline, payload, arrival ns), oldest first."""
     fov_rad: tuple[float, float] | None = None
+    session: TrackerSession = field(default_factory=TrackerSession)
 
 
 class RobotTranslator:
@@ -108,7 +115,7 @@ class RobotTranslator:
         """``storey_of``: a robot's current storey, asked at each array (in the daemon's process);
         None: the storeys fed with :meth:`set_storey` (in a worker)."""
         self.storey_of = storey_of
-        self.robots = {r.name: _Robot(r) for r in robots}
+        self.robots = {r.name: _Robot(r, session=copy.deepcopy(r.session)) for r in robots}
         self.fusion_terms = fusion_terms
         self.typed = typed
         self.clock = clock
@@ -123,6 +130,11 @@ class RobotTranslator:
     def set_storey(self, robot: str, storey: str | None) -> None:
         with self._lock:
             self.storeys[robot] = storey
+
+    def set_session(self, robot: str, session: TrackerSession) -> None:
+        """Resume ``robot``'s tracker session (a restarted worker: the one its predecessor last told)."""
+        if robot in self.robots:
+            self.robots[robot].session = copy.deepcopy(session)
 
     def set_elevations(self, elevations: Mapping[str, float]) -> None:
         with self._lock:
@@ -198,13 +210,14 @@ class RobotTranslator:
             grid = self.grids.get((storey, skill)) if storey and skill else None
         known = skill is None or grid is not None
         ctx = DetectionContext(
-            storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known, fov_rad=robot.fov_rad
-        )
+            storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known,
+            fov_rad=robot.fov_rad, session=robot.session,
+        )  # fmt: skip
         try:
             t = translate_detections(payload, robot.spec.settings, ctx, typed=self.typed)
         except RosInputError as err:
             return Refused(name, err.cause, str(err))
-        return Translated(name, t, received_ns)
+        return Translated(name, t, received_ns, copy.copy(robot.session))
 
 
 # --- worker processes -------------------------------------------------------------------------------
@@ -231,6 +244,8 @@ def _worker_main(
                     out = t.handle(item[1], item[2], item[3], item[4])
                 elif op == "storey":
                     t.set_storey(item[1], item[2])
+                elif op == "session":
+                    t.set_session(item[1], item[2])
                 elif op == "elevations":
                     t.set_elevations(item[1])
                 elif op == "grid":

@@ -32,6 +32,8 @@ class FusionClassTable(ConfigTable):
     misses_to_remove: Annotated[Whole, Field(ge=1, le=1000)] | None = None
     miss_span_s: Annotated[Number, Field(ge=0.0, le=86400.0)] | None = None
     ttl_s: Annotated[Number, Field(ge=0.0)] | None = None
+    size_ratio: Annotated[Number, Field(ge=0.0, le=10.0)] | None = None
+    min_area_ratio: Annotated[Number, Field(ge=0.0, le=1.0)] | None = None
 
 
 class FusionTable(ConfigTable):
@@ -62,6 +64,20 @@ class FusionTable(ConfigTable):
     certain_move_m: Annotated[Number, Field(ge=0.0, le=100.0)] = Field(
         0.5, description="A sighting this far from the held pose moves the element at once."
     )
+    disagreement_window_s: Annotated[Number, Field(ge=0.0, le=86400.0)] = Field(
+        10.0,
+        description="A short move is held while another robot confirmed the held pose within this long, "
+        "unless a second robot agrees with it (two biased detectors do not flap a still object).",
+    )
+    resize_sightings: Annotated[Whole, Field(ge=1, le=1000)] = Field(
+        5,
+        description="A robot-made box element takes other sizes only when two robots agree on them, or "
+        "one robot over this many sightings spanning resize_span_s (an element imported from IFC keeps "
+        "its mesh).",
+    )
+    resize_span_s: Annotated[Number, Field(ge=0.0, le=3600.0)] = Field(
+        1.0, description="... spanning at least this long (sense time)."
+    )
     min_iou: Annotated[Number, Field(gt=0.0, le=1.0)] = Field(
         0.25,
         description="A new robot IRI is an existing element if their footprints overlap this much (IoU).",
@@ -71,6 +87,14 @@ class FusionTable(ConfigTable):
     )
     centre_distance_m: Annotated[Number, Field(ge=0.0, le=10.0)] = Field(
         0.3, description="The centre distance that matches small objects, metres."
+    )
+    size_ratio: Annotated[Number, Field(ge=0.0, le=10.0)] = Field(
+        0.35,
+        description="A box is the element only if each horizontal side and the height differ from the "
+        "element's by at most this fraction of the element's (0.35: 35 %).",
+    )
+    min_area_ratio: Annotated[Number, Field(ge=0.0, le=1.0)] = Field(
+        0.5, description="... and the smaller footprint area is at least this fraction of the larger."
     )
     merge_iou: Annotated[Number, Field(gt=0.0, le=1.0)] = Field(
         0.5, description="Two elements whose footprints overlap this much after a change are merged."
@@ -87,11 +111,27 @@ class FusionTable(ConfigTable):
     ttl_s: Annotated[Number, Field(ge=0.0)] = Field(
         0.0, description="Remove robot-added elements nobody confirmed for this long (0: never)."
     )
+    alias_jump_m: Annotated[Number, Field(gt=0.0, le=1000.0)] = Field(
+        2.0,
+        description="A report through an alias farther than this from the element (or failing the size "
+        "and kind gates) drops the alias and is associated afresh (a reused tracker id is a new object).",
+    )
     alias_ttl_s: Annotated[Number, Field(gt=0.0)] = Field(
         3600.0, description="A robot IRI that resolved to an element is forgotten when unused this long."
     )
     max_clock_skew_s: Annotated[Number, Field(ge=0.0, le=3600.0)] = Field(
-        2.0, description="A sense time later than the daemon's clock plus this is refused."
+        2.0,
+        description="Until a robot's clock offset is known (clock_settle_s), a sense time later than the "
+        "daemon's clock plus this is refused.",
+    )
+    max_clock_offset_s: Annotated[Number, Field(ge=0.0, le=3600.0)] = Field(
+        0.5, description="The log warns once per robot whose clock offset estimate exceeds this."
+    )
+    clock_window_s: Annotated[Number, Field(gt=0.0, le=86400.0)] = Field(
+        60.0, description="A robot's clock offset: the least arrival - sense time over this long."
+    )
+    clock_settle_s: Annotated[Number, Field(ge=0.0, le=86400.0)] = Field(
+        5.0, description="Sense times are corrected by a robot's offset once its reports span this long."
     )
     classes: dict[str, FusionClassTable] = Field(
         default_factory=dict, description="Per IFC class (subtypes included): values that differ."
@@ -109,10 +149,17 @@ class FusionTable(ConfigTable):
             refine_fraction=self.refine_fraction,
             move_sightings=self.move_sightings,
             certain_move_m=self.certain_move_m,
+            disagreement_window_ns=int(self.disagreement_window_s * 1e9),
+            resize_sightings=self.resize_sightings,
+            resize_span_ns=int(self.resize_span_s * 1e9),
             merge_iou=self.merge_iou,
             tentative_sightings=self.tentative_sightings,
             alias_ttl_ns=int(self.alias_ttl_s * 1e9),
+            alias_jump_m=self.alias_jump_m,
             max_skew_ns=int(self.max_clock_skew_s * 1e9),
+            max_clock_offset_ns=int(self.max_clock_offset_s * 1e9),
+            clock_window_ns=int(self.clock_window_s * 1e9),
+            clock_settle_ns=int(self.clock_settle_s * 1e9),
         )
 
 
@@ -127,6 +174,8 @@ def _class_rules(v: Mapping[str, Any]) -> FusionClassRules:
         misses_to_remove=int(v["misses_to_remove"]),
         miss_span_ns=int(v["miss_span_s"] * 1e9),
         ttl_ns=int(v["ttl_s"] * 1e9),
+        size_ratio=v["size_ratio"],
+        min_area_ratio=v["min_area_ratio"],
     )
 
 
@@ -142,6 +191,8 @@ class FusionClassRules:
     misses_to_remove: int
     miss_span_ns: int
     ttl_ns: int
+    size_ratio: float = 0.35
+    min_area_ratio: float = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -155,10 +206,17 @@ class FusionRules:
     refine_fraction: float = 0.5
     move_sightings: int = 2
     certain_move_m: float = 0.5
+    disagreement_window_ns: int = 10 * 10**9
+    resize_sightings: int = 5
+    resize_span_ns: int = 10**9
     merge_iou: float = 0.5
     tentative_sightings: int = 1
     alias_ttl_ns: int = 3600 * 10**9
+    alias_jump_m: float = 2.0
     max_skew_ns: int = 2 * 10**9
+    max_clock_offset_ns: int = 5 * 10**8
+    clock_window_ns: int = 60 * 10**9
+    clock_settle_ns: int = 5 * 10**9
 
     def of(self, ifc_types: tuple[str, ...]) -> FusionClassRules:
         """The rules of the most specific configured class among ``ifc_types`` (class first)."""

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+import shapely
+import shapely.geometry
 
 from twin.records import FloatArray, Shape
 
@@ -96,10 +98,20 @@ def pose_of(shape: Shape) -> Pose:
 
 
 def convex_hull(points: FloatArray) -> FloatArray:
-    """``(k, 2)`` the convex hull of 2D points, counter-clockwise (Andrew's monotone chain)."""
+    """``(k, 2)`` the convex hull of 2D points, counter-clockwise (shapely's, in C; Andrew's monotone
+    chain for the degenerate cases: fewer than three points, or all on a line)."""
     pts = np.unique(np.round(points, 9), axis=0)
     if len(pts) < 3:
         return np.asarray(pts, dtype=np.float64)
+    hull = shapely.convex_hull(shapely.multipoints(pts))
+    if isinstance(hull, shapely.Polygon):
+        ring = np.asarray(shapely.geometry.polygon.orient(hull, 1.0).exterior.coords, dtype=np.float64)
+        return ring[:-1]
+    return _monotone_chain(pts)
+
+
+def _monotone_chain(pts: FloatArray) -> FloatArray:
+    """``(k, 2)`` the convex hull of sorted unique 2D points, counter-clockwise (Andrew's monotone chain)."""
 
     def half(seq: FloatArray) -> list[FloatArray]:
         out: list[FloatArray] = []

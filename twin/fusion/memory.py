@@ -1,19 +1,24 @@
 """What the writer remembers of robots' sightings: per element, who saw it and when, what views missed
-it, the confirmations not yet committed; and the robot IRIs that resolved to elements (aliases).
+it, the confirmations, moves and resizes not yet committed, its previous poses; per robot, its clock
+offset; and the robot IRIs that resolved to elements (aliases).
 
 In memory only, except aliases (``twin:aliasOf``, written by the writer) and each element's last
 applied sense time (``twin:senseTime``, on the element): it changes many times a second and the graph
-does not grow with how often an element is seen. One writer mutates it.
+does not grow with how often an element is seen. One writer mutates it. :meth:`FusionMemory.to_json`
+and :meth:`FusionMemory.from_json` are its one serialiser (everything but the pose index and the pose
+cache, which start-up code rebuilds from the shapes: :func:`twin.fusion.poses.build_poses`).
 
 Example::
 
     memory = FusionMemory()
     track = memory.track(iri)
     track.sighted("robot1", sense_ns)
+    again = FusionMemory.from_json(json.loads(json.dumps(memory.to_json())))
 """
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -69,6 +74,45 @@ class Refinement:
 
 
 @dataclass(slots=True)
+class SizeEvidence:
+    """One robot's sightings of an element at sizes other than the held ones, that agree with each
+    other: how many, their summed sizes (aligned with the held pose), the first and last sense time."""
+
+    n: int = 0
+    sx: float = 0.0
+    sy: float = 0.0
+    sz: float = 0.0
+    first_ns: int = 0
+    last_ns: int = 0
+
+    def added(self, sx: float, sy: float, sz: float, sense_ns: int) -> SizeEvidence:
+        """A copy with one more sighting."""
+        first = sense_ns if self.n == 0 else min(self.first_ns, sense_ns)
+        return SizeEvidence(
+            self.n + 1, self.sx + sx, self.sy + sy, self.sz + sz, first, max(self.last_ns, sense_ns)
+        )
+
+    def mean(self) -> tuple[float, float, float]:
+        return (self.sx / self.n, self.sy / self.n, self.sz / self.n)
+
+
+@dataclass(slots=True)
+class RobotMean:
+    """A moving mean of positions (x, y), how many went into it and the last one's sense time."""
+
+    n: int = 0
+    x: float = 0.0
+    y: float = 0.0
+    last_ns: int = 0
+
+    def added(self, x: float, y: float, sense_ns: int, *, weight: float) -> RobotMean:
+        a = 1.0 if self.n == 0 else max(weight, 1.0 / (self.n + 1))
+        return RobotMean(
+            self.n + 1, self.x + a * (x - self.x), self.y + a * (y - self.y), max(self.last_ns, sense_ns)
+        )
+
+
+@dataclass(slots=True)
 class Miss:
     robot: str
     sense_ns: int
@@ -86,6 +130,22 @@ class Track:
     refinement: Refinement = field(default_factory=Refinement)
     moving: Refinement | None = None
     """Sightings of a short move not yet believed (``[fusion] move_sightings``), aligned and summed."""
+    movers: set[str] = field(default_factory=set)
+    """The robots whose sightings are in ``moving``."""
+    runs: dict[str, tuple[Refinement, int]] = field(default_factory=dict)
+    """Per robot, its latest consecutive sightings that agree on a move not yet applied (summed,
+    aligned with the held pose) and the last one's sense time: a robot stands behind a move once
+    ``move_sightings`` of its own agree; another robot's confirmation does not erase it."""
+    confirmed: dict[str, int] = field(default_factory=dict)
+    """Robot -> the sense time of its latest sighting, while that sighting confirmed the held pose
+    (a robot that then reports a move leaves): who disagrees with a short move."""
+    sizes: dict[str, SizeEvidence] = field(default_factory=dict)
+    """Per robot, its agreeing sightings at other sizes than the held ones (a resize not yet believed)."""
+    decided: str = ""
+    """The rule that decided the latest report of it (for ``twin explain``)."""
+    means: dict[str, RobotMean] = field(default_factory=dict)
+    """Per robot, where its detector puts the element (a moving mean of its raw sightings since the
+    element's last move): the robots' detector biases are estimated from them."""
 
     def sighted(self, robot: str, sense_ns: int) -> None:
         """A sighting by ``robot`` seen at ``sense_ns``: counted, and misses before it are forgotten."""
@@ -108,7 +168,68 @@ class Track:
             },
             "misses": [{"robot": m.robot, "sense_ns": m.sense_ns} for m in self.misses],
             "seen_ns": self.seen_ns,
+            **({"decided": self.decided} if self.decided else {}),
+            **(
+                {
+                    "pending_move": {
+                        "sightings": self.moving.n,
+                        "robots": sorted(self.movers),
+                        "to": [round(v, 3) for v in (self.moving.mean().cx, self.moving.mean().cy)],
+                    }
+                }
+                if self.moving is not None and self.moving.n
+                else {}
+            ),
+            **(
+                {
+                    "pending_resize": {
+                        r: {"sightings": e.n, "sizes": [round(v, 3) for v in e.mean()]}
+                        for r, e in sorted(self.sizes.items())
+                    }
+                }
+                if self.sizes
+                else {}
+            ),
         }
+
+
+@dataclass(slots=True)
+class ClockEstimate:
+    """One robot's clock offset: the running minimum of arrival - sense time (ns) over a window of
+    arrival time (a monotonic queue: deltas increasing, the minimum first)."""
+
+    samples: deque[tuple[int, int]] = field(default_factory=deque)
+    """(arrival, arrival - sense) of the samples that can still be the window's minimum."""
+    first_ns: int = 0
+    """Arrival of the first sample since the window last ran empty (the estimate settles after it)."""
+    warned: bool = False
+
+    def add(self, arrival_ns: int, delta_ns: int, *, window_ns: int) -> None:
+        while self.samples and self.samples[0][0] < arrival_ns - window_ns:
+            self.samples.popleft()
+        if not self.samples:
+            self.first_ns = arrival_ns
+        while self.samples and self.samples[-1][1] >= delta_ns:
+            self.samples.pop()
+        self.samples.append((arrival_ns, delta_ns))
+
+    @property
+    def offset_ns(self) -> int:
+        """How far the robot's clock is behind the daemon's (negative: ahead), latency included."""
+        return self.samples[0][1] if self.samples else 0
+
+
+@dataclass(frozen=True, slots=True)
+class PastPose:
+    """Where an element stood until a change seen at ``until_ns`` moved or removed it."""
+
+    storey: str
+    pose: Pose
+    until_ns: int
+
+
+HISTORY_PER_ELEMENT = 8
+"""Past poses kept per element (its last moves, or its removal)."""
 
 
 @dataclass(slots=True)
@@ -133,6 +254,14 @@ class FusionMemory:
     the first one's time); forgotten after :data:`TENTATIVE_TTL_NS` (a false detection seen once)."""
     distinct: set[str] = field(default_factory=set)
     """Elements robots said are distinct objects (never merged into another)."""
+    history: dict[str, deque[PastPose]] = field(default_factory=dict)
+    """Per element, its previous poses and the sense times of the changes that ended them (the last
+    :data:`HISTORY_PER_ELEMENT`; a removed element's last pose too): late news is checked against them."""
+    clocks: dict[str, ClockEstimate] = field(default_factory=dict)
+    """Per robot, its clock offset estimate (:mod:`twin.fusion.clocks`)."""
+    pairs: dict[tuple[str, str], RobotMean] = field(default_factory=dict)
+    """(robot, other robot) -> the mean difference (x, y) between where they put the elements both see
+    (:mod:`twin.fusion.bias`)."""
     shape_poses: dict[str, tuple[object, object, Pose]] = field(default_factory=dict)
     """Element -> (mesh, placement, pose): the pose of the shape it has, computed once per shape."""
 
@@ -151,5 +280,137 @@ class FusionMemory:
             t = self.tracks[iri] = Track()
         return t
 
+    def remember(self, iri: str, past: PastPose) -> None:
+        """``iri`` stood at ``past.pose`` until ``past.until_ns``."""
+        kept = self.history.get(iri)
+        if kept is None:
+            kept = self.history[iri] = deque(maxlen=HISTORY_PER_ELEMENT)
+        kept.append(past)
+
+    def to_json(self) -> dict[str, Any]:
+        """Everything fusion remembers (tracks, aliases, tentative IRIs, distinct elements, previous
+        poses, clock offsets) as JSON-able values; not the pose index nor the pose cache (start-up code
+        rebuilds them from the shapes)."""
+        return memory_to_json(self)
+
+    @classmethod
+    def from_json(cls, value: dict[str, Any]) -> FusionMemory:
+        """The memory :meth:`to_json` gave (its pose index not built: ``poses`` is None)."""
+        return memory_from_json(value)
+
     def aliases_of(self, target: str) -> list[str]:
         return sorted(a for a, v in self.aliases.items() if v.target == target)
+
+
+def expire_aliases(memory: FusionMemory, now_ns: int, ttl_ns: int) -> list[str]:
+    """Forget the aliases unused for ``ttl_ns`` (returned, for the writer to delete from the graph) and
+    the tentative IRIs older than :data:`TENTATIVE_TTL_NS`."""
+    old = [a for a, v in memory.aliases.items() if now_ns - v.used_ns > ttl_ns]
+    for a in old:
+        del memory.aliases[a]
+    for iri in [i for i, (_, since) in memory.tentative.items() if now_ns - since > TENTATIVE_TTL_NS]:
+        del memory.tentative[iri]
+    return sorted(old)
+
+
+# --- the one serialiser ------------------------------------------------------------------------------------
+
+MEMORY_FORMAT = 1
+"""The version of :meth:`FusionMemory.to_json`'s layout."""
+
+
+def _pose_json(p: Pose) -> list[float]:
+    return [p.cx, p.cy, p.cz, p.sx, p.sy, p.sz, p.yaw]
+
+
+def _pose(v: Any) -> Pose:
+    return Pose(*(float(x) for x in v))
+
+
+def _refinement_json(r: Refinement) -> list[float]:
+    return [r.n, r.cx, r.cy, r.cz, r.sx, r.sy, r.sz, r.yaw]
+
+
+def _refinement(v: Any) -> Refinement:
+    return Refinement(int(v[0]), *(float(x) for x in v[1:]))
+
+
+def _track_json(t: Track) -> dict[str, Any]:
+    return {
+        "seen_ns": t.seen_ns,
+        "robots": {r: [s.count, s.first_ns, s.last_ns] for r, s in t.robots.items()},
+        "misses": [[m.robot, m.sense_ns] for m in t.misses],
+        "refinement": _refinement_json(t.refinement),
+        "moving": None if t.moving is None else _refinement_json(t.moving),
+        "movers": sorted(t.movers),
+        "confirmed": dict(t.confirmed),
+        "sizes": {r: [e.n, e.sx, e.sy, e.sz, e.first_ns, e.last_ns] for r, e in t.sizes.items()},
+        "decided": t.decided,
+        "means": {r: [m.n, m.x, m.y, m.last_ns] for r, m in t.means.items()},
+        "runs": {r: [_refinement_json(ref), ns] for r, (ref, ns) in t.runs.items()},
+    }
+
+
+def _track(v: dict[str, Any]) -> Track:
+    return Track(
+        seen_ns=int(v["seen_ns"]),
+        robots={r: RobotSightings(int(c), int(f), int(la)) for r, (c, f, la) in v["robots"].items()},
+        misses=[Miss(str(r), int(ns)) for r, ns in v["misses"]],
+        refinement=_refinement(v["refinement"]),
+        moving=None if v["moving"] is None else _refinement(v["moving"]),
+        movers=set(v["movers"]),
+        confirmed={r: int(ns) for r, ns in v["confirmed"].items()},
+        sizes={
+            r: SizeEvidence(int(n), float(sx), float(sy), float(sz), int(f), int(la))
+            for r, (n, sx, sy, sz, f, la) in v["sizes"].items()
+        },
+        decided=str(v["decided"]),
+        means={r: RobotMean(int(n), float(x), float(y), int(ns)) for r, (n, x, y, ns) in v["means"].items()},
+        runs={r: (_refinement(ref), int(ns)) for r, (ref, ns) in v["runs"].items()},
+    )
+
+
+def memory_to_json(m: FusionMemory) -> dict[str, Any]:
+    """Everything fusion remembers as JSON-able values (see :meth:`FusionMemory.to_json`)."""
+    return {
+        "format": MEMORY_FORMAT,
+        "tracks": {iri: _track_json(t) for iri, t in m.tracks.items()},
+        "aliases": {a: [v.target, v.used_ns] for a, v in m.aliases.items()},
+        "tentative": {iri: list(v) for iri, v in m.tentative.items()},
+        "distinct": sorted(m.distinct),
+        "history": {
+            iri: [[p.storey, _pose_json(p.pose), p.until_ns] for p in past] for iri, past in m.history.items()
+        },
+        "clocks": {
+            robot: {"samples": [list(s) for s in e.samples], "first_ns": e.first_ns, "warned": e.warned}
+            for robot, e in m.clocks.items()
+        },
+        "pairs": [[a, b, d.n, d.x, d.y, d.last_ns] for (a, b), d in m.pairs.items()],
+    }
+
+
+def memory_from_json(v: dict[str, Any]) -> FusionMemory:
+    """The memory :func:`memory_to_json` wrote; ValueError naming a layout it does not know."""
+    if v.get("format") != MEMORY_FORMAT:
+        msg = f"Fusion memory of format {v.get('format')!r}: this daemon reads format {MEMORY_FORMAT}."
+        raise ValueError(msg)
+    m = FusionMemory(
+        tracks={iri: _track(t) for iri, t in v["tracks"].items()},
+        aliases={a: Alias(str(t), int(ns)) for a, (t, ns) in v["aliases"].items()},
+        tentative={iri: (int(n), int(since)) for iri, (n, since) in v["tentative"].items()},
+        distinct=set(v["distinct"]),
+        clocks={
+            robot: ClockEstimate(
+                deque((int(a), int(d)) for a, d in e["samples"]), int(e["first_ns"]), bool(e["warned"])
+            )
+            for robot, e in v["clocks"].items()
+        },
+        pairs={
+            (str(a), str(b)): RobotMean(int(n), float(x), float(y), int(ns))
+            for a, b, n, x, y, ns in v["pairs"]
+        },
+    )
+    for iri, past in v["history"].items():
+        for storey, pose, until in past:
+            m.remember(iri, PastPose(str(storey), _pose(pose), int(until)))
+    return m

@@ -19,6 +19,7 @@ import math
 from typing import Any
 
 from twin.errors import ExplainError
+from twin.fusion.clocks import clock_offsets
 from twin.graph import vocab
 from twin.graph.store import GraphStore
 from twin.live.membership import rejection
@@ -149,12 +150,18 @@ def explain_cell(
 
 
 def fusion_of(live: LiveState, iri: str) -> dict[str, Any]:
-    """What fusion knows of an element: the robots that saw it (how often, first and last), the robot
-    IRIs that resolve to it, and the views that missed it since its last sighting."""
+    """What fusion knows of an element: the robots that saw it (how often, first and last) and their
+    clock offsets, the robot IRIs that resolve to it, the views that missed it since its last sighting,
+    a move or resize noted but not confirmed, and the rule that decided its latest report."""
     out: dict[str, Any] = {}
     track = live.fusion.tracks.get(iri)
     if track is not None:
         out.update(track.as_json())
+        offsets = clock_offsets(live.fusion)
+        robots = {*track.robots, *(m.robot for m in track.misses)}
+        seen = {r: offsets[r] for r in sorted(robots) if r in offsets}
+        if seen:
+            out["clock_offsets"] = seen
     aliases = live.fusion.aliases_of(iri)
     if aliases:
         out["aliases"] = aliases

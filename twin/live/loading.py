@@ -17,9 +17,9 @@ import numpy as np
 
 from twin.config import Config
 from twin.errors import SnapshotError, TwinError
+from twin.fusion.memory import Alias, FusionMemory
 from twin.graph.rdf import Row
 from twin.graph.store import GraphStore
-from twin.live.fuse import load_fusion
 from twin.live.live_maps import LiveMaps
 from twin.live.skill_changes import stored_skills
 from twin.live.snapshots import (
@@ -149,3 +149,14 @@ def catch_up(store: GraphStore, live: LiveState, restored: Restored) -> None:
         )
     for m in live.maps.skill_maps.values():
         m.version = 1  # as after a rebuild: map versions count from 1 in each run of the daemon
+
+
+def load_fusion(store: GraphStore, now_ns: int) -> FusionMemory:
+    """The aliases and the elements said to be distinct, as the graph keeps them (each alias counts as
+    used now: its time to live starts again at every start)."""
+    memory = FusionMemory()
+    for r in store.select("SELECT ?a ?t WHERE { ?a twin:aliasOf ?t }"):
+        memory.aliases[r["a"] or ""] = Alias(r["t"] or "", now_ns)
+    for r in store.select("SELECT ?e WHERE { ?e twin:distinct true }"):
+        memory.distinct.add(r["e"] or "")
+    return memory

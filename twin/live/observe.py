@@ -26,7 +26,11 @@ from dataclasses import dataclass
 
 from twin.config import Config
 from twin.errors import TwinError
+from twin.fusion.context import Fused
 from twin.fusion.footprints import Pose, pose_of
+from twin.fusion.gates import is_candidate
+from twin.fusion.memory import expire_aliases
+from twin.fusion.poses import index_element
 from twin.graph import vocab
 from twin.graph.rdf import ChangeSet, Object, Triple
 from twin.graph.store import GraphStore
@@ -39,7 +43,7 @@ from twin.live.events import (
     ObservationRejected,
     TwinEvent,
 )
-from twin.live.fuse import Fused, expire_aliases, fuse, index_element, is_candidate
+from twin.live.fuse import fuse
 from twin.live.membership import membership
 from twin.live.parse import parse_observation_document
 from twin.live.plan import ObservationPlan, plan_observation

@@ -143,6 +143,193 @@ def _create(
     return ElementState(r.iri, chain[0], chain, is_static, classes=frozenset(classes))
 
 
+@dataclass(slots=True)
+class _Step:
+    """One report being planned: what it says, who says it, and the twin as the plan left it."""
+
+    r: ElementReport
+    robot: str
+    rights: frozenset[Right]
+    site: SiteFrame
+    w: TripleWriter
+    geometry: list[GeometryChange]
+    state: ElementState | None
+    current: Shape | None
+
+    @property
+    def exists(self) -> bool:
+        return self.state is not None and not self.state.removed
+
+
+def _remove(step: _Step, *, reason: str | None, merged_into: str | None) -> ElementState:
+    """``twin:removed true``: the element becomes a tombstone (no geometry; why, if fusion says)."""
+    r, w, state = step.r, step.w, step.state
+    if not step.exists or state is None:
+        raise _fail(f"Element <{r.iri}> cannot be removed: the twin has no such element.")
+    _need(step.rights, "static" if state.is_static else "dynamic", step.robot, f"remove <{r.iri}>")
+    w.set(r.iri, vocab.OMG_HAS_GEOMETRY, None)
+    w.clear(vocab.geometry_iri(r.iri))
+    w.set(r.iri, vocab.TWIN_REMOVED, boolean(True))
+    if step.current is not None:
+        step.geometry.append(GeometryChange(r.iri, None))
+    if reason is not None:
+        w.set(r.iri, vocab.TWIN_REMOVED_BECAUSE, literal(reason))
+    if merged_into is not None:
+        w.set(r.iri, vocab.TWIN_MERGED_INTO, merged_into)
+    return replace(state, removed=True)
+
+
+def _upsert(step: _Step) -> ElementState:
+    """Create the element or check its class, then its door state, zone marks, geometry, storey and
+    descriptive values, in that order."""
+    r, state = step.r, step.state
+    exists = step.exists
+    if r.unmerge:
+        _need(step.rights, "merges", step.robot, f"undo the merge of <{r.iri}>")
+        if state is not None and not state.removed:
+            raise _fail(f"Element <{r.iri}> is an element of its own: there is no merge to undo.")
+    if state is None or not exists:
+        if state is not None:  # re-created after its removal: start from a clean node
+            step.w.clear(r.iri)
+        state = _create(r, step.site, step.robot, step.rights, step.w)
+        if r.distinct or r.unmerge:
+            step.w.add.append(Triple(r.iri, vocab.TWIN_DISTINCT, boolean(True)))
+        step.current = None
+    elif r.ifc_class is not None and r.ifc_class.lower() != state.ifc_class.lower():
+        raise _fail(
+            f"Element <{r.iri}> is an {state.ifc_class}: an observation cannot make it {r.ifc_class}."
+        )
+    change: Right = "static" if state.is_static else "dynamic"
+    state = _door(step, state)
+    state = _zones(step, state)
+    _geometry(step, change, exists=exists)
+    state = _storey(step, state, change, exists=exists)
+    _lifetime(step, change, exists=exists)
+    state = _descriptive(step, state, change, exists=exists)
+    return replace(state, removed=False)
+
+
+def _door(step: _Step, state: ElementState) -> ElementState:
+    r = step.r
+    if r.is_open is None:
+        return state
+    if not state.is_door:
+        raise _fail(f"Element <{r.iri}> is an {state.ifc_class}, not a door: it cannot be opened.")
+    if r.is_open != state.is_open:
+        _need(step.rights, "doors", step.robot, f"open or close <{r.iri}>")
+        step.w.set(r.iri, vocab.TWIN_IS_OPEN, boolean(r.is_open))
+        state = replace(state, is_open=r.is_open)
+    return state
+
+
+def _zones(step: _Step, state: ElementState) -> ElementState:
+    r, w = step.r, step.w
+    if r.keepout is not None and r.keepout != state.keepout:
+        what = "mark <{}> as a keepout zone" if r.keepout else "lift the keepout zone <{}>"
+        _need(step.rights, "zones", step.robot, what.format(r.iri))
+        w.set(r.iri, vocab.TWIN_KEEPOUT, boolean(r.keepout) if r.keepout else None)
+        state = replace(state, keepout=r.keepout)
+    if r.speed_limit is not None and r.speed_limit != state.speed_limit:
+        _need(step.rights, "zones", step.robot, f"set the speed limit of <{r.iri}>")
+        limit = literal(str(r.speed_limit), vocab.XSD_INTEGER) if r.speed_limit else None
+        w.set(r.iri, vocab.TWIN_SPEED_LIMIT, limit)
+        state = replace(state, speed_limit=r.speed_limit)
+    return state
+
+
+def _geometry(step: _Step, change: Right, *, exists: bool) -> None:
+    """The reported shape, written only when it differs (a move: the placement alone)."""
+    r, w, current = step.r, step.w, step.current
+    shape = _shape(r, step.site, current)
+    if shape is None:
+        return
+    _check_inside(r.iri, shape, step.site)
+    if current is not None and same_shape(shape, current):
+        return
+    if exists:
+        _need(step.rights, change, step.robot, f"change <{r.iri}>")
+    g = vocab.geometry_iri(r.iri)
+    if current is not None and shape[0] is current[0]:  # a move: the placement only
+        w.set(g, vocab.TWIN_PLACEMENT, literal(encode_placement(shape[1]), vocab.TWIN_MATRIX4))
+    else:
+        w.clear(g)
+        for t in geometry_triples(r.iri, *shape):
+            w.set(t.subject, t.predicate, t.object)
+    step.geometry.append(GeometryChange(r.iri, shape))
+
+
+def _storey(step: _Step, state: ElementState, change: Right, *, exists: bool) -> ElementState:
+    r, site, w = step.r, step.site, step.w
+    if r.storey is None:
+        return state
+    storey = site.storeys.get(r.storey)
+    if storey is None:
+        known = ", ".join(sorted(site.storeys)) or "none"
+        raise _fail(f"Element <{r.iri}>: unknown storey {r.storey!r}; storeys: {known}.")
+    if state.storey == r.storey and exists:
+        return state
+    if exists:
+        _need(step.rights, change, step.robot, f"change <{r.iri}>")
+    old = site.storeys.get(state.storey or "")
+    if old is not None and exists:
+        w.delete.append(Triple(old.iri, vocab.BOT_CONTAINS_ELEMENT, r.iri))
+    w.add.append(Triple(storey.iri, vocab.BOT_CONTAINS_ELEMENT, r.iri))
+    return replace(state, storey=r.storey)
+
+
+def _lifetime(step: _Step, change: Right, *, exists: bool) -> None:
+    """An RMF obstacle's lifetime (``twin:lifetime``, single-valued): written only when it differs."""
+    r, w = step.r, step.w
+    if r.lifetime_s is None:
+        return
+    lifetime = literal(f"{r.lifetime_s:.9f}".rstrip("0").rstrip("."), vocab.XSD_DECIMAL)
+    mark = w.changed()
+    w.set(r.iri, vocab.TWIN_LIFETIME, lifetime)
+    if exists and w.changed() != mark:
+        _need(step.rights, change, step.robot, f"change <{r.iri}>")
+
+
+def _descriptive(step: _Step, state: ElementState, change: Right, *, exists: bool) -> ElementState:
+    """Labels, materials (each a facing one too: what a robot reports is what its sensors face) and
+    descriptive types (``a furn:Table``) not yet held."""
+    r, w = step.r, step.w
+    labels = [v for v in r.labels if v not in state.labels]
+    materials = [v for v in r.materials if v not in state.materials or v not in state.facing_materials]
+    classes = [v for v in r.classes if v not in state.classes]
+    if not (labels or materials or classes):
+        return state
+    if exists:
+        _need(step.rights, change, step.robot, f"change <{r.iri}>")
+    w.add += [Triple(r.iri, vocab.RDFS_LABEL, literal(v)) for v in labels]
+    w.add += [
+        Triple(r.iri, p, literal(m))
+        for m in materials
+        for p in (vocab.TWIN_MATERIAL, vocab.TWIN_FACING_MATERIAL)
+    ]
+    w.add += [Triple(r.iri, vocab.RDF_TYPE, c) for c in classes]
+    return replace(
+        state,
+        name=r.labels[0] if r.labels else state.name,
+        labels=state.labels | set(labels),
+        materials=state.materials | set(materials),
+        facing_materials=state.facing_materials | set(materials),
+        classes=state.classes | set(classes),
+    )
+
+
+def _provenance(
+    step: _Step, state: ElementState, *, revision: int, stamp_ns: int, sensed: int
+) -> ElementState:
+    """Who changed the element, when it arrived, at which revision, and when it was seen."""
+    r, w = step.r, step.w
+    when = datetime.datetime.fromtimestamp(stamp_ns / 1e9, tz=datetime.UTC).isoformat()
+    w.set(r.iri, vocab.TWIN_OBSERVED_BY, literal(step.robot))
+    w.set(r.iri, vocab.TWIN_OBSERVED_AT, literal(when, vocab.XSD_DATETIME))
+    w.set(r.iri, vocab.TWIN_REVISION, literal(str(revision), vocab.XSD_INTEGER))
+    w.set(r.iri, vocab.TWIN_SENSE_TIME, literal(_iso(sensed), vocab.XSD_DATETIME))
+    return replace(state, sensed_ns=sensed)
+
+
 def plan_observation(
     reports: Sequence[ElementReport],
     *,
@@ -182,130 +369,18 @@ def plan_observation(
     new_states: dict[str, ElementState] = {}
     upserted, removed = [], []
     for r in reports:
-        state = states.get(r.iri)
-        exists = state is not None and not state.removed
-        current = shapes.get(r.iri)
+        step = _Step(r, robot, rights, site, w, geometry, states.get(r.iri), shapes.get(r.iri))
         before = w.changed()
         if r.removed:
-            if not exists or state is None:
-                raise _fail(f"Element <{r.iri}> cannot be removed: the twin has no such element.")
-            _need(rights, "static" if state.is_static else "dynamic", robot, f"remove <{r.iri}>")
-            g = vocab.geometry_iri(r.iri)
-            w.set(r.iri, vocab.OMG_HAS_GEOMETRY, None)
-            w.clear(g)
-            w.set(r.iri, vocab.TWIN_REMOVED, boolean(True))
-            if current is not None:
-                geometry.append(GeometryChange(r.iri, None))
-            if r.iri in reasons:
-                w.set(r.iri, vocab.TWIN_REMOVED_BECAUSE, literal(reasons[r.iri]))
-            if r.iri in merged:
-                w.set(r.iri, vocab.TWIN_MERGED_INTO, merged[r.iri])
-            state = replace(state, removed=True)
+            state = _remove(step, reason=reasons.get(r.iri), merged_into=merged.get(r.iri))
             removed.append(r.iri)
         else:
-            if r.unmerge:
-                _need(rights, "merges", robot, f"undo the merge of <{r.iri}>")
-                if state is not None and not state.removed:
-                    raise _fail(f"Element <{r.iri}> is an element of its own: there is no merge to undo.")
-            if state is None or not exists:
-                if state is not None:  # re-created after its removal: start from a clean node
-                    w.clear(r.iri)
-                state = _create(r, site, robot, rights, w)
-                if r.distinct or r.unmerge:
-                    w.add.append(Triple(r.iri, vocab.TWIN_DISTINCT, boolean(True)))
-                current = None
-            elif r.ifc_class is not None and r.ifc_class.lower() != state.ifc_class.lower():
-                raise _fail(
-                    f"Element <{r.iri}> is an {state.ifc_class}: an observation cannot make it {r.ifc_class}."
-                )
-            change: Right = "static" if state.is_static else "dynamic"
-            if r.is_open is not None:
-                if not state.is_door:
-                    raise _fail(
-                        f"Element <{r.iri}> is an {state.ifc_class}, not a door: it cannot be opened."
-                    )
-                if r.is_open != state.is_open:
-                    _need(rights, "doors", robot, f"open or close <{r.iri}>")
-                    w.set(r.iri, vocab.TWIN_IS_OPEN, boolean(r.is_open))
-                    state = replace(state, is_open=r.is_open)
-            if r.keepout is not None and r.keepout != state.keepout:
-                what = "mark <{}> as a keepout zone" if r.keepout else "lift the keepout zone <{}>"
-                _need(rights, "zones", robot, what.format(r.iri))
-                w.set(r.iri, vocab.TWIN_KEEPOUT, boolean(r.keepout) if r.keepout else None)
-                state = replace(state, keepout=r.keepout)
-            if r.speed_limit is not None and r.speed_limit != state.speed_limit:
-                _need(rights, "zones", robot, f"set the speed limit of <{r.iri}>")
-                limit = literal(str(r.speed_limit), vocab.XSD_INTEGER) if r.speed_limit else None
-                w.set(r.iri, vocab.TWIN_SPEED_LIMIT, limit)
-                state = replace(state, speed_limit=r.speed_limit)
-            shape = _shape(r, site, current)
-            if shape is not None:
-                _check_inside(r.iri, shape, site)
-                if current is None or not same_shape(shape, current):
-                    if exists:
-                        _need(rights, change, robot, f"change <{r.iri}>")
-                    g = vocab.geometry_iri(r.iri)
-                    if current is not None and shape[0] is current[0]:  # a move: the placement only
-                        placement = literal(encode_placement(shape[1]), vocab.TWIN_MATRIX4)
-                        w.set(g, vocab.TWIN_PLACEMENT, placement)
-                    else:
-                        w.clear(g)
-                        for t in geometry_triples(r.iri, *shape):
-                            w.set(t.subject, t.predicate, t.object)
-                    geometry.append(GeometryChange(r.iri, shape))
-            if r.storey is not None:
-                storey = site.storeys.get(r.storey)
-                if storey is None:
-                    known = ", ".join(sorted(site.storeys)) or "none"
-                    raise _fail(f"Element <{r.iri}>: unknown storey {r.storey!r}; storeys: {known}.")
-                if state.storey != r.storey or not exists:
-                    if exists:
-                        _need(rights, change, robot, f"change <{r.iri}>")
-                    old = site.storeys.get(state.storey or "")
-                    if old is not None and exists:
-                        w.delete.append(Triple(old.iri, vocab.BOT_CONTAINS_ELEMENT, r.iri))
-                    w.add.append(Triple(storey.iri, vocab.BOT_CONTAINS_ELEMENT, r.iri))
-                    state = replace(state, storey=r.storey)
-            if r.lifetime_s is not None:  # single-valued: written only when it differs from the held one
-                lifetime = literal(f"{r.lifetime_s:.9f}".rstrip("0").rstrip("."), vocab.XSD_DECIMAL)
-                mark = w.changed()
-                w.set(r.iri, vocab.TWIN_LIFETIME, lifetime)
-                if exists and w.changed() != mark:
-                    _need(rights, change, robot, f"change <{r.iri}>")
-            labels = [v for v in r.labels if v not in state.labels]
-            materials = [
-                v for v in r.materials if v not in state.materials or v not in state.facing_materials
-            ]
-            classes = [v for v in r.classes if v not in state.classes]
-            if (labels or materials or classes) and exists:
-                _need(rights, change, robot, f"change <{r.iri}>")
-            w.add += [Triple(r.iri, vocab.RDFS_LABEL, literal(v)) for v in labels]
-            # What a robot reports is what its sensors face: each material is a facing one too.
-            w.add += [
-                Triple(r.iri, p, literal(m))
-                for m in materials
-                for p in (vocab.TWIN_MATERIAL, vocab.TWIN_FACING_MATERIAL)
-            ]
-            w.add += [Triple(r.iri, vocab.RDF_TYPE, c) for c in classes]
-            if labels or materials or classes:
-                state = replace(
-                    state,
-                    name=r.labels[0] if r.labels else state.name,
-                    labels=state.labels | set(labels),
-                    materials=state.materials | set(materials),
-                    facing_materials=state.facing_materials | set(materials),
-                    classes=state.classes | set(classes),
-                )
-            state = replace(state, removed=False)
+            state = _upsert(step)
         if w.changed() == before:
             continue  # this element is as the twin holds it
-        when = datetime.datetime.fromtimestamp(stamp_ns / 1e9, tz=datetime.UTC).isoformat()
-        w.set(r.iri, vocab.TWIN_OBSERVED_BY, literal(robot))
-        w.set(r.iri, vocab.TWIN_OBSERVED_AT, literal(when, vocab.XSD_DATETIME))
-        w.set(r.iri, vocab.TWIN_REVISION, literal(str(revision), vocab.XSD_INTEGER))
-        sensed = sense_ns.get(r.iri, stamp_ns)
-        w.set(r.iri, vocab.TWIN_SENSE_TIME, literal(_iso(sensed), vocab.XSD_DATETIME))
-        state = replace(state, sensed_ns=sensed)
+        state = _provenance(
+            step, state, revision=revision, stamp_ns=stamp_ns, sensed=sense_ns.get(r.iri, stamp_ns)
+        )
         new_states[r.iri] = state
         if not r.removed:
             upserted.append(r.iri)

@@ -27,6 +27,7 @@ from collections.abc import Callable, Sequence
 
 from twin.config import Config
 from twin.errors import TwinError
+from twin.fusion.poses import build_poses
 from twin.graph.store import GraphStore
 from twin.live.events import ElementShape, RobotStoreyChanged, TwinEvent, TwinSink, TwinStarted
 from twin.live.explain import explain_cell
@@ -125,6 +126,10 @@ class TwinService:
         self._live = live
         if restored is not None:
             catch_up(self.store, live, restored)
+        if self.config.fusion.enabled:  # before serving: the first observation waits for nothing
+            t_poses = time.perf_counter()
+            build_poses(live)
+            log.info("Indexed the poses of dynamic elements in %.2f s", time.perf_counter() - t_poses)
         self._observer = Observer(
             self.store,
             self.config,

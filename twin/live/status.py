@@ -10,6 +10,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from twin.errors import StoreError
+from twin.fusion.bias import detector_biases
+from twin.fusion.clocks import clock_offsets
 
 if TYPE_CHECKING:
     from twin.live.service import TwinService
@@ -65,6 +67,8 @@ def service_status(service: TwinService) -> dict[str, object]:
             "aliases": len(live.fusion.aliases),
             "tracked": len(live.fusion.tracks),
             "stale": obs.stale,
+            "clock_offsets": clock_offsets(live.fusion),
+            "detector_biases": detector_biases(live.fusion),
             **{k: obs.fusion_counts[k] for k in sorted(obs.fusion_counts)},
         },
         "queue_depth": service.queue_depth,

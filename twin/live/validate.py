@@ -20,6 +20,7 @@ import numpy as np
 
 from twin.config import Limits
 from twin.errors import ObservationError
+from twin.graph import vocab
 from twin.records import ElementReport, Observation, ObservedView
 
 __all__ = [
@@ -87,6 +88,12 @@ def check_report(report: ElementReport, *, limits: Limits) -> ElementReport:
             f"Element <{subject}>: twin:lifetime must be seconds from 0 to {MAX_LIFETIME_S:g}, "
             f"got {report.lifetime_s!r}."
         )
+    for cls in report.classes:
+        if not (cls.startswith((vocab.BEO, vocab.FURN)) or cls == vocab.BOT_ELEMENT):
+            raise _fail(
+                f"Element <{subject}>: rdf:type <{cls}> is not allowed; only BEO and FURN classes "
+                "(e.g. furn:Table) and bot:Element."
+            )
     for what, texts in (("rdfs:label", report.labels), ("twin:material", report.materials)):
         if any(len(t) > MAX_TEXT for t in texts):
             raise _fail(f"Element <{subject}>: {what} is longer than {MAX_TEXT} characters.")

@@ -104,6 +104,18 @@ def test_a_table_seen_in_a_camera_frame_two_tf_hops_from_the_map_lands_at_its_ma
     assert found[(f"<{iri}>", "storey")] == ["ground-floor"]
 
 
+def test_a_class_id_with_a_descriptive_type_says_what_the_object_is() -> None:
+    settings = DetectionSettings(
+        robot="robot1",
+        classes={"table": "IfcFurniture"},
+        types={"table": "http://pi.pauwel.be/voc/furniture#Table"},
+    )
+    t = translate_detections(cdr_detections(NOW, "camera_optical_frame", [TABLE_IN_CAMERA]), settings, ctx())
+    found = triples(t.document)
+    kinds = found[("<urn:twin-ros:robot1:det:7>", "http://www.w3.org/1999/02/22-rdf-syntax-ns#type")]
+    assert kinds == ["http://pi.pauwel.be/voc/furniture#Table"]
+
+
 def test_the_robot_pose_is_interpolated_at_the_stamp() -> None:
     later = NOW + 50_000_000  # base_link at x = 14.5
     t = translate_detections(

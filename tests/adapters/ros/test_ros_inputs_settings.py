@@ -118,3 +118,20 @@ def test_absolute_tf_topics_are_kept_for_robots_that_publish_the_global_tf(tmp_p
     cfg = config(tmp_path, ROBOT + '[robots.r1.detections]\nclasses = { t = "IfcFurniture" }\ntf = "/tf"\n')
     d = ros_robots(cfg)["r1"].detections
     assert d is not None and (d.tf, d.tf_static) == ("/tf", "tf_static")
+
+
+def test_a_class_id_may_carry_a_descriptive_type_and_a_bad_one_is_refused_naming_it(tmp_path: Path) -> None:
+    cfg = config(
+        tmp_path,
+        ROBOT + '[robots.r1.detections]\nclasses = { table = "IfcFurniture", '
+        'chair = { ifc = "IfcFurniture", type = "furn:Chair" } }\n',
+    )
+    d = ros_robots(cfg)["r1"].detections
+    assert d is not None
+    assert d.classes == (("table", "IfcFurniture"), ("chair", "IfcFurniture"))
+    assert d.types == (("chair", "http://pi.pauwel.be/voc/furniture#Chair"),)
+    with pytest.raises(ConfigError, match=r"furn:Chair or beo:Door.*'Chair'"):
+        config(
+            tmp_path,
+            ROBOT + '[robots.r1.detections]\nclasses = { c = { ifc = "IfcFurniture", type = "Chair" } }\n',
+        )

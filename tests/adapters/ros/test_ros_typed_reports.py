@@ -5,7 +5,7 @@ validator as a parsed document."""
 from __future__ import annotations
 
 import math
-from dataclasses import astuple
+from dataclasses import astuple, replace
 
 import pytest
 
@@ -18,6 +18,7 @@ from tests.twin.box_lab import OX, OY, box_lab
 from tests.twin.live_helpers import started
 from twin.config import Limits, load_config
 from twin.errors import ObservationError
+from twin.graph.vocab import FURN
 from twin.live import Reply, TwinService
 from twin.live.parse import parse_observation_document
 from twin.live.validate import check_observation
@@ -145,3 +146,22 @@ def test_a_refused_typed_observation_is_answered_with_the_reason_and_the_twin_ke
     service.submit_observation("robot1", bad, replies.append)
     service.process()
     assert not replies[0].ok and "is not an absolute IRI" in str(replies[0].body["error"])
+
+
+def test_a_descriptive_type_goes_the_same_way_and_a_foreign_one_is_refused_on_both_paths() -> None:
+    furn = FURN + "Chair"
+    box = BoxReport(
+        "urn:twin-ros:r:det:1", "IfcFurniture", "ground-floor", (0, 0, 0.4, 0.5, 0.5, 0.8, 0), kind=furn
+    )
+    records, turtle = observation_records(boxes=[box]), observation_turtle(boxes=[box])
+    assert records is not None and turtle is not None
+    assert (
+        records.reports[0].classes == parse_observation_document(turtle, limits=Limits()).reports[0].classes
+    )
+    foreign = replace(box, kind="http://example.org/Chair")
+    records, turtle = observation_records(boxes=[foreign]), observation_turtle(boxes=[foreign])
+    assert records is not None and turtle is not None
+    with pytest.raises(ObservationError, match="is not allowed; only BEO and FURN"):
+        check_observation(records, limits=Limits())
+    with pytest.raises(ObservationError, match="is not allowed; only BEO and FURN"):
+        parse_observation_document(turtle, limits=Limits())

@@ -6,6 +6,7 @@ translated in a worker process (``[ros] ingest_workers``) or in the ingest threa
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -102,7 +103,8 @@ def test_the_view_stops_at_the_structure_and_follows_its_map_updates(
     stamp = time.time_ns()
     send_array(session, stamp)
     wait(lambda: len(docs) == 1)
-    assert b"<urn:twin-ros:robot1:det:7> twin:ifcClass" in docs[0]
+    session_label = f"s{stamp // 10**9}".encode()  # the tracker session: the first array's stamp
+    assert b"<urn:twin-ros:robot1:det:" + session_label + b":7> twin:ifcClass" in docs[0]
     xs = view_xs(docs[0])
     assert xs[0] == pytest.approx(12.2) and xs.max() <= 16.0 and xs.max() > 15.9  # cut at the wall
     cleared = np.zeros((FRAME.height, 10), dtype=np.int8)  # the wall's column and its neighbours: free
@@ -156,6 +158,8 @@ def test_a_worker_that_dies_is_started_again_and_its_robot_resumes_with_nothing_
     send_array(session, stamp + 10**8)  # the static TF and the map are fed to the new worker again
     wait(lambda: len(docs) == 2)
     assert b"twin:polygon" in docs[1]  # its view: the camera's frame resolved through the replayed tf_static
+    iri = re.compile(rb"<urn:twin-ros:robot1:det:[^>]*>")
+    assert iri.findall(docs[1]) == iri.findall(docs[0])  # the tracker session goes on, not a new one
     assert view_xs(docs[1]).max() <= 16.0
     time.sleep(0.5)
     assert len(docs) == 2

@@ -1,0 +1,74 @@
+"""No flapping between robots: a short move another robot contradicts waits (issue case 6)."""
+
+from __future__ import annotations
+
+from tests.twin.box_lab import OX
+from tests.twin.fusion.fusion_helpers import box, cell, sensed
+from tests.twin.fusion.test_clocks import FakeClock, with_clock
+from tests.twin.live_helpers import observe, started
+from twin.live import TwinService
+
+DESK = "urn:robot1:desk"
+MS = 10**6
+S = 10**9
+
+
+def pass_by(
+    service: TwinService, clock: FakeClock, robot: str, iri: str, x: float, *, sightings: int = 5
+) -> None:
+    """``robot`` passes the desk, seeing it at ``x`` at 5 Hz."""
+    for _ in range(sightings):
+        reply = observe(service, robot, sensed(box(iri, x, 2.0, sx=1.2, sy=0.6), clock.now))
+        assert reply.ok, reply.body
+        clock.now += 200 * MS
+
+
+def test_two_robots_whose_detectors_differ_by_20_cm_passing_in_turns_do_not_flap_a_still_desk() -> None:
+    service, _ = started()
+    clock = FakeClock(service.clock())
+    with_clock(service, clock)
+    pass_by(service, clock, "robot1", DESK, 5.0)
+    for turn in range(6):
+        clock.now += 3 * S
+        if turn % 2 == 0:
+            pass_by(service, clock, "robot2", "urn:robot2:d", 5.2)
+        else:
+            pass_by(service, clock, "robot1", DESK, 5.0)
+    assert service.revision == 1  # the creation only
+
+
+def test_a_short_move_both_robots_see_is_applied() -> None:
+    service, _ = started()
+    clock = FakeClock(service.clock())
+    with_clock(service, clock)
+    pass_by(service, clock, "robot1", DESK, 5.0)
+    pass_by(service, clock, "robot2", "urn:robot2:d", 5.0)
+    for _ in range(2):  # the desk moved 25 cm: each robot sees it there
+        for robot, iri in (("robot1", DESK), ("robot2", "urn:robot2:d")):
+            observe(service, robot, sensed(box(iri, 5.25, 2.0, sx=1.2, sy=0.6), clock.now))
+            clock.now += 100 * MS
+    assert service.revision == 2 and cell(service, 5.82, 2.0) == 100
+
+
+def test_a_short_move_one_robot_sees_long_after_the_others_last_sighting_is_applied() -> None:
+    service, _ = started()
+    clock = FakeClock(service.clock())
+    with_clock(service, clock)
+    pass_by(service, clock, "robot1", DESK, 5.0)
+    clock.now += 20 * S
+    pass_by(service, clock, "robot2", "urn:robot2:d", 5.25, sightings=2)
+    assert service.revision == 2
+
+
+def test_a_desk_placed_by_a_biased_robot_follows_the_two_robots_that_agree_while_it_keeps_watching() -> None:
+    service, _ = started()
+    clock = FakeClock(service.clock())
+    with_clock(service, clock)
+    observe(service, "biased", sensed(box(DESK, 5.2, 2.0, sx=1.2, sy=0.6), clock.now))  # 20 cm off
+    for _ in range(4):  # all three watch, in turns: the biased robot confirms its own pose each time
+        for robot, x in (("biased", 5.2), ("robot1", 5.0), ("robot2", 5.0)):
+            observe(service, robot, sensed(box(f"urn:{robot}:d", x, 2.0, sx=1.2, sy=0.6), clock.now))
+            clock.now += 70 * MS
+    bounds = service.live_maps.bounds_of(DESK)
+    assert bounds is not None and abs((bounds[0] + bounds[3]) / 2 - (OX + 5.0)) < 0.02
+    assert service.revision == 2  # the creation and one move: the majority, then no flapping

@@ -1,0 +1,55 @@
+"""Fusion's memory: one serialiser covers everything it remembers; the pose index is built at start."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from tests.twin.fusion.fusion_helpers import ROOM_A, box, sensed, view_only
+from tests.twin.fusion.test_clocks import FakeClock, with_clock
+from tests.twin.live_helpers import observe, started
+from twin.fusion.memory import FusionMemory
+
+S = 10**9
+
+
+def test_a_memory_with_every_kind_of_entry_survives_a_json_round_trip() -> None:
+    service, _ = started()
+    clock = FakeClock(service.clock())
+    with_clock(service, clock)
+    t = clock.now
+    for i in range(30):  # sightings, confirmations, clock offsets, a held move, size evidence
+        observe(
+            service, "robot1", sensed(box("urn:robot1:desk", 5.0, 2.0, sx=1.0, sy=0.6), t + i * S // 5 - S)
+        )
+        clock.now += S // 5
+    observe(service, "robot2", sensed(box("urn:robot2:d", 5.25, 2.0, sx=1.2, sy=0.6), clock.now))
+    observe(service, "robot1", sensed(box("urn:robot1:chair", 2.0, 1.0, sx=0.5, sy=0.5), clock.now))
+    observe(service, "robot1", sensed(box("urn:robot1:chair", 3.0, 1.0, sx=0.5, sy=0.5), clock.now + S))
+    observe(service, "robot3", view_only(clock.now + S, ROOM_A, detects=("IfcFurniture",)))
+    memory = service.live.fusion
+    memory.tentative["urn:robot4:x"] = (1, clock.now)
+    memory.distinct.add("urn:robot1:chair")
+    assert memory.history and memory.clocks and memory.aliases and memory.tracks["urn:robot1:desk"].moving
+    text = json.dumps(memory.to_json())
+    again = FusionMemory.from_json(json.loads(text))
+    assert again.to_json() == memory.to_json()
+    for name in ("tracks", "aliases", "tentative", "distinct", "history", "pairs"):
+        assert getattr(again, name) == getattr(memory, name), name
+    assert {r: list(e.samples) for r, e in again.clocks.items()} == {
+        r: list(e.samples) for r, e in memory.clocks.items()
+    }
+    assert again.poses is None and math.isfinite(again.clocks["robot1"].offset_ns)
+
+
+def test_a_memory_of_an_unknown_format_is_refused_naming_it() -> None:
+    with pytest.raises(ValueError, match="format 99"):
+        FusionMemory.from_json({"format": 99})
+
+
+def test_the_pose_index_is_built_when_the_service_starts() -> None:
+    service, _ = started()
+    poses = service.live.fusion.poses
+    assert poses is not None and any(poses.values())  # the imported table, before any observation

@@ -1,0 +1,108 @@
+"""Detector bias: where each robot's detector puts objects against where the other robots put them.
+
+Two robots whose detectors differ by 20 cm (a calibration offset) would move a still desk back and forth
+as they pass it in turns, and whichever moved it last leaves free cells where the desk stands. Each
+robot's mean position of an element (a moving mean of its raw boxes since the element's last move) is
+compared with each other robot's recent mean of it: per pair of robots, the mean difference over the
+elements both see. A robot that differs by more than :data:`DEADBAND_M` from most of its partners (at
+least :data:`MIN_PARTNERS`, each with :data:`PAIR_MIN_SAMPLES` comparisons) is off: its **bias** is the
+median of those differences, and its boxes are shifted by it before anything else looks at them. A robot
+20 cm off differs from every partner; each of its partners differs from it and from no one else, so
+only the biased one is corrected. Two robots alone never correct each other (they cannot tell which one
+is off).
+
+Example::
+
+    pose = unbiased(ctx, pose)                     # a robot's box as the others would see it
+    note_sighting(ctx, state, raw_pose, sense_ns)  # its means and pair differences, once accepted
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+from twin.fusion.footprints import Pose
+from twin.fusion.memory import FusionMemory, RobotMean
+
+if TYPE_CHECKING:
+    from twin.fusion.context import FusionContext
+    from twin.live.state import ElementState
+
+MEAN_WEIGHT = 0.2
+"""The weight of a new sighting in a robot's mean of an element (after the first five, a plain mean)."""
+PAIR_WEIGHT = 0.05
+"""The weight of a new comparison in a pair's mean difference (after the first 20)."""
+MEAN_MIN = 3
+"""Sightings in a robot's mean of an element before it is compared."""
+PAIR_MIN_SAMPLES = 5
+"""Comparisons before a pair's difference counts."""
+MIN_PARTNERS = 2
+"""Partners a robot's bias needs (with one, the twin cannot tell which of the two is off)."""
+DEADBAND_M = 0.05
+"""A bias this small is the detectors' noise, not a calibration error: not applied."""
+RECENT_NS = 60 * 10**9
+"""Other robots' means of an element count when their last sighting is at most this old (a move of
+the element starts its means again)."""
+
+
+def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None:
+    """The bias a robot's boxes are corrected by (None: none): the median of its differences with its
+    partners, when it differs by more than :data:`DEADBAND_M` from most of them (at least
+    :data:`MIN_PARTNERS`). A robot that agrees with some partners and differs from one is not the one
+    that is off."""
+    diffs = [d for (a, _), d in list(memory.pairs.items()) if a == robot and d.n >= PAIR_MIN_SAMPLES]
+    differing = [d for d in diffs if math.hypot(d.x, d.y) > DEADBAND_M]
+    if len(differing) < MIN_PARTNERS or 2 * len(differing) <= len(diffs):
+        return None
+    return statistics.median(d.x for d in differing), statistics.median(d.y for d in differing)
+
+
+def unbiased(ctx: FusionContext, pose: Pose) -> Pose:
+    """``pose`` shifted by the robot's detector bias, once that is known."""
+    b = applied_bias(ctx.memory, ctx.robot)
+    if b is None:
+        return pose
+    return replace(pose, cx=pose.cx - b[0], cy=pose.cy - b[1])
+
+
+def note_sighting(ctx: FusionContext, state: ElementState, raw: Pose, sense: int) -> None:
+    """Count a sighting (uncorrected) in the robot's mean of the element and, against the other robots'
+    recent means of it, in the robot's bias (effects, applied once the observation is accepted)."""
+    robot, iri, memory = ctx.robot, state.iri, ctx.memory
+    track = memory.tracks.get(iri)
+    means = track.means if track is not None else {}
+    mine = means.get(robot, RobotMean()).added(raw.cx, raw.cy, sense, weight=MEAN_WEIGHT)
+    others = [
+        (r, m) for r, m in means.items() if r != robot and m.n >= MEAN_MIN and sense - m.last_ns <= RECENT_NS
+    ]
+    pairs = {}
+    if mine.n >= MEAN_MIN:
+        for other, m in others:
+            dx, dy = mine.x - m.x, mine.y - m.y
+            if math.hypot(dx, dy) > ctx.rules.certain_move_m:
+                continue  # a move the other has not seen yet
+            pairs[robot, other] = memory.pairs.get((robot, other), RobotMean()).added(
+                dx, dy, sense, weight=PAIR_WEIGHT
+            )
+            pairs[other, robot] = memory.pairs.get((other, robot), RobotMean()).added(
+                -dx, -dy, sense, weight=PAIR_WEIGHT
+            )
+
+    def run(m: FusionMemory) -> None:
+        m.track(iri).means[robot] = mine
+        m.pairs.update(pairs)
+
+    ctx.out.effects.append(run)
+
+
+def detector_biases(memory: FusionMemory) -> dict[str, list[float]]:
+    """Each robot's detector bias (x, y, metres) once known (``twin status``)."""
+    out = {}
+    for robot in sorted({a for a, _ in list(memory.pairs)}):
+        b = applied_bias(memory, robot)
+        if b is not None:
+            out[robot] = [round(b[0], 3), round(b[1], 3)]
+    return out

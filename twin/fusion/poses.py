@@ -1,0 +1,84 @@
+"""The per-storey index of the poses of the elements fusion may match (dynamic, not zones).
+
+Association, merge and absence look up the elements of one storey many times a second; the index
+holds, per storey, each candidate element's :class:`~twin.fusion.footprints.Pose`. The writer keeps it
+current after each commit (:func:`index_element`).
+
+Example::
+
+    build_poses(live)                        # at start-up, before the daemon serves
+    storey_poses(live, "ground-floor")       # element -> pose
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from twin.fusion.footprints import Pose
+from twin.fusion.gates import is_candidate
+from twin.fusion.memory import FusionMemory, PastPose
+
+if TYPE_CHECKING:
+    from twin.live.state import ElementState, LiveState
+
+STOREY_TOLERANCE_M = 0.3
+"""An element contained in a space (not a storey) stands on the highest storey whose elevation is at
+most this far above its lowest point."""
+
+
+def storey_at(live: LiveState, z: float) -> str | None:
+    """The storey an element whose lowest point is at world ``z`` stands on."""
+    best: tuple[float, str] | None = None
+    for key, s in live.site.storeys.items():
+        if s.elevation_m <= z + STOREY_TOLERANCE_M and (best is None or s.elevation_m > best[0]):
+            best = (s.elevation_m, key)
+    return None if best is None else best[1]
+
+
+def build_poses(live: LiveState) -> None:
+    """Index the pose of every candidate element, per storey (start-up code calls it once)."""
+    live.fusion.poses = {}
+    for iri, state in live.states.items():
+        index_element(live, iri, state)
+
+
+def storey_poses(live: LiveState, storey: str) -> dict[str, Pose]:
+    """Element -> pose of the candidate elements on ``storey`` (built here if start-up did not)."""
+    if live.fusion.poses is None:
+        build_poses(live)
+    assert live.fusion.poses is not None
+    return live.fusion.poses.get(storey, {})
+
+
+def index_element(live: LiveState, iri: str, state: ElementState | None) -> None:
+    """Keep the per-storey poses of candidate elements current after ``iri`` changed."""
+    memory = live.fusion
+    if memory.poses is None:
+        return  # built on first use
+    before = [(storey, poses.pop(iri)) for storey, poses in memory.poses.items() if iri in poses]
+    if state is None or not is_candidate(state):
+        _remember(memory, iri, before, None, state)
+        return
+    shape = live.maps.shape_of(iri)
+    if shape is None:
+        memory.shape_poses.pop(iri, None)
+        return
+    pose = memory.pose(iri, shape)
+    storey = state.storey or storey_at(live, pose.zmin)
+    _remember(memory, iri, before, pose, state)
+    if storey is not None:
+        memory.poses.setdefault(storey, {})[iri] = pose
+
+
+def _remember(
+    memory: FusionMemory,
+    iri: str,
+    before: list[tuple[str, Pose]],
+    now: Pose | None,
+    state: ElementState | None,
+) -> None:
+    """Keep where ``iri`` stood before a change that moved or removed it (late news is checked against
+    it: :mod:`twin.fusion.history`)."""
+    for storey, pose in before:
+        if pose != now:
+            memory.remember(iri, PastPose(storey, pose, state.sensed_ns if state is not None else 0))
