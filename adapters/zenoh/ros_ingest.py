@@ -12,15 +12,20 @@ payload the CDR bytes) and ``rmw_zenoh`` (``<domain>/<ns>/<topic>/<dds type>/<RI
 subscriber liveliness token in the ROS graph). On rmw_zenoh the subscription covers every type on the
 topic, so a publisher of another type (or hash) is refused and counted as ``wrong_type``.
 
-Every message goes through one worker thread (Zenoh's callbacks only queue it; a full queue drops the
-message and counts ``overflow``: ROS topics carry no ack, and a slow twin must not stall Zenoh). Each
-resulting observation is submitted with ``TwinService.submit_observation(owner, turtle)``: the same
-validation, rights, limits, fusion, durability and map updates as any observation; its ack is counted
-per robot or source (accepted, unchanged, refused by cause, last refusal) in the daemon's status
-(``ros_ingest``). Every cause of refusal is logged once per robot or source, then counted silently.
+A robot's messages (TF, camera info, detection arrays) go to its ingest worker process
+(:mod:`adapters.zenoh.ros_workers`; ``[ros] ingest_workers``, 0: this process's ingest thread), the
+sources' (doors, obstacles) to the ingest thread; Zenoh's callbacks only queue them, with their arrival
+time (a full queue drops the message and counts ``overflow``, by kind: ROS topics carry no ack, and a
+slow twin must not stall Zenoh). Each resulting observation is submitted with
+``TwinService.submit_observation(owner, records)``: the core's typed records for detection arrays (no
+Turtle written and parsed again), Turtle for the rest; the same validation, rights, limits, fusion,
+durability and map updates as any observation; its ack is counted per robot or source (accepted,
+unchanged, refused by cause, last refusal) in the daemon's status (``ros_ingest``). Every cause of
+refusal is logged once per robot or source, then counted silently.
 
 The view of a detection array is cut by the structure in the ``view_skill`` map of the robot's storey,
-which this object keeps as a sink of the service (``MapPublished``/``MapUpdated``). Whether the core
+which this object keeps as a sink of the service (``MapPublished``/``MapUpdated``) and feeds to the
+robots' translator (each worker), with the storeys' elevations and every storey switch. Whether the core
 reads the fusion terms (views, sense times) is probed once: until it does, documents carry the
 elements alone.
 """
@@ -107,12 +112,9 @@ def source_node(source: str) -> str:
 
 
 _NODE_ID_BASE = 10_000  # node ids of this session's ingest nodes (the map server's count from 0)
-QUEUE_DEPTH = 1024
 DIAGNOSTICS_TOPIC = "diagnostics"
 DIAGNOSTICS_S = 1.0
 """How often the DiagnosticArray of a robot or source that asked for it is published."""
-TF_WAIT_S = 0.5
-"""How long an array whose transform is not in yet waits for newer TF (tf2's message filter does so too)."""
 MAX_WAITING = 64
 """Arrays per robot waiting for TF at most; more are translated at once (and refused if still unresolved)."""
 MAX_STATIC = 32
@@ -633,6 +635,8 @@ class RosIngest:
         """``{"ros_ingest": {"queue_depth": n, "views": bool, "counts": {owner: {...}}}}``."""
         with self._lock:
             counts = {name: c.as_dict() for name, c in sorted(self._counts.items())}
+            for name, n in self._lost.items():  # its worker died n times (the arrays it held lost)
+                counts[name]["worker_restarts"] = n
             sessions = dict(self._sessions)
         pool = self._pool
         return {

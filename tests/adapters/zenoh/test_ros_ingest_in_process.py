@@ -164,4 +164,4 @@ def test_a_worker_that_dies_is_started_again_and_its_robot_resumes_with_nothing_
     time.sleep(0.5)
     assert len(docs) == 2
     counts = ing.status()["ros_ingest"]["counts"]["robot1"]  # type: ignore[index]
-    assert counts["submitted"] == 2 and counts["refused"] == {}
+    assert counts["submitted"] == 2 and counts["refused"] == {} and counts["worker_restarts"] == 1
