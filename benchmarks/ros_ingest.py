@@ -2,16 +2,19 @@
 mostly confirmations, against the daemon process.
 
 The daemon (``twin serve``, on-disk store of the generated lab, no recording) is configured with
-``--robots`` robots, each with a ``[robots.NAME.detections]`` table, on one layout. One publisher
-process plays all robots on loopback: every ``1 / --rate`` s each robot publishes its TF
+``--robots`` robots, each with a ``[robots.NAME.detections]`` table (views and sense times on: the
+view cut at the localization map), on one layout. Publisher processes (``--publishers``, default one
+per robot) play the robots on loopback: every ``1 / --rate`` s each robot publishes its TF
 (``map -> base_link`` at the array's stamp) and one array of ``--detections`` tables in ``base_link``,
-each with a tracker id and the same pose every time (so after the first array each one is a
-confirmation). The publisher's own CPU is not counted.
+everything its view holds, each with a tracker id; all but one keep their pose (confirmations), the
+last moves 1.0 m every 2 s (beyond ``certain_move_m``, into free floor). Publishers' CPU is not counted.
 
-Measured over the steady window (after ``--warmup`` s): the daemon's CPU time (utime + stime from
-``/proc``) per published array, the acked rate (accepted + unchanged acks per second, from the
-status's ``ros_ingest`` counts), refusals (``overflow`` = the ingestion queue was full), and the
-ingestion and service queue depths sampled every second (no growth = keeping up).
+Measured over the steady window (after ``--warmup`` s): the daemon process's CPU time (utime + stime)
+per array received, its ingest workers' (child processes), the total, the acked rate (accepted +
+unchanged acks per second, from the status's ``ros_ingest`` counts), refusals (``overflow`` = an
+ingestion queue was full), the ingestion and service queue depths sampled every second (no growth =
+keeping up) and the latency from robot0's array that moves the table to the navigation map update's
+receipt by a subscriber. ``--baseline TREE`` runs the same against the daemon of another code tree.
 
     python benchmarks/ros_ingest.py --robots 10 --rate 10 --detections 20 --duration 30 --json ros.json
 """
@@ -33,27 +36,35 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import live  # benchmarks/ is not a package
 
 ROOT = live.ROOT
-CORRIDOR = (11.2, 20.8, 5.7, 8.3)  # x0, x1, y0, y1 of free floor on the lab's ground floor
-MOVE_EVERY = 20
-"""Every this many ticks (2 s at 10 Hz) robot0 moves one table: a change among the confirmations, whose
-navigation map update is timed from the publisher's send to the update's receipt."""
+ROBOT = (15.0, 7.0)  # every robot's base_link in the map: in the lab's corridor (free floor), facing +x
+MOVE_S = 2.0
+"""Every this many seconds (of the wall clock, which every publisher process shares) the last table
+moves 1.0 m across the corridor and back (beyond ``[fusion] certain_move_m``, into free floor): a change
+among the confirmations, whose navigation map update is timed from robot0's send to the update's
+receipt."""
+MOVER = (19.0, 6.6, 1.0)  # x, y and the y shift of the table that moves
 
 
-def tables(robots: int, per_robot: int) -> list[list[tuple[float, float]]]:
-    """``per_robot`` table positions per robot on a grid over the corridor, none shared."""
-    x0, x1, y0, y1 = CORRIDOR
-    total = robots * per_robot
-    cols = max(1, int((x1 - x0) / 0.3))
-    rows = -(-total // cols)
-    pitch_y = (y1 - y0) / max(rows, 1)
-    spots = [(x0 + 0.15 + 0.3 * (i % cols), y0 + pitch_y / 2 + pitch_y * (i // cols)) for i in range(total)]
-    return [spots[r * per_robot : (r + 1) * per_robot] for r in range(robots)]
+def tables(per_robot: int) -> list[tuple[float, float]]:
+    """``per_robot`` table positions (the last one the mover) in front of the robots, inside their view
+    (90 deg, 5 m): every robot reports everything it sees, so its views miss nothing."""
+    spots = [(16.0 + 0.6 * (i % 5), 6.4 + 0.4 * (i // 5)) for i in range(max(0, per_robot - 1))]
+    return [*spots, MOVER[:2]][:per_robot]
 
 
 def publisher(
-    endpoint: str, *, robots: int, rate: float, per_robot: int, duration: float, layout: str
+    endpoint: str,
+    *,
+    robots: int,
+    rate: float,
+    per_robot: int,
+    duration: float,
+    layout: str,
+    first: int = 0,
+    count: int | None = None,
 ) -> int:
-    """Publish every robot's TF and detections at ``rate`` for ``duration`` seconds."""
+    """Publish the TF and detections of robots ``first`` .. ``first + count`` (of ``robots``) at
+    ``rate`` for ``duration`` seconds."""
     import zenoh
 
     from adapters.ros.interfaces import DETECTION_3D_ARRAY, TF_MESSAGE
@@ -61,10 +72,11 @@ def publisher(
     from adapters.zenoh.session import client_config
     from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
 
-    spots = tables(robots, per_robot)
+    spots = tables(per_robot)
     with zenoh.open(client_config([endpoint])) as session:
         outs = []
-        for r in range(robots):
+        mine = range(first, robots if count is None else min(robots, first + count))
+        for r in mine:
             keys = []
             for name, type_name in (("tf", TF_MESSAGE), ("detections", DETECTION_3D_ARRAY)):
                 topic = RosTopic(0, f"/robot{r}", name, type_name)
@@ -73,30 +85,32 @@ def publisher(
             outs.append(keys)
         time.sleep(1.0)
         print(json.dumps({"ready": True}), flush=True)
-        sent, seq, shift = 0, 0, 0.0
+        sent, seq = 0, 0
         gid = bytes(16)
+        phase = int(time.time() / MOVE_S)
         start = time.monotonic()
         tick = 0
         while time.monotonic() - start < duration:
             stamp = time.time_ns()
             seq += 1
             extra = {"attachment": attachment(seq, stamp, gid)} if layout == "rmw_zenoh" else {}
-            moved = tick > 0 and tick % MOVE_EVERY == 0
-            if moved:
-                shift = 0.0 if shift else 0.3  # robot0's first table moves 0.3 m along x and back
-            for r, (tf_pub, det_pub) in enumerate(outs):
-                tf_pub.put(cdr_tf([Tf("map", "base_link", (15.0, 7.0, 0.0), stamp_ns=stamp)]), **extra)
+            now = int(stamp / 1e9 / MOVE_S)
+            moved, phase = now != phase, now
+            shift = MOVER[2] * (now % 2)
+            last = len(spots) - 1
+            for r, (tf_pub, det_pub) in zip(mine, outs, strict=True):
+                tf_pub.put(cdr_tf([Tf("map", "base_link", (*ROBOT, 0.0), stamp_ns=stamp)]), **extra)
                 dets = [
                     Det(
                         (("table", 0.9),),
-                        (x - 15.0 + (shift if r == 0 and i == 0 else 0.0), y - 7.0, 0.375),
+                        (x - ROBOT[0], y - ROBOT[1] + (shift if i == last else 0.0), 0.375),
                         (0.2, 0.2, 0.75),
                         id=f"t{i}",
                     )
-                    for i, (x, y) in enumerate(spots[r])
+                    for i, (x, y) in enumerate(spots)
                 ]
-                if moved and r == 0:
-                    print(json.dumps({"moved": time.time()}), flush=True)
+                if moved and r == mine[0]:  # the first send of the move by this process
+                    print(json.dumps({"moved": time.time(), "phase": now}), flush=True)
                 det_pub.put(cdr_detections(stamp, "base_link", dets), **extra)
                 sent += 1
             tick += 1
@@ -143,6 +157,20 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def _children_cpu_s(pid: int) -> dict[int, float]:
+    """CPU seconds of each live child process of ``pid`` (the ingest workers)."""
+    import psutil
+
+    out: dict[int, float] = {}
+    for child in psutil.Process(pid).children(recursive=True):
+        try:
+            t = child.cpu_times()
+            out[child.pid] = t.user + t.system
+        except psutil.Error:
+            continue
+    return out
+
+
 def _status(endpoint: str) -> dict[str, Any]:
     from adapters.zenoh.client import TwinClient
 
@@ -151,14 +179,25 @@ def _status(endpoint: str) -> dict[str, Any]:
 
 
 def run(
-    *, robots: int, rate: float, per_robot: int, duration: float, warmup: float, layout: str
+    *,
+    robots: int,
+    rate: float,
+    per_robot: int,
+    duration: float,
+    warmup: float,
+    layout: str,
+    publishers: int,
+    root: Path = ROOT,
+    workers: int | None = None,
 ) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         store = live.prepare_store("lab", work)
         cfg = work / "robots.toml"
+        ros = "" if workers is None else f"[ros]\ningest_workers = {workers}\n"
         cfg.write_text(
-            "".join(
+            ros
+            + "".join(
                 f'[robots.robot{r}]\nnamespace = "/robot{r}"\nstorey = "ground-floor"\nros = ["{layout}"]\n'
                 f'[robots.robot{r}.detections]\nclasses = {{ table = "IfcFurniture" }}\n'
                 f"max_detections = {max(per_robot, 1)}\n"
@@ -167,30 +206,41 @@ def run(
         )
         port = live._free_port()
         endpoint = f"tcp/127.0.0.1:{port}"
-        daemon = _serve(cfg, store, endpoint)
+        daemon = _serve(cfg, store, endpoint, root)
         drain = threading.Thread(target=lambda: [None for _ in daemon.stdout or []], daemon=True)
         drain.start()
-        pub = subprocess.Popen(
-            [sys.executable, __file__, "--child", endpoint, str(robots), str(rate), str(per_robot),
-             str(duration), layout],
-            stdout=subprocess.PIPE, text=True, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
-        )  # fmt: skip
-        assert pub.stdout is not None
-        json.loads(pub.stdout.readline())
-        moves: list[float] = []
+        per = -(-robots // max(1, publishers))
+        args = [endpoint, str(robots), str(rate), str(per_robot), str(duration), layout]
+        env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        pubs = [
+            subprocess.Popen(
+                [sys.executable, __file__, "--child", *args, str(first), str(per)],
+                stdout=subprocess.PIPE,
+                text=True,
+                cwd=ROOT,
+                env=env,
+            )
+            for first in range(0, robots, per)
+        ]
+        for pub in pubs:
+            assert pub.stdout is not None
+            json.loads(pub.stdout.readline())
+        moved_at: dict[int, float] = {}  # phase -> the first send of that move by any publisher
         lines: list[dict[str, Any]] = []
 
-        def read_publisher() -> None:
+        def read_publisher(pub: subprocess.Popen[str]) -> None:
             assert pub.stdout is not None
             for line in pub.stdout:
                 item = json.loads(line)
                 if "moved" in item:
-                    moves.append(item["moved"])
+                    phase = int(item["phase"])
+                    moved_at[phase] = min(moved_at.get(phase, item["moved"]), item["moved"])
                 else:
                     lines.append(item)
 
-        reader = threading.Thread(target=read_publisher, daemon=True)
-        reader.start()
+        readers = [threading.Thread(target=read_publisher, args=(p,), daemon=True) for p in pubs]
+        for reader in readers:
+            reader.start()
         import zenoh
 
         from adapters.zenoh.session import client_config
@@ -202,22 +252,24 @@ def run(
         )
         t_start = time.monotonic()
         time.sleep(warmup)
-        s0, c0, w0 = _status(endpoint), _cpu_s(daemon.pid), time.monotonic()
+        s0, c0, k0, w0 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
         depths: list[tuple[int, int]] = []
         while time.monotonic() - t_start < duration - 0.5:
             time.sleep(1.0)
             s = _status(endpoint)
             depths.append((int(s["ros_ingest"]["queue_depth"]), int(s["queue_depth"])))
-        s1, c1, w1 = _status(endpoint), _cpu_s(daemon.pid), time.monotonic()
-        pub.wait(timeout=30)
-        reader.join(timeout=10)
-        sent = lines[-1]
+        s1, c1, k1, w1 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
+        for pub in pubs:
+            pub.wait(timeout=30)
+        for reader in readers:
+            reader.join(timeout=10)
+        sent = {"sent": sum(int(x.get("sent", 0)) for x in lines)}
         watch.undeclare()
         watcher.close()
         time.sleep(1.0)
         final = _status(endpoint)
         daemon.terminate()
-        daemon.wait(timeout=30)
+        exit_code = daemon.wait(timeout=30)
 
     def total(s: dict[str, Any], key: str) -> int:
         if key == "arrays":
@@ -233,7 +285,10 @@ def run(
     for c in final["ros_ingest"]["counts"].values():
         for cause, n in c["refused"].items():
             refused[cause] = refused.get(cause, 0) + int(n)
+    workers_s = sum(k1[p] - k0.get(p, 0.0) for p in k1)
+    counts = list(final["ros_ingest"]["counts"].values())
     latencies = []
+    moves = sorted(moved_at.values())
     for t in moves:
         after = [u for u in updates if u >= t]
         if after:
@@ -248,28 +303,37 @@ def run(
         "arrays_received_per_s": round(received / window, 1),
         "acked_per_s": round(acked / window, 1),
         "cpu_ms_per_array": round(1000 * (c1 - c0) / max(received, 1), 3),
+        "workers_ms_per_array": round(1000 * workers_s / max(received, 1), 3),
+        "total_ms_per_array": round(1000 * (c1 - c0 + workers_s) / max(received, 1), 3),
         "daemon_cpu_pct": round(100 * (c1 - c0) / window, 1),
+        "workers_cpu_pct": round(100 * workers_s / window, 1),
+        "publishers": len(pubs),
         "accepted_total": total(final, "accepted"),
         "unchanged_total": total(final, "unchanged"),
         "refused": refused,
         "sent_total": sent["sent"],
         "arrays_received_total": total(final, "arrays"),
-        "waited_for_tf": sum(int(c["waited_for_tf"]) for c in final["ros_ingest"]["counts"].values()),
+        "waited_for_tf": sum(int(c["waited_for_tf"]) for c in counts),
+        "overflow": sum(int(c["refused"].get("overflow", 0)) for c in counts),
         "queue_depth_max": max((d[0] for d in depths), default=0),
         "service_queue_max": max((d[1] for d in depths), default=0),
         "queue_depth_last": depths[-1] if depths else None,
         "revision": final["revision"],
+        "daemon_exit": exit_code,
         "moves": len(moves),
         "move_update_ms_p50": round(float(live._pct(latencies, 50)), 1),
+        "move_update_ms_p99": round(float(live._pct(latencies, 99)), 1),
         "move_update_ms_max": round(max(latencies, default=float("nan")), 1),
     }
 
 
-def _serve(cfg: Path, store: Path, endpoint: str) -> subprocess.Popen[str]:
+def _serve(cfg: Path, store: Path, endpoint: str, root: Path = ROOT) -> subprocess.Popen[str]:
+    """``twin serve`` of the code in ``root`` (another tree: a baseline of an earlier commit)."""
+    path = os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])
     daemon = subprocess.Popen(
         live._twin("--config", str(cfg), "serve", "--store", str(store), "--listen", endpoint, "--no-record"),
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=root,
+        env={**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": path},
     )  # fmt: skip
     assert daemon.stdout is not None
     line = ""
@@ -282,10 +346,10 @@ def _serve(cfg: Path, store: Path, endpoint: str) -> subprocess.Popen[str]:
 
 def main() -> int:
     if len(sys.argv) > 1 and sys.argv[1] == "--child":
-        endpoint, robots, rate, per_robot, duration, layout = sys.argv[2:]
+        endpoint, robots, rate, per_robot, duration, layout, first, count = sys.argv[2:]
         return publisher(
             endpoint, robots=int(robots), rate=float(rate), per_robot=int(per_robot),
-            duration=float(duration), layout=layout,
+            duration=float(duration), layout=layout, first=int(first), count=int(count),
         )  # fmt: skip
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--robots", type=int, default=10)
@@ -295,15 +359,31 @@ def main() -> int:
     p.add_argument("--warmup", type=float, default=8.0)
     p.add_argument("--layout", choices=["bridge", "rmw_zenoh"], default="rmw_zenoh")
     p.add_argument("--json", type=Path)
+    p.add_argument(
+        "--publishers",
+        type=int,
+        default=0,
+        help="publisher processes, the robots shared among them (default: one per robot)",
+    )
+    p.add_argument("--workers", type=int, default=None, help="[ros] ingest_workers (default: the daemon's)")
+    p.add_argument(
+        "--baseline",
+        metavar="TREE",
+        type=Path,
+        help="also run the daemon of this code tree (e.g. `git archive cd19a56 | tar -x -C TREE`)",
+    )
     p.add_argument("--translate-only", action="store_true", help="time the translation in-process only")
     a = p.parse_args()
     if a.translate_only:
         print(json.dumps(translate_only(a.detections), indent=1))
         return 0
-    result = run(
-        robots=a.robots, rate=a.rate, per_robot=a.detections, duration=a.duration, warmup=a.warmup,
-        layout=a.layout,
-    )  # fmt: skip
+    common = {
+        "robots": a.robots, "rate": a.rate, "per_robot": a.detections, "duration": a.duration,
+        "warmup": a.warmup, "layout": a.layout, "publishers": a.publishers or a.robots,
+    }  # fmt: skip
+    result: dict[str, Any] = {"this": run(**common, workers=a.workers)}
+    if a.baseline is not None:
+        result["baseline"] = run(**common, root=a.baseline.resolve())
     print(json.dumps(result, indent=1))
     if a.json:
         a.json.write_text(json.dumps(result, indent=1))

@@ -77,14 +77,54 @@ def _load(endpoint: str, stop: threading.Event, counts: collections.Counter[str]
         counts["no-session"] += 1
 
 
-def cycle(store: Path, work: Path, i: int, *, load_threads: int) -> dict[str, Any]:
+def _robots_config(work: Path, robots: int, workers: int) -> Path:
+    """``robots`` robots with detections (bridge keys) and ``workers`` ingest worker processes."""
+    path = work / "robots.toml"
+    path.write_text(
+        f"[ros]\ningest_workers = {workers}\n"
+        + "".join(
+            f'[robots.robot{r}]\nnamespace = "/robot{r}"\nstorey = "ground-floor"\nros = ["bridge"]\n'
+            f'[robots.robot{r}.detections]\nclasses = {{ table = "IfcFurniture" }}\n'
+            for r in range(robots)
+        )
+    )
+    return path
+
+
+def _arrays(endpoint: str, robots: int, stop: threading.Event) -> None:
+    """Every robot's TF and an array of 5 tables at 10 Hz until ``stop`` (the workers busy at the stop)."""
+    import zenoh
+
+    from adapters.zenoh.session import client_config
+    from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
+
+    try:
+        with zenoh.open(client_config([endpoint])) as session:
+            while not stop.is_set():
+                stamp = time.time_ns()
+                for r in range(robots):
+                    session.put(
+                        f"robot{r}/tf", cdr_tf([Tf("map", "base_link", (15.0, 7.0, 0.0), stamp_ns=stamp)])
+                    )
+                    dets = [Det((("table", 0.9),), (0.3 * i - 0.6, 0.8, 0.375), (0.2, 0.2, 0.75), id=f"t{i}")
+                            for i in range(5)]  # fmt: skip
+                    session.put(f"robot{r}/detections", cdr_detections(stamp, "base_link", dets))
+                time.sleep(0.1)
+    except Exception:  # the daemon is stopping: expected
+        return
+
+
+def cycle(
+    store: Path, work: Path, i: int, *, load_threads: int, robots: int = 0, workers: int = 1
+) -> dict[str, Any]:
     sig = signal.SIGINT if i % 2 == 0 else signal.SIGTERM
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
     record = ["--record", str(work / f"run{i}.rrd")] if i % 3 == 0 else ["--no-record"]
     snapshot = [] if i % 2 == 1 else ["--no-snapshot"]
+    config = ["--config", str(_robots_config(work, robots, workers))] if robots else []
     t0 = time.monotonic()
     process = subprocess.Popen(
-        _twin("serve", "--store", store, "--listen", endpoint, *record, *snapshot),
+        _twin(*config, "serve", "--store", store, "--listen", endpoint, *record, *snapshot),
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )  # fmt: skip
@@ -108,6 +148,8 @@ def cycle(store: Path, work: Path, i: int, *, load_threads: int) -> dict[str, An
     stop = threading.Event()
     counts: collections.Counter[str] = collections.Counter()
     threads = [threading.Thread(target=_load, args=(endpoint, stop, counts)) for _ in range(load_threads)]
+    if robots:
+        threads.append(threading.Thread(target=_arrays, args=(endpoint, robots, stop)))
     for t in threads:
         t.start()
     time.sleep(0.5)  # queries in flight, some heavy
@@ -143,6 +185,8 @@ def main() -> int:
     p.add_argument("--cycles", type=int, default=200)
     p.add_argument("--load-threads", type=int, default=4)
     p.add_argument("--json", type=Path, help="write every cycle's result here")
+    p.add_argument("--robots", type=int, default=0, help="robots with detections publishing arrays at 10 Hz")
+    p.add_argument("--workers", type=int, default=1, help="[ros] ingest_workers with --robots")
     args = p.parse_args()
     sys.path.insert(0, str(ROOT))
     results: list[dict[str, Any]] = []
@@ -150,7 +194,9 @@ def main() -> int:
         work = Path(tmp)
         store = _prepare(work)
         for i in range(args.cycles):
-            r = cycle(store, work, i, load_threads=args.load_threads)
+            r = cycle(
+                store, work, i, load_threads=args.load_threads, robots=args.robots, workers=args.workers
+            )
             results.append(r)
             for rrd in work.glob("run*.rrd"):
                 rrd.unlink()

@@ -47,6 +47,7 @@ from adapters.ros.observation_doc import (
     RosInputError,
     Translation,
     ViewReport,
+    observation_records,
     observation_turtle,
     robot_iri,
 )
@@ -372,9 +373,14 @@ def _view(
 
 
 def translate_detections(
-    payload: bytes | bytearray | memoryview, settings: DetectionSettings, ctx: DetectionContext
+    payload: bytes | bytearray | memoryview,
+    settings: DetectionSettings,
+    ctx: DetectionContext,
+    *,
+    typed: bool = False,
 ) -> Translation:
-    """One Detection3DArray as one observation (see the module's docstring).
+    """One Detection3DArray as one observation (see the module's docstring): Turtle, or with ``typed``
+    the core's records that Turtle parses to (for the daemon's own process: nothing written or parsed).
 
     Raises RosInputError for the whole array: malformed CDR, too many detections, no current storey, a stamp
     in the future, a frame (of the view) that does not resolve. Single detections that cannot be used
@@ -448,7 +454,6 @@ def translate_detections(
     shadows, ok = _shadows(*placed)
     if ctx.fusion_terms and ctx.occlusion_known and not refused and not blind and ok.all():
         view = _view(settings, ctx, frame, stamp, storey=ctx.storey, shadows=shadows, drop_z=drop_z)
-    document = observation_turtle(
-        boxes=boxes, view=view, sense_ns=stamp or None, fusion_terms=ctx.fusion_terms
-    )
+    write = observation_records if typed else observation_turtle
+    document = write(boxes=boxes, view=view, sense_ns=stamp or None, fusion_terms=ctx.fusion_terms)
     return Translation(document, tuple(b.iri for b in boxes), dict(ignored), tuple(refused))

@@ -44,6 +44,8 @@ class Counts:
     accepted: int = 0
     unchanged: int = 0
     refused: Counter[str] = field(default_factory=Counter)
+    overflow: Counter[str] = field(default_factory=Counter)
+    """Messages dropped because the ingestion queue was full, by kind (also in ``refused["overflow"]``)."""
     ignored: Counter[str] = field(default_factory=Counter)
     last_refusal: str | None = None
     last_refusal_ns: int | None = None
@@ -72,6 +74,7 @@ class Counts:
             "accepted": self.accepted,
             "unchanged": self.unchanged,
             "refused": dict(sorted(self.refused.items())),
+            "overflow": dict(sorted(self.overflow.items())),
             "ignored": dict(sorted(self.ignored.items())),
             "last_refusal": self.last_refusal,
             "last_refusal_ns": self.last_refusal_ns,

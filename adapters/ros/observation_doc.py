@@ -22,12 +22,17 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from urllib.parse import quote
 
+import numpy as np
+
+from twin.records import ElementReport, Observation, ObservedBox, ObservedView
+
 __all__ = [
     "BoxReport",
     "RosInputError",
     "Translation",
     "ViewReport",
     "literal",
+    "observation_records",
     "observation_turtle",
     "robot_iri",
     "sense_time",
@@ -84,16 +89,17 @@ class Translation:
     """A message turned into an observation: ``document`` (None: nothing to tell the twin), the robot
     IRIs it describes, and what was left out (``ignored``: by cause; ``refused``: (cause, message))."""
 
-    document: bytes | None
+    document: bytes | Observation | None
+    """Turtle (the wire format), or the typed records the same Turtle parses to (in the daemon's process)."""
     iris: tuple[str, ...] = ()
     ignored: dict[str, int] = field(default_factory=dict)
     refused: tuple[tuple[str, str], ...] = ()
-    extra: tuple[bytes, ...] = ()
+    extra: tuple[bytes | Observation, ...] = ()
     """More documents to submit after ``document``, each on its own (e.g. one removal each, so that a
     removal the twin refuses takes no other change with it)."""
 
     @property
-    def documents(self) -> tuple[bytes, ...]:
+    def documents(self) -> tuple[bytes | Observation, ...]:
         return ((self.document,) if self.document is not None else ()) + self.extra
 
 
@@ -179,3 +185,67 @@ def observation_turtle(
     if not lines:
         return None
     return (PREFIXES + "\n".join(lines) + "\n").encode()
+
+
+def _m(v: float) -> float:
+    """``v`` as :func:`_metres` writes it and the parser reads it back (0.1 mm; no negative zero)."""
+    return round(v, 4) + 0.0
+
+
+def _rad(v: float) -> float:
+    return round(math.remainder(v, 2 * math.pi), 6) + 0.0
+
+
+def _ring(ring: Sequence[tuple[float, float]]) -> np.ndarray:
+    return np.array([(_m(x), _m(y)) for x, y in ring], dtype=np.float64).reshape(-1, 2)
+
+
+def observation_records(
+    *,
+    boxes: Sequence[BoxReport] = (),
+    doors: Sequence[tuple[str, bool]] = (),
+    removed: Sequence[str] = (),
+    view: ViewReport | None = None,
+    sense_ns: int | None = None,
+    fusion_terms: bool = True,
+) -> Observation | None:
+    """The typed records that :func:`observation_turtle`'s document parses to (the same numbers, rounded
+    as written; the same order), for an adapter in the daemon's process: no Turtle written or parsed.
+    The core checks them as it checks a parsed document (:func:`twin.live.validate.check_observation`)."""
+    rings = [p for p in view.polygons if len(p) >= 3] if view is not None else []
+    with_view = fusion_terms and view is not None and bool(rings)
+    stamp = sense_ns - sense_ns % 1000 if sense_ns is not None else None  # written to the microsecond
+    each_sense = stamp if fusion_terms and not with_view else None
+    reports: dict[str, ElementReport] = {}
+    for b in boxes:
+        cx, cy, cz, sx, sy, sz, yaw = b.box
+        reports[b.iri] = ElementReport(
+            b.iri,
+            ifc_class=b.ifc_class,
+            storey=b.storey,
+            box=ObservedBox(_m(cx), _m(cy), _m(cz), _m(sx), _m(sy), _m(sz), _rad(yaw)),
+            labels=(b.label,) if b.label else (),
+            classes=(b.kind,) if b.kind else (),
+            lifetime_s=None if b.lifetime_s is None else round(b.lifetime_s, 9),
+            sense_ns=each_sense,
+        )
+    for iri, is_open in doors:
+        reports[iri] = ElementReport(iri, is_open=is_open, sense_ns=each_sense)
+    for iri in removed:
+        reports[iri] = ElementReport(iri, removed=True)
+    observed = None
+    if with_view and view is not None:
+        observed = ObservedView(
+            view.storey,
+            tuple(_ring(p) for p in rings),
+            tuple(dict.fromkeys(view.detects)),
+            stamp,
+            holes=tuple(_ring(h) for h in view.holes if len(h) >= 3),
+            origin=None
+            if view.origin is None
+            else (_m(view.origin[0]), _m(view.origin[1]), _m(view.origin[2])),
+        )
+    if not reports and observed is None:
+        return None
+    ordered = tuple(reports[i] for i in sorted(reports, key=lambda i: f"<{i}>"))
+    return Observation(ordered, observed)

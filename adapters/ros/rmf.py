@@ -37,7 +37,8 @@ from adapters.ros.observation_doc import BoxReport, RosInputError, Translation, 
 from adapters.ros.tf import matrix
 from twin.errors import MapError, ModelError
 from twin.graph import vocab
-from twin.live.parse import MAX_LIFETIME_S, sense_time_ns
+from twin.live.parse import sense_time_ns
+from twin.live.validate import MAX_LIFETIME_S
 
 __all__ = [
     "HELD_OBSTACLES",

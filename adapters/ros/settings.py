@@ -38,6 +38,7 @@ and in an adapter::
 from __future__ import annotations
 
 import math
+import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -75,6 +76,34 @@ class RosSettings(ConfigSection):
     frame_id: Text = Field(
         "map", description="header.frame_id of the OccupancyGrid and PointCloud2 messages."
     )
+    ingest_workers: Whole | None = Field(
+        None,
+        ge=0,
+        le=64,
+        description="Worker processes that decode the robots' detection arrays and TF and cut their views "
+        "(each robot always in the same one); default the number of cores minus one, at least one; "
+        "0: in the daemon's own ingest thread.",
+    )
+    ingest_queue: Whole = Field(
+        1024,
+        ge=16,
+        le=1_000_000,
+        description="Messages each ingestion queue (the ingest thread's, each worker's) holds at most; "
+        "more are dropped and counted as overflow, by kind.",
+    )
+    tf_wait_s: Number = Field(
+        0.5,
+        ge=0.0,
+        le=10.0,
+        description="How long a detection array whose transform is not in yet waits for newer TF "
+        "(then it is translated, or refused if it still does not resolve).",
+    )
+
+    def workers(self) -> int:
+        """``ingest_workers``, or the number of cores minus one (at least one)."""
+        if self.ingest_workers is not None:
+            return self.ingest_workers
+        return max(1, (os.cpu_count() or 2) - 1)
 
 
 # --- [robots.NAME] ------------------------------------------------------------------------------------

@@ -12,15 +12,20 @@ payload the CDR bytes) and ``rmw_zenoh`` (``<domain>/<ns>/<topic>/<dds type>/<RI
 subscriber liveliness token in the ROS graph). On rmw_zenoh the subscription covers every type on the
 topic, so a publisher of another type (or hash) is refused and counted as ``wrong_type``.
 
-Every message goes through one worker thread (Zenoh's callbacks only queue it; a full queue drops the
-message and counts ``overflow``: ROS topics carry no ack, and a slow twin must not stall Zenoh). Each
-resulting observation is submitted with ``TwinService.submit_observation(owner, turtle)``: the same
-validation, rights, limits, fusion, durability and map updates as any observation; its ack is counted
-per robot or source (accepted, unchanged, refused by cause, last refusal) in the daemon's status
-(``ros_ingest``). Every cause of refusal is logged once per robot or source, then counted silently.
+A robot's messages (TF, camera info, detection arrays) go to its ingest worker process
+(:mod:`adapters.zenoh.ros_workers`; ``[ros] ingest_workers``, 0: this process's ingest thread), the
+sources' (doors, obstacles) to the ingest thread; Zenoh's callbacks only queue them, with their arrival
+time (a full queue drops the message and counts ``overflow``, by kind: ROS topics carry no ack, and a
+slow twin must not stall Zenoh). Each resulting observation is submitted with
+``TwinService.submit_observation(owner, records)``: the core's typed records for detection arrays (no
+Turtle written and parsed again), Turtle for the rest; the same validation, rights, limits, fusion,
+durability and map updates as any observation; its ack is counted per robot or source (accepted,
+unchanged, refused by cause, last refusal) in the daemon's status (``ros_ingest``). Every cause of
+refusal is logged once per robot or source, then counted silently.
 
 The view of a detection array is cut by the structure in the ``view_skill`` map of the robot's storey,
-which this object keeps as a sink of the service (``MapPublished``/``MapUpdated``). Whether the core
+which this object keeps as a sink of the service (``MapPublished``/``MapUpdated``) and feeds to the
+robots' translator (each worker), with the storeys' elevations and every storey switch. Whether the core
 reads the fusion terms (views, sense times) is probed once: until it does, documents carry the
 elements alone.
 """
@@ -33,18 +38,12 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import zenoh
 
-from adapters.ros.detections import (
-    DetectionContext,
-    DetectionSettings,
-    array_header,
-    camera_fov,
-    translate_detections,
-)
+from adapters.ros.detections import DetectionSettings
 from adapters.ros.diagnostics import Counts, encode_diagnostics
 from adapters.ros.interfaces import (
     CAMERA_INFO,
@@ -77,16 +76,26 @@ from adapters.ros.rmw_zenoh import (
     type_hash,
 )
 from adapters.ros.sessions import TrackerSession
-from adapters.ros.settings import ros_robots, ros_sources
-from adapters.ros.tf import TfBuffer, decode_tf_message
+from adapters.ros.settings import RosSettings, ros_robots, ros_sources
 from adapters.zenoh.latched import CDR, declare_latched_subscriber
+from adapters.zenoh.ros_workers import (
+    ROBOT_KINDS,
+    Outcome,
+    Refused,
+    RobotSpec,
+    RobotTranslator,
+    Translated,
+    Waited,
+    WorkerPool,
+)
 from twin.config import Config, Limits
-from twin.errors import MapError, ObservationError
+from twin.errors import ObservationError
 from twin.graph.rdf import Row
-from twin.live.events import MapPublished, MapUpdated, TwinEvent, TwinStarted
+from twin.live.events import MapPublished, MapUpdated, RobotStoreyChanged, TwinEvent, TwinStarted
 from twin.live.parse import parse_observation
 from twin.live.requests import Reply, ReplyFn
 from twin.maps.grid import OccupancyGrid
+from twin.records import Observation
 
 __all__ = ["INGEST_NODE", "RosIngest", "core_reads_fusion_terms", "source_node"]
 
@@ -100,16 +109,30 @@ def source_node(source: str) -> str:
     root, by default), so each needs a name of its own (ROS warns of duplicate node names); a robot's is
     :data:`INGEST_NODE` in its own namespace."""
     return f"{INGEST_NODE}_{source.replace('-', '_')}"
+
+
 _NODE_ID_BASE = 10_000  # node ids of this session's ingest nodes (the map server's count from 0)
-QUEUE_DEPTH = 1024
 DIAGNOSTICS_TOPIC = "diagnostics"
 DIAGNOSTICS_S = 1.0
 """How often the DiagnosticArray of a robot or source that asked for it is published."""
-TF_WAIT_S = 0.5
-"""How long an array whose transform is not in yet waits for newer TF (tf2's message filter does so too)."""
 MAX_WAITING = 64
 """Arrays per robot waiting for TF at most; more are translated at once (and refused if still unresolved)."""
-Submit = Callable[[str, bytes, ReplyFn], None]
+MAX_STATIC = 32
+"""``tf_static`` messages kept per robot, to feed a restarted worker again."""
+
+
+class Submit(Protocol):
+    """``TwinService.submit_observation``: a document or typed records, the ack to ``reply``,
+    ``received_ns`` the arrival time (taken where the message arrived)."""
+
+    def __call__(
+        self,
+        robot: str,
+        payload: bytes | Observation,
+        reply: ReplyFn | None = None,
+        *,
+        received_ns: int | None = None,
+    ) -> None: ...
 
 
 def core_reads_fusion_terms(limits: Limits) -> bool:
@@ -146,26 +169,13 @@ class _Out:
         self.publisher.put(payload, attachment=attachment(self.sequence, stamp_ns, self.gid))
 
 
-@dataclass(eq=False, slots=True)
-class _Robot:
-    name: str
-    settings: DetectionSettings
-    view_skill: str | None
-    tf: TfBuffer = field(default_factory=TfBuffer)
-    waiting: list[tuple[float, _Message]] = field(default_factory=list)
-    """Arrays whose transform is not in yet: (monotonic deadline, message), oldest first."""
-    fov_rad: tuple[float, float] | None = None
-    """The camera's fields of view from its latest CameraInfo (``camera_info``), if any."""
-    session: TrackerSession = field(default_factory=TrackerSession)
-    """Its tracker's session (resumed from the twin at start: a daemon restart starts none)."""
-
-
 @dataclass(frozen=True, slots=True)
 class _Message:
     owner: str
     kind: str  # "detections", "tf", "tf_static", "camera_info", "doors", "obstacles", "wrong_type"
     payload: bytes
     note: str = ""
+    received_ns: int = 0
 
 
 class RosIngest:
@@ -189,14 +199,26 @@ class RosIngest:
         storey_of: Callable[[str], str | None],
         clock: Callable[[], int] = time.time_ns,
         fusion_terms: bool | None = None,
-        queue_depth: int = QUEUE_DEPTH,
+        queue_depth: int | None = None,
         select: Callable[[str], list[Row]] | None = None,
+        typed: bool = True,
+        workers: int | None = None,
         sessions: Mapping[str, TrackerSession] | None = None,
     ) -> None:
         """``select``: a read-only SPARQL SELECT on the twin's store (the daemon's): with it, the
         obstacle trackers take back at start-up (on TwinStarted, before any message is handled) the
-        obstacles a previous run added, with their lifetimes (:func:`~adapters.ros.rmf.held_obstacles`)."""
+        obstacles a previous run added, with their lifetimes (:func:`~adapters.ros.rmf.held_obstacles`).
+        ``typed``: detection arrays go to ``submit`` as the core's typed records (an
+        :class:`~twin.records.Observation`, checked by the same validator as a parsed document) rather
+        than as Turtle text that the core would parse again; False: Turtle (a ``submit`` that only takes
+        documents). ``workers`` and ``queue_depth``: ``[ros] ingest_workers`` and ``ingest_queue`` unless
+        given (0 workers: the robots' messages are translated in this process's ingest thread)."""
+        ros = config.section(RosSettings)
         self.submit = submit
+        self.typed = typed
+        self.queue_depth = ros.ingest_queue if queue_depth is None else queue_depth
+        self.tf_wait_s = ros.tf_wait_s
+        worker_count = ros.workers() if workers is None else max(0, workers)
         self.select = select
         self._held: list[tuple[str, int | None]] = []
         self._restored = threading.Event()
@@ -205,9 +227,15 @@ class RosIngest:
         self.clock = clock
         self.fusion_terms = core_reads_fusion_terms(config.limits) if fusion_terms is None else fusion_terms
         self._lock = threading.Lock()
-        self._queue: queue.Queue[_Message | None] = queue.Queue(maxsize=queue_depth)
+        self._queue: queue.Queue[_Message | None] = queue.Queue(maxsize=self.queue_depth)
         self._counts: dict[str, Counts] = {}
-        self._robots: dict[str, _Robot] = {}
+        self._robots: dict[str, RobotSpec] = {}
+        self._static: dict[str, list[bytes]] = {}
+        """Each robot's latest ``tf_static`` messages and camera info, to feed a restarted worker."""
+        self._camera: dict[str, bytes] = {}
+        self._lost: dict[str, int] = {}
+        self._sessions: dict[str, TrackerSession] = {}
+        """Each robot's tracker session as its translator last told (the status; a restarted worker)."""
         self._doors: dict[str, DoorSettings] = {}
         self._obstacles: dict[str, ObstacleTracker] = {}
         self._door_index = DoorIndex(())
@@ -226,7 +254,8 @@ class RosIngest:
                 continue
             settings = DetectionSettings.from_config(robot.name, d, config.limits)
             resumed = (sessions or {}).get(robot.name) or TrackerSession()
-            self._robots[robot.name] = _Robot(robot.name, settings, d.view_skill, session=resumed)
+            self._robots[robot.name] = RobotSpec(robot.name, settings, d.view_skill, session=resumed)
+            self._sessions[robot.name] = resumed
             self._counts[robot.name] = Counts()
             node = RosNode(robot.domain_id, robot.namespace, INGEST_NODE, zid, node_id)
             node_id += 1
@@ -267,11 +296,29 @@ class RosIngest:
                 entity = self._declare_diagnostics(session, source.name, node, source.ros, entity)
         if self.select is None or not self._obstacles:
             self._restored.set()
+        specs = list(self._robots.values())
+        self._translator: RobotTranslator | None = None
+        self._pool: WorkerPool | None = None
+        if worker_count == 0 or not specs:
+            self._translator = RobotTranslator(
+                specs, fusion_terms=self.fusion_terms, typed=typed, clock=clock, tf_wait_s=self.tf_wait_s,
+                max_waiting=MAX_WAITING, storey_of=storey_of,
+            )  # fmt: skip
+        else:
+            self._pool = WorkerPool(
+                specs, worker_count, deliver=self._outcomes, replay=self._replay, on_restart=self._restarted,
+                fusion_terms=self.fusion_terms, typed=typed, tf_wait_s=self.tf_wait_s,
+                queue_depth=self.queue_depth,
+            )  # fmt: skip
+            for name in self._robots:
+                self._pool.feed(("storey", name, storey_of(name)), robot=name)
         self._worker = threading.Thread(target=self._run, name="ros-ingest", daemon=True)
         self._worker.start()
         log.info(
-            "ROS 2 ingestion: %d robot(s) with detections, %d source(s); views and sense times %s",
-            len(self._robots), len(self._doors) + len(self._obstacles),
+            "ROS 2 ingestion: %d robot(s) with detections in %s, %d source(s); views and sense times %s",
+            len(self._robots),
+            f"{len(self._pool.workers)} worker process(es)" if self._pool else "the ingest thread",
+            len(self._doors) + len(self._obstacles),
             "on" if self.fusion_terms else "off (the core does not read them yet)",
         )  # fmt: skip
 
@@ -356,15 +403,24 @@ class RosIngest:
                 got = "/".join(key.split("/")[-2:])
                 if got != expected:
                     got_kind, note = "wrong_type", f"{key} carries {got}, not {expected}"
+            arrived = self.clock()
+            payload = sample.payload.to_bytes()
             try:
-                self._queue.put_nowait(_Message(owner, got_kind, sample.payload.to_bytes(), note))
+                if self._pool is not None and got_kind in ROBOT_KINDS and owner in self._robots:
+                    self._pool.put(owner, got_kind, payload, arrived)
+                    self._keep(owner, got_kind, payload)
+                    with self._lock:
+                        c = self._counts[owner]
+                        c.received += 1
+                        c.messages[got_kind] += 1
+                else:
+                    self._queue.put_nowait(_Message(owner, got_kind, payload, note, arrived))
             except queue.Full:
                 with self._lock:
                     c = self._counts[owner]
                     c.received += 1
-                    self._refuse(
-                        c, owner, "overflow", f"The ingestion queue is full ({self._queue.maxsize})."
-                    )
+                    c.overflow[got_kind] += 1
+                    self._refuse(c, owner, "overflow", f"The ingestion queue is full ({self.queue_depth}).")
 
         return on_sample
 
@@ -375,7 +431,8 @@ class RosIngest:
             if n := tracker.restore(self._held):
                 log.info("RMF source %s: %d obstacle(s) of a previous run held again", name, n)
         while True:
-            timeout = 0.05 if any(r.waiting for r in self._robots.values()) else self._next_expiry_s()
+            waiting = self._translator is not None and self._translator.waiting
+            timeout = 0.05 if waiting else self._next_expiry_s()
             if self._diagnostics:
                 timeout = min(timeout, max(0.0, self._next_diagnostics - time.monotonic()))
             try:
@@ -389,7 +446,8 @@ class RosIngest:
                 if message is not None:
                     self._handle(message)
                 self._expire()
-                self._give_up_waiting()
+                if self._translator is not None:
+                    self._outcomes(self._translator.give_up_waiting())
                 self._publish_diagnostics()
             except Exception:  # a bad message must never stop ingestion
                 log.exception("ROS 2 ingestion failed on a %s message", message.kind if message else "timer")
@@ -407,37 +465,6 @@ class RosIngest:
             if nxt is not None and nxt <= now:
                 self._deliver(name, tracker.expire(now_ns=now))
 
-    def _give_up_waiting(self) -> None:
-        """Translate the arrays that waited for TF too long (refused if it still does not resolve)."""
-        now = time.monotonic()
-        for robot in self._robots.values():
-            while robot.waiting and robot.waiting[0][0] <= now:
-                _, m = robot.waiting.pop(0)
-                self._translate(m)
-
-    def _retry_waiting(self, robot: _Robot) -> None:
-        """After new TF: translate the waiting arrays it resolves, in order."""
-        still: list[tuple[float, _Message]] = []
-        for deadline, m in robot.waiting:
-            if self._must_wait(robot, m):
-                still.append((deadline, m))
-            else:
-                self._translate(m)
-        robot.waiting = still
-
-    def _must_wait(self, robot: _Robot, m: _Message) -> bool:
-        header = array_header(m.payload)
-        if header is None:
-            return False
-        frame, stamp = header
-        target = robot.settings.map_frame
-        frames = {
-            f
-            for f in (frame, robot.settings.sensor_frame or frame)
-            if f and f.lstrip("/") != target.lstrip("/")
-        }
-        return any(robot.tf.waits_for(target, f, stamp) for f in frames)
-
     def _handle(self, m: _Message) -> None:
         with self._lock:
             c = self._counts[m.owner]
@@ -446,40 +473,14 @@ class RosIngest:
             if m.kind == "wrong_type":
                 self._refuse(c, m.owner, "wrong_type", m.note)
                 return
-        if m.kind in ("tf", "tf_static"):
-            robot = self._robots[m.owner]
-            try:
-                robot.tf.add(decode_tf_message(m.payload), static=m.kind == "tf_static")
-            except MapError as err:
-                with self._lock:
-                    self._refuse(self._counts[m.owner], m.owner, "malformed", str(err))
-                return
-            if robot.waiting:
-                self._retry_waiting(robot)
+        if m.kind in ROBOT_KINDS and self._translator is not None:
+            self._outcomes(self._translator.handle(m.owner, m.kind, m.payload, m.received_ns))
             return
-        if m.kind == "camera_info":
-            try:
-                fov = camera_fov(m.payload)
-            except RosInputError as err:
-                with self._lock:
-                    self._refuse(self._counts[m.owner], m.owner, err.cause, str(err))
-                return
-            self._robots[m.owner].fov_rad = fov
-            return
-        if m.kind == "detections":
-            robot = self._robots[m.owner]
-            if len(robot.waiting) < MAX_WAITING and (robot.waiting or self._must_wait(robot, m)):
-                robot.waiting.append((time.monotonic() + TF_WAIT_S, m))  # behind the others: in order
-                with self._lock:
-                    self._counts[m.owner].waited += 1
-                return
         self._translate(m)
 
     def _translate(self, m: _Message) -> None:
         try:
-            if m.kind == "detections":
-                translation = self._detections(m)
-            elif m.kind == "doors":
+            if m.kind == "doors":
                 with self._lock:
                     index = self._door_index
                 translation = translate_door_state(
@@ -493,29 +494,54 @@ class RosIngest:
             with self._lock:
                 self._refuse(self._counts[m.owner], m.owner, err.cause, str(err))
             return
-        self._deliver(m.owner, translation)
+        self._deliver(m.owner, translation, m.received_ns)
 
-    def _detections(self, m: _Message) -> Translation:
-        robot = self._robots[m.owner]
-        storey = self.storey_of(m.owner)
-        with self._lock:  # grids are replaced, never changed in place: this one stays as it is
-            elevation = self._elevations.get(storey or "", 0.0)
-            grid = self._grids.get((storey, robot.view_skill)) if storey and robot.view_skill else None
-        known = robot.view_skill is None or grid is not None
-        ctx = DetectionContext(
-            storey,
-            elevation,
-            self.clock(),
-            robot.tf,
-            grid,
-            self.fusion_terms,
-            known,
-            fov_rad=robot.fov_rad,
-            session=robot.session,
-        )
-        return translate_detections(m.payload, robot.settings, ctx)
+    def _outcomes(self, outcomes: list[Outcome]) -> None:
+        """What the robots' translator (here or in a worker) made of their messages."""
+        for o in outcomes:
+            if isinstance(o, Translated):
+                if o.session is not None:
+                    with self._lock:
+                        self._sessions[o.owner] = o.session
+                self._deliver(o.owner, o.translation, o.received_ns)
+            elif isinstance(o, Refused):
+                with self._lock:
+                    self._refuse(self._counts[o.owner], o.owner, o.cause, o.message)
+            elif isinstance(o, Waited):
+                with self._lock:
+                    self._counts[o.owner].waited += 1
 
-    def _deliver(self, owner: str, t: Translation) -> None:
+    def _keep(self, owner: str, kind: str, payload: bytes) -> None:
+        """The latched messages a restarted worker needs again (Zenoh threads)."""
+        if kind == "tf_static":
+            with self._lock:
+                kept = self._static.setdefault(owner, [])
+                kept.append(payload)
+                del kept[:-MAX_STATIC]
+        elif kind == "camera_info":
+            with self._lock:
+                self._camera[owner] = payload
+
+    def _replay(self, robots: list[str]) -> list[tuple[Any, ...]]:
+        """What a restarted worker of ``robots`` is fed again, in order (the pool's thread)."""
+        with self._lock:
+            grids = list(self._grids.values())
+            items: list[tuple[Any, ...]] = [("elevations", dict(self._elevations))]
+            items += [("grid", g) for g in grids]
+            items += [("storey", r, self.storey_of(r)) for r in robots]
+            items += [("session", r, self._sessions[r]) for r in robots if r in self._sessions]
+            for r in robots:
+                items += [("msg", r, "tf_static", p, self.clock()) for p in self._static.get(r, [])]
+                if r in self._camera:
+                    items.append(("msg", r, "camera_info", self._camera[r], self.clock()))
+        return items
+
+    def _restarted(self, robots: list[str]) -> None:
+        with self._lock:
+            for r in robots:
+                self._lost[r] = self._lost.get(r, 0) + 1
+
+    def _deliver(self, owner: str, t: Translation, received_ns: int | None = None) -> None:
         with self._lock:
             c = self._counts[owner]
             c.ignored.update(t.ignored)
@@ -524,7 +550,7 @@ class RosIngest:
             documents = t.documents
             c.submitted += len(documents)
         for document in documents:
-            self.submit(owner, document, self._on_reply(owner))
+            self.submit(owner, document, self._on_reply(owner), received_ns=received_ns)
 
     def _on_reply(self, owner: str) -> ReplyFn:
         def on_reply(reply: Reply) -> None:
@@ -557,6 +583,10 @@ class RosIngest:
                 with self._lock:
                     self._elevations = {key: elevation for key, _, elevation in event.storeys}
                     self._door_index = DoorIndex(doors)
+                self._tell(("elevations", dict(self._elevations)))
+                if self._pool is not None:
+                    for name in self._robots:
+                        self._pool.feed(("storey", name, self.storey_of(name)), robot=name)
                 if not self._restored.is_set() and self.select is not None:
                     try:
                         self._held = held_obstacles(self.select(HELD_OBSTACLES))
@@ -568,6 +598,10 @@ class RosIngest:
                     own = OccupancyGrid(g.frame, g.data.copy(), g.storey, g.skill, g.elevation_m)
                     with self._lock:
                         self._grids[(g.storey, g.skill)] = own
+                    self._tell(("grid", own))
+            elif isinstance(event, RobotStoreyChanged):
+                if self._pool is not None and event.robot in self._robots:
+                    self._pool.feed(("storey", event.robot, event.storey), robot=event.robot)
             elif isinstance(event, MapUpdated):
                 with self._lock:
                     grid = self._grids.get((event.storey, event.skill))
@@ -578,8 +612,20 @@ class RosIngest:
                     own = OccupancyGrid(grid.frame, data, grid.storey, grid.skill, grid.elevation_m)
                     with self._lock:
                         self._grids[(event.storey, event.skill)] = own
+                    self._tell(("grid", own))
         except Exception:  # a sink must never stop the twin
             log.exception("ROS 2 ingestion failed on %s", type(event).__name__)
+
+    def _tell(self, item: tuple[Any, ...]) -> None:
+        """What the robots' translator must know (elevations, a map version): here, or every worker, in
+        order with the messages already queued for it."""
+        if self._pool is not None:
+            self._pool.feed(item)
+        elif self._translator is not None:
+            if item[0] == "elevations":
+                self._translator.set_elevations(item[1])
+            elif item[0] == "grid":
+                self._translator.set_grid(item[1])
 
     def _wants(self, skill: str) -> bool:
         return any(r.view_skill == skill for r in self._robots.values())
@@ -589,15 +635,26 @@ class RosIngest:
         """``{"ros_ingest": {"queue_depth": n, "views": bool, "counts": {owner: {...}}}}``."""
         with self._lock:
             counts = {name: c.as_dict() for name, c in sorted(self._counts.items())}
+            for name, n in self._lost.items():  # its worker died n times (the arrays it held lost)
+                counts[name]["worker_restarts"] = n
+            sessions = dict(self._sessions)
+        pool = self._pool
         return {
             "ros_ingest": {
-                "queue_depth": self._queue.qsize(),
+                "queue_depth": self._queue.qsize() + (sum(pool.depths()) if pool is not None else 0),
+                "queue_limit": self.queue_depth,
+                "queues": {
+                    "ingest": self._queue.qsize(),
+                    **({f"worker{i}": d for i, d in enumerate(pool.depths())} if pool is not None else {}),
+                },
+                "workers": 0 if pool is None else len(pool.workers),
+                "worker_restarts": 0 if pool is None else pool.restarts,
+                "tf_wait_s": self.tf_wait_s,
                 "views": self.fusion_terms,
                 "obstacles_held": sum(t.held for t in self._obstacles.values()),
                 "counts": counts,
                 "tracker_sessions": {
-                    name: {"session": r.session.label, "restarts": r.session.restarts}
-                    for name, r in sorted(self._robots.items())
+                    name: {"session": t.label, "restarts": t.restarts} for name, t in sorted(sessions.items())
                 },
             }
         }
@@ -618,3 +675,5 @@ class RosIngest:
                 with contextlib.suppress(queue.Empty):
                     self._queue.get_nowait()
         self._worker.join(timeout=5)
+        if self._pool is not None:
+            self._pool.close()

@@ -180,6 +180,7 @@ def load_config(
         site_table = own.get("site")
         site_set = isinstance(site_table, Mapping) and "name" in site_table
         raw = _merge(raw, own)
+    raw = _robot_defaults(raw)
     skills, routes = _skills(raw.get("skills", {}))
     model = file_model(sections or (), strict=sections is not None)
     data = raw if sections is not None else _core_keys(raw)
@@ -377,6 +378,26 @@ def _read(path: Path) -> dict[str, Any]:
     except tomllib.TOMLDecodeError as err:
         msg = f"Configuration file {path} is not valid TOML: {err}."
         raise ConfigError(msg) from err
+
+
+def _robot_defaults(raw: dict[str, Any]) -> dict[str, Any]:
+    """``[robot_defaults]``: keys (and tables, such as ``detections``) that every ``[robots.NAME]`` takes
+    unless it sets them itself (tables merged key by key), so that a fleet of alike robots needs its
+    detections settings once. It names no robot of its own."""
+    defaults = raw.get("robot_defaults")
+    if defaults is None:
+        return raw
+    if not isinstance(defaults, Mapping):
+        msg = f"Configuration [robot_defaults]: expected a table of [robots.NAME] keys, got {defaults!r}."
+        raise ConfigError(msg)
+    out = {key: value for key, value in raw.items() if key != "robot_defaults"}
+    robots = raw.get("robots", {})
+    if isinstance(robots, Mapping):
+        out["robots"] = {
+            name: _merge(dict(defaults), table) if isinstance(table, Mapping) else table
+            for name, table in robots.items()
+        }
+    return out
 
 
 def _merge(base: dict[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:

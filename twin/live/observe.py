@@ -50,6 +50,7 @@ from twin.live.plan import ObservationPlan, plan_observation
 from twin.live.publication import Publication
 from twin.live.requests import ObserveRequest, Reply
 from twin.live.state import ElementState, LiveState, Sighting
+from twin.live.validate import check_observation
 from twin.records import ElementReport, GeometryChange, Observation, Shape
 
 log = logging.getLogger(__name__)
@@ -149,7 +150,11 @@ class Observer:
         now = self.clock()
         for req in batch:
             try:
-                obs = self._parse(req.payload)
+                obs = (
+                    self._parse(req.payload)
+                    if req.observation is None
+                    else check_observation(req.observation, limits=self.config.limits)
+                )
                 current = ChainMap(states, live.states)
                 fused = fuse(
                     obs,

@@ -30,14 +30,24 @@ from twin.config import Limits
 from twin.errors import ModelError, ObservationError
 from twin.graph import vocab
 from twin.graph.meshcodec import decode_mesh, decode_placement
+from twin.live.validate import (
+    MAX_LIFETIME_S,
+    MAX_VIEW_POINTS,
+    check_iri,
+    check_observation,
+    check_report,
+    check_view,
+)
 from twin.records import ElementReport, FloatArray, Geometry, Observation, ObservedBox, ObservedView
 
-__all__ = ["parse_observation", "parse_observation_document", "sense_time_ns"]
+__all__ = [
+    "MAX_VIEW_POINTS",
+    "check_observation",
+    "parse_observation",
+    "parse_observation_document",
+    "sense_time_ns",
+]
 
-MAX_VIEW_POINTS = 4096
-"""Vertices of all the polygons of one view together."""
-
-_IRI = re.compile(r'^[A-Za-z][A-Za-z0-9+.-]*:[^<>"{}|^`\\\s]*$')
 _CLASS_NAMESPACES = (vocab.BEO, vocab.FURN)
 _VIEW_CLASS = ox.NamedNode(vocab.TWIN_VIEW)
 
@@ -95,13 +105,8 @@ def _numbers(subject: str, what: str, text: str, count: int) -> list[float]:
     return values
 
 
-def _box(subject: str, text: str, limits: Limits) -> ObservedBox:
+def _box(subject: str, text: str) -> ObservedBox:
     cx, cy, cz, sx, sy, sz, yaw = _numbers(subject, "twin:box", text, 7)
-    for name, size in (("sx", sx), ("sy", sy), ("sz", sz)):
-        if not 0.0 < size <= limits.box_size_m:
-            raise _fail(
-                f"Element <{subject}>: box size {name}={size} m is outside (0, {limits.box_size_m}] m."
-            )
     return ObservedBox(cx, cy, cz, sx, sy, sz, yaw)
 
 
@@ -174,8 +179,6 @@ _ELEMENT_TERMS = {
     vocab.TWIN_UNMERGE,
     vocab.TWIN_LIFETIME,
 }
-MAX_LIFETIME_S = 7 * 86400.0
-"""The longest ``twin:lifetime`` taken (a week): beyond it a report is not transient."""
 _VIEW_TERMS = {
     vocab.RDF_TYPE,
     vocab.TWIN_STOREY,
@@ -236,8 +239,7 @@ def _report(
     by_subject: dict[str, dict[str, list[object]]],
     limits: Limits,
 ) -> ElementReport:
-    if not _IRI.match(subject) or len(subject) > 2048:
-        raise _fail(f"Element IRI {subject[:200]!r} is not an absolute IRI.")
+    check_iri(subject)
     for predicate in props:
         if predicate not in _ELEMENT_TERMS:
             raise _fail(
@@ -251,8 +253,6 @@ def _report(
         value = _literal(
             subject, vocab.TWIN_IFC_CLASS, props[vocab.TWIN_IFC_CLASS], (vocab.XSD_STRING,)
         ).value
-        if not re.fullmatch(r"Ifc[A-Za-z0-9]{1,64}", value):
-            raise _fail(f"Element <{subject}>: twin:ifcClass {value!r} is not an IFC class name.")
         args["ifc_class"] = value
     if vocab.TWIN_STOREY in props:
         args["storey"] = _literal(
@@ -260,9 +260,7 @@ def _report(
         ).value
     if vocab.TWIN_BOX in props:
         text = _literal(subject, vocab.TWIN_BOX, props[vocab.TWIN_BOX], (vocab.XSD_STRING,)).value
-        args["box"] = _box(subject, text, limits)
-        if "storey" not in args:
-            raise _fail(f"Element <{subject}>: twin:box needs twin:storey (its z is above that storey).")
+        args["box"] = _box(subject, text)
     if vocab.OMG_HAS_GEOMETRY in props:
         node = _one(subject, vocab.OMG_HAS_GEOMETRY, props[vocab.OMG_HAS_GEOMETRY])  # type: ignore[arg-type]
         if not isinstance(node, ox.NamedNode | ox.BlankNode):
@@ -290,13 +288,12 @@ def _report(
         text = _literal(
             subject, vocab.TWIN_SPEED_LIMIT, props[vocab.TWIN_SPEED_LIMIT], (vocab.XSD_INTEGER,)
         ).value
-        limit = int(text) if re.fullmatch(r"[+-]?[0-9]{1,4}", text.strip()) else -1
-        if not 0 <= limit <= 100:
+        if not re.fullmatch(r"[+-]?[0-9]{1,4}", text.strip()):
             raise _fail(
                 f"Element <{subject}>: twin:speedLimit must be a percent from 0 (no limit) to 100, "
                 f"got {text!r}."
             )
-        args["speed_limit"] = limit
+        args["speed_limit"] = int(text)
     if vocab.RDFS_LABEL in props:
         args["labels"] = _strings(subject, vocab.RDFS_LABEL, props[vocab.RDFS_LABEL])
     if vocab.TWIN_MATERIAL in props:
@@ -326,24 +323,13 @@ def _report(
             lifetime = float(text)
         except ValueError:
             lifetime = math.nan
-        if not 0.0 <= lifetime <= MAX_LIFETIME_S:
+        if math.isnan(lifetime):
             raise _fail(
                 f"Element <{subject}>: twin:lifetime must be seconds from 0 to {MAX_LIFETIME_S:g}, "
                 f"got {text[:80]!r}."
             )
         args["lifetime_s"] = lifetime
-    report = ElementReport(**args)  # type: ignore[arg-type]
-    geometries = [k for k in ("box", "geometry", "placement") if k in args]
-    if len(geometries) > 1:
-        raise _fail(
-            f"Element <{subject}>: give one of twin:box, omg:hasGeometry or twin:placement, not {geometries}."
-        )
-    marks = report.keepout is not None or report.speed_limit is not None
-    if report.removed and (
-        report.changes_geometry or report.is_open is not None or report.ifc_class or marks
-    ):
-        raise _fail(f"Element <{subject}>: twin:removed true cannot come with other changes.")
-    return report
+    return check_report(ElementReport(**args), limits=limits)  # type: ignore[arg-type]
 
 
 def _view(name: str, props: dict[str, list[object]]) -> ObservedView:
@@ -383,15 +369,11 @@ def _view(name: str, props: dict[str, list[object]]) -> ObservedView:
     if not polygons:
         raise _fail(f"{where} has no twin:polygon (the floor its sensor saw).")
     detects = _strings(name, vocab.TWIN_DETECTS, props.get(vocab.TWIN_DETECTS, []))
-    for cls in detects:
-        if not re.fullmatch(r"Ifc[A-Za-z0-9]{1,64}", cls):
-            raise _fail(f"{where}: twin:detects {cls!r} is not an IFC class name.")
-    if not detects:
-        raise _fail(f"{where} has no twin:detects (the IFC classes its detector reports).")
     sense = _sense(name, props[vocab.TWIN_SENSE_TIME]) if vocab.TWIN_SENSE_TIME in props else None
-    return ObservedView(
+    view = ObservedView(
         storey, tuple(polygons), tuple(dict.fromkeys(detects)), sense, holes=tuple(holes), origin=origin
     )
+    return check_view(view, name=name)
 
 
 def parse_observation(payload: bytes | str, *, limits: Limits) -> tuple[ElementReport, ...]:

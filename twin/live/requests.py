@@ -11,6 +11,8 @@ import queue
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from twin.records import Observation
+
 
 @dataclass(frozen=True, slots=True)
 class Reply:
@@ -32,10 +34,14 @@ ReplyFn = Callable[[Reply], None]
 
 @dataclass(frozen=True, slots=True)
 class ObserveRequest:
+    """An observation by ``robot``: a Turtle document (``payload``), or the typed records an adapter in
+    the daemon's process made (``observation``, ``payload`` empty), checked by the same validator."""
+
     robot: str
     payload: bytes
     reply: ReplyFn | None
     received_ns: int
+    observation: Observation | None = None
 
 
 @dataclass(frozen=True, slots=True)

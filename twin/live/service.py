@@ -52,6 +52,7 @@ from twin.live.snapshots import Restored, Snapshots
 from twin.live.state import ElementState, LiveState
 from twin.live.status import service_status
 from twin.live.store_health import WatchedStore
+from twin.records import Observation
 from twin.selection.skills import SkillProfile
 
 log = logging.getLogger(__name__)
@@ -269,9 +270,23 @@ class TwinService:
         self._flushed_at = (time.monotonic(), self.revision)
 
     # --- requests (any thread) ------------------------------------------------------------------------
-    def submit_observation(self, robot: str, payload: bytes, reply: ReplyFn | None = None) -> None:
-        """Queue an observation by ``robot``; ``reply`` gets the ack (or error) once it is durable."""
-        self._queue.put(ObserveRequest(robot, bytes(payload), reply, self.clock()))
+    def submit_observation(
+        self,
+        robot: str,
+        payload: bytes | Observation,
+        reply: ReplyFn | None = None,
+        *,
+        received_ns: int | None = None,
+    ) -> None:
+        """Queue an observation by ``robot``: a Turtle document, or the typed records an adapter in this
+        process made (validated by the same checks as a parsed document: :mod:`twin.live.validate`);
+        ``reply`` gets the ack (or error) once it is durable. ``received_ns``: when it arrived, if it
+        was taken where it arrived (default: now)."""
+        now = self.clock() if received_ns is None else received_ns
+        if isinstance(payload, Observation):
+            self._queue.put(ObserveRequest(robot, b"", reply, now, observation=payload))
+        else:
+            self._queue.put(ObserveRequest(robot, bytes(payload), reply, now))
 
     def submit_explain(self, storey: str, skill: str, x: float, y: float, reply: ReplyFn) -> None:
         """Queue the question why the cell at world ``(x, y)`` of map (``storey``, ``skill``) is what it

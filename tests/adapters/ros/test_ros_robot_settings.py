@@ -150,3 +150,26 @@ def test_a_typo_in_any_robot_key_is_refused_at_load_naming_the_robot_and_key(tmp
     path.write_text('[robots.r1]\nrigths = ["create"]\n')
     with pytest.raises(ConfigError, match=r"\[robots.r1\] rigths: unknown key \(did you mean rights\?\)"):
         load(path)
+
+
+def test_robot_defaults_give_every_robot_its_detections_settings_and_a_robot_overrides_a_key(
+    tmp_path: Path,
+) -> None:
+    text = (
+        '[robot_defaults]\nstorey = "ground-floor"\n'
+        '[robot_defaults.detections]\nclasses = { table = "IfcFurniture" }\nrange_m = 6.0\noptical = true\n'
+        + "".join(f'[robots.r{i}]\nnamespace = "/r{i}"\n' for i in range(25))
+        + '[robots.r3.detections]\nrange_m = 3.0\n'
+    )
+    fleet = robots(tmp_path, text)
+    assert len(fleet) == 25
+    assert all(r.detections is not None and dict(r.detections.classes) == {"table": "IfcFurniture"}
+               for r in fleet.values())  # fmt: skip
+    ranges = {name: r.detections.range_m for name, r in fleet.items() if r.detections is not None}
+    assert ranges["r3"] == 3.0 and ranges["r0"] == ranges["r24"] == 6.0
+    assert fleet["r3"].detections is not None and fleet["r3"].detections.optical  # the rest of the defaults
+
+
+def test_robot_defaults_that_are_no_table_are_refused_by_name(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"\[robot_defaults\]: expected a table"):
+        robots(tmp_path, 'robot_defaults = 3\n[robots.r1]\nnamespace = "/r1"\nstorey = "ground-floor"\n')

@@ -1,10 +1,12 @@
 """The ingestion in one process with a real Zenoh session (its own puts reach its own subscribers):
 a robot's TF and detections on the bridge keys become one observation whose view is cut by the
 structure map the ingestion follows as a sink (the fusion terms on), and its counts are in the
-status. ``submit`` is a plain function that keeps the documents and acks them."""
+status. ``submit`` is a plain function that keeps the documents and acks them. The robots' messages are
+translated in a worker process (``[ros] ingest_workers``) or in the ingest thread (0 workers)."""
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -28,8 +30,10 @@ TWIN = "https://w3id.org/building-twin#"
 FRAME = GridFrame(10.0, 2.0, 0.05, 200, 200)  # x 10..20, y 2..12
 
 
-@pytest.fixture
-def ingest(tmp_path: Path) -> Iterator[tuple[RosIngest, zenoh.Session, list[bytes]]]:
+@pytest.fixture(params=[1, 0], ids=["one worker process", "in the ingest thread"])
+def ingest(
+    tmp_path: Path, request: pytest.FixtureRequest
+) -> Iterator[tuple[RosIngest, zenoh.Session, list[bytes]]]:
     path = tmp_path / "c.toml"
     path.write_text(
         '[robots.robot1]\nnamespace = "/robot1"\nstorey = "ground-floor"\nros = ["bridge"]\n'
@@ -38,14 +42,20 @@ def ingest(tmp_path: Path) -> Iterator[tuple[RosIngest, zenoh.Session, list[byte
     )
     docs: list[bytes] = []
 
-    def submit(owner: str, document: bytes, reply: ReplyFn) -> None:
+    def submit(owner: str, document: bytes, reply: ReplyFn, received_ns: int | None = None) -> None:
         assert owner == "robot1"
         docs.append(document)
         reply(Reply(True, {"ok": True, "unchanged": len(docs) > 1}))
 
     with zenoh.open(client_config([])) as session:
         ing = RosIngest(
-            session, load_config(path), submit, storey_of=lambda _: "ground-floor", fusion_terms=True
+            session,
+            load_config(path),
+            submit,
+            storey_of=lambda _: "ground-floor",
+            fusion_terms=True,
+            typed=False,  # Turtle: the test reads the documents
+            workers=request.param,
         )
         ing.emit(TwinStarted("lab", 0, 0, (("ground-floor", "Ground floor", 0.0),), (), {}))
         data = np.zeros((FRAME.height, FRAME.width), dtype=np.int8)
@@ -127,3 +137,31 @@ def test_a_diagnostic_array_with_the_counts_is_published_and_warns_after_a_refus
     wait(lambda: len(got) > count, timeout_s=5)
     assert got[-1].status[0].level == b"\x00"  # nothing refused since: OK again
     sub.undeclare()
+
+
+def test_a_worker_that_dies_is_started_again_and_its_robot_resumes_with_nothing_sent_twice(
+    ingest: tuple[RosIngest, zenoh.Session, list[bytes]],
+) -> None:
+    ing, session, docs = ingest
+    if ing._pool is None:
+        pytest.skip("no worker process to kill in the ingest thread's mode")
+    static = [
+        Tf("base_link", "camera_link", (0.2, 0, 1.0)),
+        Tf("camera_link", "camera_optical_frame", (0, 0, 0), OPTICAL),
+    ]
+    session.put("robot1/tf_static", cdr_tf(static))
+    stamp = time.time_ns()
+    send_array(session, stamp)
+    wait(lambda: len(docs) == 1)
+    ing._pool.workers[0].process.kill()
+    wait(lambda: ing.status()["ros_ingest"]["worker_restarts"] == 1)
+    send_array(session, stamp + 10**8)  # the static TF and the map are fed to the new worker again
+    wait(lambda: len(docs) == 2)
+    assert b"twin:polygon" in docs[1]  # its view: the camera's frame resolved through the replayed tf_static
+    iri = re.compile(rb"<urn:twin-ros:robot1:det:[^>]*>")
+    assert iri.findall(docs[1]) == iri.findall(docs[0])  # the tracker session goes on, not a new one
+    assert view_xs(docs[1]).max() <= 16.0
+    time.sleep(0.5)
+    assert len(docs) == 2
+    counts = ing.status()["ros_ingest"]["counts"]["robot1"]  # type: ignore[index]
+    assert counts["submitted"] == 2 and counts["refused"] == {} and counts["worker_restarts"] == 1

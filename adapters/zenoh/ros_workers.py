@@ -1,0 +1,404 @@
+"""The robots' side of ROS 2 ingestion: TF, camera info and detection arrays turned into observations,
+in the daemon's ingest thread or in worker processes.
+
+:class:`RobotTranslator` holds what translating a robot's arrays needs (its TF buffer, the arrays
+waiting for TF, its camera's fields of view, its storey, the storeys' elevations and the maps that
+occlude its views) and turns each message into :data:`Outcome` records. The daemon's ingest thread
+runs one when ``[ros] ingest_workers = 0``; otherwise :class:`WorkerPool` runs one per worker process,
+each robot always in the same worker (sharded by name) so that its arrays stay in order, and the daemon
+feeds every worker, in order with the messages, what it learns: storey switches, elevations, the
+occluding maps and their updates. Occlusion (the views) runs in the worker, beside the TF that places
+the sensor: the map it is cut by is fed to the worker (a copy per version), where the twin's held
+elements that hide things are looked at by the writer's fusion, which owns them.
+
+A worker that dies is started again with what the daemon fed it (the maps, storeys, the last
+``tf_static`` and camera info of its robots); the arrays it held are lost (counted ``worker_lost``),
+never submitted twice: only what a worker put out reaches the twin.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import logging
+import multiprocessing as mp
+import queue
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from adapters.ros.detections import (
+    DetectionContext,
+    DetectionSettings,
+    array_header,
+    camera_fov,
+    translate_detections,
+)
+from adapters.ros.observation_doc import RosInputError, Translation
+from adapters.ros.sessions import TrackerSession
+from adapters.ros.tf import TfBuffer, decode_tf_message
+from twin.errors import MapError
+from twin.maps.grid import OccupancyGrid
+
+__all__ = ["Outcome", "Refused", "RobotTranslator", "Translated", "Waited", "WorkerPool"]
+
+log = logging.getLogger(__name__)
+
+ROBOT_KINDS = ("detections", "tf", "tf_static", "camera_info")
+SUPERVISE_S = 0.25
+"""How often the pool looks for a worker that died."""
+"""The messages of a robot that its translator handles."""
+
+
+@dataclass(frozen=True, slots=True)
+class Translated:
+    owner: str
+    translation: Translation
+    received_ns: int
+    session: TrackerSession | None = None
+    """The robot's tracker session after this array (a copy when it comes from a worker)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Refused:
+    owner: str
+    cause: str
+    message: str
+
+
+@dataclass(frozen=True, slots=True)
+class Waited:
+    owner: str
+
+
+Outcome = Translated | Refused | Waited
+
+
+@dataclass(frozen=True, slots=True)
+class RobotSpec:
+    """A robot as its translator knows it (picklable: a worker gets it at its start)."""
+
+    name: str
+    settings: DetectionSettings
+    view_skill: str | None
+    session: TrackerSession = field(default_factory=TrackerSession)
+    """Its tracker's session to resume (from the twin at start, or from a worker that died)."""
+
+
+@dataclass(eq=False, slots=True)
+class _Robot:
+    spec: RobotSpec
+    tf: TfBuffer = field(default_factory=TfBuffer)
+    waiting: list[tuple[float, bytes, int]] = field(default_factory=list)
+    """Arrays whose transform is not in yet: (monotonic deadline, payload, arrival ns), oldest first."""
+    fov_rad: tuple[float, float] | None = None
+    session: TrackerSession = field(default_factory=TrackerSession)
+
+
+class RobotTranslator:
+    """Robots' messages -> outcomes (see the module's docstring); one thread uses it at a time, except
+    :meth:`set_grid` and friends, which may come from another (the grids are replaced, never changed)."""
+
+    def __init__(
+        self,
+        robots: list[RobotSpec],
+        *,
+        fusion_terms: bool,
+        typed: bool,
+        clock: Callable[[], int] = time.time_ns,
+        tf_wait_s: float = 0.5,
+        max_waiting: int = 64,
+        storey_of: Callable[[str], str | None] | None = None,
+    ) -> None:
+        """``storey_of``: a robot's current storey, asked at each array (in the daemon's process);
+        None: the storeys fed with :meth:`set_storey` (in a worker)."""
+        self.storey_of = storey_of
+        self.robots = {r.name: _Robot(r, session=copy.deepcopy(r.session)) for r in robots}
+        self.fusion_terms = fusion_terms
+        self.typed = typed
+        self.clock = clock
+        self.tf_wait_s = tf_wait_s
+        self.max_waiting = max_waiting
+        self.storeys: dict[str, str | None] = {}
+        self.elevations: dict[str, float] = {}
+        self.grids: dict[tuple[str, str], OccupancyGrid] = {}
+        self._lock = threading.Lock()
+
+    # --- what the daemon learns (any thread) ----------------------------------------------------------
+    def set_storey(self, robot: str, storey: str | None) -> None:
+        with self._lock:
+            self.storeys[robot] = storey
+
+    def set_session(self, robot: str, session: TrackerSession) -> None:
+        """Resume ``robot``'s tracker session (a restarted worker: the one its predecessor last told)."""
+        if robot in self.robots:
+            self.robots[robot].session = copy.deepcopy(session)
+
+    def set_elevations(self, elevations: Mapping[str, float]) -> None:
+        with self._lock:
+            self.elevations = dict(elevations)
+
+    def set_grid(self, grid: OccupancyGrid) -> None:
+        with self._lock:
+            self.grids[(grid.storey, grid.skill)] = grid
+
+    def wants(self, skill: str) -> bool:
+        return any(r.spec.view_skill == skill for r in self.robots.values())
+
+    # --- messages (the translating thread) ------------------------------------------------------------
+    def handle(self, owner: str, kind: str, payload: bytes, received_ns: int) -> list[Outcome]:
+        robot = self.robots[owner]
+        if kind in ("tf", "tf_static"):
+            try:
+                robot.tf.add(decode_tf_message(payload), static=kind == "tf_static")
+            except MapError as err:
+                return [Refused(owner, "malformed", str(err))]
+            return self._retry_waiting(robot) if robot.waiting else []
+        if kind == "camera_info":
+            try:
+                robot.fov_rad = camera_fov(payload)
+            except RosInputError as err:
+                return [Refused(owner, err.cause, str(err))]
+            return []
+        if len(robot.waiting) < self.max_waiting and (robot.waiting or self._must_wait(robot, payload)):
+            robot.waiting.append((time.monotonic() + self.tf_wait_s, payload, received_ns))  # in order
+            return [Waited(owner)]
+        return [self._translate(robot, payload, received_ns)]
+
+    def give_up_waiting(self) -> list[Outcome]:
+        """Translate the arrays that waited for TF too long (refused if it still does not resolve)."""
+        now = time.monotonic()
+        out: list[Outcome] = []
+        for robot in self.robots.values():
+            while robot.waiting and robot.waiting[0][0] <= now:
+                _, payload, received = robot.waiting.pop(0)
+                out.append(self._translate(robot, payload, received))
+        return out
+
+    @property
+    def waiting(self) -> bool:
+        return any(r.waiting for r in self.robots.values())
+
+    def _retry_waiting(self, robot: _Robot) -> list[Outcome]:
+        still: list[tuple[float, bytes, int]] = []
+        out: list[Outcome] = []
+        for item in robot.waiting:
+            if still or self._must_wait(robot, item[1]):  # in order: none overtakes a waiting one
+                still.append(item)
+            else:
+                out.append(self._translate(robot, item[1], item[2]))
+        robot.waiting = still
+        return out
+
+    def _must_wait(self, robot: _Robot, payload: bytes) -> bool:
+        header = array_header(payload)
+        if header is None:
+            return False
+        frame, stamp = header
+        s = robot.spec.settings
+        target = s.map_frame
+        frames = {f for f in (frame, s.sensor_frame or frame) if f and f.lstrip("/") != target.lstrip("/")}
+        return any(robot.tf.waits_for(target, f, stamp) for f in frames)
+
+    def _translate(self, robot: _Robot, payload: bytes, received_ns: int) -> Outcome:
+        name, skill = robot.spec.name, robot.spec.view_skill
+        with self._lock:
+            storey = self.storey_of(name) if self.storey_of is not None else self.storeys.get(name)
+            elevation = self.elevations.get(storey or "", 0.0)
+            grid = self.grids.get((storey, skill)) if storey and skill else None
+        known = skill is None or grid is not None
+        ctx = DetectionContext(
+            storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known,
+            fov_rad=robot.fov_rad, session=robot.session,
+        )  # fmt: skip
+        try:
+            t = translate_detections(payload, robot.spec.settings, ctx, typed=self.typed)
+        except RosInputError as err:
+            return Refused(name, err.cause, str(err))
+        return Translated(name, t, received_ns, copy.copy(robot.session))
+
+
+# --- worker processes -------------------------------------------------------------------------------
+def _worker_main(
+    robots: list[RobotSpec], *, fusion_terms: bool, typed: bool, tf_wait_s: float, inbox: Any, outbox: Any
+) -> None:
+    """A worker process: feeds and messages from ``inbox`` in order, outcomes to ``outbox``; None stops."""
+    logging.basicConfig(level=logging.WARNING)
+    t = RobotTranslator(robots, fusion_terms=fusion_terms, typed=typed, tf_wait_s=tf_wait_s)
+    while True:
+        try:
+            item = inbox.get(timeout=0.05 if t.waiting else 0.5)
+        except queue.Empty:
+            item = ()
+        except (EOFError, OSError, KeyboardInterrupt):
+            return
+        if item is None:
+            break
+        out: list[Outcome] = []
+        try:
+            if item:
+                op = item[0]
+                if op == "msg":
+                    out = t.handle(item[1], item[2], item[3], item[4])
+                elif op == "storey":
+                    t.set_storey(item[1], item[2])
+                elif op == "session":
+                    t.set_session(item[1], item[2])
+                elif op == "elevations":
+                    t.set_elevations(item[1])
+                elif op == "grid":
+                    t.set_grid(item[1])
+            out += t.give_up_waiting()
+        except Exception:  # a bad message must never stop the worker
+            log.exception("ROS 2 ingest worker failed on %s", item[0] if item else "timer")
+        if out:
+            outbox.put(out)
+    outbox.put(None)  # this worker's last word
+
+
+@dataclass(eq=False, slots=True)
+class _Worker:
+    index: int
+    robots: list[RobotSpec]
+    inbox: Any
+    process: Any = None
+    started: int = 0
+
+
+class WorkerPool:
+    """``count`` worker processes, robots sharded over them by name (each robot in one worker, its
+    messages in order); their outcomes go to ``deliver`` on the pool's own thread. ``replay(robot)``
+    gives what a restarted worker must be fed again (feeds, in order)."""
+
+    def __init__(
+        self,
+        robots: list[RobotSpec],
+        count: int,
+        *,
+        deliver: Callable[[list[Outcome]], None],
+        replay: Callable[[list[str]], list[tuple[Any, ...]]],
+        on_restart: Callable[[list[str]], None],
+        fusion_terms: bool,
+        typed: bool,
+        tf_wait_s: float,
+        queue_depth: int,
+    ) -> None:
+        self._ctx = mp.get_context("spawn")  # no fork: the daemon holds Zenoh's and the store's threads
+        self.deliver = deliver
+        self.replay = replay
+        self.on_restart = on_restart
+        self._args = {"fusion_terms": fusion_terms, "typed": typed, "tf_wait_s": tf_wait_s}
+        self.queue_depth = queue_depth
+        self.outbox: Any = self._ctx.Queue()
+        ordered = sorted(robots, key=lambda r: r.name)
+        n = max(1, min(count, len(ordered)))
+        self.workers = [_Worker(i, ordered[i::n], self._ctx.Queue()) for i in range(n)]
+        self.of = {r.name: w for w in self.workers for r in w.robots}
+        self.restarts = 0
+        self._closing = threading.Event()
+        self._lock = threading.Lock()
+        for w in self.workers:
+            self._start(w)
+        self._thread = threading.Thread(target=self._run, name="ros-ingest-pool", daemon=True)
+        self._thread.start()
+
+    def _start(self, w: _Worker) -> None:
+        w.process = self._ctx.Process(
+            target=_worker_main,
+            args=(w.robots,),
+            kwargs={**self._args, "inbox": w.inbox, "outbox": self.outbox},
+            name=f"twin-ros-ingest-{w.index}",
+            daemon=True,
+        )
+        w.process.start()
+        w.started += 1
+
+    def put(self, owner: str, kind: str, payload: bytes, received_ns: int) -> None:
+        """Queue a robot's message for its worker; queue.Full if that worker holds ``queue_depth``
+        already (the feeds are never refused: the queue itself is unbounded)."""
+        inbox = self.of[owner].inbox
+        if inbox.qsize() >= self.queue_depth:
+            raise queue.Full
+        inbox.put_nowait(("msg", owner, kind, payload, received_ns))
+
+    def feed(self, item: tuple[Any, ...], robot: str | None = None) -> None:
+        """Something every worker (or ``robot``'s) must know, in order with the messages."""
+        for w in [self.of[robot]] if robot is not None else self.workers:
+            w.inbox.put_nowait(item)
+
+    def depths(self) -> list[int]:
+        out = []
+        for w in self.workers:
+            try:
+                out.append(int(w.inbox.qsize()))
+            except NotImplementedError:  # macOS
+                out.append(-1)
+        return out
+
+    def _run(self) -> None:
+        finished = 0
+        next_check = 0.0
+        while finished < len(self.workers):
+            try:
+                item = self.outbox.get(timeout=0.25)
+            except queue.Empty:
+                item = ()
+            except (EOFError, OSError):
+                return
+            if item is None:
+                finished += 1
+                continue
+            if item:
+                try:
+                    self.deliver(item)
+                except Exception:
+                    log.exception("Delivering a ROS 2 ingest worker's outcomes failed")
+            now = time.monotonic()
+            if not self._closing.is_set() and now >= next_check:  # a waitpid per worker: not per item
+                next_check = now + SUPERVISE_S
+                self._supervise()
+
+    def _supervise(self) -> None:
+        for w in self.workers:
+            if w.process.is_alive() or self._closing.is_set():
+                continue
+            names = [r.name for r in w.robots]
+            log.warning(
+                "ROS 2 ingest worker %d (robots %s) exited with code %s; starting it again",
+                w.index, ", ".join(names), w.process.exitcode,
+            )  # fmt: skip
+            with self._lock:
+                self.restarts += 1
+            lost = w.inbox  # what the dead worker had not taken is dropped with it (counted)
+            w.inbox = self._ctx.Queue()
+            with contextlib.suppress(Exception):
+                lost.cancel_join_thread()
+                lost.close()
+            self._start(w)
+            for item in self.replay(names):
+                w.inbox.put_nowait(item)
+            self.on_restart(names)
+
+    def close(self, timeout_s: float = 5.0) -> None:
+        """Stop every worker (they finish what they hold), join them and the pool's thread."""
+        self._closing.set()
+        deadline = time.monotonic() + timeout_s
+        for w in self.workers:
+            with contextlib.suppress(Exception):
+                w.inbox.put(None, timeout=max(0.1, deadline - time.monotonic()))
+        for w in self.workers:
+            w.process.join(timeout=max(0.1, deadline - time.monotonic()))
+            if w.process.is_alive():
+                w.process.kill()
+                w.process.join(timeout=1.0)
+        for w in self.workers:
+            if w.process.exitcode != 0:  # a worker that did not say its last word
+                with contextlib.suppress(Exception):
+                    self.outbox.put(None)
+        self._thread.join(timeout=max(0.5, deadline - time.monotonic()))
+        for q in [*(w.inbox for w in self.workers), self.outbox]:
+            with contextlib.suppress(Exception):
+                q.cancel_join_thread()
+                q.close()

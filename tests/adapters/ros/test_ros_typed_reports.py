@@ -1,0 +1,167 @@
+"""Typed reports inside the process: a Detection3DArray handed to the core as its typed records gives
+the same twin as the same array written as Turtle and parsed again, and the records pass the same
+validator as a parsed document."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import astuple, replace
+
+import pytest
+
+from adapters.ros.detections import DetectionContext, DetectionSettings, translate_detections
+from adapters.ros.observation_doc import BoxReport, ViewReport, observation_records, observation_turtle
+from adapters.ros.tf import TfBuffer, decode_tf_message
+from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf, yaw_quaternion
+from tests.conftest import imported
+from tests.twin.box_lab import OX, OY, box_lab
+from tests.twin.live_helpers import started
+from twin.config import Limits, load_config
+from twin.errors import ObservationError
+from twin.graph.vocab import FURN
+from twin.live import Reply, TwinService
+from twin.live.parse import parse_observation_document
+from twin.live.validate import check_observation
+
+S = 1_000_000_000
+T0 = 1_800_000_000 * S + 123_456_789  # a stamp whose nanoseconds the Turtle path cuts to microseconds
+ROOM_B = (OX + 10.0, OY + 2.0)  # the robot stands in Room B of the box lab, looking along +x
+
+
+def arrays() -> list[tuple[int, list[Det]]]:
+    """Four arrays over 1.5 s: three tables (one turned, one at a negative local y) seen, one moved
+    0.8 m, then one left out of the view (a miss), then seen again."""
+
+    def tables(moved: float, without: int | None = None) -> list[Det]:
+        spots = [(0.9, 0.3, 0.3), (1.2, -0.4 + moved, -1.1), (1.5, 0.5, 2.0)]
+        return [
+            Det((("table", 0.9),), (x, y, 0.375), (0.5, 0.4, 0.75), yaw_quaternion(yaw), id=f"t{i}")
+            for i, (x, y, yaw) in enumerate(spots)
+            if i != without
+        ]
+
+    return [(T0, tables(0.0)), (T0 + S // 2, tables(0.8)), (T0 + S, tables(0.8, without=2)),
+            (T0 + 3 * S // 2, tables(0.8))]  # fmt: skip
+
+
+def feed(typed: bool) -> TwinService:
+    now = [T0]
+    service = TwinService(imported(box_lab()), load_config(), clock=lambda: now[0])  # the same times
+    service.start()
+    settings = DetectionSettings(robot="robot1", classes={"table": "IfcFurniture"}, range_m=3.0)
+    tf = TfBuffer()
+    for stamp, dets in arrays():
+        now[0] = stamp + S // 10
+        tf.add(
+            decode_tf_message(cdr_tf([Tf("map", "base_link", (*ROOM_B, 0.2), stamp_ns=stamp)])), static=False
+        )
+        ctx = DetectionContext("ground-floor", 0.0, now[0], tf)
+        t = translate_detections(cdr_detections(stamp, "base_link", dets), settings, ctx, typed=typed)
+        assert t.document is not None and not t.refused
+        replies: list[Reply] = []
+        service.submit_observation("robot1", t.document, replies.append)
+        service.process()
+        assert [r.ok for r in replies] == [True], replies[0].body
+    return service
+
+
+def quads(service: TwinService) -> set[tuple[str, ...]]:
+    rows = service.store.select("SELECT ?g ?s ?p ?o WHERE { GRAPH ?g { ?s ?p ?o } }")
+    rows += service.store.select("SELECT ?s ?p ?o WHERE { ?s ?p ?o }")
+    return {tuple(str(v) for v in r.values()) for r in rows}
+
+
+def test_arrays_through_the_typed_path_and_through_turtle_give_the_same_twin() -> None:
+    by_turtle, typed = feed(typed=False), feed(typed=True)
+    assert quads(by_turtle) == quads(typed)
+    assert by_turtle.revision == typed.revision > 1
+    assert by_turtle.states == typed.states
+    assert by_turtle.live.fusion.tracks.keys() == typed.live.fusion.tracks.keys()
+    missed = {iri: len(t.misses) for iri, t in typed.live.fusion.tracks.items()}
+    assert missed == {iri: len(t.misses) for iri, t in by_turtle.live.fusion.tracks.items()}
+
+
+def test_the_typed_records_are_what_the_turtle_parses_to() -> None:
+    box = BoxReport(
+        "urn:twin-ros:r:det:t%2F1",
+        "IfcFurniture",
+        "ground-floor",
+        (1.00004, -2.5, 0.375, 0.5, 0.4, 0.75, 7.0),
+    )
+    other = BoxReport(
+        "urn:twin-ros:r:det:t", "IfcFurniture", "ground-floor", (-0.00001, 2, 0.3, 0.2, 0.2, 0.6, -1e-9)
+    )
+    rings = (((0.0, 0.0), (3.00006, -1.0), (3.0, 1.0)), ((0, 0), (1, 1)))  # the second too short: dropped
+    hole = ((1.0, 0.0), (2.0, 0.1), (2.0, -0.1))
+    view = ViewReport("ground-floor", rings, ("IfcFurniture",), holes=(hole,), origin=(0.1, 0.2, 0.35))
+    for kwargs in ({"view": view}, {"view": None}, {"view": view, "fusion_terms": False}):
+        args = {"boxes": [box, other], "sense_ns": T0, **kwargs}
+        turtle = observation_turtle(**args)  # type: ignore[arg-type]
+        records = observation_records(**args)  # type: ignore[arg-type]
+        assert turtle is not None and records is not None
+        parsed = parse_observation_document(turtle, limits=Limits())
+        assert [r.iri for r in records.reports] == [r.iri for r in parsed.reports]
+        assert [astuple(r) for r in records.reports] == [astuple(r) for r in parsed.reports]
+        assert (records.view is None) == (parsed.view is None)
+        if parsed.view is not None and records.view is not None:
+            v, w = records.view, parsed.view
+            assert (v.storey, v.detects, v.sense_ns, v.origin) == (w.storey, w.detects, w.sense_ns, w.origin)
+            for ours, theirs in zip(
+                records.view.polygons + records.view.holes,
+                parsed.view.polygons + parsed.view.holes,
+                strict=True,
+            ):
+                assert ours.tolist() == theirs.tolist()
+
+
+@pytest.mark.parametrize(
+    ("box", "match"),
+    [
+        ((0, 0, 0.3, 0.0, 0.2, 0.6, 0), "box size sx=0.0 m is outside"),
+        ((math.nan, 0, 0.3, 0.2, 0.2, 0.6, 0), "NaN or infinite"),
+        ((0, 0, 0.3, 0.2, 999.0, 0.6, 0), "box size sy=999.0 m is outside"),
+    ],
+)
+def test_typed_records_are_refused_by_the_same_checks_as_a_parsed_document(
+    box: tuple[float, ...], match: str
+) -> None:
+    report = BoxReport("urn:twin-ros:r:det:1", "IfcFurniture", "ground-floor", box)  # type: ignore[arg-type]
+    records = observation_records(boxes=[report])
+    assert records is not None
+    with pytest.raises(ObservationError, match=match):
+        check_observation(records, limits=Limits())
+    turtle = observation_turtle(boxes=[report])
+    assert turtle is not None
+    with pytest.raises(ObservationError, match=match):
+        parse_observation_document(turtle, limits=Limits())
+
+
+def test_a_refused_typed_observation_is_answered_with_the_reason_and_the_twin_keeps_running() -> None:
+    service, _ = started()
+    bad = observation_records(
+        boxes=[BoxReport("not an iri", "IfcFurniture", "ground-floor", (0, 0, 0.3, 0.2, 0.2, 0.6, 0))]
+    )
+    assert bad is not None
+    replies: list[Reply] = []
+    service.submit_observation("robot1", bad, replies.append)
+    service.process()
+    assert not replies[0].ok and "is not an absolute IRI" in str(replies[0].body["error"])
+
+
+def test_a_descriptive_type_goes_the_same_way_and_a_foreign_one_is_refused_on_both_paths() -> None:
+    furn = FURN + "Chair"
+    box = BoxReport(
+        "urn:twin-ros:r:det:1", "IfcFurniture", "ground-floor", (0, 0, 0.4, 0.5, 0.5, 0.8, 0), kind=furn
+    )
+    records, turtle = observation_records(boxes=[box]), observation_turtle(boxes=[box])
+    assert records is not None and turtle is not None
+    assert (
+        records.reports[0].classes == parse_observation_document(turtle, limits=Limits()).reports[0].classes
+    )
+    foreign = replace(box, kind="http://example.org/Chair")
+    records, turtle = observation_records(boxes=[foreign]), observation_turtle(boxes=[foreign])
+    assert records is not None and turtle is not None
+    with pytest.raises(ObservationError, match="is not allowed; only BEO and FURN"):
+        check_observation(records, limits=Limits())
+    with pytest.raises(ObservationError, match="is not allowed; only BEO and FURN"):
+        parse_observation_document(turtle, limits=Limits())
