@@ -11,7 +11,8 @@ Dynamic changes (furniture, a door opened) never rebuild a graph. A thread of it
 change came for ``debounce_s``, then rebuilds each touched skill's graph from the store (a fresh scene:
 robots' structural elements included) and, when the graph differs from the one served, publishes it as
 the next version (:class:`adapters.zenoh.routes.ZenohRoutes`, ``"version"`` in the JSON), puts a new
-Open-RMF ``BuildingMap`` on ``/map`` and tells ``on_graph`` (the Rerun recorder's sink). :meth:`close`
+Open-RMF ``BuildingMap`` on ``/map`` and sends ``on_graph`` a
+:class:`~twin.live.events.RoutesPublished` (the Rerun recorder's ``emit``). :meth:`close`
 stops the thread and joins it (``twin serve``'s stop).
 
 Example::
@@ -34,7 +35,7 @@ from adapters.cli.map_routes import ServedRoutes, route_graph
 from twin.config import Config
 from twin.errors import TwinError
 from twin.graph.store import GraphStore
-from twin.live.events import ObservationAccepted, SkillChanged, TwinEvent, TwinStarted
+from twin.live.events import ObservationAccepted, RoutesPublished, SkillChanged, TwinEvent, TwinStarted
 from twin.maps.scene import load_scene
 from twin.routes.graph import RouteGraph
 from twin.selection.skills import SkillProfile
@@ -43,6 +44,11 @@ log = logging.getLogger(__name__)
 
 DEBOUNCE_S = 1.0
 """How long the twin must be quiet after a structural change before the graphs are rebuilt."""
+
+
+def routes_published(cfg: Config, graph: RouteGraph, version: int) -> RoutesPublished:
+    """The event that tells the recorder of ``graph``'s ``version``."""
+    return RoutesPublished(graph, cfg.routes[graph.skill].navigation, version, time.time_ns())
 
 
 class RouteUpdates:
@@ -56,7 +62,7 @@ class RouteUpdates:
         *,
         skills: Callable[[], Mapping[str, SkillProfile]],
         debounce_s: float = DEBOUNCE_S,
-        on_graph: Callable[[RouteGraph, int], None] | None = None,
+        on_graph: Callable[[RoutesPublished], None] | None = None,
         static: Iterable[str] = (),
     ) -> None:
         """``skills``: the service's current map skills (read on the rebuild thread). ``static``: the
@@ -147,7 +153,7 @@ class RouteUpdates:
                 time.perf_counter() - t0,
             )
             if self.on_graph is not None:
-                self.on_graph(graph, version)
+                self.on_graph(routes_published(self.cfg, graph, version))
 
     def close(self) -> None:
         """Stop the rebuild thread (a rebuild under way finishes first) and join it."""

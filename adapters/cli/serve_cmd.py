@@ -33,7 +33,7 @@ from adapters.cli.common import (
 from adapters.cli.map_routes import ServedRoutes, serve_routes
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
-from adapters.cli.route_updates import RouteUpdates
+from adapters.cli.route_updates import RouteUpdates, routes_published
 from adapters.cli.serve_settings import ServeSettings
 from adapters.rerun.settings import RerunSettings
 from adapters.ros.sessions import resume_sessions
@@ -330,11 +330,15 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
             routes = serve_routes(session, cfg, store, service.live_maps.scene, prefix=keys.prefix)
             if routes is not None and routes.graphs:  # a structural change makes a new graph version
                 live = service
+                for name, graph in routes.graphs.items():  # drawn over the maps in the recording
+                    if recorder is not None:
+                        recorder.emit(routes_published(cfg, graph, routes.zenoh.version(name)))
                 route_updates = RouteUpdates(
                     routes,
                     cfg,
                     service.store,
                     skills=lambda: live.skills,
+                    on_graph=recorder.emit if recorder is not None else None,
                     static=(iri for iri, state in service.states.items() if state.is_static),
                 )
                 service.sinks.append(route_updates)
