@@ -78,8 +78,9 @@ def write_routes(cfg: Config, store: GraphStore, scene: Scene, name: str, out: P
     passable = sum(d.passable for d in graph.doors)
     vertices = sum(len(s.vertices) for s in graph.storeys)
     lanes = sum(len(s.lanes) for s in graph.storeys)
+    one_way = sum(lane.one_way for s in graph.storeys for lane in s.lanes)
     print(
-        f"{name}: {vertices} waypoints, {lanes} two-way lanes on {len(graph.storeys)} storeys, "
+        f"{name}: {vertices} waypoints, {lanes} lanes ({one_way} one-way) on {len(graph.storeys)} storeys, "
         f"{passable}/{len(graph.doors)} doors passable, {len(graph.lifts)} lifts, "
         f"{time.perf_counter() - t0:.2f} s -> {files.nav_graph}"
     )
