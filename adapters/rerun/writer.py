@@ -10,8 +10,9 @@ never competes with the daemon's writer for the GIL. What is recorded (entity pa
 - ``world/observations/<robot>/<element>``: what robots added or changed (cleared when removed), with
   who saw it, when and at which revision;
 - ``maps/<storey>/<routes skill>``: a routes skill's graph over its navigation map, at every graph
-  version: ``lanes`` (``LineStrips3D``, door lanes orange) and ``vertices`` (``Points3D`` labelled with
-  their names), 2 cm above the storey's floor, and the graph's version;
+  version: ``lanes`` (``LineStrips3D``, door lanes orange), ``one_way`` (``Arrows3D``: the way of each
+  one-way lane) and ``vertices`` (``Points3D`` labelled with their names), 2 cm above the storey's
+  floor, and the graph's version;
 - ``events``: one text line per observation (accepted with its revision, or the rejection reason),
   skill change, map removal and robot storey switch.
 
@@ -63,6 +64,7 @@ ROUTES_LIFT_M = 0.02
 """How far above the storey's floor (and its maps) the route graphs are drawn."""
 _LANE: Rgba = (40, 140, 255, 255)
 _DOOR_LANE: Rgba = (255, 140, 0, 255)
+_ONE_WAY: Rgba = (0, 200, 200, 255)
 _VERTEX_COLOURS: dict[str, Rgba] = {
     "lane": (40, 140, 255, 255),
     "door": (255, 140, 0, 255),
@@ -278,6 +280,16 @@ class RecordingWriter:
             ends = np.array([(lane.a, lane.b) for lane in s.lanes], dtype=np.intp).reshape(-1, 2)
             colours = [_DOOR_LANE if lane.door else _LANE for lane in s.lanes]
             self.stream.log(f"{path}/lanes", rr.LineStrips3D(xyz[ends], colors=colours, radii=0.03))
+            one_way = ends[[lane.one_way for lane in s.lanes]] if s.lanes else ends
+            self.stream.log(  # the way of each one-way lane (none: an empty batch clears the last)
+                f"{path}/one_way",
+                rr.Arrows3D(
+                    origins=xyz[one_way[:, 0]],
+                    vectors=xyz[one_way[:, 1]] - xyz[one_way[:, 0]],
+                    colors=[_ONE_WAY] * len(one_way),
+                    radii=0.04,
+                ),
+            )
             self.stream.log(
                 f"{path}/vertices",
                 rr.Points3D(

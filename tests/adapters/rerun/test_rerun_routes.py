@@ -25,10 +25,13 @@ inflation_radius_m = 0.25
 [skills.small]
 kind = "routes"
 navigation = "nav25"
+one_way = [{ x1 = 13.0, y1 = 7.0, x2 = 18.5, y2 = 7.0 }]  # along the corridor, eastwards
 """
 
 
-def test_each_graph_version_is_drawn_over_its_storeys_maps_with_named_vertices(tmp_path: Path) -> None:
+def test_each_graph_version_is_drawn_over_its_storeys_maps_with_named_vertices_and_one_way_arrows(
+    tmp_path: Path,
+) -> None:
     (tmp_path / "site.toml").write_text(SITE)
     cfg = load_config(tmp_path / "site.toml")
     cfg = dataclasses.replace(cfg, default_rights=frozenset({"create", "static"}))
@@ -72,3 +75,12 @@ def test_each_graph_version_is_drawn_over_its_storeys_maps_with_named_vertices(t
         for v in column(b, "graph_version")
     ]
     assert versions == [[1], [2]]
+    arrows = [
+        row
+        for b in entities["/maps/ground-floor/small/one_way"]
+        if "Arrows3D:vectors" in b.schema.names
+        for row in column(b, "Arrows3D:vectors")
+    ]
+    ways = [sum(lane.one_way for lane in g.storeys[0].lanes) for g in (first, second)]
+    assert [len(a) for a in arrows] == ways and ways[0] > 0
+    assert all(v[0] > 0 for v in arrows[0])  # eastwards, the stretch's way
