@@ -4,7 +4,8 @@
 only notes which routes skills a change touches:
 
 - an accepted observation that upserted a static element (or removed one the twin held as static) and
-  changed the navigation map of a storey a routes skill serves (its ``maps``);
+  changed the navigation map of a storey a routes skill serves (its ``maps``); a routes skill that
+  made no graph at start is tried again on such a change of a storey it names (any, if it names none);
 - a skill change of a routes skill's navigation skill or of one of its keepout skills.
 
 Dynamic changes (furniture, a door opened) never rebuild a graph. A thread of its own waits until no
@@ -96,12 +97,12 @@ class RouteUpdates:
             self._static.difference_update(e.iri for e in event.upserted if not e.is_static)
             if structural:
                 changed = {(m.storey, m.skill) for m in event.maps if not m.window.empty}
-                touched = {name for name in self.served.graphs if self._follows(name, changed)}
+                touched = {name for name in self.cfg.routes if self._follows(name, changed)}
         elif isinstance(event, SkillChanged):
             touched = {
                 name
                 for name, routes in self.cfg.routes.items()
-                if name in self.served.graphs and event.name in (routes.navigation, *routes.keepout)
+                if event.name in (routes.navigation, *routes.keepout)
             }
         if touched:
             with self._wake:
@@ -110,10 +111,16 @@ class RouteUpdates:
                 self._wake.notify()
 
     def _follows(self, name: str, changed: set[tuple[str, str]]) -> bool:
-        """Whether the routes skill ``name``'s graph follows one of the ``changed`` (storey, skill) maps."""
+        """Whether the routes skill ``name``'s graph follows one of the ``changed`` (storey, skill) maps:
+        its navigation skill's map of a storey it serves (a skill not served yet: of a storey it names,
+        or of any when it names none)."""
         routes = self.cfg.routes[name]
-        storeys = {s.storey for s in self.served.graphs[name].storeys}
-        return any(storey in storeys and skill == routes.navigation for storey, skill in changed)
+        graph = self.served.graphs.get(name)
+        storeys = {s.storey for s in graph.storeys} if graph is not None else set(routes.storeys)
+        return any(
+            skill == routes.navigation and (storey in storeys or (graph is None and not storeys))
+            for storey, skill in changed
+        )
 
     # --- the rebuild thread --------------------------------------------------------------------------
     def _run(self) -> None:

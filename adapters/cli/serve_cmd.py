@@ -328,7 +328,7 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
                     service.sinks.remove(progress)
             daemon.drain()  # every map is declared and sent before we say so
             routes = serve_routes(session, cfg, store, service.live_maps.scene, prefix=keys.prefix)
-            if routes is not None and routes.graphs:  # a structural change makes a new graph version
+            if routes is not None:  # a structural change makes a new graph version
                 live = service
                 for name, graph in routes.graphs.items():  # drawn over the maps in the recording
                     if recorder is not None:

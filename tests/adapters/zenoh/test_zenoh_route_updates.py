@@ -1,5 +1,6 @@
 """A structural change while the daemon serves makes a new route graph version, on Zenoh and on
-Open-RMF's ``/map``; furniture does not; the rebuild runs after a quiet spell, off the writer's thread."""
+Open-RMF's ``/map``; furniture does not; nor does a change that leaves the graph as it was; a change
+of the navigation skill does; the rebuild runs after a quiet spell, off the writer's thread."""
 
 from __future__ import annotations
 
@@ -40,7 +41,9 @@ def _lanes(graph: dict[str, Any]) -> int:
     return sum(len(s["lanes"]) for s in graph["storeys"])
 
 
-def test_a_wall_across_the_corridor_makes_a_new_graph_version_and_a_table_does_not(tmp_path: Path) -> None:
+def test_a_wall_across_the_corridor_and_a_wider_robot_make_new_graph_versions_and_a_table_does_not(
+    tmp_path: Path,
+) -> None:
     (tmp_path / "site.toml").write_text(SITE)
     cfg = load_config(tmp_path / "site.toml")
     cfg = dataclasses.replace(cfg, default_rights=frozenset({"create", "dynamic", "static"}))
@@ -95,6 +98,15 @@ def test_a_wall_across_the_corridor_makes_a_new_graph_version_and_a_table_does_n
         assert updates.rebuilds == 1
         assert graphs[-1]["version"] == 2 and _lanes(graphs[-1]) != _lanes(graphs[0])
         assert maps[-1].levels[0].nav_graphs[0].edges != maps[0].levels[0].nav_graphs[0].edges
+
+        wider = b'{"kind": "navigation", "robot_height_m": 0.5, "inflation_radius_m": 0.35}'
+        replies: list[Any] = []
+        service.submit_skill("nav25", wider, replies.append)  # the fleet's robots got wider
+        service.process()
+        assert replies[0].ok
+        with arrived:
+            assert arrived.wait_for(lambda: len(graphs) >= 3, 15.0)
+        assert graphs[-1]["version"] == 3 and graphs[-1]["robot_radius_m"] == 0.35
     finally:
         for sub in subs:
             sub.undeclare()
