@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Mapping
 from pathlib import Path
 
 import zenoh
@@ -17,7 +18,7 @@ import zenoh
 from adapters.ros.building_map import encode_building_map
 from adapters.ros.rmf import DoorIndex
 from adapters.ros.routes import RouteFiles, rmf_levels, write_route_files
-from adapters.ros.settings import RosSettings, ros_sources
+from adapters.ros.settings import LevelConfig, RosSettings, ros_sources
 from adapters.zenoh.ros_building_map import RosBuildingMap
 from adapters.zenoh.routes import ZenohRoutes
 from twin.config import Config
@@ -77,8 +78,9 @@ def write_routes(cfg: Config, store: GraphStore, scene: Scene, name: str, out: P
     passable = sum(d.passable for d in graph.doors)
     vertices = sum(len(s.vertices) for s in graph.storeys)
     lanes = sum(len(s.lanes) for s in graph.storeys)
+    one_way = sum(lane.one_way for s in graph.storeys for lane in s.lanes)
     print(
-        f"{name}: {vertices} waypoints, {lanes} two-way lanes on {len(graph.storeys)} storeys, "
+        f"{name}: {vertices} waypoints, {lanes} lanes ({one_way} one-way) on {len(graph.storeys)} storeys, "
         f"{passable}/{len(graph.doors)} doors passable, {len(graph.lifts)} lifts, "
         f"{time.perf_counter() - t0:.2f} s -> {files.nav_graph}"
     )
@@ -88,11 +90,39 @@ def write_routes(cfg: Config, store: GraphStore, scene: Scene, name: str, out: P
 
 
 class ServedRoutes:
-    """What ``twin serve`` serves of the route graphs: the Zenoh keys and Open-RMF's ``/map``."""
+    """What ``twin serve`` serves of the route graphs: the Zenoh keys and Open-RMF's ``/map``, and the
+    graphs served (by routes skill). :meth:`update` serves a new version of one graph."""
 
-    def __init__(self, zenoh_routes: ZenohRoutes, building_map: RosBuildingMap | None) -> None:
+    def __init__(
+        self,
+        zenoh_routes: ZenohRoutes,
+        building_map: RosBuildingMap | None,
+        graphs: dict[str, RouteGraph] | None = None,
+        *,
+        levels: Mapping[str, tuple[str, LevelConfig]] | None = None,
+    ) -> None:
         self.zenoh = zenoh_routes
         self.building_map = building_map
+        self.graphs = dict(graphs or {})
+        self.levels = levels
+
+    def update(self, graph: RouteGraph, cfg: Config, store: GraphStore, scene: Scene) -> int | None:
+        """Serve ``graph`` as the next version of its skill's graph (Zenoh, then a new ``BuildingMap``
+        on ``/map`` with every graph served); None, and nothing sent, when it equals the one served."""
+        old = self.graphs.get(graph.skill)
+        if old is not None and old.to_json() == graph.to_json():
+            return None
+        self.graphs[graph.skill] = graph
+        version = self.zenoh.publish(graph.skill, graph.to_json())
+        graphs = [self.graphs[name] for name in sorted(self.graphs)]
+        payload = encode_building_map(
+            graphs, storey_maps(cfg, store, scene, graphs[0]), building=graphs[0].building, levels=self.levels
+        )
+        if self.building_map is None:
+            self.building_map = RosBuildingMap(self.zenoh.session, payload)
+        else:
+            self.building_map.put(payload)
+        return version
 
     def close(self) -> None:
         if self.building_map is not None:
@@ -128,15 +158,14 @@ def serve_routes(
             name,
             time.perf_counter() - t0,
         )
+    levels = rmf_levels(ros_sources(cfg).values())
+    served = {graph.skill: graph for graph in graphs}
     if not graphs:
-        return ServedRoutes(routes, None)
+        return ServedRoutes(routes, None, served, levels=levels)
     payload = encode_building_map(
-        graphs,
-        storey_maps(cfg, store, scene, graphs[0]),
-        building=graphs[0].building,
-        levels=rmf_levels(ros_sources(cfg).values()),
+        graphs, storey_maps(cfg, store, scene, graphs[0]), building=graphs[0].building, levels=levels
     )
-    return ServedRoutes(routes, RosBuildingMap(session, payload))
+    return ServedRoutes(routes, RosBuildingMap(session, payload), served, levels=levels)
 
 
 def storey_maps(cfg: Config, store: GraphStore, scene: Scene, graph: RouteGraph) -> dict[str, OccupancyGrid]:

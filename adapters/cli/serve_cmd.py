@@ -33,6 +33,7 @@ from adapters.cli.common import (
 from adapters.cli.map_routes import ServedRoutes, serve_routes
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
+from adapters.cli.route_updates import RouteUpdates, routes_published
 from adapters.cli.serve_settings import ServeSettings
 from adapters.rerun.settings import RerunSettings
 from adapters.ros.sessions import resume_sessions
@@ -278,6 +279,7 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
         ros_points: RosPointsPublisher | None = None
         points: ZenohPoints | None = None
         routes: ServedRoutes | None = None
+        route_updates: RouteUpdates | None = None
         service: TwinService | None = None
         try:
             recorder = _recorder(args, cfg, cfg.site)
@@ -326,6 +328,20 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
                     service.sinks.remove(progress)
             daemon.drain()  # every map is declared and sent before we say so
             routes = serve_routes(session, cfg, store, service.live_maps.scene, prefix=keys.prefix)
+            if routes is not None:  # a structural change makes a new graph version
+                live = service
+                for name, graph in routes.graphs.items():  # drawn over the maps in the recording
+                    if recorder is not None:
+                        recorder.emit(routes_published(cfg, graph, routes.zenoh.version(name)))
+                route_updates = RouteUpdates(
+                    routes,
+                    cfg,
+                    service.store,
+                    skills=lambda: live.skills,
+                    on_graph=recorder.emit if recorder is not None else None,
+                    static=(iri for iri, state in service.states.items() if state.is_static),
+                )
+                service.sinks.append(route_updates)
             maps = service.published_maps()
             endpoints = ", ".join(args.listen or zenoh_of(cfg).listen) or "(no listener)"
             signals.serving = True  # from here a signal asks for a clean stop
@@ -355,7 +371,7 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
                 stopping = _Stop(stop_timeout_s)
             t1 = time.perf_counter()
             stopping.phase = "closing the Zenoh side"
-            for closable in (ingest, points, ros, ros_points, routes):
+            for closable in (ingest, points, ros, ros_points, route_updates, routes):
                 if closable is not None:
                     closable.close()
             if daemon is not None:

@@ -33,7 +33,7 @@ from typing import IO
 
 from adapters.rerun.pipe import write_message
 from adapters.rerun.tiles import MapMark
-from twin.live.events import MapPublished, MapRemoved, MapUpdated, TwinEvent, TwinStarted
+from twin.live.events import MapPublished, MapRemoved, MapUpdated, RoutesPublished, TwinEvent, TwinStarted
 from twin.maps.grid import GridFrame, OccupancyGrid
 
 log = logging.getLogger(__name__)
@@ -307,6 +307,7 @@ class _HeldMaps:
     def __init__(self) -> None:
         self.started: TwinStarted | None = None
         self.maps: dict[tuple[str, str], MapPublished] = {}
+        self.routes: dict[str, RoutesPublished] = {}
 
     def take(self, message: object) -> None:
         if not (isinstance(message, tuple) and len(message) == 2 and message[0] == "event"):
@@ -334,11 +335,15 @@ class _HeldMaps:
                 )
         elif isinstance(event, MapRemoved):
             self.maps.pop((event.storey, event.skill), None)
+        elif isinstance(event, RoutesPublished):
+            self.routes[event.graph.skill] = event
 
     def replay(self) -> list[tuple[str, object]]:
-        """The start and every map now, as events (a map in full, at its latest revision)."""
+        """The start, every map now (in full, at its latest revision) and every route graph's latest
+        version, as events."""
         out: list[tuple[str, object]] = []
         if self.started is not None:
             out.append(("event", self.started))
         out += [("event", m) for _, m in sorted(self.maps.items(), key=lambda kv: kv[1].revision)]
+        out += [("event", r) for _, r in sorted(self.routes.items())]
         return out

@@ -80,20 +80,24 @@ def looking_down(
     )
 
 
-def blueprint_of(event: TwinStarted) -> rrb.Blueprint:
-    """The layout of a daemon's recording: every storey and skill it started with."""
+def blueprint_of(event: TwinStarted, routes: Mapping[str, str] | None = None) -> rrb.Blueprint:
+    """The layout of a daemon's recording: every storey and skill it started with, and the route
+    graphs (``routes``: routes skill -> the navigation skill whose maps it is drawn over)."""
     storeys = [(storey, elevation) for storey, _, elevation in event.storeys]
     cameras = {storey: top_down(event.elements, storey, elevation) for storey, elevation in storeys}
-    return blueprint(storeys, list(event.skills), cameras)
+    return blueprint(storeys, list(event.skills), cameras, routes)
 
 
 def blueprint(
     storeys: Sequence[tuple[str, float]],
     skills: Sequence[str],
     cameras: Mapping[str, rrb.archetypes.EyeControls3D | None],
+    routes: Mapping[str, str] | None = None,
 ) -> rrb.Blueprint:
     """The layout: the building and the event log on the left, a tab per storey on the right holding
-    one top-down view per skill map (named by its skill, not stacked); the time panel on ``revision``."""
+    one top-down view per skill map (named by its skill, not stacked) and one per route graph (drawn
+    over its navigation skill's map); the time panel on ``revision``."""
+    routes = routes or {}
     maps = [
         rrb.Grid(
             *(
@@ -104,6 +108,15 @@ def blueprint(
                     eye_controls=cameras.get(storey),
                 )
                 for skill in skills
+            ),
+            *(
+                rrb.Spatial3DView(
+                    name=f"{name} (routes)",
+                    origin=f"maps/{storey}/{name}",
+                    contents=[f"maps/{storey}/{name}/**", f"maps/{storey}/{navigation}/**"],
+                    eye_controls=cameras.get(storey),
+                )
+                for name, navigation in sorted(routes.items())
             ),
             name=storey,
         )

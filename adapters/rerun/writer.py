@@ -9,6 +9,10 @@ never competes with the daemon's writer for the GIL. What is recorded (entity pa
   ``maps/<storey>/<skill>/changed``: the changed rectangle of each update, as a 3D box;
 - ``world/observations/<robot>/<element>``: what robots added or changed (cleared when removed), with
   who saw it, when and at which revision;
+- ``maps/<storey>/<routes skill>``: a routes skill's graph over its navigation map, at every graph
+  version: ``lanes`` (``LineStrips3D``, door lanes orange), ``one_way`` (``Arrows3D``: the way of each
+  one-way lane) and ``vertices`` (``Points3D`` labelled with their names), 2 cm above the storey's
+  floor, and the graph's version;
 - ``events``: one text line per observation (accepted with its revision, or the rejection reason),
   skill change, map removal and robot storey switch.
 
@@ -24,6 +28,7 @@ from __future__ import annotations
 import datetime
 import logging
 import time
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +47,7 @@ from twin.live.events import (
     ObservationRejected,
     PointsPublished,
     RobotStoreyChanged,
+    RoutesPublished,
     SkillChanged,
     TwinEvent,
     TwinStarted,
@@ -53,6 +59,19 @@ FILE_FLUSH_S = 10.0
 """How long a file's rows are batched before they are written (per entity)."""
 
 Recordable = TwinEvent | MapMark
+
+ROUTES_LIFT_M = 0.02
+"""How far above the storey's floor (and its maps) the route graphs are drawn."""
+_LANE: Rgba = (40, 140, 255, 255)
+_DOOR_LANE: Rgba = (255, 140, 0, 255)
+_ONE_WAY: Rgba = (0, 200, 200, 255)
+_VERTEX_COLOURS: dict[str, Rgba] = {
+    "lane": (40, 140, 255, 255),
+    "door": (255, 140, 0, 255),
+    "space": (60, 200, 90, 255),
+    "lift": (200, 60, 200, 255),
+    "waypoint": (230, 40, 40, 255),
+}
 Seen = tuple[str, int, int]  # (robot, revision, time ns) of an observation
 
 
@@ -103,6 +122,8 @@ class RecordingWriter:
         """Per map, the last generation of tiles this file holds (kept on removal)."""
         self._clouds: dict[tuple[str, str], rr.Points3D] = {}
         """Per points map, its latest cloud as logged (what a new file starts with)."""
+        self._routes: dict[str, RoutesPublished] = {}
+        """Per routes skill, its latest graph as logged (what a new file starts with)."""
 
     # --- files -------------------------------------------------------------------------------------
     def _open(self, path: Path | None) -> rr.RecordingStream:
@@ -159,6 +180,8 @@ class RecordingWriter:
             self.stream.log(f"points/{storey}/{skill}", cloud)
         for entity, (shape, colour, seen) in self._observed.items():
             self._shape(entity, shape, colour, static=False, seen=seen)
+        for routes in self._routes.values():
+            self._log_routes(routes, ())
         self._text(f"recording continued from {previous.name} at revision {revision}", "INFO")
         log.info("Recording continues in %s (revision %d)", path, revision)
 
@@ -215,6 +238,8 @@ class RecordingWriter:
             self._time(event.revision, event.stamp_ns)
             what = "removed" if event.profile is None else f"set to {event.profile.to_json()}"
             self._text(f"skill {event.name} {what} (revision {event.revision})", "INFO")
+        elif isinstance(event, RoutesPublished):
+            self._route_graph(event)
         elif isinstance(event, RobotStoreyChanged):
             self._time(event.revision, event.stamp_ns)
             was = f" (was {event.previous})" if event.previous else ""
@@ -228,6 +253,53 @@ class RecordingWriter:
         xyz[:, 2] += np.float32(c.elevation_m)
         cloud = self._clouds[(c.storey, c.skill)] = rr.Points3D(xyz, radii=np.float32(c.resolution_m / 4))
         self.stream.log(f"points/{c.storey}/{c.skill}", cloud)
+
+    def _route_graph(self, event: RoutesPublished) -> None:
+        """A routes skill's graph version, at the current revision (a graph changes no twin data)."""
+        self._time(self._now[0], event.stamp_ns)
+        g = event.graph
+        previous = self._routes.get(g.skill)
+        self._routes[g.skill] = event
+        if previous is None and self._started_event is not None:  # a new view in each storey's tab
+            self._send_blueprint(self._started_event)
+        served = {s.storey for s in g.storeys}
+        gone = () if previous is None else {s.storey for s in previous.graph.storeys} - served
+        self._log_routes(event, gone)
+        lanes = sum(len(s.lanes) for s in g.storeys)
+        self._text(f"routes {g.skill}: version {event.version}, {lanes} lanes", "INFO")
+
+    def _log_routes(self, event: RoutesPublished, gone: Collection[str]) -> None:
+        g = event.graph
+        for storey in gone:
+            self.stream.log(f"maps/{storey}/{g.skill}", rr.Clear(recursive=True))
+        for s in g.storeys:
+            path = f"maps/{s.storey}/{g.skill}"
+            z = s.elevation_m + ROUTES_LIFT_M
+            xy = np.array([(v.x, v.y) for v in s.vertices], dtype=np.float32).reshape(-1, 2)
+            xyz = np.column_stack([xy, np.full(len(xy), z, dtype=np.float32)])
+            ends = np.array([(lane.a, lane.b) for lane in s.lanes], dtype=np.intp).reshape(-1, 2)
+            colours = [_DOOR_LANE if lane.door else _LANE for lane in s.lanes]
+            self.stream.log(f"{path}/lanes", rr.LineStrips3D(xyz[ends], colors=colours, radii=0.03))
+            one_way = ends[[lane.one_way for lane in s.lanes]] if s.lanes else ends
+            self.stream.log(  # the way of each one-way lane (none: an empty batch clears the last)
+                f"{path}/one_way",
+                rr.Arrows3D(
+                    origins=xyz[one_way[:, 0]],
+                    vectors=xyz[one_way[:, 1]] - xyz[one_way[:, 0]],
+                    colors=[_ONE_WAY] * len(one_way),
+                    radii=0.04,
+                ),
+            )
+            self.stream.log(
+                f"{path}/vertices",
+                rr.Points3D(
+                    xyz,
+                    labels=[v.name for v in s.vertices],
+                    colors=[_VERTEX_COLOURS.get(v.kind, _LANE) for v in s.vertices],
+                    radii=0.08,
+                ),
+            )
+            self.stream.log(path, rr.AnyValues(graph_version=event.version, fleet=g.fleet))
 
     def _text(self, text: str, level: str) -> None:
         self.stream.log("events", rr.TextLog(text, level=level))
@@ -273,7 +345,11 @@ class RecordingWriter:
             storey = shape.storey or "building"
             path = f"world/{storey}/{shape.ifc_class}/{entity_name(shape.iri)}"
             self._shape(path, shape, colour_of(shape), static=True)
-        self.stream.send_blueprint(blueprint_of(event))
+        self._send_blueprint(event)
+
+    def _send_blueprint(self, event: TwinStarted) -> None:
+        routes = {name: r.navigation for name, r in self._routes.items()}
+        self.stream.send_blueprint(blueprint_of(event, routes))
 
     def _started(self, event: TwinStarted) -> None:
         self._storeys = {key: elevation for key, _, elevation in event.storeys}

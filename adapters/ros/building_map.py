@@ -4,9 +4,10 @@ One message for the building: per storey a ``Level`` (its RMF level name and the
 with an ``AffineImage`` of the storey's map (a PNG of a navigation map: ``scale`` in metres per pixel,
 ``x_offset``/``y_offset`` the image's lower-left corner in the level's frame), its ``doors`` and the
 fleets' ``nav_graphs`` (one ``Graph`` per routes skill serving it, named by its ``graph_name``:
-``GraphNode`` per waypoint with its name and RMF flags as ``Param``s, one ``GraphEdge`` per two-way lane,
-``EDGE_TYPE_BIDIRECTIONAL``, with ``door_name`` and ``speed_limit`` params); and a ``Lift`` per lift
-(the RMF level names it serves, its cabin's centre, yaw, width and depth).
+``GraphNode`` per waypoint with its name and RMF flags as ``Param``s, one ``GraphEdge`` per lane,
+``EDGE_TYPE_BIDIRECTIONAL`` (a one-way lane ``EDGE_TYPE_UNIDIRECTIONAL``, ``v1`` to ``v2``), with
+``door_name`` and ``speed_limit`` params); and a ``Lift`` per lift (the RMF level names it serves,
+its cabin's centre, yaw, width and depth).
 
 Doors: the IFC door's operation type is not imported, so every door is ``DOOR_TYPE_SINGLE_SWING`` with
 its hinge at ``v1`` (the leaf's first end), ``motion_range`` 90 (**degrees**, as the message defines it)
@@ -40,6 +41,7 @@ DOOR_MOTION_RANGE_DEG = 90.0
 """``Door.motion_range`` of every door: a swing of 90 degrees (the message's unit)."""
 PARAM_STRING, PARAM_DOUBLE, PARAM_BOOL = 1, 3, 4
 EDGE_TYPE_BIDIRECTIONAL = 0
+EDGE_TYPE_UNIDIRECTIONAL = 1
 
 
 def _msg(kind: str, /, **fields: Any) -> Any:
@@ -164,7 +166,7 @@ def building_map(
                         v1_idx=lane.a,
                         v2_idx=lane.b,
                         params=params,
-                        edge_type=EDGE_TYPE_BIDIRECTIONAL,
+                        edge_type=EDGE_TYPE_UNIDIRECTIONAL if lane.one_way else EDGE_TYPE_BIDIRECTIONAL,
                     )
                 )
             nav_graphs.append(

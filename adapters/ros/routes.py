@@ -13,9 +13,10 @@ nav`` writes it (open-rmf/rmf_traffic_editor ``building_map/building.py`` and ``
     lifts: {Lift_1: {position: [x, y, yaw], dims: [width, depth]}}
     doors: {Door_A: {endpoints: [[x1, y1], [x2, y2]], map: L1}}
 
-Lane ends index the level's own vertices; every lane is written in both directions (a two-way lane
-twice, as the generator's ``always_unidirectional`` does); ``speed_limit`` is the fleet's nominal speed
-in m/s; a lane into a waypoint with a ``dock`` carries ``dock_name`` and the lane out ``undock_name``.
+Lane ends index the level's own vertices; every lane is written directed (a two-way lane twice, as
+the generator's ``always_unidirectional`` does; a one-way lane once, its way); ``speed_limit`` is the
+fleet's nominal speed in m/s; a lane into a waypoint with a ``dock`` carries ``dock_name`` and the
+lane out ``undock_name``.
 Vertices in a lift's cabin name it in ``lift``: the fleet adapter joins the levels through them (it
 refuses a lift whose vertices are more than 0.1 m apart, and lift vertex names must be unique: they
 are prefixed by their level). Coordinates are each RMF level's: the ``levels`` tables of the
@@ -25,9 +26,10 @@ no table names is a level of its own key, in the twin's frame. A lift whose cabi
 
 **nav2** (``<storey>__<skill>.geojson``, ros-navigation/navigation2 ``nav2_route``'s
 ``GeoJsonGraphFileLoader``): a FeatureCollection per storey in the twin's map frame (``[ros]
-frame_id``), nodes as ``Point`` features (``id``, ``frame``, ``metadata``), each lane as two directed
-``MultiLineString`` edges (``id``, ``startid``, ``endid``, ``cost`` = length in metres,
-``metadata``: ``speed_limit`` in percent and ``abs_speed_limit`` in m/s, ``door`` on a door's lane).
+frame_id``), nodes as ``Point`` features (``id``, ``frame``, ``metadata``), each two-way lane as two
+directed ``MultiLineString`` edges, a one-way lane as one (``id``, ``startid``, ``endid``, ``cost`` =
+length in metres, ``metadata``: ``speed_limit`` in percent and ``abs_speed_limit`` in m/s, ``door`` on
+a door's lane).
 Ids are unique across nodes and edges and at most 65,535. With ``open_door_operations`` a door's
 edges carry an ``open_door`` operation (``ON_ENTER``, ``metadata.door_id``): a plugin of that type must
 be loaded on the route server.
@@ -52,7 +54,7 @@ import yaml
 from adapters.ros._common import write_atomic
 from adapters.ros.settings import LevelConfig, RosSource
 from twin.errors import RouteError
-from twin.routes.graph import RouteGraph, RouteVertex, StoreyRoutes
+from twin.routes.graph import RouteGraph, RouteLane, RouteVertex, StoreyRoutes
 
 __all__ = ["MAX_GEOJSON_ID", "RouteFiles", "nav_graph", "rmf_levels", "route_geojson", "write_route_files"]
 
@@ -108,7 +110,7 @@ def nav_graph(
             vertices.append(_Row([x, y, _vertex_params(v)]))
         lanes = []
         for lane in s.lanes:
-            for a, b in ((lane.a, lane.b), (lane.b, lane.a)):
+            for a, b in _directions(lane):
                 params: dict[str, Any] = {"speed_limit": graph.speed_m_s}
                 if lane.door:
                     params["door_name"] = lane.door
@@ -174,15 +176,21 @@ def _vertex_params(v: RouteVertex) -> dict[str, Any]:
     return params
 
 
+def _directions(lane: RouteLane) -> tuple[tuple[int, int], ...]:
+    """The directed lanes a lane is written as: both ways, or only ``a`` -> ``b`` when one-way."""
+    return ((lane.a, lane.b),) if lane.one_way else ((lane.a, lane.b), (lane.b, lane.a))
+
+
 def route_geojson(
     graph: RouteGraph, storey: StoreyRoutes, *, frame_id: str = "map", open_door_operations: bool = False
 ) -> dict[str, Any]:
     """One storey's nav2 Route Server graph (a JSON-ready dict; see the module's docstring)."""
     n = len(storey.vertices)
-    if n + 2 * len(storey.lanes) - 1 > MAX_GEOJSON_ID:
+    edges = sum(len(_directions(lane)) for lane in storey.lanes)
+    if n + edges - 1 > MAX_GEOJSON_ID:
         msg = (
             f"Route graph {graph.skill!r} on storey {storey.storey!r}: {n} nodes and "
-            f"{2 * len(storey.lanes)} edges need ids beyond nav2's {MAX_GEOJSON_ID}; "
+            f"{edges} edges need ids beyond nav2's {MAX_GEOJSON_ID}; "
             "use a larger max_lane_m."
         )
         raise RouteError(msg)
@@ -204,7 +212,7 @@ def route_geojson(
         )
     edge_id = n
     for lane in storey.lanes:
-        for a, b in ((lane.a, lane.b), (lane.b, lane.a)):
+        for a, b in _directions(lane):
             va, vb = storey.vertices[a], storey.vertices[b]
             meta = {"speed_limit": 100.0, "abs_speed_limit": float(graph.speed_m_s)}
             props: dict[str, Any] = {

@@ -68,6 +68,11 @@ class ZenohRoutes:
             publisher.put(payload)
         return version
 
+    def version(self, skill: str) -> int:
+        """The version of ``skill``'s current graph (0: none published)."""
+        with self._lock:
+            return self._versions.get(skill, 0)
+
     def _on_get(self, query: zenoh.Query) -> None:  # a Zenoh thread; the reply is small and ready
         try:
             with self._lock:

@@ -16,6 +16,7 @@ need to know about the fleet::
     outdoors = false                 # lanes only over the storeys' floors (slabs, spaces, entrances)
     waypoints.charger1 = { storey = "ground-floor", x = 12.0, y = 8.0, charger = true }
     waypoints.desk = { at = "Room A", parking_spot = true }    # an IfcSpace's name
+    one_way = [{ x1 = 4.5, y1 = 2.0, x2 = 7.5, y2 = 2.0 }]      # lanes along it: this way only
 
 The core checks the table here (:func:`parse_routes`); :func:`check_routes` then checks its references
 against the other skills.
@@ -23,6 +24,7 @@ against the other skills.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -35,7 +37,16 @@ from twin.config.messages import config_error
 from twin.errors import ConfigError, RouteError
 from twin.selection.skills import SkillProfile
 
-__all__ = ["RouteProfile", "RoutesTable", "Waypoint", "WaypointTable", "check_routes", "parse_routes"]
+__all__ = [
+    "OneWay",
+    "OneWayTable",
+    "RouteProfile",
+    "RoutesTable",
+    "Waypoint",
+    "WaypointTable",
+    "check_routes",
+    "parse_routes",
+]
 
 _NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}$")
 
@@ -65,6 +76,26 @@ class WaypointTable(ConfigTable):
         return self
 
 
+class OneWayTable(ConfigTable):
+    """A one-way stretch: the lanes along the segment (x1, y1) -> (x2, y2) go that way only."""
+
+    x1: Number = Field(description="Start x in the building's (map) frame, metres.")
+    y1: Number = Field(description="Start y, metres.")
+    x2: Number = Field(description="End x, metres: lanes along the segment go from start to end.")
+    y2: Number = Field(description="End y, metres.")
+    storey: Text | None = Field(None, description="The storey key (default: every storey served).")
+    within_m: Annotated[Number, Field(gt=0, le=10)] = Field(
+        0.5, description="A lane is along the segment when both its ends lie within this of it, metres."
+    )
+
+    @model_validator(mode="after")
+    def _length(self) -> OneWayTable:
+        if math.hypot(self.x2 - self.x1, self.y2 - self.y1) < 0.1:
+            msg = f"the segment ({self.x1}, {self.y1}) -> ({self.x2}, {self.y2}) is shorter than 0.1 m"
+            raise ValueError(msg)
+        return self
+
+
 class RoutesTable(ConfigTable):
     """The keys of a ``kind = "routes"`` skill."""
 
@@ -88,6 +119,9 @@ class RoutesTable(ConfigTable):
         description="Lanes also where the storey has no floor (slab or space): outside the building.",
     )
     waypoints: dict[str, WaypointTable] = Field(default_factory=dict, description="Named waypoints.")
+    one_way: tuple[OneWayTable, ...] = Field(
+        (), description="One-way stretches: the lanes along each segment go from (x1, y1) to (x2, y2) only."
+    )
     description: Text = ""
 
 
@@ -111,6 +145,19 @@ class Waypoint:
 
 
 @dataclass(frozen=True, slots=True)
+class OneWay:
+    """A one-way stretch (metres, the map frame): lanes within ``within_m`` of the segment go from
+    (x1, y1) towards (x2, y2) only. ``storey`` None: every storey served."""
+
+    x1: float
+    y1: float
+    x2: float
+    y2: float
+    storey: str | None = None
+    within_m: float = 0.5
+
+
+@dataclass(frozen=True, slots=True)
 class RouteProfile:
     """A validated routes skill. Lengths in metres, speeds in m/s."""
 
@@ -125,6 +172,7 @@ class RouteProfile:
     open_door_operations: bool = False
     outdoors: bool = False
     waypoints: tuple[Waypoint, ...] = ()
+    one_way: tuple[OneWay, ...] = ()
     description: str = ""
 
 
@@ -163,6 +211,7 @@ def parse_routes(name: str, data: Mapping[str, Any]) -> RouteProfile:
             )
             for wp, t in table.waypoints.items()
         ),
+        one_way=tuple(OneWay(o.x1, o.y1, o.x2, o.y2, o.storey, o.within_m) for o in table.one_way),
         description=table.description,
     )
 

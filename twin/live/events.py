@@ -28,6 +28,7 @@ from typing import Protocol
 from twin.maps.grid import GridData, GridFrame, OccupancyGrid, Window
 from twin.maps.points import PointCloud
 from twin.records import FloatArray, Mesh
+from twin.routes.graph import RouteGraph
 from twin.selection.skills import SkillProfile
 
 
@@ -196,6 +197,19 @@ class PointsPublished:
     stamp_ns: int
 
 
+@dataclass(frozen=True, eq=False, slots=True)
+class RoutesPublished:
+    """A routes skill's graph served as ``version`` (1 at start, then one more per structural change
+    that changed it). ``navigation`` is the navigation skill whose maps the graph follows. Not emitted
+    by the service: ``twin serve``'s route graphs (:mod:`adapters.cli.route_updates`) send it to the
+    recorder."""
+
+    graph: RouteGraph
+    navigation: str
+    version: int
+    stamp_ns: int
+
+
 TwinEvent = (
     TwinStarted
     | MapPublished
@@ -207,6 +221,7 @@ TwinEvent = (
     | ObservationRejected
     | SkillChanged
     | RobotStoreyChanged
+    | RoutesPublished
 )
 
 

@@ -35,6 +35,7 @@ from twin.maps.grid import GridFrame
 from twin.maps.render import MapPlan, build_map, occupancy, plan_map
 from twin.maps.scene import Scene, StoreyInfo
 from twin.routes.graph import DoorCrossing, Lift, RouteGraph, RouteVertex, StoreyRoutes
+from twin.routes.one_way import apply_one_way
 from twin.routes.storey import DoorShape, SpaceArea, StoreyInput, build_storey
 from twin.selection.skill_selection import selection_query
 from twin.selection.skills import SkillProfile
@@ -169,6 +170,16 @@ def build_routes(
             DoorCrossing(d.name, d.iri, storey.key, d.endpoints, d.width_m, d.name in result.passable)
             for d in on_storey
         ]
+    served = {st.key for st in storeys}
+    for stretch in routes.one_way:
+        if stretch.storey is not None and stretch.storey not in served:
+            msg = (
+                f"Routes skill {routes.name!r}: one_way storey {stretch.storey!r} is not served; "
+                f"served: {', '.join(sorted(served))}."
+            )
+            raise RouteError(msg)
+    directed, one_way_notes = apply_one_way(results, routes.one_way)
+    notes += one_way_notes
     rows = store.select(_BUILDING)
     building = (literal_value(rows[0]["name"]) if rows else None) or "building"
     for note in notes:
@@ -180,7 +191,7 @@ def build_routes(
         building=building,
         speed_m_s=routes.speed_m_s,
         robot_radius_m=radius,
-        storeys=tuple(results),
+        storeys=directed,
         doors=tuple(crossings),
         lifts=tuple(lift_records),
         notes=tuple(notes),

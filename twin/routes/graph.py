@@ -2,7 +2,8 @@
 
 Coordinates are the twin's map frame (the building's XY plane, metres), as the skill maps' grids;
 the writers for Open-RMF and nav2 (``adapters/ros/routes.py``) move them into each RMF level's frame.
-Lanes are undirected here (every lane is two-way); the writers write each one in both directions.
+A lane is two-way unless ``one_way`` (then from ``a`` to ``b`` only: a configured one-way stretch,
+:mod:`twin.routes.one_way`); the writers write a two-way lane in both directions, a one-way lane once.
 """
 
 from __future__ import annotations
@@ -35,12 +36,14 @@ class RouteVertex:
 
 @dataclass(frozen=True, slots=True)
 class RouteLane:
-    """A two-way lane between vertices ``a`` and ``b`` (indices into the storey's vertices)."""
+    """A lane between vertices ``a`` and ``b`` (indices into the storey's vertices): two-way, or from
+    ``a`` to ``b`` only when ``one_way``."""
 
     a: int
     b: int
     door: str = ""
     """The name of the door the lane passes through (``""``: none)."""
+    one_way: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,7 +109,8 @@ class RouteGraph:
 
     def to_networkx(self) -> nx.Graph:
         """The whole graph (every storey, joined at the lifts) as a weighted networkx graph: nodes
-        ``(storey, index)`` with ``x``, ``y``; lanes weighted by their length, lift hops by 0."""
+        ``(storey, index)`` with ``x``, ``y``; lanes weighted by their length (one-way
+        lanes too: undirected), lift hops by 0."""
         g = nx.Graph()
         for s in self.storeys:
             for i, v in enumerate(s.vertices):
@@ -138,6 +142,7 @@ class RouteGraph:
                     "vertices": [_vertex_json(v) for v in s.vertices],
                     "lanes": [[lane.a, lane.b, lane.door] for lane in s.lanes],
                 }
+                | _one_way_json(s)
                 for s in self.storeys
             ],
             "doors": [
@@ -163,6 +168,13 @@ class RouteGraph:
             ],
             "notes": list(self.notes),
         }
+
+
+def _one_way_json(s: StoreyRoutes) -> dict[str, Any]:
+    """``one_way``: the indices of the storey's one-way lanes (each from its first vertex to its
+    second), only when it has some."""
+    one_way = [i for i, lane in enumerate(s.lanes) if lane.one_way]
+    return {"one_way": one_way} if one_way else {}
 
 
 def _vertex_json(v: RouteVertex) -> dict[str, Any]:
