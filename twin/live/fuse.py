@@ -196,7 +196,7 @@ def _held_element(
     target = state.iri
     ctx.detected.add(target)
     ctx.used.add(target)
-    r: ElementReport | None = replace(given, iri=target)
+    r: ElementReport | None = given if given.iri == target else replace(given, iri=target)
     assert r is not None
     if stale_change(ctx, r, given.iri, state, sense):
         return
