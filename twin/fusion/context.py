@@ -114,6 +114,9 @@ class FusionContext:
     """Elements already matched by a report of this observation (matched at most once)."""
     boxes: list[tuple[str, ElementReport, Pose]] = field(default_factory=list)
     """Every box this observation reports: (storey, the report as given, its world pose)."""
+    bias: tuple[float, float] | None = None
+    """The robot's detector bias (:func:`twin.fusion.bias.unbiased`), once ``bias_known``."""
+    bias_known: bool = False
 
     @property
     def memory(self) -> FusionMemory:
