@@ -381,7 +381,7 @@ def resize_evidence(
     evidence = track.sizes if track is not None else {}
 
     def near(other: Sizes) -> bool:
-        return all(abs(x - y) <= d for x, y in zip(size, other, strict=True))
+        return abs(size[0] - other[0]) <= d and abs(size[1] - other[1]) <= d and abs(size[2] - other[2]) <= d
 
     if near((held.sx, held.sy, held.sz)):
         if robot in evidence:
