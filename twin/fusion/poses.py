@@ -60,7 +60,7 @@ def storey_arrays(live: LiveState, storey: str) -> StoreyArrays:
     """:func:`storey_poses` as arrays (cached until the storey's poses change)."""
     poses = storey_poses(live, storey)
     cached = live.fusion.pose_arrays.get(storey)
-    if cached is not None and len(cached.iris) == len(poses):
+    if isinstance(cached, StoreyArrays) and len(cached.iris) == len(poses):
         return cached
     held = tuple(poses.values())
     arrays = StoreyArrays(
@@ -96,8 +96,8 @@ def index_element(live: LiveState, iri: str, state: ElementState | None) -> None
     if memory.poses is None:
         return  # built on first use
     before = [(storey, poses.pop(iri)) for storey, poses in memory.poses.items() if iri in poses]
-    for storey, _ in before:
-        memory.pose_arrays.pop(storey, None)
+    for old, _ in before:
+        memory.pose_arrays.pop(old, None)
     if state is None or not is_candidate(state):
         _remember(memory, iri, before, None, state)
         return
