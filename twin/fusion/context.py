@@ -18,8 +18,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from twin.config import FusionRules, Right
 from twin.fusion.effects import Effect, decided
 from twin.fusion.footprints import Pose, box_pose
@@ -27,7 +25,7 @@ from twin.fusion.gates import is_candidate
 from twin.fusion.memory import FusionMemory
 from twin.fusion.poses import storey_arrays, storey_poses
 from twin.graph.ifc_classes import supertypes
-from twin.records import ElementReport, Shape
+from twin.records import ElementReport, FloatArray, Shape
 
 if TYPE_CHECKING:
     from twin.live.state import ElementState, LiveState
@@ -142,7 +140,7 @@ class FusionContext:
                 out[iri] = pose
         return out
 
-    def candidates_near(self, storey: str, lo: np.ndarray, hi: np.ndarray) -> dict[str, Pose]:
+    def candidates_near(self, storey: str, lo: FloatArray, hi: FloatArray) -> dict[str, Pose]:
         """:meth:`candidates` less those whose centre lies farther than half their footprint's sizes
         (x + y) from the box ``lo``..``hi`` (the same elements, in the same order)."""
         arrays = storey_arrays(self.live, storey)

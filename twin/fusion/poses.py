@@ -16,10 +16,12 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from twin.fusion.footprints import Pose
 from twin.fusion.gates import is_candidate
 from twin.fusion.memory import FusionMemory, PastPose
+from twin.records import FloatArray
 
 if TYPE_CHECKING:
     from twin.live.state import ElementState, LiveState
@@ -44,12 +46,12 @@ class StoreyArrays:
 
     iris: tuple[str, ...]
     poses: tuple[Pose, ...]
-    cx: np.ndarray
-    cy: np.ndarray
-    reach: np.ndarray
+    cx: FloatArray
+    cy: FloatArray
+    reach: FloatArray
     """Half the sum of each footprint's sizes (at least half its diagonal)."""
 
-    def near(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    def near(self, lo: FloatArray, hi: FloatArray) -> npt.NDArray[np.intp]:
         """Indices of the poses whose centre lies within their ``reach`` of the box ``lo``..``hi``."""
         r = self.reach
         ok = (lo[0] - r <= self.cx) & (self.cx <= hi[0] + r) & (lo[1] - r <= self.cy) & (self.cy <= hi[1] + r)
