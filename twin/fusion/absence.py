@@ -18,6 +18,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from twin.fusion.clocks import when
 from twin.fusion.effects import forget, miss
 from twin.fusion.footprints import Pose, heights_overlap
@@ -55,7 +57,11 @@ def absence(ctx: FusionContext, *, view: ObservedView, sense: int) -> None:
     out, memory = ctx.out, ctx.memory
     schema = ctx.live.site.schema
     storey = view.storey
-    held = ctx.candidates(storey)
+    ring = np.concatenate(view.polygons)
+    lo, hi = ring.min(axis=0), ring.max(axis=0)
+    if view.origin is not None:  # what may stand between the sensor and the floor it saw
+        lo, hi = np.minimum(lo, view.origin[:2]), np.maximum(hi, view.origin[:2])
+    held = ctx.candidates_near(storey, lo, hi)  # view_sees looks at no other (the same in its order)
     looked: list[tuple[str, Pose, ElementState]] = []
     for iri, pose in held.items():
         if iri in ctx.detected or iri in out.merged:

@@ -62,7 +62,9 @@ def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None
 
 def unbiased(ctx: FusionContext, pose: Pose) -> Pose:
     """``pose`` shifted by the robot's detector bias, once that is known."""
-    b = applied_bias(ctx.memory, ctx.robot)
+    if not ctx.bias_known:  # the memory changes only once the observation is accepted
+        ctx.bias, ctx.bias_known = applied_bias(ctx.memory, ctx.robot), True
+    b = ctx.bias
     if b is None:
         return pose
     return replace(pose, cx=pose.cx - b[0], cy=pose.cy - b[1])

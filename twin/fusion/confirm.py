@@ -148,6 +148,27 @@ def only_sighting(r: ElementReport, state: ElementState) -> bool:
     )
 
 
+def only_sighting_where_it_stands(r: ElementReport, state: ElementState) -> bool:
+    """:func:`only_sighting` of ``r`` without its box and storey (without making that report)."""
+    return (
+        r.geometry is None
+        and r.placement is None
+        and not r.removed
+        and r.is_open is None
+        and r.keepout is None
+        and r.speed_limit is None
+        and not r.labels
+        and not r.materials
+        and not r.classes
+        and not r.unmerge
+        and (
+            r.ifc_class is None
+            or r.ifc_class in state.ifc_types
+            or r.ifc_class.lower() == state.ifc_class.lower()
+        )
+    )
+
+
 def confirmation(
     ctx: FusionContext,
     r: ElementReport,
@@ -185,8 +206,10 @@ def confirmation(
     ctx.decide(target, f"confirmation by {ctx.robot}: within confirm_distance_m and confirm_angle_deg")
     if sizes is not None:
         return resized(ctx, r, state, held=held, storey=storey, sizes=sizes)
-    r = replace(r, box=None, storey=None)  # where it stood: on its storey too
-    return _unless_only_seen(ctx, r, state)
+    if only_sighting_where_it_stands(r, state):
+        ctx.out.seen.append(state.iri)
+        return None
+    return replace(r, box=None, storey=None)  # where it stood: on its storey too
 
 
 def hold(
@@ -358,7 +381,7 @@ def resize_evidence(
     evidence = track.sizes if track is not None else {}
 
     def near(other: Sizes) -> bool:
-        return all(abs(x - y) <= d for x, y in zip(size, other, strict=True))
+        return abs(size[0] - other[0]) <= d and abs(size[1] - other[1]) <= d and abs(size[2] - other[2]) <= d
 
     if near((held.sx, held.sy, held.sz)):
         if robot in evidence:

@@ -23,9 +23,9 @@ from twin.fusion.effects import Effect, decided
 from twin.fusion.footprints import Pose, box_pose
 from twin.fusion.gates import is_candidate
 from twin.fusion.memory import FusionMemory
-from twin.fusion.poses import storey_poses
+from twin.fusion.poses import storey_arrays, storey_poses
 from twin.graph.ifc_classes import supertypes
-from twin.records import ElementReport, Shape
+from twin.records import ElementReport, FloatArray, Shape
 
 if TYPE_CHECKING:
     from twin.live.state import ElementState, LiveState
@@ -112,6 +112,9 @@ class FusionContext:
     """Elements already matched by a report of this observation (matched at most once)."""
     boxes: list[tuple[str, ElementReport, Pose]] = field(default_factory=list)
     """Every box this observation reports: (storey, the report as given, its world pose)."""
+    bias: tuple[float, float] | None = None
+    """The robot's detector bias (:func:`twin.fusion.bias.unbiased`), once ``bias_known``."""
+    bias_known: bool = False
 
     @property
     def memory(self) -> FusionMemory:
@@ -134,6 +137,23 @@ class FusionContext:
         for iri, (s, pose, state) in self.pending.items():
             out.pop(iri, None)
             if s == storey and is_candidate(state):
+                out[iri] = pose
+        return out
+
+    def candidates_near(self, storey: str, lo: FloatArray, hi: FloatArray) -> dict[str, Pose]:
+        """:meth:`candidates` less those whose centre lies farther than half their footprint's sizes
+        (x + y) from the box ``lo``..``hi`` (the same elements, in the same order)."""
+        arrays = storey_arrays(self.live, storey)
+        out = {arrays.iris[i]: arrays.poses[i] for i in arrays.near(lo, hi).tolist()}
+        for iri, (s, pose, state) in self.pending.items():
+            out.pop(iri, None)
+            r = (pose.sx + pose.sy) / 2
+            if (
+                s == storey
+                and is_candidate(state)
+                and lo[0] - r <= pose.cx <= hi[0] + r
+                and lo[1] - r <= pose.cy <= hi[1] + r
+            ):
                 out[iri] = pose
         return out
 

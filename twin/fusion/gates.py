@@ -12,6 +12,7 @@ Example::
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
 from twin.config.fusion import FusionClassRules
@@ -78,8 +79,15 @@ def descriptive_types(
 ) -> frozenset[str]:
     """The descriptive types among ``classes`` (``furn:Chair``): the BEO and FURN classes beyond the
     generic one of the IFC class and its supertypes (``furn:Furniture`` says no more than IfcFurniture)."""
-    generic = {vocab.semantic_class(t) for t in (supertypes(schema, ifc_class) or (ifc_class,))}
+    generic = _generic_types(schema, ifc_class)
     return frozenset(c for c in classes if c != vocab.BOT_ELEMENT and c not in generic)
+
+
+@functools.lru_cache(maxsize=1024)
+def _generic_types(schema: str, ifc_class: str) -> frozenset[str | None]:
+    """The BEO and FURN classes of ``ifc_class`` and its supertypes (a pure function of the schema's
+    class table: computed once per class, not once per report)."""
+    return frozenset(vocab.semantic_class(t) for t in (supertypes(schema, ifc_class) or (ifc_class,)))
 
 
 def kinds_agree(schema: str, classes: tuple[str, ...], ifc_class: str | None, state: ElementState) -> bool:

@@ -249,6 +249,9 @@ class FusionMemory:
     aliases: dict[str, Alias] = field(default_factory=dict)
     poses: dict[str, dict[str, Pose]] | None = None
     """Storey -> element -> pose of every dynamic element with geometry (None: not built yet)."""
+    pose_arrays: dict[str, Any] = field(default_factory=dict)
+    """Storey -> the index's poses as arrays (:class:`twin.fusion.poses.StoreyArrays`), built on use and
+    dropped when the storey's poses change."""
     tentative: dict[str, tuple[int, int]] = field(default_factory=dict)
     """Robot IRIs of new elements seen fewer than ``tentative_sightings`` times -> (sightings so far,
     the first one's time); forgotten after :data:`TENTATIVE_TTL_NS` (a false detection seen once)."""

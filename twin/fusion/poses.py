@@ -12,11 +12,16 @@ Example::
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
 
 from twin.fusion.footprints import Pose
 from twin.fusion.gates import is_candidate
 from twin.fusion.memory import FusionMemory, PastPose
+from twin.records import FloatArray
 
 if TYPE_CHECKING:
     from twin.live.state import ElementState, LiveState
@@ -35,9 +40,46 @@ def storey_at(live: LiveState, z: float) -> str | None:
     return None if best is None else best[1]
 
 
+@dataclass(frozen=True, slots=True)
+class StoreyArrays:
+    """One storey's indexed poses as arrays, in the index's order: to pick the few near a view at once."""
+
+    iris: tuple[str, ...]
+    poses: tuple[Pose, ...]
+    cx: FloatArray
+    cy: FloatArray
+    reach: FloatArray
+    """Half the sum of each footprint's sizes (at least half its diagonal)."""
+
+    def near(self, lo: FloatArray, hi: FloatArray) -> npt.NDArray[np.intp]:
+        """Indices of the poses whose centre lies within their ``reach`` of the box ``lo``..``hi``."""
+        r = self.reach
+        ok = (lo[0] - r <= self.cx) & (self.cx <= hi[0] + r) & (lo[1] - r <= self.cy) & (self.cy <= hi[1] + r)
+        return np.flatnonzero(ok)
+
+
+def storey_arrays(live: LiveState, storey: str) -> StoreyArrays:
+    """:func:`storey_poses` as arrays (cached until the storey's poses change)."""
+    poses = storey_poses(live, storey)
+    cached = live.fusion.pose_arrays.get(storey)
+    if isinstance(cached, StoreyArrays) and len(cached.iris) == len(poses):
+        return cached
+    held = tuple(poses.values())
+    arrays = StoreyArrays(
+        tuple(poses),
+        held,
+        np.array([p.cx for p in held], dtype=np.float64),
+        np.array([p.cy for p in held], dtype=np.float64),
+        np.array([(p.sx + p.sy) / 2 for p in held], dtype=np.float64),
+    )
+    live.fusion.pose_arrays[storey] = arrays
+    return arrays
+
+
 def build_poses(live: LiveState) -> None:
     """Index the pose of every candidate element, per storey (start-up code calls it once)."""
     live.fusion.poses = {}
+    live.fusion.pose_arrays.clear()
     for iri, state in live.states.items():
         index_element(live, iri, state)
 
@@ -56,6 +98,8 @@ def index_element(live: LiveState, iri: str, state: ElementState | None) -> None
     if memory.poses is None:
         return  # built on first use
     before = [(storey, poses.pop(iri)) for storey, poses in memory.poses.items() if iri in poses]
+    for old, _ in before:
+        memory.pose_arrays.pop(old, None)
     if state is None or not is_candidate(state):
         _remember(memory, iri, before, None, state)
         return
@@ -68,6 +112,7 @@ def index_element(live: LiveState, iri: str, state: ElementState | None) -> None
     _remember(memory, iri, before, pose, state)
     if storey is not None:
         memory.poses.setdefault(storey, {})[iri] = pose
+        memory.pose_arrays.pop(storey, None)
 
 
 def _remember(

@@ -196,7 +196,7 @@ def _held_element(
     target = state.iri
     ctx.detected.add(target)
     ctx.used.add(target)
-    r: ElementReport | None = replace(given, iri=target)
+    r: ElementReport | None = given if given.iri == target else replace(given, iri=target)
     assert r is not None
     if stale_change(ctx, r, given.iri, state, sense):
         return
@@ -210,10 +210,11 @@ def _held_element(
         class_rules = ctx.rules.of(state.ifc_types)
         track = ctx.memory.tracks.get(target)
         sizes = resize_evidence(ctx, state, pose, held, sense)  # new sizes only on strong evidence
-        if not confirms(class_rules, pose, held, sizes=False) and echo(ctx, state, pose, sense):
+        confirmed = confirms(class_rules, pose, held, sizes=False)
+        if not confirmed and echo(ctx, state, pose, sense):
             seen_echo(ctx, r, state, sense)  # back where it stood before its last move, seen late
             return
-        if confirms(class_rules, pose, held, sizes=False):
+        if confirmed:
             r = confirmation(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes)
         elif unsure_move(ctx, class_rules, pose, held, track=track, sense=sense):
             why = "a short move needs move_sightings agreeing sightings"  # an outlier is no move

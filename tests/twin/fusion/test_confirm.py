@@ -3,12 +3,17 @@ keeps its mesh when robots move it."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from tests.twin.box_lab import element_iri, spec
 from tests.twin.fusion.fusion_helpers import box, cell, sensed, size_of
 from tests.twin.live_helpers import observe, started
+from twin.fusion.confirm import only_sighting, only_sighting_where_it_stands
 from twin.live.explain import fusion_of
+from twin.live.state import ElementState
+from twin.records import ElementReport, ObservedBox
 
 DESK = "urn:robot1:desk-1"
 TABLE = element_iri(spec("Table"))  # 1.2 x 0.8 x 0.75 at lab (1.4-2.6, 2.6-3.4)
@@ -80,3 +85,28 @@ def test_a_noted_short_move_is_acked_pending_and_explain_shows_it_with_the_decid
     second = observe(service, "robot2", box("urn:robot2:d", 6.26, 2.0, sx=1.0, sy=0.6))
     assert "pending" not in second.body and second.body["upserted"] == [DESK]
     assert fusion_of(service.live, DESK)["decided"] == "move by robot2"
+
+
+def test_a_confirming_report_is_only_a_sighting_exactly_when_it_would_be_without_its_box_and_storey() -> None:
+    state = ElementState("urn:e", "IfcFurniture", ("IfcFurniture", "IfcFurnishingElement"), False)
+    box_ = ObservedBox(1, 2, 0, 1, 1, 1, 0)
+    base = ElementReport("urn:e", ifc_class="IfcFurniture", storey="ground-floor", box=box_)
+    variants = [
+        base,
+        replace(base, ifc_class=None),
+        replace(base, ifc_class="ifcfurniture"),
+        replace(base, ifc_class="IfcFurnishingElement"),
+        replace(base, ifc_class="IfcDoor"),
+        replace(base, labels=("desk",)),
+        replace(base, materials=("Wood",)),
+        replace(base, classes=("http://x#Desk",)),
+        replace(base, is_open=True),
+        replace(base, keepout=False),
+        replace(base, speed_limit=30),
+        replace(base, removed=True),
+        replace(base, unmerge=True),
+        replace(base, placement=np.eye(4)),
+    ]
+    expected = [only_sighting(replace(r, box=None, storey=None), state) for r in variants]
+    assert [only_sighting_where_it_stands(r, state) for r in variants] == expected
+    assert expected.count(True) == 4
