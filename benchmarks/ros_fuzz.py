@@ -35,6 +35,7 @@ def ingested(status: dict[str, Any], owner: str) -> int:
 def run(payloads: int, rate: float, seed: int) -> dict[str, Any]:
     sys.path.insert(0, str(ROOT))
     from adapters.zenoh.client import TwinClient
+    from adapters.zenoh.errors import RemoteError
     from tests.integration.ros_fuzz_publisher import CONFIG
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -44,75 +45,91 @@ def run(payloads: int, rate: float, seed: int) -> dict[str, Any]:
         cfg.write_text(CONFIG)
         endpoint = f"tcp/127.0.0.1:{live._free_port()}"
         serve = ("serve", "--store", str(store), "--listen", endpoint, "--no-record")
-        daemon = subprocess.Popen(
-            live._twin("--config", str(cfg), *serve),
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT,
-        )  # fmt: skip
-        assert daemon.stdout is not None
-        while "serving site" not in (line := daemon.stdout.readline()):
-            if not line:
-                raise RuntimeError(f"the daemon did not start: exit code {daemon.wait()}")
-        robot = subprocess.Popen(
-            [sys.executable, "-m", "tests.integration.ros_fuzz_publisher", endpoint,
-             *map(str, (payloads, seed, rate))],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT,
-        )  # fmt: skip
-        assert robot.stdout is not None and robot.stdin is not None
-        assert json.loads(robot.stdout.readline())["ready"]
-        rss: list[float] = []
-        t0 = time.monotonic()
-        with TwinClient.connect([endpoint]) as client:
-            status0 = client.status()
-            before = {o: ingested(status0, o) for o in OWNERS}
-            mark = 0
-            while True:
-                status = client.status()
-                total = sum(ingested(status, o) - before[o] for o in OWNERS)
-                while total >= mark * payloads / 10 and mark <= 10:
-                    rss.append(round(live._proc_mb(daemon.pid, "VmRSS"), 1))
-                    mark += 1
-                if (
-                    total >= payloads
-                    or daemon.poll() is not None
-                    or time.monotonic() - t0 > payloads / rate * 3
-                ):
-                    break
-                time.sleep(0.5)
-            elapsed = time.monotonic() - t0
-            sent = json.loads(robot.stdout.readline())
-            robot.stdin.close()
-            robot.wait(timeout=30)
-            time.sleep(1.5)
-            status = client.status()
-            counts = {o: status["ros_ingest"]["counts"][o] for o in OWNERS}
-            accepted = sum(c["accepted"] for c in counts.values()) - sum(
-                status0["ros_ingest"]["counts"][o]["accepted"] for o in OWNERS
+        log = work / "daemon.log"  # a file: a pipe nobody reads would stall the daemon's logging
+        with log.open("w") as out:
+            daemon = subprocess.Popen(
+                live._twin("--config", str(cfg), *serve), stdout=out, stderr=subprocess.STDOUT, cwd=ROOT
             )
-            grid, _, _ = client.get_map("ground-floor", "navigation")
-        alive = daemon.poll() is None
-        daemon.terminate()
-        out, _ = daemon.communicate(timeout=60)
-        refused: dict[str, int] = {}
-        for c in counts.values():
-            for k, v in c["refused"].items():
-                refused[k] = refused.get(k, 0) + v
-        return {
-            "payloads": payloads,
-            "rate_per_s": rate,
-            "elapsed_s": round(elapsed, 1),
-            "sent": sent["sent"],
-            "mutations": sent["mutations"],
-            "counted": sum(ingested(status, o) - before[o] for o in OWNERS),
-            "counted_per_owner_equals_sent": {o: ingested(status, o) - before[o] for o in OWNERS}
-            == sent["owners"],
-            "accepted": accepted,
-            "revisions": status["revision"] - status0["revision"],
-            "refused": dict(sorted(refused.items())),
-            "rss_mb_every_10pct": rss,
-            "alive_and_serving_maps": alive and grid.data.size > 0,
-            "exit_code": daemon.returncode,
-            "tracebacks": sum("Traceback" in line for line in out.splitlines()),
-        }
+        while "serving site" not in log.read_text():
+            if daemon.poll() is not None:
+                raise RuntimeError(f"the daemon did not start: exit code {daemon.wait()}")
+            time.sleep(0.1)
+        robot: subprocess.Popen[str] | None = None
+        try:
+            with TwinClient.connect([endpoint], timeout_s=30.0) as client:
+                status0 = client.status()  # before the robot starts
+            before = {o: ingested(status0, o) for o in OWNERS}
+            robot = subprocess.Popen(
+                [sys.executable, "-m", "tests.integration.ros_fuzz_publisher", endpoint,
+                 *map(str, (payloads, seed, rate))],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT,
+            )  # fmt: skip
+            assert robot.stdout is not None and robot.stdin is not None
+            assert json.loads(robot.stdout.readline())["ready"]
+            rss: list[float] = []
+            t0 = time.monotonic()
+            timeouts = 0
+            with TwinClient.connect([endpoint], timeout_s=30.0) as client:
+                mark = 0
+                while True:
+                    try:
+                        status = client.status()
+                    except RemoteError:  # counted: the status should answer under any load
+                        timeouts += 1
+                        continue
+                    total = sum(ingested(status, o) - before[o] for o in OWNERS)
+                    while total >= mark * payloads / 10 and mark <= 10:
+                        rss.append(round(live._proc_mb(daemon.pid, "VmRSS"), 1))
+                        mark += 1
+                    if (
+                        total >= payloads
+                        or daemon.poll() is not None
+                        or time.monotonic() - t0 > payloads / rate * 3
+                    ):
+                        break
+                    time.sleep(0.5)
+                elapsed = time.monotonic() - t0
+                sent = json.loads(robot.stdout.readline())
+                robot.stdin.close()
+                robot.wait(timeout=30)
+                time.sleep(1.5)
+                status = client.status()
+                counts = {o: status["ros_ingest"]["counts"][o] for o in OWNERS}
+                accepted = sum(c["accepted"] for c in counts.values()) - sum(
+                    status0["ros_ingest"]["counts"][o]["accepted"] for o in OWNERS
+                )
+                grid, _, _ = client.get_map("ground-floor", "navigation")
+            alive = daemon.poll() is None
+            daemon.terminate()
+            daemon.wait(timeout=60)
+            out = log.read_text()
+            refused: dict[str, int] = {}
+            for c in counts.values():
+                for k, v in c["refused"].items():
+                    refused[k] = refused.get(k, 0) + v
+            return {
+                "payloads": payloads,
+                "rate_per_s": rate,
+                "elapsed_s": round(elapsed, 1),
+                "sent": sent["sent"],
+                "mutations": sent["mutations"],
+                "counted": sum(ingested(status, o) - before[o] for o in OWNERS),
+                "counted_per_owner_equals_sent": {o: ingested(status, o) - before[o] for o in OWNERS}
+                == sent["owners"],
+                "accepted": accepted,
+                "revisions": status["revision"] - status0["revision"],
+                "refused": dict(sorted(refused.items())),
+                "rss_mb_every_10pct": rss,
+                "alive_and_serving_maps": alive and grid.data.size > 0,
+                "exit_code": daemon.returncode,
+                "status_timeouts_30s": timeouts,
+                "tracebacks": sum("Traceback" in line for line in out.splitlines()),
+            }
+        finally:  # nothing left running, whatever failed
+            for p in (robot, daemon):
+                if p is not None and p.poll() is None:
+                    p.kill()
+                    p.wait()
 
 
 def main() -> int:
