@@ -471,6 +471,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
         time.sleep(1.0)
         with TwinClient.connect([endpoint], prefix=prefix, mode="client", timeout_s=30.0) as c:
+            if len(writer.added) > len(writer.removed):  # the last probe: not a ghost of the fleet's
+                with contextlib.suppress(Exception):
+                    c.observe("chaos-writer", f"{fleet_sim.PREFIX}<{writer.added[-1]}> twin:removed true .")
             final = fleet_sim.sample(c, world, STOREY, oracle, SKILL, t0, {})
             end_revision = int(c.status()["revision"])
         missing = lost_upserts(endpoint, prefix, acks)
@@ -494,6 +497,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             "end_revision": end_revision,
             "duplicates": final["duplicates"],
             "ghosts": final["ghosts"],
+            "ghost_iris": final["ghost_iris"][:10],
             "viewed_ghosts": final["viewed_ghosts"],
             "missing_objects": final["missing"],
             "daemon_exit_code": exit_code,
