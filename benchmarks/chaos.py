@@ -1,6 +1,7 @@
 """Faults a building's server room has, against a fleet: ``fleet_sim.py``'s robots (its ``robot``
-threads, unchanged) report to a daemon behind a ``twin router`` on the lab, while this script injects,
-round-robin every ``--every`` seconds:
+threads, unchanged) and a writer of steady changes (robot ``chaos-writer``: a probe table added every
+0.5 s, removed by the next step) report to a daemon behind a ``twin router`` on the lab, recording to
+Rerun, while this script injects, round-robin every ``--every`` seconds:
 
 - ``kill9``: kill -9 of the daemon, restarted at once by the script on the same store;
 - ``router``: the router killed and started again on its endpoint;
@@ -520,6 +521,9 @@ def main() -> int:
     p.add_argument("--disk-window", type=float, default=20.0)
     p.add_argument("--headroom-mb", type=float, default=96.0, help="free space of the store's tmpfs")
     args = p.parse_args()
+    if os.geteuid() != 0:
+        print("chaos.py: the store's tmpfs is mounted by this script: run it as root", file=sys.stderr)
+        return 2
     result = run(args)
     if args.json:
         args.json.write_text(json.dumps(result, indent=1))
