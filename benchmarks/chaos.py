@@ -408,6 +408,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     subprocess.run(["mount", "-t", "tmpfs", "-o", size, "tmpfs", str(disk)], check=True)
     procs: Processes | None = None
     stop = threading.Event()
+    keep = threading.Event()  # set when something was lost: the logs stay in ``work``
     threads: list[threading.Thread] = []
     oracle = None
     try:
@@ -478,7 +479,18 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             final = fleet_sim.sample(c, world, STOREY, oracle, SKILL, t0, {})
             end_revision = int(c.status()["revision"])
         missing = lost_upserts(endpoint, prefix, acks)
+        missing_detail = []
+        for iri in missing[:5]:  # what the store says of it, and when it was acked
+            with TwinClient.connect([endpoint], prefix=prefix, mode="client", timeout_s=30.0) as c:
+                rows = c.sparql(
+                    f'SELECT ?s ?p ?o WHERE {{ ?s ?p ?o FILTER(CONTAINS(STR(?s), "{iri}") '
+                    f'|| CONTAINS(STR(?o), "{iri}")) }}'
+                )["results"]["bindings"]
+            when = [(round(a.at - t0, 2), a.revision, a.robot) for a in acks if iri in a.upserted]
+            missing_detail.append({"iri": iri, "acked": when, "triples": rows[:10]})
         missing += lost_removals(endpoint, prefix, writer.removed)
+        if missing:
+            keep.set()
         exit_code = procs.stop()
         procs = None
         return {
@@ -494,6 +506,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             "writer_errors": writer.errors,
             "writer_refusals_sample": sorted(set(r[:120] for r in writer.refusals))[:6],
             "acked_upserts_missing": missing[:20],
+            "missing_detail": missing_detail,
+            "work": str(work) if missing else None,
             "acked_lost": len(missing) + sum(f.lost for f in faults),
             "end_revision": end_revision,
             "duplicates": final["duplicates"],
@@ -510,7 +524,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         if oracle is not None:
             oracle.store.close()
         subprocess.run(["umount", "-l", str(disk)], check=False)
-        shutil.rmtree(work, ignore_errors=True)
+        if not keep.is_set():
+            shutil.rmtree(work, ignore_errors=True)
 
 
 def main() -> int:
