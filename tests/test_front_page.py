@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -14,9 +15,12 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.mark.skipif(shutil.which("make") is None, reason="make is not installed")
 def test_make_demo_ends_by_saying_how_to_reach_the_twin_command() -> None:
     # -n: print the recipes (the install's too, when the venv is missing) without running them
+    # as a user types it: not inside another make (CI runs the suite from `make test`, whose MAKELEVEL
+    # and MAKEFLAGS would make this one print "Leaving directory" lines)
+    env = {k: v for k, v in os.environ.items() if k not in ("MAKELEVEL", "MAKEFLAGS", "MFLAGS")}
     dry = subprocess.run(
-        ["make", "-n", "demo"],
-        cwd=ROOT, capture_output=True, text=True, check=True,
+        ["make", "--no-print-directory", "-n", "demo"],
+        cwd=ROOT, capture_output=True, text=True, check=True, env=env,
     )  # fmt: skip
     last = dry.stdout.strip().splitlines()[-2:]
     assert any(". .venv/bin/activate" in line and ".venv/bin/twin" in line for line in last), last
