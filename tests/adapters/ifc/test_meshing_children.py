@@ -144,7 +144,9 @@ def test_a_busy_child_is_split_when_a_core_idles_and_the_meshes_are_those_of_one
     ) as job:
         split = job.result()
     assert alone.splits == 0
-    assert split.splits >= 1 and split.children >= alone.children + 2  # two children per split
+    # a split hands what the stopped child left to two children, or to one when it had a single
+    # product left by the time it stopped (a race with its last mesh: seen once on a loaded machine)
+    assert split.splits >= 1 and split.children >= alone.children + 1
     assert meshed == sorted(meshed) and meshed[-1] == len(products)
     _assert_same(alone, split)
 
