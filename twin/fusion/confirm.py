@@ -195,9 +195,9 @@ def confirmation(
         class_rules, mean, held, sizes=False, fraction=rules.refine_fraction
     ):
         r, at = placed(ctx, r, state, at=mean, held=held, storey=storey, sizes=sizes)
-        ctx.out.refined.append(target)
-        ctx.decide(target, f"refined: the mean of {refinement.n + 1 if refinement else 1} confirmations")
         n = refinement.n + 1 if refinement else 1
+        ctx.out.refined.append(target)
+        ctx.decide(target, f"refined: the mean of {n} confirmations")
         ctx.out.notes.append(f"<{target}>: pose refined from {n} sightings")
         ctx.out.effects.append(reset_refinement(target))
         ctx.pend(target, storey.key, at, r=r)
