@@ -10,11 +10,11 @@ another (their lines build on each other: ``twin sample lab lab.ifc``, then
 - optional parts in brackets (``[--json]``) are left out; a line that still holds a placeholder
   (``IRI``, ``FILE.ttl``, ``a | b``, ``...``) is a synopsis, not a command: it is listed as skipped;
 - the README's Zenoh ports (7447, 7450, 7451) become free ports, so that the run does not meet a
-  daemon already on the machine: the lines' endpoints are rewritten, and each command gets
-  ``--config`` of a file whose ``[zenoh] listen`` is the free port that stands for 7447;
+  daemon already on the machine: the lines' endpoints (on 127.0.0.1 or 0.0.0.0) are rewritten, and
+  each command gets ``--config`` of a file whose ``[zenoh] listen`` is the free port that stands for 7447;
 - ``twin serve`` and ``twin router`` run in the background (until a later block starts its own, or the
-  end); ``twin watch`` without ``--count`` is stopped after a few seconds with SIGTERM, as a user
-  stops it; ``oxigraph serve`` runs in the background (its port moved too) when the ``oxigraph``
+  end); ``twin watch`` without ``--count`` is stopped with SIGTERM once it printed its first map version, as
+  a user stops it; ``oxigraph serve`` runs in the background (its port moved too) when the ``oxigraph``
   binary is installed (the dev extra has it), and ``pip install`` of an installed package is skipped;
   blocks that need any other tool first, or a tool that is not installed, are skipped.
 
@@ -35,6 +35,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,7 +50,7 @@ EXPECTED = {
     # the daemon of the README's sequence configures no robots: the refusal the README promises
     "twin storey --robot robot1": "Unknown robot 'robot1'",
 }
-WATCH_S = 4.0
+WATCH_LIMIT_S = 60.0  # a watch that printed nothing by then is stopped and fails
 
 log = logging.getLogger("readme_commands")
 
@@ -70,7 +71,8 @@ class Runner:
 
     def argv(self, line: str) -> list[str]:
         for readme_port, port in self.ports.items():
-            line = line.replace(f"127.0.0.1:{readme_port}", f"127.0.0.1:{port}")
+            for host in ("127.0.0.1", "0.0.0.0"):
+                line = line.replace(f"{host}:{readme_port}", f"{host}:{port}")
         words = shlex.split(line)
         return [sys.executable, "-m", "adapters.cli", "--config", str(self.config), *words[1:]]
 
@@ -127,9 +129,15 @@ class Runner:
             self.argv(line), cwd=self.workdir, env=env, text=True,
             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         )  # fmt: skip
-        time.sleep(WATCH_S)
-        process.send_signal(signal.SIGTERM)
+        assert process.stdout is not None
+        limit = threading.Timer(WATCH_LIMIT_S, process.send_signal, (signal.SIGTERM,))
+        limit.start()
+        first = process.stdout.readline()  # the first map version, or "" when the watch ended
+        if process.poll() is None:
+            process.send_signal(signal.SIGTERM)
         out, err = process.communicate(timeout=30)
+        limit.cancel()
+        out = first + out
         outcome = self.judge(line, process.returncode, out, err)
         if outcome.status == "ok" and not out.strip():
             return Outcome(line, "failed", "printed no map version")

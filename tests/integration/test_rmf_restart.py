@@ -27,6 +27,11 @@ def _at(grid: OccupancyGrid, x: float) -> bool:
     return bool((grid.data[spot] == OCCUPIED).all())
 
 
+def _expired(added_at: float, lifetime_s: float = 6.0) -> int:
+    """1 once the brief obstacle's lifetime has surely run out (with a second's margin), else 0."""
+    return int(time.monotonic() - added_at > lifetime_s + 1.0)
+
+
 def test_delete_deleteall_and_lifetimes_of_obstacles_hold_across_a_restart(
     fresh_store: Path, tmp_path: Path
 ) -> None:
@@ -56,13 +61,18 @@ def test_delete_deleteall_and_lifetimes_of_obstacles_hold_across_a_restart(
             robot = Publisher(d, "rmw_zenoh")
             gone = Obstacle(1, "cam_a", "L1", "human", (0, 0, 0), (0, 0, 0), action=DELETE)
             robot.send("/rmf_obstacles", OBSTACLES, cdr_obstacles(stamp, [gone]))
-            status = wait_until(client, lambda s: s["ros_ingest"]["obstacles_held"] == 3)
+            # the brief one may run out of lifetime meanwhile on a loaded machine: 3 held, or 2 after 6 s
+            status = wait_until(client, lambda s: s["ros_ingest"]["obstacles_held"] == 3 - _expired(added_at))
             assert "unknown_id" not in counts(status, "obstacles").get("ignored", {})
+            grid = settled_map(client)
+            assert not _at(grid, 10.0) and _at(grid, 14.0) and _at(grid, 16.0)
             everything = Obstacle(0, "cam_b", "L1", "", (0, 0, 0), (0, 0, 0), action=DELETEALL)
             robot.send("/rmf_obstacles", OBSTACLES, cdr_obstacles(stamp, [everything]))
-            wait_until(client, lambda s: s["ros_ingest"]["obstacles_held"] == 1)  # the brief one
+            wait_until(client, lambda s: s["ros_ingest"]["obstacles_held"] == 1 - _expired(added_at))
             grid = settled_map(client)
-            assert not any(_at(grid, x) for x in (10.0, 14.0, 16.0)) and _at(grid, 12.0)
+            brief_held = client.status()["ros_ingest"]["obstacles_held"] == 1  # held then, so in the map
+            assert not any(_at(grid, x) for x in (10.0, 14.0, 16.0))
+            assert _at(grid, 12.0) or not brief_held
             wait_until(client, lambda s: s["ros_ingest"]["obstacles_held"] == 0, timeout_s=20)
             assert time.monotonic() - added_at < 6 + 8  # its lifetime, from before the restart, held
             grid = settled_map(client)
