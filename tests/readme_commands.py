@@ -226,17 +226,19 @@ def free_port() -> int:
         return port
 
 
-def run_readme(workdir: Path) -> list[Outcome]:
+def run_readme(workdir: Path, parts: tuple[str, ...] = ("readme", "docs")) -> list[Outcome]:
     """Run every ``twin`` line of the README, then of the docs, in ``workdir`` (empty); each outcome.
 
     The README's tour runs in ``workdir/readme``, the docs in ``workdir/docs``: each is a reader's
-    session from an empty folder (the docs' pages build on each other in the README's link order)."""
+    session from an empty folder (the docs' pages build on each other in the README's link order).
+    ``parts`` picks one or both sessions (the suite runs them as two tests, side by side)."""
     ports = {p: free_port() for p in PORTS}
     config = workdir / "readme-run.toml"
     config.write_text(f'[zenoh]\nlisten = ["tcp/127.0.0.1:{ports[7447]}"]\n')
     pages = documents()
     outcomes: list[Outcome] = []
-    for name, docs in (("readme", pages[:1]), ("docs", pages[1:])):
+    sessions = {"readme": pages[:1], "docs": pages[1:]}
+    for name, docs in ((name, sessions[name]) for name in parts):
         folder = workdir / name
         folder.mkdir()
         runner = Runner(folder, config, ports)

@@ -11,8 +11,9 @@ from tests.readme_commands import run_readme
 pytestmark = pytest.mark.slow
 
 
-def test_every_twin_line_of_the_readme_and_the_docs_runs_as_typed(tmp_path: Path) -> None:
-    outcomes = run_readme(tmp_path)
+@pytest.mark.parametrize("part", ["readme", "docs"])
+def test_every_twin_line_of_the_readme_and_the_docs_runs_as_typed(tmp_path: Path, part: str) -> None:
+    outcomes = run_readme(tmp_path, (part,))
     failed = [f"{o.line}\n  {o.detail}" for o in outcomes if o.status == "failed"]
     assert not failed, "\n".join(failed)
     ran = [o.line for o in outcomes if o.status == "ok"]
