@@ -6,17 +6,20 @@ touch within the height band (from ``band_bottom_m`` to ``band_top_m`` above the
 default from just below the floor's top to the next storey's elevation): the 3D analogue of the 2D rule,
 so thin elements never vanish and touching elements leave no gaps. The touch test is exact
 (:mod:`twin.maps.voxels`), on coordinates whose grid planes are decided in world metres (within 1 um of
-a plane is on it: :func:`twin.maps.grid.grid_coordinates`), so the voxels do not depend on where the
-building sits. Each voxel holds one point: the point of the selected surfaces nearest the voxel's centre
+a plane is on it: :func:`twin.maps.grid.grid_coordinates`), against the voxel with its lower faces moved
+out by 0.31 um and its upper faces in by 0.5 um (``TOLERANCES.voxel_out_m``, ``voxel_in_m``: a slanted
+surface through a voxel's edge, its vertices off the grid, is then decided by its geometry, not by its
+vertices' rounding), so the voxels do not depend on where the building sits. Each voxel holds one point: the point of the selected surfaces nearest the voxel's centre
 within the voxel's *closed* box (a centre would bias the cloud by up to half a voxel; the point may lie
 on the box's boundary, its upper faces included, which the half-open voxel does not hold), with the unit
 normal of the triangle it lies on, oriented by the triangle's winding (outward: the importer turns every
 closed shell outward; float32, rounded to 2**-20). Ties (a point on an edge or vertex several triangles
 share, or equal points of several elements) go to the smallest point, then to the smallest normal (x,
 then y, then z; a degenerate triangle's zero normal last), distances and points compared rounded to
-2**-20 of a voxel (:func:`best_rows`), so the cloud depends neither on the order triangles and elements
-are processed in (incremental updates equal a full rebuild voxel for voxel, normals included) nor on
-float noise.
+2**-20 of a voxel, then to the nearest exactly (two elements' surfaces a nanometre apart), then to the
+smallest point exactly (:func:`best_rows`), so the cloud depends neither on the order triangles and
+elements are processed in (incremental updates equal a full rebuild voxel for voxel, normals included)
+nor on float noise.
 
 Frames: the voxels' x, y are the cells of the storey's 2D maps at this resolution (same origin, the
 ``map`` frame); z is metres above the storey's elevation, voxel layer ``k`` covering
@@ -125,6 +128,13 @@ class PointsPlan:
         out[..., 1] = grid_coordinates(triangles[..., 1], self.frame.origin_y, res)
         out[..., 2] = grid_coordinates(triangles[..., 2], self.storey.elevation_m, res, ends=self.band)
         return out
+
+    @property
+    def shift(self) -> tuple[float, float]:
+        """How far the voxels' lower faces move out and their upper faces in for the touch test, cell
+        units (``TOLERANCES.voxel_out_m``, ``voxel_in_m``: see :func:`twin.maps.voxels.touched_pairs`)."""
+        res = self.resolution_m
+        return (TOLERANCES.voxel_out_m / res, TOLERANCES.voxel_in_m / res)
 
     def keys(self, ijk: IntArray) -> IntArray:
         k_lo = self.layers[0]
@@ -278,7 +288,9 @@ def best_rows(
     the points of a voxel that are equal but for rounding (one point of an edge two triangles share,
     a building moved by whole voxels) are ranked by what they are, not by their noise: the smallest
     squared distance to the voxel's centre, then the smallest point (x, y, z), then the smallest normal
-    (x, y, z; zero normals last), then the exact values (point, then distance)."""
+    (x, y, z; zero normals last), then the exact values (distance, then point: two elements' surfaces a
+    nanometre apart are told apart by their distance, which their rounding does not reach, where the
+    exact points' first coordinate may be equal but for rounding)."""
     n = len(keys)
     if n < 2:
         return np.arange(n, dtype=np.int64)
@@ -313,7 +325,7 @@ def best_rows(
     ns = normals[sub]
     zero = ~ns.any(axis=1)
     qs, rq = q[sub], _quantised(q[sub])
-    ranks = (d2[sub], qs[:, 2], qs[:, 1], qs[:, 0], ns[:, 2], ns[:, 1], ns[:, 0], zero)
+    ranks = (qs[:, 2], qs[:, 1], qs[:, 0], d2[sub], ns[:, 2], ns[:, 1], ns[:, 0], zero)
     sub = sub[np.lexsort((*ranks, rq[:, 2], rq[:, 1], rq[:, 0], sub_g))]
     sg = np.sort(sub_g)
     keep = np.ones(len(sub), dtype=np.bool_)
@@ -336,7 +348,7 @@ def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
     if not len(triangles):
         return np.empty(0, dtype=np.int64), Voxels.empty()
     cells = plan.cells(triangles)
-    tri, ijk, hint = touched_pairs(cells, lo=plan.lo, hi=plan.hi, w_band=plan.w_band)
+    tri, ijk, hint = touched_pairs(cells, lo=plan.lo, hi=plan.hi, w_band=plan.w_band, shift=plan.shift)
     q = np.empty((len(tri), 3))
     d2 = np.empty(len(tri))
     for s in range(0, len(tri), _CHUNK):  # element-wise: the same values in any chunks, less memory

@@ -83,6 +83,28 @@ def test_the_voxels_a_triangle_touches_are_exactly_the_references(
     assert sorted(got - ref) == [], "extra voxels"
 
 
+SHIFTS = st.sampled_from([(3.09017e-6, 5e-6), (3.09017e-7, 5e-7), (0.0309017, 0.05)])
+"""Faces moved by a third and half of a micrometre at 0.1 m and 1 m, and by a fraction of a cell."""
+
+
+@settings(max_examples=examples(200), deadline=None, suppress_health_check=list(HealthCheck))
+@given(triangles(), BANDS, SHIFTS)
+def test_the_voxels_a_snapped_triangle_touches_with_the_faces_moved_are_exactly_the_references(
+    tri: npt.NDArray[np.float64], band: tuple[float, float], shift: tuple[float, float]
+) -> None:
+    # what points maps test: coordinates within the moves of a grid plane are on it (grid_coordinates)
+    # first, then the voxel's lower faces are moved out and its upper faces in
+    snap = 2 * max(shift)
+    tri = np.where(np.abs(tri - np.rint(tri)) <= snap, np.rint(tri), tri)
+    for end in band:  # and the band's ends
+        tri[:, 2] = np.where(np.abs(tri[:, 2] - end) <= snap, end, tri[:, 2])
+    _, ijk = touched_voxels(tri[None], lo=LO, hi=HI, w_band=band, shift=shift)
+    got = {(int(i), int(j), int(k)) for i, j, k in ijk}
+    ref = reference_voxels(tri, LO, HI, band, shift=shift)
+    assert sorted(ref - got) == [], "voxels missed"
+    assert sorted(got - ref) == [], "extra voxels"
+
+
 @settings(max_examples=examples(150), deadline=None, suppress_health_check=list(HealthCheck))
 @given(triangles(), BANDS)
 def test_each_point_lies_in_its_voxel_on_the_triangle_and_no_farther_than_the_centres_projection(
