@@ -9,11 +9,13 @@ so thin elements never vanish and touching elements leave no gaps. The touch tes
 a plane is on it: :func:`twin.maps.grid.grid_coordinates`), against the voxel with its lower faces moved
 out by 0.31 um and its upper faces in by 0.5 um (``TOLERANCES.voxel_out_m``, ``voxel_in_m``: a slanted
 surface through a voxel's edge, its vertices off the grid, is then decided by its geometry, not by its
-vertices' rounding), so the voxels do not depend on where the building sits. Each voxel holds one point: the point of the selected surfaces nearest the voxel's centre
-within the voxel's *closed* box (a centre would bias the cloud by up to half a voxel; the point may lie
-on the box's boundary, its upper faces included, which the half-open voxel does not hold), with the unit
-normal of the triangle it lies on, oriented by the triangle's winding (outward: the importer turns every
-closed shell outward; float32, rounded to 2**-20). Ties (a point on an edge or vertex several triangles
+vertices' rounding), so the voxels do not depend on where the building sits. Each voxel holds one
+point: the point of the selected surfaces nearest the voxel's centre within the voxel's *closed* box (a
+centre would bias the cloud by up to half a voxel; the point may lie on the box's boundary, its upper
+faces included, which the half-open voxel does not hold), with the unit normal of the triangle it lies
+on, oriented by the triangle's winding (outward: the importer turns every closed shell outward; float32,
+rounded to 2**-20; taken from the element's local mesh, :attr:`MeshSet.normals`, so that the building's
+position does not round it). Ties (a point on an edge or vertex several triangles
 share, or equal points of several elements) go to the smallest point, then to the smallest normal (x,
 then y, then z; a degenerate triangle's zero normal last), distances and points compared rounded to
 2**-20 of a voxel, then to the nearest exactly (two elements' surfaces a nanometre apart), then to the
@@ -44,7 +46,7 @@ import numpy.typing as npt
 from twin.errors import MapError
 from twin.maps.grid import GridFrame, grid_coordinates, grid_units
 from twin.maps.nearest import distance_to_centres, nearest_points_of
-from twin.maps.scene import IndexArray, MeshSet, Scene, StoreyInfo
+from twin.maps.scene import IndexArray, MeshSet, Scene, StoreyInfo, unit_normals
 from twin.maps.voxels import FloatArray, IntArray, touched_pairs
 from twin.selection.skills import SkillProfile
 from twin.tolerances import TOLERANCES
@@ -68,8 +70,6 @@ __all__ = [
 
 _CHUNK = 100_000
 """Pairs whose nearest points are computed at once (bounds the temporaries to ~100 MB)."""
-_NORMAL_STEPS = float(2**20)
-"""Normals' components are multiples of 1 / this (:func:`triangle_normals`)."""
 _SHARED_VOXELS = 1.25
 """Surfaces closer than a voxel (a slab's faces, a covering on a slab, walls that touch) share voxels,
 which a sum of areas counts twice: on the sample lab and the shared models the sum is 1.04 to 2.4 times
@@ -241,23 +241,16 @@ class Voxels:
 
 def triangle_normals(triangles: FloatArray) -> Float32Array:
     """The unit normals ``(n, 3) float32`` of triangles ``(n, 3, 3)``, by their winding (right hand:
-    ``(b - a) x (c - a)``); zero for a triangle of no area; no negative zeros. Components are rounded to
-    multiples of 2**-20 (about 1e-6, a microradian) before float32 takes them: a small component's own
-    float32 step is far finer, and the rounding noise of world coordinates (a building moved by 10 km)
-    would otherwise change its last bits."""
+    ``(b - a) x (c - a)``); zero for a triangle of no area; components rounded to multiples of 2**-20
+    (:func:`twin.maps.scene.unit_normals`). Scenes carry their triangles' normals from the local meshes
+    (:attr:`MeshSet.normals`), which the building's position does not round; this is for loose triangles."""
     t = np.asarray(triangles, dtype=np.float64)
     u, v = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
     c = np.empty((len(t), 3))
     c[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
     c[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
     c[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
-    length = np.sqrt(c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1] + c[:, 2] * c[:, 2])
-    ok = length > 0.0
-    c[ok] /= length[ok, None]
-    c[~ok] = 0.0
-    c = np.rint(c * _NORMAL_STEPS) / _NORMAL_STEPS
-    out: Float32Array = (c + 0.0).astype(np.float32)  # (+ 0.0: no -0.0, equal normals equal bits)
-    return out
+    return unit_normals(c)
 
 
 def sorted_unique(keys: IntArray) -> IntArray:
@@ -343,8 +336,11 @@ def best_per_voxel(v: Voxels) -> Voxels:
     return v.take(best_rows(v.keys, v.q, v.d2, v.n))
 
 
-def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
-    """Every touching (triangle, voxel) pair of world ``triangles`` with the pair's point."""
+def _pairs(
+    plan: PointsPlan, triangles: FloatArray, normals: Float32Array | None = None
+) -> tuple[IntArray, Voxels]:
+    """Every touching (triangle, voxel) pair of world ``triangles`` with the pair's point and its
+    triangle's normal (from ``normals``, else from the world triangles)."""
     if not len(triangles):
         return np.empty(0, dtype=np.int64), Voxels.empty()
     cells = plan.cells(triangles)
@@ -354,11 +350,18 @@ def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
     for s in range(0, len(tri), _CHUNK):  # element-wise: the same values in any chunks, less memory
         e = s + _CHUNK
         q[s:e], d2[s:e] = nearest_points_of(cells, tri[s:e], ijk[s:e], w_band=plan.w_band, hint=hint[s:e])
-    return tri, Voxels(plan.keys(ijk), q, d2, triangle_normals(triangles)[tri])
+    n = normals[tri] if normals is not None else triangle_normals(triangles[tri])
+    return tri, Voxels(plan.keys(ijk), q, d2, n)
 
 
 def _near_band(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> tuple[FloatArray, IndexArray]:
     """The triangles of ``ids`` whose bounds meet the frame and the band, and their owner (into ids)."""
+    rows, owner = _near_band_rows(meshes, ids, plan)
+    return meshes.triangles[rows], owner
+
+
+def _near_band_rows(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> tuple[IndexArray, IndexArray]:
+    """The rows of :func:`_near_band`'s triangles in ``meshes``, and their owner (into ids)."""
     rows, owner = meshes._rows_of(ids)
     tb = meshes.triangle_bounds[rows]
     f = plan.frame
@@ -372,7 +375,11 @@ def _near_band(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> tuple[Floa
         & (tb[:, 2] <= z_hi + g)
         & (tb[:, 5] >= z_lo - g)
     )
-    return meshes.triangles[rows[keep]], owner[keep]
+    return rows[keep], owner[keep]
+
+
+def _normals_of(meshes: MeshSet, rows: IndexArray) -> Float32Array | None:
+    return meshes.normals[rows] if meshes.normals is not None else None
 
 
 def estimate_points(scene: Scene, plan: PointsPlan) -> int:
@@ -415,8 +422,8 @@ def voxels_of(plan: PointsPlan, triangles: FloatArray) -> Voxels:
 
 def voxels_by_element(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> list[Voxels]:
     """Per element of ``ids`` (in that order): its own voxels (what the live maps keep per element)."""
-    triangles, owner = _near_band(meshes, ids, plan)
-    tri, v = _pairs(plan, triangles)
+    rows, owner = _near_band_rows(meshes, ids, plan)
+    tri, v = _pairs(plan, meshes.triangles[rows], _normals_of(meshes, rows))
     out = [Voxels.empty() for _ in ids]
     if not len(v):
         return out
@@ -465,5 +472,6 @@ def cloud_of(plan: PointsPlan, v: Voxels) -> PointCloud:
 
 def build_points(scene: Scene, plan: PointsPlan) -> PointCloud:
     """The full points map of ``plan``, from the selected elements' triangles."""
-    triangles, _ = _near_band(scene.elements, plan.selected, plan)
-    return cloud_of(plan, voxels_of(plan, triangles))
+    rows, _ = _near_band_rows(scene.elements, plan.selected, plan)
+    _, v = _pairs(plan, scene.elements.triangles[rows], _normals_of(scene.elements, rows))
+    return cloud_of(plan, best_per_voxel(v))
