@@ -7,9 +7,9 @@ they print as (``8.8`` is 88/10, not its binary neighbour), the band's ends ``el
 end within 1 um of a layer's plane being that plane). A vertex coordinate (the float's exact value)
 within 1 um of a plane is on it; the others are kept exactly. Voxel ``(i, j, k)`` is the half-open box
 ``[i, i+1) x [j, j+1) x [max(k, lo), min(k+1, hi))`` in those units, its lower faces moved out by
-``OUT`` (0.309017 um) and its upper faces in by ``IN`` (0.5 um): a slanted surface through a voxel's edge
-with its vertices off the grid is then clear of it or into it by a third of a micrometre, not by float
-noise (for vertices, which are on a plane or more than 1 um from it, the move changes nothing). A closed
+``OUT`` (3.09017 nm) and its upper faces in by ``IN`` (0.5 um): a slanted surface through a voxel's edge
+with its vertices off the grid is then clear of it or into it by nanometres, not by float noise
+(for vertices, which are on a plane or more than 1 um from it, the move changes nothing). A closed
 triangle touches the voxel when they share a point: the separating-axis test (13 axes) in rational
 arithmetic, on that box shrunk at its upper faces by less than any nonzero margin can be. A float
 filter decides, per triangle and for all the voxels of its bounding box at once, the pairs far from a
@@ -33,7 +33,7 @@ import numpy.typing as npt
 
 SNAP = Fraction(1, 1_000_000)
 """A coordinate this near a plane (1 um) is on it."""
-OUT = Fraction(309_017, 10**12)
+OUT = Fraction(309_017, 10**14)
 """A voxel's lower faces are moved out by this (metres)."""
 IN = Fraction(1, 2_000_000)
 """A voxel's upper faces are moved in by this (metres)."""

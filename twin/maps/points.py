@@ -7,7 +7,7 @@ default from just below the floor's top to the next storey's elevation): the 3D 
 so thin elements never vanish and touching elements leave no gaps. The touch test is exact
 (:mod:`twin.maps.voxels`), on coordinates whose grid planes are decided in world metres (within 1 um of
 a plane is on it: :func:`twin.maps.grid.grid_coordinates`), against the voxel with its lower faces moved
-out by 0.31 um and its upper faces in by 0.5 um (``TOLERANCES.voxel_out_m``, ``voxel_in_m``: a slanted
+out by 3.1 nm and its upper faces in by 0.5 um (``TOLERANCES.voxel_out_m``, ``voxel_in_m``: a slanted
 surface through a voxel's edge, its vertices off the grid, is then decided by its geometry, not by its
 vertices' rounding), so the voxels do not depend on where the building sits. Each voxel holds one
 point: the point of the selected surfaces nearest the voxel's centre within the voxel's *closed* box (a

@@ -14,9 +14,10 @@ a micrometre (``shift``, from ``TOLERANCES.voxel_out_m`` and ``voxel_in_m``): a 
 on a grid plane or more than ``TOLERANCES.grid_m`` from one, so the move changes nothing for vertices,
 but a slanted surface that passes exactly through a voxel's edge or corner with its vertices off the
 grid (a 30 degree roof through a grid line, a 45 degree wall through grid corners) is then clear of the
-moved box or into it by a third of a micrometre or more, not by the rounding of its vertices, which
-moving the building changes. (The two moves differ, in a ratio of no small whole numbers, so that no
-simple slope through a grid corner passes through a moved corner.)
+moved box or into it by nanometres or more, not by the rounding of its vertices, which moving the
+building changes. On such a tie the verdict is the half-open rule's on the exact geometry unless the
+surface or edge is within 0.35 degrees of a grid plane or axis (the moves' ratio, 161.8, is of no small
+whole numbers, so that no simple slope through a grid corner passes through a moved corner).
 
 The test is the separating axis theorem for a triangle and a box (13 axes), with two refinements that
 make it exact rather than approximate:
