@@ -48,6 +48,20 @@ class Tolerances:
             they print as), of a voxel layer ``elevation + k * resolution``, of a band's end. The
             half-open rule then decides which cell it is in, so that where the building sits (a site
             moved by a whole number of cells, kilometres away) never changes a map.
+        voxel_out_m, voxel_in_m: points maps (:func:`twin.maps.voxels.touched_pairs`): a triangle
+            touches a voxel when it meets the voxel's half-open box with its lower faces moved out by
+            ``voxel_out_m`` and its upper faces moved in by ``voxel_in_m`` (3.1 nm and 0.5 um). For a
+            vertex that changes nothing (a coordinate within ``grid_m`` of a grid plane is on it, the
+            others are farther), but a slanted surface that passes through a voxel's edge or corner
+            with its vertices off the grid (a 30 degree roof through a grid line, a 45 degree wall
+            through grid corners) is then clear of the moved box or into it by nanometres or more, far
+            beyond float noise (1e-12 m at 10 km), instead of touching it within that noise, which a
+            move of the building changes. The verdict is the half-open rule's on the exact geometry (a
+            surface through a voxel's lower edge touches it, through an upper or a mixed one does
+            not) unless the surface or edge is within 0.35 degrees of a grid plane or axis (a
+            separating axis's components more than 161.8 to 1); the moves' ratio (161.8) is of no
+            small whole numbers, so that no simple slope through a grid corner passes through a
+            moved corner.
         point_quantum: points maps' ties (:func:`twin.maps.points.best_rows`): squared distances and
             points (in voxels) are compared rounded to this fraction of a voxel (2**-20, about 1e-6),
             so float noise of a few ulp never decides which of two equally near points a voxel keeps.
@@ -61,6 +75,8 @@ class Tolerances:
     sliver_sin2: float = 1e-12
     grid_m: float = 1e-6
     point_quantum: float = 2.0**-20
+    voxel_out_m: float = 3.09017e-9
+    voxel_in_m: float = 5e-7
 
 
 TOLERANCES = Tolerances()

@@ -4,7 +4,9 @@ Plain Python, one triangle and one voxel at a time, in exact integer arithmetic:
 axis test (13 axes) of the triangle and the voxel's box *shrunk* at its upper faces by less than any
 nonzero margin can be. A half-open cell ``[lo, hi)`` meets a closed triangle exactly when such a
 shrunk closed box does, so no tie rule is needed. Candidates are every voxel of the triangle's bounding
-box (no column enumeration), so the check covers what the production code chooses to test too.
+box (no column enumeration), so the check covers what the production code chooses to test too. With a
+``shift`` ``(out, in)``, the box's lower faces are moved out by ``out`` and its upper faces in by ``in``
+first (what points maps test: ``twin.maps.voxels.touched_pairs``).
 
 Slow (tens of microseconds per voxel): for small cases and samples of real models.
 """
@@ -12,17 +14,26 @@ Slow (tens of microseconds per voxel): for small cases and samples of real model
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
+from fractions import Fraction
 
 import numpy as np
 import numpy.typing as npt
 
 
-def _as_ints(values: Iterable[float]) -> list[int]:
-    """Floats as integers over one common power of two (exact)."""
-    ratios = [float(v).as_integer_ratio() for v in values]
+def _as_ints(values: Iterable[float | Fraction]) -> list[int]:
+    """Floats (and sums of floats) as integers over one common power of two (exact)."""
+    ratios = [
+        (v.numerator, v.denominator) if isinstance(v, Fraction) else float(v).as_integer_ratio()
+        for v in values
+    ]
     top = max(d for _, d in ratios)
     return [n * (top // d) for n, d in ratios]
+
+
+def _exactly(a: float, b: float) -> Fraction:
+    """``a + b``, exactly."""
+    return Fraction(a) + Fraction(b)
 
 
 def _sub(a: list[int], b: list[int]) -> list[int]:
@@ -33,7 +44,9 @@ def _cross(a: list[int], b: list[int]) -> list[int]:
     return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 
 
-def triangle_touches_cell(tri: npt.NDArray[np.float64], lo: list[float], hi: list[float]) -> bool:
+def triangle_touches_cell(
+    tri: npt.NDArray[np.float64], lo: Sequence[float | Fraction], hi: Sequence[float | Fraction]
+) -> bool:
     """Does the closed triangle ``tri (3, 3)`` share a point with the half-open box ``[lo, hi)``?"""
     ints = _as_ints([*tri.reshape(-1).tolist(), *lo, *hi])
     v = [ints[0:3], ints[3:6], ints[6:9]]
@@ -60,9 +73,11 @@ def reference_voxels(
     lo: tuple[int, int, int],
     hi: tuple[int, int, int],
     w_band: tuple[float, float],
+    *,
+    shift: tuple[float, float] = (0.0, 0.0),
 ) -> set[tuple[int, int, int]]:
     """Every voxel ``(i, j, k)`` in ``[lo, hi)`` the triangle (cell coordinates) touches; voxel ``k``'s z
-    range is cut by the band ``[w_lo, w_hi)``."""
+    range is cut by the band ``[w_lo, w_hi)``, then its faces moved by ``shift``."""
     first = [max(math.floor(tri[:, a].min()), lo[a]) for a in range(3)]
     last = [min(math.floor(tri[:, a].max()), hi[a] - 1) for a in range(3)]
     out = set()
@@ -72,6 +87,11 @@ def reference_voxels(
                 z0, z1 = max(float(k), w_band[0]), min(float(k + 1), w_band[1])
                 if z1 <= z0:
                     continue
-                if triangle_touches_cell(tri, [float(i), float(j), z0], [float(i + 1), float(j + 1), z1]):
+                b_lo = [float(i), float(j), z0]
+                b_hi = [float(i + 1), float(j + 1), z1]
+                if shift != (0.0, 0.0):
+                    b_lo = [_exactly(c, -shift[0]) for c in b_lo]
+                    b_hi = [_exactly(c, -shift[1]) for c in b_hi]
+                if triangle_touches_cell(tri, b_lo, b_hi):
                     out.add((i, j, k))
     return out

@@ -6,10 +6,14 @@ The grid is what a surveyor would write down: planes at ``origin + i * resolutio
 they print as (``8.8`` is 88/10, not its binary neighbour), the band's ends ``elevation + end`` too (an
 end within 1 um of a layer's plane being that plane). A vertex coordinate (the float's exact value)
 within 1 um of a plane is on it; the others are kept exactly. Voxel ``(i, j, k)`` is the half-open box
-``[i, i+1) x [j, j+1) x [max(k, lo), min(k+1, hi))`` in those units, and a closed triangle touches it when
-they share a point: the separating-axis test (13 axes) in rational arithmetic, on the box shrunk at its
-upper faces by less than any nonzero margin can be. A float filter decides, per triangle and for all the
-voxels of its bounding box at once, the pairs far from a tie either way; the rest go to the exact test.
+``[i, i+1) x [j, j+1) x [max(k, lo), min(k+1, hi))`` in those units, its lower faces moved out by
+``OUT`` (3.09017 nm) and its upper faces in by ``IN`` (0.5 um): a slanted surface through a voxel's edge
+with its vertices off the grid is then clear of it or into it by nanometres, not by float noise
+(for vertices, which are on a plane or more than 1 um from it, the move changes nothing). A closed
+triangle touches the voxel when they share a point: the separating-axis test (13 axes) in rational
+arithmetic, on that box shrunk at its upper faces by less than any nonzero margin can be. A float
+filter decides, per triangle and for all the voxels of its bounding box at once, the pairs far from a
+tie either way; the rest go to the exact test.
 
 Example::
 
@@ -29,6 +33,10 @@ import numpy.typing as npt
 
 SNAP = Fraction(1, 1_000_000)
 """A coordinate this near a plane (1 um) is on it."""
+OUT = Fraction(309_017, 10**14)
+"""A voxel's lower faces are moved out by this (metres)."""
+IN = Fraction(1, 2_000_000)
+"""A voxel's upper faces are moved in by this (metres)."""
 
 Voxel = tuple[int, int, int]
 
@@ -97,12 +105,14 @@ class WorldGrid:
         b_hi[:, 2] = np.minimum(b_hi[:, 2], float(w_hi))
         keep = b_hi[:, 2] > b_lo[:, 2]
         ijk, b_lo, b_hi = ijk[keep], b_lo[keep], b_hi[keep]
+        out_v, in_v = OUT / self._r, IN / self._r  # the faces' moves in voxels
+        b_lo, b_hi = b_lo - float(out_v), b_hi - float(in_v)
         verdict = _float_verdict(np.array([[float(c) for c in p] for p in v]), b_lo, b_hi)
         out = {(int(i), int(j), int(k)) for i, j, k in ijk[verdict == 1]}
         for n in np.flatnonzero(verdict == 0):
             i, j, k = (int(c) for c in ijk[n])
-            box_lo = [Fraction(i), Fraction(j), max(Fraction(k), w_lo)]
-            box_hi = [Fraction(i + 1), Fraction(j + 1), min(Fraction(k + 1), w_hi)]
+            box_lo = [c - out_v for c in (Fraction(i), Fraction(j), max(Fraction(k), w_lo))]
+            box_hi = [c - in_v for c in (Fraction(i + 1), Fraction(j + 1), min(Fraction(k + 1), w_hi))]
             if touches(v, box_lo, box_hi):
                 out.add((i, j, k))
         return out

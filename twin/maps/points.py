@@ -6,17 +6,22 @@ touch within the height band (from ``band_bottom_m`` to ``band_top_m`` above the
 default from just below the floor's top to the next storey's elevation): the 3D analogue of the 2D rule,
 so thin elements never vanish and touching elements leave no gaps. The touch test is exact
 (:mod:`twin.maps.voxels`), on coordinates whose grid planes are decided in world metres (within 1 um of
-a plane is on it: :func:`twin.maps.grid.grid_coordinates`), so the voxels do not depend on where the
-building sits. Each voxel holds one point: the point of the selected surfaces nearest the voxel's centre
-within the voxel's *closed* box (a centre would bias the cloud by up to half a voxel; the point may lie
-on the box's boundary, its upper faces included, which the half-open voxel does not hold), with the unit
-normal of the triangle it lies on, oriented by the triangle's winding (outward: the importer turns every
-closed shell outward; float32, rounded to 2**-20). Ties (a point on an edge or vertex several triangles
+a plane is on it: :func:`twin.maps.grid.grid_coordinates`), against the voxel with its lower faces moved
+out by 3.1 nm and its upper faces in by 0.5 um (``TOLERANCES.voxel_out_m``, ``voxel_in_m``: a slanted
+surface through a voxel's edge, its vertices off the grid, is then decided by its geometry, not by its
+vertices' rounding), so the voxels do not depend on where the building sits. Each voxel holds one
+point: the point of the selected surfaces nearest the voxel's centre within the voxel's *closed* box (a
+centre would bias the cloud by up to half a voxel; the point may lie on the box's boundary, its upper
+faces included, which the half-open voxel does not hold), with the unit normal of the triangle it lies
+on, oriented by the triangle's winding (outward: the importer turns every closed shell outward; float32,
+rounded to 2**-20; taken from the element's local mesh, :attr:`MeshSet.normals`, so that the building's
+position does not round it). Ties (a point on an edge or vertex several triangles
 share, or equal points of several elements) go to the smallest point, then to the smallest normal (x,
 then y, then z; a degenerate triangle's zero normal last), distances and points compared rounded to
-2**-20 of a voxel (:func:`best_rows`), so the cloud depends neither on the order triangles and elements
-are processed in (incremental updates equal a full rebuild voxel for voxel, normals included) nor on
-float noise.
+2**-20 of a voxel, then to the nearest exactly (two elements' surfaces a nanometre apart), then to the
+smallest point exactly (:func:`best_rows`), so the cloud depends neither on the order triangles and
+elements are processed in (incremental updates equal a full rebuild voxel for voxel, normals included)
+nor on float noise.
 
 Frames: the voxels' x, y are the cells of the storey's 2D maps at this resolution (same origin, the
 ``map`` frame); z is metres above the storey's elevation, voxel layer ``k`` covering
@@ -41,7 +46,7 @@ import numpy.typing as npt
 from twin.errors import MapError
 from twin.maps.grid import GridFrame, grid_coordinates, grid_units
 from twin.maps.nearest import distance_to_centres, nearest_points_of
-from twin.maps.scene import IndexArray, MeshSet, Scene, StoreyInfo
+from twin.maps.scene import IndexArray, MeshSet, Scene, StoreyInfo, unit_normals
 from twin.maps.voxels import FloatArray, IntArray, touched_pairs
 from twin.selection.skills import SkillProfile
 from twin.tolerances import TOLERANCES
@@ -65,8 +70,6 @@ __all__ = [
 
 _CHUNK = 100_000
 """Pairs whose nearest points are computed at once (bounds the temporaries to ~100 MB)."""
-_NORMAL_STEPS = float(2**20)
-"""Normals' components are multiples of 1 / this (:func:`triangle_normals`)."""
 _SHARED_VOXELS = 1.25
 """Surfaces closer than a voxel (a slab's faces, a covering on a slab, walls that touch) share voxels,
 which a sum of areas counts twice: on the sample lab and the shared models the sum is 1.04 to 2.4 times
@@ -125,6 +128,13 @@ class PointsPlan:
         out[..., 1] = grid_coordinates(triangles[..., 1], self.frame.origin_y, res)
         out[..., 2] = grid_coordinates(triangles[..., 2], self.storey.elevation_m, res, ends=self.band)
         return out
+
+    @property
+    def shift(self) -> tuple[float, float]:
+        """How far the voxels' lower faces move out and their upper faces in for the touch test, cell
+        units (``TOLERANCES.voxel_out_m``, ``voxel_in_m``: see :func:`twin.maps.voxels.touched_pairs`)."""
+        res = self.resolution_m
+        return (TOLERANCES.voxel_out_m / res, TOLERANCES.voxel_in_m / res)
 
     def keys(self, ijk: IntArray) -> IntArray:
         k_lo = self.layers[0]
@@ -231,23 +241,16 @@ class Voxels:
 
 def triangle_normals(triangles: FloatArray) -> Float32Array:
     """The unit normals ``(n, 3) float32`` of triangles ``(n, 3, 3)``, by their winding (right hand:
-    ``(b - a) x (c - a)``); zero for a triangle of no area; no negative zeros. Components are rounded to
-    multiples of 2**-20 (about 1e-6, a microradian) before float32 takes them: a small component's own
-    float32 step is far finer, and the rounding noise of world coordinates (a building moved by 10 km)
-    would otherwise change its last bits."""
+    ``(b - a) x (c - a)``); zero for a triangle of no area; components rounded to multiples of 2**-20
+    (:func:`twin.maps.scene.unit_normals`). Scenes carry their triangles' normals from the local meshes
+    (:attr:`MeshSet.normals`), which the building's position does not round; this is for loose triangles."""
     t = np.asarray(triangles, dtype=np.float64)
     u, v = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
     c = np.empty((len(t), 3))
     c[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
     c[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
     c[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
-    length = np.sqrt(c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1] + c[:, 2] * c[:, 2])
-    ok = length > 0.0
-    c[ok] /= length[ok, None]
-    c[~ok] = 0.0
-    c = np.rint(c * _NORMAL_STEPS) / _NORMAL_STEPS
-    out: Float32Array = (c + 0.0).astype(np.float32)  # (+ 0.0: no -0.0, equal normals equal bits)
-    return out
+    return unit_normals(c)
 
 
 def sorted_unique(keys: IntArray) -> IntArray:
@@ -278,7 +281,9 @@ def best_rows(
     the points of a voxel that are equal but for rounding (one point of an edge two triangles share,
     a building moved by whole voxels) are ranked by what they are, not by their noise: the smallest
     squared distance to the voxel's centre, then the smallest point (x, y, z), then the smallest normal
-    (x, y, z; zero normals last), then the exact values (point, then distance)."""
+    (x, y, z; zero normals last), then the exact values (distance, then point: two elements' surfaces a
+    nanometre apart are told apart by their distance, which their rounding does not reach, where the
+    exact points' first coordinate may be equal but for rounding)."""
     n = len(keys)
     if n < 2:
         return np.arange(n, dtype=np.int64)
@@ -313,7 +318,7 @@ def best_rows(
     ns = normals[sub]
     zero = ~ns.any(axis=1)
     qs, rq = q[sub], _quantised(q[sub])
-    ranks = (d2[sub], qs[:, 2], qs[:, 1], qs[:, 0], ns[:, 2], ns[:, 1], ns[:, 0], zero)
+    ranks = (qs[:, 2], qs[:, 1], qs[:, 0], d2[sub], ns[:, 2], ns[:, 1], ns[:, 0], zero)
     sub = sub[np.lexsort((*ranks, rq[:, 2], rq[:, 1], rq[:, 0], sub_g))]
     sg = np.sort(sub_g)
     keep = np.ones(len(sub), dtype=np.bool_)
@@ -331,22 +336,32 @@ def best_per_voxel(v: Voxels) -> Voxels:
     return v.take(best_rows(v.keys, v.q, v.d2, v.n))
 
 
-def _pairs(plan: PointsPlan, triangles: FloatArray) -> tuple[IntArray, Voxels]:
-    """Every touching (triangle, voxel) pair of world ``triangles`` with the pair's point."""
+def _pairs(
+    plan: PointsPlan, triangles: FloatArray, normals: Float32Array | None = None
+) -> tuple[IntArray, Voxels]:
+    """Every touching (triangle, voxel) pair of world ``triangles`` with the pair's point and its
+    triangle's normal (from ``normals``, else from the world triangles)."""
     if not len(triangles):
         return np.empty(0, dtype=np.int64), Voxels.empty()
     cells = plan.cells(triangles)
-    tri, ijk, hint = touched_pairs(cells, lo=plan.lo, hi=plan.hi, w_band=plan.w_band)
+    tri, ijk, hint = touched_pairs(cells, lo=plan.lo, hi=plan.hi, w_band=plan.w_band, shift=plan.shift)
     q = np.empty((len(tri), 3))
     d2 = np.empty(len(tri))
     for s in range(0, len(tri), _CHUNK):  # element-wise: the same values in any chunks, less memory
         e = s + _CHUNK
         q[s:e], d2[s:e] = nearest_points_of(cells, tri[s:e], ijk[s:e], w_band=plan.w_band, hint=hint[s:e])
-    return tri, Voxels(plan.keys(ijk), q, d2, triangle_normals(triangles)[tri])
+    n = normals[tri] if normals is not None else triangle_normals(triangles[tri])
+    return tri, Voxels(plan.keys(ijk), q, d2, n)
 
 
 def _near_band(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> tuple[FloatArray, IndexArray]:
     """The triangles of ``ids`` whose bounds meet the frame and the band, and their owner (into ids)."""
+    rows, owner = _near_band_rows(meshes, ids, plan)
+    return meshes.triangles[rows], owner
+
+
+def _near_band_rows(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> tuple[IndexArray, IndexArray]:
+    """The rows of :func:`_near_band`'s triangles in ``meshes``, and their owner (into ids)."""
     rows, owner = meshes._rows_of(ids)
     tb = meshes.triangle_bounds[rows]
     f = plan.frame
@@ -360,7 +375,11 @@ def _near_band(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> tuple[Floa
         & (tb[:, 2] <= z_hi + g)
         & (tb[:, 5] >= z_lo - g)
     )
-    return meshes.triangles[rows[keep]], owner[keep]
+    return rows[keep], owner[keep]
+
+
+def _normals_of(meshes: MeshSet, rows: IndexArray) -> Float32Array | None:
+    return meshes.normals[rows] if meshes.normals is not None else None
 
 
 def estimate_points(scene: Scene, plan: PointsPlan) -> int:
@@ -403,8 +422,8 @@ def voxels_of(plan: PointsPlan, triangles: FloatArray) -> Voxels:
 
 def voxels_by_element(meshes: MeshSet, ids: IndexArray, plan: PointsPlan) -> list[Voxels]:
     """Per element of ``ids`` (in that order): its own voxels (what the live maps keep per element)."""
-    triangles, owner = _near_band(meshes, ids, plan)
-    tri, v = _pairs(plan, triangles)
+    rows, owner = _near_band_rows(meshes, ids, plan)
+    tri, v = _pairs(plan, meshes.triangles[rows], _normals_of(meshes, rows))
     out = [Voxels.empty() for _ in ids]
     if not len(v):
         return out
@@ -453,5 +472,6 @@ def cloud_of(plan: PointsPlan, v: Voxels) -> PointCloud:
 
 def build_points(scene: Scene, plan: PointsPlan) -> PointCloud:
     """The full points map of ``plan``, from the selected elements' triangles."""
-    triangles, _ = _near_band(scene.elements, plan.selected, plan)
-    return cloud_of(plan, voxels_of(plan, triangles))
+    rows, _ = _near_band_rows(scene.elements, plan.selected, plan)
+    _, v = _pairs(plan, scene.elements.triangles[rows], _normals_of(scene.elements, rows))
+    return cloud_of(plan, best_per_voxel(v))

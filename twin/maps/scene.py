@@ -45,6 +45,47 @@ class SlabBox:
     z_hi: float
 
 
+NORMAL_STEPS = float(2**20)
+"""Triangle normals' components are multiples of 1 / this (:func:`unit_normals`)."""
+
+
+def unit_normals(c: npt.NDArray[np.float64]) -> npt.NDArray[np.float32]:
+    """Vectors ``c (n, 3)`` made unit ``float32`` normals: zero where ``c`` is; components rounded to
+    multiples of 2**-20 (about 1e-6, a microradian) before float32 takes them (a small component's own
+    float32 step is far finer); no negative zeros, so equal normals have equal bits."""
+    c = np.array(c, dtype=np.float64)
+    length = np.sqrt(c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1] + c[:, 2] * c[:, 2])
+    ok = length > 0.0
+    c[ok] /= length[ok, None]
+    c[~ok] = 0.0
+    c = np.rint(c * NORMAL_STEPS) / NORMAL_STEPS
+    out: npt.NDArray[np.float32] = (c + 0.0).astype(np.float32)
+    return out
+
+
+def _cross(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype=np.float64)
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def placed_normals(mesh: Mesh, placement: npt.NDArray[np.float64]) -> npt.NDArray[np.float32]:
+    """The world unit normals ``(m, 3) float32`` of ``mesh``'s triangles put in the world by ``placement``,
+    by their winding (:func:`unit_normals`), from the local mesh: the local edges' cross products taken
+    through the placement's cofactor matrix (the linear part's, so a mirror keeps the world winding), so
+    that where the building sits (the placement's translation, 10 km away) never changes a last bit."""
+    if not mesh.triangle_count:
+        return np.empty((0, 3), dtype=np.float32)
+    t = mesh.vertices[mesh.faces]
+    local = _cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    m = np.asarray(placement, dtype=np.float64)[:3, :3]
+    c0, c1, c2 = m[:, 0], m[:, 1], m[:, 2]
+    cof = np.stack([_cross(c1, c2), _cross(c2, c0), _cross(c0, c1)], axis=1)  # cross(Ma, Mb) = cof (a x b)
+    return unit_normals(local @ cof.T)
+
+
 @dataclass(frozen=True, eq=False, slots=True)
 class MeshSet:
     """World triangles of ``k`` nodes (elements or spaces).
@@ -58,6 +99,8 @@ class MeshSet:
             the section is made of closed loops; see :func:`twin.maps.render.filled`).
         bounds: ``(k, 6) float64`` world AABB ``xmin, ymin, zmin, xmax, ymax, zmax`` (NaN if empty).
         triangle_bounds: ``(n, 6) float32`` each triangle's AABB, rounded outwards (a superset filter).
+        normals: ``(n, 3) float32`` each triangle's unit normal from its local mesh
+            (:func:`placed_normals`), or None (then points maps take them from the world triangles).
     """
 
     iris: tuple[str, ...]
@@ -68,6 +111,7 @@ class MeshSet:
     solid: npt.NDArray[np.bool_]
     bounds: npt.NDArray[np.float64]
     triangle_bounds: npt.NDArray[np.float32]
+    normals: npt.NDArray[np.float32] | None = None
 
     @classmethod
     def build(cls, items: list[tuple[str, Mesh, npt.NDArray[np.float64]]]) -> Self:
@@ -77,9 +121,11 @@ class MeshSet:
         start = np.zeros(len(items) + 1, dtype=np.intp)
         np.cumsum(counts, out=start[1:])
         triangles = np.empty((int(start[-1]), 3, 3), dtype=np.float64)
+        normals = np.empty((int(start[-1]), 3), dtype=np.float32)
         for i, (_, mesh, placement) in enumerate(items):
             world = to_world(mesh.vertices, placement)
             triangles[start[i] : start[i + 1]] = world[mesh.faces]
+            normals[start[i] : start[i + 1]] = placed_normals(mesh, placement)
         closed = np.array([m.closed for _, m, _ in items], dtype=np.bool_)
         solid = np.array([m.solid for _, m, _ in items], dtype=np.bool_)
         # whole arrays at once: a triangle's bounds, then each node's as the reduction over its rows
@@ -95,7 +141,7 @@ class MeshSet:
         triangle_bounds[:, :3] = lo - pad
         triangle_bounds[:, 3:] = hi + pad
         index = {iri: i for i, iri in enumerate(iris)}
-        return cls(iris, index, triangles, start, closed, solid, bounds, triangle_bounds)
+        return cls(iris, index, triangles, start, closed, solid, bounds, triangle_bounds, normals)
 
     def __len__(self) -> int:
         return len(self.iris)

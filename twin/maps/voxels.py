@@ -9,6 +9,16 @@ not by the float rounding of that division. Voxel ``(i, j, k)`` is the
 half-open box ``[i, i+1) x [j, j+1) x [max(k, w_lo), min(k+1, w_hi))``: the cell, cut by the height
 band ``[w_lo, w_hi)``. A triangle (a closed set) *touches* a voxel when they share a point.
 
+Points maps test the voxel with its lower faces moved out and its upper faces moved in by a fraction of
+a micrometre (``shift``, from ``TOLERANCES.voxel_out_m`` and ``voxel_in_m``): a vertex coordinate is
+on a grid plane or more than ``TOLERANCES.grid_m`` from one, so the move changes nothing for vertices,
+but a slanted surface that passes exactly through a voxel's edge or corner with its vertices off the
+grid (a 30 degree roof through a grid line, a 45 degree wall through grid corners) is then clear of the
+moved box or into it by nanometres or more, not by the rounding of its vertices, which moving the
+building changes. On such a tie the verdict is the half-open rule's on the exact geometry unless the
+surface or edge is within 0.35 degrees of a grid plane or axis (the moves' ratio, 161.8, is of no small
+whole numbers, so that no simple slope through a grid corner passes through a moved corner).
+
 The test is the separating axis theorem for a triangle and a box (13 axes), with two refinements that
 make it exact rather than approximate:
 
@@ -113,6 +123,7 @@ def _strips(
     first_q: IntArray,
     last_q: IntArray,
     big: FloatArray,
+    slack: float,
 ) -> tuple[IntArray, IntArray, IntArray, IntArray]:
     """Per strip ``a <= p <= a + 1`` of each triangle's projection ``(vp, vq)``: ``(triangle, a, first
     column b, columns)``, the columns covering the triangle's q range over the strip, widened beyond
@@ -121,7 +132,7 @@ def _strips(
     n = np.where(ok, span_p, 0)[sel]
     ts = np.repeat(sel, n)
     sa = first_p[ts] + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
-    margin = 1e-6 * (big[ts] + 2.0)
+    margin = 1e-6 * (big[ts] + 2.0) + slack
     s_lo, s_hi = sa - margin, sa + 1.0 + margin
     q_lo = np.full(len(ts), np.inf)
     q_hi = np.full(len(ts), -np.inf)
@@ -158,12 +169,13 @@ def _level_runs(
     first_b: IntArray,
     last_b: IntArray,
     big: FloatArray,
+    slack: float,
 ) -> tuple[IntArray, IntArray]:
     """Per strip ``a <= p <= a + 1`` of triangle ``ts``: the run ``[r0, r1]`` of its columns (within
     ``[first_b, last_b]``) whose closed squares lie inside the triangle's projection beyond rounding
     (empty: ``r0 > r1``). Over a strip, the projection's lower boundary is convex and its upper one
     concave: they are checked at the strip's two sides."""
-    margin = 1e-6 * (big[ts] + 2.0)
+    margin = 1e-6 * (big[ts] + 2.0) + slack
     p_lo, p_hi = _min3(vp[ts]), _max3(vp[ts])
     inner = (sa >= p_lo + margin) & (sa + 1.0 <= p_hi - margin)
     low = np.full(len(ts), -np.inf)
@@ -199,6 +211,7 @@ def _split_level_runs(
     frame: tuple[IntArray, IntArray],
     w_band: tuple[float, float],
     big: FloatArray,
+    slack: float,
 ) -> tuple[IntArray, IntArray, IntArray, IntArray, IntArray, IntArray]:
     """The voxels of the runs of columns inside level triangles (one each, at the level's layer, certain:
     ``(triangle, (m, 3) voxel)``), and the strips' other columns as ranges ``(triangle, a, first b,
@@ -209,7 +222,7 @@ def _split_level_runs(
     idx = np.flatnonzero(level[ts] & (nb > 0))
     t, a, first = ts[idx], sa[idx], b0[idx]
     last = first + nb[idx] - 1
-    r0, r1 = _level_runs(vp, vq, t, a, first_b=first, last_b=last, big=big)
+    r0, r1 = _level_runs(vp, vq, t, a, first_b=first, last_b=last, big=big, slack=slack)
     c = value[t]  # the level (exactly every vertex's d coordinate)
     k = np.floor(c).astype(np.int64)
     dt, pt, qt = d[t], p[t], q[t]
@@ -255,7 +268,11 @@ def _batches(counts: IntArray) -> Iterator[IntArray]:
 
 
 def _candidates(
-    cells: FloatArray, lo: IntArray, hi: IntArray, w_band: tuple[float, float] = (-np.inf, np.inf)
+    cells: FloatArray,
+    lo: IntArray,
+    hi: IntArray,
+    w_band: tuple[float, float] = (-np.inf, np.inf),
+    slack: float = 0.0,
 ) -> Iterator[tuple[IntArray, IntArray, IntArray]]:
     """Batches of ``(triangle index, (m, 3) voxel index, hint)`` pairs: a superset of the touching
     pairs, with a hint where the pair certainly touches (no test needed; see :data:`_NO_HINT`).
@@ -263,7 +280,9 @@ def _candidates(
     A pair is sure when the column's whole (closed) square lies inside the triangle's projection by
     a margin beyond rounding (over the square, the triangle is its plane), and the plane's range
     over the square meets the voxel's extent along the column beyond rounding too (exactly, for a
-    triangle whose dominant coordinate is one value: a face in a grid-aligned plane)."""
+    triangle whose dominant coordinate is one value: a face in a grid-aligned plane). Every margin
+    is widened by ``slack``, the largest shift of a voxel's faces (see :func:`touched_pairs`): the
+    plane's range over a square moved by ``slack`` moves by at most ``2 slack`` (the dominant axis)."""
     if not len(cells):
         return
     d, p, q, first, last = _columns(cells, lo, hi)
@@ -287,7 +306,7 @@ def _candidates(
     proj = m_p[:, :, None] * vp[:, None, :] + m_q[:, :, None] * vq[:, None, :]  # (n, edge, vertex)
     e_lo = np.minimum(np.minimum(proj[:, :, 0], proj[:, :, 1]), proj[:, :, 2])
     e_hi = np.maximum(np.maximum(proj[:, :, 0], proj[:, :, 1]), proj[:, :, 2])
-    e_tol = 1e-9 * (np.abs(m_p) + np.abs(m_q)) * (big_all[:, None] + 2.0)
+    e_tol = (np.abs(m_p) + np.abs(m_q)) * (1e-9 * (big_all[:, None] + 2.0) + slack)
     # per edge: contiguous per-triangle arrays (gathered per column below)
     edges = [
         (m_p[:, i].copy(), m_q[:, i].copy(), e_lo[:, i].copy(), e_hi[:, i].copy(), e_tol[:, i].copy())
@@ -299,7 +318,7 @@ def _candidates(
     # rounding of the plane (its normal from rounded edges) and of its evaluation, generously: a
     # nearly degenerate triangle's plane is ill-conditioned, and its column is then its full range
     mag_all = np.abs(c0_all) + (np.abs(np_all) + np.abs(nq_all)) * (big_all + 2.0) + big_all**3
-    eps_all = 1e-10 * mag_all / np.abs(safe_all) + 1e-9
+    eps_all = 1e-10 * mag_all / np.abs(safe_all) + 1e-9 + 3.0 * slack
     level_all = t_lo_all == t_hi_all  # the dominant coordinate is one value (exactly t_lo)
     lo_d, hi_d = lo[d], hi[d] - 1
     # a triangle within one cell (and the band) touches that voxel only, certainly
@@ -313,7 +332,15 @@ def _candidates(
     # the columns: per strip p in [a, a+1] of a triangle, the q range of the triangle there (generously
     # rounded); then batches of strips
     ts, sa, b0, nb = _strips(
-        vp, vq, ok=ok, span_p=span_p, first_p=first_p, first_q=first_q, last_q=last[rows, q], big=big_all
+        vp,
+        vq,
+        ok=ok,
+        span_p=span_p,
+        first_p=first_p,
+        first_q=first_q,
+        last_q=last[rows, q],
+        big=big_all,
+        slack=slack,
     )
     # faces in a grid plane (level along d): the columns inside them hold one voxel each, certainly,
     # in runs; the other columns are tested below
@@ -328,6 +355,7 @@ def _candidates(
             frame=(lo, hi),
             w_band=w_band,
             big=big_all,
+            slack=slack,
         )
         if len(run_t):
             yield run_t, run_ijk, d[run_t]
@@ -524,9 +552,10 @@ def _one_axis(
 
 
 def _overlap(
-    v: FloatArray, lo: FloatArray, hi: FloatArray
+    v: FloatArray, lo: FloatArray, hi: FloatArray, shift: tuple[float, float] = (0.0, 0.0)
 ) -> tuple[npt.NDArray[np.bool_], IntArray, npt.NDArray[np.bool_]]:
-    """The float verdict for triangles ``v (m, 3, 3)`` and half-open boxes ``[lo, hi)``:
+    """The float verdict for triangles ``v (m, 3, 3)`` and half-open boxes ``[lo, hi)`` (on the
+    non-box axes: ``[lo - shift[0], hi - shift[1])``, see :func:`touched_pairs`):
     ``(touch, unsure rows, near axes (len(unsure), 10))``; an unsure pair is within rounding of a tie
     on the marked (non-box) axes, and is to be decided exactly on them."""
     vmin, vmax = _min3(v), _max3(v)
@@ -543,8 +572,9 @@ def _overlap(
     if not len(r):
         return touch, none, np.zeros((0, 10), dtype=np.bool_)
     v = v[r]
-    rel = v - lo[r][:, None, :]
-    size = hi[r] - lo[r]
+    s_lo, s_hi = lo[r] - shift[0], hi[r] - shift[1]
+    rel = v - s_lo[:, None, :]
+    size = s_hi - s_lo
     e = np.stack([v[:, 1] - v[:, 0], v[:, 2] - v[:, 1], v[:, 0] - v[:, 2]], axis=1)  # (m, 3, 3)
     # rounding bounds: |v| (vertices), |rel| (vertices from the box's corner), |e| (edges)
     big_v = 1.0 + _max3(np.maximum(np.abs(vmin[r]), np.abs(vmax[r])))
@@ -574,13 +604,16 @@ def _scaled(x: float, shift: int) -> int:
 
 
 class _ExactTriangle:
-    """One triangle in exact integers (over a power of two shared with the band's bounds), with its
-    separating axes and their projections made as they are asked for."""
+    """One triangle in exact integers (over a power of two shared with the band's bounds and the faces'
+    shifts), with its separating axes and their projections made as they are asked for."""
 
-    __slots__ = ("axes", "edges", "points", "shift")
+    __slots__ = ("axes", "edges", "faces", "points", "shift")
 
-    def __init__(self, v: list[float], band: tuple[float, float]) -> None:
-        self.shift = _shift_of([*v, *(b for b in band if np.isfinite(b))])
+    def __init__(
+        self, v: list[float], band: tuple[float, float], faces: tuple[float, float] = (0.0, 0.0)
+    ) -> None:
+        self.shift = _shift_of([*v, *(b for b in band if np.isfinite(b)), *faces])
+        self.faces = (_scaled(faces[0], self.shift), _scaled(faces[1], self.shift))
         n = [_scaled(x, self.shift) for x in v]
         self.points = [n[0:3], n[3:6], n[6:9]]
         p = self.points
@@ -606,10 +639,11 @@ class _ExactTriangle:
         return got
 
     def separates(self, lo: list[float], hi: list[float], axes: list[int]) -> bool:
-        """Does one of ``axes`` separate the triangle from the half-open box ``[lo, hi)``, exactly? (A
-        tie separates when the box's end there moves in as its upper faces do.)"""
-        b0 = [_scaled(x, self.shift) for x in lo]
-        b1 = [_scaled(x, self.shift) for x in hi]
+        """Does one of ``axes`` separate the triangle from the half-open box ``[lo, hi)`` (its faces
+        shifted: ``[lo - faces[0], hi - faces[1])``), exactly? (A tie separates when the box's end there
+        moves in as its upper faces do.)"""
+        b0 = [_scaled(x, self.shift) - self.faces[0] for x in lo]
+        b1 = [_scaled(x, self.shift) - self.faces[1] for x in hi]
         for n_axis in axes:
             ax, tmin, tmax, positive, negative = self.axis(n_axis)
             lo_end = [b0[c] if ax[c] >= 0 else b1[c] for c in range(3)]
@@ -633,6 +667,7 @@ def _exact_separated(
     near: npt.NDArray[np.bool_],
     *,
     band: tuple[float, float],
+    shift: tuple[float, float] = (0.0, 0.0),
 ) -> list[bool]:
     """For each unsure pair (triangle ``t``, box ``[lo, hi)``, its near axes), whether an axis
     separates them exactly (each triangle made exact once)."""
@@ -641,7 +676,7 @@ def _exact_separated(
     for tri, box_lo, box_hi, axes in zip(t.tolist(), lo.tolist(), hi.tolist(), near, strict=True):
         exact = made.get(tri)
         if exact is None:
-            exact = made[tri] = _ExactTriangle(cells[tri].reshape(-1).tolist(), band)
+            exact = made[tri] = _ExactTriangle(cells[tri].reshape(-1).tolist(), band, shift)
         out.append(exact.separates(box_lo, box_hi, np.flatnonzero(axes).tolist()))
     return out
 
@@ -652,6 +687,7 @@ def touched_pairs(
     lo: tuple[int, int, int] | IntArray,
     hi: tuple[int, int, int] | IntArray,
     w_band: tuple[float, float],
+    shift: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[IntArray, IntArray, IntArray]:
     """Every (triangle, voxel) pair that touch: ``(triangle index (m,), voxel (m, 3) i, j, k, hint
     (m,))``; the hints make :func:`nearest_points` cheaper (see :data:`_NO_HINT`).
@@ -660,19 +696,28 @@ def touched_pairs(
         cells: ``(n, 3, 3)`` triangles in cell coordinates.
         lo, hi: the voxel index range ``[lo, hi)`` per axis (the frame; k: the band's layers).
         w_band: the band ``[w_lo, w_hi)`` in cell units of z (voxels are cut by it).
+        shift: ``(down, in)``, cell units: the voxel tested is ``[lo - down, hi - in)``, its lower faces
+            moved out and its upper faces moved in (see the module: ties on slanted axes). The box
+            axes compare the vertices with the voxel's own faces, which gives the same verdicts only
+            when no vertex coordinate lies within the shift of a grid plane (or a band's end) but on
+            it, as :func:`twin.maps.grid.grid_coordinates` makes them (``TOLERANCES.grid_m``).
     """
     lo_a, hi_a = np.asarray(lo, dtype=np.int64), np.asarray(hi, dtype=np.int64)
     tris, voxels, hints = [], [], []
-    for t_all, ijk_all, hint in _candidates(np.asarray(cells, dtype=np.float64), lo_a, hi_a, w_band):
+    slack = max(shift)
+    cells = np.asarray(cells, dtype=np.float64)
+    for t_all, ijk_all, hint in _candidates(cells, lo_a, hi_a, w_band, slack):
         blo, bhi = _boxes(ijk_all, w_band)
         keep = bhi[:, 2] > blo[:, 2]
         sure = (hint != _NO_HINT) & (hint < _LEVEL)
         test = np.flatnonzero(keep & ~sure)
         touch = sure & keep
         t, blo, bhi = t_all[test], blo[test], bhi[test]
-        hit, unsure, near = _overlap(cells[t], blo, bhi)
+        hit, unsure, near = _overlap(cells[t], blo, bhi, shift)
         if len(unsure):
-            apart = _exact_separated(cells, t[unsure], blo[unsure], bhi[unsure], near, band=w_band)
+            apart = _exact_separated(
+                cells, t[unsure], blo[unsure], bhi[unsure], near, band=w_band, shift=shift
+            )
             hit[unsure] = ~np.array(apart, dtype=np.bool_)
         touch[test] = hit
         tris.append(t_all[touch])
@@ -689,8 +734,9 @@ def touched_voxels(
     lo: tuple[int, int, int] | IntArray,
     hi: tuple[int, int, int] | IntArray,
     w_band: tuple[float, float],
+    shift: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[IntArray, IntArray]:
     """Every (triangle, voxel) pair that touch: ``(triangle index (m,), voxel (m, 3) i, j, k)`` (see
     :func:`touched_pairs`)."""
-    tri, ijk, _ = touched_pairs(cells, lo=lo, hi=hi, w_band=w_band)
+    tri, ijk, _ = touched_pairs(cells, lo=lo, hi=hi, w_band=w_band, shift=shift)
     return tri, ijk

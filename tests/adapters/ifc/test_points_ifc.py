@@ -100,7 +100,7 @@ def test_sampled_triangles_of_every_shared_model_touch_exactly_the_voxels_of_the
             rng.choice(np.flatnonzero(small), size=min(SAMPLE, int(small.sum())), replace=False),
         ]
         pick = np.concatenate(picks).astype(np.int64)
-        tri, ijk = touched_voxels(cells[pick], lo=plan.lo, hi=plan.hi, w_band=plan.w_band)
+        tri, ijk = touched_voxels(cells[pick], lo=plan.lo, hi=plan.hi, w_band=plan.w_band, shift=plan.shift)
         grid = _world_grid(plan)
         for n, t in enumerate(pick):
             ref = grid.triangle_voxels(triangles[t], lo=plan.lo, hi=plan.hi)
@@ -128,10 +128,10 @@ def test_every_storeys_voxels_equal_the_reference_on_a_sample_of_triangles(
         span = np.floor(cells.max(axis=1)) - np.floor(cells.min(axis=1)) + 1
         small = np.flatnonzero(span.prod(axis=1) <= MAX_BOX_VOXELS)
         pick = rng.choice(small, size=min(SAMPLE, len(small)), replace=False) if len(small) else small
-        tri, ijk = touched_voxels(cells[pick], lo=plan.lo, hi=plan.hi, w_band=plan.w_band)
+        tri, ijk = touched_voxels(cells[pick], lo=plan.lo, hi=plan.hi, w_band=plan.w_band, shift=plan.shift)
         for n, t in enumerate(pick):
             got = {(int(i), int(j), int(k)) for i, j, k in ijk[tri == n]}
-            ref = reference_voxels(cells[t], plan.lo, plan.hi, plan.w_band)
+            ref = reference_voxels(cells[t], plan.lo, plan.hi, plan.w_band, shift=plan.shift)
             assert (sorted(ref - got), sorted(got - ref)) == ([], []), f"{name} {storey.key} triangle {t}"
             checked += 1
     assert checked >= min(SAMPLE, 20)

@@ -28,7 +28,7 @@ from twin.live.snapshots.keys import skill_digest
 from twin.live.state import ElementState, LiveState, load_states
 from twin.maps.points import plan_points
 from twin.maps.render import plan_map
-from twin.maps.scene import MeshSet, Scene, StoreyInfo
+from twin.maps.scene import MeshSet, Scene, StoreyInfo, placed_normals
 from twin.maps.snapshot import AnyArray, read_snapshot
 from twin.records import FloatArray, GeometryChange, Mesh, Shape, to_world
 from twin.selection.skills import SkillProfile
@@ -103,6 +103,8 @@ class Restored:
             hi = np.maximum(np.maximum(t[:, 0], t[:, 1]), t[:, 2])
             els.triangle_bounds[lo_row:hi_row, :3] = lo - pad
             els.triangle_bounds[lo_row:hi_row, 3:] = hi + pad
+            if els.normals is not None:
+                els.normals[lo_row:hi_row] = placed_normals(mesh, placement)
 
     def fill_near(self, boxes: Sequence[FloatArray]) -> None:
         """Compute the triangles of every element whose XY bounds come within two cells (and half a
@@ -148,8 +150,17 @@ def _skeleton(items: list[tuple[str, Mesh, FloatArray]], bounds: AnyArray) -> Me
         raise SnapshotError(msg)
     n = int(start[-1])
     triangles, triangle_bounds = np.zeros((n, 3, 3)), np.zeros((n, 6), dtype=np.float32)
+    normals = np.zeros((n, 3), dtype=np.float32)
     return MeshSet(
-        iris, {iri: i for i, iri in enumerate(iris)}, triangles, start, closed, solid, bounds, triangle_bounds
+        iris,
+        {iri: i for i, iri in enumerate(iris)},
+        triangles,
+        start,
+        closed,
+        solid,
+        bounds,
+        triangle_bounds,
+        normals,
     )
 
 
