@@ -13,6 +13,7 @@ need to know about the fleet::
     storeys = ["ground-floor"]       # storeys served (default: every storey)
     keepout = ["keepout"]            # keepout skills whose zones no lane crosses
     max_lane_m = 3.0                 # no lane longer than this
+    spacing_m = 0.5                  # vertices this far apart along lanes and in open rooms
     outdoors = false                 # lanes only over the storeys' floors (slabs, spaces, entrances)
     waypoints.charger1 = { storey = "ground-floor", x = 12.0, y = 8.0, charger = true }
     waypoints.desk = { at = "Room A", parking_spot = true }    # an IfcSpace's name
@@ -111,6 +112,13 @@ class RoutesTable(ConfigTable):
         (), description="Keepout skills whose zones no lane crosses."
     )
     max_lane_m: Annotated[Number, Field(ge=0.5, le=100)] = Field(3.0, description="Longest lane, metres.")
+    spacing_m: Annotated[Number, Field(ge=0.2, le=5)] = Field(
+        0.5,
+        description=(
+            "Largest gap between vertices along a lane and the spacing of the open-space lattice, metres "
+            "(at most max_lane_m): finer gives shorter routes between close points, and more vertices."
+        ),
+    )
     open_door_operations: Flag = Field(
         False, description="nav2 GeoJSON: an open_door operation on door edges (the plugin must exist)."
     )
@@ -169,6 +177,7 @@ class RouteProfile:
     storeys: tuple[str, ...] = ()
     keepout: tuple[str, ...] = ()
     max_lane_m: float = 3.0
+    spacing_m: float = 0.5
     open_door_operations: bool = False
     outdoors: bool = False
     waypoints: tuple[Waypoint, ...] = ()
@@ -195,6 +204,7 @@ def parse_routes(name: str, data: Mapping[str, Any]) -> RouteProfile:
         storeys=tuple(dict.fromkeys(table.storeys)),
         keepout=tuple(dict.fromkeys(table.keepout)),
         max_lane_m=table.max_lane_m,
+        spacing_m=min(table.spacing_m, table.max_lane_m),
         open_door_operations=table.open_door_operations,
         outdoors=table.outdoors,
         waypoints=tuple(

@@ -161,6 +161,7 @@ def build_routes(
                 spaces=spaces,
                 points=points,
                 max_lane_m=routes.max_lane_m,
+                spacing_m=routes.spacing_m,
                 door_reach_m=door_reach(radius),
             )
         )

@@ -3,8 +3,8 @@
 Given the cells a robot's centre may occupy (``free``: the fleet's inflated navigation map with doors
 open and lift cars exempt, keepout zones removed), the lanes follow the pruned skeleton of free space
 (:mod:`twin.routes.skeleton`): vertices at its junctions and dead ends, the runs between simplified to
-straight lanes whose centre lines are free (:mod:`twin.routes.lines`), none longer than
-``max_lane_m``. Then:
+straight lanes whose centre lines are free (:mod:`twin.routes.lines`), with a vertex at least every
+``spacing_m`` along them. Then:
 
 - **doors**: where the skeleton crosses a door's plane within the door's width, a vertex on each side
   (where the skeleton leaves a band of ``door_reach_m`` about the door) and one straight lane between
@@ -12,8 +12,14 @@ straight lanes whose centre lines are free (:mod:`twin.routes.lines`), none long
 - **spaces**: a named vertex at the skeleton point of the space most interior to its free part;
 - **points** (lift cabins, configured waypoints): a vertex exactly there, joined by a straight lane
   to the nearest skeleton point it sees;
+- **open space**: a lattice of vertices ``spacing_m`` apart where free space lies away from every lane
+  (rooms), joined to the neighbours each sees;
 - **shortcuts**: a straight lane between two vertices within ``max_lane_m`` that see each other when
   the graph's way between them is much longer (open rooms: the skeleton's way is a detour).
+
+Vertices ``spacing_m`` apart (0.5 m by default) keep routes between close points short: a point joins
+the graph at a vertex it sees, and a route between two points a metre apart is only about as long as
+their distance when a vertex lies near the line between them.
 """
 
 from __future__ import annotations
@@ -44,7 +50,6 @@ SHORTCUT_RATIO = 1.15
 """A shortcut is added where the graph's way is longer than this many times the straight line."""
 OPEN_SPACE_FRACTION = 0.75
 """Open space gets lattice vertices where it lies this many lattice spacings from every lane."""
-"""A shortcut is added where the graph's way is longer than this many times the straight line."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,6 +91,7 @@ class StoreyInput:
     spaces: Sequence[SpaceArea] = ()
     points: Sequence[RouteVertex] = ()
     max_lane_m: float = 3.0
+    spacing_m: float = 0.5
     door_reach_m: float = 0.6
 
 
@@ -182,7 +188,7 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         vertices.append(RouteVertex(x, y, name=name, kind="space" if name else "lane"))
     lanes: dict[tuple[int, int], str] = {}
     tol = max(SIMPLIFY_M / res, 1.5)
-    max_cells = inp.max_lane_m / res
+    max_cells = min(inp.spacing_m, inp.max_lane_m) / res
     door_kinds: set[int] = set()
     passable: set[str] = set()
     for chain in chains:
@@ -233,7 +239,7 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
     for point, target in attach:
         vertices.append(point)
         _add_lane(lanes, len(vertices) - 1, vertex_of[target], "")
-    _open_space(vertices, lanes, frame, free, inp.max_lane_m)
+    _open_space(vertices, lanes, frame, free, min(inp.spacing_m, inp.max_lane_m))
     _shortcuts(vertices, lanes, frame, free, inp.max_lane_m)
     used = sorted({i for ab in lanes for i in ab} | {i for i, v in enumerate(vertices) if v.name or v.lift})
     if len(used) < len(vertices):  # drop vertices no lane uses (isolated skeleton specks) but named ones
@@ -309,10 +315,10 @@ def _open_space(
     lanes: dict[tuple[int, int], str],
     frame: GridFrame,
     free: BoolArray,
-    max_lane_m: float,
+    spacing_m: float,
 ) -> None:
-    """Fill open space: a lattice of vertices (spacing :func:`lattice_m`) where free space lies farther
-    from every lane than most of a spacing, each joined to the vertices within 1.5 spacings it sees.
+    """Fill open space: a lattice of vertices ``spacing_m`` apart where free space lies farther from
+    every lane than most of a spacing, each joined to the vertices within 1.5 spacings it sees.
 
     The medial axis of a wide room is one line (or an X) down its middle: a route between two points
     near one wall would go to the middle and back. The lattice gives such rooms lanes where robots
@@ -320,7 +326,7 @@ def _open_space(
     if not vertices or not lanes:
         return
     res = frame.resolution_m
-    step = lattice_m(max_lane_m)
+    step = spacing_m
     lane_cells = np.zeros_like(free)
     xy = np.array([(v.x, v.y) for v in vertices])
     cells = np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
@@ -354,11 +360,6 @@ def _open_space(
     visible = segments_free(free, every[pairs[:, 0]], every[pairs[:, 1]])
     for a, b in pairs[visible]:
         _add_lane(lanes, int(a), int(b), "")
-
-
-def lattice_m(max_lane_m: float) -> float:
-    """The spacing of the open-space lattice: a third of the longest lane, 0.75 to 1.5 m."""
-    return min(max(max_lane_m / 3, 0.75), 1.5)
 
 
 def _shortcuts(
@@ -402,14 +403,20 @@ def _shortcuts(
     pairs, straight = pairs[detour], straight[detour]
     res = frame.resolution_m
     cells = np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
+    # a coarse sight test first (most pairs within reach lie behind a wall), the full one on the rest
+    seen = segments_free(free, cells[pairs[:, 0]], cells[pairs[:, 1]], samples_per_cell=1)
+    pairs, straight = pairs[seen], straight[seen]
     visible = segments_free(free, cells[pairs[:, 0]], cells[pairs[:, 1]])
     pairs, straight = pairs[visible], straight[visible]
     order = np.lexsort((straight, pairs[:, 0]))
-    cutoff = SHORTCUT_RATIO * max_lane_m
+    pairs, straight = pairs[order], straight[order]
+    # each source's search reaches only as far as its farthest candidate needs
+    reach = dict(zip(pairs[:, 0].tolist(), straight.tolist(), strict=False))  # the last (longest) wins
     source, dist = -1, {}
-    for (pa, pb), d in zip(pairs[order], straight[order], strict=True):
+    for (pa, pb), d in zip(pairs, straight, strict=True):
         a, b = int(pa), int(pb)
         if a != source:
+            cutoff = SHORTCUT_RATIO * reach[a] + 1e-6
             source, dist = a, nx.single_source_dijkstra_path_length(g, a, cutoff=cutoff, weight="weight")
         if dist.get(b, math.inf) > SHORTCUT_RATIO * d:
             lanes[(a, b)] = ""

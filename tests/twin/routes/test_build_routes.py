@@ -8,6 +8,7 @@ import networkx as nx
 import numpy as np
 import pytest
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from tests.conftest import imported
 from tests.twin.routes.lift_lab import lift_lab
@@ -245,3 +246,49 @@ def test_names_are_sanitised_and_made_unique() -> None:
         "unnamed",
         "Raum_1",
     ]
+
+
+def _close_pair_ratios(store: GraphStore, scene: Scene, spacing_m: float) -> np.ndarray:
+    """Route over straight distance for 200 pairs of free cells 0.4-1.5 m apart that see each other on
+    the ground floor (0.25 m robot), each end joined to the best of its 16 nearest vertices it sees."""
+    routes = parse_routes("fleet", {"kind": "routes", "navigation": "nav", "spacing_m": spacing_m})
+    storey = build_routes(store, scene, routes, _skills(0.25)).storey("ground-floor")
+    _, free = routable_cells(prepare_routes(store, scene, routes, _skills(0.25)), "ground-floor")
+    frame = _free(store, scene, _skills(0.25)["nav"], "ground-floor")[1]
+    res = frame.resolution_m
+    xy = np.array([(v.x, v.y) for v in storey.vertices])
+    cells = np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
+    g = nx.Graph()
+    for lane in storey.lanes:
+        g.add_edge(lane.a, lane.b, weight=float(np.hypot(*(xy[lane.a] - xy[lane.b]))))
+    tree = cKDTree(cells)
+    rng = np.random.default_rng(7)
+    pts = np.argwhere(free).astype(np.float64)
+
+    def joins(p: np.ndarray) -> list[tuple[int, float]]:
+        d, near = tree.query(p, k=16)
+        seen = segments_free(free, np.repeat(p[None], 16, axis=0), cells[near])
+        return [(int(j), float(dd) * res) for j, dd, ok in zip(near, d, seen, strict=True) if ok]
+
+    ratios: list[float] = []
+    while len(ratios) < 200:
+        s, t = pts[rng.integers(len(pts))], pts[rng.integers(len(pts))]
+        straight = float(np.hypot(*(s - t))) * res
+        if not 0.4 <= straight <= 1.5 or not segments_free(free, s[None], t[None])[0]:
+            continue
+        tj = dict(joins(t))
+        best = min(
+            ds + min((d + tj[j] for j, d in nx.single_source_dijkstra_path_length(g, i).items() if j in tj))
+            for i, ds in joins(s)
+        )
+        ratios.append(best / straight)
+    return np.array(ratios)
+
+
+def test_close_points_route_almost_straight_with_half_metre_vertex_spacing(
+    lab_with_lift: tuple[GraphStore, Scene],
+) -> None:
+    store, scene = lab_with_lift
+    fine, coarse = (_close_pair_ratios(store, scene, s) for s in (0.5, 1.5))
+    assert np.median(fine) <= 1.1 and np.percentile(fine, 90) <= 1.3
+    assert np.percentile(coarse, 90) > 2.0  # vertices 1.5 m apart: close points detour to reach one
