@@ -14,6 +14,7 @@ need to know about the fleet::
     keepout = ["keepout"]            # keepout skills whose zones no lane crosses
     max_lane_m = 3.0                 # no lane longer than this
     spacing_m = 0.5                  # vertices this far apart along lanes and in open rooms
+    lift_types = ["ELEVATOR"]        # IfcTransportElement predefined types that are lifts
     outdoors = false                 # lanes only over the storeys' floors (slabs, spaces, entrances)
     waypoints.charger1 = { storey = "ground-floor", x = 12.0, y = 8.0, charger = true }
     waypoints.desk = { at = "Room A", parking_spot = true }    # an IfcSpace's name
@@ -119,6 +120,13 @@ class RoutesTable(ConfigTable):
             "(at most max_lane_m): finer gives shorter routes between close points, and more vertices."
         ),
     )
+    lift_types: Annotated[tuple[Text, ...], list_of("IfcTransportElement predefined types")] = Field(
+        ("ELEVATOR",),
+        description=(
+            "The IfcTransportElement predefined types (IFC2X3: operation types) that are lifts; "
+            "NOTDEFINED takes elements whose type the model does not say."
+        ),
+    )
     open_door_operations: Flag = Field(
         False, description="nav2 GeoJSON: an open_door operation on door edges (the plugin must exist)."
     )
@@ -178,6 +186,7 @@ class RouteProfile:
     keepout: tuple[str, ...] = ()
     max_lane_m: float = 3.0
     spacing_m: float = 0.5
+    lift_types: tuple[str, ...] = ("ELEVATOR",)
     open_door_operations: bool = False
     outdoors: bool = False
     waypoints: tuple[Waypoint, ...] = ()
@@ -205,6 +214,7 @@ def parse_routes(name: str, data: Mapping[str, Any]) -> RouteProfile:
         keepout=tuple(dict.fromkeys(table.keepout)),
         max_lane_m=table.max_lane_m,
         spacing_m=min(table.spacing_m, table.max_lane_m),
+        lift_types=tuple(dict.fromkeys(t.upper() for t in table.lift_types)),
         open_door_operations=table.open_door_operations,
         outdoors=table.outdoors,
         waypoints=tuple(

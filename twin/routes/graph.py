@@ -49,7 +49,13 @@ class RouteLane:
 @dataclass(frozen=True, slots=True)
 class DoorCrossing:
     """A door on a storey: its name, where its leaf lies (two endpoints, m) and whether the fleet's
-    robot fits through it (then a lane passes it, carrying its name)."""
+    robot fits through it (then a lane passes it, carrying its name).
+
+    ``operation`` is the IFC door's ``OperationType`` ("" when the model does not say). For a door
+    hinged or sliding to one side (``*_LEFT``, ``*_RIGHT``) whose placement's x axis lies along its
+    width, ``endpoints[0]`` is the hinge (or the end the leaf slides towards) and ``swing`` the way
+    it opens seen from above: ``1`` clockwise, ``-1`` anticlockwise (opening towards the door's local
+    +y); ``0`` when unknown."""
 
     name: str
     iri: str
@@ -57,6 +63,8 @@ class DoorCrossing:
     endpoints: tuple[tuple[float, float], tuple[float, float]]
     width_m: float
     passable: bool
+    operation: str = ""
+    swing: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -154,6 +162,8 @@ class RouteGraph:
                     "width_m": d.width_m,
                     "passable": d.passable,
                 }
+                | ({"operation": d.operation} if d.operation else {})
+                | ({"swing": d.swing} if d.swing else {})
                 for d in self.doors
             ],
             "lifts": [

@@ -54,7 +54,10 @@ OPEN_SPACE_FRACTION = 0.75
 
 @dataclass(frozen=True, slots=True)
 class DoorShape:
-    """A door on the storey: centre (m), unit vector along its width, width and thickness (m)."""
+    """A door on the storey: centre (m), unit vector along its width, width and thickness (m), its IFC
+    operation type ("" unknown) and which way it opens (see :class:`twin.routes.graph.DoorCrossing`:
+    ``hinge_first`` says whether ``endpoints[0]`` is the hinge, ``swing`` 1 clockwise, -1 anticlockwise,
+    0 unknown)."""
 
     name: str
     iri: str
@@ -64,11 +67,15 @@ class DoorShape:
     uy: float
     width_m: float
     thickness_m: float
+    operation: str = ""
+    hinge_first: bool = True
+    swing: int = 0
 
     @property
     def endpoints(self) -> tuple[tuple[float, float], tuple[float, float]]:
         h = self.width_m / 2
-        return ((self.x - h * self.ux, self.y - h * self.uy), (self.x + h * self.ux, self.y + h * self.uy))
+        ends = ((self.x - h * self.ux, self.y - h * self.uy), (self.x + h * self.ux, self.y + h * self.uy))
+        return ends if self.hinge_first else (ends[1], ends[0])
 
 
 @dataclass(frozen=True, slots=True)

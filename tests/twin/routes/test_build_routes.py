@@ -11,7 +11,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from tests.conftest import imported
-from tests.twin.routes.lift_lab import lift_lab
+from tests.twin.routes.lift_lab import LIFT, lift_lab
 from twin.config import load_config
 from twin.graph.rdf import literal_value
 from twin.graph.store import GraphStore
@@ -123,7 +123,8 @@ def test_a_lane_passes_door_a_for_a_small_robot_carrying_its_name(
     assert abs(a.x - 12.0) < 0.1 and abs(b.x - 12.0) < 0.1
     (door,) = graph.doors
     assert door.passable
-    assert np.array(door.endpoints) == pytest.approx(np.array([[11.55, 4.9], [12.45, 4.9]]))
+    # a right-hand swing door: its hinge (the +x end) first
+    assert np.array(door.endpoints) == pytest.approx(np.array([[12.45, 4.9], [11.55, 4.9]]))
 
 
 def test_a_robot_too_wide_for_door_a_gets_no_lane_through_it_and_the_graph_says_so(
@@ -292,3 +293,24 @@ def test_close_points_route_almost_straight_with_half_metre_vertex_spacing(
     fine, coarse = (_close_pair_ratios(store, scene, s) for s in (0.5, 1.5))
     assert np.median(fine) <= 1.1 and np.percentile(fine, 90) <= 1.3
     assert np.percentile(coarse, 90) > 2.0  # vertices 1.5 m apart: close points detour to reach one
+
+
+def test_only_a_transport_element_of_a_lift_type_is_a_lift() -> None:
+    store = imported(lift_lab(lift_type="ESCALATOR"))
+    scene = load_scene(store)
+    graph = _graph(store, scene, 0.25)
+    assert graph.lifts == () and not any(v.lift for s in graph.storeys for v in s.vertices)
+    assert not any(  # the escalator is an obstacle: no vertex in its footprint
+        LIFT.xmin < v.x < LIFT.xmax and LIFT.ymin < v.y < LIFT.ymax
+        for v in graph.storey("ground-floor").vertices
+    )
+    (escalator,) = _graph(store, scene, 0.25, lift_types=["escalator"]).lifts
+    assert escalator.storeys == ("ground-floor", "first-floor")
+
+
+def test_a_one_handed_door_lists_its_hinge_first_and_its_swing() -> None:
+    for operation, hinge_x, swing in (("SINGLE_SWING_LEFT", 11.55, -1), ("SINGLE_SWING_RIGHT", 12.45, 1)):
+        store = imported(lift_lab(door_operation=operation))
+        (door,) = _graph(store, load_scene(store), 0.25).doors
+        assert (door.operation, door.swing) == (operation, swing)
+        assert door.endpoints[0][0] == pytest.approx(hinge_x)
