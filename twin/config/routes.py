@@ -19,6 +19,7 @@ need to know about the fleet::
     waypoints.charger1 = { storey = "ground-floor", x = 12.0, y = 8.0, charger = true }
     waypoints.desk = { at = "Room A", parking_spot = true }    # an IfcSpace's name
     one_way = [{ x1 = 4.5, y1 = 2.0, x2 = 7.5, y2 = 2.0 }]      # lanes along it: this way only
+    one_way = [{ door = "Door A", x2 = 12.0, y2 = 7.0 }]       # through Door A towards (12, 7) only
 
 The core checks the table here (:func:`parse_routes`); :func:`check_routes` then checks its references
 against the other skills.
@@ -79,12 +80,18 @@ class WaypointTable(ConfigTable):
 
 
 class OneWayTable(ConfigTable):
-    """A one-way stretch: the lanes along the segment (x1, y1) -> (x2, y2) go that way only."""
+    """A one-way stretch: the lanes along the segment (x1, y1) -> (x2, y2) go that way only; or a
+    one-way door: the lane through ``door`` goes towards (x2, y2) only."""
 
-    x1: Number = Field(description="Start x in the building's (map) frame, metres.")
-    y1: Number = Field(description="Start y, metres.")
+    x1: Number | None = Field(None, description="Start x in the building's (map) frame, metres.")
+    y1: Number | None = Field(None, description="Start y, metres.")
     x2: Number = Field(description="End x, metres: lanes along the segment go from start to end.")
     y2: Number = Field(description="End y, metres.")
+    door: Text | None = Field(
+        None,
+        description="A door's name (its RMF name or IFC name): its lane goes only towards (x2, y2), "
+        "the end nearer that point; give no x1, y1.",
+    )
     storey: Text | None = Field(None, description="The storey key (default: every storey served).")
     within_m: Annotated[Number, Field(gt=0, le=10)] = Field(
         0.5, description="A lane is along the segment when both its ends lie within this of it, metres."
@@ -92,6 +99,14 @@ class OneWayTable(ConfigTable):
 
     @model_validator(mode="after")
     def _length(self) -> OneWayTable:
+        if self.door is not None:
+            if self.x1 is not None or self.y1 is not None:
+                msg = f"one-way door {self.door!r}: give x2, y2 (the side it goes to), not x1, y1"
+                raise ValueError(msg)
+            return self
+        if self.x1 is None or self.y1 is None:
+            msg = "give x1, y1, x2, y2 (a stretch) or door, x2, y2 (a one-way door)"
+            raise ValueError(msg)
         if math.hypot(self.x2 - self.x1, self.y2 - self.y1) < 0.1:
             msg = f"the segment ({self.x1}, {self.y1}) -> ({self.x2}, {self.y2}) is shorter than 0.1 m"
             raise ValueError(msg)
@@ -163,7 +178,8 @@ class Waypoint:
 @dataclass(frozen=True, slots=True)
 class OneWay:
     """A one-way stretch (metres, the map frame): lanes within ``within_m`` of the segment go from
-    (x1, y1) towards (x2, y2) only. ``storey`` None: every storey served."""
+    (x1, y1) towards (x2, y2) only; or, with ``door``, the lane through that door goes only towards
+    its end nearer (x2, y2). ``storey`` None: every storey served."""
 
     x1: float
     y1: float
@@ -171,6 +187,7 @@ class OneWay:
     y2: float
     storey: str | None = None
     within_m: float = 0.5
+    door: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -231,7 +248,9 @@ def parse_routes(name: str, data: Mapping[str, Any]) -> RouteProfile:
             )
             for wp, t in table.waypoints.items()
         ),
-        one_way=tuple(OneWay(o.x1, o.y1, o.x2, o.y2, o.storey, o.within_m) for o in table.one_way),
+        one_way=tuple(
+            OneWay(o.x1 or 0.0, o.y1 or 0.0, o.x2, o.y2, o.storey, o.within_m, o.door) for o in table.one_way
+        ),
         description=table.description,
     )
 

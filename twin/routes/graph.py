@@ -115,23 +115,27 @@ class RouteGraph:
         msg = f"The route graph {self.skill!r} serves no storey {key!r}."
         raise KeyError(msg)
 
-    def to_networkx(self) -> nx.Graph:
-        """The whole graph (every storey, joined at the lifts) as a weighted networkx graph: nodes
-        ``(storey, index)`` with ``x``, ``y``; lanes weighted by their length (one-way
-        lanes too: undirected), lift hops by 0."""
-        g = nx.Graph()
+    def to_networkx(self) -> nx.DiGraph:
+        """The whole graph (every storey, joined at the lifts) as a weighted, directed networkx graph:
+        nodes ``(storey, index)`` with ``x``, ``y``; a two-way lane as an edge each way, a one-way
+        lane as one edge its way, each weighted by its length; lift hops both ways, weighted 0.
+        ``g.to_undirected()`` gives the lanes without their direction."""
+        g = nx.DiGraph()
         for s in self.storeys:
             for i, v in enumerate(s.vertices):
                 g.add_node((s.storey, i), x=v.x, y=v.y, name=v.name, lift=v.lift)
             for lane in s.lanes:
                 a, b = s.vertices[lane.a], s.vertices[lane.b]
-                g.add_edge((s.storey, lane.a), (s.storey, lane.b), weight=_dist(a, b), door=lane.door)
+                ways = ((lane.a, lane.b),) if lane.one_way else ((lane.a, lane.b), (lane.b, lane.a))
+                for u, w in ways:
+                    g.add_edge((s.storey, u), (s.storey, w), weight=_dist(a, b), door=lane.door)
         for lift in self.lifts:
             stops = [
                 (s.storey, i) for s in self.storeys for i, v in enumerate(s.vertices) if v.lift == lift.name
             ]
             for u, w in itertools.pairwise(stops):
                 g.add_edge(u, w, weight=0.0, lift=lift.name)
+                g.add_edge(w, u, weight=0.0, lift=lift.name)
         return g
 
     def to_json(self) -> dict[str, Any]:

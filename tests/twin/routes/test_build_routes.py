@@ -89,7 +89,7 @@ def test_the_graph_connects_what_the_map_connects_and_nothing_else(
 ) -> None:
     store, scene = lab_with_lift
     graph = _graph(store, scene, radius)
-    g = graph.to_networkx()
+    g = graph.to_networkx().to_undirected()
     for s in graph.storeys:
         routes = parse_routes("fleet", {"kind": "routes", "navigation": "nav"})
         _, free = routable_cells(prepare_routes(store, scene, routes, _skills(radius)), s.storey)
