@@ -133,9 +133,9 @@ class RouteGraph:
             stops = [
                 (s.storey, i) for s in self.storeys for i, v in enumerate(s.vertices) if v.lift == lift.name
             ]
-            for u, w in itertools.pairwise(stops):
-                g.add_edge(u, w, weight=0.0, lift=lift.name)
-                g.add_edge(w, u, weight=0.0, lift=lift.name)
+            for stop, next_stop in itertools.pairwise(stops):
+                g.add_edge(stop, next_stop, weight=0.0, lift=lift.name)
+                g.add_edge(next_stop, stop, weight=0.0, lift=lift.name)
         return g
 
     def to_json(self) -> dict[str, Any]:
