@@ -37,6 +37,7 @@ from twin.graph.store import GraphStore
 from twin.maps.grid import GridFrame
 from twin.maps.render import MapPlan, build_map, occupancy, plan_map
 from twin.maps.scene import Scene, StoreyInfo
+from twin.records import to_world
 from twin.routes.graph import DoorCrossing, Lift, RouteGraph, RouteVertex, StoreyRoutes
 from twin.routes.one_way import apply_one_way
 from twin.routes.storey import DoorShape, SpaceArea, StoreyInput, build_storey
@@ -391,13 +392,16 @@ def _door_shapes(scene: Scene, doors: list[_Named], names: Mapping[str, str]) ->
         i = scene.elements.index.get(door.iri)
         if i is None:
             continue
-        triangles, _ = scene.elements.triangles_of(np.array([i], dtype=np.intp))
-        xy = triangles.reshape(-1, 3)[:, :2]
+        shape = scene.shapes.get(door.iri)
+        if shape is not None:  # its vertices: a detailed door has far fewer than 3 per triangle
+            xy = to_world(shape[0].vertices, shape[1])[:, :2]
+        else:
+            triangles, _ = scene.elements.triangles_of(np.array([i], dtype=np.intp))
+            xy = triangles.reshape(-1, 3)[:, :2]
         if len(xy) < 3:
             continue
         u, _, along, across, mid = _min_rectangle(xy)
         name = unique(sanitise(names.get(door.iri, door.name)), taken)
-        shape = scene.shapes.get(door.iri)
         hinge_first, swing = _handedness(door.operation, u, None if shape is None else shape[1])
         out.append(
             (

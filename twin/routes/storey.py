@@ -197,6 +197,7 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
     tol = max(SIMPLIFY_M / res, 1.5)
     max_cells = min(inp.spacing_m, inp.max_lane_m) / res
     door_kinds: set[int] = set()
+    fill: set[int] = set()  # vertices that only subdivide a lane or fill open space
     passable: set[str] = set()
     for chain in chains:
         rc = np.stack(np.divmod(chain.pixels, w), axis=1).astype(np.float64)
@@ -236,6 +237,7 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
             for part in range(1, n_parts):
                 p = pts[s] + (pts[s + 1] - pts[s]) * part / n_parts
                 x, y = _world(frame, float(p[0]), float(p[1]))
+                fill.add(len(vertices))
                 vertices.append(RouteVertex(x, y))
                 _add_lane(lanes, prev, len(vertices) - 1, "")
                 prev = len(vertices) - 1
@@ -246,8 +248,10 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
     for point, target in attach:
         vertices.append(point)
         _add_lane(lanes, len(vertices) - 1, vertex_of[target], "")
+    first_lattice = len(vertices)
     _open_space(vertices, lanes, frame, free, min(inp.spacing_m, inp.max_lane_m))
-    _shortcuts(vertices, lanes, frame, free, inp.max_lane_m)
+    fill.update(range(first_lattice, len(vertices)))
+    _shortcuts(vertices, lanes, frame, free, inp.max_lane_m, fill=fill)
     used = sorted({i for ab in lanes for i in ab} | {i for i, v in enumerate(vertices) if v.name or v.lift})
     if len(used) < len(vertices):  # drop vertices no lane uses (isolated skeleton specks) but named ones
         keep_vertex = set(used) | {vertex_of[n] for n in nodes if len(nodes[n]) > 0 and _alone(n, chains)}
@@ -375,10 +379,13 @@ def _shortcuts(
     frame: GridFrame,
     free: BoolArray,
     max_lane_m: float,
+    *,
+    fill: set[int] | None = None,
 ) -> None:
     """Add straight lanes between vertices within ``max_lane_m`` that see each other where the graph's
     way is more than :data:`SHORTCUT_RATIO` times longer (door vertices excepted: a door's lane is
-    the way through it)."""
+    the way through it; and pairs of ``fill`` vertices, which subdivide lanes or make the open-space
+    lattice, whose neighbours already join them about straight)."""
     if len(vertices) < 3:
         return
     xy = np.array([(v.x, v.y) for v in vertices])
@@ -391,6 +398,10 @@ def _shortcuts(
         return
     blocked = np.array([vertices[i].kind in ("door", "lift") for i in range(len(vertices))])
     pairs = pairs[~blocked[pairs].any(axis=1)]
+    if fill:
+        filler = np.zeros(len(vertices), dtype=np.bool_)
+        filler[list(fill)] = True
+        pairs = pairs[~filler[pairs].all(axis=1)]
     pairs = pairs[[(int(a), int(b)) not in lanes for a, b in pairs]] if len(pairs) else pairs
     if not len(pairs):
         return
