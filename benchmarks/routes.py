@@ -93,7 +93,7 @@ def measure(
     out["unsafe_lanes"] = int((~segments_free(free, cells[a], cells[b])).sum()) if len(a) else 0
     # complete: regions against graph components
     labels, regions = ndimage.label(free, structure=np.ones((3, 3)))
-    rc = np.rint(cells).astype(np.int64)
+    rc = np.rint(np.round(cells, 6)).astype(np.int64)  # as segments_free rounds a vertex's cell
     region_of = labels[rc[:, 0], rc[:, 1]]
     n = len(xy)
     weights = np.hypot(*(cells[a] - cells[b]).T)  # cells, as the grid paths

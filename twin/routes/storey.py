@@ -233,14 +233,21 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
                 door_kinds.update((a, b))
                 passable.add(name)
             n_parts = 1 if name else max(1, math.ceil(float(np.hypot(*(pts[s + 1] - pts[s]))) / max_cells))
-            prev = a
+            prev, prev_rc = a, pts[s]
+            longest = inp.max_lane_m / res
             for part in range(1, n_parts):
-                p = pts[s] + (pts[s + 1] - pts[s]) * part / n_parts
+                on_lane = pts[s] + (pts[s + 1] - pts[s]) * part / n_parts
+                p = _snap(free, prev_rc, on_lane, pts[s + 1])
+                if p is None:  # no cell centre near: skip it, unless the lane would grow too long
+                    ahead = pts[s] + (pts[s + 1] - pts[s]) * (part + 1) / n_parts
+                    if float(np.hypot(*(ahead - prev_rc))) <= longest:
+                        continue
+                    p = on_lane
                 x, y = _world(frame, float(p[0]), float(p[1]))
                 fill.add(len(vertices))
                 vertices.append(RouteVertex(x, y))
                 _add_lane(lanes, prev, len(vertices) - 1, "")
-                prev = len(vertices) - 1
+                prev, prev_rc = len(vertices) - 1, p
             _add_lane(lanes, prev, b, name)
     for i in door_kinds:
         if vertices[i].kind == "lane":
@@ -270,6 +277,24 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         lanes=tuple(RouteLane(a, b, d) for (a, b), d in sorted(lanes.items())),
     )
     return StoreyResult(routes, passable, notes)
+
+
+def _snap(free: BoolArray, before: FloatArray, p: FloatArray, after: FloatArray) -> FloatArray | None:
+    """``p`` (cell coordinates, on the free lane ``before`` -> ``after``) moved to the centre of a cell
+    next to it from which both parts of the lane stay free: a vertex between cells would lie on the
+    edge of free space; None when no such cell is next to it."""
+    for candidate in (np.rint(p), *(np.array(c, dtype=np.float64) for c in _corners(p))):
+        r, c = int(candidate[0]), int(candidate[1])
+        if not (0 <= r < free.shape[0] and 0 <= c < free.shape[1] and free[r, c]):
+            continue
+        if segments_free(free, np.array([before, candidate]), np.array([candidate, after])).all():
+            return candidate
+    return None
+
+
+def _corners(p: FloatArray) -> list[tuple[float, float]]:
+    fr, fc = math.floor(p[0]), math.floor(p[1])
+    return [(fr, fc), (fr, fc + 1), (fr + 1, fc), (fr + 1, fc + 1)]
 
 
 def _depth(cells: BoolArray) -> FloatArray:
