@@ -236,6 +236,16 @@ def draw(graph: RouteGraph, frees: dict[str, tuple[np.ndarray, GridFrame]], path
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
+    shrink_png(path)
+
+
+def shrink_png(path: Path, colors: int = 64) -> None:
+    """Rewrite the picture ``path`` with a palette of ``colors``: a few times smaller in git."""
+    from PIL import Image
+
+    with Image.open(path) as image:
+        small = image.convert("RGB").quantize(colors=colors)
+    small.save(path, optimize=True)
 
 
 def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespace) -> list[dict[str, Any]]:
