@@ -5,13 +5,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import ifcopenshell.api.geometry
 import ifcopenshell.api.root
 import ifcopenshell.api.type
+import numpy as np
+import pytest
 
 from adapters.ifc import read_model
 from tests.adapters.generated import Generated
 from tests.conftest import imported
 from twin.graph.rdf import literal_value
+from twin.maps.scene import load_scene
+from twin.routes.build import _door_shapes, _elements
 
 
 def _typed(g: Generated, element: object, type_class: str, **attributes: str) -> None:
@@ -67,3 +72,18 @@ def test_ifc2x3_takes_a_lifts_kind_from_operation_type_and_a_doors_from_its_styl
     model = read_model(g.write(tmp_path / "kinds2x3.ifc"))
     kinds = {e.name: (e.predefined_type, e.operation_type) for e in model.elements}
     assert kinds == {"Lift": ("ELEVATOR", ""), "Door": ("", "SLIDING_TO_RIGHT")}
+
+
+def test_a_left_hand_doors_hinge_and_swing_are_read_in_its_placement(tmp_path: Path) -> None:
+    g = Generated("IFC4")
+    st = g.storey("Ground", 0.0)
+    door = g.box("IfcDoor", "Door", (0, 0, 0), (0.9, 0.05, 2.1), container=st)
+    door.OperationType = "SINGLE_SWING_LEFT"
+    matrix = np.eye(4)
+    matrix[:3, 0], matrix[:3, 1], matrix[:3, 3] = (0, 1, 0), (-1, 0, 0), (5, 5, 0)  # local x: world +y
+    ifcopenshell.api.geometry.edit_object_placement(g.file, product=door, matrix=matrix, is_si=True)
+    store = imported(read_model(g.write(tmp_path / "door.ifc")))
+    ((_, shape),) = _door_shapes(load_scene(store), _elements(store, "IfcDoor"), {})
+    # hinged at its local -x end (world y 5.0), opening towards local +y (world -x): anticlockwise
+    assert np.array(shape.endpoints) == pytest.approx(np.array([[4.975, 5.0], [4.975, 5.9]]))
+    assert (shape.operation, shape.swing) == ("SINGLE_SWING_LEFT", -1)
