@@ -60,6 +60,8 @@ from twin.routes.graph import DoorCrossing, RouteGraph, StoreyRoutes  # noqa: E4
 from twin.routes.lines import segments_free  # noqa: E402
 
 NOTES_SHOWN = 5
+LABELS_SHOWN = 30
+"""A storey's picture names its named vertices when it has at most this many."""
 LONG_PAIR_M = 2.0
 """Pairs at least this far apart (grid path) are also reported on their own: closer pairs are within a
 lattice spacing or two, where joining the graph at both ends dominates the route."""
@@ -91,7 +93,7 @@ def measure(
     out["unsafe_lanes"] = int((~segments_free(free, cells[a], cells[b])).sum()) if len(a) else 0
     # complete: regions against graph components
     labels, regions = ndimage.label(free, structure=np.ones((3, 3)))
-    rc = np.rint(cells).astype(np.int64)
+    rc = np.rint(np.round(cells, 6)).astype(np.int64)  # as segments_free rounds a vertex's cell
     region_of = labels[rc[:, 0], rc[:, 1]]
     n = len(xy)
     weights = np.hypot(*(cells[a] - cells[b]).T)  # cells, as the grid paths
@@ -187,9 +189,17 @@ def draw(graph: RouteGraph, frees: dict[str, tuple[np.ndarray, GridFrame]], path
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(len(graph.storeys), 1, figsize=(9, 3.6 * len(graph.storeys)), squeeze=False)
+    # about 10 pixels a metre at 90 dpi, 9 to 20 inches wide: a long building stays readable
+    spans = [(f.width * f.resolution_m, f.height * f.resolution_m) for _, f in frees.values()]
+    wide, tall = max(w for w, _ in spans), max(h for _, h in spans)
+    width_in = min(max(9.0, wide / 9.0), 20.0)
+    row_in = min(max(width_in * tall / wide + 0.6, 2.0), 9.0)
+    fig, axes = plt.subplots(
+        len(graph.storeys), 1, figsize=(width_in, row_in * len(graph.storeys)), squeeze=False
+    )
     for ax, s in zip(axes[:, 0], graph.storeys, strict=True):
         free, f = frees[s.storey]
+        named = sum(1 for v in s.vertices if v.name)
         ext = (
             f.origin_x,
             f.origin_x + f.width * f.resolution_m,
@@ -206,6 +216,8 @@ def draw(graph: RouteGraph, frees: dict[str, tuple[np.ndarray, GridFrame]], path
         for v in s.vertices:
             if v.name:
                 ax.plot([v.x], [v.y], "o", color="tab:orange", ms=5)
+                if named > LABELS_SHOWN:
+                    continue  # many spaces: the dots only, names would cover the graph
                 ax.annotate(
                     v.name,
                     (v.x, v.y),
@@ -224,6 +236,16 @@ def draw(graph: RouteGraph, frees: dict[str, tuple[np.ndarray, GridFrame]], path
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
+    shrink_png(path)
+
+
+def shrink_png(path: Path, colors: int = 64) -> None:
+    """Rewrite the picture ``path`` with a palette of ``colors``: a few times smaller in git."""
+    from PIL import Image
+
+    with Image.open(path) as image:
+        small = image.convert("RGB").quantize(colors=colors)
+    small.save(path, optimize=True)
 
 
 def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespace) -> list[dict[str, Any]]:

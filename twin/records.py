@@ -162,6 +162,12 @@ class Element:
         is_static: part of the building's fixed structure (configured per IFC class).
         geometry: local mesh + placement, or None when it has no body or failed to mesh.
         mesh_kernel: the geometry kernel that meshed it (e.g. ``"manifold"``), "" when unknown.
+        predefined_type: the IFC ``PredefinedType`` of a door, lift (``IfcTransportElement``: e.g.
+            ``"ELEVATOR"``, ``"ESCALATOR"``) or slab (``"FLOOR"``, ``"ROOF"``), its type object's when
+            the element leaves it undefined; "" when unknown or another class.
+        operation_type: a door's ``OperationType`` (e.g. ``"SINGLE_SWING_LEFT"``,
+            ``"DOUBLE_DOOR_SLIDING"``), its type's (``IfcDoorType``, IFC2X3 ``IfcDoorStyle``) when the
+            door leaves it undefined; "" when unknown or not a door.
     """
 
     guid: str
@@ -173,6 +179,8 @@ class Element:
     ifc_types: tuple[str, ...] = ()
     mesh_kernel: str = ""
     facing_materials: tuple[str, ...] = ()
+    predefined_type: str = ""
+    operation_type: str = ""
 
 
 @dataclass(frozen=True, slots=True)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import zenoh
 
+from adapters.cli.serve_settings import ServeSettings
 from adapters.ros.building_map import encode_building_map
 from adapters.ros.rmf import DoorIndex
 from adapters.ros.routes import RouteFiles, rmf_levels, write_route_files
@@ -100,11 +101,34 @@ class ServedRoutes:
         graphs: dict[str, RouteGraph] | None = None,
         *,
         levels: Mapping[str, tuple[str, LevelConfig]] | None = None,
+        files: Path | None = None,
     ) -> None:
+        """``files``: the directory where each version's files are written (``[serve] route_files``)."""
         self.zenoh = zenoh_routes
         self.building_map = building_map
         self.graphs = dict(graphs or {})
         self.levels = levels
+        self.files = files
+
+    def write(self, graph: RouteGraph, cfg: Config, version: int) -> None:
+        """Write ``graph``'s nav graph YAML and GeoJSON files into :attr:`files` (when set); a failure
+        is logged in one line and the daemon goes on serving."""
+        if self.files is None:
+            return
+        try:
+            written = write_route_files(
+                graph,
+                self.files,
+                levels=self.levels,
+                frame_id=cfg.section(RosSettings).frame_id,
+                open_door_operations=cfg.routes[graph.skill].open_door_operations,
+            )
+        except (OSError, TwinError) as err:
+            log.error(
+                "Routes skill %s: version %d not written to %s: %s", graph.skill, version, self.files, err
+            )
+            return
+        log.info("Routes skill %s: version %d written to %s", graph.skill, version, written.nav_graph)
 
     def update(self, graph: RouteGraph, cfg: Config, store: GraphStore, scene: Scene) -> int | None:
         """Serve ``graph`` as the next version of its skill's graph (Zenoh, then a new ``BuildingMap``
@@ -114,6 +138,7 @@ class ServedRoutes:
             return None
         self.graphs[graph.skill] = graph
         version = self.zenoh.publish(graph.skill, graph.to_json())
+        self.write(graph, cfg, version)
         graphs = [self.graphs[name] for name in sorted(self.graphs)]
         payload = encode_building_map(
             graphs, storey_maps(cfg, store, scene, graphs[0]), building=graphs[0].building, levels=self.levels
@@ -134,12 +159,15 @@ def serve_routes(
     session: zenoh.Session, cfg: Config, store: GraphStore, scene: Scene, *, prefix: str
 ) -> ServedRoutes | None:
     """Build every routes skill's graph and publish it on ``<prefix>/routes/<skill>`` (latched JSON),
-    and all of them as Open-RMF's ``BuildingMap`` on ``/map`` (both ROS 2 layouts, domain 0).
-    A skill that cannot make a graph is logged in one line and left out: the others are served.
-    None when no routes skill is configured."""
+    and all of them as Open-RMF's ``BuildingMap`` on ``/map`` (both ROS 2 layouts, domain 0), and
+    write their files into ``[serve] route_files`` when it is set. A skill that cannot make a graph
+    is logged in one line and left out: the others are served. None when no routes skill is
+    configured."""
     if not cfg.routes:
         return None
     routes = ZenohRoutes(session, prefix=prefix)
+    levels = rmf_levels(ros_sources(cfg).values())
+    served = ServedRoutes(routes, None, levels=levels, files=cfg.section(ServeSettings).route_files)
     graphs = []
     for name in sorted(cfg.routes):
         t0 = time.perf_counter()
@@ -150,6 +178,8 @@ def serve_routes(
             continue
         graphs.append(graph)
         version = routes.publish(name, graph.to_json())
+        served.graphs[name] = graph
+        served.write(graph, cfg, version)
         log.info(
             "Routes skill %s: version %d on %s/routes/%s (%.2f s)",
             name,
@@ -158,14 +188,13 @@ def serve_routes(
             name,
             time.perf_counter() - t0,
         )
-    levels = rmf_levels(ros_sources(cfg).values())
-    served = {graph.skill: graph for graph in graphs}
     if not graphs:
-        return ServedRoutes(routes, None, served, levels=levels)
+        return served
     payload = encode_building_map(
         graphs, storey_maps(cfg, store, scene, graphs[0]), building=graphs[0].building, levels=levels
     )
-    return ServedRoutes(routes, RosBuildingMap(session, payload), served, levels=levels)
+    served.building_map = RosBuildingMap(session, payload)
+    return served
 
 
 def storey_maps(cfg: Config, store: GraphStore, scene: Scene, graph: RouteGraph) -> dict[str, OccupancyGrid]:

@@ -7,11 +7,11 @@ from typing import Annotated
 from pydantic import Field
 
 from twin.config import ConfigSection
-from twin.config.base import Number
+from twin.config.base import Number, PathSetting
 
 
 class ServeSettings(ConfigSection):
-    """``[serve]``: the daemon's stop."""
+    """``[serve]``: the daemon's stop, and the route graph files it keeps up to date."""
 
     table = "serve"
 
@@ -19,4 +19,9 @@ class ServeSettings(ConfigSection):
         10.0,
         description="How long a stop (SIGINT, SIGTERM) waits for queries in flight and threads to end; "
         "past it the daemon exits with code 124 after closing the store.",
+    )
+    route_files: PathSetting | None = Field(
+        None,
+        description="A directory where the daemon writes each routes skill's <skill>.nav_graph.yaml and "
+        "<storey>__<skill>.geojson at start and at every new graph version (default: not written).",
     )

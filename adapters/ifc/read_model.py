@@ -22,6 +22,7 @@ from typing import Any, Self
 
 import ifcopenshell
 import ifcopenshell.guid
+import ifcopenshell.util.element
 import ifcopenshell.util.placement
 import ifcopenshell.util.unit
 
@@ -241,7 +242,43 @@ def with_geometry(record: Element, geometry: Geometry | None, kernel: str) -> El
         record.ifc_types,
         kernel,
         record.facing_materials,
+        record.predefined_type,
+        record.operation_type,
     )
+
+
+_KIND_CLASSES = frozenset({"IfcDoor", "IfcTransportElement", "IfcSlab"})
+"""Classes whose predefined type is read (doors also their operation type): what route graphs and
+maps tell apart (a lift from an escalator, a floor from a roof, a sliding door from a swing door)."""
+_UNDEFINED = frozenset({"", "NOTDEFINED", "USERDEFINED"})
+
+
+def _kinds(e: Any, chain: tuple[str, ...]) -> tuple[str, str]:
+    """``(predefined type, operation type)`` of a door, lift or slab: the element's own, else its type
+    object's (``IfcDoorType``, ``IfcDoorStyle`` in IFC2X3, ...); "" where neither says. IFC2X3 keeps a
+    transport element's kind in ``OperationType``; an unreadable value counts as unknown."""
+    try:
+        kind_type = ifcopenshell.util.element.get_type(e)
+    except ENTITY_ERRORS:
+        kind_type = None
+
+    def first(name: str) -> str:
+        for source in (e, kind_type):
+            if source is None:
+                continue
+            try:
+                value = getattr(source, name, None)
+            except ENTITY_ERRORS:
+                value = None
+            if isinstance(value, str) and value not in _UNDEFINED:
+                return value
+        return ""
+
+    predefined = first("PredefinedType")
+    if not predefined and "IfcTransportElement" in chain:
+        predefined = first("OperationType")  # IFC2X3: IfcTransportElementTypeEnum
+    operation = first("OperationType") if "IfcDoor" in chain else ""
+    return predefined, operation
 
 
 def _entity_name(e: Any) -> str:
@@ -353,7 +390,8 @@ class ModelReading:
                 static = static_of.get(chain)
                 if static is None:  # one answer per class
                     static = static_of[chain] = any(t in chain for t in statics)
-                infos.append((e, attributes.get(e, "Name"), chain, every, facing, static))
+                kinds = _kinds(e, chain) if _KIND_CLASSES.intersection(chain) else ("", "")
+                infos.append((e, attributes.get(e, "Name"), chain, every, facing, static, *kinds))
             zones = [*self._storeys, *self._buildings, *self._sites]
             guids = {e.id(): attributes.get(e, "GlobalId") for e in (*self._elements, *self._spaces, *zones)}
             adjacent, contained, decomposed = _relations(
@@ -397,8 +435,10 @@ class ModelReading:
                         geometry=None,
                         ifc_types=chain,
                         facing_materials=facing,
+                        predefined_type=predefined,
+                        operation_type=operation,
                     )
-                    for e, name, chain, every, facing, is_static in infos
+                    for e, name, chain, every, facing, is_static, predefined, operation in infos
                 ),
                 adjacent=adjacent,
                 contained=contained,

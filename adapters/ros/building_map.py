@@ -9,10 +9,15 @@ fleets' ``nav_graphs`` (one ``Graph`` per routes skill serving it, named by its 
 ``door_name`` and ``speed_limit`` params); and a ``Lift`` per lift (the RMF level names it serves,
 its cabin's centre, yaw, width and depth).
 
-Doors: the IFC door's operation type is not imported, so every door is ``DOOR_TYPE_SINGLE_SWING`` with
-its hinge at ``v1`` (the leaf's first end), ``motion_range`` 90 (**degrees**, as the message defines it)
-and ``motion_direction`` 1. Coordinates are each level's (``[sources.NAME] levels``, as the nav graph
-YAML's: :func:`adapters.ros.routes.to_level`).
+Doors: the type follows the IFC door's ``OperationType`` (:func:`door_type`): swinging doors
+``DOOR_TYPE_SINGLE_SWING`` / ``DOUBLE_SWING`` with ``motion_range`` 90 (**degrees**, as the message
+defines it), sliding ones ``SINGLE_SLIDING`` / ``DOUBLE_SLIDING`` (``motion_range`` 0: the message
+needs none), revolving, folding and rolling doors ``DOOR_TYPE_UNDEFINED``, and a door whose model does
+not say a single swing. ``v1`` is the hinge (or the end a single sliding leaf slides towards) where the
+operation type has a hand (``*_LEFT``, ``*_RIGHT``), else the leaf's first end; ``motion_direction`` is
+1 for a clockwise swing seen from above, -1 anticlockwise (as ``building_map_generator`` turns a
+swing door: about -z for 1), 1 when unknown. Coordinates are each level's (``[sources.NAME] levels``,
+as the nav graph YAML's: :func:`adapters.ros.routes.to_level`).
 
 Example::
 
@@ -34,11 +39,15 @@ from adapters.ros.settings import LevelConfig
 from twin.maps.grid import OccupancyGrid
 from twin.routes.graph import RouteGraph, RouteVertex
 
-__all__ = ["DOOR_MOTION_RANGE_DEG", "decode_building_map", "encode_building_map"]
+__all__ = ["DOOR_MOTION_RANGE_DEG", "decode_building_map", "door_type", "encode_building_map"]
 
+DOOR_TYPE_UNDEFINED = 0
+DOOR_TYPE_SINGLE_SLIDING = 1
+DOOR_TYPE_DOUBLE_SLIDING = 2
 DOOR_TYPE_SINGLE_SWING = 5
+DOOR_TYPE_DOUBLE_SWING = 6
 DOOR_MOTION_RANGE_DEG = 90.0
-"""``Door.motion_range`` of every door: a swing of 90 degrees (the message's unit)."""
+"""``Door.motion_range`` of a swing door: a swing of 90 degrees (the message's unit)."""
 PARAM_STRING, PARAM_DOUBLE, PARAM_BOOL = 1, 3, 4
 EDGE_TYPE_BIDIRECTIONAL = 0
 EDGE_TYPE_UNIDIRECTIONAL = 1
@@ -78,6 +87,19 @@ def _param(name: str, value: str | float | bool) -> Any:
         value_string="",
         value_bool=False,
     )
+
+
+def door_type(operation: str) -> int:
+    """The ``rmf_building_map_msgs/Door`` type of an IFC door ``OperationType`` (IFC4
+    ``IfcDoorTypeOperationEnum``, IFC2X3 ``IfcDoorStyleOperationEnum``, IFC4X3's additions)."""
+    if not operation or operation in ("NOTDEFINED", "USERDEFINED"):
+        return DOOR_TYPE_SINGLE_SWING  # the model does not say: the common door
+    double = operation.startswith("DOUBLE_DOOR")
+    if "SLIDING" in operation:
+        return DOOR_TYPE_DOUBLE_SLIDING if double else DOOR_TYPE_SINGLE_SLIDING
+    if "SWING" in operation:
+        return DOOR_TYPE_DOUBLE_SWING if double else DOOR_TYPE_SINGLE_SWING
+    return DOOR_TYPE_UNDEFINED  # revolving, folding, rolling up, lifting: no RMF door type
 
 
 def _empty_graph() -> Any:
@@ -147,9 +169,13 @@ def building_map(
                         v1_y=y1,
                         v2_x=x2,
                         v2_y=y2,
-                        door_type=DOOR_TYPE_SINGLE_SWING,
-                        motion_range=DOOR_MOTION_RANGE_DEG,
-                        motion_direction=1,
+                        door_type=(kind := door_type(door.operation)),
+                        motion_range=(
+                            DOOR_MOTION_RANGE_DEG
+                            if kind in (DOOR_TYPE_SINGLE_SWING, DOOR_TYPE_DOUBLE_SWING)
+                            else 0.0
+                        ),
+                        motion_direction=door.swing or 1,
                     )
             served = [s for s in graph.storeys if s.storey == key]
             if not served:

@@ -191,7 +191,7 @@ def route_geojson(
         msg = (
             f"Route graph {graph.skill!r} on storey {storey.storey!r}: {n} nodes and "
             f"{edges} edges need ids beyond nav2's {MAX_GEOJSON_ID}; "
-            "use a larger max_lane_m."
+            "use a larger spacing_m."
         )
         raise RouteError(msg)
     features: list[dict[str, Any]] = []

@@ -9,6 +9,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
+import networkx as nx
 import pytest
 import zenoh
 
@@ -64,8 +65,8 @@ def test_a_wall_built_while_serving_makes_graph_version_2_and_the_stop_stays_cle
     finally:
         daemon.stop_cleanly()
     assert [g["version"] for g in graphs] == [1, 2]
+    assert _parts(graphs[1]) > _parts(graphs[0])  # the wall cuts the corridor: the graph falls apart
     lanes = sum(len(s["lanes"]) for s in graphs[1]["storeys"])
-    assert lanes != sum(len(s["lanes"]) for s in graphs[0]["storeys"])
     entities = chunks_by_entity(rrd)
     versions = [
         v
@@ -81,3 +82,12 @@ def test_a_wall_built_while_serving_makes_graph_version_2_and_the_stop_stays_cle
         for row in column(b, "LineStrips3D:strips")
     ]
     assert len(strips[-1]) == lanes
+
+
+def _parts(graph: dict[str, Any]) -> int:
+    """The number of connected parts of a served graph's storeys."""
+    g = nx.Graph()
+    for s in graph["storeys"]:
+        g.add_nodes_from((s["storey"], i) for i in range(len(s["vertices"])))
+        g.add_edges_from(((s["storey"], a), (s["storey"], b)) for a, b, _ in s["lanes"])
+    return nx.number_connected_components(g)

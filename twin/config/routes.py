@@ -13,10 +13,13 @@ need to know about the fleet::
     storeys = ["ground-floor"]       # storeys served (default: every storey)
     keepout = ["keepout"]            # keepout skills whose zones no lane crosses
     max_lane_m = 3.0                 # no lane longer than this
+    spacing_m = 0.5                  # vertices this far apart along lanes and in open rooms
+    lift_types = ["ELEVATOR"]        # IfcTransportElement predefined types that are lifts
     outdoors = false                 # lanes only over the storeys' floors (slabs, spaces, entrances)
     waypoints.charger1 = { storey = "ground-floor", x = 12.0, y = 8.0, charger = true }
     waypoints.desk = { at = "Room A", parking_spot = true }    # an IfcSpace's name
     one_way = [{ x1 = 4.5, y1 = 2.0, x2 = 7.5, y2 = 2.0 }]      # lanes along it: this way only
+    one_way = [{ door = "Door A", x2 = 12.0, y2 = 7.0 }]       # through Door A towards (12, 7) only
 
 The core checks the table here (:func:`parse_routes`); :func:`check_routes` then checks its references
 against the other skills.
@@ -77,12 +80,18 @@ class WaypointTable(ConfigTable):
 
 
 class OneWayTable(ConfigTable):
-    """A one-way stretch: the lanes along the segment (x1, y1) -> (x2, y2) go that way only."""
+    """A one-way stretch: the lanes along the segment (x1, y1) -> (x2, y2) go that way only; or a
+    one-way door: the lane through ``door`` goes towards (x2, y2) only."""
 
-    x1: Number = Field(description="Start x in the building's (map) frame, metres.")
-    y1: Number = Field(description="Start y, metres.")
+    x1: Number | None = Field(None, description="Start x in the building's (map) frame, metres.")
+    y1: Number | None = Field(None, description="Start y, metres.")
     x2: Number = Field(description="End x, metres: lanes along the segment go from start to end.")
     y2: Number = Field(description="End y, metres.")
+    door: Text | None = Field(
+        None,
+        description="A door's name (its RMF name or IFC name): its lane goes only towards (x2, y2), "
+        "the end nearer that point; give no x1, y1.",
+    )
     storey: Text | None = Field(None, description="The storey key (default: every storey served).")
     within_m: Annotated[Number, Field(gt=0, le=10)] = Field(
         0.5, description="A lane is along the segment when both its ends lie within this of it, metres."
@@ -90,6 +99,14 @@ class OneWayTable(ConfigTable):
 
     @model_validator(mode="after")
     def _length(self) -> OneWayTable:
+        if self.door is not None:
+            if self.x1 is not None or self.y1 is not None:
+                msg = f"one-way door {self.door!r}: give x2, y2 (the side it goes to), not x1, y1"
+                raise ValueError(msg)
+            return self
+        if self.x1 is None or self.y1 is None:
+            msg = "give x1, y1, x2, y2 (a stretch) or door, x2, y2 (a one-way door)"
+            raise ValueError(msg)
         if math.hypot(self.x2 - self.x1, self.y2 - self.y1) < 0.1:
             msg = f"the segment ({self.x1}, {self.y1}) -> ({self.x2}, {self.y2}) is shorter than 0.1 m"
             raise ValueError(msg)
@@ -111,6 +128,20 @@ class RoutesTable(ConfigTable):
         (), description="Keepout skills whose zones no lane crosses."
     )
     max_lane_m: Annotated[Number, Field(ge=0.5, le=100)] = Field(3.0, description="Longest lane, metres.")
+    spacing_m: Annotated[Number, Field(ge=0.2, le=5)] = Field(
+        0.5,
+        description=(
+            "Largest gap between vertices along a lane and the spacing of the open-space lattice, metres "
+            "(at most max_lane_m): finer gives shorter routes between close points, and more vertices."
+        ),
+    )
+    lift_types: Annotated[tuple[Text, ...], list_of("IfcTransportElement predefined types")] = Field(
+        ("ELEVATOR",),
+        description=(
+            "The IfcTransportElement predefined types (IFC2X3: operation types) that are lifts; "
+            "NOTDEFINED takes elements whose type the model does not say."
+        ),
+    )
     open_door_operations: Flag = Field(
         False, description="nav2 GeoJSON: an open_door operation on door edges (the plugin must exist)."
     )
@@ -147,7 +178,8 @@ class Waypoint:
 @dataclass(frozen=True, slots=True)
 class OneWay:
     """A one-way stretch (metres, the map frame): lanes within ``within_m`` of the segment go from
-    (x1, y1) towards (x2, y2) only. ``storey`` None: every storey served."""
+    (x1, y1) towards (x2, y2) only; or, with ``door``, the lane through that door goes only towards
+    its end nearer (x2, y2). ``storey`` None: every storey served."""
 
     x1: float
     y1: float
@@ -155,6 +187,7 @@ class OneWay:
     y2: float
     storey: str | None = None
     within_m: float = 0.5
+    door: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -169,6 +202,8 @@ class RouteProfile:
     storeys: tuple[str, ...] = ()
     keepout: tuple[str, ...] = ()
     max_lane_m: float = 3.0
+    spacing_m: float = 0.5
+    lift_types: tuple[str, ...] = ("ELEVATOR",)
     open_door_operations: bool = False
     outdoors: bool = False
     waypoints: tuple[Waypoint, ...] = ()
@@ -195,6 +230,8 @@ def parse_routes(name: str, data: Mapping[str, Any]) -> RouteProfile:
         storeys=tuple(dict.fromkeys(table.storeys)),
         keepout=tuple(dict.fromkeys(table.keepout)),
         max_lane_m=table.max_lane_m,
+        spacing_m=min(table.spacing_m, table.max_lane_m),
+        lift_types=tuple(dict.fromkeys(t.upper() for t in table.lift_types)),
         open_door_operations=table.open_door_operations,
         outdoors=table.outdoors,
         waypoints=tuple(
@@ -211,7 +248,9 @@ def parse_routes(name: str, data: Mapping[str, Any]) -> RouteProfile:
             )
             for wp, t in table.waypoints.items()
         ),
-        one_way=tuple(OneWay(o.x1, o.y1, o.x2, o.y2, o.storey, o.within_m) for o in table.one_way),
+        one_way=tuple(
+            OneWay(o.x1 or 0.0, o.y1 or 0.0, o.x2, o.y2, o.storey, o.within_m, o.door) for o in table.one_way
+        ),
         description=table.description,
     )
 

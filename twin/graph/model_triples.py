@@ -47,6 +47,8 @@ _IFC_TYPE: Final = f"<{vocab.TWIN_IFC_TYPE}>"
 _MATERIAL: Final = f"<{vocab.TWIN_MATERIAL}>"
 _FACING_MATERIAL: Final = f"<{vocab.TWIN_FACING_MATERIAL}>"
 _IS_STATIC: Final = f"<{vocab.TWIN_IS_STATIC}>"
+_PREDEFINED_TYPE: Final = f"<{vocab.TWIN_PREDEFINED_TYPE}>"
+_OPERATION_TYPE: Final = f"<{vocab.TWIN_OPERATION_TYPE}>"
 _MESH_KERNEL: Final = f"<{vocab.TWIN_MESH_KERNEL}>"
 _PLY: Final = ox.NamedNode(vocab.FOG_PLY_BINARY_LE)
 _PLY_TEXT: Final = f"<{vocab.FOG_PLY_BINARY_LE}>"
@@ -244,7 +246,7 @@ def structure_triples(
     model: BuildingModel, iri_of: dict[str, str], *, base_iri: str, site: str
 ) -> ModelTriples:
     """The triples that need no geometry: the model node, the spatial tree, classes, names, materials,
-    static flags and relations."""
+    static flags, predefined and operation types, and relations."""
     out = ModelTriples()
     add = out.add
 
@@ -314,6 +316,10 @@ def structure_triples(
             materials[key_m] = material_ends
         lines += [node + end for end in material_ends]
         add(node, _IS_STATIC, _boolean(el.is_static))
+        if el.predefined_type:
+            add(node, _PREDEFINED_TYPE, _text(el.predefined_type))
+        if el.operation_type:
+            add(node, _OPERATION_TYPE, _text(el.operation_type))
     for rel, pred in (
         (model.adjacent, vocab.BOT_ADJACENT_ELEMENT),
         (model.contained, vocab.BOT_CONTAINS_ELEMENT),

@@ -6,10 +6,13 @@ the robot's radius, the robot's height band) drawn with every door open and ever
 skills' zones. :func:`twin.routes.storey.build_storey` makes each storey's graph from them; lifts join
 the storeys: a vertex at the cabin's centre on every storey the lift serves, at the same x, y.
 
-Doors and lifts are the elements of those IFC classes (subtypes included) with geometry. The model's
-``PredefinedType`` is not imported, so every ``IfcTransportElement`` counts as a lift (an escalator
-modelled as one would too). A lift serves the storeys whose floor lies within its geometry's height,
-with at least a storey's robot height above.
+Doors are the ``IfcDoor`` elements (subtypes included) with geometry; lifts the
+``IfcTransportElement`` elements with geometry whose predefined type is one of the skill's
+``lift_types`` (``ELEVATOR`` by default: an escalator or a crane is an obstacle, not a lift). A lift
+serves the storeys whose floor lies within its geometry's height, with at least a storey's robot
+height above. A door's ``OperationType`` says which end is its hinge (or where it slides to) and
+which way it swings, read in its placement's frame (IFC: hinged on the left or right as seen along
+the door's local +y, opening towards +y).
 
 Example::
 
@@ -34,6 +37,7 @@ from twin.graph.store import GraphStore
 from twin.maps.grid import GridFrame
 from twin.maps.render import MapPlan, build_map, occupancy, plan_map
 from twin.maps.scene import Scene, StoreyInfo
+from twin.records import to_world
 from twin.routes.graph import DoorCrossing, Lift, RouteGraph, RouteVertex, StoreyRoutes
 from twin.routes.one_way import apply_one_way
 from twin.routes.storey import DoorShape, SpaceArea, StoreyInput, build_storey
@@ -46,10 +50,12 @@ DOOR_TYPES = ("IfcDoor",)
 LIFT_TYPES = ("IfcTransportElement",)
 _UNSAFE = re.compile(r"[^A-Za-z0-9_]+")
 
-_ELEMENTS = """SELECT ?e ?name ?gid WHERE {{
+_ELEMENTS = """SELECT ?e ?name ?gid ?predefined ?operation WHERE {{
   ?e twin:ifcType "{ifc_type}" ; omg:hasGeometry ?g .
   OPTIONAL {{ ?e rdfs:label ?name }}
   OPTIONAL {{ ?e props:globalIdIfcRoot_attribute_simple ?gid }}
+  OPTIONAL {{ ?e twin:predefinedType ?predefined }}
+  OPTIONAL {{ ?e twin:operationType ?operation }}
   FILTER NOT EXISTS {{ ?e twin:removed true }}
 }} ORDER BY ?e"""
 _SPACES = "SELECT ?sp ?name WHERE { ?sp a bot:Space . OPTIONAL { ?sp rdfs:label ?name } } ORDER BY ?sp"
@@ -60,6 +66,8 @@ _BUILDING = "SELECT ?name WHERE { ?b a bot:Building . OPTIONAL { ?b rdfs:label ?
 class _Named:
     iri: str
     name: str
+    predefined: str = ""
+    operation: str = ""
 
 
 def sanitise(text: str) -> str:
@@ -161,13 +169,23 @@ def build_routes(
                 spaces=spaces,
                 points=points,
                 max_lane_m=routes.max_lane_m,
+                spacing_m=routes.spacing_m,
                 door_reach_m=door_reach(radius),
             )
         )
         results.append(result.routes)
         notes += result.notes
         crossings += [
-            DoorCrossing(d.name, d.iri, storey.key, d.endpoints, d.width_m, d.name in result.passable)
+            DoorCrossing(
+                d.name,
+                d.iri,
+                storey.key,
+                d.endpoints,
+                d.width_m,
+                d.name in result.passable,
+                operation=d.operation,
+                swing=d.swing,
+            )
             for d in on_storey
         ]
     served = {st.key for st in storeys}
@@ -236,7 +254,9 @@ def prepare_routes(
     nav = skills[routes.navigation]
     storeys = _served(scene, routes)
     doors = _elements(store, DOOR_TYPES[0])
-    lifts = _elements(store, LIFT_TYPES[0])
+    lifts = [
+        t for t in _elements(store, LIFT_TYPES[0]) if (t.predefined or "NOTDEFINED") in routes.lift_types
+    ]
     exempt = {d.iri for d in doors} | {lift.iri for lift in lifts}
     iris = [
         i
@@ -352,7 +372,14 @@ def _elements(store: GraphStore, ifc_type: str) -> list[_Named]:
     out = []
     for r in store.select(_ELEMENTS.format(ifc_type=ifc_type)):
         iri = literal_value(r["e"]) or ""
-        out.append(_Named(iri, literal_value(r["name"]) or literal_value(r["gid"]) or iri.rsplit("#", 1)[-1]))
+        out.append(
+            _Named(
+                iri,
+                literal_value(r["name"]) or literal_value(r["gid"]) or iri.rsplit("#", 1)[-1],
+                literal_value(r["predefined"]) or "",
+                literal_value(r["operation"]) or "",
+            )
+        )
     return out
 
 
@@ -365,12 +392,17 @@ def _door_shapes(scene: Scene, doors: list[_Named], names: Mapping[str, str]) ->
         i = scene.elements.index.get(door.iri)
         if i is None:
             continue
-        triangles, _ = scene.elements.triangles_of(np.array([i], dtype=np.intp))
-        xy = triangles.reshape(-1, 3)[:, :2]
+        shape = scene.shapes.get(door.iri)
+        if shape is not None:  # its vertices: a detailed door has far fewer than 3 per triangle
+            xy = to_world(shape[0].vertices, shape[1])[:, :2]
+        else:
+            triangles, _ = scene.elements.triangles_of(np.array([i], dtype=np.intp))
+            xy = triangles.reshape(-1, 3)[:, :2]
         if len(xy) < 3:
             continue
         u, _, along, across, mid = _min_rectangle(xy)
         name = unique(sanitise(names.get(door.iri, door.name)), taken)
+        hinge_first, swing = _handedness(door.operation, u, None if shape is None else shape[1])
         out.append(
             (
                 i,
@@ -383,10 +415,35 @@ def _door_shapes(scene: Scene, doors: list[_Named], names: Mapping[str, str]) ->
                     uy=float(u[1]),
                     width_m=float(along.max() - along.min()),
                     thickness_m=float(across.max() - across.min()),
+                    operation=door.operation,
+                    hinge_first=hinge_first,
+                    swing=swing,
                 ),
             )
         )
     return out
+
+
+def _handedness(operation: str, u: np.ndarray, placement: np.ndarray | None) -> tuple[bool, int]:
+    """``(hinge_first, swing)`` of a door of IFC ``operation`` whose width runs along ``u`` (see
+    :class:`twin.routes.storey.DoorShape`): a left-hand door has its hinge (or slides) towards its
+    local -x end, a right-hand one towards +x, and a swing from the hinge towards local +y is
+    anticlockwise (-1) when the hinge is at -x; ``(True, 0)`` when the operation has no hand or the
+    placement's x axis does not lie along the width."""
+    left, right = operation.endswith("_LEFT"), operation.endswith("_RIGHT")
+    if placement is None or not (left or right):
+        return True, 0
+    x_axis, y_axis = placement[:2, 0], placement[:2, 1]
+    along = float(x_axis @ u) / max(float(np.hypot(*x_axis)), 1e-12)
+    if abs(along) < 0.9:
+        return True, 0
+    # endpoints[0] lies at -u: it is the local -x end when u runs along +x
+    hinge_first = (along > 0) == left
+    # the leaf turns from the hinge's side towards local +y: from +x, anticlockwise seen from above
+    # when the frame's x, y run anticlockwise (z up)
+    up = 1 if float(x_axis[0] * y_axis[1] - x_axis[1] * y_axis[0]) >= 0 else -1
+    swing = 0 if "SWING" not in operation or operation.startswith("DOUBLE_DOOR") else (-up if left else up)
+    return hinge_first, swing
 
 
 def _min_rectangle(

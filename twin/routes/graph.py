@@ -49,7 +49,13 @@ class RouteLane:
 @dataclass(frozen=True, slots=True)
 class DoorCrossing:
     """A door on a storey: its name, where its leaf lies (two endpoints, m) and whether the fleet's
-    robot fits through it (then a lane passes it, carrying its name)."""
+    robot fits through it (then a lane passes it, carrying its name).
+
+    ``operation`` is the IFC door's ``OperationType`` ("" when the model does not say). For a door
+    hinged or sliding to one side (``*_LEFT``, ``*_RIGHT``) whose placement's x axis lies along its
+    width, ``endpoints[0]`` is the hinge (or the end the leaf slides towards) and ``swing`` the way
+    it opens seen from above: ``1`` clockwise, ``-1`` anticlockwise (opening towards the door's local
+    +y); ``0`` when unknown."""
 
     name: str
     iri: str
@@ -57,6 +63,8 @@ class DoorCrossing:
     endpoints: tuple[tuple[float, float], tuple[float, float]]
     width_m: float
     passable: bool
+    operation: str = ""
+    swing: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,23 +115,27 @@ class RouteGraph:
         msg = f"The route graph {self.skill!r} serves no storey {key!r}."
         raise KeyError(msg)
 
-    def to_networkx(self) -> nx.Graph:
-        """The whole graph (every storey, joined at the lifts) as a weighted networkx graph: nodes
-        ``(storey, index)`` with ``x``, ``y``; lanes weighted by their length (one-way
-        lanes too: undirected), lift hops by 0."""
-        g = nx.Graph()
+    def to_networkx(self) -> nx.DiGraph:
+        """The whole graph (every storey, joined at the lifts) as a weighted, directed networkx graph:
+        nodes ``(storey, index)`` with ``x``, ``y``; a two-way lane as an edge each way, a one-way
+        lane as one edge its way, each weighted by its length; lift hops both ways, weighted 0.
+        ``g.to_undirected()`` gives the lanes without their direction."""
+        g = nx.DiGraph()
         for s in self.storeys:
             for i, v in enumerate(s.vertices):
                 g.add_node((s.storey, i), x=v.x, y=v.y, name=v.name, lift=v.lift)
             for lane in s.lanes:
                 a, b = s.vertices[lane.a], s.vertices[lane.b]
-                g.add_edge((s.storey, lane.a), (s.storey, lane.b), weight=_dist(a, b), door=lane.door)
+                ways = ((lane.a, lane.b),) if lane.one_way else ((lane.a, lane.b), (lane.b, lane.a))
+                for u, w in ways:
+                    g.add_edge((s.storey, u), (s.storey, w), weight=_dist(a, b), door=lane.door)
         for lift in self.lifts:
             stops = [
                 (s.storey, i) for s in self.storeys for i, v in enumerate(s.vertices) if v.lift == lift.name
             ]
-            for u, w in itertools.pairwise(stops):
-                g.add_edge(u, w, weight=0.0, lift=lift.name)
+            for stop, next_stop in itertools.pairwise(stops):
+                g.add_edge(stop, next_stop, weight=0.0, lift=lift.name)
+                g.add_edge(next_stop, stop, weight=0.0, lift=lift.name)
         return g
 
     def to_json(self) -> dict[str, Any]:
@@ -154,6 +166,8 @@ class RouteGraph:
                     "width_m": d.width_m,
                     "passable": d.passable,
                 }
+                | ({"operation": d.operation} if d.operation else {})
+                | ({"swing": d.swing} if d.swing else {})
                 for d in self.doors
             ],
             "lifts": [

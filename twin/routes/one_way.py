@@ -3,8 +3,9 @@ along them into lanes that go one way only.
 
 A lane is along a stretch when both its ends lie within the stretch's ``within_m`` of its segment
 and it runs within 45 degrees of the segment's direction (a lane across a corridor stays two-way).
-Such a lane becomes ``one_way``, its ends ordered so that it goes the segment's way. A stretch that
-no lane of the storeys it names is along makes a note.
+Such a lane becomes ``one_way``, its ends ordered so that it goes the segment's way. A one-way door
+(``door``) makes the lane carrying that door's name go only towards its end nearer (x2, y2). A
+stretch or door that no lane of the storeys it names follows makes a note.
 
 Example::
 
@@ -13,6 +14,7 @@ Example::
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import replace
 
@@ -22,7 +24,7 @@ from twin.config.routes import OneWay
 from twin.records import FloatArray
 from twin.routes.graph import RouteLane, StoreyRoutes
 
-__all__ = ["along", "apply_one_way"]
+__all__ = ["along", "apply_one_way", "through"]
 
 COS_ALONG = float(np.cos(np.radians(45.0)))
 """A lane within this angle of a stretch's direction runs along it."""
@@ -67,7 +69,7 @@ def apply_one_way(
         for k, stretch in enumerate(stretches):
             if stretch.storey is not None and stretch.storey != s.storey:
                 continue
-            hit, against = along(ends, stretch)
+            hit, against = along(ends, stretch) if stretch.door is None else through(s, ends, stretch)
             hit &= ~one_way  # the first stretch a lane is along decides its way
             one_way |= hit
             flip |= hit & against
@@ -81,9 +83,26 @@ def apply_one_way(
         ]
         out.append(replace(s, lanes=tuple(lanes)))
     notes = [
-        f"one_way ({w.x1:g}, {w.y1:g}) -> ({w.x2:g}, {w.y2:g}){f' on {w.storey}' if w.storey else ''}: "
-        "no lane runs along it"
+        (
+            f"one_way door {w.door}{f' on {w.storey}' if w.storey else ''}: no lane passes it"
+            if w.door is not None
+            else f"one_way ({w.x1:g}, {w.y1:g}) -> ({w.x2:g}, {w.y2:g})"
+            f"{f' on {w.storey}' if w.storey else ''}: no lane runs along it"
+        )
         for w, hit in zip(stretches, used.tolist(), strict=True)
         if not hit
     ]
     return tuple(out), notes
+
+
+def through(s: StoreyRoutes, ends: FloatArray, door: OneWay) -> tuple[np.ndarray, np.ndarray]:
+    """Which lanes of ``s`` pass ``door.door`` (by the name they carry: the door's RMF name, or its
+    IFC name as the graph sanitises it), and which of those run away from (x2, y2)."""
+    names = {door.door, _UNSAFE.sub("_", door.door or "").strip("_")}
+    hit = np.array([lane.door in names and lane.door != "" for lane in s.lanes], dtype=np.bool_)
+    target = np.array([door.x2, door.y2])
+    to_a, to_b = (np.linalg.norm(ends[:, k] - target, axis=-1) for k in (0, 1))
+    return hit, hit & (to_a < to_b)
+
+
+_UNSAFE = re.compile(r"[^A-Za-z0-9_]+")

@@ -3,8 +3,8 @@
 Given the cells a robot's centre may occupy (``free``: the fleet's inflated navigation map with doors
 open and lift cars exempt, keepout zones removed), the lanes follow the pruned skeleton of free space
 (:mod:`twin.routes.skeleton`): vertices at its junctions and dead ends, the runs between simplified to
-straight lanes whose centre lines are free (:mod:`twin.routes.lines`), none longer than
-``max_lane_m``. Then:
+straight lanes whose centre lines are free (:mod:`twin.routes.lines`), with a vertex at least every
+``spacing_m`` along them. Then:
 
 - **doors**: where the skeleton crosses a door's plane within the door's width, a vertex on each side
   (where the skeleton leaves a band of ``door_reach_m`` about the door) and one straight lane between
@@ -12,8 +12,14 @@ straight lanes whose centre lines are free (:mod:`twin.routes.lines`), none long
 - **spaces**: a named vertex at the skeleton point of the space most interior to its free part;
 - **points** (lift cabins, configured waypoints): a vertex exactly there, joined by a straight lane
   to the nearest skeleton point it sees;
+- **open space**: a lattice of vertices ``spacing_m`` apart where free space lies away from every lane
+  (rooms), joined to the neighbours each sees;
 - **shortcuts**: a straight lane between two vertices within ``max_lane_m`` that see each other when
   the graph's way between them is much longer (open rooms: the skeleton's way is a detour).
+
+Vertices ``spacing_m`` apart (0.5 m by default) keep routes between close points short: a point joins
+the graph at a vertex it sees, and a route between two points a metre apart is only about as long as
+their distance when a vertex lies near the line between them.
 """
 
 from __future__ import annotations
@@ -44,12 +50,14 @@ SHORTCUT_RATIO = 1.15
 """A shortcut is added where the graph's way is longer than this many times the straight line."""
 OPEN_SPACE_FRACTION = 0.75
 """Open space gets lattice vertices where it lies this many lattice spacings from every lane."""
-"""A shortcut is added where the graph's way is longer than this many times the straight line."""
 
 
 @dataclass(frozen=True, slots=True)
 class DoorShape:
-    """A door on the storey: centre (m), unit vector along its width, width and thickness (m)."""
+    """A door on the storey: centre (m), unit vector along its width, width and thickness (m), its IFC
+    operation type ("" unknown) and which way it opens (see :class:`twin.routes.graph.DoorCrossing`:
+    ``hinge_first`` says whether ``endpoints[0]`` is the hinge, ``swing`` 1 clockwise, -1 anticlockwise,
+    0 unknown)."""
 
     name: str
     iri: str
@@ -59,11 +67,15 @@ class DoorShape:
     uy: float
     width_m: float
     thickness_m: float
+    operation: str = ""
+    hinge_first: bool = True
+    swing: int = 0
 
     @property
     def endpoints(self) -> tuple[tuple[float, float], tuple[float, float]]:
         h = self.width_m / 2
-        return ((self.x - h * self.ux, self.y - h * self.uy), (self.x + h * self.ux, self.y + h * self.uy))
+        ends = ((self.x - h * self.ux, self.y - h * self.uy), (self.x + h * self.ux, self.y + h * self.uy))
+        return ends if self.hinge_first else (ends[1], ends[0])
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,6 +98,7 @@ class StoreyInput:
     spaces: Sequence[SpaceArea] = ()
     points: Sequence[RouteVertex] = ()
     max_lane_m: float = 3.0
+    spacing_m: float = 0.5
     door_reach_m: float = 0.6
 
 
@@ -182,8 +195,9 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         vertices.append(RouteVertex(x, y, name=name, kind="space" if name else "lane"))
     lanes: dict[tuple[int, int], str] = {}
     tol = max(SIMPLIFY_M / res, 1.5)
-    max_cells = inp.max_lane_m / res
+    max_cells = min(inp.spacing_m, inp.max_lane_m) / res
     door_kinds: set[int] = set()
+    fill: set[int] = set()  # vertices that only subdivide a lane or fill open space
     passable: set[str] = set()
     for chain in chains:
         rc = np.stack(np.divmod(chain.pixels, w), axis=1).astype(np.float64)
@@ -219,13 +233,21 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
                 door_kinds.update((a, b))
                 passable.add(name)
             n_parts = 1 if name else max(1, math.ceil(float(np.hypot(*(pts[s + 1] - pts[s]))) / max_cells))
-            prev = a
+            prev, prev_rc = a, pts[s]
+            longest = inp.max_lane_m / res
             for part in range(1, n_parts):
-                p = pts[s] + (pts[s + 1] - pts[s]) * part / n_parts
+                on_lane = pts[s] + (pts[s + 1] - pts[s]) * part / n_parts
+                p = _snap(free, prev_rc, on_lane, pts[s + 1])
+                if p is None:  # no cell centre near: skip it, unless the lane would grow too long
+                    ahead = pts[s] + (pts[s + 1] - pts[s]) * (part + 1) / n_parts
+                    if float(np.hypot(*(ahead - prev_rc))) <= longest:
+                        continue
+                    p = on_lane
                 x, y = _world(frame, float(p[0]), float(p[1]))
+                fill.add(len(vertices))
                 vertices.append(RouteVertex(x, y))
                 _add_lane(lanes, prev, len(vertices) - 1, "")
-                prev = len(vertices) - 1
+                prev, prev_rc = len(vertices) - 1, p
             _add_lane(lanes, prev, b, name)
     for i in door_kinds:
         if vertices[i].kind == "lane":
@@ -233,8 +255,10 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
     for point, target in attach:
         vertices.append(point)
         _add_lane(lanes, len(vertices) - 1, vertex_of[target], "")
-    _open_space(vertices, lanes, frame, free, inp.max_lane_m)
-    _shortcuts(vertices, lanes, frame, free, inp.max_lane_m)
+    first_lattice = len(vertices)
+    _open_space(vertices, lanes, frame, free, min(inp.spacing_m, inp.max_lane_m))
+    fill.update(range(first_lattice, len(vertices)))
+    _shortcuts(vertices, lanes, frame, free, inp.max_lane_m, fill=fill)
     used = sorted({i for ab in lanes for i in ab} | {i for i, v in enumerate(vertices) if v.name or v.lift})
     if len(used) < len(vertices):  # drop vertices no lane uses (isolated skeleton specks) but named ones
         keep_vertex = set(used) | {vertex_of[n] for n in nodes if len(nodes[n]) > 0 and _alone(n, chains)}
@@ -253,6 +277,24 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         lanes=tuple(RouteLane(a, b, d) for (a, b), d in sorted(lanes.items())),
     )
     return StoreyResult(routes, passable, notes)
+
+
+def _snap(free: BoolArray, before: FloatArray, p: FloatArray, after: FloatArray) -> FloatArray | None:
+    """``p`` (cell coordinates, on the free lane ``before`` -> ``after``) moved to the centre of a cell
+    next to it from which both parts of the lane stay free: a vertex between cells would lie on the
+    edge of free space; None when no such cell is next to it."""
+    for candidate in (np.rint(p), *(np.array(c, dtype=np.float64) for c in _corners(p))):
+        r, c = int(candidate[0]), int(candidate[1])
+        if not (0 <= r < free.shape[0] and 0 <= c < free.shape[1] and free[r, c]):
+            continue
+        if segments_free(free, np.array([before, candidate]), np.array([candidate, after])).all():
+            return candidate
+    return None
+
+
+def _corners(p: FloatArray) -> list[tuple[float, float]]:
+    fr, fc = math.floor(p[0]), math.floor(p[1])
+    return [(fr, fc), (fr, fc + 1), (fr + 1, fc), (fr + 1, fc + 1)]
 
 
 def _depth(cells: BoolArray) -> FloatArray:
@@ -309,10 +351,10 @@ def _open_space(
     lanes: dict[tuple[int, int], str],
     frame: GridFrame,
     free: BoolArray,
-    max_lane_m: float,
+    spacing_m: float,
 ) -> None:
-    """Fill open space: a lattice of vertices (spacing :func:`lattice_m`) where free space lies farther
-    from every lane than most of a spacing, each joined to the vertices within 1.5 spacings it sees.
+    """Fill open space: a lattice of vertices ``spacing_m`` apart where free space lies farther from
+    every lane than most of a spacing, each joined to the vertices within 1.5 spacings it sees.
 
     The medial axis of a wide room is one line (or an X) down its middle: a route between two points
     near one wall would go to the middle and back. The lattice gives such rooms lanes where robots
@@ -320,7 +362,7 @@ def _open_space(
     if not vertices or not lanes:
         return
     res = frame.resolution_m
-    step = lattice_m(max_lane_m)
+    step = spacing_m
     lane_cells = np.zeros_like(free)
     xy = np.array([(v.x, v.y) for v in vertices])
     cells = np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
@@ -356,21 +398,19 @@ def _open_space(
         _add_lane(lanes, int(a), int(b), "")
 
 
-def lattice_m(max_lane_m: float) -> float:
-    """The spacing of the open-space lattice: a third of the longest lane, 0.75 to 1.5 m."""
-    return min(max(max_lane_m / 3, 0.75), 1.5)
-
-
 def _shortcuts(
     vertices: list[RouteVertex],
     lanes: dict[tuple[int, int], str],
     frame: GridFrame,
     free: BoolArray,
     max_lane_m: float,
+    *,
+    fill: set[int] | None = None,
 ) -> None:
     """Add straight lanes between vertices within ``max_lane_m`` that see each other where the graph's
     way is more than :data:`SHORTCUT_RATIO` times longer (door vertices excepted: a door's lane is
-    the way through it)."""
+    the way through it; and pairs of ``fill`` vertices, which subdivide lanes or make the open-space
+    lattice, whose neighbours already join them about straight)."""
     if len(vertices) < 3:
         return
     xy = np.array([(v.x, v.y) for v in vertices])
@@ -383,6 +423,10 @@ def _shortcuts(
         return
     blocked = np.array([vertices[i].kind in ("door", "lift") for i in range(len(vertices))])
     pairs = pairs[~blocked[pairs].any(axis=1)]
+    if fill:
+        filler = np.zeros(len(vertices), dtype=np.bool_)
+        filler[list(fill)] = True
+        pairs = pairs[~filler[pairs].all(axis=1)]
     pairs = pairs[[(int(a), int(b)) not in lanes for a, b in pairs]] if len(pairs) else pairs
     if not len(pairs):
         return
@@ -402,14 +446,20 @@ def _shortcuts(
     pairs, straight = pairs[detour], straight[detour]
     res = frame.resolution_m
     cells = np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
+    # a coarse sight test first (most pairs within reach lie behind a wall), the full one on the rest
+    seen = segments_free(free, cells[pairs[:, 0]], cells[pairs[:, 1]], samples_per_cell=1)
+    pairs, straight = pairs[seen], straight[seen]
     visible = segments_free(free, cells[pairs[:, 0]], cells[pairs[:, 1]])
     pairs, straight = pairs[visible], straight[visible]
     order = np.lexsort((straight, pairs[:, 0]))
-    cutoff = SHORTCUT_RATIO * max_lane_m
+    pairs, straight = pairs[order], straight[order]
+    # each source's search reaches only as far as its farthest candidate needs
+    reach = dict(zip(pairs[:, 0].tolist(), straight.tolist(), strict=False))  # the last (longest) wins
     source, dist = -1, {}
-    for (pa, pb), d in zip(pairs[order], straight[order], strict=True):
+    for (pa, pb), d in zip(pairs, straight, strict=True):
         a, b = int(pa), int(pb)
         if a != source:
+            cutoff = SHORTCUT_RATIO * reach[a] + 1e-6
             source, dist = a, nx.single_source_dijkstra_path_length(g, a, cutoff=cutoff, weight="weight")
         if dist.get(b, math.inf) > SHORTCUT_RATIO * d:
             lanes[(a, b)] = ""

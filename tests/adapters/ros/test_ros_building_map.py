@@ -11,7 +11,12 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from adapters.ros.building_map import DOOR_MOTION_RANGE_DEG, decode_building_map, encode_building_map
+from adapters.ros.building_map import (
+    DOOR_MOTION_RANGE_DEG,
+    decode_building_map,
+    door_type,
+    encode_building_map,
+)
 from adapters.ros.building_map_msgs import BUILDING_MAP
 from adapters.ros.rmw_zenoh import RosTopic, parse_attachment
 from adapters.ros.settings import LevelConfig, ros_robots
@@ -74,7 +79,9 @@ def test_the_building_maps_bytes_decode_field_by_field(
     )
     (door,) = l1.doors
     assert door.name == "Door_A" and door.door_type == 5 and door.motion_range == DOOR_MOTION_RANGE_DEG
-    assert (door.v1_x, door.v1_y, door.v2_x, door.v2_y) == pytest.approx((1.55, -0.1, 2.45, -0.1))
+    # a right-hand swing door along +x: hinged at its +x end, swinging clockwise towards -x, +y
+    assert (door.v1_x, door.v1_y, door.v2_x, door.v2_y) == pytest.approx((2.45, -0.1, 1.55, -0.1))
+    assert door.motion_direction == 1
     assert [g.name for g in l1.nav_graphs] == ["cleaners"] and [g.name for g in l2.nav_graphs] == [
         "cleaners",
         "movers",
@@ -140,3 +147,23 @@ def test_robots_cannot_take_the_building_maps_topic(tmp_path: Path) -> None:
     (tmp_path / "site.toml").write_text('[robots.r1]\nnamespace = "/"\nstorey = "ground-floor"\n')
     with pytest.raises(ConfigError, match="namespace: expected a ROS namespace such as \"/robot1\", got '/'"):
         ros_robots(load_config(tmp_path / "site.toml"))
+
+
+@pytest.mark.parametrize(
+    ("operation", "kind"),
+    [
+        ("", 5),
+        ("NOTDEFINED", 5),
+        ("SINGLE_SWING_LEFT", 5),
+        ("DOUBLE_SWING_RIGHT", 5),
+        ("DOUBLE_DOOR_SINGLE_SWING", 6),
+        ("DOUBLE_DOOR_DOUBLE_SWING", 6),
+        ("SLIDING_TO_LEFT", 1),
+        ("DOUBLE_DOOR_SLIDING", 2),
+        ("REVOLVING", 0),
+        ("FOLDING_TO_RIGHT", 0),
+        ("ROLLINGUP", 0),
+    ],
+)
+def test_a_doors_rmf_type_follows_its_ifc_operation_type(operation: str, kind: int) -> None:
+    assert door_type(operation) == kind

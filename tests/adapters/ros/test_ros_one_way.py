@@ -86,3 +86,24 @@ def test_a_stretch_no_lane_runs_along_is_a_note_and_bad_ones_are_refused(
     with pytest.raises(ConfigError, match=r"\(1.0, 1.0\) -> \(1.0, 1.05\) is shorter than 0.1 m"):
         parse_routes("fleet", {"kind": "routes", "navigation": "nav", "one_way": [
             {"x1": 1.0, "y1": 1.0, "x2": 1.0, "y2": 1.05}]})  # fmt: skip
+
+
+def test_a_one_way_door_is_passed_only_towards_its_given_side_and_networkx_follows(
+    lab: tuple[GraphStore, Scene],
+) -> None:
+    graph = _graph(lab, one_way=[{"door": "Door A", "x2": 12.0, "y2": 7.0}])  # into Room A only
+    s = graph.storeys[0]
+    (lane,) = [lane for lane in s.lanes if lane.door == "Door_A"]
+    assert lane.one_way and s.vertices[lane.b].y > 4.9 > s.vertices[lane.a].y  # outside -> inside
+    assert sum(other.one_way for other in s.lanes) == 1
+    g = graph.to_networkx()
+    inside, outside = (s.storey, lane.b), (s.storey, lane.a)
+    assert g.has_edge(outside, inside) and not g.has_edge(inside, outside)
+    two_way = next(other for other in s.lanes if not other.one_way)
+    assert g.has_edge((s.storey, two_way.a), (s.storey, two_way.b))
+    assert g.has_edge((s.storey, two_way.b), (s.storey, two_way.a))
+    none = _graph(lab, one_way=[{"door": "Door Z", "x2": 12.0, "y2": 7.0}])
+    assert "one_way door Door Z: no lane passes it" in none.notes
+    with pytest.raises(ConfigError, match="one-way door 'Door A': give x2, y2"):
+        parse_routes("fleet", {"kind": "routes", "navigation": "nav", "one_way": [
+            {"door": "Door A", "x1": 1.0, "y1": 1.0, "x2": 1.0, "y2": 3.0}]})  # fmt: skip

@@ -1,6 +1,7 @@
-"""A structural change while the daemon serves makes a new route graph version, on Zenoh and on
-Open-RMF's ``/map``; furniture does not; nor does a change that leaves the graph as it was; a change
-of the navigation skill does; the rebuild runs after a quiet spell, off the writer's thread."""
+"""A structural change while the daemon serves makes a new route graph version, on Zenoh, on
+Open-RMF's ``/map`` and in the files of ``[serve] route_files``; furniture does not; nor does a change
+that leaves the graph as it was; a change of the navigation skill does; the rebuild runs after a
+quiet spell, off the writer's thread."""
 
 from __future__ import annotations
 
@@ -44,7 +45,8 @@ def _lanes(graph: dict[str, Any]) -> int:
 def test_a_wall_across_the_corridor_and_a_wider_robot_make_new_graph_versions_and_a_table_does_not(
     tmp_path: Path,
 ) -> None:
-    (tmp_path / "site.toml").write_text(SITE)
+    (tmp_path / "site.toml").write_text(SITE + f'[serve]\nroute_files = "{tmp_path / "routes"}"\n')
+    yaml_file = tmp_path / "routes" / "small.nav_graph.yaml"
     cfg = load_config(tmp_path / "site.toml")
     cfg = dataclasses.replace(cfg, default_rights=frozenset({"create", "dynamic", "static"}))
     service, _ = started(imported(box_lab()), cfg)
@@ -85,6 +87,8 @@ def test_a_wall_across_the_corridor_and_a_wider_robot_make_new_graph_versions_an
         with arrived:
             assert arrived.wait_for(lambda: graphs and maps, 10.0)
         assert graphs[-1]["version"] == 1
+        first = yaml_file.read_text()
+        assert (tmp_path / "routes" / "ground-floor__small.geojson").is_file()
 
         table = box_turtle("urn:robot1:table", 6.0, 2.0)  # furniture in the corridor: dynamic
         assert observe(service, "robot1", table).ok
@@ -98,6 +102,7 @@ def test_a_wall_across_the_corridor_and_a_wider_robot_make_new_graph_versions_an
         assert updates.rebuilds == 1
         assert graphs[-1]["version"] == 2 and _lanes(graphs[-1]) != _lanes(graphs[0])
         assert maps[-1].levels[0].nav_graphs[0].edges != maps[0].levels[0].nav_graphs[0].edges
+        assert yaml_file.read_text() != first  # RMF's fleet adapters read the new file at launch
 
         wider = b'{"kind": "navigation", "robot_height_m": 0.5, "inflation_radius_m": 0.35}'
         replies: list[Any] = []

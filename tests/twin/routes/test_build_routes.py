@@ -8,9 +8,10 @@ import networkx as nx
 import numpy as np
 import pytest
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from tests.conftest import imported
-from tests.twin.routes.lift_lab import lift_lab
+from tests.twin.routes.lift_lab import LIFT, lift_lab
 from twin.config import load_config
 from twin.graph.rdf import literal_value
 from twin.graph.store import GraphStore
@@ -88,7 +89,7 @@ def test_the_graph_connects_what_the_map_connects_and_nothing_else(
 ) -> None:
     store, scene = lab_with_lift
     graph = _graph(store, scene, radius)
-    g = graph.to_networkx()
+    g = graph.to_networkx().to_undirected()
     for s in graph.storeys:
         routes = parse_routes("fleet", {"kind": "routes", "navigation": "nav"})
         _, free = routable_cells(prepare_routes(store, scene, routes, _skills(radius)), s.storey)
@@ -122,7 +123,8 @@ def test_a_lane_passes_door_a_for_a_small_robot_carrying_its_name(
     assert abs(a.x - 12.0) < 0.1 and abs(b.x - 12.0) < 0.1
     (door,) = graph.doors
     assert door.passable
-    assert np.array(door.endpoints) == pytest.approx(np.array([[11.55, 4.9], [12.45, 4.9]]))
+    # a right-hand swing door: its hinge (the +x end) first
+    assert np.array(door.endpoints) == pytest.approx(np.array([[12.45, 4.9], [11.55, 4.9]]))
 
 
 def test_a_robot_too_wide_for_door_a_gets_no_lane_through_it_and_the_graph_says_so(
@@ -245,3 +247,70 @@ def test_names_are_sanitised_and_made_unique() -> None:
         "unnamed",
         "Raum_1",
     ]
+
+
+def _close_pair_ratios(store: GraphStore, scene: Scene, spacing_m: float) -> np.ndarray:
+    """Route over straight distance for 200 pairs of free cells 0.4-1.5 m apart that see each other on
+    the ground floor (0.25 m robot), each end joined to the best of its 16 nearest vertices it sees."""
+    routes = parse_routes("fleet", {"kind": "routes", "navigation": "nav", "spacing_m": spacing_m})
+    storey = build_routes(store, scene, routes, _skills(0.25)).storey("ground-floor")
+    _, free = routable_cells(prepare_routes(store, scene, routes, _skills(0.25)), "ground-floor")
+    frame = _free(store, scene, _skills(0.25)["nav"], "ground-floor")[1]
+    res = frame.resolution_m
+    xy = np.array([(v.x, v.y) for v in storey.vertices])
+    cells = np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
+    g = nx.Graph()
+    for lane in storey.lanes:
+        g.add_edge(lane.a, lane.b, weight=float(np.hypot(*(xy[lane.a] - xy[lane.b]))))
+    tree = cKDTree(cells)
+    rng = np.random.default_rng(7)
+    pts = np.argwhere(free).astype(np.float64)
+
+    def joins(p: np.ndarray) -> list[tuple[int, float]]:
+        d, near = tree.query(p, k=16)
+        seen = segments_free(free, np.repeat(p[None], 16, axis=0), cells[near])
+        return [(int(j), float(dd) * res) for j, dd, ok in zip(near, d, seen, strict=True) if ok]
+
+    ratios: list[float] = []
+    while len(ratios) < 200:
+        s, t = pts[rng.integers(len(pts))], pts[rng.integers(len(pts))]
+        straight = float(np.hypot(*(s - t))) * res
+        if not 0.4 <= straight <= 1.5 or not segments_free(free, s[None], t[None])[0]:
+            continue
+        tj = dict(joins(t))
+        best = min(
+            ds + min((d + tj[j] for j, d in nx.single_source_dijkstra_path_length(g, i).items() if j in tj))
+            for i, ds in joins(s)
+        )
+        ratios.append(best / straight)
+    return np.array(ratios)
+
+
+def test_close_points_route_almost_straight_with_half_metre_vertex_spacing(
+    lab_with_lift: tuple[GraphStore, Scene],
+) -> None:
+    store, scene = lab_with_lift
+    fine, coarse = (_close_pair_ratios(store, scene, s) for s in (0.5, 1.5))
+    assert np.median(fine) <= 1.1 and np.percentile(fine, 90) <= 1.3
+    assert np.percentile(coarse, 90) > 2.0  # vertices 1.5 m apart: close points detour to reach one
+
+
+def test_only_a_transport_element_of_a_lift_type_is_a_lift() -> None:
+    store = imported(lift_lab(lift_type="ESCALATOR"))
+    scene = load_scene(store)
+    graph = _graph(store, scene, 0.25)
+    assert graph.lifts == () and not any(v.lift for s in graph.storeys for v in s.vertices)
+    assert not any(  # the escalator is an obstacle: no vertex in its footprint
+        LIFT.xmin < v.x < LIFT.xmax and LIFT.ymin < v.y < LIFT.ymax
+        for v in graph.storey("ground-floor").vertices
+    )
+    (escalator,) = _graph(store, scene, 0.25, lift_types=["escalator"]).lifts
+    assert escalator.storeys == ("ground-floor", "first-floor")
+
+
+def test_a_one_handed_door_lists_its_hinge_first_and_its_swing() -> None:
+    for operation, hinge_x, swing in (("SINGLE_SWING_LEFT", 11.55, -1), ("SINGLE_SWING_RIGHT", 12.45, 1)):
+        store = imported(lift_lab(door_operation=operation))
+        (door,) = _graph(store, load_scene(store), 0.25).doors
+        assert (door.operation, door.swing) == (operation, swing)
+        assert door.endpoints[0][0] == pytest.approx(hinge_x)

@@ -99,3 +99,15 @@ def test_the_schema_knows_the_routes_kind_and_its_keys() -> None:
     skill = config_schema()["properties"]["skills"]["additionalProperties"]
     assert "routes" in skill["properties"]["kind"]["enum"]
     assert {"navigation", "fleet", "max_lane_m", "waypoints"} <= set(skill["properties"])
+
+
+def test_vertex_spacing_defaults_to_half_a_metre_and_never_exceeds_the_longest_lane() -> None:
+    assert parse_routes("r", {"kind": "routes", "navigation": "n"}).spacing_m == 0.5
+    assert (
+        parse_routes(
+            "r", {"kind": "routes", "navigation": "n", "spacing_m": 2.0, "max_lane_m": 1.0}
+        ).spacing_m
+        == 1.0
+    )
+    with pytest.raises(ConfigError, match=r"spacing_m: expected a number >= 0.2"):
+        parse_routes("r", {"kind": "routes", "navigation": "n", "spacing_m": 0.1})
