@@ -9,13 +9,13 @@ import threading
 from pathlib import Path
 from typing import Any
 
-import networkx as nx
 import pytest
 import zenoh
 
 from adapters.zenoh.latched import declare_latched_subscriber
 from adapters.zenoh.session import client_config
 from tests.adapters.rerun.test_rerun import chunks_by_entity, column
+from tests.adapters.zenoh.test_zenoh_route_updates import parts
 from tests.integration.conftest import start_daemon
 from tests.twin.live_helpers import box_turtle
 
@@ -65,7 +65,7 @@ def test_a_wall_built_while_serving_makes_graph_version_2_and_the_stop_stays_cle
     finally:
         daemon.stop_cleanly()
     assert [g["version"] for g in graphs] == [1, 2]
-    assert _parts(graphs[1]) > _parts(graphs[0])  # the wall cuts the corridor: the graph falls apart
+    assert parts(graphs[1]) > parts(graphs[0])  # the wall cuts the corridor: the graph falls apart
     lanes = sum(len(s["lanes"]) for s in graphs[1]["storeys"])
     entities = chunks_by_entity(rrd)
     versions = [
@@ -83,11 +83,3 @@ def test_a_wall_built_while_serving_makes_graph_version_2_and_the_stop_stays_cle
     ]
     assert len(strips[-1]) == lanes
 
-
-def _parts(graph: dict[str, Any]) -> int:
-    """The number of connected parts of a served graph's storeys."""
-    g = nx.Graph()
-    for s in graph["storeys"]:
-        g.add_nodes_from((s["storey"], i) for i in range(len(s["vertices"])))
-        g.add_edges_from(((s["storey"], a), (s["storey"], b)) for a, b, _ in s["lanes"])
-    return nx.number_connected_components(g)
