@@ -549,11 +549,14 @@ class RosIngest:
                 self._refuse(c, owner, cause, message)
             documents = t.documents
             c.submitted += len(documents)
-        for document in documents:
-            self.submit(owner, document, self._on_reply(owner), received_ns=received_ns)
+        for k, document in enumerate(documents):
+            settle = t.settle if k == 0 and t.document is not None else None  # the twin's verdict on it
+            self.submit(owner, document, self._on_reply(owner, settle), received_ns=received_ns)
 
-    def _on_reply(self, owner: str) -> ReplyFn:
+    def _on_reply(self, owner: str, settle: Callable[[bool], None] | None = None) -> ReplyFn:
         def on_reply(reply: Reply) -> None:
+            if settle is not None:  # e.g. an obstacle tracker lets go of what the twin refused
+                settle(reply.ok)
             with self._lock:
                 c = self._counts[owner]
                 if not reply.ok:

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from adapters.ros.observation_doc import RosInputError
+from adapters.ros.observation_doc import RosInputError, Translation
 from adapters.ros.rmf import (
     DoorIndex,
     DoorSettings,
@@ -18,7 +18,10 @@ from adapters.ros.rmf import (
     translate_door_state,
 )
 from tests.adapters.ros_reports import Obstacle, cdr_door_state, cdr_obstacles
+from tests.twin.box_lab import OX, OY
+from tests.twin.live_helpers import observe, started
 from twin.graph import vocab
+from twin.live import TwinService
 
 NOW = 1_700_000_000_000_000_000
 GUID = "2_bXoMMEnLjvJDRiT8YUDb"
@@ -136,3 +139,45 @@ def test_a_tracker_takes_back_the_obstacles_of_a_previous_run_from_the_graph_row
     assert b"cam1%2F2> twin:removed true" in deleted  # a DELETE of a previous run's obstacle
     (gone,) = after.expire(now_ns=NOW + 2_000_000_000).documents
     assert b"cam1%2F1> twin:removed true" in gone and after.held == 0
+
+
+def _to_twin(service: TwinService, t: Translation) -> bool:
+    """Submit ``t``'s document as the ingestion does and tell the tracker the twin's verdict."""
+    assert t.document is not None and t.settle is not None
+    reply = observe(service, "obstacles", t.document if isinstance(t.document, bytes) else b"")
+    t.settle(reply.ok)
+    return reply.ok
+
+
+def test_an_obstacle_the_twin_refuses_is_not_held_so_a_delete_or_lifetime_later_acts_on_nothing() -> None:
+    service, _ = started()
+    tracker = ObstacleTracker(SETTINGS)
+    far = Obstacle(1, "cam1", "L1", "human", (OX + 900.0, OY, 0.9), (0.5, 0.5, 1.8), lifetime_ns=5 * 10**9)
+    t = tracker.translate(cdr_obstacles(NOW, [far]), now_ns=NOW)
+    assert tracker.held == 1  # held from its ADD on: a DELETE right behind it finds it
+    assert _to_twin(service, t) is False  # outside the site's extent
+    assert tracker.held == 0 and tracker.next_expiry() is None
+    delete = tracker.translate(
+        cdr_obstacles(NOW, [Obstacle(1, "cam1", "L1", "human", (0, 0, 0), (1, 1, 1), action=2)]), now_ns=NOW
+    )
+    assert delete.documents == () and delete.ignored == {"unknown_id": 1}
+    assert tracker.translate(cdr_obstacles(NOW, [human(0, action=3)]), now_ns=NOW).documents == ()
+
+
+def test_a_refused_change_of_a_held_obstacle_keeps_it_with_its_earlier_lifetime() -> None:
+    service, _ = started()
+    tracker = ObstacleTracker(SETTINGS)
+    here = Obstacle(
+        1, "cam1", "L1", "human", (OX + 5.0, OY + 5.0, 0.9), (0.5, 0.5, 1.8), lifetime_ns=5 * 10**9
+    )
+    assert _to_twin(service, tracker.translate(cdr_obstacles(NOW, [here]), now_ns=NOW)) is True
+    away = Obstacle(1, "cam1", "L1", "human", (OX + 900.0, OY, 0.9), (0.5, 0.5, 1.8), lifetime_ns=60 * 10**9)
+    refused = tracker.translate(cdr_obstacles(NOW + 10**9, [away]), now_ns=NOW + 10**9)
+    again = tracker.translate(cdr_obstacles(NOW + 2 * 10**9, [here]), now_ns=NOW + 2 * 10**9)
+    assert _to_twin(service, refused) is False  # the refusal arrives after the next ADD: that one holds
+    assert tracker.held == 1 and tracker.next_expiry() == NOW + 7 * 10**9
+    assert _to_twin(service, again) is True
+    assert _to_twin(service, tracker.translate(cdr_obstacles(NOW, [away]), now_ns=NOW + 3 * 10**9)) is False
+    assert tracker.held == 1 and tracker.next_expiry() == NOW + 7 * 10**9  # the twin still holds it so
+    (gone,) = tracker.expire(now_ns=NOW + 7 * 10**9).documents
+    assert observe(service, "obstacles", gone if isinstance(gone, bytes) else b"").ok
