@@ -99,6 +99,9 @@ class Translation:
     removal the twin refuses takes no other change with it)."""
     settle: Callable[[bool], None] | None = field(default=None, compare=False)
     """Told whether the twin accepted ``document`` (e.g. an obstacle tracker forgets what was refused)."""
+    removes: tuple[str, ...] = ()
+    """The element each of ``extra`` removes, if they are removals (an obstacle tracker retries one the
+    twin refused while it still holds the element)."""
 
     @property
     def documents(self) -> tuple[bytes | Observation, ...]:

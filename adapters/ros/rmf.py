@@ -9,7 +9,9 @@ obstacle ``urn:twin-ros:<twin source>:obstacle:<rmf source>/<id>``; DELETE remov
 removes every obstacle of that RMF source this daemon added. A non-zero ``lifetime`` makes it expire:
 :meth:`ObstacleTracker.expire` removes what has lapsed. The tracker holds an obstacle from its ADD on
 (a DELETE right behind it finds it), and lets go of it again when the twin refuses the ADD (told
-through :attr:`Translation.settle`): a refused obstacle is not held, deleted or expired.
+through :attr:`Translation.settle`): a refused obstacle is not held, deleted or expired. A removal the
+twin refuses while it still holds the obstacle (its store full or unreachable) is held again, to be
+tried again :data:`REMOVAL_RETRY_S` later (:meth:`ObstacleTracker.removal_refused`).
 
 **Door states.** ``door_name`` is matched to a door of the twin by the source's door table (door name
 -> IRI, GlobalId or name of an ``IfcDoor``), else by GlobalId, else by the door's name; OPEN and CLOSED
@@ -59,6 +61,8 @@ _NS_PER_S = 1_000_000_000
 MAX_OBSTACLES_BYTES = 16 << 20
 """Larger Obstacles messages are refused before they are decoded (voxel data included)."""
 MAX_DOOR_STATE_BYTES = 64 << 10
+REMOVAL_RETRY_S = 2.0
+"""How long after a refused removal of a held obstacle it is tried again."""
 ACTION_ADD, ACTION_DELETE, ACTION_DELETEALL = 1, 2, 3
 MODE_CLOSED, MODE_MOVING, MODE_OPEN, MODE_OFFLINE, MODE_UNKNOWN = 0, 1, 2, 3, 4
 _MODE_NAMES = {MODE_MOVING: "moving", MODE_OFFLINE: "offline", MODE_UNKNOWN: "unknown"}
@@ -189,7 +193,7 @@ class ObstacleTracker:
         document = observation_turtle(boxes=list(boxes.values()), fusion_terms=fusion_terms)
         return Translation(
             document, tuple(boxes), dict(ignored), tuple(refused), _removals(removed),
-            settle=settle if document is not None else None,
+            settle=settle if document is not None else None, removes=tuple(removed),
         )  # fmt: skip
 
     def _hold(
@@ -267,7 +271,18 @@ class ObstacleTracker:
                     held.pop(iri, None)
             for iri in lapsed:
                 self._set_by.pop(iri, None)
-        return Translation(None, (), extra=_removals(lapsed))
+        return Translation(None, (), extra=_removals(lapsed), removes=tuple(lapsed))
+
+    def removal_refused(self, iri: str, *, now_ns: int) -> None:
+        """The twin refused the removal of ``iri`` and still holds it: hold it again, with its removal
+        due :data:`REMOVAL_RETRY_S` from ``now_ns`` (a DELETE, DELETEALL or lapsed lifetime then holds
+        once the twin takes writes again)."""
+        if not iri.startswith(self.prefix):
+            return
+        rmf_source, _, _ = unquote(iri[len(self.prefix) :]).rpartition("/")
+        with self._lock:
+            self._known.setdefault(rmf_source, {})[iri] = now_ns + round(REMOVAL_RETRY_S * _NS_PER_S)
+            self._set_by.pop(iri, None)
 
 
 HELD_OBSTACLES = (
@@ -297,8 +312,9 @@ def held_obstacles(rows: Iterable[Mapping[str, str | None]]) -> list[tuple[str, 
 
 
 def _removals(iris: Iterable[str]) -> tuple[bytes, ...]:
-    """One removal document per element: one the twin does not hold (its ADD was refused) fails alone."""
-    return tuple(doc for iri in iris if (doc := observation_turtle(removed=[iri])) is not None)
+    """One removal document per element (one the twin refuses fails alone), in the order of ``iris``."""
+    docs = tuple(observation_turtle(removed=[iri]) for iri in iris)
+    return tuple(doc for doc in docs if doc is not None)
 
 
 @dataclass(frozen=True, slots=True)
