@@ -10,8 +10,9 @@ Rerun, while this script injects, round-robin every ``--every`` seconds:
 - ``recorder``: the daemon's Rerun writer child killed with SIGKILL.
 
 Per fault it prints: acked observations lost (after a kill, the daemon's revision must not fall below
-the highest revision acked before; at the end every element an acked observation upserted must be in
-the store), the seconds until a map was served again through the router (``disk_full``: until writes
+the highest revision acked before; at the end every element an ack names as upserted must be in the
+store, and every element an ack of the writer names as removed must be removed: see :class:`Writer`),
+the seconds until a map was served again through the router (``disk_full``: until writes
 were acked again after the window; ``recorder``: until a new writer ran), the robots' errors during
 the fault's slot, and the store's state that ``twin status`` showed. At the end: duplicates and ghosts
 against the ground truth (``fleet_sim.sample``).
