@@ -58,7 +58,7 @@ def one_start(
             pass
         assert line, "the daemon did not start"
         serving = time.monotonic()
-        prefix = line.split(" under ")[1].split("/:")[0]
+        prefix = line.split(" under ")[1].split(" ")[0].rstrip(",:").removesuffix("/")  # "twin/lab/,"
         with TwinClient.connect([endpoint], prefix=prefix, timeout_s=120) as robot:
             x, y = spot
             first = robot.observe(
