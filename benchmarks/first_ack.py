@@ -3,13 +3,15 @@
 For each model the store is imported once; then ``twin serve`` is started on it ``--repeat`` times
 built from the store (``--no-snapshot``) and ``--repeat`` times from its snapshot (a first, unmeasured
 start writes it). Once the daemon prints its ``serving`` line, a robot in this process connects and
-sends two observations of new objects (``twin:distinct true``: fusion's association is not asked),
-on the busiest storey. It reports the time from ``serving`` to the first ack, and the second ack's
-round trip (what an ack costs once everything is built).
+sends two observations of new objects (``twin:distinct true``: fusion's association is not asked;
+with ``--associated`` without it, so that fusion matches them against the dynamic elements it holds,
+as a robot's ordinary report is), on the busiest storey. It reports the time from ``serving`` to the
+first ack, and the second ack's round trip (what an ack costs once everything is built).
 
 Usage::
 
-    nice -n 10 python benchmarks/first_ack.py [--models lab janesville PATH.ifc ...] [--repeat 2] [--json OUT]
+    nice -n 10 python benchmarks/first_ack.py [--models lab janesville PATH.ifc ...] [--repeat 2] \
+        [--associated] [--json OUT]
 """
 
 from __future__ import annotations
@@ -31,13 +33,14 @@ import live  # the live benchmark's machinery: models, store preparation, the tw
 TWIN = "https://w3id.org/building-twin#"
 
 
-def _observation(iri: str, storey: str, x: float, y: float) -> str:
-    return (f'<{iri}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "{storey}" ; <{TWIN}distinct> true ; '
+def _observation(iri: str, storey: str, x: float, y: float, *, distinct: bool = True) -> str:
+    mark = f"<{TWIN}distinct> true ; " if distinct else ""
+    return (f'<{iri}> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "{storey}" ; {mark}'
             f'<{TWIN}box> "{x:.3f} {y:.3f} 0.4 0.6 0.6 0.8 0" .')  # fmt: skip
 
 
 def one_start(
-    store: Path, storey: str, spot: tuple[float, float], *, snapshot: bool, n: int
+    store: Path, storey: str, spot: tuple[float, float], *, snapshot: bool, n: int, distinct: bool = True
 ) -> dict[str, Any]:
     from adapters.zenoh.client import TwinClient
 
@@ -55,12 +58,16 @@ def one_start(
             pass
         assert line, "the daemon did not start"
         serving = time.monotonic()
-        prefix = line.split(" under ")[1].split("/:")[0]
+        prefix = line.split(" under ")[1].split(" ")[0].rstrip(",:").removesuffix("/")  # "twin/lab/,"
         with TwinClient.connect([endpoint], prefix=prefix, timeout_s=120) as robot:
             x, y = spot
-            first = robot.observe("bench", _observation(f"urn:bench:first-ack:{n}a", storey, x, y))
+            first = robot.observe(
+                "bench", _observation(f"urn:bench:first-ack:{n}a", storey, x, y, distinct=distinct)
+            )
             acked = time.monotonic()
-            robot.observe("bench", _observation(f"urn:bench:first-ack:{n}b", storey, x + 1.0, y))
+            robot.observe(
+                "bench", _observation(f"urn:bench:first-ack:{n}b", storey, x + 1.0, y, distinct=distinct)
+            )
             second = time.monotonic() - acked
         assert first["ok"], first
         return {
@@ -78,8 +85,10 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--models", nargs="+", default=["lab", "janesville"])
     p.add_argument("--repeat", type=int, default=2)
+    p.add_argument("--associated", action="store_true", help="observations without twin:distinct")
     p.add_argument("--json", type=Path)
     args = p.parse_args()
+    distinct = not args.associated
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory(prefix="first-ack-") as tmp:
         for name in args.models:
@@ -90,10 +99,11 @@ def main() -> int:
             store = live.prepare_store(name, Path(tmp) / live.model_label(name))
             storey, (x0, y0, x1, y1), _ = live.busiest(store)
             spot = ((x0 + x1) / 2, (y0 + y1) / 2)
-            one_start(store, storey, spot, snapshot=True, n=0)  # writes the snapshot
+            one_start(store, storey, spot, snapshot=True, n=0, distinct=distinct)  # writes the snapshot
             for snapshot in (False, True):
                 runs = [
-                    one_start(store, storey, spot, snapshot=snapshot, n=i + 1) for i in range(args.repeat)
+                    one_start(store, storey, spot, snapshot=snapshot, n=i + 1, distinct=distinct)
+                    for i in range(args.repeat)
                 ]
                 first = [r["first_ack_after_serving_s"] for r in runs]
                 rows.append({

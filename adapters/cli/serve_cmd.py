@@ -30,6 +30,8 @@ from adapters.cli.common import (
     stored_site,
     zenoh_of,
 )
+from adapters.cli.log_outlet import THREAD_NAME as OUTLET_THREAD
+from adapters.cli.log_outlet import Outlet
 from adapters.cli.map_routes import ServedRoutes, serve_routes
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
@@ -138,6 +140,8 @@ class _Signals:
             raise KeyboardInterrupt
 
 
+OUTLET_CLOSE_S = 2.0
+"""How long the exit waits for the output to be written while its reader takes it."""
 INTERRUPT_DEADLINE_S = 3.0
 """How long an interrupted start-up may take to close what it opened before the process just ends."""
 
@@ -158,8 +162,9 @@ class _Stop:
     found still running. A watchdog ends the process if the stop itself hangs (a native call that
     never returns) for twice the timeout."""
 
-    def __init__(self, timeout_s: float) -> None:
+    def __init__(self, timeout_s: float, outlet: Outlet | None = None) -> None:
         self.timeout_s = timeout_s
+        self.outlet = outlet
         self.deadline = time.monotonic() + timeout_s
         self.phase = "finishing the queued requests"
         self.left: list[str] = []
@@ -172,21 +177,29 @@ class _Stop:
 
     def _watch(self) -> None:
         if not self._done.wait(2 * self.timeout_s):
-            _leave(STOP_TIMED_OUT, f"the stop hung for {2 * self.timeout_s:.0f} s while {self.phase}")
+            reason = f"the stop hung for {2 * self.timeout_s:.0f} s while {self.phase}"
+            _leave(STOP_TIMED_OUT, reason, outlet=self.outlet)
 
     def done(self) -> None:
         self._done.set()
         self._watchdog.join()
 
 
-def _leave(code: int, reason: str | None = None) -> NoReturn:
+def _leave(code: int, reason: str | None = None, *, outlet: Outlet | None = None) -> NoReturn:
     """End the process now, without the interpreter's finalization: Zenoh's and RocksDB's native
     threads outlive the closed session and store, and one that calls into Python while the
     interpreter finalizes aborts the process (glibc's ``FATAL: exception not rethrown``, SIGABRT).
     Everything the daemon owns is closed and joined before this is called; ``reason`` (a stop that
-    did not end in time) is printed as one line."""
+    did not end in time) is printed as one line; through ``outlet`` (the serving daemon's output), which
+    gets a moment to write what it holds unless its reader is stuck."""
     if reason is not None:
-        print(f"twin: stop: {reason}; exiting with code {code}", file=sys.stderr, flush=True)
+        line = f"twin: stop: {reason}; exiting with code {code}"
+        if outlet is not None:
+            outlet.line(line, err=True)
+        else:
+            print(line, file=sys.stderr, flush=True)
+    if outlet is not None:
+        outlet.close(OUTLET_CLOSE_S)
     logging.shutdown()
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
@@ -202,6 +215,8 @@ class _CloudProgress:
         self.total = 0
         self.seen: set[tuple[str, str]] = set()
         self.t0 = time.perf_counter()
+        self.outlet: Outlet | None = None
+        """Where the lines go once the daemon serves (else printed)."""
 
     def emit(self, event: TwinEvent) -> None:
         if isinstance(event, TwinStarted):
@@ -214,12 +229,14 @@ class _CloudProgress:
             return
         self.seen.add(key)
         took = time.perf_counter() - self.t0
-        print(
+        line = (
             f"cloud {len(self.seen)} of {self.total} ready: {key[0]}/{key[1]}, {len(event.cloud):,} points "
-            f"({took:.1f} s after loading)",
-            file=sys.stderr,
-            flush=True,
+            f"({took:.1f} s after loading)"
         )
+        if self.outlet is not None:
+            self.outlet.line(line, err=True)
+        else:
+            print(line, file=sys.stderr, flush=True)
 
 
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
@@ -251,6 +268,7 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
     fix_heap_thresholds()  # before the store and Zenoh allocate: RSS stays flat all day
     stop_timeout_s = cfg.section(ServeSettings).stop_timeout_s
     stopping: _Stop | None = None
+    outlet: Outlet | None = None  # the output, once serving: a reader that stops reading blocks nothing
     with open_store(args, cfg, create=False) as store:
         if store.is_empty():
             msg = f"The store at {store_label(args, cfg)} is empty."
@@ -318,7 +336,8 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
             t0 = time.perf_counter()
             source = store_label(args, cfg)
             print(f"loading site {cfg.site!r} from {source} ...", file=sys.stderr, flush=True)
-            service.sinks.append(_CloudProgress())  # clouds are built after the maps, while serving
+            clouds = _CloudProgress()
+            service.sinks.append(clouds)  # clouds are built after the maps, while serving
             with progress_bar("preparing maps") as advance:
                 progress = _StartProgress(advance)
                 service.sinks.insert(0, progress)
@@ -347,7 +366,11 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
             signals.serving = True  # from here a signal asks for a clean stop
             if signals.stop.is_set():  # one came in the last moment of the start
                 raise KeyboardInterrupt
-            print(
+            outlet = Outlet()
+            outlet.install()
+            clouds.outlet = outlet
+            daemon.status_sources.append(outlet.status)
+            outlet.line(
                 f"serving site {cfg.site!r} at revision {service.revision} on {endpoints} "
                 f"under {keys.prefix}/, {access_summary(acl, keys, brief=True)}: "
                 f"{len(maps)} maps published in {time.perf_counter() - t0:.2f} s "
@@ -355,20 +378,19 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
                     "(built from the store)"
                     if service.restored_from is None
                     else f"(from the snapshot of revision {service.restored_from})"
-                ),
-                flush=True,
+                )
             )
 
             def shut() -> None:  # the stop is seen: no new request; those queued are answered
                 nonlocal stopping
-                stopping = _Stop(stop_timeout_s)
+                stopping = _Stop(stop_timeout_s, outlet)
                 if daemon is not None:
                     daemon.gate.shut()
 
             service.serve_forever(signals.stop, on_stop=shut)
         finally:
             if stopping is None:  # start-up interrupted, or an error: the same closing, on a deadline
-                stopping = _Stop(stop_timeout_s)
+                stopping = _Stop(stop_timeout_s, outlet)
             t1 = time.perf_counter()
             stopping.phase = "closing the Zenoh side"
             for closable in (ingest, points, ros, ros_points, route_updates, routes):
@@ -399,9 +421,14 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
         _leave(
             STOP_TIMED_OUT,
             f"{', '.join(left)} still running after {stop_timeout_s:g} s ([serve] stop_timeout_s)",
+            outlet=outlet,
         )
-    print(f"stopped cleanly in {time.perf_counter() - t1:.2f} s", flush=True)
-    _leave(0)
+    stopped = f"stopped cleanly in {time.perf_counter() - t1:.2f} s"
+    if outlet is not None:
+        outlet.line(stopped)
+    else:
+        print(stopped, flush=True)
+    _leave(0, outlet=outlet)
 
 
 def _threads_left(stopping: _Stop) -> list[str]:
@@ -409,7 +436,7 @@ def _threads_left(stopping: _Stop) -> list[str]:
     joined until then): a thread left to the interpreter's finalization is a bug, named here."""
     names: list[str] = []
     for thread in threading.enumerate():
-        if thread is threading.current_thread() or thread.name == "twin-stop-watchdog":
+        if thread is threading.current_thread() or thread.name in ("twin-stop-watchdog", OUTLET_THREAD):
             continue
         thread.join(stopping.remaining())
         if thread.is_alive():

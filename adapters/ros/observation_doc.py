@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import datetime as dt
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from urllib.parse import quote
 
@@ -97,6 +97,11 @@ class Translation:
     extra: tuple[bytes | Observation, ...] = ()
     """More documents to submit after ``document``, each on its own (e.g. one removal each, so that a
     removal the twin refuses takes no other change with it)."""
+    settle: Callable[[bool], None] | None = field(default=None, compare=False)
+    """Told whether the twin accepted ``document`` (e.g. an obstacle tracker forgets what was refused)."""
+    removes: tuple[str, ...] = ()
+    """The element each of ``extra`` removes, if they are removals (an obstacle tracker retries one the
+    twin refused while it still holds the element)."""
 
     @property
     def documents(self) -> tuple[bytes | Observation, ...]:

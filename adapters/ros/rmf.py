@@ -7,7 +7,11 @@ transform to the twin's frame where the two differ; unknown: refused), ``bbox`` 
 storey (z above the level's floor). ``action`` works per RMF ``source``: ADD (or modify) upserts the
 obstacle ``urn:twin-ros:<twin source>:obstacle:<rmf source>/<id>``; DELETE removes it; DELETEALL
 removes every obstacle of that RMF source this daemon added. A non-zero ``lifetime`` makes it expire:
-:meth:`ObstacleTracker.expire` removes what has lapsed.
+:meth:`ObstacleTracker.expire` removes what has lapsed. The tracker holds an obstacle from its ADD on
+(a DELETE right behind it finds it), and lets go of it again when the twin refuses the ADD (told
+through :attr:`Translation.settle`): a refused obstacle is not held, deleted or expired. A removal the
+twin refuses while it still holds the obstacle (its store full or unreachable) is held again, to be
+tried again :data:`REMOVAL_RETRY_S` later (:meth:`ObstacleTracker.removal_refused`).
 
 **Door states.** ``door_name`` is matched to a door of the twin by the source's door table (door name
 -> IRI, GlobalId or name of an ``IfcDoor``), else by GlobalId, else by the door's name; OPEN and CLOSED
@@ -23,9 +27,11 @@ Example::
 from __future__ import annotations
 
 import contextlib
+import itertools
 import math
+import threading
 from collections import Counter
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 from urllib.parse import unquote
@@ -55,6 +61,8 @@ _NS_PER_S = 1_000_000_000
 MAX_OBSTACLES_BYTES = 16 << 20
 """Larger Obstacles messages are refused before they are decoded (voxel data included)."""
 MAX_DOOR_STATE_BYTES = 64 << 10
+REMOVAL_RETRY_S = 2.0
+"""How long after a refused removal of a held obstacle it is tried again."""
 ACTION_ADD, ACTION_DELETE, ACTION_DELETEALL = 1, 2, 3
 MODE_CLOSED, MODE_MOVING, MODE_OPEN, MODE_OFFLINE, MODE_UNKNOWN = 0, 1, 2, 3, 4
 _MODE_NAMES = {MODE_MOVING: "moving", MODE_OFFLINE: "offline", MODE_UNKNOWN: "unknown"}
@@ -86,18 +94,24 @@ class ObstacleSettings:
 
 class ObstacleTracker:
     """The obstacles one twin source has added, per RMF ``source``, with their expiry (None: none).
-    One owner (the ingest's worker)."""
+    One owner (the ingest's worker) translates; the twin's verdict on an ADD comes from the writer's
+    thread (:attr:`Translation.settle`), hence the lock."""
 
     def __init__(self, settings: ObstacleSettings) -> None:
         self.settings = settings
         self._known: dict[str, dict[str, int | None]] = {}
+        self._lock = threading.Lock()
+        self._set_by: dict[str, int] = {}
+        """Obstacle -> the translation that last held it (its ADD may still be refused)."""
+        self._count = itertools.count(1)
 
     def _iri(self, rmf_source: str, obstacle_id: int) -> str:
         return robot_iri(self.settings.source, "obstacle", f"{rmf_source}/{obstacle_id}")
 
     @property
     def held(self) -> int:
-        return sum(len(v) for v in self._known.values())
+        with self._lock:
+            return sum(len(v) for v in self._known.values())
 
     def translate(
         self, payload: bytes | bytearray | memoryview, *, now_ns: int, fusion_terms: bool = True
@@ -121,7 +135,8 @@ class ObstacleTracker:
         added: dict[str, tuple[str, int | None]] = {}
         for o in message.obstacles:
             rmf_source, action = str(o.source), int(o.action)
-            known = self._known.get(rmf_source, {})
+            with self._lock:
+                known = dict(self._known.get(rmf_source, {}))
             if action == ACTION_DELETEALL:
                 removed.update(dict.fromkeys(known))
                 for iri in known:
@@ -174,13 +189,48 @@ class ObstacleTracker:
             )  # fmt: skip
             removed.pop(iri, None)
             added[iri] = (rmf_source, expiry)
-        for iri in removed:
-            for held in self._known.values():
-                held.pop(iri, None)
-        for iri, (rmf_source, expiry) in added.items():
-            self._known.setdefault(rmf_source, {})[iri] = expiry
+        settle = self._hold(added, removed)
         document = observation_turtle(boxes=list(boxes.values()), fusion_terms=fusion_terms)
-        return Translation(document, tuple(boxes), dict(ignored), tuple(refused), _removals(removed))
+        return Translation(
+            document, tuple(boxes), dict(ignored), tuple(refused), _removals(removed),
+            settle=settle if document is not None else None, removes=tuple(removed),
+        )  # fmt: skip
+
+    def _hold(
+        self, added: dict[str, tuple[str, int | None]], removed: Iterable[str]
+    ) -> Callable[[bool], None]:
+        """Hold ``added`` and let go of ``removed`` now; the returned function, told that the twin
+        refused the ADDs, puts back what was held of them before (nothing, or an earlier ADD's expiry),
+        unless a later message has held them again."""
+        with self._lock:
+            for iri in removed:
+                for held in self._known.values():
+                    held.pop(iri, None)
+                self._set_by.pop(iri, None)
+            number = next(self._count)
+            before: dict[str, tuple[str, int | None, int] | None] = {}
+            for iri, (rmf_source, expiry) in added.items():
+                known = self._known.get(rmf_source, {})
+                before[iri] = (rmf_source, known[iri], self._set_by.get(iri, 0)) if iri in known else None
+                self._known.setdefault(rmf_source, {})[iri] = expiry
+                self._set_by[iri] = number
+
+        def settle(accepted: bool) -> None:
+            if accepted:
+                return
+            with self._lock:
+                for iri, (rmf_source, _) in added.items():
+                    if self._set_by.get(iri) != number:
+                        continue  # held again since (or deleted): that message decides
+                    held = before[iri]
+                    if held is None:
+                        self._known.get(rmf_source, {}).pop(iri, None)
+                        self._set_by.pop(iri, None)
+                    else:
+                        self._known.setdefault(held[0], {})[iri] = held[1]
+                        self._set_by[iri] = held[2]
+
+        return settle
 
     @property
     def prefix(self) -> str:
@@ -192,28 +242,47 @@ class ObstacleTracker:
         None)`` each (from the graph: see :func:`held_obstacles`), so that DELETE, DELETEALL and
         lifetimes hold across a restart. Returns how many were taken."""
         n = 0
-        for iri, expiry in held:
-            if not iri.startswith(self.prefix):
-                continue
-            rmf_source, _, _ = unquote(iri[len(self.prefix) :]).rpartition("/")
-            self._known.setdefault(rmf_source, {})[iri] = expiry
-            n += 1
+        with self._lock:
+            for iri, expiry in held:
+                if not iri.startswith(self.prefix):
+                    continue
+                rmf_source, _, _ = unquote(iri[len(self.prefix) :]).rpartition("/")
+                self._known.setdefault(rmf_source, {})[iri] = expiry
+                n += 1
         return n
 
     def next_expiry(self) -> int | None:
         """When the next held obstacle lapses (ns), or None."""
-        times = [t for held in self._known.values() for t in held.values() if t is not None]
+        with self._lock:
+            times = [t for held in self._known.values() for t in held.values() if t is not None]
         return min(times, default=None)
 
     def expire(self, *, now_ns: int) -> Translation:
         """The removal of every held obstacle whose lifetime has lapsed by ``now_ns``."""
-        lapsed = [
-            iri for held in self._known.values() for iri, t in held.items() if t is not None and t <= now_ns
-        ]
-        for held in self._known.values():
+        with self._lock:
+            lapsed = [
+                iri
+                for held in self._known.values()
+                for iri, t in held.items()
+                if t is not None and t <= now_ns
+            ]
+            for held in self._known.values():
+                for iri in lapsed:
+                    held.pop(iri, None)
             for iri in lapsed:
-                held.pop(iri, None)
-        return Translation(None, (), extra=_removals(lapsed))
+                self._set_by.pop(iri, None)
+        return Translation(None, (), extra=_removals(lapsed), removes=tuple(lapsed))
+
+    def removal_refused(self, iri: str, *, now_ns: int) -> None:
+        """The twin refused the removal of ``iri`` and still holds it: hold it again, with its removal
+        due :data:`REMOVAL_RETRY_S` from ``now_ns`` (a DELETE, DELETEALL or lapsed lifetime then holds
+        once the twin takes writes again)."""
+        if not iri.startswith(self.prefix):
+            return
+        rmf_source, _, _ = unquote(iri[len(self.prefix) :]).rpartition("/")
+        with self._lock:
+            self._known.setdefault(rmf_source, {})[iri] = now_ns + round(REMOVAL_RETRY_S * _NS_PER_S)
+            self._set_by.pop(iri, None)
 
 
 HELD_OBSTACLES = (
@@ -243,8 +312,9 @@ def held_obstacles(rows: Iterable[Mapping[str, str | None]]) -> list[tuple[str, 
 
 
 def _removals(iris: Iterable[str]) -> tuple[bytes, ...]:
-    """One removal document per element: one the twin does not hold (its ADD was refused) fails alone."""
-    return tuple(doc for iri in iris if (doc := observation_turtle(removed=[iri])) is not None)
+    """One removal document per element (one the twin refuses fails alone), in the order of ``iris``."""
+    docs = tuple(observation_turtle(removed=[iri]) for iri in iris)
+    return tuple(doc for doc in docs if doc is not None)
 
 
 @dataclass(frozen=True, slots=True)

@@ -549,11 +549,22 @@ class RosIngest:
                 self._refuse(c, owner, cause, message)
             documents = t.documents
             c.submitted += len(documents)
-        for document in documents:
-            self.submit(owner, document, self._on_reply(owner), received_ns=received_ns)
+        first = 1 if t.document is not None else 0
+        for k, document in enumerate(documents):
+            settle = t.settle if k < first else None  # the twin's verdict on it
+            removes = t.removes[k - first] if first <= k < first + len(t.removes) else None
+            reply = self._on_reply(owner, settle, removes)
+            self.submit(owner, document, reply, received_ns=received_ns)
 
-    def _on_reply(self, owner: str) -> ReplyFn:
+    def _on_reply(
+        self, owner: str, settle: Callable[[bool], None] | None = None, removes: str | None = None
+    ) -> ReplyFn:
         def on_reply(reply: Reply) -> None:
+            if settle is not None:  # e.g. an obstacle tracker lets go of what the twin refused
+                settle(reply.ok)
+            tracker = self._obstacles.get(owner)
+            if removes is not None and not reply.ok and tracker is not None and self._holds(removes):
+                tracker.removal_refused(removes, now_ns=self.clock())  # tried again in a moment
             with self._lock:
                 c = self._counts[owner]
                 if not reply.ok:
@@ -564,6 +575,19 @@ class RosIngest:
                     c.accepted += 1
 
         return on_reply
+
+    def _holds(self, iri: str) -> bool:
+        """Whether the twin still holds ``iri`` (not removed); True when that cannot be asked."""
+        if self.select is None:
+            return True
+        try:
+            rows = self.select(
+                f"SELECT ?c WHERE {{ <{iri}> twin:ifcClass ?c "
+                f"FILTER NOT EXISTS {{ <{iri}> twin:removed true }} }}"
+            )
+        except Exception:  # the store unreachable: the removal is worth trying again
+            return True
+        return bool(rows)
 
     def _refuse(self, c: Counts, owner: str, cause: str, message: str) -> None:
         """Count a refusal (lock held); log its cause the first time for this owner."""

@@ -3,11 +3,14 @@ DELETE and DELETEALL per source; doors by table, GlobalId and name; MOVING chang
 
 from __future__ import annotations
 
+import contextlib
 import math
+import subprocess
+from pathlib import Path
 
 import pytest
 
-from adapters.ros.observation_doc import RosInputError
+from adapters.ros.observation_doc import RosInputError, Translation
 from adapters.ros.rmf import (
     DoorIndex,
     DoorSettings,
@@ -18,7 +21,16 @@ from adapters.ros.rmf import (
     translate_door_state,
 )
 from tests.adapters.ros_reports import Obstacle, cdr_door_state, cdr_obstacles
+from tests.conftest import BASE
+from tests.twin.box_lab import OX, OY, box_lab
+from tests.twin.live_helpers import observe, started
+from twin.errors import StoreWriteError
 from twin.graph import vocab
+from twin.graph.import_model import import_model
+from twin.graph.rdf import ChangeSet
+from twin.graph.store import EmbeddedStore
+from twin.live import TwinService
+from twin.live.store_health import PROBE
 
 NOW = 1_700_000_000_000_000_000
 GUID = "2_bXoMMEnLjvJDRiT8YUDb"
@@ -136,3 +148,88 @@ def test_a_tracker_takes_back_the_obstacles_of_a_previous_run_from_the_graph_row
     assert b"cam1%2F2> twin:removed true" in deleted  # a DELETE of a previous run's obstacle
     (gone,) = after.expire(now_ns=NOW + 2_000_000_000).documents
     assert b"cam1%2F1> twin:removed true" in gone and after.held == 0
+
+
+def _to_twin(service: TwinService, t: Translation) -> bool:
+    """Submit ``t``'s document as the ingestion does and tell the tracker the twin's verdict."""
+    assert t.document is not None and t.settle is not None
+    reply = observe(service, "obstacles", t.document if isinstance(t.document, bytes) else b"")
+    t.settle(reply.ok)
+    return reply.ok
+
+
+def test_an_obstacle_the_twin_refuses_is_not_held_so_a_delete_or_lifetime_later_acts_on_nothing() -> None:
+    service, _ = started()
+    tracker = ObstacleTracker(SETTINGS)
+    far = Obstacle(1, "cam1", "L1", "human", (OX + 900.0, OY, 0.9), (0.5, 0.5, 1.8), lifetime_ns=5 * 10**9)
+    t = tracker.translate(cdr_obstacles(NOW, [far]), now_ns=NOW)
+    assert tracker.held == 1  # held from its ADD on: a DELETE right behind it finds it
+    assert _to_twin(service, t) is False  # outside the site's extent
+    assert tracker.held == 0 and tracker.next_expiry() is None
+    delete = tracker.translate(
+        cdr_obstacles(NOW, [Obstacle(1, "cam1", "L1", "human", (0, 0, 0), (1, 1, 1), action=2)]), now_ns=NOW
+    )
+    assert delete.documents == () and delete.ignored == {"unknown_id": 1}
+    assert tracker.translate(cdr_obstacles(NOW, [human(0, action=3)]), now_ns=NOW).documents == ()
+
+
+def test_a_refused_change_of_a_held_obstacle_keeps_it_with_its_earlier_lifetime() -> None:
+    service, _ = started()
+    tracker = ObstacleTracker(SETTINGS)
+    here = Obstacle(
+        1, "cam1", "L1", "human", (OX + 5.0, OY + 5.0, 0.9), (0.5, 0.5, 1.8), lifetime_ns=5 * 10**9
+    )
+    assert _to_twin(service, tracker.translate(cdr_obstacles(NOW, [here]), now_ns=NOW)) is True
+    away = Obstacle(1, "cam1", "L1", "human", (OX + 900.0, OY, 0.9), (0.5, 0.5, 1.8), lifetime_ns=60 * 10**9)
+    refused = tracker.translate(cdr_obstacles(NOW + 10**9, [away]), now_ns=NOW + 10**9)
+    again = tracker.translate(cdr_obstacles(NOW + 2 * 10**9, [here]), now_ns=NOW + 2 * 10**9)
+    assert _to_twin(service, refused) is False  # the refusal arrives after the next ADD: that one holds
+    assert tracker.held == 1 and tracker.next_expiry() == NOW + 7 * 10**9
+    assert _to_twin(service, again) is True
+    assert _to_twin(service, tracker.translate(cdr_obstacles(NOW, [away]), now_ns=NOW + 3 * 10**9)) is False
+    assert tracker.held == 1 and tracker.next_expiry() == NOW + 7 * 10**9  # the twin still holds it so
+    (gone,) = tracker.expire(now_ns=NOW + 7 * 10**9).documents
+    assert observe(service, "obstacles", gone if isinstance(gone, bytes) else b"").ok
+
+
+def test_a_lifetime_removal_refused_by_a_full_store_is_held_and_tried_again_once_it_takes_writes(
+    tmp_path: Path,
+) -> None:
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=16m", "tmpfs", str(disk)],
+                             capture_output=True, text=True, check=False)  # fmt: skip
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here (needs root): {mounted.stderr.strip()}")
+    try:
+        store = EmbeddedStore.open(disk / "store")
+        import_model(store, box_lab(), base_iri=BASE, site="test")
+        service, _ = started(store)
+        tracker = ObstacleTracker(SETTINGS)
+        brief = Obstacle(
+            1, "cam1", "L1", "human", (OX + 5.0, OY + 5.0, 0.9), (0.5, 0.5, 1.8), lifetime_ns=10**9
+        )
+        assert _to_twin(service, tracker.translate(cdr_obstacles(NOW, [brief]), now_ns=NOW)) is True
+        filler = disk / "filler"
+        with filler.open("wb", buffering=0) as f:
+            for size in (1 << 16, 1):
+                with contextlib.suppress(OSError):
+                    while True:
+                        f.write(b"\0" * size)
+        with contextlib.suppress(StoreWriteError):  # the log's last page may take a write or two
+            for _ in range(100):
+                service.store.apply(ChangeSet(add=(PROBE,)), ChangeSet(delete=(PROBE,)))
+        lapsed = tracker.expire(now_ns=NOW + 10**9)
+        assert lapsed.removes == ("urn:twin-ros:rmf:obstacle:cam1%2F1",) and tracker.held == 0
+        reply = observe(service, "obstacles", bytes(lapsed.documents[0]))  # type: ignore[arg-type]
+        assert not reply.ok and "No space left on device" in str(reply.body["error"])
+        tracker.removal_refused(lapsed.removes[0], now_ns=NOW + 10**9)  # the ingestion: the twin holds it
+        assert tracker.held == 1 and tracker.next_expiry() == NOW + 3 * 10**9
+        filler.unlink()
+        assert service.recover_store()
+        (again,) = tracker.expire(now_ns=NOW + 3 * 10**9).documents
+        assert observe(service, "obstacles", bytes(again)).ok  # type: ignore[arg-type]
+        assert tracker.held == 0
+        service.store.close()
+    finally:
+        subprocess.run(["umount", "-l", str(disk)], check=False)

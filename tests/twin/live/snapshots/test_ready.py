@@ -45,3 +45,21 @@ def test_warm_up_steps_run_in_order_on_the_live_state_before_start_returns() -> 
     service.start()
     assert [name for name, _ in ran] == ["poses", "index"]
     assert all(n == len(service.live.states) > 0 for _, n in ran)
+
+
+def test_fusions_poses_are_indexed_before_start_returns_from_the_store_and_from_the_snapshot(
+    tmp_path: Path,
+) -> None:
+    store, path = imported(box_lab()), tmp_path / "store.snapshot"
+    first = start(store, path)
+    assert observe(first, "robot1", box_turtle("urn:robot1:crate", 2.0, 1.0)).ok  # a dynamic element
+    stop_cleanly(first)
+    for service in (TwinService(store, load_config()), start(store, path)):
+        if service.restored_from is None:
+            service.start()
+        assert service.live.fusion.poses is not None  # not left to the first associated observation
+        assert "urn:robot1:crate" in service.live.fusion.poses.get("ground-floor", {})
+        poses = service.live.fusion.poses
+        ack = observe(service, "robot2", box_turtle("urn:robot2:box-9", 2.02, 1.0)).body
+        assert ack["resolved"] == {"urn:robot2:box-9": "urn:robot1:crate"}  # fusion matched it
+        assert service.live.fusion.poses is poses  # found built, not built again
