@@ -7,10 +7,18 @@ from __future__ import annotations
 import math
 from dataclasses import astuple, replace
 
+import numpy as np
 import pytest
 
 from adapters.ros.detections import DetectionContext, DetectionSettings, translate_detections
-from adapters.ros.observation_doc import BoxReport, ViewReport, observation_records, observation_turtle
+from adapters.ros.observation_doc import (
+    BoxReport,
+    ViewReport,
+    _m,
+    _ring,
+    observation_records,
+    observation_turtle,
+)
 from adapters.ros.tf import TfBuffer, decode_tf_message
 from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf, yaw_quaternion
 from tests.conftest import imported
@@ -165,3 +173,14 @@ def test_a_descriptive_type_goes_the_same_way_and_a_foreign_one_is_refused_on_bo
         check_observation(records, limits=Limits())
     with pytest.raises(ObservationError, match="is not allowed; only BEO and FURN"):
         parse_observation_document(turtle, limits=Limits())
+
+
+def test_a_view_s_points_are_rounded_at_once_as_the_turtle_path_rounds_each() -> None:
+    rng = np.random.default_rng(3)
+    values = [*rng.uniform(-300.0, 300.0, 4000).tolist(), *(k / 1e4 + 5e-5 for k in range(-300, 300))]
+    values += [float(np.nextafter(v, d)) for v in values[-600:] for d in (-1e9, 1e9)] + [-0.0, 1e-9, -1e-9]
+    ring = list(zip(values[::2], values[1::2], strict=False))
+    got = _ring(ring)
+    want = np.array([(_m(x), _m(y)) for x, y in ring])
+    assert np.array_equal(got, want)
+    assert not np.signbit(got).any() or np.array_equal(np.signbit(got), np.signbit(want))
