@@ -250,7 +250,7 @@ def run(
         watch = watcher.declare_subscriber(
             "twin/lab/map_updates/ground-floor/navigation", lambda _: updates.append(time.time())
         )
-        t_start = time.monotonic()
+        t_start, wall_start = time.monotonic(), time.time()
         time.sleep(warmup)
         s0, c0, k0, w0 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
         depths: list[tuple[int, int]] = []
@@ -288,11 +288,14 @@ def run(
     workers_s = sum(k1[p] - k0.get(p, 0.0) for p in k1)
     counts = list(final["ros_ingest"]["counts"].values())
     latencies = []
+    every: list[tuple[float, float]] = []  # (s after the subscription, latency ms) of every move
     moves = sorted(moved_at.values())
     for t in moves:
         after = [u for u in updates if u >= t]
         if after:
-            latencies.append(1000 * (after[0] - t))
+            every.append((round(t - wall_start, 2), round(1000 * (after[0] - t), 1)))
+            if t >= wall_start + warmup:  # in the steady window: a move made while the tables were
+                latencies.append(1000 * (after[0] - t))  # still being created is timed by the next one
     return {
         "layout": layout,
         "robots": robots,
@@ -320,10 +323,12 @@ def run(
         "queue_depth_last": depths[-1] if depths else None,
         "revision": final["revision"],
         "daemon_exit": exit_code,
-        "moves": len(moves),
+        "moves": len(latencies),
         "move_update_ms_p50": round(float(live._pct(latencies, 50)), 1),
         "move_update_ms_p99": round(float(live._pct(latencies, 99)), 1),
         "move_update_ms_max": round(max(latencies, default=float("nan")), 1),
+        "move_update_ms_every": every,
+        "fusion": final.get("fusion", {}),
     }
 
 

@@ -5,11 +5,12 @@ them. :func:`confirm_array` settles such an observation with array operations ov
 held poses (the confirmation gates, the resize evidence and the refinement's hysteresis for all boxes
 at once) and one effect for the array, instead of the rules of :func:`twin.live.fuse.fuse` once per
 report. It decides exactly what the per-report rules decide, and only when every report is a plain
-confirmation: a box of a held, candidate element, by its own IRI or an alias it fits, seen no earlier
-than what the twin holds of it, within the confirmation distance and angle of the held pose, at the held
-sizes, whose running mean (past ``refine_after``) stays within ``refine_fraction`` of it, and nothing
-else in the report (no class change, labels, zone marks). Anything else (a move, a new element, a
-resize, a stale report, a refinement to commit, two reports of one element) returns False with
+confirmation: a box of a held, candidate element, by its own IRI or an alias it fits, within the
+confirmation distance and angle of the held pose, at the held sizes, whose running mean (past
+``refine_after``) stays within ``refine_fraction`` of it, and nothing else in the report (no class
+change, labels, zone marks); a box seen earlier than what the twin holds of the element (another
+robot's later sighting came first) is stale, noted as the per-report rules note it. Anything else (a
+move, a new element, a resize, a refinement to commit, two reports of one element) returns False with
 nothing done: the per-report rules decide the whole observation.
 
 Example::
@@ -30,7 +31,7 @@ import numpy as np
 
 from twin.fusion.associate import alias_fits, through_alias
 from twin.fusion.bias import note_sighting, unbiased
-from twin.fusion.clocks import last_known
+from twin.fusion.clocks import last_known, stale_change
 from twin.fusion.confirm import box_of, only_sighting_where_it_stands, resizable
 from twin.fusion.context import report_pose
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
@@ -58,6 +59,8 @@ class _Box:
     pose: Pose
     held: Pose
     sense: int
+    stale: bool
+    """Seen before what the twin holds of it (:func:`~twin.fusion.clocks.stale_change`): only counted."""
     resizable: bool
     """A robot's box: other sizes are resize evidence (:func:`~twin.fusion.confirm.resizable`)."""
 
@@ -71,11 +74,11 @@ def confirm_array(ctx: FusionContext, reports: Sequence[ElementReport], senses: 
     boxes = _boxes(ctx, reports, senses)
     if boxes is None:
         return False
-    refs = _refinements(ctx.memory, boxes)
-    sighted = _gates(ctx, boxes, refs)
+    fresh = [b for b in boxes if not b.stale]
+    sighted = _gates(ctx, fresh, _refinements(ctx.memory, fresh)) if fresh else np.zeros((0, 7))
     if sighted is None:
         return False
-    _settle(ctx, boxes, sighted)
+    _settle(ctx, boxes, fresh, sighted)
     return True
 
 
@@ -94,8 +97,8 @@ def _boxes(ctx: FusionContext, reports: Sequence[ElementReport], senses: Sequenc
         state = states.get(target)
         if state is None or target in targets or target in pending or not is_candidate(state):
             return None  # unknown or removed, twice in the array, moved earlier in the batch
-        if not only_sighting_where_it_stands(r, state) or sense < last_known(ctx, target, state):
-            return None  # a change besides the box, or stale
+        if not only_sighting_where_it_stands(r, state):
+            return None  # a change besides the box
         storey_key = r.storey or state.storey
         storey = storeys.get(storey_key or "")
         held = ctx.held_pose(target)
@@ -109,7 +112,8 @@ def _boxes(ctx: FusionContext, reports: Sequence[ElementReport], senses: Sequenc
         if alias is not None and alias_fits(ctx, r, state, pose) != "fits":
             return None
         targets.add(target)
-        out.append(_Box(r, target, state, storey_key, raw, pose, held, sense, resizable(ctx, target)))
+        stale = sense < last_known(ctx, target, state)
+        out.append(_Box(r, target, state, storey_key, raw, pose, held, sense, stale, resizable(ctx, target)))
     return out
 
 
@@ -195,8 +199,9 @@ def _canonical(p: FloatArray) -> FloatArray:
     return out
 
 
-def _settle(ctx: FusionContext, boxes: list[_Box], sighted: FloatArray) -> None:
-    """What the per-report rules do for each confirmation, their memory effects as one."""
+def _settle(ctx: FusionContext, boxes: list[_Box], fresh: list[_Box], sighted: FloatArray) -> None:
+    """What the per-report rules do for each box: a stale one noted as they note it, each confirmation
+    (``fresh``, aligned as ``sighted``) counted, their memory effects as one."""
     robot = ctx.robot
     rule = f"confirmation by {robot}: within confirm_distance_m and confirm_angle_deg"
     for b in boxes:
@@ -205,9 +210,13 @@ def _settle(ctx: FusionContext, boxes: list[_Box], sighted: FloatArray) -> None:
         ctx.boxes.append((b.storey, b.report, b.pose))
         ctx.detected.add(b.target)
         ctx.used.add(b.target)
+        if b.stale:
+            noted = stale_change(ctx, b.report, b.report.iri, b.state, b.sense)  # a sighting, not the latest
+            assert noted
+            continue
         note_sighting(ctx, b.state, b.raw, b.sense)  # where this robot's detector puts it: its bias
         ctx.out.seen.append(b.target)
-    rows = [(b.target, b.sense, b.resizable, *row) for b, row in zip(boxes, sighted.tolist(), strict=True)]
+    rows = [(b.target, b.sense, b.resizable, *row) for b, row in zip(fresh, sighted.tolist(), strict=True)]
 
     def run(m: FusionMemory) -> None:
         for iri, sense, resizes, cx, cy, cz, sx, sy, sz, yaw in rows:

@@ -57,7 +57,8 @@ def _array(rng: random.Random, robot: str, spots: list[tuple[float, float]], sen
 
 def _run(shortcut: bool) -> tuple[list[dict[str, object]], TwinService, int]:
     """The script: robot1 makes the tables, robots 2 and 3 see them through aliases; 600 arrays in
-    turns, tables moved (far, and short moves that are held) and one seen larger by robot2."""
+    turns, some seen before the previous one (stale), tables moved (far, and short moves that are held)
+    and one seen larger by robot2."""
     clock = Clock()
     service = TwinService(imported(box_lab()), load_config(), clock=clock)
     service.start()
@@ -83,7 +84,8 @@ def _run(shortcut: bool) -> tuple[list[dict[str, object]], TwinService, int]:
                 spots[2] = (spots[2][0], spots[2][1] + dy)  # a certain move, into free floor and back
             if step == 270:
                 spots[7] = (spots[7][0] + 0.25, spots[7][1])  # a short move: held until sightings agree
-            obs = _array(rng, robot, spots, clock.ns - 20_000_000)
+            late = step % 7 == 3  # seen before the previous robot's array: stale where that one saw it
+            obs = _array(rng, robot, spots, clock.ns - (70_000_000 if late else 20_000_000))
             service.submit_observation(robot, obs, replies.append)
             service.process()
     finally:
@@ -107,6 +109,7 @@ def test_replies_are_the_same_with_and_without_the_shortcut(both) -> None:  # ty
     assert len(fast) == len(slow) == 600
     assert fast == slow
     assert any("resolved" in r for r in fast)  # robots 2 and 3 went through aliases
+    assert sum("stale" in r for r in fast) > 50  # arrays seen before another robot's, taken after it
 
 
 def test_fusion_memory_is_the_same_with_and_without_the_shortcut(both) -> None:  # type: ignore[no-untyped-def]
