@@ -152,8 +152,10 @@ def translate_only(per_robot: int, repeat: int = 2000) -> dict[str, float]:
     return out
 
 
-def _cpu_s(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+def _cpu_s(pid: int, tid: int | None = None) -> float:
+    """A process's CPU time (utime + stime), or one of its threads' (``tid``)."""
+    path = f"/proc/{pid}/stat" if tid is None else f"/proc/{pid}/task/{tid}/stat"
+    fields = Path(path).read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
@@ -253,12 +255,14 @@ def run(
         t_start, wall_start = time.monotonic(), time.time()
         time.sleep(warmup)
         s0, c0, k0, w0 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
+        m0 = _cpu_s(daemon.pid, daemon.pid)  # the main thread: the writer (`TwinService.serve_forever`)
         depths: list[tuple[int, int]] = []
         while time.monotonic() - t_start < duration - 0.5:
             time.sleep(1.0)
             s = _status(endpoint)
             depths.append((int(s["ros_ingest"]["queue_depth"]), int(s["queue_depth"])))
         s1, c1, k1, w1 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
+        m1 = _cpu_s(daemon.pid, daemon.pid)
         for pub in pubs:
             pub.wait(timeout=30)
         for reader in readers:
@@ -306,6 +310,8 @@ def run(
         "arrays_received_per_s": round(received / window, 1),
         "acked_per_s": round(acked / window, 1),
         "cpu_ms_per_array": round(1000 * (c1 - c0) / max(received, 1), 3),
+        "writer_ms_per_array": round(1000 * (m1 - m0) / max(received, 1), 3),
+        "daemon_threads_ms_per_array": round(1000 * (c1 - c0 - (m1 - m0)) / max(received, 1), 3),
         "workers_ms_per_array": round(1000 * workers_s / max(received, 1), 3),
         "total_ms_per_array": round(1000 * (c1 - c0 + workers_s) / max(received, 1), 3),
         "daemon_cpu_pct": round(100 * (c1 - c0) / window, 1),

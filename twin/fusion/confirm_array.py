@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from twin.fusion.associate import alias_fits, through_alias
-from twin.fusion.bias import note_sighting, unbiased
+from twin.fusion.bias import note_sightings, unbiased
 from twin.fusion.clocks import last_known, stale_change
 from twin.fusion.confirm import box_of, only_sighting_where_it_stands, resizable
 from twin.fusion.context import report_pose
@@ -214,8 +214,8 @@ def _settle(ctx: FusionContext, boxes: list[_Box], fresh: list[_Box], sighted: F
             noted = stale_change(ctx, b.report, b.report.iri, b.state, b.sense)  # a sighting, not the latest
             assert noted
             continue
-        note_sighting(ctx, b.state, b.raw, b.sense)  # where this robot's detector puts it: its bias
         ctx.out.seen.append(b.target)
+    note_sightings(ctx, [(b.state, b.raw, b.sense) for b in fresh])  # where its detector puts them: its bias
     rows = [(b.target, b.sense, b.resizable, *row) for b, row in zip(fresh, sighted.tolist(), strict=True)]
 
     def run(m: FusionMemory) -> None:
