@@ -5,6 +5,7 @@ validator as a parsed document."""
 from __future__ import annotations
 
 import math
+import pickle
 from dataclasses import astuple, replace
 
 import numpy as np
@@ -30,6 +31,7 @@ from twin.graph.vocab import FURN
 from twin.live import Reply, TwinService
 from twin.live.parse import parse_observation_document
 from twin.live.validate import check_observation
+from twin.records import ElementReport, Observation, ObservedBox, ObservedView
 
 S = 1_000_000_000
 T0 = 1_800_000_000 * S + 123_456_789  # a stamp whose nanoseconds the Turtle path cuts to microseconds
@@ -184,3 +186,20 @@ def test_a_view_s_points_are_rounded_at_once_as_the_turtle_path_rounds_each() ->
     want = np.array([(_m(x), _m(y)) for x, y in ring])
     assert np.array_equal(got, want)
     assert not np.signbit(got).any() or np.array_equal(np.signbit(got), np.signbit(want))
+
+
+def test_typed_records_come_back_from_a_worker_with_every_field() -> None:
+    box = ObservedBox(1.0, 2.0, 0.375, 0.8, 0.6, 0.75, 0.1)
+    report = ElementReport(
+        "urn:r:1", "IfcFurniture", "ground-floor", box, labels=("a",), classes=(FURN + "Table",),
+        sense_ns=T0, distinct=True, lifetime_s=2.5,
+    )  # fmt: skip
+    view = ObservedView("ground-floor", (np.zeros((3, 2)),), ("IfcFurniture",), T0, origin=(1.0, 2.0, 1.2))
+    back = pickle.loads(pickle.dumps(Observation((report,), view), protocol=pickle.HIGHEST_PROTOCOL))
+    assert astuple(back.reports[0].box) == astuple(box)
+    got = back.reports[0]
+    assert [getattr(got, n) for n in ElementReport.__slots__ if n != "box"] == [
+        getattr(report, n) for n in ElementReport.__slots__ if n != "box"
+    ]
+    assert back.view is not None and back.view.origin == view.origin and back.view.sense_ns == T0
+    assert np.array_equal(back.view.polygons[0], view.polygons[0])
