@@ -122,9 +122,10 @@ def main() -> int:
     p.add_argument("--robots", type=int, default=10)
     p.add_argument("--rate", type=float, default=20.0)
     p.add_argument("--duration", type=float, default=20.0)
+    p.add_argument("--modes", default="on,off,on", help="the runs, fusion on or off, in order")
     p.add_argument("--json", type=Path)
     args = p.parse_args()
-    rows = [run(True, args), run(False, args), run(True, args)]
+    rows = [run(mode == "on", args) for mode in args.modes.split(",")]
     print(f"{'fusion':8} {'acked':>7} {'acked/s':>8} {'daemon CPU s':>13} {'CPU ms/acked':>13}")
     for r in rows:
         print(

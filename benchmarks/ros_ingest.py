@@ -152,8 +152,10 @@ def translate_only(per_robot: int, repeat: int = 2000) -> dict[str, float]:
     return out
 
 
-def _cpu_s(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+def _cpu_s(pid: int, tid: int | None = None) -> float:
+    """A process's CPU time (utime + stime), or one of its threads' (``tid``)."""
+    path = f"/proc/{pid}/stat" if tid is None else f"/proc/{pid}/task/{tid}/stat"
+    fields = Path(path).read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
@@ -250,15 +252,17 @@ def run(
         watch = watcher.declare_subscriber(
             "twin/lab/map_updates/ground-floor/navigation", lambda _: updates.append(time.time())
         )
-        t_start = time.monotonic()
+        t_start, wall_start = time.monotonic(), time.time()
         time.sleep(warmup)
         s0, c0, k0, w0 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
+        m0 = _cpu_s(daemon.pid, daemon.pid)  # the main thread: the writer (`TwinService.serve_forever`)
         depths: list[tuple[int, int]] = []
         while time.monotonic() - t_start < duration - 0.5:
             time.sleep(1.0)
             s = _status(endpoint)
             depths.append((int(s["ros_ingest"]["queue_depth"]), int(s["queue_depth"])))
         s1, c1, k1, w1 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
+        m1 = _cpu_s(daemon.pid, daemon.pid)
         for pub in pubs:
             pub.wait(timeout=30)
         for reader in readers:
@@ -288,11 +292,14 @@ def run(
     workers_s = sum(k1[p] - k0.get(p, 0.0) for p in k1)
     counts = list(final["ros_ingest"]["counts"].values())
     latencies = []
+    every: list[tuple[float, float]] = []  # (s after the subscription, latency ms) of every move
     moves = sorted(moved_at.values())
     for t in moves:
         after = [u for u in updates if u >= t]
         if after:
-            latencies.append(1000 * (after[0] - t))
+            every.append((round(t - wall_start, 2), round(1000 * (after[0] - t), 1)))
+            if t >= wall_start + warmup:  # in the steady window: a move made while the tables were
+                latencies.append(1000 * (after[0] - t))  # still being created is timed by the next one
     return {
         "layout": layout,
         "robots": robots,
@@ -303,6 +310,8 @@ def run(
         "arrays_received_per_s": round(received / window, 1),
         "acked_per_s": round(acked / window, 1),
         "cpu_ms_per_array": round(1000 * (c1 - c0) / max(received, 1), 3),
+        "writer_ms_per_array": round(1000 * (m1 - m0) / max(received, 1), 3),
+        "daemon_threads_ms_per_array": round(1000 * (c1 - c0 - (m1 - m0)) / max(received, 1), 3),
         "workers_ms_per_array": round(1000 * workers_s / max(received, 1), 3),
         "total_ms_per_array": round(1000 * (c1 - c0 + workers_s) / max(received, 1), 3),
         "daemon_cpu_pct": round(100 * (c1 - c0) / window, 1),
@@ -320,10 +329,12 @@ def run(
         "queue_depth_last": depths[-1] if depths else None,
         "revision": final["revision"],
         "daemon_exit": exit_code,
-        "moves": len(moves),
+        "moves": len(latencies),
         "move_update_ms_p50": round(float(live._pct(latencies, 50)), 1),
         "move_update_ms_p99": round(float(live._pct(latencies, 99)), 1),
         "move_update_ms_max": round(max(latencies, default=float("nan")), 1),
+        "move_update_ms_every": every,
+        "fusion": final.get("fusion", {}),
     }
 
 

@@ -15,6 +15,7 @@ Arrays follow trimesh's conventions:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -245,6 +246,9 @@ class ObservedBox:
     def text(self) -> str:
         return " ".join(repr(v) for v in (self.cx, self.cy, self.cz, self.sx, self.sy, self.sz, self.yaw))
 
+    def __reduce__(self) -> tuple[type[ObservedBox], tuple[float, ...]]:
+        return (ObservedBox, (self.cx, self.cy, self.cz, self.sx, self.sy, self.sz, self.yaw))
+
 
 @dataclass(frozen=True, eq=False, slots=True)
 class ElementReport:
@@ -282,6 +286,9 @@ class ElementReport:
     def changes_geometry(self) -> bool:
         return self.box is not None or self.geometry is not None or self.placement is not None
 
+    def __reduce__(self) -> tuple[type[ElementReport], tuple[object, ...]]:
+        return _by_fields(self)
+
 
 @dataclass(frozen=True, eq=False, slots=True)
 class ObservedView:
@@ -302,6 +309,9 @@ class ObservedView:
     """The sensor's position (``twin:origin``): x, y in the map frame, z above the storey's elevation;
     with it, only elements visible from there past the others the twin holds collect misses."""
 
+    def __reduce__(self) -> tuple[type[ObservedView], tuple[object, ...]]:
+        return _by_fields(self)
+
 
 @dataclass(frozen=True, eq=False, slots=True)
 class Observation:
@@ -309,3 +319,13 @@ class Observation:
 
     reports: tuple[ElementReport, ...]
     view: ObservedView | None = None
+
+    def __reduce__(self) -> tuple[type[Observation], tuple[object, ...]]:
+        return (Observation, (self.reports, self.view))
+
+
+def _by_fields(record: Any) -> tuple[Any, tuple[object, ...]]:
+    """A record pickled as a call of its class with its fields (the ROS ingest workers hand many over):
+    twice as fast to load as the setstate of a frozen dataclass with slots, and a little smaller."""
+    cls = type(record)
+    return (cls, tuple(getattr(record, name) for name in cls.__slots__))  # the fields, in order

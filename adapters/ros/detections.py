@@ -54,7 +54,7 @@ from adapters.ros.observation_doc import (
 from adapters.ros.sessions import TrackerSession, session_iri
 from adapters.ros.settings import DetectionConfig
 from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
-from adapters.ros.view import Camera, camera_view
+from adapters.ros.view import Camera, Structure, camera_view
 from twin.config import Limits
 from twin.errors import MapError
 from twin.maps.grid import OccupancyGrid
@@ -155,7 +155,7 @@ class DetectionContext:
     elevation_m: float
     now_ns: int
     tf: TfBuffer
-    occluders: OccupancyGrid | None = None
+    occluders: OccupancyGrid | Structure | None = None
     fusion_terms: bool = True
     occlusion_known: bool = True
     """False when the structure that hides parts of the view is not known (its map not yet built):

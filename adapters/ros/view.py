@@ -40,7 +40,15 @@ import numpy.typing as npt
 
 from twin.maps.grid import OccupancyGrid
 
-__all__ = ["OCCUPIED_AT", "Camera", "FloorView", "camera_view", "polygon_area", "visibility_polygon"]
+__all__ = [
+    "OCCUPIED_AT",
+    "Camera",
+    "FloorView",
+    "Structure",
+    "camera_view",
+    "polygon_area",
+    "visibility_polygon",
+]
 
 Point = tuple[float, float]
 Ring = tuple[Point, ...]
@@ -123,6 +131,22 @@ class Camera:
             else:
                 ok &= np.abs(np.arctan2(c, np.hypot(a, b))) <= v
         return np.asarray(ok)
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class Structure:
+    """A structure grid as rays march it: which cells block (at or above :data:`OCCUPIED_AT`), flat,
+    with a border of blocking cells round the grid (a ray that leaves the grid stops at its edge)."""
+
+    grid: OccupancyGrid
+    blocked: npt.NDArray[np.bool_]
+    """``((height + 2) * (width + 2),)``: row-major, the grid's cell (row, col) at (row + 1, col + 1)."""
+
+    @classmethod
+    def of(cls, grid: OccupancyGrid) -> Structure:
+        blocked = np.ones((grid.frame.height + 2, grid.frame.width + 2), dtype=np.bool_)
+        blocked[1:-1, 1:-1] = grid.data >= OCCUPIED_AT
+        return cls(grid, blocked.ravel())
 
 
 @dataclass(frozen=True, slots=True)
@@ -244,7 +268,7 @@ def _thin(angles: FloatArray, near: FloatArray, far: FloatArray, step_rad: float
 
 
 def camera_view(
-    grid: OccupancyGrid | None,
+    grid: OccupancyGrid | Structure | None,
     cam: Camera,
     *,
     band_m: tuple[float, float] = (0.0, 0.0),
@@ -253,11 +277,13 @@ def camera_view(
 ) -> FloorView | None:
     """The floor ``cam`` saw (see the module's docstring), or None when it claims less than 1 dm².
 
-    ``grid`` None: no structure occludes. ``shadows``: ``(cx, cy, sx, sy, yaw)`` box footprints
+    ``grid`` None: no structure occludes (a :class:`Structure` of it: made once per grid by a caller
+    that views it many times). ``shadows``: ``(cx, cy, sx, sy, yaw)`` box footprints
     (``(k, 5)``).
     """
     ox, oy, _ = cam.position
-    res = grid.frame.resolution_m if grid is not None else 0.05
+    structure = Structure.of(grid) if isinstance(grid, OccupancyGrid) else grid
+    res = structure.grid.frame.resolution_m if structure is not None else 0.05
     per_fov = max(int(rays), 3) * 2 * math.pi / min(cam.hfov_rad, 2 * math.pi)
     count = int(min(MAX_RAYS, max(per_fov, math.ceil(2 * math.pi * cam.range_m / res) + 1)))
     angles_all = 2 * math.pi * np.arange(count) / count
@@ -280,13 +306,17 @@ def camera_view(
         return None
     xs = ox + np.cos(angles)[:, None] * dist[None, :]  # (rays, k)
     ys = oy + np.sin(angles)[:, None] * dist[None, :]
-    if grid is not None:
-        f = grid.frame
-        cols = np.floor((xs - f.origin_x) / res).astype(np.int64)
-        rows = np.floor((ys - f.origin_y) / res).astype(np.int64)
-        inside = (cols >= 0) & (cols < f.width) & (rows >= 0) & (rows < f.height)
-        blocked = ~inside
-        blocked[inside] = grid.data[rows[inside], cols[inside]] >= OCCUPIED_AT
+    if structure is not None:
+        f = structure.grid.frame
+        cols = np.floor((xs - f.origin_x) / res).astype(np.intp)
+        rows = np.floor((ys - f.origin_y) / res).astype(np.intp)
+        np.clip(cols, -1, f.width, out=cols)  # beyond the grid's edge: the border, which blocks
+        np.clip(rows, -1, f.height, out=rows)
+        rows += 1
+        rows *= f.width + 2
+        rows += cols
+        rows += 1
+        blocked = structure.blocked[rows]
         first_block = np.where(blocked.any(axis=1), dist[blocked.argmax(axis=1)] - step, np.inf)
     else:
         first_block = np.full(len(angles), np.inf)

@@ -39,6 +39,7 @@ from adapters.ros.detections import (
 from adapters.ros.observation_doc import RosInputError, Translation
 from adapters.ros.sessions import TrackerSession
 from adapters.ros.tf import TfBuffer, decode_tf_message
+from adapters.ros.view import Structure
 from twin.errors import MapError
 from twin.maps.grid import OccupancyGrid
 
@@ -123,7 +124,8 @@ class RobotTranslator:
         self.max_waiting = max_waiting
         self.storeys: dict[str, str | None] = {}
         self.elevations: dict[str, float] = {}
-        self.grids: dict[tuple[str, str], OccupancyGrid] = {}
+        self.grids: dict[tuple[str, str], Structure] = {}
+        """(storey, skill) -> the occluding map, ready for marching rays (made once per map version)."""
         self._lock = threading.Lock()
 
     # --- what the daemon learns (any thread) ----------------------------------------------------------
@@ -141,8 +143,9 @@ class RobotTranslator:
             self.elevations = dict(elevations)
 
     def set_grid(self, grid: OccupancyGrid) -> None:
+        structure = Structure.of(grid)
         with self._lock:
-            self.grids[(grid.storey, grid.skill)] = grid
+            self.grids[(grid.storey, grid.skill)] = structure
 
     def wants(self, skill: str) -> bool:
         return any(r.spec.view_skill == skill for r in self.robots.values())

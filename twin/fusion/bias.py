@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import statistics
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -95,6 +96,41 @@ def note_sighting(ctx: FusionContext, state: ElementState, raw: Pose, sense: int
 
     def run(m: FusionMemory) -> None:
         m.track(iri).means[robot] = mine
+        m.pairs.update(pairs)
+
+    ctx.out.effects.append(run)
+
+
+def note_sightings(ctx: FusionContext, seen: Sequence[tuple[ElementState, Pose, int]]) -> None:
+    """:func:`note_sighting` of each (state, raw pose, sense time) in ``seen`` (distinct elements), in
+    order, as one effect with the same result: each element's mean, and each pair's difference as the
+    last sighting that compares the pair leaves it (every comparison starts from the memory as it was,
+    and a later one replaces an earlier), made once per pair instead of once per sighting."""
+    robot, memory = ctx.robot, ctx.memory
+    far = ctx.rules.certain_move_m
+    means: list[tuple[str, RobotMean]] = []
+    last: dict[str, tuple[float, float, int]] = {}  # other robot -> the last comparison (dx, dy, sense)
+    for state, raw, sense in seen:
+        track = memory.tracks.get(state.iri)
+        held = track.means if track is not None else {}
+        mine = held.get(robot, RobotMean()).added(raw.cx, raw.cy, sense, weight=MEAN_WEIGHT)
+        means.append((state.iri, mine))
+        if mine.n < MEAN_MIN:
+            continue
+        for other, m in held.items():
+            if other != robot and m.n >= MEAN_MIN and sense - m.last_ns <= RECENT_NS:
+                dx, dy = mine.x - m.x, mine.y - m.y
+                if not math.hypot(dx, dy) > far:  # farther: a move the other has not seen yet
+                    last[other] = (dx, dy, sense)
+    pairs = {}
+    for other, (dx, dy, sense) in last.items():
+        there, back = memory.pairs.get((robot, other)), memory.pairs.get((other, robot))
+        pairs[robot, other] = (there or RobotMean()).added(dx, dy, sense, weight=PAIR_WEIGHT)
+        pairs[other, robot] = (back or RobotMean()).added(-dx, -dy, sense, weight=PAIR_WEIGHT)
+
+    def run(m: FusionMemory) -> None:
+        for iri, mine in means:
+            m.track(iri).means[robot] = mine
         m.pairs.update(pairs)
 
     ctx.out.effects.append(run)

@@ -55,6 +55,7 @@ from twin.fusion.confirm import (
     resize_evidence,
     unsure_move,
 )
+from twin.fusion.confirm_array import confirm_array
 from twin.fusion.context import Fused, FusionContext, Pending, report_pose
 from twin.fusion.effects import sighting
 from twin.fusion.footprints import Pose
@@ -93,8 +94,10 @@ def fuse(
     ctx = FusionContext(
         robot, rights, live, states, shapes, rules, base_iri, pending, arrival_ns, max(clock.offset_ns, 0)
     )
-    for r in obs.reports:
-        _fuse_report(ctx, r, clock.sense(r.sense_ns) if r.sense_ns is not None else sense)
+    senses = [clock.sense(r.sense_ns) if r.sense_ns is not None else sense for r in obs.reports]
+    if not confirm_array(ctx, obs.reports, senses):  # the common case at once: all confirmations
+        for r, s in zip(obs.reports, senses, strict=True):
+            _fuse_report(ctx, r, s)
     if view is not None and rules.enabled and "dynamic" in rights:
         absence(ctx, view=view, sense=sense)
     ctx.out.reports = tuple(ctx.reports)

@@ -60,21 +60,22 @@ def check_report(report: ElementReport, *, limits: Limits) -> ElementReport:
         raise _fail(f"Element <{subject}>: twin:ifcClass {report.ifc_class!r} is not an IFC class name.")
     if report.box is not None:
         b = report.box
-        values = (b.cx, b.cy, b.cz, b.sx, b.sy, b.sz, b.yaw)
-        if not all(math.isfinite(v) for v in values):
+        isfinite, most = math.isfinite, limits.box_size_m
+        if not (
+            isfinite(b.cx) and isfinite(b.cy) and isfinite(b.cz) and isfinite(b.sx) and isfinite(b.sy)
+            and isfinite(b.sz) and isfinite(b.yaw)
+        ):  # fmt: skip
+            values = (b.cx, b.cy, b.cz, b.sx, b.sy, b.sz, b.yaw)
             raise _fail(f"Element <{subject}>: twin:box has a NaN or infinite number: {values}.")
-        for name, size in (("sx", b.sx), ("sy", b.sy), ("sz", b.sz)):
-            if not 0.0 < size <= limits.box_size_m:
-                raise _fail(
-                    f"Element <{subject}>: box size {name}={size} m is outside (0, {limits.box_size_m}] m."
-                )
+        if not (0.0 < b.sx <= most and 0.0 < b.sy <= most and 0.0 < b.sz <= most):
+            sizes = (("sx", b.sx), ("sy", b.sy), ("sz", b.sz))
+            name, size = next((n, v) for n, v in sizes if not 0.0 < v <= most)
+            raise _fail(f"Element <{subject}>: box size {name}={size} m is outside (0, {most}] m.")
         if report.storey is None:
             raise _fail(f"Element <{subject}>: twin:box needs twin:storey (its z is above that storey).")
-    geometries = [
-        k for k, v in (("box", report.box), ("geometry", report.geometry), ("placement", report.placement))
-        if v is not None
-    ]  # fmt: skip
-    if len(geometries) > 1:
+    if (report.box is not None) + (report.geometry is not None) + (report.placement is not None) > 1:
+        given = (("box", report.box), ("geometry", report.geometry), ("placement", report.placement))
+        geometries = [k for k, v in given if v is not None]
         raise _fail(
             f"Element <{subject}>: give one of twin:box, omg:hasGeometry or twin:placement, not {geometries}."
         )
@@ -95,7 +96,7 @@ def check_report(report: ElementReport, *, limits: Limits) -> ElementReport:
                 "(e.g. furn:Table) and bot:Element."
             )
     for what, texts in (("rdfs:label", report.labels), ("twin:material", report.materials)):
-        if any(len(t) > MAX_TEXT for t in texts):
+        if texts and any(len(t) > MAX_TEXT for t in texts):
             raise _fail(f"Element <{subject}>: {what} is longer than {MAX_TEXT} characters.")
     marks = report.keepout is not None or report.speed_limit is not None
     if report.removed and (

@@ -5,12 +5,21 @@ validator as a parsed document."""
 from __future__ import annotations
 
 import math
+import pickle
 from dataclasses import astuple, replace
 
+import numpy as np
 import pytest
 
 from adapters.ros.detections import DetectionContext, DetectionSettings, translate_detections
-from adapters.ros.observation_doc import BoxReport, ViewReport, observation_records, observation_turtle
+from adapters.ros.observation_doc import (
+    BoxReport,
+    ViewReport,
+    _m,
+    _ring,
+    observation_records,
+    observation_turtle,
+)
 from adapters.ros.tf import TfBuffer, decode_tf_message
 from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf, yaw_quaternion
 from tests.conftest import imported
@@ -22,6 +31,7 @@ from twin.graph.vocab import FURN
 from twin.live import Reply, TwinService
 from twin.live.parse import parse_observation_document
 from twin.live.validate import check_observation
+from twin.records import ElementReport, Observation, ObservedBox, ObservedView
 
 S = 1_000_000_000
 T0 = 1_800_000_000 * S + 123_456_789  # a stamp whose nanoseconds the Turtle path cuts to microseconds
@@ -165,3 +175,31 @@ def test_a_descriptive_type_goes_the_same_way_and_a_foreign_one_is_refused_on_bo
         check_observation(records, limits=Limits())
     with pytest.raises(ObservationError, match="is not allowed; only BEO and FURN"):
         parse_observation_document(turtle, limits=Limits())
+
+
+def test_a_view_s_points_are_rounded_at_once_as_the_turtle_path_rounds_each() -> None:
+    rng = np.random.default_rng(3)
+    values = [*rng.uniform(-300.0, 300.0, 4000).tolist(), *(k / 1e4 + 5e-5 for k in range(-300, 300))]
+    values += [float(np.nextafter(v, d)) for v in values[-600:] for d in (-1e9, 1e9)] + [-0.0, 1e-9, -1e-9]
+    ring = list(zip(values[::2], values[1::2], strict=False))
+    got = _ring(ring)
+    want = np.array([(_m(x), _m(y)) for x, y in ring])
+    assert np.array_equal(got, want)
+    assert not np.signbit(got).any() or np.array_equal(np.signbit(got), np.signbit(want))
+
+
+def test_typed_records_come_back_from_a_worker_with_every_field() -> None:
+    box = ObservedBox(1.0, 2.0, 0.375, 0.8, 0.6, 0.75, 0.1)
+    report = ElementReport(
+        "urn:r:1", "IfcFurniture", "ground-floor", box, labels=("a",), classes=(FURN + "Table",),
+        sense_ns=T0, distinct=True, lifetime_s=2.5,
+    )  # fmt: skip
+    view = ObservedView("ground-floor", (np.zeros((3, 2)),), ("IfcFurniture",), T0, origin=(1.0, 2.0, 1.2))
+    back = pickle.loads(pickle.dumps(Observation((report,), view), protocol=pickle.HIGHEST_PROTOCOL))
+    assert astuple(back.reports[0].box) == astuple(box)
+    got = back.reports[0]
+    assert [getattr(got, n) for n in ElementReport.__slots__ if n != "box"] == [
+        getattr(report, n) for n in ElementReport.__slots__ if n != "box"
+    ]
+    assert back.view is not None and back.view.origin == view.origin and back.view.sense_ns == T0
+    assert np.array_equal(back.view.polygons[0], view.polygons[0])

@@ -15,7 +15,7 @@ from shapely.ops import unary_union
 
 from adapters.ros.observation_doc import _metres
 from adapters.ros.tf import matrix
-from adapters.ros.view import OCCUPIED_AT, Camera, camera_view, visibility_polygon
+from adapters.ros.view import OCCUPIED_AT, Camera, Structure, camera_view, visibility_polygon
 from tests.conftest import examples
 from twin.maps.grid import GridFrame, OccupancyGrid
 
@@ -189,3 +189,17 @@ def test_a_level_sensor_s_polygon_starts_at_the_sensor_and_a_sliver_claims_nothi
     polygon = visibility_polygon(None, (1.0, 1.0), heading_rad=0.0, fov_rad=math.radians(90), range_m=4.0)
     assert polygon[0] == (1.0, 1.0) and math.isclose(Polygon(polygon).area, math.pi * 16 / 4, rel_tol=0.05)
     assert visibility_polygon(None, (0.0, 0.0), heading_rad=0.0, fov_rad=0.05, range_m=0.3) == ()
+
+
+def test_a_structure_made_once_cuts_views_as_its_grid_does_and_stops_rays_at_the_grid_s_edge() -> None:
+    data = np.zeros((FRAME.height, FRAME.width), dtype=np.int8)
+    data[:, 40] = 100  # a wall across the grid at x = 4.0 m
+    grid = OccupancyGrid(FRAME, data, "s", "localization", 0.0)
+    structure = Structure.of(grid)
+    for cam in (camera(2.0, 3.0, 1.0, yaw=yaw, reach=12.0) for yaw in (0.0, 1.5, math.pi, 4.0)):
+        a, b = camera_view(grid, cam), camera_view(structure, cam)
+        assert a is not None and b is not None
+        assert a.polygons == b.polygons and a.holes == b.holes
+        seen = unary_union([Polygon(p) for p in b.polygons])
+        assert seen.bounds[0] >= -0.1 and seen.bounds[2] <= 4.0 + 1e-9  # not past the wall, nor the edge
+        assert seen.bounds[1] >= -0.1 and seen.bounds[3] <= 6.1
