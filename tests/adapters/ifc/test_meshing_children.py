@@ -276,6 +276,8 @@ def test_an_element_given_its_geometry_is_the_record_replace_makes() -> None:
         "ifc_types",
         "mesh_kernel",
         "facing_materials",
+        "predefined_type",
+        "operation_type",
     ]
     record = Element(
         guid="0abcdefghijklmnopqrstu",
@@ -286,6 +288,8 @@ def test_an_element_given_its_geometry_is_the_record_replace_makes() -> None:
         ifc_types=("IfcWall", "IfcElement"),
         mesh_kernel="",
         facing_materials=("brick",),
+        predefined_type="DOOR",
+        operation_type="SINGLE_SWING_LEFT",
     )
     geometry = Geometry(Mesh(np.zeros((3, 3)), np.array([[0, 1, 2]], dtype=np.int32), closed=False))
     placed_ = with_geometry(record, geometry, "manifold")
