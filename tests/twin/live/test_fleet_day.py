@@ -15,6 +15,7 @@ from tests.twin.live_helpers import PREFIX, TWIN, box_turtle, observe, started
 from twin.config import FusionRules, load_config
 from twin.graph.meshcodec import encode_placement
 from twin.live import TwinService
+from twin.live.census import writer_sizes
 from twin.live.events import MapPublished, MapUpdated, ObservationAccepted
 from twin.live.membership import needs_store, selects
 from twin.selection.skill_selection import selection_query
@@ -198,6 +199,47 @@ def test_a_turned_table_moved_many_times_writes_its_placement_alone_and_its_size
     moved = service.live_maps.shape_of(TABLE)
     assert moved is not None and moved[0] is shape[0]
     assert service.store.select(ply) == meshes
+
+
+def test_moving_confirming_and_removing_the_same_tables_grows_neither_the_graph_nor_the_writer() -> None:
+    service, _ = started()
+    tables = {"robot1": ("urn:robot1:table", 4.5), "robot2": ("urn:robot2:table", 7.5)}
+    rng = np.random.default_rng(3)
+
+    def round_of(k: int) -> None:
+        for robot, (table, x) in tables.items():
+            if k % 10 == 9:
+                assert observe(service, robot, f"{PREFIX}<{table}> twin:removed true .".encode()).ok
+                continue
+            turtle = box_turtle(table, x + (0.9 if k % 2 else -0.9), 2.0, yaw=float(rng.uniform(0, 3)))
+            assert observe(service, robot, turtle).ok  # a move fusion applies at once (1.8 m)
+            assert observe(service, robot, turtle).body.get("unchanged") is True
+
+    for k in range(10):
+        round_of(k)
+    triples, sizes = len(service.store), writer_sizes({"live": service.live, "observer": service.observer})
+    revision = service.revision
+    for k in range(10, 30):
+        round_of(k)
+    assert service.revision == revision + 40
+    assert len(service.store) == triples
+    after = writer_sizes({"live": service.live, "observer": service.observer})
+    grown = {k: (sizes.get(k), v) for k, v in after.items() if v > sizes.get(k, 0) and k != "observer.parsed"}
+    assert grown == {}
+    status = service.status()["sizes"]
+    assert isinstance(status, dict) and after.items() <= status.items()  # what twin status says
+
+
+def test_a_removed_element_leaves_its_tombstone_but_no_cached_pose() -> None:
+    service, _ = started()
+    people = [f"urn:robot1:person-{i}" for i in range(5)]
+    for i, iri in enumerate(people):
+        assert observe(service, "robot1", box_turtle(iri, 3.0 + i, 2.0, sx=0.5, sy=0.5, sz=1.7, yaw=0.4)).ok
+    assert set(people) <= set(service.live.fusion.shape_poses)
+    for iri in people:
+        assert observe(service, "robot1", f"{PREFIX}<{iri}> twin:removed true .".encode()).ok
+    assert all(service.states[iri].removed for iri in people)
+    assert not set(people) & set(service.live.fusion.shape_poses)
 
 
 def test_the_store_is_flushed_and_housekeeping_runs_only_after_changes() -> None:
