@@ -242,6 +242,18 @@ def test_a_removed_element_leaves_its_tombstone_but_no_cached_pose() -> None:
     assert not set(people) & set(service.live.fusion.shape_poses)
 
 
+def test_a_writer_whose_queue_never_runs_dry_stops_taking_work_once_its_budget_is_spent() -> None:
+    # serve_forever flushes the store, expires aliases and saves snapshots between two process calls:
+    # at saturation the queue never runs dry, and without a budget none of them ever ran
+    service, _ = started()
+    replies: list[object] = []
+    for k in range(100):
+        service.submit_observation("robot1", box_turtle(TABLE, 4.5 + (k % 2), 2.0), replies.append)
+    handled = service.process(budget_s=0.0)
+    assert 0 < handled < 100 and service.queue_depth == 100 - handled
+    assert service.process() == 100 - handled and len(replies) == 100
+
+
 def test_the_store_is_flushed_and_housekeeping_runs_only_after_changes() -> None:
     store = imported(box_lab())
     jobs: list[int] = []
