@@ -230,6 +230,27 @@ def test_moving_confirming_and_removing_the_same_tables_grows_neither_the_graph_
     assert isinstance(status, dict) and after.items() <= status.items()  # what twin status says
 
 
+def test_fifty_robot_iris_for_one_table_leave_nothing_behind_once_their_aliases_expire() -> None:
+    # a tracker names the same table anew each time it loses it: each name becomes an alias (a triple
+    # and an entry in memory) until unused for [fusion] alias_ttl_s
+    now = [1_800_000_000 * 10**9]
+    service = TwinService(imported(box_lab()), load_config(), clock=lambda: now[0])
+    service.start()
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, yaw=0.3))
+    observe(service, "robot2", box_turtle(TABLE, 6.6, 2.0, yaw=0.3))  # what memory keeps per robot
+    triples, sizes = len(service.store), writer_sizes({"live": service.live})
+    for i in range(50):
+        now[0] += 10**8
+        reply = observe(service, "robot2", box_turtle(f"urn:tracker:{i}", 6.61, 2.0, yaw=0.3))
+        assert reply.body["resolved"] == {f"urn:tracker:{i}": TABLE}
+    assert len(service.store) == triples + 50 and len(service.live.fusion.aliases) == 50
+    now[0] += service.config.fusion.alias_ttl_ns + 10**9
+    assert service.observer.expire_aliases() == 50
+    assert len(service.store) == triples
+    after = writer_sizes({"live": service.live})
+    assert {k: v for k, v in after.items() if v > sizes.get(k, 0)} == {}
+
+
 def test_a_removed_element_leaves_its_tombstone_but_no_cached_pose() -> None:
     service, _ = started()
     people = [f"urn:robot1:person-{i}" for i in range(5)]
