@@ -23,6 +23,9 @@ _CONTAINERS = (dict, list, set, frozenset, deque)
 _SKIP = frozenset({"maps", "scene", "site", "store", "config", "emit", "send", "clock", "skills"})
 """Attributes the census does not enter: the geometry (arrays, not per-observation state), the
 configuration, and callables."""
+_FLAT = frozenset({"states"})
+"""Containers counted but not summed over: a record per element of the whole building (a status on a
+large building would walk every one), and nothing in them grows with sightings."""
 
 
 def _fields(obj: object) -> list[tuple[str, Any]]:
@@ -51,7 +54,7 @@ def _walk(obj: object, prefix: str, out: dict[str, int], depth: int) -> None:
         key = f"{prefix}{name}"
         if isinstance(value, _CONTAINERS):
             out[key] = out.get(key, 0) + len(value)
-            if depth > 0:
+            if depth > 0 and name not in _FLAT:
                 items = value.values() if isinstance(value, dict) else value
                 _walk_items(items, f"{key}[*]", out, depth - 1)
         elif _is_record(value) and depth > 0 and not isinstance(value, type):
