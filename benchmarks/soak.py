@@ -105,6 +105,50 @@ def robot(
     return 0
 
 
+CENSUS_QUERIES = {
+    "predicates": "SELECT ?p (COUNT(*) AS ?n) WHERE { ?s ?p ?o } GROUP BY ?p",
+    "subjects": "SELECT (COUNT(DISTINCT ?s) AS ?n) WHERE { ?s ?p ?o }",
+    "aliases": "SELECT (COUNT(*) AS ?n) WHERE { ?a twin:aliasOf ?t }",
+    "tombstones": "SELECT (COUNT(*) AS ?n) WHERE { ?e twin:removed true }",
+}
+
+
+def census(endpoint: str) -> dict[str, Any]:
+    """What the daemon holds now: the store's triples by predicate, distinct subjects, aliases and
+    tombstones (SPARQL), and the lengths of the writer's containers (``status``'s ``sizes``)."""
+    from adapters.zenoh.client import TwinClient
+
+    def rows(query: str) -> list[dict[str, Any]]:
+        result = twin.sparql(query)
+        assert isinstance(result, dict)
+        return list(result["results"]["bindings"])
+
+    with TwinClient.connect([endpoint], timeout_s=30.0) as twin:
+        status = twin.status()
+        out: dict[str, Any] = {"triples": status.get("triples"), "sizes": status.get("sizes", {})}
+        out["predicates"] = {
+            r["p"]["value"].rsplit("#", 1)[-1].rsplit("/", 1)[-1]: int(r["n"]["value"])
+            for r in rows(CENSUS_QUERIES["predicates"])
+        }
+        for key in ("subjects", "aliases", "tombstones"):
+            out[key] = int(rows(CENSUS_QUERIES[key])[0]["n"]["value"])
+    return out
+
+
+def census_changes(first: dict[str, Any], last: dict[str, Any]) -> dict[str, Any]:
+    """What differs between two censuses: ``name: [before, after]`` for every count that changed."""
+    out: dict[str, Any] = {}
+    for key in ("triples", "subjects", "aliases", "tombstones"):
+        if first.get(key) != last.get(key):
+            out[key] = [first.get(key), last.get(key)]
+    for group in ("predicates", "sizes"):
+        a, b = first.get(group, {}), last.get(group, {})
+        for name in sorted(set(a) | set(b)):
+            if a.get(name) != b.get(name):
+                out[f"{group}.{name}"] = [a.get(name), b.get(name)]
+    return out
+
+
 def _dir_mb(path: Path) -> float:
     return sum(f.stat().st_size for f in path.rglob("*") if f.is_file()) / 1e6
 
@@ -126,6 +170,7 @@ def run(
     flush_every_s: float | None = None,
     model: str = "lab",
     record: bool = False,
+    census_at: bool = False,
 ) -> dict[str, Any]:
     """One soak on ``model`` (the lab's corridor, or the busiest storey's extent of another model)."""
     work = Path(tempfile.mkdtemp(prefix="soak-"))
@@ -148,7 +193,7 @@ def run(
         return _run(daemon, children, store, endpoint, robots=robots, rate=rate, duration=duration,
                     subscribers=subscribers, reconfirm=reconfirm, sample_s=sample_s, warmup_s=warmup_s,
                     quiet=quiet, rrd=rrd, flush_every_s=flush_every_s, model=model, storey=storey,
-                    area=area)  # fmt: skip
+                    area=area, census_at=census_at)  # fmt: skip
     finally:  # an interrupted soak (SIGINT, SIGTERM) leaves no process behind
         for c in children:
             if c.poll() is None:
@@ -175,6 +220,7 @@ def _run(
     storey: str,
     area: tuple[float, float, float, float],
     rrd: Path | None = None,
+    census_at: bool = False,
 ) -> dict[str, Any]:
     from adapters.zenoh.client import TwinClient
 
@@ -238,6 +284,7 @@ def _run(
         print(header, flush=True)
     seen = 0
     next_at = start_at + sample_s
+    censuses: list[dict[str, Any]] = []
     while any(b.poll() is None for b in bots):
         time.sleep(max(0.0, min(0.5, next_at - time.time())))
         if time.time() < next_at and any(b.poll() is None for b in bots):
@@ -261,6 +308,13 @@ def _run(
             row["recorder_rss_mb"] = round(
                 sum(live._proc_mb(pid, "VmRSS") for pid in _children(daemon.pid)), 1
             )
+        due = (not censuses and row["t_s"] >= warmup_s) or time.time() >= start_at + duration - sample_s
+        if census_at and due:
+            counted = census(endpoint)
+            counted["t_s"], counted["observations"] = row["t_s"], row["observations"]
+            censuses[1:] = [counted]  # the first after warm-up, and the latest
+            if not quiet:
+                print(f"census at {row['t_s']} s: {counted['triples']} triples", flush=True)
         samples.append(row)
         if not quiet:
             print(
@@ -323,9 +377,22 @@ def _run(
         "growth_window_s": window,
         "observations_after_warmup": obs_after,
         **(_recording(warm, samples, rrd) if rrd is not None else {}),
+        **(_censuses(censuses) if census_at else {}),
         "problems": problems[:10],
         "robot_errors": errors[:10],
         "samples": samples,
+    }
+
+
+def _censuses(censuses: list[dict[str, Any]]) -> dict[str, Any]:
+    """The census after warm-up and at the end, and what changed between them."""
+    if len(censuses) < 2:
+        return {"census": censuses}
+    first, last = censuses[0], censuses[-1]
+    return {
+        "census_between": [[first["t_s"], first["observations"]], [last["t_s"], last["observations"]]],
+        "census_changes": census_changes(first, last),
+        "census": censuses,
     }
 
 
@@ -424,6 +491,12 @@ def main() -> int:
     p.add_argument("--json", metavar="OUT.json", help="also write the result here")
     p.add_argument("--plot", metavar="OUT.png", help="plot RSS and store size over time")
     p.add_argument("--record", action="store_true", help="the daemon records (Rerun): the file's growth")
+    p.add_argument(
+        "--census",
+        action="store_true",
+        help="count the store's triples by predicate and the writer's containers after warm-up and at the "
+        "end (census_changes: what grew)",
+    )
     p.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     args = p.parse_args()
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # run the cleanup in run()'s finally
@@ -449,9 +522,10 @@ def main() -> int:
         flush_every_s=args.flush_every,
         model=args.model,
         record=args.record,
+        census_at=args.census,
     )
     for key, value in result.items():
-        if key != "samples":
+        if key not in ("samples", "census"):
             print(f"{key:<26}  {value}")
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=2))

@@ -135,6 +135,8 @@ def describe_status(status: dict[str, Any]) -> str:
                 out += _robot(name, r) if isinstance(r, dict) else generic(name, r, "  ")
         elif key == "store" and isinstance(value, str):
             out.append(f"store: {value}")
+        elif key == "sizes" and isinstance(value, dict):  # for leak hunts: a line, the list in --json
+            out.append(f"sizes: {len(value)} containers of the writer (twin status --json lists them)")
         else:
             out += generic(key, value)
     return "\n".join(out)

@@ -102,6 +102,7 @@ def index_element(live: LiveState, iri: str, state: ElementState | None) -> None
         memory.pose_arrays.pop(old, None)
     if state is None or not is_candidate(state):
         _remember(memory, iri, before, None, state)
+        memory.shape_poses.pop(iri, None)  # a removed element's shape is gone: no pose cached for it
         return
     shape = live.maps.shape_of(iri)
     if shape is None:

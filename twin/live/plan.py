@@ -34,7 +34,7 @@ from twin.graph import vocab
 from twin.graph.ifc_classes import supertypes
 from twin.graph.meshcodec import encode_placement
 from twin.graph.rdf import ChangeSet, Object, Triple
-from twin.live.same import quantised, same_mesh, same_shape
+from twin.live.same import quantised, quantised_sizes, same_mesh, same_shape
 from twin.live.state import ElementState, SiteFrame
 from twin.live.writes import Held, TripleWriter, boolean, geometry_triples, literal
 from twin.maps.shapes import box_mesh, box_placement
@@ -84,7 +84,7 @@ def _shape(report: ElementReport, site: SiteFrame, current: Shape | None) -> Sha
         if storey is None:
             known = ", ".join(sorted(site.storeys)) or "none"
             raise _fail(f"Element <{report.iri}>: unknown storey {report.storey!r}; storeys: {known}.")
-        mesh = box_mesh(b.sx, b.sy, b.sz)
+        mesh = box_mesh(*quantised_sizes(b.sx, b.sy, b.sz))
         if current is not None and same_mesh(mesh, current[0]):
             mesh = current[0]  # a moved box keeps its mesh: one object, one literal
         return mesh, quantised(box_placement(b.cx, b.cy, storey.elevation_m + b.cz, yaw=b.yaw))

@@ -3,7 +3,9 @@
 A robot re-reports what it sees many times a second; a report within ``TOLERANCES.same_position_m``
 of every world vertex and ``same_angle_rad`` of the orientation is the same shape, so
 the observation is a re-confirmation and changes nothing. Box placements are quantised far below those
-tolerances before they are written (shorter literals in the store).
+tolerances before they are written (shorter literals in the store), and so are their sizes: a box that
+fusion places at the sizes it reads back from a turned mesh (exact to about 1e-9 m) is the mesh it
+had, so a move writes its placement alone and the sizes never drift.
 
 Example::
 
@@ -53,6 +55,16 @@ def same_shape(a: Shape, b: Shape) -> bool:
     r = _rotation(pa).T @ _rotation(pb)
     cos = (float(np.trace(r)) - 1.0) / 2.0
     return bool(np.arccos(np.clip(cos, -1.0, 1.0)) <= TOLERANCES.same_angle_rad)
+
+
+def quantised_sizes(sx: float, sy: float, sz: float) -> tuple[float, float, float]:
+    """A box's sizes rounded to 1 um (a size under 1 um is kept as it is, never rounded to 0)."""
+    return (_micrometres(sx), _micrometres(sy), _micrometres(sz))
+
+
+def _micrometres(v: float) -> float:
+    q = round(v, 6)
+    return q if q > 0.0 else v
 
 
 def _rotation(p: FloatArray) -> FloatArray:

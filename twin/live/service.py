@@ -60,6 +60,10 @@ log = logging.getLogger(__name__)
 Clock = Callable[[], int]
 _ALIAS_CHECK_S = 10.0
 """How often the writer looks for aliases unused for ``[fusion] alias_ttl_s``."""
+_HOUSEKEEPING_S = 1.0
+"""How long the writer works through its queue before it looks at its flushes, expiries and snapshot
+(a queue that never runs dry, at saturation, would hold them back for good: memory and the store's log
+would grow with every change)."""
 STORE_RETRY_S = 2.0
 """How often the writer tries to make a failed store work again (reopen and probe, or ask)."""
 
@@ -323,9 +327,11 @@ class TwinService:
             self._completing = None
             log.info("The restored scene's triangles computed in %.2f s", time.perf_counter() - t)
 
-    def process(self, *, timeout_s: float = 0.0) -> int:
+    def process(self, *, timeout_s: float = 0.0, budget_s: float | None = None) -> int:
         """Handle queued requests until the queue is empty (waiting up to ``timeout_s`` for the first),
-        publishing the full maps that are due. Returns the number handled.
+        publishing the full maps that are due; with ``budget_s``, take no new work once that long has
+        passed (a queue that never runs dry must not hold back :meth:`serve_forever`'s flushes and
+        expiries). Returns the number handled.
 
         Updates go out at once; a changed map goes out in full only as a keyframe, at most every
         ``keyframe_interval_s`` (see :mod:`twin.live.publication`).
@@ -333,6 +339,7 @@ class TwinService:
         self.complete_scene()
         handled = 0
         work = self._queue.take(timeout_s)
+        until = None if budget_s is None else time.monotonic() + budget_s
         while work is not None:
             if isinstance(work, list):  # observations queued one behind the other: one batch
                 self._observe(work)
@@ -347,7 +354,7 @@ class TwinService:
                 self._change_skill(work)
                 handled += 1
             self.flush_full_maps(due_only=True)
-            work = self._queue.take()
+            work = None if until is not None and time.monotonic() >= until else self._queue.take()
         self.flush_full_maps(due_only=True)
         return handled
 
@@ -358,7 +365,7 @@ class TwinService:
         ``on_stop`` runs first when the stop is seen (e.g. let no new request in)."""
         aliases_checked = time.monotonic()
         while not stop.is_set():
-            self.process(timeout_s=poll_s)
+            self.process(timeout_s=poll_s, budget_s=_HOUSEKEEPING_S)
             self.recover_store(due_only=True)
             self.flush_store(due_only=True)
             if time.monotonic() - aliases_checked > _ALIAS_CHECK_S:

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 from twin.errors import StoreError
 from twin.fusion.bias import detector_biases
 from twin.fusion.clocks import clock_offsets
+from twin.live.census import writer_sizes
 
 if TYPE_CHECKING:
     from twin.live.service import TwinService
@@ -28,11 +29,28 @@ def _triples(service: TwinService) -> int | None:
         return None
 
 
+def _sizes(service: TwinService) -> dict[str, int]:
+    """The writer's containers by name (:mod:`twin.live.census`); read off the writer's thread, so a
+    container changing size under the walk costs this status its sizes, never the answer."""
+    roots = {
+        "live": service.live,
+        "observer": service.observer,
+        "publication": service.publication,
+        "points_publication": service.points_publication,
+    }
+    for _ in range(3):
+        try:
+            return writer_sizes(roots)
+        except RuntimeError:  # changed size during iteration: the writer ran
+            continue
+    return {}
+
+
 def service_status(service: TwinService) -> dict[str, object]:
     """Site, revision, the store's state (``ok``, ``read-only: <reason>``, ``unreachable: <reason>``:
     see :mod:`twin.live.store_health`), element and triple counts, skills, storeys, every map's
     version, every points map's latest published cloud (version, size), observation counts, queue
-    depth and uptime of a started service."""
+    depth, the sizes of the writer's containers and uptime of a started service."""
     live = service.live
     obs = service.observer
     now = service.clock()
@@ -72,5 +90,6 @@ def service_status(service: TwinService) -> dict[str, object]:
             **{k: obs.fusion_counts[k] for k in sorted(obs.fusion_counts)},
         },
         "queue_depth": service.queue_depth,
+        "sizes": _sizes(service),
         "uptime_s": round((now - service.started_ns) / 1e9, 3),
     }

@@ -48,9 +48,11 @@ def test_status_shows_clouds_robots_and_the_store_state_readably(berlin: None) -
             {"storey": "ground-floor", "skill": "lidar3d", "version": 2, "revision": 3, "points": 32437}
         ],
         "robots": {"robot1": robot},
+        "sizes": {"live.fusion.tracks": 2, "live.held[*]": 17},
         "uptime_s": 42.0,
     }
     text = describe_status(status).splitlines()
+    assert "sizes: 2 containers of the writer (twin status --json lists them)" in text
     assert "store: read-only: the disk is full" in text
     assert "  ground-floor/lidar3d version 2 (revision 3): 32,437 points" in text
     assert "  robot1: on first-floor, namespace /robot1" in text

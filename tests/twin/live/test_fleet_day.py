@@ -15,6 +15,7 @@ from tests.twin.live_helpers import PREFIX, TWIN, box_turtle, observe, started
 from twin.config import FusionRules, load_config
 from twin.graph.meshcodec import encode_placement
 from twin.live import TwinService
+from twin.live.census import writer_sizes
 from twin.live.events import MapPublished, MapUpdated, ObservationAccepted
 from twin.live.membership import needs_store, selects
 from twin.selection.skill_selection import selection_query
@@ -177,6 +178,101 @@ def test_a_moved_table_keeps_its_mesh_and_changes_only_its_placement_in_the_grap
     observe(service, "robot1", box_turtle(TABLE, 6.0, 2.2, yaw=yaw))
     again = service.store.select(f"SELECT ?ply WHERE {{ <{TABLE}/geometry> fog:asPly_v1.0-binaryLE ?ply }}")
     assert meshes == again and len(again) == 1
+
+
+def test_a_turned_table_moved_many_times_writes_its_placement_alone_and_its_sizes_never_drift() -> None:
+    # fusion places a move at the held sizes, which the held pose gives back from a turned mesh only to
+    # about 1e-9 m: the box must still be the mesh it had, or every move writes a new mesh literal (a
+    # string the store keeps for ever) and the sizes walk away from what the robot reported
+    service, _ = started()
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, yaw=0.3))
+    ply = f"SELECT ?ply WHERE {{ <{TABLE}/geometry> fog:asPly_v1.0-binaryLE ?ply }}"
+    meshes = service.store.select(ply)
+    shape = service.live_maps.shape_of(TABLE)
+    assert shape is not None
+    rng = np.random.default_rng(2)
+    spots = zip(rng.uniform(5.0, 8.0, 40), rng.uniform(1.6, 2.4, 40), rng.uniform(0, 3, 40), strict=True)
+    moves = [(6.0, 2.3, 1.1), *spots]
+    for x, y, yaw in moves:
+        assert observe(service, "robot1", box_turtle(TABLE, float(x), float(y), yaw=float(yaw))).ok
+    assert service.revision > len(moves) // 2  # moves applied (fusion holds a short one back)
+    moved = service.live_maps.shape_of(TABLE)
+    assert moved is not None and moved[0] is shape[0]
+    assert service.store.select(ply) == meshes
+
+
+def test_moving_confirming_and_removing_the_same_tables_grows_neither_the_graph_nor_the_writer() -> None:
+    service, _ = started()
+    tables = {"robot1": ("urn:robot1:table", 4.5), "robot2": ("urn:robot2:table", 7.5)}
+    rng = np.random.default_rng(3)
+
+    def round_of(k: int) -> None:
+        for robot, (table, x) in tables.items():
+            if k % 10 == 9:
+                assert observe(service, robot, f"{PREFIX}<{table}> twin:removed true .".encode()).ok
+                continue
+            turtle = box_turtle(table, x + (0.9 if k % 2 else -0.9), 2.0, yaw=float(rng.uniform(0, 3)))
+            assert observe(service, robot, turtle).ok  # a move fusion applies at once (1.8 m)
+            assert observe(service, robot, turtle).body.get("unchanged") is True
+
+    for k in range(10):
+        round_of(k)
+    triples, sizes = len(service.store), writer_sizes({"live": service.live, "observer": service.observer})
+    revision = service.revision
+    for k in range(10, 30):
+        round_of(k)
+    assert service.revision == revision + 40
+    assert len(service.store) == triples
+    after = writer_sizes({"live": service.live, "observer": service.observer})
+    grown = {k: (sizes.get(k), v) for k, v in after.items() if v > sizes.get(k, 0) and k != "observer.parsed"}
+    assert grown == {}
+    status = service.status()["sizes"]
+    assert isinstance(status, dict) and after.items() <= status.items()  # what twin status says
+
+
+def test_fifty_robot_iris_for_one_table_leave_nothing_behind_once_their_aliases_expire() -> None:
+    # a tracker names the same table anew each time it loses it: each name becomes an alias (a triple
+    # and an entry in memory) until unused for [fusion] alias_ttl_s
+    now = [1_800_000_000 * 10**9]
+    service = TwinService(imported(box_lab()), load_config(), clock=lambda: now[0])
+    service.start()
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0, yaw=0.3))
+    observe(service, "robot2", box_turtle(TABLE, 6.6, 2.0, yaw=0.3))  # what memory keeps per robot
+    triples, sizes = len(service.store), writer_sizes({"live": service.live})
+    for i in range(50):
+        now[0] += 10**8
+        reply = observe(service, "robot2", box_turtle(f"urn:tracker:{i}", 6.61, 2.0, yaw=0.3))
+        assert reply.body["resolved"] == {f"urn:tracker:{i}": TABLE}
+    assert len(service.store) == triples + 50 and len(service.live.fusion.aliases) == 50
+    now[0] += service.config.fusion.alias_ttl_ns + 10**9
+    assert service.observer.expire_aliases() == 50
+    assert len(service.store) == triples
+    after = writer_sizes({"live": service.live})
+    assert {k: v for k, v in after.items() if v > sizes.get(k, 0)} == {}
+
+
+def test_a_removed_element_leaves_its_tombstone_but_no_cached_pose() -> None:
+    service, _ = started()
+    people = [f"urn:robot1:person-{i}" for i in range(5)]
+    for i, iri in enumerate(people):
+        assert observe(service, "robot1", box_turtle(iri, 3.0 + i, 2.0, sx=0.5, sy=0.5, sz=1.7, yaw=0.4)).ok
+    assert set(people) <= set(service.live.fusion.shape_poses)
+    for iri in people:
+        assert observe(service, "robot1", f"{PREFIX}<{iri}> twin:removed true .".encode()).ok
+    assert all(service.states[iri].removed for iri in people)
+    assert not set(people) & set(service.live.fusion.shape_poses)
+
+
+def test_a_writer_whose_queue_never_runs_dry_stops_taking_work_once_its_budget_is_spent() -> None:
+    # serve_forever flushes the store, expires aliases and saves snapshots between two process calls:
+    # at saturation the queue never runs dry, and without a budget none of them ever ran
+    service, _ = started()
+    replies: list[object] = []
+    for k in range(100):
+        service.submit_observation("robot1", box_turtle(TABLE, 4.5 + (k % 2), 2.0), replies.append)
+    handled = service.process(budget_s=0.0)
+    assert 0 < handled < 100 and service.queue_depth == 100 - handled
+    assert service.process() == 100 - handled and len(replies) == 100
 
 
 def test_the_store_is_flushed_and_housekeeping_runs_only_after_changes() -> None:
