@@ -244,22 +244,24 @@ def hold(
     return _unless_only_seen(ctx, replace(r, box=None, storey=None), state)
 
 
-def disputed(ctx: FusionContext, state: ElementState, seen: Pose, held: Pose, sense: int) -> bool:
-    """Whether a short move must wait: robots whose latest sighting confirmed the held pose within
-    ``disagreement_window_s`` are at least as many as the robots behind the move (this one and those
-    whose own sightings agree on it): two detectors biased against each other do not flap a still
-    object, and the majority decides. A move beyond ``certain_move_m`` never waits."""
+def disputed(ctx: FusionContext, state: ElementState, seen: Pose, held: Pose, sense: int) -> str:
+    """Whether a short move must wait ("" if not): robots whose latest sighting confirmed the held pose
+    within ``disagreement_window_s`` are at least as many as the robots behind the move (this one and
+    those whose own sightings agree on it): two detectors biased against each other do not flap a still
+    object, and the majority decides ("held"; "tie": as many on each side, nothing says which is right:
+    :mod:`twin.fusion.dispute`). A move beyond ``certain_move_m`` never waits."""
     if far(ctx.rules, seen, held):
-        return False
+        return ""
     track = ctx.memory.tracks.get(state.iri)
     if track is None:
-        return False
+        return ""
     window = ctx.rules.disagreement_window_ns
     against = {r for r, t in track.confirmed.items() if r != ctx.robot and sense - t <= window}
     if not against:
-        return False
+        return ""
     behind = {ctx.robot, *standing(ctx, ctx.rules.of(state.ifc_types), seen, held, track=track, sense=sense)}
-    return len(behind - against) <= len(against)
+    movers = len(behind - against)
+    return "" if movers > len(against) else "tie" if movers == len(against) else "held"
 
 
 def move(
