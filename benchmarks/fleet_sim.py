@@ -115,6 +115,8 @@ class World:
     objects: dict[int, Obj] = field(default_factory=dict)
     events: list[Event] = field(default_factory=list)
     views: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (time, polygon), recent
+    together: dict[int, int] = field(default_factory=dict)
+    """Desks pushed together: the pushed one -> the one it stands against (one box for a clusterer)."""
     lock: threading.Lock = field(default_factory=threading.Lock)
 
     def cell(self, x: float, y: float) -> tuple[int, int]:
@@ -208,6 +210,10 @@ BIAS_M = 0.2
 SETTLE_S = 3.0
 """An object's false-free cells count from this long after a robot first saw it since its last change
 (the sightings a short move needs, the acks, and the maps' coalescing)."""
+CLOCK_SETTLE_S = 5.0
+"""The daemon's ``[fusion] clock_settle_s``: before a robot's reports span it, its sense times are compared
+uncorrected (a robot 1.5 s behind has its sightings refused as stale); false-free cells count from
+``SETTLE_S`` after it."""
 
 
 def robot(  # noqa: PLR0917 (a thread's target)
@@ -267,6 +273,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 next_track, session, restart_at = 1, session + 1, now + RESTART_EVERY_S
             with world.lock:
                 objs = [o for o in world.objects.values() if o.present]
+                pushed = dict(world.together)
                 world.views.append((time.time(), polygon))
                 for ev in world.events:
                     if (
@@ -282,9 +289,33 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 visible = _inside(centres, polygon) & (
                     np.hypot(centres[:, 0] - x, centres[:, 1] - y) <= args.range
                 )
+                by_key = {o.key: o for o in objs}
+                blobbed: set[tuple[int, int]] = set()
                 for o, v in zip(objs, visible, strict=True):
                     if not v or rng.random() < args.p_miss:
                         continue
+                    if o.key in pushed or o.key in pushed.values():  # a clusterer's one box over both
+                        pair = next((b, a) for b, a in pushed.items() if o.key in (a, b))
+                        if pair[0] in by_key and pair[1] in by_key:
+                            seen_now.append(o.key)
+                            o.seen_at = now
+                            if o.seen_since_change is None:
+                                o.seen_since_change = now
+                            o.seen_by.add(f"{index}:{behaviour}")
+                            if pair not in blobbed:  # the blob once per observation
+                                blobbed.add(pair)
+                                blob = cluster(by_key[pair[1]], by_key[pair[0]])
+                                lines.append(
+                                    box_line(
+                                        f"urn:sim:{name}:blob-{pair[1]}-{pair[0]}",
+                                        storey,
+                                        blob,
+                                        rng,
+                                        args,
+                                        behaviour,
+                                    )
+                                )
+                            continue
                     if now - last_seen.get(o.key, -1e9) > 3.0:
                         epochs[o.key] = epochs.get(o.key, -1) + 1
                         tracks.pop(o.key, None)
@@ -299,18 +330,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         iri = f"urn:sim:{name}:s{session}:trk-{tracks[o.key]}"
                     else:
                         iri = f"urn:sim:{name}:trk-{o.key}-{epochs[o.key]}"
-                    bx = o.x + rng.gauss(0, args.sigma_pos) + (BIAS_M if behaviour == "bias" else 0.0)
-                    by = o.y + rng.gauss(0, args.sigma_pos)
-                    byaw = (
-                        o.yaw
-                        + rng.gauss(0, math.radians(args.sigma_yaw))
-                        + (math.pi if rng.random() < 0.3 else 0)
-                    )
-                    sx, sy, sz = (max(0.05, v + rng.gauss(0, 0.01)) for v in (o.sx, o.sy, o.sz))
-                    lines.append(
-                        f'<{iri}> twin:ifcClass "IfcFurniture" ; twin:storey "{storey}" ; '
-                        f'twin:box "{bx:.4f} {by:.4f} {sz / 2:.4f} {sx:.4f} {sy:.4f} {sz:.4f} {byaw:.4f}" .'
-                    )
+                    lines.append(box_line(iri, storey, o, rng, args, behaviour))
                     seen_now.append(o.key)
             if rng.random() < args.p_false:
                 fx, fy = polygon[rng.randrange(len(polygon))]
@@ -353,6 +373,13 @@ def robot(  # noqa: PLR0917 (a thread's target)
             if changed and args.verbose:
                 brief = {k: ack.get(k) for k in ("revision", "upserted", "removed", "refined", "merged")}
                 brief["seen"] = seen_now
+                decided = {}
+                for k in seen_now:  # the rule that decided each upserted element (explain)
+                    o = world.objects[k]
+                    for e in twin.explain(storey, args.skill, o.x, o.y)["occupied_by"]:
+                        if e["iri"] in (ack.get("upserted") or []):
+                            decided[e["iri"]] = e.get("fusion", {}).get("decided")
+                brief["decided"] = decided
                 print(f"{name} {sent - world_t0:.1f} {json.dumps(brief)}", flush=True)
             with world.lock:
                 for ev in world.events:
@@ -364,10 +391,29 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         ev.shown = acked
 
 
+def box_line(  # noqa: PLR0917
+    iri: str, storey: str, o: Obj, rng: random.Random, args: argparse.Namespace, behaviour: str
+) -> str:
+    """A detector's box for ``o``: noise, a flipped heading now and then, the ``bias`` behaviour's offset."""
+    bx = o.x + rng.gauss(0, args.sigma_pos) + (BIAS_M if behaviour == "bias" else 0.0)
+    by = o.y + rng.gauss(0, args.sigma_pos)
+    byaw = o.yaw + rng.gauss(0, math.radians(args.sigma_yaw)) + (math.pi if rng.random() < 0.3 else 0)
+    sx, sy, sz = (max(0.05, v + rng.gauss(0, 0.01)) for v in (o.sx, o.sy, o.sz))
+    return (
+        f'<{iri}> twin:ifcClass "IfcFurniture" ; twin:storey "{storey}" ; '
+        f'twin:box "{bx:.4f} {by:.4f} {sz / 2:.4f} {sx:.4f} {sy:.4f} {sz:.4f} {byaw:.4f}" .'
+    )
+
+
+def cluster(a: Obj, b: Obj) -> Obj:
+    """The one box a lidar clusterer makes of desk ``b`` pushed against ``a``'s end (same yaw)."""
+    return Obj(-1, (a.x + b.x) / 2, (a.y + b.y) / 2, a.yaw, a.sx + b.sx, max(a.sy, b.sy), max(a.sz, b.sz))
+
+
 # --- the sampler -----------------------------------------------------------------------------------------
 
 
-def twin_elements(client: Any, storey: str) -> dict[str, tuple[float, float]]:
+def twin_elements(client: Any, storey: str) -> dict[str, Any]:
     from twin.fusion.footprints import pose_of
     from twin.graph.meshcodec import decode_mesh, decode_placement
 
@@ -378,8 +424,7 @@ def twin_elements(client: Any, storey: str) -> dict[str, tuple[float, float]]:
     )["results"]["bindings"]
     out = {}
     for r in rows:
-        p = pose_of((decode_mesh(r["ply"]["value"]), decode_placement(r["pl"]["value"])))
-        out[r["e"]["value"]] = (p.cx, p.cy)
+        out[r["e"]["value"]] = pose_of((decode_mesh(r["ply"]["value"]), decode_placement(r["pl"]["value"])))
     return out
 
 
@@ -391,16 +436,27 @@ def sample(  # noqa: PLR0917
     skill: str,
     t0: float,
     before: dict[str, tuple[float, float]],
+    verbose: bool = False,
 ) -> dict[str, Any]:
-    elements = twin_elements(client, storey)
+    from twin.fusion.footprints import corners
+
+    poses = twin_elements(client, storey)
+    elements = {iri: (p.cx, p.cy) for iri, p in poses.items()}
     now = time.time()
     with world.lock:
         present = [o for o in world.objects.values() if o.present]
         world.views = [(t, p) for t, p in world.views if now - t < 60.0]
         old_views = [p for t, p in world.views if now - t >= GHOST_VIEWED_S]
     per_obj: dict[int, int] = {}
-    ghosts, viewed_ghosts = [], 0
+    ghosts, viewed_ghosts, clusters = [], 0, 0
+    covered: set[int] = set()
+    centres = np.array([(o.x, o.y) for o in present]) if present else np.zeros((0, 2))
     for iri, (ex, ey) in elements.items():
+        within = _inside(centres, corners(poses[iri])) if len(centres) else np.zeros(0, bool)
+        if within.sum() >= 2:  # one box over desks pushed together (a clusterer's): theirs
+            clusters += 1
+            covered.update(o.key for o, w in zip(present, within, strict=True) if w)
+            continue
         near = [o for o in present if math.dist((o.x, o.y), (ex, ey)) <= MATCH_M]
         if near:
             best = min(near, key=lambda o: math.dist((o.x, o.y), (ex, ey)))
@@ -413,7 +469,10 @@ def sample(  # noqa: PLR0917
     missing = sum(
         1
         for o in present
-        if o.key not in per_obj and o.seen_at > o.changed_at + 1.0 and now - o.changed_at > GHOST_VIEWED_S
+        if o.key not in per_obj
+        and o.key not in covered
+        and o.seen_at > o.changed_at + 1.0
+        and now - o.changed_at > GHOST_VIEWED_S
     )
     false_removals = 0  # elements gone although their object stands there, still, and no element has it
     for iri, place in before.items():
@@ -435,12 +494,24 @@ def sample(  # noqa: PLR0917
     cells = int((grid.data != truth).sum()) if grid.data.shape == truth.shape else -1
     with world.lock:
         settled = [
-            o for o in present if o.seen_since_change is not None and now - o.seen_since_change >= SETTLE_S
+            o
+            for o in present
+            if o.seen_since_change is not None
+            and now - max(o.seen_since_change, t0 + CLOCK_SETTLE_S) >= SETTLE_S
         ]
     status = client.status()
     known = set(status.get("fusion", {}).get("detector_biases", {}))
     free_by_object = {o.key: n for o in settled if (n := false_free_cells(grid, o))}
     unobservable = {k for k in free_by_object if _unobservable(world.objects[k], known)}
+    why = {}
+    if verbose:  # what the twin says of the cells (the deciding rule, a dispute)
+        for k in free_by_object:
+            o = world.objects[k]
+            answer = client.explain(storey, skill, o.x, o.y)
+            why[k] = [
+                {"iri": e["iri"], **{key: e.get("fusion", {}).get(key) for key in ("decided", "disputed")}}
+                for e in [*answer["occupied_by"], *answer["near"][:2]]
+            ]
     false_free = sum(n for k, n in free_by_object.items() if k not in unobservable)
     where_free = {
         k: [
@@ -456,6 +527,7 @@ def sample(  # noqa: PLR0917
                 default=None,
             ),
             sorted(world.objects[k].seen_by),
+            why.get(k),
         ]
         for k, n in free_by_object.items()
     }
@@ -464,6 +536,7 @@ def sample(  # noqa: PLR0917
         "elements": len(elements),
         "objects": len(present),
         "duplicates": duplicates,
+        "clusters": clusters,
         "ghosts": len(ghosts),
         "viewed_ghosts": viewed_ghosts,
         "missing": missing,
@@ -561,6 +634,60 @@ def pull_out(  # noqa: PLR0917
             return
 
 
+APART_AFTER_S = 10.0
+"""Desks pushed together are pushed apart this long after."""
+
+
+def push_desk(  # noqa: PLR0917
+    world: World, rng: random.Random, now: float, oracle: Any, storey: str, elevation: float
+) -> tuple[int, int] | None:
+    """A new desk like a present one, pushed against its end (same yaw and sizes): returns (pushed,
+    against), or None when no desk has free floor at an end."""
+    desks = [o for o in world.objects.values() if o.present and o.key not in world.together]
+    desks = [o for o in desks if o.key not in world.together.values()]
+    rng.shuffle(desks)
+    for a in desks:
+        c, s = math.cos(a.yaw), math.sin(a.yaw)
+        for side in (1, -1):
+            x, y = a.x + side * a.sx * c, a.y + side * a.sx * s
+            b = Obj(max(world.objects) + 1, x, y, a.yaw, a.sx, a.sy, a.sz, changed_at=now)
+            crowded = any(
+                o.present and o.key != a.key and math.dist((o.x, o.y), (x, y)) < 1.0
+                for o in world.objects.values()
+            )
+            if all(world.is_free(*p) for p in b.corners()) and not crowded:
+                world.objects[b.key] = b
+                world.together[b.key] = a.key
+                a.changed_at, a.seen_since_change, a.seen_by = now, None, set()
+                world.events.append(Event("push", b.key, now, (x, y), b.corners()))
+                apply_truth(oracle, truth_box(b, storey, elevation))
+                return b.key, a.key
+    return None
+
+
+def push_apart(  # noqa: PLR0917
+    world: World, pushed: int, against: int, now: float, oracle: Any, storey: str, elevation: float
+) -> None:
+    """The pushed desk moved 0.8 m away from the one it stood against (taken away if there is no room)."""
+    b, a = world.objects[pushed], world.objects[against]
+    world.together.pop(pushed, None)
+    d = math.dist((a.x, a.y), (b.x, b.y))
+    x, y = b.x + 0.8 * (b.x - a.x) / d, b.y + 0.8 * (b.y - a.y) / d
+    world.events.append(Event("apart", pushed, now, (b.x, b.y), b.corners()))
+    moved = Obj(-1, x, y, b.yaw, b.sx, b.sy, b.sz)
+    crowded = any(
+        o.present and o.key != pushed and math.dist((o.x, o.y), (x, y)) < 1.0 for o in world.objects.values()
+    )
+    if all(world.is_free(*p) for p in moved.corners()) and not crowded:
+        b.x, b.y = x, y
+        apply_truth(oracle, truth_box(b, storey, elevation))
+    else:
+        b.present = False
+        apply_truth(oracle, f"{PREFIX}<urn:truth:{b.key}> twin:removed true .".encode())
+    for o in (a, b):
+        o.changed_at, o.seen_since_change, o.seen_by = now, None, set()
+
+
 def oracle_service(store: Path, work: Path) -> Any:
     from dataclasses import replace
 
@@ -613,6 +740,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         storey, skill = "ground-floor", "lab-navigation"
     else:
         storey, skill = live.busiest(store)[0], "navigation"
+    args.skill = skill
     oracle = oracle_service(store, work)
     m = oracle.live_maps.skill_maps[(storey, skill)]
     f = m.plan.frame
@@ -642,7 +770,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     # the script: moves, removals, appearances over the middle of the run
     t_first, t_last = args.duration * 0.2, args.duration * 0.75
     kinds = (
-        ["move"] * args.moves + ["remove"] * args.removals + ["appear"] * args.appears + ["tuck"] * args.tucks
+        ["move"] * args.moves
+        + ["remove"] * args.removals
+        + ["appear"] * args.appears
+        + ["tuck"] * args.tucks
+        + ["push"] * args.pushes
     )
     rng.shuffle(kinds)
     script = [(t_first + (t_last - t_first) * i / max(1, len(kinds)), k) for i, k in enumerate(kinds)]
@@ -677,6 +809,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 t.start()
             next_sample, step = t0 + 1.0, 0
             pulls: list[tuple[float, int, int]] = []  # (when, chair, table): a tucked chair pulled out
+            aparts: list[tuple[float, int, int]] = []  # (when, pushed, against): desks pushed apart
             previous: dict[str, tuple[float, float]] = {}
             cpu_main = None
             while time.time() < sat_end:
@@ -685,11 +818,20 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                     _, chair_key, table_key = pulls.pop(0)
                     with world.lock:
                         pull_out(world, chair_key, table_key, now, oracle, storey, elevation)
+                while aparts and now >= aparts[0][0]:
+                    _, pushed, against = aparts.pop(0)
+                    with world.lock:
+                        push_apart(world, pushed, against, now, oracle, storey, elevation)
                 while step < len(script) and now - t0 >= script[step][0]:
                     _, kind = script[step]
                     step += 1
                     with world.lock:
                         present = [o for o in world.objects.values() if o.present]
+                        if kind == "push":
+                            together = push_desk(world, rng, now, oracle, storey, elevation)
+                            if together is not None:
+                                aparts.append((now + APART_AFTER_S, *together))
+                            continue
                         if kind == "tuck":
                             tucked = tuck_chair(world, rng, now, oracle, storey, elevation)
                             if tucked is not None:
@@ -704,6 +846,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                             world.objects[k] = o
                             world.events.append(Event("appear", k, now, (o.x, o.y), o.corners()))
                             apply_truth(oracle, truth_box(o, storey, elevation))
+                            continue
+                        present = [o for o in present if o.key not in world.together]
+                        present = [o for o in present if o.key not in world.together.values()]
+                        if not present:
                             continue
                         o = rng.choice(present)
                         world.events.append(Event(kind, o.key, now, (o.x, o.y), o.corners()))
@@ -721,7 +867,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                         o.seen_since_change = None
                         o.seen_by = set()
                 if now >= next_sample and now < t_end:
-                    samples.append(sample(client, world, storey, oracle, skill, t0, previous))
+                    samples.append(sample(client, world, storey, oracle, skill, t0, previous, args.verbose))
                     next_sample += 1.0
                     if args.verbose:
                         print(json.dumps(samples[-1]), flush=True)
@@ -772,6 +918,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "appears": sum(e.kind == "appear" for e in world.events),
         "tucks": sum(e.kind == "tuck" for e in world.events),
         "pulls": sum(e.kind == "pull" for e in world.events),
+        "pushes": sum(e.kind == "push" for e in world.events),
+        "aparts": sum(e.kind == "apart" for e in world.events),
+        "max_clusters": max((s["clusters"] for s in samples), default=0),
         "final": final,
         "max_duplicates": max((s["duplicates"] for s in late), default=0),
         "max_viewed_ghosts": max((s["viewed_ghosts"] for s in late), default=0),
@@ -856,6 +1005,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--removals", type=int, default=1)
     p.add_argument("--appears", type=int, default=0)
     p.add_argument("--tucks", type=int, default=0, help="chairs tucked under tables, pulled out 8 s later")
+    p.add_argument(
+        "--pushes", type=int, default=0, help="desks pushed against another (one box), apart 10 s later"
+    )
     p.add_argument("--seed", type=int, default=1)
     p.add_argument(
         "--behaviours",

@@ -191,8 +191,9 @@ def confirmation(
     mean = None
     if refinement is not None and refinement.n + 1 >= rules.refine_after:
         mean = mean_with(refinement, sighted)
-    if mean is not None and not confirms(
-        class_rules, mean, held, sizes=False, fraction=rules.refine_fraction
+    if mean is not None and (
+        not confirms(class_rules, mean, held, sizes=False, fraction=rules.refine_fraction)
+        or centre_distance(mean, held) > rules.refine_distance_m  # a map cell off: free floor inside it
     ):
         r, at = placed(ctx, r, state, at=mean, held=held, storey=storey, sizes=sizes)
         n = refinement.n + 1 if refinement else 1

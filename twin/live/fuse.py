@@ -229,7 +229,9 @@ def _held_element(
                 r = widen(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense)
             else:
                 why = "more robots confirmed the held pose within disagreement_window_s"  # a bias
-                r = hold(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes, why=why)
+                r = hold(
+                    ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes, why=why
+                )
         else:
             r, pose = move(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes)
             r = merge_or_move(ctx, r, state, pose, storey.key, sense=sense)
