@@ -23,7 +23,7 @@ import numpy as np
 from twin.config import FusionRules
 from twin.config.fusion import FusionClassRules
 from twin.fusion.clocks import changes_something
-from twin.fusion.effects import hold_move, moved, refine, reset_refinement, size_evidence
+from twin.fusion.effects import confirmed_by, hold_move, moved, refine, reset_refinement, size_evidence
 from twin.fusion.footprints import Pose, aligned, box_pose, centre_distance, yaw_difference
 from twin.fusion.memory import Refinement, SizeEvidence, Track
 from twin.records import ElementReport, ObservedBox
@@ -283,6 +283,7 @@ def move(
     track = ctx.memory.tracks.get(target)
     ctx.out.effects.append(reset_refinement(target))
     ctx.out.effects.append(moved(target))
+    ctx.out.effects.append(confirmed_by(target, {ctx.robot: sense}))  # the mover sees it there
     ctx.decide(target, f"move by {ctx.robot}")
     class_rules = ctx.rules.of(state.ifc_types)
     if (

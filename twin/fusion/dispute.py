@@ -35,7 +35,14 @@ from twin.fusion.confirm import (
     placed,
     standing,
 )
-from twin.fusion.effects import disputed_poses, moved, reset_refinement, size_evidence, took_side
+from twin.fusion.effects import (
+    confirmed_by,
+    disputed_poses,
+    moved,
+    reset_refinement,
+    size_evidence,
+    took_side,
+)
 from twin.fusion.footprints import Pose, aligned, box_pose, centre_distance, corners
 from twin.fusion.memory import Dispute, Refinement
 from twin.fusion.merge import merge_or_move
@@ -175,6 +182,7 @@ def covered(
     ctx.out.effects.append(reset_refinement(target))
     if side == 1:
         ctx.out.effects.append(moved(target))
+    ctx.out.effects.append(confirmed_by(target, {r: ns for r, (s, ns) in sides.items() if s == side}))
     ctx.decide(target, f"dispute settled: {counts[side]} robots against {counts[1 - side]}")
     ctx.out.notes.append(
         f"<{target}>: the robots agree where it stands ({counts[side]} against {counts[1 - side]})"

@@ -194,3 +194,16 @@ def took_side(iri: str, robot: str, side: int, sense: int) -> Effect:
             d.sides[robot] = (side, sense)
 
     return run
+
+
+def confirmed_by(iri: str, robots: dict[str, int]) -> Effect:
+    """``robots`` (-> the sense time) see ``iri`` where it now stands: the robot that created or moved it,
+    the side that settled a dispute. Until their next sightings, another robot's short move waits for
+    them as for any confirmation (a biased robot's two quick sightings do not move it first)."""
+
+    def run(m: FusionMemory) -> None:
+        t = m.track(iri)
+        for robot, sense in robots.items():
+            t.confirmed[robot] = max(sense, t.confirmed.get(robot, sense))
+
+    return run

@@ -76,7 +76,8 @@ def test_the_imported_table_moved_by_robots_keeps_its_mesh_and_never_takes_their
 
 def test_a_noted_short_move_is_acked_pending_and_explain_shows_it_with_the_deciding_rule() -> None:
     service, _ = started()
-    observe(service, "robot1", box(DESK, 6.0, 2.0, sx=1.0, sy=0.6))
+    long_ago = service.clock() - 20 * 10**9  # robot1's sighting no longer holds a move back
+    observe(service, "robot1", sensed(box(DESK, 6.0, 2.0, sx=1.0, sy=0.6), long_ago))
     first = observe(service, "robot2", box("urn:robot2:d", 6.25, 2.0, sx=1.0, sy=0.6))  # 25 cm, once
     assert first.body["pending"] == [DESK] and first.body["unchanged"] is True
     fused = fusion_of(service.live, DESK)

@@ -55,7 +55,19 @@ def test_a_desk_two_robots_disagree_on_covers_both_poses_until_a_third_robot_tak
     bounds = service.live_maps.bounds_of(DESK)
     assert bounds is not None and bounds[3] - bounds[0] == pytest.approx(1.2, abs=0.02)
     assert (bounds[0] + bounds[3]) / 2 == pytest.approx(OX + 5.0, abs=0.02)
+    pass_by(service, clock, "robot1", DESK, 5.2)  # the loser keeps watching: outvoted, no flap
     assert service.revision == 3  # created, covered, settled
+
+
+def test_a_biased_robots_two_quick_sightings_right_after_a_creation_do_not_move_it_first() -> None:
+    service, _ = started()
+    clock = FakeClock(service.clock())
+    with_clock(service, clock)
+    observe(service, "robot1", sensed(box(DESK, 5.0, 2.0, sx=1.2, sy=0.6), clock.now))  # its creator
+    for _ in range(2):  # before robot1's next sighting, robot2 sees it 20 cm off, twice
+        clock.now += 100 * MS
+        observe(service, "robot2", sensed(box("urn:robot2:d", 5.2, 2.0, sx=1.2, sy=0.6), clock.now))
+    assert cell(service, 4.43, 2.0) == 100 and cell(service, 5.77, 2.0) == 100  # covers both
 
 
 def test_a_short_move_both_robots_see_is_applied() -> None:
