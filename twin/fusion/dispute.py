@@ -71,6 +71,19 @@ def covering(a: Pose, b: Pose) -> Pose:
     )
 
 
+def still_covers(dispute: Dispute | None, held: Pose) -> bool:
+    """Whether the element still stands as the cover of ``dispute``'s poses (a mesh or an operator's box
+    written since ends the dispute)."""
+    if dispute is None:
+        return False
+    cover = covering(*dispute.poses)
+    return (
+        centre_distance(cover, held) < 0.01
+        and abs(cover.sx - held.sx) < 0.01
+        and abs(cover.sy - held.sy) < 0.01
+    )
+
+
 def _behind(
     ctx: FusionContext, state: ElementState, seen: Pose, held: Pose, sense: int
 ) -> tuple[set[str], Pose]:

@@ -57,7 +57,7 @@ from twin.fusion.confirm import (
     unsure_move,
 )
 from twin.fusion.context import Fused, FusionContext, Pending, report_pose
-from twin.fusion.dispute import covered, widen
+from twin.fusion.dispute import covered, still_covers, widen
 from twin.fusion.effects import sighting
 from twin.fusion.footprints import Pose
 from twin.fusion.gates import compatible, is_candidate
@@ -211,7 +211,7 @@ def _held_element(
     if held is not None and pose is not None and storey is not None:
         class_rules = ctx.rules.of(state.ifc_types)
         track = ctx.memory.tracks.get(target)
-        covers = track is not None and track.dispute is not None  # robots disagree: it covers both
+        covers = track is not None and still_covers(track.dispute, held)  # robots disagree: it covers both
         sizes = None if covers else resize_evidence(ctx, state, pose, held, sense)  # on strong evidence
         confirmed = confirms(class_rules, pose, held, sizes=False)
         if not covers and not confirmed and echo(ctx, state, pose, sense):
