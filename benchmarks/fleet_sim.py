@@ -9,7 +9,9 @@ the empty building), each as a box with noise (``--sigma-pos``, ``--sigma-yaw``)
 ``--p-miss``, with a tracker IRI of its own that it renumbers when it loses an object for 3 s; now and
 then a false detection; and its view (``a twin:View``: the polygon, ``twin:detects "IfcFurniture"``,
 the sense time). Objects move, vanish and appear at scripted times (``--moves``, ``--removals``,
-``--appears``, spread over the middle of the run). The truth is also applied, exactly, to a twin of its
+``--appears``, spread over the middle of the run; ``--tucks``: a chair tucked under a table, pulled out
+8 s later; ``--pushes``: a desk pushed against another's end, which the robots' clusterer then reports
+as one box over both, pushed 0.8 m apart 10 s later). The truth is also applied, exactly, to a twin of its
 own in this process (fusion off), whose maps are the maps of the true world.
 
 Every second: the twin's IfcFurniture elements (SPARQL) against the true objects (within 0.5 m):
@@ -17,7 +19,11 @@ duplicates, ghosts (elements where no object is), ghosts whose place a robot vie
 (those fusion should have removed), objects missing, the navigation map's cells that differ from the
 true world's, and the **false-free cells**: the cells more than one cell inside a true object's
 footprint that the navigation map shows free, for objects a robot saw at least ``SETTLE_S`` ago since
-their last change (free floor where a real object stands: a robot would plan through it). At the
+their last change, and not before the daemon's clocks settle (``CLOCK_SETTLE_S``) (free floor where a
+real object stands: a robot would plan through it; cells of objects only the ``bias`` robot saw, while
+the daemon does not know its bias, are counted apart: nothing can place them right). An element
+whose footprint holds two objects' centres (a clusterer's box over pushed desks) is a **cluster**:
+theirs, neither a duplicate nor a ghost. At the
 end: removals (precision and recall within 10 s of the first view without the object), the time
 from a move's first sighting to the ack that shows it, revisions per true change, acked sightings
 per second, and the daemon's CPU per acked observation. ``--saturate S`` adds S seconds in which the
