@@ -250,7 +250,10 @@ def disputed(ctx: FusionContext, state: ElementState, seen: Pose, held: Pose, se
     within ``disagreement_window_s`` are at least as many as the robots behind the move (this one and
     those whose own sightings agree on it): two detectors biased against each other do not flap a still
     object, and the majority decides ("held"; "tie": as many on each side, nothing says which is right:
-    :mod:`twin.fusion.dispute`). A move beyond ``certain_move_m`` never waits."""
+    :mod:`twin.fusion.dispute`). Robots that confirmed it earlier than the window (their latest sighting)
+    make a "tie" too when they are as many: a robot's box then covers both poses until they see it
+    again (two robots passing a desk minutes apart do not move it back and forth). A move beyond
+    ``certain_move_m`` never waits."""
     if far(ctx.rules, seen, held):
         return ""
     track = ctx.memory.tracks.get(state.iri)
@@ -258,9 +261,12 @@ def disputed(ctx: FusionContext, state: ElementState, seen: Pose, held: Pose, se
         return ""
     window = ctx.rules.disagreement_window_ns
     against = {r for r, t in track.confirmed.items() if r != ctx.robot and sense - t <= window}
-    if not against:
+    earlier = {r for r in track.confirmed if r != ctx.robot}  # their latest sighting, at any time
+    if not earlier:
         return ""
     behind = {ctx.robot, *standing(ctx, ctx.rules.of(state.ifc_types), seen, held, track=track, sense=sense)}
+    if not against:  # as many robots saw it where it is held, earlier: it covers both until one returns
+        return "" if len(behind - earlier) > len(earlier) else "tie"
     movers = len(behind - against)
     return "" if movers > len(against) else "tie" if movers == len(against) else "held"
 

@@ -128,11 +128,10 @@ def widen(
     behind, other = _behind(ctx, state, seen, held, sense)
     other = replace(other, sx=held.sx, sy=held.sy, sz=held.sz)  # the sizes are not disputed
     cover = covering(held, other)
-    window = ctx.rules.disagreement_window_ns
-    sides = {
+    sides = {  # the robots whose latest sighting confirmed the held pose, at any time
         robot: (0, t)
         for robot, t in (track.confirmed.items() if track is not None else ())
-        if robot not in behind and sense - t <= window
+        if robot not in behind
     }
     sides.update({robot: (1, sense) for robot in behind})
     r, pose = placed(ctx, r, state, at=cover, held=held, storey=storey, sizes=(cover.sx, cover.sy, cover.sz))

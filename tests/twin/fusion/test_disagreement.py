@@ -83,14 +83,21 @@ def test_a_short_move_both_robots_see_is_applied() -> None:
     assert service.revision == 2 and cell(service, 5.82, 2.0) == 100
 
 
-def test_a_short_move_one_robot_sees_long_after_the_others_last_sighting_is_applied() -> None:
+def test_a_short_move_one_robot_sees_long_after_the_others_last_sighting_covers_both_until_it_returns() -> (
+    None
+):
     service, _ = started()
     clock = FakeClock(service.clock())
     with_clock(service, clock)
     pass_by(service, clock, "robot1", DESK, 5.0)
     clock.now += 20 * S
-    pass_by(service, clock, "robot2", "urn:robot2:d", 5.25, sightings=2)
-    assert service.revision == 2
+    pass_by(service, clock, "robot2", "urn:robot2:d", 5.25, sightings=2)  # moved, or robot2 is off
+    assert service.revision == 2 and cell(service, 4.43, 2.0) == 100 and cell(service, 5.82, 2.0) == 100
+    clock.now += 20 * S
+    pass_by(service, clock, "robot1", DESK, 5.25, sightings=2)  # robot1 back: it did move
+    bounds = service.live_maps.bounds_of(DESK)
+    assert bounds is not None and bounds[3] - bounds[0] == pytest.approx(1.2, abs=0.02)
+    assert (bounds[0] + bounds[3]) / 2 == pytest.approx(OX + 5.25, abs=0.02) and service.revision == 3
 
 
 def test_a_desk_placed_by_a_biased_robot_follows_the_two_robots_that_agree_while_it_keeps_watching() -> None:
