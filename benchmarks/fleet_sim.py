@@ -305,9 +305,10 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         if pair[0] in by_key and pair[1] in by_key:
                             seen_now.append(o.key)
                             o.seen_at = now
-                            if o.seen_since_change is None:
-                                o.seen_since_change = now
-                            o.seen_by.add(f"{index}:{behaviour}")
+                            if behaviour != "late":  # the late robot's, once its report arrives
+                                o.seen_by.add(f"{index}:{behaviour}")
+                                if o.seen_since_change is None:
+                                    o.seen_since_change = now
                             if pair not in blobbed:  # the blob once per observation
                                 blobbed.add(pair)
                                 blob = cluster(by_key[pair[1]], by_key[pair[0]])
@@ -327,9 +328,10 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         tracks.pop(o.key, None)
                     last_seen[o.key] = now
                     o.seen_at = now
-                    if o.seen_since_change is None:
-                        o.seen_since_change = now
-                    o.seen_by.add(f"{index}:{behaviour}")
+                    if behaviour != "late":  # the late robot's, once its report arrives
+                        o.seen_by.add(f"{index}:{behaviour}")
+                        if o.seen_since_change is None:
+                            o.seen_since_change = now
                     if behaviour == "restart":
                         if o.key not in tracks:
                             tracks[o.key], next_track = next_track, next_track + 1
@@ -362,6 +364,12 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 if outbox[0][0] > time.time():
                     continue
                 _, payload, seen_now = outbox.pop(0)
+                with world.lock:
+                    for k in seen_now:
+                        o = world.objects[k]
+                        o.seen_by.add(f"{index}:{behaviour}")
+                        if o.seen_since_change is None:
+                            o.seen_since_change = time.time()
             stats.sent += 1
             sent = time.time()
             try:
