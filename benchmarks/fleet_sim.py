@@ -9,7 +9,9 @@ the empty building), each as a box with noise (``--sigma-pos``, ``--sigma-yaw``)
 ``--p-miss``, with a tracker IRI of its own that it renumbers when it loses an object for 3 s; now and
 then a false detection; and its view (``a twin:View``: the polygon, ``twin:detects "IfcFurniture"``,
 the sense time). Objects move, vanish and appear at scripted times (``--moves``, ``--removals``,
-``--appears``, spread over the middle of the run). The truth is also applied, exactly, to a twin of its
+``--appears``, spread over the middle of the run; ``--tucks``: a chair tucked under a table, pulled out
+8 s later; ``--pushes``: a desk pushed against another's end, which the robots' clusterer then reports
+as one box over both, pushed 0.8 m apart 10 s later). The truth is also applied, exactly, to a twin of its
 own in this process (fusion off), whose maps are the maps of the true world.
 
 Every second: the twin's IfcFurniture elements (SPARQL) against the true objects (within 0.5 m):
@@ -17,7 +19,11 @@ duplicates, ghosts (elements where no object is), ghosts whose place a robot vie
 (those fusion should have removed), objects missing, the navigation map's cells that differ from the
 true world's, and the **false-free cells**: the cells more than one cell inside a true object's
 footprint that the navigation map shows free, for objects a robot saw at least ``SETTLE_S`` ago since
-their last change (free floor where a real object stands: a robot would plan through it). At the
+their last change, and not before the daemon's clocks settle (``CLOCK_SETTLE_S``) (free floor where a
+real object stands: a robot would plan through it; cells of objects only the ``bias`` robot saw, while
+the daemon does not know its bias, are counted apart: nothing can place them right). An element
+whose footprint holds two objects' centres (a clusterer's box over pushed desks) is a **cluster**:
+theirs, neither a duplicate nor a ghost. At the
 end: removals (precision and recall within 10 s of the first view without the object), the time
 from a move's first sighting to the ack that shows it, revisions per true change, acked sightings
 per second, and the daemon's CPU per acked observation. ``--saturate S`` adds S seconds in which the
@@ -81,6 +87,8 @@ class Obj:
     seen_at: float = -1.0
     seen_since_change: float | None = None
     """When a robot first saw it after its last change (its false-free cells count from then)."""
+    seen_by: set[str] = field(default_factory=set)
+    """The robots (their behaviours) that saw it since its last change."""
 
     def corners(self) -> np.ndarray:
         c, s = math.cos(self.yaw), math.sin(self.yaw)
@@ -113,6 +121,8 @@ class World:
     objects: dict[int, Obj] = field(default_factory=dict)
     events: list[Event] = field(default_factory=list)
     views: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (time, polygon), recent
+    together: dict[int, int] = field(default_factory=dict)
+    """Desks pushed together: the pushed one -> the one it stands against (one box for a clusterer)."""
     lock: threading.Lock = field(default_factory=threading.Lock)
 
     def cell(self, x: float, y: float) -> tuple[int, int]:
@@ -206,6 +216,10 @@ BIAS_M = 0.2
 SETTLE_S = 3.0
 """An object's false-free cells count from this long after a robot first saw it since its last change
 (the sightings a short move needs, the acks, and the maps' coalescing)."""
+CLOCK_SETTLE_S = 5.0
+"""The daemon's ``[fusion] clock_settle_s``: before a robot's reports span it, its sense times are compared
+uncorrected (a robot 1.5 s behind has its sightings refused as stale); false-free cells count from
+``SETTLE_S`` after it."""
 
 
 def robot(  # noqa: PLR0917 (a thread's target)
@@ -265,6 +279,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 next_track, session, restart_at = 1, session + 1, now + RESTART_EVERY_S
             with world.lock:
                 objs = [o for o in world.objects.values() if o.present]
+                pushed = dict(world.together)
                 world.views.append((time.time(), polygon))
                 for ev in world.events:
                     if (
@@ -280,34 +295,50 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 visible = _inside(centres, polygon) & (
                     np.hypot(centres[:, 0] - x, centres[:, 1] - y) <= args.range
                 )
+                by_key = {o.key: o for o in objs}
+                blobbed: set[tuple[int, int]] = set()
                 for o, v in zip(objs, visible, strict=True):
                     if not v or rng.random() < args.p_miss:
                         continue
+                    if o.key in pushed or o.key in pushed.values():  # a clusterer's one box over both
+                        pair = next((b, a) for b, a in pushed.items() if o.key in (a, b))
+                        if pair[0] in by_key and pair[1] in by_key:
+                            seen_now.append(o.key)
+                            o.seen_at = now
+                            if behaviour != "late":  # the late robot's, once its report arrives
+                                o.seen_by.add(f"{index}:{behaviour}")
+                                if o.seen_since_change is None:
+                                    o.seen_since_change = now
+                            if pair not in blobbed:  # the blob once per observation
+                                blobbed.add(pair)
+                                blob = cluster(by_key[pair[1]], by_key[pair[0]])
+                                lines.append(
+                                    box_line(
+                                        f"urn:sim:{name}:blob-{pair[1]}-{pair[0]}",
+                                        storey,
+                                        blob,
+                                        rng,
+                                        args,
+                                        behaviour,
+                                    )
+                                )
+                            continue
                     if now - last_seen.get(o.key, -1e9) > 3.0:
                         epochs[o.key] = epochs.get(o.key, -1) + 1
                         tracks.pop(o.key, None)
                     last_seen[o.key] = now
                     o.seen_at = now
-                    if o.seen_since_change is None:
-                        o.seen_since_change = now
+                    if behaviour != "late":  # the late robot's, once its report arrives
+                        o.seen_by.add(f"{index}:{behaviour}")
+                        if o.seen_since_change is None:
+                            o.seen_since_change = now
                     if behaviour == "restart":
                         if o.key not in tracks:
                             tracks[o.key], next_track = next_track, next_track + 1
                         iri = f"urn:sim:{name}:s{session}:trk-{tracks[o.key]}"
                     else:
                         iri = f"urn:sim:{name}:trk-{o.key}-{epochs[o.key]}"
-                    bx = o.x + rng.gauss(0, args.sigma_pos) + (BIAS_M if behaviour == "bias" else 0.0)
-                    by = o.y + rng.gauss(0, args.sigma_pos)
-                    byaw = (
-                        o.yaw
-                        + rng.gauss(0, math.radians(args.sigma_yaw))
-                        + (math.pi if rng.random() < 0.3 else 0)
-                    )
-                    sx, sy, sz = (max(0.05, v + rng.gauss(0, 0.01)) for v in (o.sx, o.sy, o.sz))
-                    lines.append(
-                        f'<{iri}> twin:ifcClass "IfcFurniture" ; twin:storey "{storey}" ; '
-                        f'twin:box "{bx:.4f} {by:.4f} {sz / 2:.4f} {sx:.4f} {sy:.4f} {sz:.4f} {byaw:.4f}" .'
-                    )
+                    lines.append(box_line(iri, storey, o, rng, args, behaviour))
                     seen_now.append(o.key)
             if rng.random() < args.p_false:
                 fx, fy = polygon[rng.randrange(len(polygon))]
@@ -333,6 +364,12 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 if outbox[0][0] > time.time():
                     continue
                 _, payload, seen_now = outbox.pop(0)
+                with world.lock:
+                    for k in seen_now:
+                        o = world.objects[k]
+                        o.seen_by.add(f"{index}:{behaviour}")
+                        if o.seen_since_change is None:
+                            o.seen_since_change = time.time()
             stats.sent += 1
             sent = time.time()
             try:
@@ -350,6 +387,13 @@ def robot(  # noqa: PLR0917 (a thread's target)
             if changed and args.verbose:
                 brief = {k: ack.get(k) for k in ("revision", "upserted", "removed", "refined", "merged")}
                 brief["seen"] = seen_now
+                decided = {}
+                for k in seen_now:  # the rule that decided each upserted element (explain)
+                    o = world.objects[k]
+                    for e in twin.explain(storey, args.skill, o.x, o.y)["occupied_by"]:
+                        if e["iri"] in (ack.get("upserted") or []):
+                            decided[e["iri"]] = e.get("fusion", {}).get("decided")
+                brief["decided"] = decided
                 print(f"{name} {sent - world_t0:.1f} {json.dumps(brief)}", flush=True)
             with world.lock:
                 for ev in world.events:
@@ -361,10 +405,29 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         ev.shown = acked
 
 
+def box_line(  # noqa: PLR0917
+    iri: str, storey: str, o: Obj, rng: random.Random, args: argparse.Namespace, behaviour: str
+) -> str:
+    """A detector's box for ``o``: noise, a flipped heading now and then, the ``bias`` behaviour's offset."""
+    bx = o.x + rng.gauss(0, args.sigma_pos) + (BIAS_M if behaviour == "bias" else 0.0)
+    by = o.y + rng.gauss(0, args.sigma_pos)
+    byaw = o.yaw + rng.gauss(0, math.radians(args.sigma_yaw)) + (math.pi if rng.random() < 0.3 else 0)
+    sx, sy, sz = (max(0.05, v + rng.gauss(0, 0.01)) for v in (o.sx, o.sy, o.sz))
+    return (
+        f'<{iri}> twin:ifcClass "IfcFurniture" ; twin:storey "{storey}" ; '
+        f'twin:box "{bx:.4f} {by:.4f} {sz / 2:.4f} {sx:.4f} {sy:.4f} {sz:.4f} {byaw:.4f}" .'
+    )
+
+
+def cluster(a: Obj, b: Obj) -> Obj:
+    """The one box a lidar clusterer makes of desk ``b`` pushed against ``a``'s end (same yaw)."""
+    return Obj(-1, (a.x + b.x) / 2, (a.y + b.y) / 2, a.yaw, a.sx + b.sx, max(a.sy, b.sy), max(a.sz, b.sz))
+
+
 # --- the sampler -----------------------------------------------------------------------------------------
 
 
-def twin_elements(client: Any, storey: str) -> dict[str, tuple[float, float]]:
+def twin_elements(client: Any, storey: str) -> dict[str, Any]:
     from twin.fusion.footprints import pose_of
     from twin.graph.meshcodec import decode_mesh, decode_placement
 
@@ -375,8 +438,7 @@ def twin_elements(client: Any, storey: str) -> dict[str, tuple[float, float]]:
     )["results"]["bindings"]
     out = {}
     for r in rows:
-        p = pose_of((decode_mesh(r["ply"]["value"]), decode_placement(r["pl"]["value"])))
-        out[r["e"]["value"]] = (p.cx, p.cy)
+        out[r["e"]["value"]] = pose_of((decode_mesh(r["ply"]["value"]), decode_placement(r["pl"]["value"])))
     return out
 
 
@@ -388,16 +450,27 @@ def sample(  # noqa: PLR0917
     skill: str,
     t0: float,
     before: dict[str, tuple[float, float]],
+    verbose: bool = False,
 ) -> dict[str, Any]:
-    elements = twin_elements(client, storey)
+    from twin.fusion.footprints import corners
+
+    poses = twin_elements(client, storey)
+    elements = {iri: (p.cx, p.cy) for iri, p in poses.items()}
     now = time.time()
     with world.lock:
         present = [o for o in world.objects.values() if o.present]
         world.views = [(t, p) for t, p in world.views if now - t < 60.0]
         old_views = [p for t, p in world.views if now - t >= GHOST_VIEWED_S]
     per_obj: dict[int, int] = {}
-    ghosts, viewed_ghosts = [], 0
+    ghosts, viewed_ghosts, clusters = [], 0, 0
+    covered: set[int] = set()
+    centres = np.array([(o.x, o.y) for o in present]) if present else np.zeros((0, 2))
     for iri, (ex, ey) in elements.items():
+        within = _inside(centres, corners(poses[iri])) if len(centres) else np.zeros(0, bool)
+        if within.sum() >= 2:  # one box over desks pushed together (a clusterer's): theirs
+            clusters += 1
+            covered.update(o.key for o, w in zip(present, within, strict=True) if w)
+            continue
         near = [o for o in present if math.dist((o.x, o.y), (ex, ey)) <= MATCH_M]
         if near:
             best = min(near, key=lambda o: math.dist((o.x, o.y), (ex, ey)))
@@ -410,7 +483,10 @@ def sample(  # noqa: PLR0917
     missing = sum(
         1
         for o in present
-        if o.key not in per_obj and o.seen_at > o.changed_at + 1.0 and now - o.changed_at > GHOST_VIEWED_S
+        if o.key not in per_obj
+        and o.key not in covered
+        and o.seen_at > o.changed_at + 1.0
+        and now - o.changed_at > GHOST_VIEWED_S
     )
     false_removals = 0  # elements gone although their object stands there, still, and no element has it
     for iri, place in before.items():
@@ -432,10 +508,25 @@ def sample(  # noqa: PLR0917
     cells = int((grid.data != truth).sum()) if grid.data.shape == truth.shape else -1
     with world.lock:
         settled = [
-            o for o in present if o.seen_since_change is not None and now - o.seen_since_change >= SETTLE_S
+            o
+            for o in present
+            if o.seen_since_change is not None
+            and now - max(o.seen_since_change, t0 + CLOCK_SETTLE_S) >= SETTLE_S
         ]
+    status = client.status()
+    known = set(status.get("fusion", {}).get("detector_biases", {}))
     free_by_object = {o.key: n for o in settled if (n := false_free_cells(grid, o))}
-    false_free = sum(free_by_object.values())
+    unobservable = {k for k in free_by_object if _unobservable(world.objects[k], known)}
+    why = {}
+    if verbose:  # what the twin says of the cells (the deciding rule, a dispute)
+        for k in free_by_object:
+            o = world.objects[k]
+            answer = client.explain(storey, skill, o.x, o.y)
+            why[k] = [
+                {"iri": e["iri"], **{key: e.get("fusion", {}).get(key) for key in ("decided", "disputed")}}
+                for e in [*answer["occupied_by"], *answer["near"][:2]]
+            ]
+    false_free = sum(n for k, n in free_by_object.items() if k not in unobservable)
     where_free = {
         k: [
             n,
@@ -449,25 +540,36 @@ def sample(  # noqa: PLR0917
                 key=lambda d: math.hypot(*d),
                 default=None,
             ),
+            sorted(world.objects[k].seen_by),
+            why.get(k),
         ]
         for k, n in free_by_object.items()
     }
-    status = client.status()
     return {
         "t": round(now - t0, 1),
         "elements": len(elements),
         "objects": len(present),
         "duplicates": duplicates,
+        "clusters": clusters,
         "ghosts": len(ghosts),
         "viewed_ghosts": viewed_ghosts,
         "missing": missing,
         "cells_differ": cells,
         "false_free_cells": false_free,
+        "false_free_unobservable": sum(free_by_object[k] for k in unobservable),
         "false_free_objects": where_free,
         "false_removals": false_removals,
         "revision": int(status["revision"]),
         "ghost_iris": sorted(ghosts),
     }
+
+
+def _unobservable(o: Obj, known_biases: set[str]) -> bool:
+    """Whether only ``bias`` robots whose bias the daemon does not know yet saw ``o`` since its last
+    change: a detector's offset is not observable from its own sightings, so nothing can place it right
+    (such cells are counted apart, ``false_free_unobservable``)."""
+    robots = [r.split(":", 1) for r in o.seen_by]
+    return bool(robots) and all(b == "bias" and f"robot{i}" not in known_biases for i, b in robots)
 
 
 def false_free_cells(grid: Any, o: Obj) -> int:
@@ -541,8 +643,63 @@ def pull_out(  # noqa: PLR0917
         if all(world.is_free(*p) for p in probe.corners()) and world.is_free(x, y) and not crowded:
             world.events.append(Event("pull", chair_key, now, (chair.x, chair.y), chair.corners()))
             chair.x, chair.y, chair.changed_at, chair.seen_since_change = x, y, now, None
+            chair.seen_by = set()
             apply_truth(oracle, truth_box(chair, storey, elevation))
             return
+
+
+APART_AFTER_S = 10.0
+"""Desks pushed together are pushed apart this long after."""
+
+
+def push_desk(  # noqa: PLR0917
+    world: World, rng: random.Random, now: float, oracle: Any, storey: str, elevation: float
+) -> tuple[int, int] | None:
+    """A new desk like a present one, pushed against its end (same yaw and sizes): returns (pushed,
+    against), or None when no desk has free floor at an end."""
+    desks = [o for o in world.objects.values() if o.present and o.key not in world.together]
+    desks = [o for o in desks if o.key not in world.together.values()]
+    rng.shuffle(desks)
+    for a in desks:
+        c, s = math.cos(a.yaw), math.sin(a.yaw)
+        for side in (1, -1):
+            x, y = a.x + side * a.sx * c, a.y + side * a.sx * s
+            b = Obj(max(world.objects) + 1, x, y, a.yaw, a.sx, a.sy, a.sz, changed_at=now)
+            crowded = any(
+                o.present and o.key != a.key and math.dist((o.x, o.y), (x, y)) < 1.0
+                for o in world.objects.values()
+            )
+            if all(world.is_free(*p) for p in b.corners()) and not crowded:
+                world.objects[b.key] = b
+                world.together[b.key] = a.key
+                a.changed_at, a.seen_since_change, a.seen_by = now, None, set()
+                world.events.append(Event("push", b.key, now, (x, y), b.corners()))
+                apply_truth(oracle, truth_box(b, storey, elevation))
+                return b.key, a.key
+    return None
+
+
+def push_apart(  # noqa: PLR0917
+    world: World, pushed: int, against: int, now: float, oracle: Any, storey: str, elevation: float
+) -> None:
+    """The pushed desk moved 0.8 m away from the one it stood against (taken away if there is no room)."""
+    b, a = world.objects[pushed], world.objects[against]
+    world.together.pop(pushed, None)
+    d = math.dist((a.x, a.y), (b.x, b.y))
+    x, y = b.x + 0.8 * (b.x - a.x) / d, b.y + 0.8 * (b.y - a.y) / d
+    world.events.append(Event("apart", pushed, now, (b.x, b.y), b.corners()))
+    moved = Obj(-1, x, y, b.yaw, b.sx, b.sy, b.sz)
+    crowded = any(
+        o.present and o.key != pushed and math.dist((o.x, o.y), (x, y)) < 1.0 for o in world.objects.values()
+    )
+    if all(world.is_free(*p) for p in moved.corners()) and not crowded:
+        b.x, b.y = x, y
+        apply_truth(oracle, truth_box(b, storey, elevation))
+    else:
+        b.present = False
+        apply_truth(oracle, f"{PREFIX}<urn:truth:{b.key}> twin:removed true .".encode())
+    for o in (a, b):
+        o.changed_at, o.seen_since_change, o.seen_by = now, None, set()
 
 
 def oracle_service(store: Path, work: Path) -> Any:
@@ -597,6 +754,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         storey, skill = "ground-floor", "lab-navigation"
     else:
         storey, skill = live.busiest(store)[0], "navigation"
+    args.skill = skill
     oracle = oracle_service(store, work)
     m = oracle.live_maps.skill_maps[(storey, skill)]
     f = m.plan.frame
@@ -626,7 +784,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     # the script: moves, removals, appearances over the middle of the run
     t_first, t_last = args.duration * 0.2, args.duration * 0.75
     kinds = (
-        ["move"] * args.moves + ["remove"] * args.removals + ["appear"] * args.appears + ["tuck"] * args.tucks
+        ["move"] * args.moves
+        + ["remove"] * args.removals
+        + ["appear"] * args.appears
+        + ["tuck"] * args.tucks
+        + ["push"] * args.pushes
     )
     rng.shuffle(kinds)
     script = [(t_first + (t_last - t_first) * i / max(1, len(kinds)), k) for i, k in enumerate(kinds)]
@@ -661,6 +823,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 t.start()
             next_sample, step = t0 + 1.0, 0
             pulls: list[tuple[float, int, int]] = []  # (when, chair, table): a tucked chair pulled out
+            aparts: list[tuple[float, int, int]] = []  # (when, pushed, against): desks pushed apart
             previous: dict[str, tuple[float, float]] = {}
             cpu_main = None
             while time.time() < sat_end:
@@ -669,11 +832,20 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                     _, chair_key, table_key = pulls.pop(0)
                     with world.lock:
                         pull_out(world, chair_key, table_key, now, oracle, storey, elevation)
+                while aparts and now >= aparts[0][0]:
+                    _, pushed, against = aparts.pop(0)
+                    with world.lock:
+                        push_apart(world, pushed, against, now, oracle, storey, elevation)
                 while step < len(script) and now - t0 >= script[step][0]:
                     _, kind = script[step]
                     step += 1
                     with world.lock:
                         present = [o for o in world.objects.values() if o.present]
+                        if kind == "push":
+                            together = push_desk(world, rng, now, oracle, storey, elevation)
+                            if together is not None:
+                                aparts.append((now + APART_AFTER_S, *together))
+                            continue
                         if kind == "tuck":
                             tucked = tuck_chair(world, rng, now, oracle, storey, elevation)
                             if tucked is not None:
@@ -689,6 +861,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                             world.events.append(Event("appear", k, now, (o.x, o.y), o.corners()))
                             apply_truth(oracle, truth_box(o, storey, elevation))
                             continue
+                        present = [o for o in present if o.key not in world.together]
+                        present = [o for o in present if o.key not in world.together.values()]
+                        if not present:
+                            continue
                         o = rng.choice(present)
                         world.events.append(Event(kind, o.key, now, (o.x, o.y), o.corners()))
                         if kind == "remove":
@@ -703,8 +879,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                             apply_truth(oracle, truth_box(o, storey, elevation))
                         o.changed_at = now
                         o.seen_since_change = None
+                        o.seen_by = set()
                 if now >= next_sample and now < t_end:
-                    samples.append(sample(client, world, storey, oracle, skill, t0, previous))
+                    samples.append(sample(client, world, storey, oracle, skill, t0, previous, args.verbose))
                     next_sample += 1.0
                     if args.verbose:
                         print(json.dumps(samples[-1]), flush=True)
@@ -755,11 +932,15 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "appears": sum(e.kind == "appear" for e in world.events),
         "tucks": sum(e.kind == "tuck" for e in world.events),
         "pulls": sum(e.kind == "pull" for e in world.events),
+        "pushes": sum(e.kind == "push" for e in world.events),
+        "aparts": sum(e.kind == "apart" for e in world.events),
+        "max_clusters": max((s["clusters"] for s in samples), default=0),
         "final": final,
         "max_duplicates": max((s["duplicates"] for s in late), default=0),
         "max_viewed_ghosts": max((s["viewed_ghosts"] for s in late), default=0),
         "mean_cells_differ": float(np.mean([s["cells_differ"] for s in late])) if late else 0.0,
         "max_false_free_cells": max((s["false_free_cells"] for s in samples), default=0),
+        "max_false_free_unobservable": max((s["false_free_unobservable"] for s in samples), default=0),
         "samples_with_false_free": sum(1 for s in samples if s["false_free_cells"] > 0),
         "behaviours": ",".join(args.behaviours),
         "removal_recall_10s": len(recall_hits) / len(viewed) if viewed else float("nan"),
@@ -838,6 +1019,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--removals", type=int, default=1)
     p.add_argument("--appears", type=int, default=0)
     p.add_argument("--tucks", type=int, default=0, help="chairs tucked under tables, pulled out 8 s later")
+    p.add_argument(
+        "--pushes", type=int, default=0, help="desks pushed against another (one box), apart 10 s later"
+    )
     p.add_argument("--seed", type=int, default=1)
     p.add_argument(
         "--behaviours",

@@ -56,6 +56,11 @@ class FusionTable(ConfigTable):
         description="The mean of the confirmations is committed once it is this fraction of the "
         "confirmation distance (or angle) from the held pose (hysteresis: a still object does not flap).",
     )
+    refine_distance_m: Annotated[Number, Field(ge=0.0, le=10.0)] = Field(
+        0.05,
+        description="... or once its centre is this far from the held pose (a map cell: a pose a cell off "
+        "shows free floor inside the object).",
+    )
     move_sightings: Annotated[Whole, Field(ge=1, le=100)] = Field(
         2,
         description="Sightings that must agree before a move shorter than certain_move_m is applied "
@@ -147,6 +152,7 @@ class FusionTable(ConfigTable):
             },
             refine_after=self.refine_after,
             refine_fraction=self.refine_fraction,
+            refine_distance_m=self.refine_distance_m,
             move_sightings=self.move_sightings,
             certain_move_m=self.certain_move_m,
             disagreement_window_ns=int(self.disagreement_window_s * 1e9),
@@ -204,6 +210,7 @@ class FusionRules:
     per_class: dict[str, FusionClassRules] | None = None
     refine_after: int = 10
     refine_fraction: float = 0.5
+    refine_distance_m: float = 0.05
     move_sightings: int = 2
     certain_move_m: float = 0.5
     disagreement_window_ns: int = 10 * 10**9

@@ -16,7 +16,15 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal
 
-from twin.fusion.effects import count_tentative, drop_alias, mark_distinct, set_alias, sighting, use_alias
+from twin.fusion.effects import (
+    confirmed_by,
+    count_tentative,
+    drop_alias,
+    mark_distinct,
+    set_alias,
+    sighting,
+    use_alias,
+)
 from twin.fusion.footprints import Pose, centre_distance, heights_overlap, iou
 from twin.fusion.gates import compatible, is_candidate, kinds_agree, lies_within, matches, sizes_agree
 from twin.fusion.memory import Alias
@@ -156,6 +164,7 @@ def new_element(
     ctx.detected.add(target)
     out.effects.append(sighting(target, ctx.robot, sense))
     if pose is not None and storey is not None and not known:
+        out.effects.append(confirmed_by(target, {ctx.robot: sense}))  # its creator sees it there
         ctx.pend(target, storey, pose, r=r)
 
 

@@ -8,8 +8,10 @@ elements both see. A robot that differs by more than :data:`DEADBAND_M` from mos
 least :data:`MIN_PARTNERS`, each with :data:`PAIR_MIN_SAMPLES` comparisons) is off: its **bias** is the
 median of those differences, and its boxes are shifted by it before anything else looks at them. A robot
 20 cm off differs from every partner; each of its partners differs from it and from no one else, so
-only the biased one is corrected. Two robots alone never correct each other (they cannot tell which one
-is off).
+only the biased one is corrected. A robot that agrees with no partner and differs from one that agrees
+with a third robot is off too (the two that agree vouch for each other): a biased robot is corrected as
+soon as it shares elements with one vouched partner. Two robots alone never correct each other (they
+cannot tell which one is off).
 
 Example::
 
@@ -52,13 +54,32 @@ the element starts its means again)."""
 def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None:
     """The bias a robot's boxes are corrected by (None: none): the median of its differences with its
     partners, when it differs by more than :data:`DEADBAND_M` from most of them (at least
-    :data:`MIN_PARTNERS`). A robot that agrees with some partners and differs from one is not the one
-    that is off."""
-    diffs = [d for (a, _), d in list(memory.pairs.items()) if a == robot and d.n >= PAIR_MIN_SAMPLES]
-    differing = [d for d in diffs if math.hypot(d.x, d.y) > DEADBAND_M]
-    if len(differing) < MIN_PARTNERS or 2 * len(differing) <= len(diffs):
+    :data:`MIN_PARTNERS`), or, when it agrees with none, from the partners that agree with a third robot
+    (:func:`vouched`). A robot that agrees with some partners and differs from one is not the one that
+    is off."""
+    pairs = list(memory.pairs.items())
+    diffs = [(b, d) for (a, b), d in pairs if a == robot and d.n >= PAIR_MIN_SAMPLES]
+    differing = [(b, d) for b, d in diffs if math.hypot(d.x, d.y) > DEADBAND_M]
+    if len(differing) >= MIN_PARTNERS and 2 * len(differing) > len(diffs):
+        chosen = [d for _, d in differing]
+    elif differing and len(differing) == len(diffs):
+        chosen = [d for b, d in differing if vouched(pairs, b, robot)]
+        if not chosen:
+            return None
+    else:
         return None
-    return statistics.median(d.x for d in differing), statistics.median(d.y for d in differing)
+    return statistics.median(d.x for d in chosen), statistics.median(d.y for d in chosen)
+
+
+def vouched(pairs: list[tuple[tuple[str, str], RobotMean]], robot: str, but: str) -> bool:
+    """Whether ``robot`` agrees (within :data:`DEADBAND_M`, over :data:`PAIR_MIN_SAMPLES` comparisons)
+    with a robot other than ``but``: two detectors that agree are both right, or both off by the same
+    offset (far less likely than one robot off). A robot that agrees with nobody and differs from such a
+    partner is the one that is off, even while it has only one partner on the elements it sees now."""
+    return any(
+        a == robot and b != but and d.n >= PAIR_MIN_SAMPLES and math.hypot(d.x, d.y) <= DEADBAND_M
+        for (a, b), d in pairs
+    )
 
 
 def unbiased(ctx: FusionContext, pose: Pose) -> Pose:

@@ -23,7 +23,7 @@ import numpy as np
 from twin.config import FusionRules
 from twin.config.fusion import FusionClassRules
 from twin.fusion.clocks import changes_something
-from twin.fusion.effects import hold_move, moved, refine, reset_refinement, size_evidence
+from twin.fusion.effects import confirmed_by, hold_move, moved, refine, reset_refinement, size_evidence
 from twin.fusion.footprints import Pose, aligned, box_pose, centre_distance, yaw_difference
 from twin.fusion.memory import Refinement, SizeEvidence, Track
 from twin.records import ElementReport, ObservedBox
@@ -191,8 +191,9 @@ def confirmation(
     mean = None
     if refinement is not None and refinement.n + 1 >= rules.refine_after:
         mean = mean_with(refinement, sighted)
-    if mean is not None and not confirms(
-        class_rules, mean, held, sizes=False, fraction=rules.refine_fraction
+    if mean is not None and (
+        not confirms(class_rules, mean, held, sizes=False, fraction=rules.refine_fraction)
+        or centre_distance(mean, held) > rules.refine_distance_m  # a map cell off: free floor inside it
     ):
         r, at = placed(ctx, r, state, at=mean, held=held, storey=storey, sizes=sizes)
         n = refinement.n + 1 if refinement else 1
@@ -244,22 +245,30 @@ def hold(
     return _unless_only_seen(ctx, replace(r, box=None, storey=None), state)
 
 
-def disputed(ctx: FusionContext, state: ElementState, seen: Pose, held: Pose, sense: int) -> bool:
-    """Whether a short move must wait: robots whose latest sighting confirmed the held pose within
-    ``disagreement_window_s`` are at least as many as the robots behind the move (this one and those
-    whose own sightings agree on it): two detectors biased against each other do not flap a still
-    object, and the majority decides. A move beyond ``certain_move_m`` never waits."""
+def disputed(ctx: FusionContext, state: ElementState, seen: Pose, held: Pose, sense: int) -> str:
+    """Whether a short move must wait ("" if not): robots whose latest sighting confirmed the held pose
+    within ``disagreement_window_s`` are at least as many as the robots behind the move (this one and
+    those whose own sightings agree on it): two detectors biased against each other do not flap a still
+    object, and the majority decides ("held"; "tie": as many on each side, nothing says which is right:
+    :mod:`twin.fusion.dispute`). Robots that confirmed it earlier than the window (their latest sighting)
+    make a "tie" too when they are as many: a robot's box then covers both poses until they see it
+    again (two robots passing a desk minutes apart do not move it back and forth). A move beyond
+    ``certain_move_m`` never waits."""
     if far(ctx.rules, seen, held):
-        return False
+        return ""
     track = ctx.memory.tracks.get(state.iri)
     if track is None:
-        return False
+        return ""
     window = ctx.rules.disagreement_window_ns
     against = {r for r, t in track.confirmed.items() if r != ctx.robot and sense - t <= window}
-    if not against:
-        return False
+    earlier = {r for r in track.confirmed if r != ctx.robot}  # their latest sighting, at any time
+    if not earlier:
+        return ""
     behind = {ctx.robot, *standing(ctx, ctx.rules.of(state.ifc_types), seen, held, track=track, sense=sense)}
-    return len(behind - against) <= len(against)
+    if not against:  # as many robots saw it where it is held, earlier: it covers both until one returns
+        return "" if len(behind - earlier) > len(earlier) else "tie"
+    movers = len(behind - against)
+    return "" if movers > len(against) else "tie" if movers == len(against) else "held"
 
 
 def move(
@@ -280,6 +289,7 @@ def move(
     track = ctx.memory.tracks.get(target)
     ctx.out.effects.append(reset_refinement(target))
     ctx.out.effects.append(moved(target))
+    ctx.out.effects.append(confirmed_by(target, {ctx.robot: sense}))  # the mover sees it there
     ctx.decide(target, f"move by {ctx.robot}")
     class_rules = ctx.rules.of(state.ifc_types)
     if (

@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from twin.fusion.footprints import Pose
-from twin.fusion.memory import Alias, FusionMemory, Miss, Refinement, SizeEvidence
+from twin.fusion.memory import Alias, Dispute, FusionMemory, Miss, Refinement, SizeEvidence
 
 Effect = Callable[[FusionMemory], None]
 
@@ -89,6 +89,8 @@ def hold_move(
 
 
 def reset_refinement(iri: str) -> Effect:
+    """A new pose committed: the confirmations, held moves and any dispute start again."""
+
     def run(m: FusionMemory) -> None:
         t = m.tracks.get(iri)
         if t is not None:
@@ -97,6 +99,7 @@ def reset_refinement(iri: str) -> Effect:
             t.movers.clear()
             t.confirmed.clear()
             t.runs.clear()
+            t.dispute = None
 
     return run
 
@@ -169,5 +172,38 @@ def moved(iri: str) -> Effect:
         t = m.tracks.get(iri)
         if t is not None:
             t.means.clear()
+
+    return run
+
+
+def disputed_poses(iri: str, dispute: Dispute | None) -> Effect:
+    """Robots disagree on where ``iri`` stands: it covers ``dispute.poses`` (None: the dispute ended)."""
+
+    def run(m: FusionMemory) -> None:
+        m.track(iri).dispute = dispute
+
+    return run
+
+
+def took_side(iri: str, robot: str, side: int, sense: int) -> Effect:
+    """``robot``'s latest sighting of a disputed element confirmed ``side``'s pose."""
+
+    def run(m: FusionMemory) -> None:
+        d = m.track(iri).dispute
+        if d is not None:
+            d.sides[robot] = (side, sense)
+
+    return run
+
+
+def confirmed_by(iri: str, robots: dict[str, int]) -> Effect:
+    """``robots`` (-> the sense time) see ``iri`` where it now stands: the robot that created or moved it,
+    the side that settled a dispute. Until their next sightings, another robot's short move waits for
+    them as for any confirmation (a biased robot's two quick sightings do not move it first)."""
+
+    def run(m: FusionMemory) -> None:
+        t = m.track(iri)
+        for robot, sense in robots.items():
+            t.confirmed[robot] = max(sense, t.confirmed.get(robot, sense))
 
     return run

@@ -113,6 +113,17 @@ class RobotMean:
 
 
 @dataclass(slots=True)
+class Dispute:
+    """Robots that disagree on where an element stands: the element covers both poses
+    (:mod:`twin.fusion.dispute`) until most of the robots that saw it since agree on one."""
+
+    poses: tuple[Pose, Pose]
+    """The held pose before the dispute (side 0) and the pose the robots behind the move saw (side 1)."""
+    sides: dict[str, tuple[int, int]] = field(default_factory=dict)
+    """Robot -> (the side its latest sighting confirmed, that sighting's sense time)."""
+
+
+@dataclass(slots=True)
 class Miss:
     robot: str
     sense_ns: int
@@ -146,6 +157,8 @@ class Track:
     means: dict[str, RobotMean] = field(default_factory=dict)
     """Per robot, where its detector puts the element (a moving mean of its raw sightings since the
     element's last move): the robots' detector biases are estimated from them."""
+    dispute: Dispute | None = None
+    """Robots disagree on where it stands (a short move the others' confirmations hold): it covers both."""
 
     def sighted(self, robot: str, sense_ns: int) -> None:
         """A sighting by ``robot`` seen at ``sense_ns``: counted, and misses before it are forgotten."""
@@ -178,6 +191,16 @@ class Track:
                     }
                 }
                 if self.moving is not None and self.moving.n
+                else {}
+            ),
+            **(
+                {
+                    "disputed": {
+                        "poses": [[round(p.cx, 3), round(p.cy, 3)] for p in self.dispute.poses],
+                        "robots": {r: side for r, (side, _) in sorted(self.dispute.sides.items())},
+                    }
+                }
+                if self.dispute is not None
                 else {}
             ),
             **(
@@ -351,6 +374,12 @@ def _track_json(t: Track) -> dict[str, Any]:
         "decided": t.decided,
         "means": {r: [m.n, m.x, m.y, m.last_ns] for r, m in t.means.items()},
         "runs": {r: [_refinement_json(ref), ns] for r, (ref, ns) in t.runs.items()},
+        "dispute": None
+        if t.dispute is None
+        else {
+            "poses": [_pose_json(p) for p in t.dispute.poses],
+            "sides": {r: list(v) for r, v in t.dispute.sides.items()},
+        },
     }
 
 
@@ -370,7 +399,15 @@ def _track(v: dict[str, Any]) -> Track:
         decided=str(v["decided"]),
         means={r: RobotMean(int(n), float(x), float(y), int(ns)) for r, (n, x, y, ns) in v["means"].items()},
         runs={r: (_refinement(ref), int(ns)) for r, (ref, ns) in v["runs"].items()},
+        dispute=_dispute(v.get("dispute")),
     )
+
+
+def _dispute(v: Any) -> Dispute | None:
+    if v is None:
+        return None
+    a, b = v["poses"]
+    return Dispute((_pose(a), _pose(b)), {r: (int(side), int(ns)) for r, (side, ns) in v["sides"].items()})
 
 
 def memory_to_json(m: FusionMemory) -> dict[str, Any]:

@@ -52,11 +52,13 @@ from twin.fusion.confirm import (
     disputed,
     hold,
     move,
+    resizable,
     resize_evidence,
     unsure_move,
 )
 from twin.fusion.confirm_array import confirm_array
 from twin.fusion.context import Fused, FusionContext, Pending, report_pose
+from twin.fusion.dispute import covered, still_covers, widen
 from twin.fusion.effects import sighting
 from twin.fusion.footprints import Pose
 from twin.fusion.gates import compatible, is_candidate
@@ -212,19 +214,27 @@ def _held_element(
     if held is not None and pose is not None and storey is not None:
         class_rules = ctx.rules.of(state.ifc_types)
         track = ctx.memory.tracks.get(target)
-        sizes = resize_evidence(ctx, state, pose, held, sense)  # new sizes only on strong evidence
+        covers = track is not None and still_covers(track.dispute, held)  # robots disagree: it covers both
+        sizes = None if covers else resize_evidence(ctx, state, pose, held, sense)  # on strong evidence
         confirmed = confirms(class_rules, pose, held, sizes=False)
-        if not confirmed and echo(ctx, state, pose, sense):
+        if not covers and not confirmed and echo(ctx, state, pose, sense):
             seen_echo(ctx, r, state, sense)  # back where it stood before its last move, seen late
             return
-        if confirmed:
+        if covers:
+            r = covered(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense)
+        elif confirmed:
             r = confirmation(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes)
         elif unsure_move(ctx, class_rules, pose, held, track=track, sense=sense):
             why = "a short move needs move_sightings agreeing sightings"  # an outlier is no move
             r = hold(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes, why=why)
-        elif disputed(ctx, state, pose, held, sense):
-            why = "another robot confirmed the held pose within disagreement_window_s"  # a bias
-            r = hold(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes, why=why)
+        elif dispute := disputed(ctx, state, pose, held, sense):
+            if dispute == "tie" and sizes is None and resizable(ctx, target):  # it covers both poses
+                r = widen(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense)
+            else:
+                why = "more robots confirmed the held pose within disagreement_window_s"  # a bias
+                r = hold(
+                    ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes, why=why
+                )
         else:
             r, pose = move(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes)
             r = merge_or_move(ctx, r, state, pose, storey.key, sense=sense)

@@ -31,3 +31,21 @@ def test_a_robot_20_cm_off_is_learnt_from_shared_sightings_and_its_own_finds_lan
     assert found.body["upserted"] == ["urn:robot3:c"]
     bounds = service.live_maps.bounds_of("urn:robot3:c")
     assert bounds is not None and (bounds[0] + bounds[3]) / 2 == pytest.approx(OX + 7.0, abs=0.02)
+
+
+def test_a_robot_that_agrees_with_nobody_is_corrected_by_one_partner_that_agrees_with_a_third() -> None:
+    service, _ = started()
+    clock = FakeClock(service.clock())
+    with_clock(service, clock)
+    for _ in range(10):  # robot1 and robot2 agree on a desk: they vouch for each other
+        for robot in ("robot1", "robot2"):
+            observe(service, robot, sensed(box(f"urn:{robot}:d", 5.0, 2.0, sx=1.2, sy=0.6), clock.now))
+            clock.now += 100 * MS
+    for _ in range(10):  # robot3, 20 cm off, shares a cabinet with robot1 alone
+        for robot, x in (("robot1", 2.0), ("robot3", 2.2)):
+            observe(service, robot, sensed(box(f"urn:{robot}:c", x, 1.0, sx=0.8, sy=0.5), clock.now))
+            clock.now += 100 * MS
+    biases = service_status(service)["fusion"]["detector_biases"]  # type: ignore[index]
+    assert list(biases) == ["robot3"] and biases["robot3"][0] == pytest.approx(0.2, abs=0.02)
+    bounds = service.live_maps.bounds_of("urn:robot1:c")
+    assert bounds is not None and (bounds[0] + bounds[3]) / 2 == pytest.approx(OX + 2.0, abs=0.02)

@@ -77,14 +77,14 @@ def test_the_imported_table_moved_by_robots_keeps_its_mesh_and_never_takes_their
 def test_a_noted_short_move_is_acked_pending_and_explain_shows_it_with_the_deciding_rule() -> None:
     service, _ = started()
     observe(service, "robot1", box(DESK, 6.0, 2.0, sx=1.0, sy=0.6))
-    first = observe(service, "robot2", box("urn:robot2:d", 6.25, 2.0, sx=1.0, sy=0.6))  # 25 cm, once
+    first = observe(service, "robot1", box(DESK, 6.25, 2.0, sx=1.0, sy=0.6))  # 25 cm, once
     assert first.body["pending"] == [DESK] and first.body["unchanged"] is True
     fused = fusion_of(service.live, DESK)
-    assert fused["pending_move"]["robots"] == ["robot2"] and fused["pending_move"]["sightings"] == 1
-    assert "move_sightings" in fused["decided"] and "robot2" in fused["decided"]
-    second = observe(service, "robot2", box("urn:robot2:d", 6.26, 2.0, sx=1.0, sy=0.6))
+    assert fused["pending_move"]["robots"] == ["robot1"] and fused["pending_move"]["sightings"] == 1
+    assert "move_sightings" in fused["decided"] and "robot1" in fused["decided"]
+    second = observe(service, "robot1", box(DESK, 6.26, 2.0, sx=1.0, sy=0.6))
     assert "pending" not in second.body and second.body["upserted"] == [DESK]
-    assert fusion_of(service.live, DESK)["decided"] == "move by robot2"
+    assert fusion_of(service.live, DESK)["decided"] == "move by robot1"
 
 
 def test_a_confirming_report_is_only_a_sighting_exactly_when_it_would_be_without_its_box_and_storey() -> None:

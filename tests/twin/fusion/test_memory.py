@@ -10,7 +10,8 @@ import pytest
 from tests.twin.fusion.fusion_helpers import ROOM_A, box, sensed, view_only
 from tests.twin.fusion.test_clocks import FakeClock, with_clock
 from tests.twin.live_helpers import observe, started
-from twin.fusion.memory import FusionMemory
+from twin.fusion.footprints import box_pose
+from twin.fusion.memory import Dispute, FusionMemory
 
 S = 10**9
 
@@ -32,6 +33,8 @@ def test_a_memory_with_every_kind_of_entry_survives_a_json_round_trip() -> None:
     memory = service.live.fusion
     memory.tentative["urn:robot4:x"] = (1, clock.now)
     memory.distinct.add("urn:robot1:chair")
+    desk = memory.tracks["urn:robot1:desk"]
+    desk.dispute = Dispute((box_pose(5.0, 2.0, 0.4, 1.0, 0.6, 0.8, yaw=0.0),) * 2, {"robot1": (0, clock.now)})
     assert memory.history and memory.clocks and memory.aliases and memory.tracks["urn:robot1:desk"].moving
     text = json.dumps(memory.to_json())
     again = FusionMemory.from_json(json.loads(text))

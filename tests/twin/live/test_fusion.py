@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import datetime
 import math
 import time
 from dataclasses import replace
@@ -10,6 +9,8 @@ from dataclasses import replace
 import numpy as np
 
 from tests.twin.box_lab import OX, OY, element_iri, spec
+from tests.twin.fusion.fusion_helpers import CORRIDOR, ROOM_A, at, sensed, view, view_only
+from tests.twin.fusion.fusion_helpers import cell as cells_of
 from tests.twin.live_helpers import PREFIX, box_turtle, observe, started
 from twin.config import FusionRules, load_config
 from twin.live import TwinService
@@ -17,45 +18,6 @@ from twin.live.events import ObservationAccepted, ObservationNoted
 
 T0 = 1_795_000_000_000_000_000  # a sense time (ns) well in the past of the test's clock
 TABLE = "urn:robot1:table-1"
-NAV = ("ground-floor", "lab-navigation")
-
-
-def at(ns: int) -> str:
-    seconds, nanos = divmod(ns, 1_000_000_000)
-    moment = datetime.datetime.fromtimestamp(seconds, tz=datetime.UTC).strftime("%Y-%m-%dT%H:%M:%S")
-    return f'"{moment}.{nanos:09d}Z"^^<http://www.w3.org/2001/XMLSchema#dateTime>'
-
-
-def sensed(payload: bytes, ns: int) -> bytes:
-    """The observation with a sense time on each element (appended before the final dot)."""
-    text = payload.decode().rstrip().removesuffix(".")
-    return f"{text} ; twin:senseTime {at(ns)} .\n".encode()
-
-
-def view(
-    ns: int, polygon: list[tuple[float, float]], *, detects: tuple[str, ...] = ("IfcFurnishingElement",)
-) -> str:
-    points = " ".join(f"{OX + x} {OY + y}" for x, y in polygon)
-    classes = ", ".join(f'"{c}"' for c in detects)
-    return (
-        f'[] a twin:View ; twin:storey "ground-floor" ; twin:polygon "{points}" ; twin:detects {classes} ; '
-        f"twin:senseTime {at(ns)} .\n"
-    )
-
-
-def view_only(ns: int, polygon: list[tuple[float, float]]) -> bytes:
-    return (PREFIX + view(ns, polygon)).encode()
-
-
-CORRIDOR = [(4.2, 1.4), (7.8, 1.4), (7.8, 2.6), (4.2, 2.6)]
-ROOM_A = [(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0)]
-
-
-def cells_of(service: TwinService, x: float, y: float) -> int:
-    m = service.live_maps.skill_maps[NAV]
-    f = m.plan.frame
-    col, row = int((OX + x - f.origin_x) / f.resolution_m), int((OY + y - f.origin_y) / f.resolution_m)
-    return int(m.data[row, col])
 
 
 def dynamic_elements(service: TwinService) -> list[str]:
@@ -278,14 +240,14 @@ def test_a_sighting_between_misses_resets_them_and_structure_and_zones_are_never
     everything = ("IfcFurnishingElement", "IfcWall", "IfcDoor", "IfcSlab")
     for i in range(2):
         observe(
-            service, "robot2", (PREFIX + view(t + (i + 1) * 6 * 10**8, CORRIDOR, detects=everything)).encode()
+            service, "robot2", (PREFIX.encode() + view(t + (i + 1) * 6 * 10**8, CORRIDOR, detects=everything))
         )
     observe(service, "robot3", sensed(box_turtle("urn:robot3:t", 6.61, 2.0), t + 13 * 10**8))  # seen again
     for i in range(2):
         observe(
             service,
             "robot2",
-            (PREFIX + view(t + (14 + i * 6) * 10**8, CORRIDOR, detects=everything)).encode(),
+            (PREFIX.encode() + view(t + (14 + i * 6) * 10**8, CORRIDOR, detects=everything)),
         )
     assert not service.states[TABLE].removed  # two misses since the sighting, not three
     assert not service.states["urn:ops:zone"].removed
@@ -301,7 +263,7 @@ def test_elements_of_classes_the_detector_does_not_report_or_outside_the_view_ge
         observe(
             service,
             "robot2",
-            (PREFIX + view(t + (i + 1) * 5 * 10**8, CORRIDOR, detects=("IfcDoor",))).encode(),
+            (PREFIX.encode() + view(t + (i + 1) * 5 * 10**8, CORRIDOR, detects=("IfcDoor",))),
         )
         observe(service, "robot2", view_only(t + (i + 1) * 5 * 10**8 + 1, ROOM_A))
     assert not service.states[TABLE].removed

@@ -10,7 +10,7 @@ from dataclasses import replace
 import pytest
 
 from tests.twin.box_lab import OX, OY
-from tests.twin.live.test_fusion import at, sensed
+from tests.twin.fusion.fusion_helpers import at, sensed
 from tests.twin.live_helpers import PREFIX, box_turtle, observe, started
 from twin.config import Limits
 from twin.errors import ObservationError
