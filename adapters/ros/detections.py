@@ -54,7 +54,7 @@ from adapters.ros.observation_doc import (
 from adapters.ros.sessions import TrackerSession, session_iri
 from adapters.ros.settings import DetectionConfig
 from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
-from adapters.ros.view import Camera, Structure, camera_view
+from adapters.ros.view import Camera, Structure, ViewCache, camera_view
 from twin.config import Limits
 from twin.errors import MapError
 from twin.maps.grid import OccupancyGrid
@@ -166,6 +166,8 @@ class DetectionContext:
     session: TrackerSession | None = None
     """The robot's tracker session (:mod:`adapters.ros.sessions`): its IRIs carry it. None: the IRIs
     are ``det:<id>`` (no session)."""
+    view_cache: ViewCache | None = None
+    """The robot's last march of its camera's rays, reused while it stands still (same result)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -366,7 +368,9 @@ def _view(
         pose, optical=settings.optical, hfov_rad=hfov, vfov_rad=vfov, range_m=settings.range_m,
         near_m=settings.near_m, z_offset_m=drop_z,
     )  # fmt: skip
-    seen = camera_view(ctx.occluders, cam, band_m=settings.band_m, shadows=shadows, rays=settings.rays)
+    seen = camera_view(
+        ctx.occluders, cam, band_m=settings.band_m, shadows=shadows, rays=settings.rays, cache=ctx.view_cache
+    )
     if seen is None:
         return None
     return ViewReport(storey, seen.polygons, settings.detects, seen.holes, origin=cam.position)
