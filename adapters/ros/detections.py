@@ -186,6 +186,86 @@ def _stamp(header: Any) -> int:
     return int(header.stamp.sec) * _NS_PER_S + int(header.stamp.nanosec)
 
 
+_RawDetection = tuple[str, int, list[tuple[str, float]], tuple[float, ...], str]
+"""A detection as decoded: frame_id, stamp (ns), its hypotheses (class_id, score), its box's centre
+pose and size (10 floats: position, orientation x y z w, size) and its id."""
+_U32 = struct.Struct("<I")
+_TIME = struct.Struct("<iI")
+_F64 = struct.Struct("<d")
+_BOX = struct.Struct("<10d")
+_POSE_WITH_COVARIANCE = 8 * (7 + 36)
+
+
+def _decode_le(payload: bytes | bytearray | memoryview) -> tuple[str, int, list[_RawDetection]] | None:
+    """A little-endian CDR Detection3DArray decoded by hand (its layout is fixed: a header, then per
+    detection a header, hypotheses, a box and an id); None if anything is unusual (another encoding,
+    a length or count that does not fit, a string without its terminator or not UTF-8, trailing
+    bytes): rosbags then decodes it or says why not, so both refuse the same messages."""
+    if not isinstance(payload, bytes | bytearray | memoryview) or bytes(payload[:2]) != b"\x00\x01":
+        return None
+    data = bytes(payload[4:])
+    end = len(data)
+    u32, unpack_time, f64, box = _U32.unpack_from, _TIME.unpack_from, _F64.unpack_from, _BOX.unpack_from
+
+    def string(pos: int) -> tuple[str, int]:
+        pos += -pos % 4
+        (n,) = u32(data, pos)
+        stop = pos + 4 + n
+        if n < 1 or stop > end or data[stop - 1] != 0:
+            raise ValueError
+        return data[pos + 4 : stop - 1].decode(), stop
+
+    try:
+        sec, nsec = unpack_time(data, 0)
+        frame, pos = string(8)
+        pos += -pos % 4
+        (count,) = u32(data, pos)
+        pos += 4
+        if count * 40 > end - pos:  # a detection holds at least 40 bytes
+            return None
+        out: list[_RawDetection] = []
+        for _ in range(count):
+            pos += -pos % 4
+            d_sec, d_nsec = unpack_time(data, pos)
+            d_frame, pos = string(pos + 8)
+            pos += -pos % 4
+            (n_results,) = u32(data, pos)
+            pos += 4
+            if n_results * 12 > end - pos:
+                return None
+            results: list[tuple[str, float]] = []
+            for _ in range(n_results):
+                class_id, pos = string(pos)
+                pos += -pos % 8
+                (score,) = f64(data, pos)
+                pos += 8 + _POSE_WITH_COVARIANCE  # the hypothesis's pose: not used
+                results.append((class_id, score))
+            pos += -pos % 8
+            values = box(data, pos)
+            d_id, pos = string(pos + 80)
+            out.append((d_frame, d_sec * _NS_PER_S + d_nsec, results, values, d_id))
+    except (struct.error, ValueError, UnicodeDecodeError):
+        return None
+    if pos > end or pos + 3 < end:  # rosbags allows at most 3 bytes of padding after the message
+        return None
+    return frame, sec * _NS_PER_S + nsec, out
+
+
+def _decode_rosbags(payload: bytes | bytearray | memoryview) -> tuple[str, int, list[_RawDetection]]:
+    """The same as :func:`_decode_le`, by rosbags (any encoding); RosInputError if malformed."""
+    try:
+        message = _deserialize(payload, DETECTION_3D_ARRAY)
+    except MapError as err:
+        raise RosInputError("malformed", str(err)) from err
+    out: list[_RawDetection] = []
+    for d in message.detections:
+        s, p, q = d.bbox.size, d.bbox.center.position, d.bbox.center.orientation
+        values = tuple(float(v) for v in (p.x, p.y, p.z, q.x, q.y, q.z, q.w, s.x, s.y, s.z))
+        results = [(str(r.hypothesis.class_id), float(r.hypothesis.score)) for r in d.results]
+        out.append((str(d.header.frame_id), _stamp(d.header), results, values, str(d.id)))
+    return str(message.header.frame_id), _stamp(message.header), out
+
+
 def decode_detections(
     payload: bytes | bytearray | memoryview, *, max_detections: int
 ) -> tuple[str, int, list[_Detection]]:
@@ -195,29 +275,26 @@ def decode_detections(
     if len(payload) > limit:
         msg = f"Detection3DArray of {len(payload)} bytes: {max_detections} detections fit in {limit}."
         raise RosInputError("oversized", msg)
-    try:
-        message = _deserialize(payload, DETECTION_3D_ARRAY)
-    except MapError as err:
-        raise RosInputError("malformed", str(err)) from err
-    if len(message.detections) > max_detections:
-        count = len(message.detections)
-        msg = f"Detection3DArray has {count} detections, more than the limit {max_detections}."
+    fast = _decode_le(payload)
+    if fast is None:  # anything unusual (big endian, malformed): rosbags decodes it, or says why not
+        fast = _decode_rosbags(payload)
+    frame, stamp, raw = fast
+    if len(raw) > max_detections:
+        msg = f"Detection3DArray has {len(raw)} detections, more than the limit {max_detections}."
         raise RosInputError("oversized", msg)
-    frame, stamp = str(message.header.frame_id), _stamp(message.header)
     out: list[_Detection] = []
-    for d in message.detections:
-        best = max(d.results, key=lambda r: float(r.hypothesis.score), default=None)
-        s, p, q = d.bbox.size, d.bbox.center.position, d.bbox.center.orientation
+    for d_frame, d_stamp, results, v, d_id in raw:
+        best = max(results, key=lambda r: r[1], default=None)
         out.append(
             _Detection(
-                frame_id=str(d.header.frame_id) or frame,
-                stamp_ns=_stamp(d.header) or stamp,
-                class_id=None if best is None else str(best.hypothesis.class_id),
-                score=-math.inf if best is None else float(best.hypothesis.score),
-                position=(float(p.x), float(p.y), float(p.z)),
-                orientation=(float(q.x), float(q.y), float(q.z), float(q.w)),
-                size=(float(s.x), float(s.y), float(s.z)),
-                id=str(d.id),
+                frame_id=d_frame or frame,
+                stamp_ns=d_stamp or stamp,
+                class_id=None if best is None else best[0],
+                score=-math.inf if best is None else best[1],
+                position=(v[0], v[1], v[2]),
+                orientation=(v[3], v[4], v[5], v[6]),
+                size=(v[7], v[8], v[9]),
+                id=d_id,
             )
         )
     return frame, stamp, out
