@@ -372,7 +372,13 @@ def box_in_map(
             "pose", f"Box orientation {orientation} is not a unit quaternion (norm {norm:.4g})."
         )
     local = matrix(position, [v / norm for v in orientation])
-    world = map_from_frame @ local
+    return _upright(map_from_frame @ local, size, max_tilt_rad=max_tilt_rad)
+
+
+def _upright(
+    world: Matrix, size: tuple[float, float, float], *, max_tilt_rad: float
+) -> tuple[float, float, float, float, float, float, float]:
+    """The end of :func:`box_in_map`: ``world`` is the map from the box (its pose checked)."""
     r = world[:3, :3]
     tilt = math.acos(max(-1.0, min(1.0, float(r[2, 2]))))
     if tilt > max_tilt_rad:
@@ -386,6 +392,49 @@ def box_in_map(
     if not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE_M for v in (cx, cy, cz)):
         raise RosInputError("pose", f"Box centre in the map frame is out of range: {(cx, cy, cz)}.")
     return (cx, cy, cz, size[0], size[1], size[2], yaw)
+
+
+def _boxes_in_map(
+    frames: list[Matrix], dets: list[_Detection], *, max_tilt_rad: float, max_size_m: float
+) -> list[tuple[float, float, float, float, float, float, float] | RosInputError]:
+    """:func:`box_in_map` of many boxes at once (``frames[i]``: map from detection ``i``'s frame), the
+    same floats, bit for bit: the checks of the pose and the box's matrix in numpy (the same operations
+    in the same order), the rest per box; a box whose pose or size fails goes through
+    :func:`box_in_map` for its error."""
+    n = len(dets)
+    if n == 0:
+        return []
+    p = np.array([d.position for d in dets], dtype=np.float64)
+    q = np.array([d.orientation for d in dets], dtype=np.float64)
+    size = np.array([d.size for d in dets], dtype=np.float64)
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        x, y, z, w = q.T
+        norm = np.sqrt(x * x + y * y + z * z + w * w)  # left to right, as sum() adds
+        ok = (
+            np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1)
+            & (np.abs(p) <= MAX_COORDINATE_M).all(axis=1)
+            & (np.isfinite(size) & (size >= MIN_SIZE_M) & (size <= max_size_m)).all(axis=1)
+            & (np.abs(norm - 1.0) <= 1e-2)
+        )  # fmt: skip
+        x, y, z, w = (np.where(ok, v / np.where(ok, norm, 1.0), 0.0) for v in (x, y, z, w))
+    local = np.zeros((n, 4, 4))  # tf.matrix's, row by row
+    local[:, 0, :3] = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1)
+    local[:, 1, :3] = np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1)
+    local[:, 2, :3] = np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1)
+    local[:, :3, 3] = np.where(ok[:, None], p, 0.0)
+    local[:, 3, 3] = 1.0
+    world = np.matmul(np.stack(frames), local)
+    out: list[tuple[float, float, float, float, float, float, float] | RosInputError] = []
+    for i, d in enumerate(dets):
+        try:
+            if ok[i]:
+                out.append(_upright(world[i], d.size, max_tilt_rad=max_tilt_rad))
+            else:
+                limits = {"max_tilt_rad": max_tilt_rad, "max_size_m": max_size_m}
+                out.append(box_in_map(frames[i], d.position, d.orientation, d.size, **limits))
+        except RosInputError as err:
+            out.append(err)
+    return out
 
 
 def _shadows(frames: list[Matrix], dets: list[_Detection]) -> tuple[FloatArray, BoolArray]:
@@ -486,14 +535,18 @@ def translate_detections(
     drop_z = ctx.elevation_m if settings.z_reference == "building" else 0.0
     placed: tuple[list[Matrix], list[_Detection]] = ([], [])  # every detection, for its shadow
     blind = False  # a detection whose place is unknown: what it hides is unknown, so no view
+    # first each detection's class and frame, then the boxes of the known classes at once, then in order
+    steps: list[tuple[int, _Detection, str | None, str | None, RosInputError | None, int]] = []
+    to_place: tuple[list[Matrix], list[_Detection]] = ([], [])
     for index, d in enumerate(detections):
         ifc_class = settings.classes.get(d.class_id) if d.class_id is not None else None
+        why: str | None = None
         if d.class_id is None:
-            ignored["no_hypothesis"] += 1
+            why = "no_hypothesis"
         elif ifc_class is None:
-            ignored["unknown_class"] += 1
+            why = "unknown_class"
         elif not d.score >= settings.min_score:
-            ignored["low_score"] += 1
+            why = "low_score"
             ifc_class = None
         try:
             if ifc_class is not None and d.stamp_ns > ctx.now_ns + settings.future_ns:
@@ -501,21 +554,37 @@ def translate_detections(
             key = (d.frame_id, d.stamp_ns)
             if key not in transforms:  # the detections of an array share their frame: one lookup
                 transforms[key] = _resolve(ctx.tf, settings.map_frame, d.frame_id, d.stamp_ns)
-            map_from_frame = transforms[key]
-            placed[0].append(map_from_frame)  # any detection hides what stands behind it
-            placed[1].append(d)
-            if ifc_class is None:
-                continue
-            cx, cy, cz, sx, sy, sz, yaw = box_in_map(
-                map_from_frame, d.position, d.orientation, d.size,
-                max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m,
-            )  # fmt: skip
         except RosInputError as err:
+            steps.append((index, d, why, ifc_class, err, -1))
+            continue
+        map_from_frame = transforms[key]
+        placed[0].append(map_from_frame)  # any detection hides what stands behind it
+        placed[1].append(d)
+        row = -1
+        if ifc_class is not None:
+            row = len(to_place[1])
+            to_place[0].append(map_from_frame)
+            to_place[1].append(d)
+        steps.append((index, d, why, ifc_class, None, row))
+    placed_boxes = _boxes_in_map(
+        *to_place, max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m
+    )
+    for index, d, why, ifc_class, error, row in steps:
+        if why is not None:
+            ignored[why] += 1
+        if error is not None:
             if ifc_class is not None:
-                refused.append((err.cause, str(err)))
+                refused.append((error.cause, str(error)))
             else:
                 blind = True
             continue
+        if ifc_class is None:
+            continue
+        placed_box = placed_boxes[row]
+        if isinstance(placed_box, RosInputError):
+            refused.append((placed_box.cause, str(placed_box)))
+            continue
+        cx, cy, cz, sx, sy, sz, yaw = placed_box
         iri = (
             (
                 robot_iri(settings.robot, "det", d.id)

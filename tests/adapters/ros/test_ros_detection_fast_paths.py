@@ -1,10 +1,12 @@
 """The hand-written Detection3DArray decoder reads what rosbags reads, field by field, bit for bit: on
 generated arrays in both encodings (little endian by hand, big endian falls back to rosbags), and on
-hostile bytes it accepts nothing rosbags refuses (whatever it leaves, rosbags decodes or refuses)."""
+hostile bytes it accepts nothing rosbags refuses (whatever it leaves, rosbags decodes or refuses). The
+boxes placed at once are box by box's, bit for bit, and refused with the same errors."""
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import struct
 from typing import Any
 
@@ -14,9 +16,17 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from adapters.ros.cdr import _typestore
-from adapters.ros.detections import _decode_le, _decode_rosbags, decode_detections
+from adapters.ros.detections import (
+    _boxes_in_map,
+    _decode_le,
+    _decode_rosbags,
+    _Detection,
+    box_in_map,
+    decode_detections,
+)
 from adapters.ros.interfaces import DETECTION_3D_ARRAY
 from adapters.ros.observation_doc import RosInputError
+from adapters.ros.tf import matrix
 from tests.adapters.ros_reports import Det, cdr_detections
 from tests.conftest import examples
 
@@ -53,6 +63,7 @@ def arrays(draw: st.DrawFn) -> Any:
         t["vision_msgs/msg/Detection3D"],
         t[DETECTION_3D_ARRAY],
     )
+
     def head() -> Any:
         sec, nsec = draw(stamps)
         return header(stamp=time(sec=sec, nanosec=nsec), frame_id=draw(text))
@@ -123,3 +134,54 @@ def test_a_truncated_array_is_refused_as_malformed_naming_its_size() -> None:
     with pytest.raises(RosInputError, match="6 bytes") as refused:
         decode_detections(payload[:6], max_detections=8)
     assert refused.value.cause == "malformed"
+
+
+near_one = st.one_of(st.floats(-1.0, 1.0), floats)
+coordinates = st.one_of(*(st.floats(-50.0, 50.0),) * 6, st.just(2e5), floats)
+sizes = st.one_of(*(st.floats(0.01, 5.0),) * 6, st.floats(0.0, 25.0), floats)
+
+
+@st.composite
+def boxes(draw: st.DrawFn) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+    sane = draw(st.integers(0, 3)) > 0  # mostly a pose and size that place, sometimes any floats
+    position = tuple(draw(st.floats(-50.0, 50.0) if sane else coordinates) for _ in range(3))
+    if draw(st.integers(0, 3)):  # mostly upright, a small tilt, sometimes a large one
+        yaw, tilt = draw(st.floats(-4.0, 4.0)), draw(st.one_of(st.floats(-0.2, 0.2), st.floats(-3.0, 3.0)))
+        cy, sy, ct, st_ = math.cos(yaw / 2), math.sin(yaw / 2), math.cos(tilt / 2), math.sin(tilt / 2)
+        quat = (cy * st_, sy * st_, sy * ct, cy * ct)  # a yaw after a tilt about x
+        scale = draw(st.sampled_from([1.0, 1.0, 1.005, 0.98, 0.0]))
+        orientation = tuple(v * scale for v in quat)
+    else:
+        orientation = tuple(draw(near_one) for _ in range(4))
+    size = tuple(draw(st.floats(0.01, 5.0) if sane else sizes) for _ in range(3))
+    return position, orientation, size
+
+
+@FAST
+@given(
+    frame=st.tuples(*(st.floats(-20, 20),) * 2, st.floats(-2, 2), st.floats(-4, 4), st.floats(-0.3, 0.3)),
+    placed=st.lists(boxes(), max_size=8),
+)
+def test_boxes_placed_at_once_are_the_boxes_placed_one_by_one_bit_for_bit_and_refused_alike(
+    frame: tuple[float, float, float, float, float],
+    placed: list[tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]],
+) -> None:
+    x, y, z, yaw, roll = frame
+    q = (math.sin(roll / 2), 0.0, 0.0, math.cos(roll / 2))
+    heading = (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+    map_from_frame = matrix((x, y, z), heading) @ matrix((0, 0, 0), q)
+    dets = [_Detection("f", 0, "c", 1.0, p, o, s, "") for p, o, s in placed]  # type: ignore[arg-type]
+    limits = {"max_tilt_rad": math.radians(15.0), "max_size_m": 20.0}
+    at_once = _boxes_in_map([map_from_frame] * len(dets), dets, **limits)
+    for d, got in zip(dets, at_once, strict=True):
+        one: Any
+        try:
+            one = box_in_map(map_from_frame, d.position, d.orientation, d.size, **limits)
+        except RosInputError as err:
+            one = err
+        if isinstance(one, RosInputError):
+            assert isinstance(got, RosInputError)
+            assert (got.cause, str(got)) == (one.cause, str(one))
+        else:
+            assert not isinstance(got, RosInputError)
+            assert _bits(got) == _bits(one)
