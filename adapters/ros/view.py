@@ -369,6 +369,11 @@ def _march(
     return _Marched(count, step, near0, angles_all, covered, angles, near, far, first_block)
 
 
+def _points(ox: float, oy: float, angles: list[float], radii: FloatArray) -> list[Point]:
+    """The points at ``radii`` along ``angles`` from ``(ox, oy)``."""
+    return [(ox + math.cos(t) * r, oy + math.sin(t) * r) for t, r in zip(angles, radii.tolist(), strict=True)]
+
+
 def camera_view(
     grid: OccupancyGrid | Structure | None,
     cam: Camera,
@@ -430,25 +435,19 @@ def camera_view(
         after = np.concatenate([gaps, [wrap]])
         half = np.minimum(np.maximum(before, after), 2.0) / 2
         lo = np.minimum(lo / np.cos(half), hi - 1e-6)
-        outer = [
-            (float(ox + math.cos(t) * r), float(oy + math.sin(t) * r)) for t, r in zip(a, hi, strict=True)
-        ]
+        a_list = a.tolist()  # Python floats: the same arithmetic as numpy's scalars, much cheaper
+        outer = _points(ox, oy, a_list, hi)
         if whole_circle:
             if len(outer) < 3:
                 continue
             polygons.append(tuple(outer))
             if not at_sensor:
-                inner = [
-                    (float(ox + math.cos(t) * r), float(oy + math.sin(t) * r))
-                    for t, r in zip(a, lo, strict=True)
-                ]
+                inner = _points(ox, oy, a_list, lo)
                 holes.append(tuple(inner))
         elif at_sensor:
             polygons.append(((float(ox), float(oy)), *outer))
         else:
-            inner = [
-                (float(ox + math.cos(t) * r), float(oy + math.sin(t) * r)) for t, r in zip(a, lo, strict=True)
-            ]
+            inner = _points(ox, oy, a_list, lo)
             polygons.append((*outer, *inner[::-1]))
     view = FloorView(tuple(polygons), tuple(holes))
     if not polygons or view.area < MIN_AREA_M2:
