@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -369,6 +370,13 @@ def _march(
     return _Marched(count, step, near0, angles_all, covered, angles, near, far, first_block)
 
 
+def _roll(a: npt.NDArray[Any], shift: int) -> npt.NDArray[Any]:
+    """``np.roll(a, shift)`` of a 1-d array by one place (without its general machinery)."""
+    if shift == 1:
+        return np.concatenate((a[-1:], a[:-1]))
+    return np.concatenate((a[1:], a[:1]))
+
+
 def _points(ox: float, oy: float, angles: list[float], radii: FloatArray) -> list[Point]:
     """The points at ``radii`` along ``angles`` from ``(ox, oy)``."""
     return [(ox + math.cos(t) * r, oy + math.sin(t) * r) for t, r in zip(angles, radii.tolist(), strict=True)]
@@ -413,10 +421,10 @@ def camera_view(
     claims = far_all > near_all + step
     far_all = np.where(claims, far_all, -np.inf)
     for side in (1, -1):
-        other = np.roll(claims, side)
-        far_all = np.where(other, np.minimum(far_all, np.roll(far_all, side)), far_all)
+        other = _roll(claims, side)
+        far_all = np.where(other, np.minimum(far_all, _roll(far_all, side)), far_all)
     near_n = np.where(claims, near_all, -np.inf)
-    near_all = np.maximum(near_all, np.maximum(np.roll(near_n, 1), np.roll(near_n, -1)))
+    near_all = np.maximum(near_all, np.maximum(_roll(near_n, 1), _roll(near_n, -1)))
     valid = far_all > near_all + step
     whole_circle = bool(valid.all())
     polygons: list[Ring] = []
