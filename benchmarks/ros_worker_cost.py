@@ -3,7 +3,8 @@ worker runs it (typed reports, views on, the view cut at a structure grid), fed 
 ``ros_ingest.py``'s robots send: per array a TF message (``map -> base_link`` at its stamp) and a
 Detection3DArray of ``--detections`` tables with tracker ids, the robot standing still. Reports the
 CPU time (``time.process_time``) per TF + array; ``--profile`` also prints a cProfile ranking.
-``--check OUT.pkl`` writes the outcomes (to compare two code trees' outputs: the same bytes).
+``--moving``: the robot moves 1 cm per array (no march reused). ``--check OUT.pkl`` writes the
+outcomes (to compare two code trees' outputs: the same bytes).
 
     PYTHONPATH=$PWD python benchmarks/ros_worker_cost.py --detections 20 --repeat 10 [--profile]
 """
@@ -28,9 +29,10 @@ from ros_ingest import ROBOT, tables  # benchmarks/ is not a package
 NOW_NS = 1_700_000_000_000_000_000
 
 
-def setup(per_robot: int, arrays: int = 50) -> tuple[Any, list[tuple[bytes, bytes]]]:
+def setup(per_robot: int, arrays: int = 50, *, moving: bool = False) -> tuple[Any, list[tuple[bytes, bytes]]]:
     """A translator with one robot on a 40 x 20 m structure grid at 0.05 m (walls every 4 m across and
-    6.5 m along: the robot in a corridor), and ``arrays`` TF + array pairs 0.1 s apart."""
+    6.5 m along: the robot in a corridor), and ``arrays`` TF + array pairs 0.1 s apart (``moving``: the
+    robot 1 cm further along x at each, its tables as far before it: no view's march is reused)."""
     from adapters.ros.detections import DetectionSettings
     from adapters.zenoh.ros_workers import RobotSpec, RobotTranslator
     from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
@@ -50,9 +52,10 @@ def setup(per_robot: int, arrays: int = 50) -> tuple[Any, list[tuple[bytes, byte
     msgs = []
     for k in range(arrays):
         stamp = NOW_NS - 6_000_000_000 + k * 100_000_000
-        tf = cdr_tf([Tf("map", "base_link", (*ROBOT, 0.0), stamp_ns=stamp)])
+        dx = 0.01 * k if moving else 0.0
+        tf = cdr_tf([Tf("map", "base_link", (ROBOT[0] + dx, ROBOT[1], 0.0), stamp_ns=stamp)])
         dets = [
-            Det((("table", 0.9),), (x - ROBOT[0], y - ROBOT[1], 0.375), (0.2, 0.2, 0.75), id=f"t{i}")
+            Det((("table", 0.9),), (x - ROBOT[0] - dx, y - ROBOT[1], 0.375), (0.2, 0.2, 0.75), id=f"t{i}")
             for i, (x, y) in enumerate(spots)
         ]
         msgs.append((tf, cdr_detections(stamp, "base_link", dets)))
@@ -72,10 +75,11 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--detections", type=int, default=20)
     p.add_argument("--repeat", type=int, default=10)
+    p.add_argument("--moving", action="store_true", help="the robot moves 1 cm per array")
     p.add_argument("--profile", action="store_true")
     p.add_argument("--check", type=Path)
     a = p.parse_args()
-    t, msgs = setup(a.detections)
+    t, msgs = setup(a.detections, moving=a.moving)
     first = run(t, msgs, 1)
     if a.check is not None:
         a.check.write_bytes(pickle.dumps([[o.translation.document for o in x] for x in first]))
@@ -89,6 +93,7 @@ def main() -> int:
         json.dumps(
             {
                 "detections": a.detections,
+                "moving": a.moving,
                 "arrays_with_view": f"{views}/{len(first)}",
                 "cpu_ms": round(cpu_ms, 3),
             }
