@@ -341,12 +341,20 @@ def _march(
     dist = dist[dist <= reach + 1e-9]
     if len(dist) < 2:
         return _NOTHING
-    xs = ox + np.cos(angles)[:, None] * dist[None, :]  # (rays, k)
-    ys = oy + np.sin(angles)[:, None] * dist[None, :]
+    xs = np.multiply.outer(np.cos(angles), dist)  # (rays, k); the same floats as ox + cos * dist
+    xs += ox
+    ys = np.multiply.outer(np.sin(angles), dist)
+    ys += oy
     if structure is not None:
         f = structure.grid.frame
-        cols = np.floor((xs - f.origin_x) / res).astype(np.intp)
-        rows = np.floor((ys - f.origin_y) / res).astype(np.intp)
+        cells = np.subtract(xs, f.origin_x)  # in place from here on: the same values, no temporaries
+        cells /= res
+        np.floor(cells, out=cells)
+        cols = cells.astype(np.intp)
+        np.subtract(ys, f.origin_y, out=cells)
+        cells /= res
+        np.floor(cells, out=cells)
+        rows = cells.astype(np.intp)
         np.clip(cols, -1, f.width, out=cols)  # beyond the grid's edge: the border, which blocks
         np.clip(rows, -1, f.height, out=rows)
         rows += 1
