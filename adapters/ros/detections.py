@@ -54,7 +54,7 @@ from adapters.ros.observation_doc import (
 from adapters.ros.sessions import TrackerSession, session_iri
 from adapters.ros.settings import DetectionConfig
 from adapters.ros.tf import Matrix, TfBuffer, TfError, matrix
-from adapters.ros.view import Camera, Structure, camera_view
+from adapters.ros.view import Camera, Structure, ViewCache, camera_view
 from twin.config import Limits
 from twin.errors import MapError
 from twin.maps.grid import OccupancyGrid
@@ -166,6 +166,8 @@ class DetectionContext:
     session: TrackerSession | None = None
     """The robot's tracker session (:mod:`adapters.ros.sessions`): its IRIs carry it. None: the IRIs
     are ``det:<id>`` (no session)."""
+    view_cache: ViewCache | None = None
+    """The robot's last march of its camera's rays, reused while it stands still (same result)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -184,6 +186,86 @@ def _stamp(header: Any) -> int:
     return int(header.stamp.sec) * _NS_PER_S + int(header.stamp.nanosec)
 
 
+_RawDetection = tuple[str, int, list[tuple[str, float]], tuple[float, ...], str]
+"""A detection as decoded: frame_id, stamp (ns), its hypotheses (class_id, score), its box's centre
+pose and size (10 floats: position, orientation x y z w, size) and its id."""
+_U32 = struct.Struct("<I")
+_TIME = struct.Struct("<iI")
+_F64 = struct.Struct("<d")
+_BOX = struct.Struct("<10d")
+_POSE_WITH_COVARIANCE = 8 * (7 + 36)
+
+
+def _decode_le(payload: bytes | bytearray | memoryview) -> tuple[str, int, list[_RawDetection]] | None:
+    """A little-endian CDR Detection3DArray decoded by hand (its layout is fixed: a header, then per
+    detection a header, hypotheses, a box and an id); None if anything is unusual (another encoding,
+    a length or count that does not fit, a string without its terminator or not UTF-8, trailing
+    bytes): rosbags then decodes it or says why not, so both refuse the same messages."""
+    if not isinstance(payload, bytes | bytearray | memoryview) or bytes(payload[:2]) != b"\x00\x01":
+        return None
+    data = bytes(payload[4:])
+    end = len(data)
+    u32, unpack_time, f64, box = _U32.unpack_from, _TIME.unpack_from, _F64.unpack_from, _BOX.unpack_from
+
+    def string(pos: int) -> tuple[str, int]:
+        pos += -pos % 4
+        (n,) = u32(data, pos)
+        stop = pos + 4 + n
+        if n < 1 or stop > end or data[stop - 1] != 0:
+            raise ValueError
+        return data[pos + 4 : stop - 1].decode(), stop
+
+    try:
+        sec, nsec = unpack_time(data, 0)
+        frame, pos = string(8)
+        pos += -pos % 4
+        (count,) = u32(data, pos)
+        pos += 4
+        if count * 40 > end - pos:  # a detection holds at least 40 bytes
+            return None
+        out: list[_RawDetection] = []
+        for _ in range(count):
+            pos += -pos % 4
+            d_sec, d_nsec = unpack_time(data, pos)
+            d_frame, pos = string(pos + 8)
+            pos += -pos % 4
+            (n_results,) = u32(data, pos)
+            pos += 4
+            if n_results * 12 > end - pos:
+                return None
+            results: list[tuple[str, float]] = []
+            for _ in range(n_results):
+                class_id, pos = string(pos)
+                pos += -pos % 8
+                (score,) = f64(data, pos)
+                pos += 8 + _POSE_WITH_COVARIANCE  # the hypothesis's pose: not used
+                results.append((class_id, score))
+            pos += -pos % 8
+            values = box(data, pos)
+            d_id, pos = string(pos + 80)
+            out.append((d_frame, d_sec * _NS_PER_S + d_nsec, results, values, d_id))
+    except (struct.error, ValueError, UnicodeDecodeError):
+        return None
+    if pos > end or pos + 3 < end:  # rosbags allows at most 3 bytes of padding after the message
+        return None
+    return frame, sec * _NS_PER_S + nsec, out
+
+
+def _decode_rosbags(payload: bytes | bytearray | memoryview) -> tuple[str, int, list[_RawDetection]]:
+    """The same as :func:`_decode_le`, by rosbags (any encoding); RosInputError if malformed."""
+    try:
+        message = _deserialize(payload, DETECTION_3D_ARRAY)
+    except MapError as err:
+        raise RosInputError("malformed", str(err)) from err
+    out: list[_RawDetection] = []
+    for d in message.detections:
+        s, p, q = d.bbox.size, d.bbox.center.position, d.bbox.center.orientation
+        values = tuple(float(v) for v in (p.x, p.y, p.z, q.x, q.y, q.z, q.w, s.x, s.y, s.z))
+        results = [(str(r.hypothesis.class_id), float(r.hypothesis.score)) for r in d.results]
+        out.append((str(d.header.frame_id), _stamp(d.header), results, values, str(d.id)))
+    return str(message.header.frame_id), _stamp(message.header), out
+
+
 def decode_detections(
     payload: bytes | bytearray | memoryview, *, max_detections: int
 ) -> tuple[str, int, list[_Detection]]:
@@ -193,29 +275,26 @@ def decode_detections(
     if len(payload) > limit:
         msg = f"Detection3DArray of {len(payload)} bytes: {max_detections} detections fit in {limit}."
         raise RosInputError("oversized", msg)
-    try:
-        message = _deserialize(payload, DETECTION_3D_ARRAY)
-    except MapError as err:
-        raise RosInputError("malformed", str(err)) from err
-    if len(message.detections) > max_detections:
-        count = len(message.detections)
-        msg = f"Detection3DArray has {count} detections, more than the limit {max_detections}."
+    fast = _decode_le(payload)
+    if fast is None:  # anything unusual (big endian, malformed): rosbags decodes it, or says why not
+        fast = _decode_rosbags(payload)
+    frame, stamp, raw = fast
+    if len(raw) > max_detections:
+        msg = f"Detection3DArray has {len(raw)} detections, more than the limit {max_detections}."
         raise RosInputError("oversized", msg)
-    frame, stamp = str(message.header.frame_id), _stamp(message.header)
     out: list[_Detection] = []
-    for d in message.detections:
-        best = max(d.results, key=lambda r: float(r.hypothesis.score), default=None)
-        s, p, q = d.bbox.size, d.bbox.center.position, d.bbox.center.orientation
+    for d_frame, d_stamp, results, v, d_id in raw:
+        best = max(results, key=lambda r: r[1], default=None)
         out.append(
             _Detection(
-                frame_id=str(d.header.frame_id) or frame,
-                stamp_ns=_stamp(d.header) or stamp,
-                class_id=None if best is None else str(best.hypothesis.class_id),
-                score=-math.inf if best is None else float(best.hypothesis.score),
-                position=(float(p.x), float(p.y), float(p.z)),
-                orientation=(float(q.x), float(q.y), float(q.z), float(q.w)),
-                size=(float(s.x), float(s.y), float(s.z)),
-                id=str(d.id),
+                frame_id=d_frame or frame,
+                stamp_ns=d_stamp or stamp,
+                class_id=None if best is None else best[0],
+                score=-math.inf if best is None else best[1],
+                position=(v[0], v[1], v[2]),
+                orientation=(v[3], v[4], v[5], v[6]),
+                size=(v[7], v[8], v[9]),
+                id=d_id,
             )
         )
     return frame, stamp, out
@@ -293,7 +372,13 @@ def box_in_map(
             "pose", f"Box orientation {orientation} is not a unit quaternion (norm {norm:.4g})."
         )
     local = matrix(position, [v / norm for v in orientation])
-    world = map_from_frame @ local
+    return _upright(map_from_frame @ local, size, max_tilt_rad=max_tilt_rad)
+
+
+def _upright(
+    world: Matrix, size: tuple[float, float, float], *, max_tilt_rad: float
+) -> tuple[float, float, float, float, float, float, float]:
+    """The end of :func:`box_in_map`: ``world`` is the map from the box (its pose checked)."""
     r = world[:3, :3]
     tilt = math.acos(max(-1.0, min(1.0, float(r[2, 2]))))
     if tilt > max_tilt_rad:
@@ -307,6 +392,49 @@ def box_in_map(
     if not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE_M for v in (cx, cy, cz)):
         raise RosInputError("pose", f"Box centre in the map frame is out of range: {(cx, cy, cz)}.")
     return (cx, cy, cz, size[0], size[1], size[2], yaw)
+
+
+def _boxes_in_map(
+    frames: list[Matrix], dets: list[_Detection], *, max_tilt_rad: float, max_size_m: float
+) -> list[tuple[float, float, float, float, float, float, float] | RosInputError]:
+    """:func:`box_in_map` of many boxes at once (``frames[i]``: map from detection ``i``'s frame), the
+    same floats, bit for bit: the checks of the pose and the box's matrix in numpy (the same operations
+    in the same order), the rest per box; a box whose pose or size fails goes through
+    :func:`box_in_map` for its error."""
+    n = len(dets)
+    if n == 0:
+        return []
+    p = np.array([d.position for d in dets], dtype=np.float64)
+    q = np.array([d.orientation for d in dets], dtype=np.float64)
+    size = np.array([d.size for d in dets], dtype=np.float64)
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        x, y, z, w = q.T
+        norm = np.sqrt(x * x + y * y + z * z + w * w)  # left to right, as sum() adds
+        ok = (
+            np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1)
+            & (np.abs(p) <= MAX_COORDINATE_M).all(axis=1)
+            & (np.isfinite(size) & (size >= MIN_SIZE_M) & (size <= max_size_m)).all(axis=1)
+            & (np.abs(norm - 1.0) <= 1e-2)
+        )  # fmt: skip
+        x, y, z, w = (np.where(ok, v / np.where(ok, norm, 1.0), 0.0) for v in (x, y, z, w))
+    local = np.zeros((n, 4, 4))  # tf.matrix's, row by row
+    local[:, 0, :3] = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1)
+    local[:, 1, :3] = np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1)
+    local[:, 2, :3] = np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1)
+    local[:, :3, 3] = np.where(ok[:, None], p, 0.0)
+    local[:, 3, 3] = 1.0
+    world = np.matmul(np.stack(frames), local)
+    out: list[tuple[float, float, float, float, float, float, float] | RosInputError] = []
+    for i, d in enumerate(dets):
+        try:
+            if ok[i]:
+                out.append(_upright(world[i], d.size, max_tilt_rad=max_tilt_rad))
+            else:
+                limits = {"max_tilt_rad": max_tilt_rad, "max_size_m": max_size_m}
+                out.append(box_in_map(frames[i], d.position, d.orientation, d.size, **limits))
+        except RosInputError as err:
+            out.append(err)
+    return out
 
 
 def _shadows(frames: list[Matrix], dets: list[_Detection]) -> tuple[FloatArray, BoolArray]:
@@ -366,7 +494,9 @@ def _view(
         pose, optical=settings.optical, hfov_rad=hfov, vfov_rad=vfov, range_m=settings.range_m,
         near_m=settings.near_m, z_offset_m=drop_z,
     )  # fmt: skip
-    seen = camera_view(ctx.occluders, cam, band_m=settings.band_m, shadows=shadows, rays=settings.rays)
+    seen = camera_view(
+        ctx.occluders, cam, band_m=settings.band_m, shadows=shadows, rays=settings.rays, cache=ctx.view_cache
+    )
     if seen is None:
         return None
     return ViewReport(storey, seen.polygons, settings.detects, seen.holes, origin=cam.position)
@@ -405,14 +535,18 @@ def translate_detections(
     drop_z = ctx.elevation_m if settings.z_reference == "building" else 0.0
     placed: tuple[list[Matrix], list[_Detection]] = ([], [])  # every detection, for its shadow
     blind = False  # a detection whose place is unknown: what it hides is unknown, so no view
+    # first each detection's class and frame, then the boxes of the known classes at once, then in order
+    steps: list[tuple[int, _Detection, str | None, str | None, RosInputError | None, int]] = []
+    to_place: tuple[list[Matrix], list[_Detection]] = ([], [])
     for index, d in enumerate(detections):
         ifc_class = settings.classes.get(d.class_id) if d.class_id is not None else None
+        why: str | None = None
         if d.class_id is None:
-            ignored["no_hypothesis"] += 1
+            why = "no_hypothesis"
         elif ifc_class is None:
-            ignored["unknown_class"] += 1
+            why = "unknown_class"
         elif not d.score >= settings.min_score:
-            ignored["low_score"] += 1
+            why = "low_score"
             ifc_class = None
         try:
             if ifc_class is not None and d.stamp_ns > ctx.now_ns + settings.future_ns:
@@ -420,21 +554,37 @@ def translate_detections(
             key = (d.frame_id, d.stamp_ns)
             if key not in transforms:  # the detections of an array share their frame: one lookup
                 transforms[key] = _resolve(ctx.tf, settings.map_frame, d.frame_id, d.stamp_ns)
-            map_from_frame = transforms[key]
-            placed[0].append(map_from_frame)  # any detection hides what stands behind it
-            placed[1].append(d)
-            if ifc_class is None:
-                continue
-            cx, cy, cz, sx, sy, sz, yaw = box_in_map(
-                map_from_frame, d.position, d.orientation, d.size,
-                max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m,
-            )  # fmt: skip
         except RosInputError as err:
+            steps.append((index, d, why, ifc_class, err, -1))
+            continue
+        map_from_frame = transforms[key]
+        placed[0].append(map_from_frame)  # any detection hides what stands behind it
+        placed[1].append(d)
+        row = -1
+        if ifc_class is not None:
+            row = len(to_place[1])
+            to_place[0].append(map_from_frame)
+            to_place[1].append(d)
+        steps.append((index, d, why, ifc_class, None, row))
+    placed_boxes = _boxes_in_map(
+        *to_place, max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m
+    )
+    for index, d, why, ifc_class, error, row in steps:
+        if why is not None:
+            ignored[why] += 1
+        if error is not None:
             if ifc_class is not None:
-                refused.append((err.cause, str(err)))
+                refused.append((error.cause, str(error)))
             else:
                 blind = True
             continue
+        if ifc_class is None:
+            continue
+        placed_box = placed_boxes[row]
+        if isinstance(placed_box, RosInputError):
+            refused.append((placed_box.cause, str(placed_box)))
+            continue
+        cx, cy, cz, sx, sy, sz, yaw = placed_box
         iri = (
             (
                 robot_iri(settings.robot, "det", d.id)

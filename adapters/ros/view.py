@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -45,6 +46,7 @@ __all__ = [
     "Camera",
     "FloorView",
     "Structure",
+    "ViewCache",
     "camera_view",
     "polygon_area",
     "visibility_polygon",
@@ -267,22 +269,57 @@ def _thin(angles: FloatArray, near: FloatArray, far: FloatArray, step_rad: float
     return keep
 
 
-def camera_view(
-    grid: OccupancyGrid | Structure | None,
-    cam: Camera,
-    *,
-    band_m: tuple[float, float] = (0.0, 0.0),
-    shadows: Sequence[tuple[float, float, float, float, float]] | FloatArray = (),
-    rays: int = 64,
-) -> FloorView | None:
-    """The floor ``cam`` saw (see the module's docstring), or None when it claims less than 1 dm².
+@dataclass(frozen=True, eq=False, slots=True)
+class _Marched:
+    """What a camera's view owes to its pose and the structure alone (not to the array's detections):
+    the rays (``count`` round the circle, ``covered`` those in the frustum, at ``angles``), each's
+    ``near`` and ``far`` ends in the frustum and its distance to the structure (``first_block``).
+    ``count`` 0: the frustum meets no floor."""
 
-    ``grid`` None: no structure occludes (a :class:`Structure` of it: made once per grid by a caller
-    that views it many times). ``shadows``: ``(cx, cy, sx, sy, yaw)`` box footprints
-    (``(k, 5)``).
-    """
+    count: int
+    step: float
+    near0: float
+    angles_all: FloatArray
+    covered: npt.NDArray[np.bool_]
+    angles: FloatArray
+    near: FloatArray
+    far: FloatArray
+    first_block: FloatArray
+
+
+_NONE = np.zeros(0)
+_NOTHING = _Marched(0, 0.0, 0.0, _NONE, np.zeros(0, dtype=np.bool_), _NONE, _NONE, _NONE, _NONE)
+
+
+class ViewCache:
+    """The last march of a robot's camera (:func:`camera_view` with ``cache``), reused while its pose,
+    its band, its rays and the structure object stay the same (a robot standing still): only the
+    detections' shadows are cut again. One per robot, used by one thread."""
+
+    __slots__ = ("_key", "_value", "hits", "misses")
+
+    def __init__(self) -> None:
+        self._key: tuple[object, ...] | None = None
+        self._value: _Marched | None = None
+        self.hits = 0
+        self.misses = 0
+
+    def get(self, key: tuple[object, ...]) -> _Marched | None:
+        if self._key is not None and self._key[0] is key[0] and self._key[1:] == key[1:]:
+            self.hits += 1
+            return self._value
+        self.misses += 1
+        return None
+
+    def put(self, key: tuple[object, ...], value: _Marched) -> None:
+        self._key, self._value = key, value
+
+
+def _march(
+    structure: Structure | None, cam: Camera, band_m: tuple[float, float], rays: int
+) -> _Marched:
+    """The rays of ``cam`` marched through ``structure`` (see :class:`_Marched`)."""
     ox, oy, _ = cam.position
-    structure = Structure.of(grid) if isinstance(grid, OccupancyGrid) else grid
     res = structure.grid.frame.resolution_m if structure is not None else 0.05
     per_fov = max(int(rays), 3) * 2 * math.pi / min(cam.hfov_rad, 2 * math.pi)
     count = int(min(MAX_RAYS, max(per_fov, math.ceil(2 * math.pi * cam.range_m / res) + 1)))
@@ -297,19 +334,27 @@ def camera_view(
     else:
         covered = _covered_bearings(cam, band_m, count)
     if not covered.any():
-        return None
+        return _NOTHING
     angles = angles_all[covered]
     reach = float(hi_all[covered].max()) if pinhole else cam.range_m
     dist = np.arange(near0, reach + step, step)
     dist = dist[dist <= reach + 1e-9]
     if len(dist) < 2:
-        return None
-    xs = ox + np.cos(angles)[:, None] * dist[None, :]  # (rays, k)
-    ys = oy + np.sin(angles)[:, None] * dist[None, :]
+        return _NOTHING
+    xs = np.multiply.outer(np.cos(angles), dist)  # (rays, k); the same floats as ox + cos * dist
+    xs += ox
+    ys = np.multiply.outer(np.sin(angles), dist)
+    ys += oy
     if structure is not None:
         f = structure.grid.frame
-        cols = np.floor((xs - f.origin_x) / res).astype(np.intp)
-        rows = np.floor((ys - f.origin_y) / res).astype(np.intp)
+        cells = np.subtract(xs, f.origin_x)  # in place from here on: the same values, no temporaries
+        cells /= res
+        np.floor(cells, out=cells)
+        cols = cells.astype(np.intp)
+        np.subtract(ys, f.origin_y, out=cells)
+        cells /= res
+        np.floor(cells, out=cells)
+        rows = cells.astype(np.intp)
         np.clip(cols, -1, f.width, out=cols)  # beyond the grid's edge: the border, which blocks
         np.clip(rows, -1, f.height, out=rows)
         rows += 1
@@ -320,11 +365,8 @@ def camera_view(
         first_block = np.where(blocked.any(axis=1), dist[blocked.argmax(axis=1)] - step, np.inf)
     else:
         first_block = np.full(len(angles), np.inf)
-    wall = np.minimum(
-        first_block, _box_entry(ox, oy, angles, np.asarray(shadows, dtype=np.float64).reshape(-1, 5)) - step
-    )
     if pinhole:
-        near, far = lo_all[covered], np.minimum(hi_all[covered], wall)
+        near, far = lo_all[covered], hi_all[covered]
     else:  # sampled: the first run of samples in the frustum
         seen = cam.sees(xs, ys, band_m[0]) & cam.sees(xs, ys, band_m[1]) & (dist >= cam.near_m)[None, :]
         has = seen.any(axis=1)
@@ -332,7 +374,53 @@ def camera_view(
         after = np.where(np.arange(len(dist))[None, :] >= first[:, None], ~seen, False)
         last = np.where(after.any(axis=1), after.argmax(axis=1) - 1, len(dist) - 1)
         near = np.where(has, dist[first], np.inf)
-        far = np.where(has, np.minimum(dist[last], wall), -np.inf)
+        far = np.where(has, dist[last], -np.inf)
+    return _Marched(count, step, near0, angles_all, covered, angles, near, far, first_block)
+
+
+def _roll(a: npt.NDArray[Any], shift: int) -> npt.NDArray[Any]:
+    """``np.roll(a, shift)`` of a 1-d array by one place (without its general machinery)."""
+    if shift == 1:
+        return np.concatenate((a[-1:], a[:-1]))
+    return np.concatenate((a[1:], a[:1]))
+
+
+def _points(ox: float, oy: float, angles: list[float], radii: FloatArray) -> list[Point]:
+    """The points at ``radii`` along ``angles`` from ``(ox, oy)``."""
+    return [(ox + math.cos(t) * r, oy + math.sin(t) * r) for t, r in zip(angles, radii.tolist(), strict=True)]
+
+
+def camera_view(
+    grid: OccupancyGrid | Structure | None,
+    cam: Camera,
+    *,
+    band_m: tuple[float, float] = (0.0, 0.0),
+    shadows: Sequence[tuple[float, float, float, float, float]] | FloatArray = (),
+    rays: int = 64,
+    cache: ViewCache | None = None,
+) -> FloorView | None:
+    """The floor ``cam`` saw (see the module's docstring), or None when it claims less than 1 dm².
+
+    ``grid`` None: no structure occludes (a :class:`Structure` of it: made once per grid by a caller
+    that views it many times). ``shadows``: ``(cx, cy, sx, sy, yaw)`` box footprints
+    (``(k, 5)``). ``cache``: the march of the last call with the same structure, camera, band and
+    rays is reused (the result is the same; only the shadows are cut again).
+    """
+    ox, oy, _ = cam.position
+    structure = Structure.of(grid) if isinstance(grid, OccupancyGrid) else grid
+    key = (structure, cam, (float(band_m[0]), float(band_m[1])), int(rays))
+    marched = cache.get(key) if cache is not None else None
+    if marched is None:
+        marched = _march(structure, cam, band_m, rays)
+        if cache is not None:
+            cache.put(key, marched)
+    if marched.count == 0:
+        return None
+    count, step, near0, angles_all = marched.count, marched.step, marched.near0, marched.angles_all
+    covered, angles = marched.covered, marched.angles
+    boxes = np.asarray(shadows, dtype=np.float64).reshape(-1, 5)
+    wall = np.minimum(marched.first_block, _box_entry(ox, oy, angles, boxes) - step)
+    near, far = marched.near, np.minimum(marched.far, wall)
     # conservative between rays: no farther and no nearer than the neighbours that claim floor too
     # (on the fine circle; next to a ray that claims none, the polygon's edge runs back to the sensor)
     far_all = np.full(count, -np.inf)
@@ -341,10 +429,10 @@ def camera_view(
     claims = far_all > near_all + step
     far_all = np.where(claims, far_all, -np.inf)
     for side in (1, -1):
-        other = np.roll(claims, side)
-        far_all = np.where(other, np.minimum(far_all, np.roll(far_all, side)), far_all)
+        other = _roll(claims, side)
+        far_all = np.where(other, np.minimum(far_all, _roll(far_all, side)), far_all)
     near_n = np.where(claims, near_all, -np.inf)
-    near_all = np.maximum(near_all, np.maximum(np.roll(near_n, 1), np.roll(near_n, -1)))
+    near_all = np.maximum(near_all, np.maximum(_roll(near_n, 1), _roll(near_n, -1)))
     valid = far_all > near_all + step
     whole_circle = bool(valid.all())
     polygons: list[Ring] = []
@@ -363,25 +451,19 @@ def camera_view(
         after = np.concatenate([gaps, [wrap]])
         half = np.minimum(np.maximum(before, after), 2.0) / 2
         lo = np.minimum(lo / np.cos(half), hi - 1e-6)
-        outer = [
-            (float(ox + math.cos(t) * r), float(oy + math.sin(t) * r)) for t, r in zip(a, hi, strict=True)
-        ]
+        a_list = a.tolist()  # Python floats: the same arithmetic as numpy's scalars, much cheaper
+        outer = _points(ox, oy, a_list, hi)
         if whole_circle:
             if len(outer) < 3:
                 continue
             polygons.append(tuple(outer))
             if not at_sensor:
-                inner = [
-                    (float(ox + math.cos(t) * r), float(oy + math.sin(t) * r))
-                    for t, r in zip(a, lo, strict=True)
-                ]
+                inner = _points(ox, oy, a_list, lo)
                 holes.append(tuple(inner))
         elif at_sensor:
             polygons.append(((float(ox), float(oy)), *outer))
         else:
-            inner = [
-                (float(ox + math.cos(t) * r), float(oy + math.sin(t) * r)) for t, r in zip(a, lo, strict=True)
-            ]
+            inner = _points(ox, oy, a_list, lo)
             polygons.append((*outer, *inner[::-1]))
     view = FloorView(tuple(polygons), tuple(holes))
     if not polygons or view.area < MIN_AREA_M2:

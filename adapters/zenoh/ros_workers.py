@@ -39,7 +39,7 @@ from adapters.ros.detections import (
 from adapters.ros.observation_doc import RosInputError, Translation
 from adapters.ros.sessions import TrackerSession
 from adapters.ros.tf import TfBuffer, decode_tf_message
-from adapters.ros.view import Structure
+from adapters.ros.view import Structure, ViewCache
 from twin.errors import MapError
 from twin.maps.grid import OccupancyGrid
 
@@ -96,6 +96,8 @@ class _Robot:
     """Arrays whose transform is not in yet: (monotonic deadline, payload, arrival ns), oldest first."""
     fov_rad: tuple[float, float] | None = None
     session: TrackerSession = field(default_factory=TrackerSession)
+    view_cache: ViewCache = field(default_factory=ViewCache)
+    """Its camera's last march (reused while it stands still and the map is the same)."""
 
 
 class RobotTranslator:
@@ -214,7 +216,7 @@ class RobotTranslator:
         known = skill is None or grid is not None
         ctx = DetectionContext(
             storey, elevation, self.clock(), robot.tf, grid, self.fusion_terms, known,
-            fov_rad=robot.fov_rad, session=robot.session,
+            fov_rad=robot.fov_rad, session=robot.session, view_cache=robot.view_cache,
         )  # fmt: skip
         try:
             t = translate_detections(payload, robot.spec.settings, ctx, typed=self.typed)

@@ -15,7 +15,7 @@ from shapely.ops import unary_union
 
 from adapters.ros.observation_doc import _metres
 from adapters.ros.tf import matrix
-from adapters.ros.view import OCCUPIED_AT, Camera, Structure, camera_view, visibility_polygon
+from adapters.ros.view import OCCUPIED_AT, Camera, Structure, ViewCache, camera_view, visibility_polygon
 from tests.conftest import examples
 from twin.maps.grid import GridFrame, OccupancyGrid
 
@@ -203,3 +203,46 @@ def test_a_structure_made_once_cuts_views_as_its_grid_does_and_stops_rays_at_the
         seen = unary_union([Polygon(p) for p in b.polygons])
         assert seen.bounds[0] >= -0.1 and seen.bounds[2] <= 4.0 + 1e-9  # not past the wall, nor the edge
         assert seen.bounds[1] >= -0.1 and seen.bounds[3] <= 6.1
+
+
+def _same(a: object, b: object) -> bool:
+    return repr(a) == repr(b)  # the polygons' floats, bit for bit (None alike)
+
+
+@settings(max_examples=examples(60), deadline=None, suppress_health_check=list(HealthCheck))
+@given(
+    grids=st.tuples(grids(), grids()),
+    x=st.floats(-1.0, 9.0),
+    y=st.floats(-1.0, 7.0),
+    yaw=st.floats(-4.0, 4.0),
+    pitch=st.floats(-0.3, 1.2),
+    hfov=st.one_of(st.floats(0.3, 3.0), st.floats(3.2, 6.2)),
+    vfov=st.one_of(st.none(), st.floats(0.3, 2.5)),
+    near=st.floats(0.0, 1.0),
+    shadows=st.lists(
+        st.lists(st.tuples(st.floats(-1, 9), st.floats(-1, 7), st.floats(0.1, 1.0)), max_size=4),
+        min_size=2,
+        max_size=3,
+    ),
+)
+def test_a_view_cache_gives_the_views_a_fresh_march_gives_whatever_the_shadows_and_a_new_map_misses_it(  # noqa: PLR0917
+    grids: tuple[OccupancyGrid, OccupancyGrid],
+    x: float,
+    y: float,
+    yaw: float,
+    pitch: float,
+    hfov: float,
+    vfov: float | None,
+    near: float,
+    shadows: list[list[tuple[float, float, float]]],
+) -> None:
+    cam = camera(x, y, 1.0, yaw=yaw, pitch=pitch, hfov=hfov, vfov=vfov, reach=6.0, near=near)
+    cache = ViewCache()
+    for grid in grids:
+        structure = Structure.of(grid)  # a new map version: a new object, never the old march
+        for boxes in shadows:
+            rows = [(bx, by, s, s, 0.0) for bx, by, s in boxes]
+            fresh = camera_view(structure, cam, band_m=(0.1, 0.5), shadows=rows)
+            cached = camera_view(structure, cam, band_m=(0.1, 0.5), shadows=rows, cache=cache)
+            assert _same(fresh, cached)
+    assert cache.misses == 2 and cache.hits == 2 * len(shadows) - 2

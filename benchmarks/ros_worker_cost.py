@@ -1,0 +1,112 @@
+"""CPU time of one ROS 2 ingest worker's translation, in this process: a :class:`RobotTranslator` as a
+worker runs it (typed reports, views on, the view cut at a structure grid), fed what
+``ros_ingest.py``'s robots send: per array a TF message (``map -> base_link`` at its stamp) and a
+Detection3DArray of ``--detections`` tables with tracker ids, the robot standing still. Reports the
+CPU time (``time.process_time``) per TF + array; ``--profile`` also prints a cProfile ranking.
+``--moving``: the robot moves 1 cm per array (no march reused). ``--check OUT.pkl`` writes the
+outcomes (to compare two code trees' outputs: the same bytes).
+
+    PYTHONPATH=$PWD python benchmarks/ros_worker_cost.py --detections 20 --repeat 10 [--profile]
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import json
+import pickle
+import pstats
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from ros_ingest import ROBOT, tables  # benchmarks/ is not a package
+
+NOW_NS = 1_700_000_000_000_000_000
+
+
+def setup(per_robot: int, arrays: int = 50, *, moving: bool = False) -> tuple[Any, list[tuple[bytes, bytes]]]:
+    """A translator with one robot on a 40 x 20 m structure grid at 0.05 m (walls every 4 m across and
+    6.5 m along: the robot in a corridor), and ``arrays`` TF + array pairs 0.1 s apart (``moving``: the
+    robot 1 cm further along x at each, its tables as far before it: no view's march is reused)."""
+    from adapters.ros.detections import DetectionSettings
+    from adapters.zenoh.ros_workers import RobotSpec, RobotTranslator
+    from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
+    from twin.maps.grid import GridFrame, OccupancyGrid
+
+    data = np.zeros((400, 800), dtype=np.int8)
+    data[::80, :] = 100
+    data[:, ::130] = 100
+    grid = OccupancyGrid(GridFrame(0.0, 0.0, 0.05, 800, 400), data, "g", "localization", 0.0)
+    settings = DetectionSettings(robot="robot0", classes={"table": "IfcFurniture"})
+    spec = RobotSpec("robot0", settings, "localization")
+    t = RobotTranslator([spec], fusion_terms=True, typed=True, clock=lambda: NOW_NS)
+    t.set_storey("robot0", "g")
+    t.set_elevations({"g": 0.0})
+    t.set_grid(grid)
+    spots = tables(per_robot)
+    msgs = []
+    for k in range(arrays):
+        stamp = NOW_NS - 6_000_000_000 + k * 100_000_000
+        dx = 0.01 * k if moving else 0.0
+        tf = cdr_tf([Tf("map", "base_link", (ROBOT[0] + dx, ROBOT[1], 0.0), stamp_ns=stamp)])
+        dets = [
+            Det((("table", 0.9),), (x - ROBOT[0] - dx, y - ROBOT[1], 0.375), (0.2, 0.2, 0.75), id=f"t{i}")
+            for i, (x, y) in enumerate(spots)
+        ]
+        msgs.append((tf, cdr_detections(stamp, "base_link", dets)))
+    return t, msgs
+
+
+def run(t: Any, msgs: list[tuple[bytes, bytes]], repeat: int) -> list[Any]:
+    out = []
+    for _ in range(repeat):
+        for tf, det in msgs:
+            t.handle("robot0", "tf", tf, 0)
+            out.append(t.handle("robot0", "detections", det, 0))
+    return out
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--detections", type=int, default=20)
+    p.add_argument("--repeat", type=int, default=10)
+    p.add_argument("--moving", action="store_true", help="the robot moves 1 cm per array")
+    p.add_argument("--profile", action="store_true")
+    p.add_argument("--check", type=Path)
+    a = p.parse_args()
+    t, msgs = setup(a.detections, moving=a.moving)
+    first = run(t, msgs, 1)
+    if a.check is not None:
+        a.check.write_bytes(pickle.dumps([[o.translation.document for o in x] for x in first]))
+    views = sum(
+        1 for x in first if x and getattr(x[0], "translation", None) and x[0].translation.document.view
+    )
+    t0 = time.process_time()
+    run(t, msgs, a.repeat)
+    cpu_ms = 1000 * (time.process_time() - t0) / (a.repeat * len(msgs))
+    print(
+        json.dumps(
+            {
+                "detections": a.detections,
+                "moving": a.moving,
+                "arrays_with_view": f"{views}/{len(first)}",
+                "cpu_ms": round(cpu_ms, 3),
+            }
+        )
+    )
+    if a.profile:
+        prof = cProfile.Profile()
+        prof.enable()
+        run(t, msgs, a.repeat)
+        prof.disable()
+        pstats.Stats(prof).sort_stats("cumtime").print_stats(30)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
