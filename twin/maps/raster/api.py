@@ -93,7 +93,9 @@ def _by_tile(p: _Polygons, tile_m: float) -> _Polygons:
     centre = 0.5 * (p.bounds[:2] + p.bounds[2:]) / tile_m
     tile = (centre - centre.min(axis=1, keepdims=True)).astype(np.int64)
     order = np.argsort(tile[1] * (tile[0].max() + 1) + tile[0], kind="stable")
-    return p._replace(xs=p.xs[:, order], ys=p.ys[:, order], bounds=p.bounds[:, order], thin=p.thin[order])
+    return p._replace(
+        xs=p.xs[:, order], ys=p.ys[:, order], bounds=p.bounds[:, order], thin=p.thin[order], solid=p.solid[order]
+    )
 
 
 def rasterize(
@@ -111,7 +113,8 @@ def rasterize(
     """
     win = _check_window(frame, window)
     cells = _Cells(frame, win, tol, settings)
-    x0, y0, x1, y1 = _region(frame, win, tol.cell_m + 1e-6 * frame.resolution_m)
+    # a polygon within grid_m of the window's edge is on it (grid_coordinates), and may touch its cells
+    x0, y0, x1, y1 = _region(frame, win, tol.cell_m + 2 * tol.grid_m + 1e-6 * frame.resolution_m)
     chunk, block, p = settings.chunk_polygons, geometry.block, geometry.polygons
     if win == frame.full:
         for i in range(0, p.thin.size, chunk):

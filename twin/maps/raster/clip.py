@@ -34,6 +34,7 @@ class _Polygons(NamedTuple):
             polygon (polygon ``i`` is ``xs[:, i], ys[:, i]``, in order); unused slots repeat the last.
         bounds: ``(4, m) float64`` rows ``xmin, ymin, xmax, ymax`` of each polygon.
         thin: ``(m,) bool`` degenerate polygon of an open element (rasterised with grown cells).
+        solid: ``(m,) bool`` polygon of a closed element (never thin: rasterised with shrunk cells).
         segments: ``(4, s) float64`` rows ``x1, y1, x2, y2``: the closed elements' section at the
             slab's mid-height, the endpoint of lower y (then lower x) first.
         segment_element: ``(s,) intp`` element of each segment.
@@ -45,6 +46,7 @@ class _Polygons(NamedTuple):
     ys: FloatArray
     bounds: FloatArray
     thin: BoolArray
+    solid: BoolArray
     segments: FloatArray
     segment_element: IndexArray
     segment_winding: Int8Array
@@ -212,12 +214,13 @@ def _slab_chunk(
     area2[nw:] = (dx[:-1] * dy[1:] - dy[:-1] * dx[1:]).sum(axis=0)
     solid = closed[element]
     extent = np.maximum(bounds[2] - bounds[0], bounds[3] - bounds[1])
-    thin = (np.abs(area2) <= (2 * tol.cell_m) * extent) & ~solid[np.concatenate([whole, cut])]
+    solid_polygon = solid[np.concatenate([whole, cut])]
+    thin = (np.abs(area2) <= (2 * tol.cell_m) * extent) & ~solid_polygon
 
     z_f = 0.5 * (z_lo + z_hi)
     crossing = np.flatnonzero(solid & (zmin < z_f) & (zmax >= z_f))
     segments, winding = _section(chunk[crossing], z_f)
-    return _Polygons(xs, ys, bounds, thin, segments, element[crossing].astype(np.intp), winding)
+    return _Polygons(xs, ys, bounds, thin, solid_polygon, segments, element[crossing].astype(np.intp), winding)
 
 
 def _min_max(chunk: FloatArray, axis: int) -> tuple[FloatArray, FloatArray]:

@@ -6,7 +6,7 @@ from itertools import pairwise
 
 import numpy as np
 
-from twin.maps.grid import GridFrame, Window
+from twin.maps.grid import GridFrame, Window, grid_coordinates
 from twin.maps.raster.clip import _Polygons
 from twin.maps.raster.settings import (
     MAX_VERTICES,
@@ -55,8 +55,9 @@ class _Cells:
 
     def occupied(self) -> BoolArray:
         f, win = self.frame, self.win
-        origin = np.array([[f.origin_x], [f.origin_y], [f.origin_x], [f.origin_y]])
-        seg = (np.concatenate(self.segments, axis=1) - origin) / f.resolution_m
+        seg = np.concatenate(self.segments, axis=1)
+        seg[0::2] = grid_coordinates(seg[0::2], f.origin_x, f.resolution_m)
+        seg[1::2] = grid_coordinates(seg[1::2], f.origin_y, f.resolution_m)
         element, winding = np.concatenate(self.segment_element), np.concatenate(self.segment_winding)
         self._add(_fill_spans(seg, element, winding, win))
         rows, cols = win.shape
@@ -97,15 +98,21 @@ def _polygon_spans(
     batches of at most ``chunk_pairs`` (polygon, row) pairs.
 
     Cells are ``[c + s, c + 1 - s] x [r + s, r + 1 - s]`` in grid units, ``s = tol`` (``-tol`` for thin
-    polygons). A convex polygon touches every row its y-range meets; in a row, the columns its x-range
-    within the strip meets. Grid units are monotone in world units, so bounds transform exactly.
+    polygons). Vertices are taken to grid units by :func:`twin.maps.grid.grid_coordinates` (a coordinate
+    within ``Tolerances.grid_m`` of a grid line is on it), as :func:`twin.maps.raster.boxes.footprint_cells`
+    takes a box's corners, so both decide ties on the same exact coordinates. That map is monotone, so
+    bounds transform exactly. A polygon of an open element that it flattens onto a grid line (its
+    extent in x or y becomes zero) is thin from then on: it is on the line, and grown cells keep it.
+    A convex polygon touches every row its y-range meets; in a row, the columns its x-range within the
+    strip meets.
     """
     res, ox, oy = frame.resolution_m, frame.origin_x, frame.origin_y
     sel = slice(None) if idx is None else idx
-    s = np.where(polygons.thin[sel], -tol, tol)
     xmin, ymin, xmax, ymax = polygons.bounds[:, sel]
-    umin, umax = (xmin - ox) / res, (xmax - ox) / res
-    vmin, vmax = (ymin - oy) / res, (ymax - oy) / res
+    umin, umax = grid_coordinates(xmin, ox, res), grid_coordinates(xmax, ox, res)
+    vmin, vmax = grid_coordinates(ymin, oy, res), grid_coordinates(ymax, oy, res)
+    flat = ((umin == umax) | (vmin == vmax)) & ~polygons.solid[sel]
+    s = np.where(polygons.thin[sel] | flat, -tol, tol)
     c_lo = np.ceil(umin + s).astype(np.intp) - 1
     c_hi = np.floor(umax - s).astype(np.intp)
     r_lo = np.ceil(vmin + s).astype(np.intp) - 1
@@ -136,7 +143,7 @@ def _polygon_spans(
     )
     order = np.argsort(size, kind="stable")
     gen, size = gen[order], size[order]
-    u, v = (xs[:, order] - ox) / res, (ys[:, order] - oy) / res
+    u, v = grid_coordinates(xs[:, order], ox, res), grid_coordinates(ys[:, order], oy, res)
     for sl in _batches(r_hi[gen] - r_lo[gen] + 1, chunk_pairs):
         g = gen[sl]
         out.append(_strip_spans(u[:, sl], v[:, sl], size[sl], s=s[g], r_lo=r_lo[g], r_hi=r_hi[g]))
