@@ -6,7 +6,7 @@ from itertools import pairwise
 
 import numpy as np
 
-from twin.maps.grid import GridFrame, Window, grid_coordinates
+from twin.maps.grid import GridFrame, Window
 from twin.maps.raster.clip import _Polygons
 from twin.maps.raster.settings import (
     MAX_VERTICES,
@@ -34,7 +34,7 @@ class _Cells:
 
     def add_polygons(self, polygons: _Polygons, idx: IndexArray | None = None) -> None:
         for spans in _polygon_spans(
-            polygons, idx, self.frame, self.win, self.tol, chunk_pairs=self.chunk_pairs
+            polygons, idx, self.win, self.tol, chunk_pairs=self.chunk_pairs
         ):
             self._add(spans)
 
@@ -54,10 +54,8 @@ class _Cells:
         self.ends.append(start + c_hi[ok] + 1)
 
     def occupied(self) -> BoolArray:
-        f, win = self.frame, self.win
+        win = self.win
         seg = np.concatenate(self.segments, axis=1)
-        seg[0::2] = grid_coordinates(seg[0::2], f.origin_x, f.resolution_m)
-        seg[1::2] = grid_coordinates(seg[1::2], f.origin_y, f.resolution_m)
         element, winding = np.concatenate(self.segment_element), np.concatenate(self.segment_winding)
         self._add(_fill_spans(seg, element, winding, win))
         rows, cols = win.shape
@@ -88,7 +86,6 @@ def _batches(counts: IndexArray, limit: int) -> list[slice]:
 def _polygon_spans(
     polygons: _Polygons,
     idx: IndexArray | None,
-    frame: GridFrame,
     win: Window,
     tol: float,
     *,
@@ -98,21 +95,13 @@ def _polygon_spans(
     batches of at most ``chunk_pairs`` (polygon, row) pairs.
 
     Cells are ``[c + s, c + 1 - s] x [r + s, r + 1 - s]`` in grid units, ``s = tol`` (``-tol`` for thin
-    polygons). Vertices are taken to grid units by :func:`twin.maps.grid.grid_coordinates` (a coordinate
-    within ``Tolerances.grid_m`` of a grid line is on it), as :func:`twin.maps.raster.boxes.footprint_cells`
-    takes a box's corners, so both decide ties on the same exact coordinates. That map is monotone, so
-    bounds transform exactly. A polygon of an open element that it flattens onto a grid line (its
-    extent in x or y becomes zero) is thin from then on: it is on the line, and grown cells keep it.
-    A convex polygon touches every row its y-range meets; in a row, the columns its x-range within the
+    polygons); the polygons are in grid units already (:func:`twin.maps.raster.clip._slab_chunk`). A
+    convex polygon touches every row its y-range meets; in a row, the columns its x-range within the
     strip meets.
     """
-    res, ox, oy = frame.resolution_m, frame.origin_x, frame.origin_y
     sel = slice(None) if idx is None else idx
-    xmin, ymin, xmax, ymax = polygons.bounds[:, sel]
-    umin, umax = grid_coordinates(xmin, ox, res), grid_coordinates(xmax, ox, res)
-    vmin, vmax = grid_coordinates(ymin, oy, res), grid_coordinates(ymax, oy, res)
-    flat = ((umin == umax) | (vmin == vmax)) & ~polygons.solid[sel]
-    s = np.where(polygons.thin[sel] | flat, -tol, tol)
+    s = np.where(polygons.thin[sel], -tol, tol)
+    umin, vmin, umax, vmax = polygons.bounds[:, sel]
     c_lo = np.ceil(umin + s).astype(np.intp) - 1
     c_hi = np.floor(umax - s).astype(np.intp)
     r_lo = np.ceil(vmin + s).astype(np.intp) - 1
@@ -143,7 +132,7 @@ def _polygon_spans(
     )
     order = np.argsort(size, kind="stable")
     gen, size = gen[order], size[order]
-    u, v = grid_coordinates(xs[:, order], ox, res), grid_coordinates(ys[:, order], oy, res)
+    u, v = xs[:, order], ys[:, order]
     for sl in _batches(r_hi[gen] - r_lo[gen] + 1, chunk_pairs):
         g = gen[sl]
         out.append(_strip_spans(u[:, sl], v[:, sl], size[sl], s=s[g], r_lo=r_lo[g], r_hi=r_hi[g]))

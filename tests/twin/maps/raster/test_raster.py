@@ -380,7 +380,7 @@ def test_any_window_equals_the_same_slice_of_the_full_map_bit_for_bit(scene, sla
     want = full[win.row0 : win.row1, win.col0 : win.col1]
     np.testing.assert_array_equal(run(scene, *slab, FRAME, win), want)
     tri, el, closed = scene.arrays()
-    geometry = slab_geometry(tri, el, closed, *slab)
+    geometry = slab_geometry(tri, el, closed, *slab, FRAME)
     np.testing.assert_array_equal(rasterize(geometry, FRAME, win), want)
     np.testing.assert_array_equal(rasterize(geometry, FRAME), full)
     # Only the elements whose bounds meet the window (grown by a cell) matter there.
@@ -409,7 +409,7 @@ def test_small_chunks_and_index_blocks_give_the_same_map(scene, slab):
     np.testing.assert_array_equal(
         rasterize_slab(tri, el, closed, *slab, FRAME, win, settings=TINY), full[7:40, 11:50]
     )
-    geometry = slab_geometry(tri, el, closed, *slab, settings=TINY)
+    geometry = slab_geometry(tri, el, closed, *slab, FRAME, settings=TINY)
     np.testing.assert_array_equal(rasterize(geometry, FRAME, settings=TINY), full)
     np.testing.assert_array_equal(rasterize(geometry, FRAME, win, settings=TINY), full[7:40, 11:50])
     # the geometry keeps its own index block size, whatever chunk sizes rasterise it
