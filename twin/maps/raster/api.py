@@ -107,12 +107,12 @@ def slab_geometry(  # noqa: PLR0917 (rasterize_slab's call, less the window)
     return SlabGeometry(grid, p, block_bounds=blocks, block=settings.block)
 
 
-def _by_tile(p: _Polygons, tile: float) -> _Polygons:
-    """The polygons of one chunk sorted by the ``tile`` (grid units) tile of their centre (compact index
-    blocks)."""
+def _by_tile(p: _Polygons, side: float) -> _Polygons:
+    """The polygons of one chunk sorted by the tile (of ``side`` grid units) of their centre (compact
+    index blocks)."""
     if not p.thin.size:
         return p
-    centre = 0.5 * (p.bounds[:2] + p.bounds[2:]) / tile
+    centre = 0.5 * (p.bounds[:2] + p.bounds[2:]) / side
     tile = (centre - centre.min(axis=1, keepdims=True)).astype(np.int64)
     order = np.argsort(tile[1] * (tile[0].max() + 1) + tile[0], kind="stable")
     return p._replace(xs=p.xs[:, order], ys=p.ys[:, order], bounds=p.bounds[:, order], thin=p.thin[order])
