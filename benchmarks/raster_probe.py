@@ -164,7 +164,7 @@ def main() -> None:
     for name, (z0, z1) in slabs.items():
         n_in = int(((z.max(axis=1) >= z0) & (z.min(axis=1) <= z1)).sum())
         t_full, full = timed(lambda z0=z0, z1=z1: rasterize_slab(tri, el, closed, z0, z1, frame), args.runs)
-        t_prep, geom = timed(lambda z0=z0, z1=z1: slab_geometry(tri, el, closed, z0, z1), args.runs)
+        t_prep, geom = timed(lambda z0=z0, z1=z1: slab_geometry(tri, el, closed, z0, z1, frame), args.runs)
         t_win, t_near, t_wprep = [], [], []
         for w in windows:
             want = full[w.row0 : w.row1, w.col0 : w.col1]

@@ -27,9 +27,15 @@ class Tolerances:
     """Numerical tolerances of the maps and of the live twin.
 
     Attributes:
-        cell_m: cells are shrunk (solid geometry) or grown (degenerate open surfaces) by this many
-            metres when rasterising; an open polygon is degenerate when its area is at most ``cell_m``
-            times its extent.
+        cell_m: 2D maps (:mod:`twin.maps.raster`): cells are shrunk (solid geometry) or grown
+            (degenerate open surfaces) by this many metres when rasterising, after the vertices are
+            taken to grid units by ``grid_m``'s rule; an open polygon is degenerate when its area is
+            at most ``cell_m`` times its extent. It is sqrt(5)/2 nm, not a round number: a slanted
+            edge whose corners are off the grid and which passes a round number of nanometres from a
+            grid corner (a box turned 3-4-5, placed 1 nm off a grid line) is then clear of the shrunk
+            cells' corners by far more than float noise, instead of touching one within that noise,
+            which two ways of computing the same cells (:func:`twin.maps.raster.boxes.footprint_cells`
+            and the general rasteriser) would decide differently.
         join_m: two points this close are one (1 um): the ends of section segments
             (:func:`twin.maps.raster.closed_sections`) and of edges along a line
             (:func:`twin.maps.meshops.closes_around`). Far above the rounding errors of T-junctions and of
@@ -47,7 +53,9 @@ class Tolerances:
             grid line ``origin + i * resolution`` (the origin and the resolution read as the decimals
             they print as), of a voxel layer ``elevation + k * resolution``, of a band's end. The
             half-open rule then decides which cell it is in, so that where the building sits (a site
-            moved by a whole number of cells, kilometres away) never changes a map.
+            moved by a whole number of cells, kilometres away) never changes a map. 2D maps apply it
+            to every triangle's x and y before cutting it to the band, and to an upright box's
+            corners on the live shortcut, then ``cell_m``'s rule decides.
         voxel_out_m, voxel_in_m: points maps (:func:`twin.maps.voxels.touched_pairs`): a triangle
             touches a voxel when it meets the voxel's half-open box with its lower faces moved out by
             ``voxel_out_m`` and its upper faces moved in by ``voxel_in_m`` (3.1 nm and 0.5 um). For a
@@ -67,7 +75,7 @@ class Tolerances:
             so float noise of a few ulp never decides which of two equally near points a voxel keeps.
     """
 
-    cell_m: float = 1e-9
+    cell_m: float = 1.118034e-9  # sqrt(5) / 2 nm
     join_m: float = 1e-6
     same_position_m: float = 1e-3
     same_angle_rad: float = 1e-4

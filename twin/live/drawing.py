@@ -29,6 +29,7 @@ from twin.maps.raster.boxes import footprint_cells
 from twin.maps.render import occupancy, render_cells, render_layers
 from twin.maps.scene import IndexArray, MeshSet, Scene
 from twin.records import FloatArray, Shape
+from twin.tolerances import TOLERANCES
 
 _ONE: IndexArray = np.zeros(1, dtype=np.intp)
 
@@ -125,8 +126,9 @@ class Drawing:
         load); upright boxes take their own fast path."""
         occ = m.static[window.row0 : window.row1, window.col0 : window.col1].copy()
         f = m.plan.frame
-        x0, y0 = f.origin_x + window.col0 * f.resolution_m, f.origin_y + window.row0 * f.resolution_m
-        x1, y1 = f.origin_x + window.col1 * f.resolution_m, f.origin_y + window.row1 * f.resolution_m
+        res, pad = f.resolution_m, 2 * TOLERANCES.grid_m  # within grid_m of the window's edge is on it
+        x0, y0 = f.origin_x + window.col0 * res - pad, f.origin_y + window.row0 * res - pad
+        x1, y1 = f.origin_x + window.col1 * res + pad, f.origin_y + window.row1 * res + pad
         items = []
         for iri in sorted(m.overlay):
             el = self._overlay.get(iri)
@@ -176,8 +178,9 @@ class Drawing:
         ``window``: what makes its cells occupied (what ``twin explain`` answers)."""
         m = self.skill_maps[key]
         f = m.plan.frame
-        x0, y0 = f.origin_x + window.col0 * f.resolution_m, f.origin_y + window.row0 * f.resolution_m
-        x1, y1 = f.origin_x + window.col1 * f.resolution_m, f.origin_y + window.row1 * f.resolution_m
+        res, pad = f.resolution_m, 2 * TOLERANCES.grid_m  # within grid_m of the window's edge is on it
+        x0, y0 = f.origin_x + window.col0 * res - pad, f.origin_y + window.row0 * res - pad
+        x1, y1 = f.origin_x + window.col1 * res + pad, f.origin_y + window.row1 * res + pad
         out = []
         for i in self._base_ids(m):
             b = self.scene.elements.bounds[i]

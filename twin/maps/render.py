@@ -35,6 +35,7 @@ from twin.maps.raster import (
 )
 from twin.maps.scene import IndexArray, MeshSet, Scene, SlabBox, StoreyInfo
 from twin.selection.skills import SkillProfile
+from twin.tolerances import TOLERANCES
 
 MAX_MAP_CELLS = 50_000_000
 """The largest skill map the twin builds (50 M cells: a 350 m x 350 m storey at 5 cm); any grid frame
@@ -140,13 +141,13 @@ def prepare_slab(scene: Scene, plan: MapPlan, ids: IndexArray | None = None) -> 
     chosen = plan.selected if ids is None else np.intersect1d(ids, plan.selected)
     triangles, owner = scene.elements.triangles_of(chosen)
     fill = filled(scene.elements, chosen, plan)
-    return PreparedSlab(chosen, slab_geometry(triangles, owner, fill, plan.z_lo, plan.z_hi))
+    return PreparedSlab(chosen, slab_geometry(triangles, owner, fill, plan.z_lo, plan.z_hi, plan.frame))
 
 
 def occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -> BoolArray:
     """Which cells of ``window`` the elements ``ids`` of ``meshes`` touch within the plan's slab."""
     f = plan.frame
-    res, eps = f.resolution_m, 1e-6
+    res, eps = f.resolution_m, 2 * TOLERANCES.grid_m  # within grid_m of the window's edge is on it
     box = SlabBox(
         xmin=f.origin_x + window.col0 * res - eps,
         ymin=f.origin_y + window.row0 * res - eps,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from twin.errors import MapError
 from twin.maps.grid import GridFrame, Window
 from twin.maps.raster.clip import SlabGeometry, _check_inputs, _check_window, _parts, _Polygons, _region
 from twin.maps.raster.settings import RASTER_SETTINGS, BoolArray, FloatArray, IndexArray, RasterSettings
@@ -48,7 +49,15 @@ def rasterize_slab(  # noqa: PLR0917 (the map generator's established call)
     region = None if win == frame.full else _region(frame, win, frame.resolution_m + tol.cell_m)
     cells = _Cells(frame, win, tol, settings)
     parts = _parts(
-        triangles, element, closed, z_lo=z_lo, z_hi=z_hi, region=region, tol=tol, settings=settings
+        triangles,
+        element,
+        closed,
+        z_lo=z_lo,
+        z_hi=z_hi,
+        region=region,
+        frame=frame,
+        tol=tol,
+        settings=settings,
     )
     for part in parts:
         cells.add_polygons(part)
@@ -56,26 +65,37 @@ def rasterize_slab(  # noqa: PLR0917 (the map generator's established call)
     return cells.occupied()
 
 
-def slab_geometry(
+def slab_geometry(  # noqa: PLR0917 (rasterize_slab's call, less the window)
     triangles: FloatArray,
     element: IndexArray,
     closed: BoolArray,
     z_lo: float,
     z_hi: float,
+    frame: GridFrame,
     *,
     tol: Tolerances = TOLERANCES,
     settings: RasterSettings = RASTER_SETTINGS,
 ) -> SlabGeometry:
-    """Clip the triangles to the slab and section the closed elements at its mid-height.
+    """Clip the triangles to the slab and section the closed elements at its mid-height, in the grid
+    units of ``frame`` (its origin and resolution: the grid's ties are decided on its lines).
 
     Arguments are those of :func:`rasterize_slab`. Keep the result to rasterise many windows of one
-    slab quickly with :func:`rasterize`.
+    slab quickly with :func:`rasterize`, on ``frame`` or any frame of the same origin and resolution.
     """
     _check_inputs(triangles, element, closed, z_lo, z_hi)
+    tile = settings.tile_m / frame.resolution_m
     parts = [
-        _by_tile(p, settings.tile_m)
+        _by_tile(p, tile)
         for p in _parts(
-            triangles, element, closed, z_lo=z_lo, z_hi=z_hi, region=None, tol=tol, settings=settings
+            triangles,
+            element,
+            closed,
+            z_lo=z_lo,
+            z_hi=z_hi,
+            region=None,
+            frame=frame,
+            tol=tol,
+            settings=settings,
         )
     ]
     p = _Polygons(*(np.concatenate(field, axis=-1) for field in zip(*parts, strict=True)))
@@ -83,14 +103,16 @@ def slab_geometry(
     blocks = np.empty((4, len(starts)))
     for i, op in enumerate((np.minimum, np.minimum, np.maximum, np.maximum)):
         blocks[i] = op.reduceat(p.bounds[i], starts) if len(starts) else blocks[i]
-    return SlabGeometry(p, block_bounds=blocks, block=settings.block)
+    grid = (frame.origin_x, frame.origin_y, frame.resolution_m)
+    return SlabGeometry(grid, p, block_bounds=blocks, block=settings.block)
 
 
-def _by_tile(p: _Polygons, tile_m: float) -> _Polygons:
-    """The polygons of one chunk sorted by the ``tile_m`` tile of their centre (compact index blocks)."""
+def _by_tile(p: _Polygons, side: float) -> _Polygons:
+    """The polygons of one chunk sorted by the tile (of ``side`` grid units) of their centre (compact
+    index blocks)."""
     if not p.thin.size:
         return p
-    centre = 0.5 * (p.bounds[:2] + p.bounds[2:]) / tile_m
+    centre = 0.5 * (p.bounds[:2] + p.bounds[2:]) / side
     tile = (centre - centre.min(axis=1, keepdims=True)).astype(np.int64)
     order = np.argsort(tile[1] * (tile[0].max() + 1) + tile[0], kind="stable")
     return p._replace(xs=p.xs[:, order], ys=p.ys[:, order], bounds=p.bounds[:, order], thin=p.thin[order])
@@ -108,10 +130,20 @@ def rasterize(
 
     Equal to :func:`rasterize_slab` with the arguments ``geometry`` was made from. The index block
     size is ``geometry``'s own; ``settings`` gives the chunk sizes.
+
+    Raises:
+        MapError: ``frame``'s origin or resolution is not the one ``geometry`` was made on.
     """
     win = _check_window(frame, window)
+    if geometry.grid != (frame.origin_x, frame.origin_y, frame.resolution_m):
+        msg = (
+            f"Slab geometry made on the grid (origin_x, origin_y, resolution_m) = {geometry.grid} cannot "
+            f"be rasterised on a frame at ({frame.origin_x}, {frame.origin_y}, {frame.resolution_m})."
+        )
+        raise MapError(msg)
     cells = _Cells(frame, win, tol, settings)
-    x0, y0, x1, y1 = _region(frame, win, tol.cell_m + 1e-6 * frame.resolution_m)
+    pad = tol.cell_m / frame.resolution_m + 1e-6  # grid units
+    x0, y0, x1, y1 = win.col0 - pad, win.row0 - pad, win.col1 + pad, win.row1 + pad
     chunk, block, p = settings.chunk_polygons, geometry.block, geometry.polygons
     if win == frame.full:
         for i in range(0, p.thin.size, chunk):

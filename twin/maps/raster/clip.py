@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from twin.errors import MapError
-from twin.maps.grid import GridFrame, Window
+from twin.maps.grid import GridFrame, Window, grid_coordinates
 from twin.maps.raster.settings import (
     MAX_VERTICES,
     RASTER_SETTINGS,
@@ -30,12 +30,13 @@ class _Polygons(NamedTuple):
     """Clipped, projected polygons and section segments of some triangles.
 
     Attributes:
-        xs, ys: ``(5, m) float64`` world XY of the vertices of each clipped triangle's convex
-            polygon (polygon ``i`` is ``xs[:, i], ys[:, i]``, in order); unused slots repeat the last.
+        xs, ys: ``(5, m) float64`` XY in grid units (:func:`twin.maps.grid.grid_coordinates`) of the
+            vertices of each clipped triangle's convex polygon (polygon ``i`` is ``xs[:, i], ys[:, i]``,
+            in order); unused slots repeat the last.
         bounds: ``(4, m) float64`` rows ``xmin, ymin, xmax, ymax`` of each polygon.
         thin: ``(m,) bool`` degenerate polygon of an open element (rasterised with grown cells).
-        segments: ``(4, s) float64`` rows ``x1, y1, x2, y2``: the closed elements' section at the
-            slab's mid-height, the endpoint of lower y (then lower x) first.
+        segments: ``(4, s) float64`` rows ``x1, y1, x2, y2`` (grid units): the closed elements' section
+            at the slab's mid-height, the endpoint of lower y (then lower x) first.
         segment_element: ``(s,) intp`` element of each segment.
         segment_winding: ``(s,) int8`` +1 if the segment, oriented with its solid on the left, runs
             towards +y, else -1.
@@ -52,9 +53,11 @@ class _Polygons(NamedTuple):
 
 @dataclass(frozen=True, eq=False, slots=True)
 class SlabGeometry:
-    """The projected geometry of one slab, independent of any grid: rasterise it with :func:`rasterize`.
+    """The projected geometry of one slab on one grid: rasterise it with :func:`rasterize`.
 
     Attributes:
+        grid: ``(origin_x, origin_y, resolution_m)`` of the frames it can be rasterised on (its
+            coordinates are in their grid units; a frame's size and windows may vary).
         polygons: the clipped polygons and section segments (see :class:`_Polygons`), sorted chunk
             by chunk by the ``RasterSettings.tile_m`` tile of their centre.
         block_bounds: ``(4, ceil(m / block)) float64`` bounds of each run of ``block`` consecutive
@@ -62,6 +65,7 @@ class SlabGeometry:
         block: polygons per run of ``block_bounds`` (the ``RasterSettings.block`` it was made with).
     """
 
+    grid: tuple[float, float, float]
     polygons: _Polygons
     block_bounds: FloatArray
     block: int = RASTER_SETTINGS.block
@@ -128,15 +132,18 @@ def _parts(
     z_lo: float,
     z_hi: float,
     region: tuple[float, float, float, float] | None,
+    frame: GridFrame,
     tol: Tolerances,
     settings: RasterSettings,
 ) -> Iterator[_Polygons]:
-    """The slab geometry of the triangles meeting the slab (and the world ``region``), chunk by chunk.
+    """The slab geometry of the triangles meeting the slab (and the world ``region``), chunk by chunk,
+    in ``frame``'s grid units.
 
     The triangles are culled first (a few cheap passes), so the clipping works on full chunks of
     survivors. Triangles missing the region are dropped, except that the section keeps all those
     of the region's y-range: a row's fill needs all its crossings, however far in x.
     """
+    res = frame.resolution_m
     picked: list[IndexArray] = []
     inside: list[BoolArray] = []
     size = settings.chunk_triangles
@@ -161,10 +168,13 @@ def _parts(
         run = len(sel) > 0 and sel[-1] - sel[0] == len(sel) - 1
         rows: slice | IndexArray = slice(sel[0], sel[-1] + 1) if run else sel  # a run needs no copy
         keep = flags[i : i + size]
-        part = _slab_chunk(triangles[rows], element[rows], keep, closed=closed, z_lo=z_lo, z_hi=z_hi, tol=tol)
+        part = _slab_chunk(
+            triangles[rows], element[rows], keep, closed=closed, z_lo=z_lo, z_hi=z_hi, frame=frame, tol=tol
+        )
         if region is not None:
             seg = part.segments
-            near = (seg[3] >= region[1]) & (seg[1] <= region[3])
+            y0, y1 = (region[1] - frame.origin_y) / res, (region[3] - frame.origin_y) / res
+            near = (seg[3] >= y0) & (seg[1] <= y1)
             part = part._replace(
                 segments=seg[:, near],
                 segment_element=part.segment_element[near],
@@ -181,12 +191,22 @@ def _slab_chunk(
     closed: BoolArray,
     z_lo: float,
     z_hi: float,
+    frame: GridFrame,
     tol: Tolerances,
 ) -> _Polygons:
     """Polygons of the triangles ``keep`` of a chunk meeting the slab; section of them all.
 
-    Triangles wholly inside the slab come first, then clipped ones.
+    Triangles wholly inside the slab come first, then clipped ones. The vertices are taken to the
+    frame's grid units first (:func:`twin.maps.grid.grid_coordinates`: a coordinate within
+    ``Tolerances.grid_m`` of a grid line is on it), so clipping interpolates between the vertices on
+    the lines, and a polygon of an open element flattened onto a line is thin (its cells grown).
     """
+    res = frame.resolution_m
+    grid = np.empty_like(chunk)
+    grid[..., 0] = grid_coordinates(chunk[..., 0], frame.origin_x, res)
+    grid[..., 1] = grid_coordinates(chunk[..., 1], frame.origin_y, res)
+    grid[..., 2] = chunk[..., 2]
+    chunk = grid
     zmin, zmax = _min_max(chunk, 2)
     whole = np.flatnonzero(keep & (zmin >= z_lo) & (zmax <= z_hi))
     cut = np.flatnonzero(keep & ((zmin < z_lo) | (zmax > z_hi)))
@@ -212,7 +232,7 @@ def _slab_chunk(
     area2[nw:] = (dx[:-1] * dy[1:] - dy[:-1] * dx[1:]).sum(axis=0)
     solid = closed[element]
     extent = np.maximum(bounds[2] - bounds[0], bounds[3] - bounds[1])
-    thin = (np.abs(area2) <= (2 * tol.cell_m) * extent) & ~solid[np.concatenate([whole, cut])]
+    thin = (np.abs(area2) <= (2 * tol.cell_m / res) * extent) & ~solid[np.concatenate([whole, cut])]
 
     z_f = 0.5 * (z_lo + z_hi)
     crossing = np.flatnonzero(solid & (zmin < z_f) & (zmax >= z_f))

@@ -34,7 +34,7 @@ class _Cells:
 
     def add_polygons(self, polygons: _Polygons, idx: IndexArray | None = None) -> None:
         for spans in _polygon_spans(
-            polygons, idx, self.frame, self.win, self.tol, chunk_pairs=self.chunk_pairs
+            polygons, idx, self.win, self.tol, chunk_pairs=self.chunk_pairs
         ):
             self._add(spans)
 
@@ -54,9 +54,8 @@ class _Cells:
         self.ends.append(start + c_hi[ok] + 1)
 
     def occupied(self) -> BoolArray:
-        f, win = self.frame, self.win
-        origin = np.array([[f.origin_x], [f.origin_y], [f.origin_x], [f.origin_y]])
-        seg = (np.concatenate(self.segments, axis=1) - origin) / f.resolution_m
+        win = self.win
+        seg = np.concatenate(self.segments, axis=1)
         element, winding = np.concatenate(self.segment_element), np.concatenate(self.segment_winding)
         self._add(_fill_spans(seg, element, winding, win))
         rows, cols = win.shape
@@ -87,7 +86,6 @@ def _batches(counts: IndexArray, limit: int) -> list[slice]:
 def _polygon_spans(
     polygons: _Polygons,
     idx: IndexArray | None,
-    frame: GridFrame,
     win: Window,
     tol: float,
     *,
@@ -97,15 +95,13 @@ def _polygon_spans(
     batches of at most ``chunk_pairs`` (polygon, row) pairs.
 
     Cells are ``[c + s, c + 1 - s] x [r + s, r + 1 - s]`` in grid units, ``s = tol`` (``-tol`` for thin
-    polygons). A convex polygon touches every row its y-range meets; in a row, the columns its x-range
-    within the strip meets. Grid units are monotone in world units, so bounds transform exactly.
+    polygons); the polygons are in grid units already (:func:`twin.maps.raster.clip._slab_chunk`). A
+    convex polygon touches every row its y-range meets; in a row, the columns its x-range within the
+    strip meets.
     """
-    res, ox, oy = frame.resolution_m, frame.origin_x, frame.origin_y
     sel = slice(None) if idx is None else idx
     s = np.where(polygons.thin[sel], -tol, tol)
-    xmin, ymin, xmax, ymax = polygons.bounds[:, sel]
-    umin, umax = (xmin - ox) / res, (xmax - ox) / res
-    vmin, vmax = (ymin - oy) / res, (ymax - oy) / res
+    umin, vmin, umax, vmax = polygons.bounds[:, sel]
     c_lo = np.ceil(umin + s).astype(np.intp) - 1
     c_hi = np.floor(umax - s).astype(np.intp)
     r_lo = np.ceil(vmin + s).astype(np.intp) - 1
@@ -136,7 +132,7 @@ def _polygon_spans(
     )
     order = np.argsort(size, kind="stable")
     gen, size = gen[order], size[order]
-    u, v = (xs[:, order] - ox) / res, (ys[:, order] - oy) / res
+    u, v = xs[:, order], ys[:, order]
     for sl in _batches(r_hi[gen] - r_lo[gen] + 1, chunk_pairs):
         g = gen[sl]
         out.append(_strip_spans(u[:, sl], v[:, sl], size[sl], s=s[g], r_lo=r_lo[g], r_hi=r_hi[g]))

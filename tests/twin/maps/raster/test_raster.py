@@ -322,6 +322,21 @@ def test_an_open_quad_exactly_on_a_grid_line_still_occupies_both_neighbours():
     assert np.flatnonzero(got.any(axis=1)).tolist() == list(range(6, 14))
 
 
+def test_geometry_within_a_micrometre_of_grid_lines_is_on_them():
+    # a wall 0.4 um to either side of its lines, and a horizontal open sliver 0.6 um wide across x = 1.5
+    scene = Scene()
+    scene.add(True, box((1.1 + 4e-7, 1.5 - 4e-7, 1.5), (0.2, 2.0, 3.0)))
+    moved = run(scene, 0.1, 1.5, ALIGNED)
+    on = Scene()
+    on.add(True, box((1.1, 1.5, 1.5), (0.2, 2.0, 3.0)))
+    np.testing.assert_array_equal(moved, run(on, 0.1, 1.5, ALIGNED))
+    sliver = np.array([[[1.5 - 2e-7, 0.31, 0.7], [1.5 + 4e-7, 0.31, 0.7], [1.5 + 4e-7, 0.69, 0.7]]])
+    open_ = Scene()
+    open_.add(False, sliver)
+    got = run(open_, 0.1, 1.5, ALIGNED)  # flattened onto the line: degenerate, so it keeps both sides
+    assert np.flatnonzero(got.any(axis=0)).tolist() == [29, 30]
+
+
 def test_a_horizontal_open_face_on_grid_lines_stays_inside_them():
     face = np.array(
         [
@@ -380,7 +395,7 @@ def test_any_window_equals_the_same_slice_of_the_full_map_bit_for_bit(scene, sla
     want = full[win.row0 : win.row1, win.col0 : win.col1]
     np.testing.assert_array_equal(run(scene, *slab, FRAME, win), want)
     tri, el, closed = scene.arrays()
-    geometry = slab_geometry(tri, el, closed, *slab)
+    geometry = slab_geometry(tri, el, closed, *slab, FRAME)
     np.testing.assert_array_equal(rasterize(geometry, FRAME, win), want)
     np.testing.assert_array_equal(rasterize(geometry, FRAME), full)
     # Only the elements whose bounds meet the window (grown by a cell) matter there.
@@ -409,7 +424,7 @@ def test_small_chunks_and_index_blocks_give_the_same_map(scene, slab):
     np.testing.assert_array_equal(
         rasterize_slab(tri, el, closed, *slab, FRAME, win, settings=TINY), full[7:40, 11:50]
     )
-    geometry = slab_geometry(tri, el, closed, *slab, settings=TINY)
+    geometry = slab_geometry(tri, el, closed, *slab, FRAME, settings=TINY)
     np.testing.assert_array_equal(rasterize(geometry, FRAME, settings=TINY), full)
     np.testing.assert_array_equal(rasterize(geometry, FRAME, win, settings=TINY), full[7:40, 11:50])
     # the geometry keeps its own index block size, whatever chunk sizes rasterise it

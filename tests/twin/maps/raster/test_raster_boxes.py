@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -41,20 +42,41 @@ def _window(cx: float, cy: float, sx: float, sy: float) -> Window:
     return Window(w.row0 - 1, w.col0 - 1, w.row1 + 1, w.col1 + 1).intersect(FRAME.full)
 
 
+# ties: offsets and turns of float noise's size and of the tolerances' (cell_m 1e-9, grid_m 1e-6)
+tiny = st.sampled_from([0.0, 1e-9, -1e-9, 1e-12, 3e-10, 2e-9, -2e-9, 5e-7, -9.9e-7, 1.5e-6])
 on_grid = st.integers(-20, 50).map(lambda k: k * 0.05)  # the frame spans x -2..6, y -3..4
+near_grid = st.tuples(on_grid, tiny).map(sum)
 anywhere = st.floats(-1.0, 2.5, allow_nan=False)
 size = st.one_of(st.floats(0.001, 2.0), st.integers(1, 30).map(lambda k: k * 0.05))
-yaw = st.one_of(st.floats(-math.pi, math.pi), st.sampled_from([0.0, math.pi / 2, math.pi, -math.pi / 4]))
+turns = st.sampled_from([0.0, math.pi / 2, math.pi, -math.pi / 4, math.pi / 4, math.atan2(3, 4)])
+yaw = st.one_of(st.floats(-math.pi, math.pi), turns, st.tuples(turns, tiny).map(sum))
+centre = st.one_of(near_grid, anywhere)
 
 
 @settings(max_examples=400, deadline=None)
-@given(cx=st.one_of(on_grid, anywhere), cy=st.one_of(on_grid, anywhere), sx=size, sy=size, yaw=yaw)
+@given(cx=centre, cy=centre, sx=size, sy=size, yaw=yaw)
 def test_a_box_anywhere_at_any_turn_fills_the_cells_the_general_rasteriser_fills(
     cx: float, cy: float, sx: float, sy: float, yaw: float
 ) -> None:
     window = _window(cx, cy, sx, sy)
     box = (cx, cy, sx, sy, yaw)
     np.testing.assert_array_equal(_fast(box, window), _general(box, window))
+
+
+@pytest.mark.parametrize(
+    "box",
+    [
+        (1e-09, 0.0, 0.6, 1.0, 1e-09),  # a corner 1.5 nm past the line x = 0.3: on it
+        (0.0, 1e-09, 1.0, 1.0, 0.0),  # an edge 1 nm above the line y = -0.5: on it
+        (0.0, 0.0, 1.0, 2.0, 1e-09),  # a side turned by 1 nm over its length: on the line x = 0.5
+    ],
+)
+def test_a_box_within_a_micrometre_of_grid_lines_is_on_them_in_both_rasterisers(box: Box) -> None:
+    cx, cy, sx, sy, _ = box
+    got = _fast(box, Window(0, 0, 140, 160))
+    np.testing.assert_array_equal(got, _general(box, Window(0, 0, 140, 160)))
+    exact = _fast((round(cx, 6), round(cy, 6), sx, sy, 0.0), Window(0, 0, 140, 160))
+    np.testing.assert_array_equal(got, exact)  # the cells of the box on the grid lines
 
 
 def test_a_box_edge_on_a_grid_line_does_not_spill_into_the_next_cell() -> None:
