@@ -4,7 +4,8 @@
   link to ``benchmarks/README.md`` made one to ``benchmarks.md``);
 - ``reference/cli.md``: every ``twin`` command, from its argument parser;
 - ``reference/configuration.md``: every table and key, from ``config/schema.json``;
-- ``benchmarks.md``: ``benchmarks/README.md``, its ``../docs/`` links made relative to this folder.
+- ``benchmarks.md``: ``benchmarks/README.md``, its ``../docs/`` links made relative to this folder, and
+  the pictures it links in ``benchmarks/*/`` (e.g. ``routes-png/``) copied beside it.
 """
 
 from __future__ import annotations
@@ -41,4 +42,7 @@ def on_files(files: Any, config: Any) -> Any:
 
     for path, text in generated_pages().items():
         files.append(File.generated(config, path, content=text))
+    for picture in sorted((ROOT / "benchmarks").glob("*/*.png")):
+        uri = picture.relative_to(ROOT / "benchmarks").as_posix()
+        files.append(File.generated(config, uri, abs_src_path=str(picture)))
     return files
