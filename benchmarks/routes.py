@@ -62,6 +62,8 @@ from twin.routes.lines import segments_free  # noqa: E402
 NOTES_SHOWN = 5
 LABELS_SHOWN = 30
 """A storey's picture names its named vertices when it has at most this many."""
+BAD_RATIO = 1.3
+"""A pair routed more than this many times its grid path is listed (``--show-bad``)."""
 LONG_PAIR_M = 2.0
 """Pairs at least this far apart (grid path) are also reported on their own: closer pairs are within a
 lattice spacing or two, where joining the graph at both ends dominates the route."""
@@ -81,7 +83,14 @@ def to_cells(frame: GridFrame, xy: np.ndarray) -> np.ndarray:
 
 
 def measure(
-    storey: StoreyRoutes, free: np.ndarray, frame: GridFrame, *, pairs: int, max_lane_m: float, seed: int
+    storey: StoreyRoutes,
+    free: np.ndarray,
+    frame: GridFrame,
+    *,
+    pairs: int,
+    max_lane_m: float,
+    seed: int,
+    uniform_pairs: bool = True,
 ) -> dict[str, Any]:
     rng = np.random.default_rng(seed)
     res = frame.resolution_m
@@ -133,8 +142,18 @@ def measure(
     ratios: list[float] = []
     lengths: list[float] = []
     mcp_cost = np.where(free, 1.0, np.inf)
-    sources = rng.choice(free_idx, size=min(max(1, pairs // 20), len(free_idx)), replace=False)
+    # pairs uniform over the reachable pairs (the issue's words): a source cell weighted by the size of
+    # its region (a region of n cells holds n^2 of them), its targets uniform in that region
+    sizes = np.bincount(labels.ravel())
+    weight = sizes[labels.ravel()[free_idx]].astype(np.float64)
+    sources = rng.choice(
+        free_idx,
+        size=min(max(1, pairs // 20), len(free_idx)),
+        replace=False,
+        p=weight / weight.sum() if uniform_pairs else None,
+    )
     per_source = max(1, pairs // len(sources))
+    bad: list[dict[str, Any]] = []
     for src in sources:
         s_rc = np.array(divmod(int(src), free.shape[1]))
         region = labels[s_rc[0], s_rc[1]]
@@ -159,10 +178,25 @@ def measure(
                 ratios.append(np.inf)
                 lengths.append(grid_len * res)
                 continue
-            route = min(best_from_src[j] + d for j, d in t_join)
+            route, via_t = min((best_from_src[j] + d, j) for j, d in t_join)
             ratios.append(route / grid_len)
             lengths.append(grid_len * res)
+            if route / grid_len > BAD_RATIO:
+                via_s = min(s_join, key=lambda jd: src_dist[s_join.index(jd), via_t] + jd[1])[0]
+                bad.append(
+                    {
+                        "ratio": round(route / grid_len, 3),
+                        "grid_m": round(grid_len * res, 3),
+                        "source_xy": _xy(frame, s_rc),
+                        "target_xy": _xy(frame, t_rc),
+                        "region_cells": int(sizes[region]),
+                        "region_m2": round(float(sizes[region]) * res * res, 3),
+                        "region_vertices": int((region_of == region).sum()),
+                        "joins": (via_s, via_t),
+                    }
+                )
     r, far = np.array(ratios), np.array(lengths) >= LONG_PAIR_M
+    out["bad_pairs"] = bad
     out["pairs"] = len(r)
     out["long_pairs"] = int(far.sum())
     out["unjoined_pairs"] = int((~np.isfinite(r)).sum())
@@ -170,6 +204,14 @@ def measure(
         out[f"ratio{key}_p50"] = round(float(np.median(r[sel])), 3) if sel.any() else None
         out[f"ratio{key}_p95"] = round(float(np.percentile(r[sel], 95)), 3) if sel.any() else None
     return out
+
+
+def _xy(frame: GridFrame, rc: np.ndarray) -> tuple[float, float]:
+    res = frame.resolution_m
+    return (
+        round(frame.origin_x + (float(rc[1]) + 0.5) * res, 2),
+        round(frame.origin_y + (float(rc[0]) + 0.5) * res, 2),
+    )
 
 
 def _joins(
@@ -261,6 +303,8 @@ def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespa
         doors: list[DoorCrossing] = []
         graph = None
         for storey in scene.storeys:
+            if args.storey and storey.key not in args.storey:
+                continue
             routes = parse_routes(
                 "fleet",
                 {"kind": "routes", "navigation": "nav", "storeys": [storey.key], "max_lane_m": args.max_lane},
@@ -288,7 +332,15 @@ def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespa
             )
             row["cells_cpu_s"] = round(time.process_time() - c1, 3)
             frees[storey.key] = (free, frame)
-            row |= measure(s, free, frame, pairs=args.pairs, max_lane_m=args.max_lane, seed=args.seed)
+            row |= measure(
+                s,
+                free,
+                frame,
+                pairs=args.pairs,
+                max_lane_m=args.max_lane,
+                seed=args.seed,
+                uniform_pairs=not args.per_cell_sources,
+            )
             row["doors"] = f"{sum(d.passable for d in graph.doors)}/{len(graph.doors)}"
             row["notes"] = list(graph.notes)
             rows.append(row)
@@ -310,6 +362,13 @@ def main() -> int:
     p.add_argument("--max-lane", type=float, default=3.0)
     p.add_argument("--pairs", type=int, default=1000)
     p.add_argument("--seed", type=int, default=41)
+    p.add_argument(
+        "--per-cell-sources",
+        action="store_true",
+        help="sources uniform over free cells (before 2026-11-28), not pairs uniform over reachable pairs",
+    )
+    p.add_argument("--storey", nargs="+", help="only these storeys (keys)")
+    p.add_argument("--show-bad", type=int, default=0, help="print this many of each run's worst pairs")
     p.add_argument("--png-dir", help="write a picture of each profile's graph over its maps here")
     p.add_argument("--json", type=Path)
     args = p.parse_args()
@@ -360,6 +419,16 @@ def main() -> int:
             print(f"| {row['radius_m']} | {row['storey']} | error: {row['error']} |")
             continue
         print("| " + " | ".join(str(row.get(k, "")) for k in keys) + " |")
+        bad = row.pop("bad_pairs")
+        if args.show_bad and bad:
+            print(
+                f"  {len(bad)} pairs over {BAD_RATIO}: "
+                f"median {np.median([b['grid_m'] for b in bad]):.2f} m apart, "
+                f"in regions of median {np.median([b['region_m2'] for b in bad]):.2f} m2 "
+                f"(largest {max(b['region_m2'] for b in bad):.2f} m2; storey's regions: {row['regions']})"
+            )
+            for b in sorted(bad, key=lambda b: -b["ratio"])[: args.show_bad]:
+                print(f"  bad: {b}")
         for note in row["notes"][:NOTES_SHOWN]:
             print(f"  note: {note}")
         if len(row["notes"]) > NOTES_SHOWN:

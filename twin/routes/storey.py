@@ -50,6 +50,10 @@ SHORTCUT_RATIO = 1.15
 """A shortcut is added where the graph's way is longer than this many times the straight line."""
 OPEN_SPACE_FRACTION = 0.75
 """Open space gets lattice vertices where it lies this many lattice spacings from every lane."""
+POCKET_M2 = 1.0
+"""A free region smaller than this (m², of the robot's centre) with no space, lift or waypoint in it is a
+pocket: somewhere between furniture and walls a robot can stand but not leave."""
+POCKETS_LISTED = 3
 
 
 @dataclass(frozen=True, slots=True)
@@ -265,6 +269,7 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         remap = {old: new for new, old in enumerate(sorted(keep_vertex))}
         vertices = [vertices[i] for i in sorted(keep_vertex)]
         lanes = {(remap[a], remap[b]): d for (a, b), d in lanes.items()}
+    notes += _pockets(inp, vertices)
     for door in inp.doors:
         if door.name not in passable:
             notes.append(
@@ -277,6 +282,36 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         lanes=tuple(RouteLane(a, b, d) for (a, b), d in sorted(lanes.items())),
     )
     return StoreyResult(routes, passable, notes)
+
+
+def _pockets(inp: StoreyInput, vertices: Sequence[RouteVertex]) -> list[str]:
+    """A note on the storey's pockets (:data:`POCKET_M2`): they keep their vertices (a robot standing in
+    one is on the graph, its cells see one) and no lane leaves them, as no path on the map does."""
+    frame, res = inp.frame, inp.frame.resolution_m
+    labels, n = ndimage.label(inp.free, structure=np.ones((3, 3), dtype=bool))
+    if n < 2:
+        return []
+    area = np.bincount(labels.ravel(), minlength=n + 1) * res * res
+    xy = np.array([(v.x, v.y) for v in vertices], dtype=np.float64).reshape(-1, 2)
+    rc = np.rint(
+        np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
+    )
+    rc = np.clip(rc.astype(np.int64), 0, np.array(inp.free.shape) - 1)
+    region = labels[rc[:, 0], rc[:, 1]]
+    served = {int(r) for r, v in zip(region, vertices, strict=True) if v.name or v.lift or v.kind != "lane"}
+    small = [r for r in range(1, n + 1) if area[r] < POCKET_M2 and r not in served]
+    if not small:
+        return []
+    where = []
+    for r in sorted(small, key=lambda r: -area[r])[:POCKETS_LISTED]:
+        rows, cols = np.nonzero(labels == r)
+        x, y = _world(frame, float(rows.mean()), float(cols.mean()))
+        where.append(f"{area[r]:.2f} m² at ({x:.2f}, {y:.2f})")
+    more = f", and {len(small) - POCKETS_LISTED} more" if len(small) > POCKETS_LISTED else ""
+    return [
+        f"{inp.storey}: {len(small)} pocket(s) of free space under {POCKET_M2:g} m² that a robot can stand "
+        f"in but not leave ({'; '.join(where)}{more}): on the graph, joined to nothing outside"
+    ]
 
 
 def _snap(free: BoolArray, before: FloatArray, p: FloatArray, after: FloatArray) -> FloatArray | None:
