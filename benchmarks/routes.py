@@ -9,14 +9,19 @@ inflated navigation map with doors open and lift cars exempt, over the storey's 
 - **safe**: lanes whose centre line crosses a blocked cell (the sampling of ``twin.routes.lines``);
 - **complete**: free regions (8-connected) without a vertex, graph components that join two regions,
   regions split over several graph components; spaces with free cells but no vertex;
-- **short**: for ``--pairs`` random pairs of free cells in one region, the route through the graph
-  (each end joined straight to the best of the 16 nearest vertices it sees) over the shortest
-  8-connected grid path (diagonal sqrt 2): median and 95th percentile (target 1.15 and 1.3), of all
-  pairs and of the pairs at least 2 m apart;
+- **short**: ``--pairs`` random reachable pairs, uniform over the pairs of free cells the map connects
+  (50 sources, each drawn with a weight of its region's size, 20 targets uniform in its region:
+  ``--per-cell-sources`` draws sources uniform over free cells instead, as before 2026-11-28, which
+  over-weights small regions), the route through the graph (each end joined straight to the best of
+  the 16 nearest vertices it sees) over the shortest 8-connected grid path (diagonal sqrt 2): median
+  and 95th percentile (target 1.15 and 1.3), of all pairs and of the pairs at least 2 m apart;
+  ``--show-bad N`` prints the N worst pairs over 1.3 (their region's area and vertices, the vertices
+  both ends join);
 - **covering**: the farthest free cell from a lane (target <= max_lane_m), and the share of 2,000
   random free cells that see a vertex among their 32 nearest;
-- **fast**: seconds per storey, wall and CPU (the navigation map's rendering included; ``cells_cpu_s``:
-  the CPU seconds of the routable cells alone, the map's rendering included, measured again apart).
+- **fast**: seconds per storey, wall and CPU (the median of ``--repeat`` builds; the navigation map's
+  rendering included; ``cells_cpu_s``: the CPU seconds of the routable cells alone, the map's rendering
+  included, measured again apart).
 
 Usage::
 
@@ -185,7 +190,7 @@ def measure(
                 via_s = min(s_join, key=lambda jd: src_dist[s_join.index(jd), via_t] + jd[1])[0]
                 bad.append(
                     {
-                        "ratio": round(route / grid_len, 3),
+                        "ratio": round(float(route / grid_len), 3),
                         "grid_m": round(grid_len * res, 3),
                         "source_xy": _xy(frame, s_rc),
                         "target_xy": _xy(frame, t_rc),
@@ -309,13 +314,17 @@ def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespa
                 "fleet",
                 {"kind": "routes", "navigation": "nav", "storeys": [storey.key], "max_lane_m": args.max_lane},
             )
-            t0, c0 = time.perf_counter(), time.process_time()
+            walls, cpus = [], []
             try:
-                graph = build_routes(store, scene, routes, skills, margin_m=cfg.margin_m)
+                for _ in range(args.repeat):
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    graph = build_routes(store, scene, routes, skills, margin_m=cfg.margin_m)
+                    walls.append(time.perf_counter() - t0)
+                    cpus.append(time.process_time() - c0)
             except RouteError as err:
                 rows.append({"model": name, "radius_m": radius, "storey": storey.key, "error": str(err)})
                 continue
-            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            wall, cpu = float(np.median(walls)), float(np.median(cpus))
             (s,) = graph.storeys
             storeys.append(s)
             doors += graph.doors
@@ -326,6 +335,8 @@ def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespa
                 "wall_s": round(wall, 3),
                 "cpu_s": round(cpu, 3),
             }
+            if args.repeat > 1:
+                row |= {"walls_s": [round(t, 3) for t in walls], "cpus_s": [round(t, 3) for t in cpus]}
             c1 = time.process_time()
             free, frame = free_cells(
                 prepare_routes(store, scene, routes, skills, margin_m=cfg.margin_m), storey.key
@@ -367,6 +378,7 @@ def main() -> int:
         action="store_true",
         help="sources uniform over free cells (before 2026-11-28), not pairs uniform over reachable pairs",
     )
+    p.add_argument("--repeat", type=int, default=1, help="build each storey's graph this many times (median)")
     p.add_argument("--storey", nargs="+", help="only these storeys (keys)")
     p.add_argument("--show-bad", type=int, default=0, help="print this many of each run's worst pairs")
     p.add_argument("--png-dir", help="write a picture of each profile's graph over its maps here")
@@ -429,6 +441,8 @@ def main() -> int:
             )
             for b in sorted(bad, key=lambda b: -b["ratio"])[: args.show_bad]:
                 print(f"  bad: {b}")
+        if "walls_s" in row:
+            print(f"  builds: wall {row['walls_s']} s, CPU {row['cpus_s']} s")
         for note in row["notes"][:NOTES_SHOWN]:
             print(f"  note: {note}")
         if len(row["notes"]) > NOTES_SHOWN:
