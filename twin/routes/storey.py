@@ -13,7 +13,11 @@ straight lanes whose centre lines are free (:mod:`twin.routes.lines`), with a ve
 - **points** (lift cabins, configured waypoints): a vertex exactly there, joined by a straight lane
   to the nearest skeleton point it sees;
 - **open space**: a lattice of vertices ``spacing_m`` apart where free space lies away from every lane
-  (rooms), joined to the neighbours each sees;
+  (rooms), joined to the neighbours each sees; half ``spacing_m`` apart in a free region under
+  :data:`SMALL_REGION_M2` (a room whose doors the robot does not fit, a pocket), where every pair of
+  points is close;
+- **pockets**: free regions under :data:`POCKET_M2` with no space, lift or waypoint are listed in a
+  note (they keep their vertices: a robot standing in one is on the graph, and no lane leaves it);
 - **shortcuts**: a straight lane between two vertices within ``max_lane_m`` that see each other when
   the graph's way between them is much longer (open rooms: the skeleton's way is a detour).
 
@@ -54,6 +58,10 @@ POCKET_M2 = 1.0
 """A free region smaller than this (m², of the robot's centre) with no space, lift or waypoint in it is a
 pocket: somewhere between furniture and walls a robot can stand but not leave."""
 POCKETS_LISTED = 3
+SMALL_REGION_M2 = 12.0
+"""A free region smaller than this (m²: a pocket, a room whose doors the robot does not fit) gets its
+open-space lattice half ``spacing_m`` apart: every pair of points in it is close, and a route between
+close points is about as long as their distance only through a vertex near the line between them."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -260,7 +268,13 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         vertices.append(point)
         _add_lane(lanes, len(vertices) - 1, vertex_of[target], "")
     first_lattice = len(vertices)
-    _open_space(vertices, lanes, frame, free, min(inp.spacing_m, inp.max_lane_m))
+    spacing = min(inp.spacing_m, inp.max_lane_m)
+    labels, _ = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))
+    small = np.bincount(labels.ravel()) * res * res < SMALL_REGION_M2
+    small[0] = False
+    if small.any():
+        _open_space(vertices, lanes, frame, free, spacing / 2, where=small[labels])
+    _open_space(vertices, lanes, frame, free, spacing)
     fill.update(range(first_lattice, len(vertices)))
     _shortcuts(vertices, lanes, frame, free, inp.max_lane_m, fill=fill)
     used = sorted({i for ab in lanes for i in ab} | {i for i, v in enumerate(vertices) if v.name or v.lift})
@@ -387,9 +401,12 @@ def _open_space(
     frame: GridFrame,
     free: BoolArray,
     spacing_m: float,
+    *,
+    where: BoolArray | None = None,
 ) -> None:
-    """Fill open space: a lattice of vertices ``spacing_m`` apart where free space lies farther from
-    every lane than most of a spacing, each joined to the vertices within 1.5 spacings it sees.
+    """Fill open space: a lattice of vertices ``spacing_m`` apart where free space (within ``where``,
+    when given) lies farther from every lane than most of a spacing, each joined to the vertices within
+    1.5 spacings it sees.
 
     The medial axis of a wide room is one line (or an X) down its middle: a route between two points
     near one wall would go to the middle and back. The lattice gives such rooms lanes where robots
@@ -413,6 +430,8 @@ def _open_space(
     c0 = (-round(frame.origin_x / res)) % k
     rows, cols = np.meshgrid(np.arange(r0, h, k), np.arange(c0, w, k), indexing="ij")
     keep = free[rows, cols] & far[rows, cols]
+    if where is not None:
+        keep &= where[rows, cols]
     new = np.stack([rows[keep], cols[keep]], axis=1).astype(np.float64)
     if not len(new):
         return

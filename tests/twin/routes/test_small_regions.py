@@ -1,8 +1,10 @@
-"""Pockets: free regions too small to leave (issue 41) keep their vertices, and the graph says so."""
+"""Small free regions (issue 41): pockets too small to leave keep their vertices and the graph says so;
+a small region's lattice is denser, so that close points in it route nearly straight."""
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from twin.maps.grid import GridFrame
 from twin.routes.graph import RouteVertex
@@ -53,3 +55,18 @@ def test_a_region_of_a_square_metre_or_more_is_not_a_pocket() -> None:
     assert not [
         n for n in build_storey(StoreyInput("level-0", 0.0, FRAME, _room_and(0.0))).notes if "pocket" in n
     ]
+
+
+def _nearest_vertex_p95(width_m: float, height_m: float) -> float:
+    """The 95th percentile over a room's free cells of the distance to the nearest vertex (m)."""
+    free = np.zeros((FRAME.height, FRAME.width), dtype=bool)
+    free[5 : 5 + round(height_m / 0.05), 5 : 5 + round(width_m / 0.05)] = True
+    routes = build_storey(StoreyInput("level-0", 0.0, FRAME, free)).routes
+    xy = np.array([(v.x, v.y) for v in routes.vertices])
+    d, _ = cKDTree(xy).query((np.argwhere(free)[:, ::-1] + 0.5) * 0.05)
+    return float(np.percentile(d, 95))
+
+
+def test_a_room_under_twelve_square_metres_gets_vertices_about_a_quarter_metre_apart() -> None:
+    assert _nearest_vertex_p95(3.0, 2.5) < 0.2  # 7.5 m²: a 0.25 m lattice
+    assert _nearest_vertex_p95(4.5, 4.0) > 0.3  # 18 m²: the 0.5 m lattice
