@@ -270,7 +270,9 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
     first_lattice = len(vertices)
     spacing = min(inp.spacing_m, inp.max_lane_m)
     labels, _ = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))
-    small = np.bincount(labels.ravel()) * res * res < SMALL_REGION_M2
+    area = np.bincount(labels.ravel()).astype(np.float64)
+    area *= res * res
+    small = area < SMALL_REGION_M2
     small[0] = False
     if small.any():
         _open_space(vertices, lanes, frame, free, spacing / 2, where=small[labels])
@@ -283,7 +285,7 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         remap = {old: new for new, old in enumerate(sorted(keep_vertex))}
         vertices = [vertices[i] for i in sorted(keep_vertex)]
         lanes = {(remap[a], remap[b]): d for (a, b), d in lanes.items()}
-    notes += _pockets(inp, vertices)
+    notes += _pockets(inp, vertices, labels, area)
     for door in inp.doors:
         if door.name not in passable:
             notes.append(
@@ -298,14 +300,16 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
     return StoreyResult(routes, passable, notes)
 
 
-def _pockets(inp: StoreyInput, vertices: Sequence[RouteVertex]) -> list[str]:
+def _pockets(
+    inp: StoreyInput, vertices: Sequence[RouteVertex], labels: IntArray, area: FloatArray
+) -> list[str]:
     """A note on the storey's pockets (:data:`POCKET_M2`): they keep their vertices (a robot standing in
-    one is on the graph, its cells see one) and no lane leaves them, as no path on the map does."""
+    one is on the graph, its cells see one) and no lane leaves them, as no path on the map does.
+    ``labels``: the free regions (8-connected, 0 blocked), ``area``: each label's area (m²)."""
     frame, res = inp.frame, inp.frame.resolution_m
-    labels, n = ndimage.label(inp.free, structure=np.ones((3, 3), dtype=bool))
+    n = len(area) - 1
     if n < 2:
         return []
-    area = np.bincount(labels.ravel(), minlength=n + 1) * res * res
     xy = np.array([(v.x, v.y) for v in vertices], dtype=np.float64).reshape(-1, 2)
     rc = np.rint(
         np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
