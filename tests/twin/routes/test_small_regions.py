@@ -57,16 +57,24 @@ def test_a_region_of_a_square_metre_or_more_is_not_a_pocket() -> None:
     ]
 
 
-def _nearest_vertex_p95(width_m: float, height_m: float) -> float:
-    """The 95th percentile over a room's free cells of the distance to the nearest vertex (m)."""
+def _nearest_vertex_p95(width_m: float, height_m: float, *, beside_hall: bool = False) -> float:
+    """The 95th percentile over a room's free cells of the distance to the nearest vertex (m); with
+    ``beside_hall`` the storey also has a 13.5 m² region apart from the room."""
     free = np.zeros((FRAME.height, FRAME.width), dtype=bool)
     free[5 : 5 + round(height_m / 0.05), 5 : 5 + round(width_m / 0.05)] = True
+    room = free.copy()
+    if beside_hall:
+        free[5:95, 100:160] = True  # 3 m x 4.5 m: 13.5 m², more than the room's 7.5 m²
     routes = build_storey(StoreyInput("level-0", 0.0, FRAME, free)).routes
     xy = np.array([(v.x, v.y) for v in routes.vertices])
-    d, _ = cKDTree(xy).query((np.argwhere(free)[:, ::-1] + 0.5) * 0.05)
+    d, _ = cKDTree(xy).query((np.argwhere(room)[:, ::-1] + 0.5) * 0.05)
     return float(np.percentile(d, 95))
 
 
 def test_a_room_under_twelve_square_metres_gets_vertices_about_a_quarter_metre_apart() -> None:
     assert _nearest_vertex_p95(3.0, 2.5) < 0.2  # 7.5 m²: a 0.25 m lattice
     assert _nearest_vertex_p95(4.5, 4.0) > 0.3  # 18 m²: the 0.5 m lattice
+
+
+def test_small_rooms_keep_the_usual_lattice_where_most_free_space_is_a_larger_region() -> None:
+    assert _nearest_vertex_p95(3.0, 2.5, beside_hall=True) > 0.2
