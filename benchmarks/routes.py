@@ -9,14 +9,19 @@ inflated navigation map with doors open and lift cars exempt, over the storey's 
 - **safe**: lanes whose centre line crosses a blocked cell (the sampling of ``twin.routes.lines``);
 - **complete**: free regions (8-connected) without a vertex, graph components that join two regions,
   regions split over several graph components; spaces with free cells but no vertex;
-- **short**: for ``--pairs`` random pairs of free cells in one region, the route through the graph
-  (each end joined straight to the best of the 16 nearest vertices it sees) over the shortest
-  8-connected grid path (diagonal sqrt 2): median and 95th percentile (target 1.15 and 1.3), of all
-  pairs and of the pairs at least 2 m apart;
+- **short**: ``--pairs`` random reachable pairs, uniform over the pairs of free cells the map connects
+  (50 sources, each drawn with a weight of its region's size, 20 targets uniform in its region:
+  ``--per-cell-sources`` draws sources uniform over free cells instead, as before 2026-11-28, which
+  over-weights small regions), the route through the graph (each end joined straight to the best of
+  the 16 nearest vertices it sees) over the shortest 8-connected grid path (diagonal sqrt 2): median
+  and 95th percentile (target 1.15 and 1.3), of all pairs and of the pairs at least 2 m apart;
+  ``--show-bad N`` prints the N worst pairs over 1.3 (their region's area and vertices, the vertices
+  both ends join);
 - **covering**: the farthest free cell from a lane (target <= max_lane_m), and the share of 2,000
   random free cells that see a vertex among their 32 nearest;
-- **fast**: seconds per storey, wall and CPU (the navigation map's rendering included; ``cells_cpu_s``:
-  the CPU seconds of the routable cells alone, the map's rendering included, measured again apart).
+- **fast**: seconds per storey, wall and CPU (the median of ``--repeat`` builds; the navigation map's
+  rendering included; ``cells_cpu_s``: the CPU seconds of the routable cells alone, the map's rendering
+  included, measured again apart).
 
 Usage::
 
@@ -62,6 +67,8 @@ from twin.routes.lines import segments_free  # noqa: E402
 NOTES_SHOWN = 5
 LABELS_SHOWN = 30
 """A storey's picture names its named vertices when it has at most this many."""
+BAD_RATIO = 1.3
+"""A pair routed more than this many times its grid path is listed (``--show-bad``)."""
 LONG_PAIR_M = 2.0
 """Pairs at least this far apart (grid path) are also reported on their own: closer pairs are within a
 lattice spacing or two, where joining the graph at both ends dominates the route."""
@@ -81,7 +88,14 @@ def to_cells(frame: GridFrame, xy: np.ndarray) -> np.ndarray:
 
 
 def measure(
-    storey: StoreyRoutes, free: np.ndarray, frame: GridFrame, *, pairs: int, max_lane_m: float, seed: int
+    storey: StoreyRoutes,
+    free: np.ndarray,
+    frame: GridFrame,
+    *,
+    pairs: int,
+    max_lane_m: float,
+    seed: int,
+    uniform_pairs: bool = True,
 ) -> dict[str, Any]:
     rng = np.random.default_rng(seed)
     res = frame.resolution_m
@@ -133,8 +147,18 @@ def measure(
     ratios: list[float] = []
     lengths: list[float] = []
     mcp_cost = np.where(free, 1.0, np.inf)
-    sources = rng.choice(free_idx, size=min(max(1, pairs // 20), len(free_idx)), replace=False)
+    # pairs uniform over the reachable pairs (the issue's words): a source cell weighted by the size of
+    # its region (a region of n cells holds n^2 of them), its targets uniform in that region
+    sizes = np.bincount(labels.ravel())
+    weight = sizes[labels.ravel()[free_idx]].astype(np.float64)
+    sources = rng.choice(
+        free_idx,
+        size=min(max(1, pairs // 20), len(free_idx)),
+        replace=False,
+        p=weight / weight.sum() if uniform_pairs else None,
+    )
     per_source = max(1, pairs // len(sources))
+    bad: list[dict[str, Any]] = []
     for src in sources:
         s_rc = np.array(divmod(int(src), free.shape[1]))
         region = labels[s_rc[0], s_rc[1]]
@@ -159,10 +183,25 @@ def measure(
                 ratios.append(np.inf)
                 lengths.append(grid_len * res)
                 continue
-            route = min(best_from_src[j] + d for j, d in t_join)
+            route, via_t = min((best_from_src[j] + d, j) for j, d in t_join)
             ratios.append(route / grid_len)
             lengths.append(grid_len * res)
+            if route / grid_len > BAD_RATIO:
+                via_s = min(s_join, key=lambda jd: src_dist[s_join.index(jd), via_t] + jd[1])[0]
+                bad.append(
+                    {
+                        "ratio": round(float(route / grid_len), 3),
+                        "grid_m": round(grid_len * res, 3),
+                        "source_xy": _xy(frame, s_rc),
+                        "target_xy": _xy(frame, t_rc),
+                        "region_cells": int(sizes[region]),
+                        "region_m2": round(float(sizes[region]) * res * res, 3),
+                        "region_vertices": int((region_of == region).sum()),
+                        "joins": (via_s, via_t),
+                    }
+                )
     r, far = np.array(ratios), np.array(lengths) >= LONG_PAIR_M
+    out["bad_pairs"] = bad
     out["pairs"] = len(r)
     out["long_pairs"] = int(far.sum())
     out["unjoined_pairs"] = int((~np.isfinite(r)).sum())
@@ -170,6 +209,14 @@ def measure(
         out[f"ratio{key}_p50"] = round(float(np.median(r[sel])), 3) if sel.any() else None
         out[f"ratio{key}_p95"] = round(float(np.percentile(r[sel], 95)), 3) if sel.any() else None
     return out
+
+
+def _xy(frame: GridFrame, rc: np.ndarray) -> tuple[float, float]:
+    res = frame.resolution_m
+    return (
+        round(frame.origin_x + (float(rc[1]) + 0.5) * res, 2),
+        round(frame.origin_y + (float(rc[0]) + 0.5) * res, 2),
+    )
 
 
 def _joins(
@@ -261,17 +308,23 @@ def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespa
         doors: list[DoorCrossing] = []
         graph = None
         for storey in scene.storeys:
+            if args.storey and storey.key not in args.storey:
+                continue
             routes = parse_routes(
                 "fleet",
                 {"kind": "routes", "navigation": "nav", "storeys": [storey.key], "max_lane_m": args.max_lane},
             )
-            t0, c0 = time.perf_counter(), time.process_time()
+            walls, cpus = [], []
             try:
-                graph = build_routes(store, scene, routes, skills, margin_m=cfg.margin_m)
+                for _ in range(args.repeat):
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    graph = build_routes(store, scene, routes, skills, margin_m=cfg.margin_m)
+                    walls.append(time.perf_counter() - t0)
+                    cpus.append(time.process_time() - c0)
             except RouteError as err:
                 rows.append({"model": name, "radius_m": radius, "storey": storey.key, "error": str(err)})
                 continue
-            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            wall, cpu = float(np.median(walls)), float(np.median(cpus))
             (s,) = graph.storeys
             storeys.append(s)
             doors += graph.doors
@@ -282,13 +335,23 @@ def run(store: GraphStore, name: str, radii: list[float], args: argparse.Namespa
                 "wall_s": round(wall, 3),
                 "cpu_s": round(cpu, 3),
             }
+            if args.repeat > 1:
+                row |= {"walls_s": [round(t, 3) for t in walls], "cpus_s": [round(t, 3) for t in cpus]}
             c1 = time.process_time()
             free, frame = free_cells(
                 prepare_routes(store, scene, routes, skills, margin_m=cfg.margin_m), storey.key
             )
             row["cells_cpu_s"] = round(time.process_time() - c1, 3)
             frees[storey.key] = (free, frame)
-            row |= measure(s, free, frame, pairs=args.pairs, max_lane_m=args.max_lane, seed=args.seed)
+            row |= measure(
+                s,
+                free,
+                frame,
+                pairs=args.pairs,
+                max_lane_m=args.max_lane,
+                seed=args.seed,
+                uniform_pairs=not args.per_cell_sources,
+            )
             row["doors"] = f"{sum(d.passable for d in graph.doors)}/{len(graph.doors)}"
             row["notes"] = list(graph.notes)
             rows.append(row)
@@ -310,6 +373,14 @@ def main() -> int:
     p.add_argument("--max-lane", type=float, default=3.0)
     p.add_argument("--pairs", type=int, default=1000)
     p.add_argument("--seed", type=int, default=41)
+    p.add_argument(
+        "--per-cell-sources",
+        action="store_true",
+        help="sources uniform over free cells (before 2026-11-28), not pairs uniform over reachable pairs",
+    )
+    p.add_argument("--repeat", type=int, default=1, help="build each storey's graph this many times (median)")
+    p.add_argument("--storey", nargs="+", help="only these storeys (keys)")
+    p.add_argument("--show-bad", type=int, default=0, help="print this many of each run's worst pairs")
     p.add_argument("--png-dir", help="write a picture of each profile's graph over its maps here")
     p.add_argument("--json", type=Path)
     args = p.parse_args()
@@ -360,6 +431,18 @@ def main() -> int:
             print(f"| {row['radius_m']} | {row['storey']} | error: {row['error']} |")
             continue
         print("| " + " | ".join(str(row.get(k, "")) for k in keys) + " |")
+        bad = row.pop("bad_pairs")
+        if args.show_bad and bad:
+            print(
+                f"  {len(bad)} pairs over {BAD_RATIO}: "
+                f"median {np.median([b['grid_m'] for b in bad]):.2f} m apart, "
+                f"in regions of median {np.median([b['region_m2'] for b in bad]):.2f} m2 "
+                f"(largest {max(b['region_m2'] for b in bad):.2f} m2; storey's regions: {row['regions']})"
+            )
+            for b in sorted(bad, key=lambda b: -b["ratio"])[: args.show_bad]:
+                print(f"  bad: {b}")
+        if "walls_s" in row:
+            print(f"  builds: wall {row['walls_s']} s, CPU {row['cpus_s']} s")
         for note in row["notes"][:NOTES_SHOWN]:
             print(f"  note: {note}")
         if len(row["notes"]) > NOTES_SHOWN:

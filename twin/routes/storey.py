@@ -13,7 +13,11 @@ straight lanes whose centre lines are free (:mod:`twin.routes.lines`), with a ve
 - **points** (lift cabins, configured waypoints): a vertex exactly there, joined by a straight lane
   to the nearest skeleton point it sees;
 - **open space**: a lattice of vertices ``spacing_m`` apart where free space lies away from every lane
-  (rooms), joined to the neighbours each sees;
+  (rooms), joined to the neighbours each sees; half ``spacing_m`` apart in free regions under
+  :data:`SMALL_REGION_M2` (rooms whose doors the robot does not fit, pockets) on a storey whose free
+  space lies mostly in such regions;
+- **pockets**: free regions under :data:`POCKET_M2` with no space, lift or waypoint are listed in a
+  note (they keep their vertices: a robot standing in one is on the graph, and no lane leaves it);
 - **shortcuts**: a straight lane between two vertices within ``max_lane_m`` that see each other when
   the graph's way between them is much longer (open rooms: the skeleton's way is a detour).
 
@@ -50,6 +54,17 @@ SHORTCUT_RATIO = 1.15
 """A shortcut is added where the graph's way is longer than this many times the straight line."""
 OPEN_SPACE_FRACTION = 0.75
 """Open space gets lattice vertices where it lies this many lattice spacings from every lane."""
+POCKET_M2 = 1.0
+"""A free region smaller than this (m², of the robot's centre) with no space, lift or waypoint in it is a
+pocket: somewhere between furniture and walls a robot can stand but not leave."""
+POCKETS_LISTED = 3
+SMALL_REGION_M2 = 12.0
+"""On a storey whose free space lies mostly in regions smaller than this (m²: rooms whose doors the
+robot does not fit, pockets), those regions get their open-space lattice half ``spacing_m`` apart: every
+pair of points in one is close, and a route between close points is about as long as their distance
+only through a vertex near the line between them. Where most free space is one larger region, its
+routes are the storey's and the small regions keep the usual lattice: four times the vertices in dozens
+of closed rooms would cost more ids than nav2's 65,535 (the generated 12k building)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -256,7 +271,15 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         vertices.append(point)
         _add_lane(lanes, len(vertices) - 1, vertex_of[target], "")
     first_lattice = len(vertices)
-    _open_space(vertices, lanes, frame, free, min(inp.spacing_m, inp.max_lane_m))
+    spacing = min(inp.spacing_m, inp.max_lane_m)
+    labels, _ = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))
+    area = np.bincount(labels.ravel()).astype(np.float64)
+    area *= res * res
+    small = area < SMALL_REGION_M2
+    small[0] = False
+    if area[small].sum() > area[1:].sum() / 2:
+        _open_space(vertices, lanes, frame, free, spacing / 2, where=small[labels])
+    _open_space(vertices, lanes, frame, free, spacing)
     fill.update(range(first_lattice, len(vertices)))
     _shortcuts(vertices, lanes, frame, free, inp.max_lane_m, fill=fill)
     used = sorted({i for ab in lanes for i in ab} | {i for i, v in enumerate(vertices) if v.name or v.lift})
@@ -265,6 +288,7 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         remap = {old: new for new, old in enumerate(sorted(keep_vertex))}
         vertices = [vertices[i] for i in sorted(keep_vertex)]
         lanes = {(remap[a], remap[b]): d for (a, b), d in lanes.items()}
+    notes += _pockets(inp, vertices, labels, area)
     for door in inp.doors:
         if door.name not in passable:
             notes.append(
@@ -277,6 +301,38 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
         lanes=tuple(RouteLane(a, b, d) for (a, b), d in sorted(lanes.items())),
     )
     return StoreyResult(routes, passable, notes)
+
+
+def _pockets(
+    inp: StoreyInput, vertices: Sequence[RouteVertex], labels: IntArray, area: FloatArray
+) -> list[str]:
+    """A note on the storey's pockets (:data:`POCKET_M2`): they keep their vertices (a robot standing in
+    one is on the graph, its cells see one) and no lane leaves them, as no path on the map does.
+    ``labels``: the free regions (8-connected, 0 blocked), ``area``: each label's area (m²)."""
+    frame, res = inp.frame, inp.frame.resolution_m
+    n = len(area) - 1
+    if n < 2:
+        return []
+    xy = np.array([(v.x, v.y) for v in vertices], dtype=np.float64).reshape(-1, 2)
+    rc = np.rint(
+        np.stack([(xy[:, 1] - frame.origin_y) / res - 0.5, (xy[:, 0] - frame.origin_x) / res - 0.5], 1)
+    )
+    rc = np.clip(rc.astype(np.int64), 0, np.array(inp.free.shape) - 1)
+    region = labels[rc[:, 0], rc[:, 1]]
+    served = {int(r) for r, v in zip(region, vertices, strict=True) if v.name or v.lift or v.kind != "lane"}
+    small = [r for r in range(1, n + 1) if area[r] < POCKET_M2 and r not in served]
+    if not small:
+        return []
+    where = []
+    for r in sorted(small, key=lambda r: -area[r])[:POCKETS_LISTED]:
+        rows, cols = np.nonzero(labels == r)
+        x, y = _world(frame, float(rows.mean()), float(cols.mean()))
+        where.append(f"{area[r]:.2f} m² at ({x:.2f}, {y:.2f})")
+    more = f", and {len(small) - POCKETS_LISTED} more" if len(small) > POCKETS_LISTED else ""
+    return [
+        f"{inp.storey}: {len(small)} pocket(s) of free space under {POCKET_M2:g} m² that a robot can stand "
+        f"in but not leave ({'; '.join(where)}{more}): on the graph, joined to nothing outside"
+    ]
 
 
 def _snap(free: BoolArray, before: FloatArray, p: FloatArray, after: FloatArray) -> FloatArray | None:
@@ -352,9 +408,12 @@ def _open_space(
     frame: GridFrame,
     free: BoolArray,
     spacing_m: float,
+    *,
+    where: BoolArray | None = None,
 ) -> None:
-    """Fill open space: a lattice of vertices ``spacing_m`` apart where free space lies farther from
-    every lane than most of a spacing, each joined to the vertices within 1.5 spacings it sees.
+    """Fill open space: a lattice of vertices ``spacing_m`` apart where free space (within ``where``,
+    when given) lies farther from every lane than most of a spacing, each joined to the vertices within
+    1.5 spacings it sees.
 
     The medial axis of a wide room is one line (or an X) down its middle: a route between two points
     near one wall would go to the middle and back. The lattice gives such rooms lanes where robots
@@ -378,6 +437,8 @@ def _open_space(
     c0 = (-round(frame.origin_x / res)) % k
     rows, cols = np.meshgrid(np.arange(r0, h, k), np.arange(c0, w, k), indexing="ij")
     keep = free[rows, cols] & far[rows, cols]
+    if where is not None:
+        keep &= where[rows, cols]
     new = np.stack([rows[keep], cols[keep]], axis=1).astype(np.float64)
     if not len(new):
         return
