@@ -92,8 +92,14 @@ def slab_geometry(
 
     ``vertices (n, 3) float64``, ``faces (m, 3) int``. A closed mesh's interior is its section at the
     slab's mid-height (what a solid wall between the two heights covers); open meshes are surfaces.
+    A z within 1 um of the band's end is on it; a closed mesh that only touches the end then occupies
+    no space in the band (trimesh keeps no face on the cut plane that faces out of it), an open one
+    lying on the end is in the band.
     """
-    v = np.asarray(vertices, dtype=np.float64)
+    v = np.array(vertices, dtype=np.float64)
+    # the contract's tie rule: a z within 1 um of the band's bottom or top is on it (docs/maps.md)
+    v[np.abs(v[:, 2] - z_lo) <= 1e-6, 2] = z_lo
+    v[np.abs(v[:, 2] - z_hi) <= 1e-6, 2] = z_hi
     f = np.asarray(faces)
     z = v[f][:, :, 2] if len(f) else np.empty((0, 3))
     f = f[(z.max(axis=1, initial=-np.inf) >= z_lo - 1e-6) & (z.min(axis=1, initial=np.inf) <= z_hi + 1e-6)]
@@ -111,6 +117,14 @@ def slab_geometry(
             areas.extend(shapely.polygons(tri[~flat]))
             # a vertical face seen from above is a segment (or a point): keep it as a line
             lines.extend(shapely.simplify(shapely.linestrings(tri[flat]), 0))
+    if not closed and len(f):  # an open surface lying on the band's end is in it, whichever way it faces
+        zf = v[f][:, :, 2]
+        on_end = ((zf == z_lo).all(axis=1) | (zf == z_hi).all(axis=1)) & (z_lo < z_hi)
+        tri = v[f[on_end]][:, :, :2]
+        e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+        flat = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) / 2 <= 1e-12
+        areas.extend(shapely.polygons(tri[~flat]))
+        lines.extend(shapely.simplify(shapely.linestrings(tri[flat]), 0))
     z_mid = (z_lo + z_hi) / 2 + 1.234567e-7
     if closed and len(f) and v[:, 2].min() <= z_mid <= v[:, 2].max():
         areas.append(_section(vertices, faces, z_mid))

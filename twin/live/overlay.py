@@ -25,6 +25,7 @@ from twin.maps.raster.boxes import box_footprint
 from twin.maps.render import MapPlan
 from twin.maps.scene import MeshSet
 from twin.records import FloatArray, Shape, to_world
+from twin.tolerances import TOLERANCES
 
 MapKey = tuple[str, str]
 """``(storey key, skill name)``."""
@@ -99,12 +100,16 @@ def grow(w: Window, pad: int) -> Window:
 
 
 def in_band(b: FloatArray, plan: MapPlan) -> bool:
-    return not (b[2] > plan.z_hi or b[5] < plan.z_lo)
+    """The bounds meet the band, a z within ``grid_m`` of its end being on it."""
+    g = TOLERANCES.grid_m
+    return not (b[2] > plan.z_hi + g or b[5] < plan.z_lo - g)
 
 
 def crosses(b: FloatArray | None, plan: MapPlan) -> bool:
-    """The bounds reach from below the band's bottom to above its top (an upright box's fast path)."""
-    return b is not None and b[2] < plan.z_hi - 1e-6 and b[5] > plan.z_lo + 1e-6
+    """The bounds reach into the band by more than ``grid_m`` (an upright box's slab geometry is then its
+    footprint: the fast path); a box only touching the band's end goes through the general rasteriser."""
+    g = TOLERANCES.grid_m
+    return b is not None and b[2] < plan.z_hi - g and b[5] > plan.z_lo + g
 
 
 def dirty_windows(plan: MapPlan, boxes: Sequence[FloatArray], pad: int) -> list[Window]:

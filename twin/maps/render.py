@@ -153,8 +153,8 @@ def occupancy(meshes: MeshSet, ids: IndexArray, plan: MapPlan, window: Window) -
         ymin=f.origin_y + window.row0 * res - eps,
         xmax=f.origin_x + window.col1 * res + eps,
         ymax=f.origin_y + window.row1 * res + eps,
-        z_lo=plan.z_lo,
-        z_hi=plan.z_hi,
+        z_lo=plan.z_lo - eps,  # within grid_m of the band's end is on it (raster.clip.snap_to_band)
+        z_hi=plan.z_hi + eps,
     )
     near = meshes.overlapping(ids, box)
     if len(near) == 0:

@@ -154,7 +154,7 @@ def _parts(
             msg = f"triangles must be finite, triangle {bad} is {triangles[bad].tolist()}."
             raise MapError(msg)
         zmin, zmax = _min_max(chunk, 2)
-        idx = np.flatnonzero((zmax >= z_lo) & (zmin <= z_hi))
+        idx = np.flatnonzero((zmax >= z_lo - tol.grid_m) & (zmin <= z_hi + tol.grid_m))  # see _slab_chunk
         if region is not None:
             ymin, ymax = _min_max(chunk[idx], 1)
             idx = idx[(ymax >= region[1]) & (ymin <= region[3])]
@@ -199,15 +199,23 @@ def _slab_chunk(
     Triangles wholly inside the slab come first, then clipped ones. The vertices are taken to the
     frame's grid units first (:func:`twin.maps.grid.grid_coordinates`: a coordinate within
     ``Tolerances.grid_m`` of a grid line is on it), so clipping interpolates between the vertices on
-    the lines, and a polygon of an open element flattened onto a line is thin (its cells grown).
+    the lines, and a polygon of an open element flattened onto a line is thin (its cells grown). A z
+    within ``grid_m`` of the slab's bottom or top is on it, so a face on the band's end is decided the
+    same wherever the building sits (an elevation of 10 km rounds ``elevation + height`` and the face's
+    z differently, by picometres). A filled solid that only touches the band's end (a box resting on
+    its bottom, a shelf hanging at its top) occupies no space in it and contributes nothing, as in a
+    boolean with the band's cuboid; an open surface lying on the end is in the band (thin things never
+    vanish). A slab of no thickness keeps every touching triangle.
     """
     res = frame.resolution_m
     grid = np.empty_like(chunk)
     grid[..., 0] = grid_coordinates(chunk[..., 0], frame.origin_x, res)
     grid[..., 1] = grid_coordinates(chunk[..., 1], frame.origin_y, res)
-    grid[..., 2] = chunk[..., 2]
+    grid[..., 2] = snap_to_band(chunk[..., 2], z_lo, z_hi, tol.grid_m)
     chunk = grid
     zmin, zmax = _min_max(chunk, 2)
+    if z_lo < z_hi:  # a filled solid that only touches the band's end occupies no space in it
+        keep = keep & ~(closed[element] & ((zmax <= z_lo) | (zmin >= z_hi)))
     whole = np.flatnonzero(keep & (zmin >= z_lo) & (zmax <= z_hi))
     cut = np.flatnonzero(keep & ((zmin < z_lo) | (zmax > z_hi)))
     nw, m = len(whole), len(whole) + len(cut)
@@ -238,6 +246,17 @@ def _slab_chunk(
     crossing = np.flatnonzero(solid & (zmin < z_f) & (zmax >= z_f))
     segments, winding = _section(chunk[crossing], z_f)
     return _Polygons(xs, ys, bounds, thin, segments, element[crossing].astype(np.intp), winding)
+
+
+def snap_to_band(z: FloatArray, z_lo: float, z_hi: float, within: float) -> FloatArray:
+    """``z`` with every value within ``within`` of ``z_lo`` or ``z_hi`` set to it exactly.
+
+    Example::
+
+        snap_to_band(np.array([0.0499999999, 0.3, 1.5000004]), 0.05, 1.5, 1e-6)   # [0.05, 0.3, 1.5]
+    """
+    out = np.where(np.abs(z - z_lo) <= within, z_lo, z)
+    return np.where(np.abs(z - z_hi) <= within, z_hi, out)
 
 
 def _min_max(chunk: FloatArray, axis: int) -> tuple[FloatArray, FloatArray]:

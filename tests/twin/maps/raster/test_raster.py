@@ -114,9 +114,14 @@ def reference(scene: Scene, z_lo: float, z_hi: float, frame: GridFrame) -> np.nd
     shrunk = shapely.box(x0 + TOL, y0 + TOL, x0 + res - TOL, y0 + res - TOL)
     grown = shapely.box(x0 - TOL, y0 - TOL, x0 + res + TOL, y0 + res + TOL)
     out = np.zeros(frame.shape, dtype=bool)
-    for element, part in scene.parts:
+    for element, given_part in scene.parts:
+        part = given_part.copy()  # a z within 1 um of the band's end is on it
+        part[..., 2][np.abs(part[..., 2] - z_lo) <= 1e-6] = z_lo
+        part[..., 2][np.abs(part[..., 2] - z_hi) <= 1e-6] = z_hi
         clipped = [clip_points(t, z_lo, z_hi) for t in part]
         if scene.closed[element]:
+            if z_lo < z_hi and (part[..., 2].max() <= z_lo or part[..., 2].min() >= z_hi):
+                continue  # a solid only touching the band's end occupies no space in it
             points = [p for c in clipped for p in c]
             if points:
                 out |= shapely.intersects(shapely.MultiPoint(points).convex_hull, shrunk)
@@ -454,14 +459,78 @@ def test_an_element_entirely_above_or_below_the_slab_contributes_nothing():
     assert not run(scene, 3.0, 3.5, FRAME).any()
 
 
-def test_a_box_straddling_the_slab_counts_and_one_touching_it_counts_too():
+def test_a_box_straddling_the_slab_counts_and_one_only_touching_its_end_does_not():
     scene = Scene()
     scene.add(True, box((1.0, 1.0, 1.0), (0.5, 0.5, 2.0)))  # z in [0, 2]
     footprint = run(scene, 0.5, 0.6, FRAME)
     assert footprint.any()
     np.testing.assert_array_equal(run(scene, -1.0, 3.0, FRAME), footprint)
-    np.testing.assert_array_equal(run(scene, 2.0, 2.5, FRAME), footprint)  # its top lies in the slab
+    np.testing.assert_array_equal(run(scene, 1.9, 2.5, FRAME), footprint)  # its top lies in the slab
     np.testing.assert_array_equal(run(scene, 1.0, 1.0, FRAME), footprint)  # a zero-thickness slab
+    assert not run(scene, 2.0, 2.5, FRAME).any()  # resting on the slab's bottom: no space in it
+    assert not run(scene, -0.5, 0.0, FRAME).any()  # hanging from its top
+
+
+def test_an_open_surface_lying_on_the_slabs_end_is_in_it():
+    scene = Scene()
+    sheet = np.array(
+        [
+            [[0.5, 0.5, 1.0], [1.5, 0.5, 1.0], [1.5, 1.0, 1.0]],
+            [[0.5, 0.5, 1.0], [1.5, 1.0, 1.0], [0.5, 1.0, 1.0]],
+        ]
+    )
+    scene.add(False, sheet)  # a flat sheet at z = 1
+    assert run(scene, 1.0, 1.5, FRAME).any()
+    assert run(scene, 0.5, 1.0, FRAME).any()
+    assert run(scene, 0.5, 1.0 - 6e-7, FRAME).any()  # within a micrometre
+    assert not run(scene, 0.5, 1.0 - 2e-6, FRAME).any()
+
+
+def test_a_solid_within_a_micrometre_of_the_slabs_end_is_on_it_and_one_farther_into_it_counts():
+    # Boxes reaching 0.6 um into the slab only touch its end (no space in it); 2 um into it, they count.
+    def reaching(depth: float) -> tuple[Scene, Scene]:
+        below, above = Scene(), Scene()
+        below.add(True, box((1.0, 1.0, 0.5 + depth / 2), (0.5, 0.5, 1.0 + depth)))  # z in [0, 1 + depth]
+        above.add(True, box((1.0, 1.0, 2.5 - depth / 2), (0.5, 0.5, 1.0 + depth)))  # z in [2 - depth, 3]
+        return below, above
+
+    below, above = reaching(6e-7)
+    assert not run(below, 1.0, 1.5, FRAME).any()
+    assert not run(above, 1.5, 2.0, FRAME).any()
+    below, above = reaching(2e-6)
+    footprint = run(below, 0.0, 1.0, FRAME)
+    assert footprint.any()
+    np.testing.assert_array_equal(run(below, 1.0, 1.5, FRAME), footprint)
+    np.testing.assert_array_equal(run(above, 1.5, 2.0, FRAME), footprint)
+
+
+@FAST
+@given(
+    gap=st.sampled_from([-9e-7, -3e-7, 0.0, 2e-7, 8e-7, 3e-6, -3e-6, 0.01]),
+    lift=st.sampled_from([0.0, 3.7, 1234.567, 1.0e4]),
+    parts=st.lists(boxes(), min_size=1, max_size=3),
+)
+def test_a_building_raised_by_any_height_gives_the_same_cells_at_the_bands_ends(gap, lift, parts):
+    # Parts reaching ``gap`` into the band from below and from above (or short of it), within or beyond
+    # a micrometre, give the same cells with the storey at z = 0 and raised by ``lift``.
+    z_lo, z_hi = 0.35, 1.2
+
+    def scene_at(dz: float) -> Scene:
+        scene = Scene()
+        for part in parts:
+            bottom, top = part[..., 2].min(), part[..., 2].max()
+            resting = part.copy()
+            resting[..., 2] += (z_lo + gap) - top + dz  # its top at the band's bottom (+ gap)
+            hanging = part.copy()
+            hanging[..., 2] += (z_hi - gap) - bottom + dz  # its bottom at the band's top (- gap)
+            scene.add(True, resting)
+            scene.add(True, hanging)
+        return scene
+
+    base = run(scene_at(0.0), z_lo, z_hi, FRAME)
+    raised = run(scene_at(lift), lift + z_lo, lift + z_hi, FRAME)
+    np.testing.assert_array_equal(raised, base)
+    assert base.any() == (gap > 1e-6)  # within a micrometre of the end is on it: touching, no space
 
 
 def test_no_triangles_give_an_empty_map():
