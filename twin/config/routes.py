@@ -14,6 +14,8 @@ need to know about the fleet::
     keepout = ["keepout"]            # keepout skills whose zones no lane crosses
     max_lane_m = 3.0                 # no lane longer than this
     spacing_m = 0.5                  # vertices this far apart along lanes and in open rooms
+    small_region_m2 = 12.0           # free regions under this get a lattice half spacing_m apart
+    pocket_m2 = 1.0                  # free regions under this with nothing in them: noted pockets
     lift_types = ["ELEVATOR"]        # IfcTransportElement predefined types that are lifts
     outdoors = false                 # lanes only over the storeys' floors (slabs, spaces, entrances)
     waypoints.charger1 = { storey = "ground-floor", x = 12.0, y = 8.0, charger = true }
@@ -135,6 +137,20 @@ class RoutesTable(ConfigTable):
             "(at most max_lane_m): finer gives shorter routes between close points, and more vertices."
         ),
     )
+    small_region_m2: Annotated[Number, Field(ge=0, le=10_000)] = Field(
+        12.0,
+        description=(
+            "Free regions under this area (m²; rooms whose doors the robot does not fit) get their "
+            "open-space lattice half spacing_m apart when most of a storey's free space is in them; 0: never."
+        ),
+    )
+    pocket_m2: Annotated[Number, Field(ge=0, le=10_000)] = Field(
+        1.0,
+        description=(
+            "Free regions under this area (m²) with no space, lift or waypoint are pockets: kept on the "
+            "graph, joined to nothing outside, and listed in one note per storey; 0: none noted."
+        ),
+    )
     lift_types: Annotated[tuple[Text, ...], list_of("IfcTransportElement predefined types")] = Field(
         ("ELEVATOR",),
         description=(
@@ -203,6 +219,8 @@ class RouteProfile:
     keepout: tuple[str, ...] = ()
     max_lane_m: float = 3.0
     spacing_m: float = 0.5
+    small_region_m2: float = 12.0
+    pocket_m2: float = 1.0
     lift_types: tuple[str, ...] = ("ELEVATOR",)
     open_door_operations: bool = False
     outdoors: bool = False
@@ -231,6 +249,8 @@ def parse_routes(name: str, data: Mapping[str, Any]) -> RouteProfile:
         keepout=tuple(dict.fromkeys(table.keepout)),
         max_lane_m=table.max_lane_m,
         spacing_m=min(table.spacing_m, table.max_lane_m),
+        small_region_m2=table.small_region_m2,
+        pocket_m2=table.pocket_m2,
         lift_types=tuple(dict.fromkeys(t.upper() for t in table.lift_types)),
         open_door_operations=table.open_door_operations,
         outdoors=table.outdoors,

@@ -171,6 +171,8 @@ def build_routes(
                 max_lane_m=routes.max_lane_m,
                 spacing_m=routes.spacing_m,
                 door_reach_m=door_reach(radius),
+                small_region_m2=routes.small_region_m2,
+                pocket_m2=routes.pocket_m2,
             )
         )
         results.append(result.routes)

@@ -14,10 +14,10 @@ straight lanes whose centre lines are free (:mod:`twin.routes.lines`), with a ve
   to the nearest skeleton point it sees;
 - **open space**: a lattice of vertices ``spacing_m`` apart where free space lies away from every lane
   (rooms), joined to the neighbours each sees; half ``spacing_m`` apart in free regions under
-  :data:`SMALL_REGION_M2` (rooms whose doors the robot does not fit, pockets) on a storey whose free
-  space lies mostly in such regions;
-- **pockets**: free regions under :data:`POCKET_M2` with no space, lift or waypoint are listed in a
-  note (they keep their vertices: a robot standing in one is on the graph, and no lane leaves it);
+  :attr:`StoreyInput.small_region_m2` (rooms whose doors the robot does not fit, pockets) on a storey
+  whose free space lies mostly in such regions;
+- **pockets**: free regions under :attr:`StoreyInput.pocket_m2` with no space, lift or waypoint are
+  listed in a note (they keep their vertices: a robot standing in one is on the graph, and no lane leaves it);
 - **shortcuts**: a straight lane between two vertices within ``max_lane_m`` that see each other when
   the graph's way between them is much longer (open rooms: the skeleton's way is a detour).
 
@@ -54,17 +54,7 @@ SHORTCUT_RATIO = 1.15
 """A shortcut is added where the graph's way is longer than this many times the straight line."""
 OPEN_SPACE_FRACTION = 0.75
 """Open space gets lattice vertices where it lies this many lattice spacings from every lane."""
-POCKET_M2 = 1.0
-"""A free region smaller than this (m², of the robot's centre) with no space, lift or waypoint in it is a
-pocket: somewhere between furniture and walls a robot can stand but not leave."""
 POCKETS_LISTED = 3
-SMALL_REGION_M2 = 12.0
-"""On a storey whose free space lies mostly in regions smaller than this (m²: rooms whose doors the
-robot does not fit, pockets), those regions get their open-space lattice half ``spacing_m`` apart: every
-pair of points in one is close, and a route between close points is about as long as their distance
-only through a vertex near the line between them. Where most free space is one larger region, its
-routes are the storey's and the small regions keep the usual lattice: four times the vertices in dozens
-of closed rooms would cost more ids than nav2's 65,535 (the generated 12k building)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,6 +105,18 @@ class StoreyInput:
     max_lane_m: float = 3.0
     spacing_m: float = 0.5
     door_reach_m: float = 0.6
+    small_region_m2: float = 12.0
+    """On a storey whose free space lies mostly in regions smaller than this (m²: rooms whose doors the
+    robot does not fit, pockets), those regions get their open-space lattice half ``spacing_m`` apart:
+    every pair of points in one is close, and a route between close points is about as long as their
+    distance only through a vertex near the line between them. Where most free space is one larger
+    region, its routes are the storey's and the small regions keep the usual lattice: four times the
+    vertices in dozens of closed rooms would cost more ids than nav2's 65,535 (the generated 12k
+    building). ``[skills.NAME] small_region_m2``."""
+    pocket_m2: float = 1.0
+    """A free region smaller than this (m², of the robot's centre) with no space, lift or waypoint in it
+    is a pocket: somewhere between furniture and walls a robot can stand but not leave.
+    ``[skills.NAME] pocket_m2``."""
 
 
 @dataclass(slots=True)
@@ -275,7 +277,7 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
     labels, _ = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))
     area = np.bincount(labels.ravel()).astype(np.float64)
     area *= res * res
-    small = area < SMALL_REGION_M2
+    small = area < inp.small_region_m2
     small[0] = False
     if area[small].sum() > area[1:].sum() / 2:
         _open_space(vertices, lanes, frame, free, spacing / 2, where=small[labels])
@@ -306,8 +308,9 @@ def build_storey(inp: StoreyInput) -> StoreyResult:
 def _pockets(
     inp: StoreyInput, vertices: Sequence[RouteVertex], labels: IntArray, area: FloatArray
 ) -> list[str]:
-    """A note on the storey's pockets (:data:`POCKET_M2`): they keep their vertices (a robot standing in
-    one is on the graph, its cells see one) and no lane leaves them, as no path on the map does.
+    """A note on the storey's pockets (:attr:`StoreyInput.pocket_m2`): they keep their vertices (a robot
+    standing in one is on the graph, its cells see one) and no lane leaves them, as no path on the map
+    does.
     ``labels``: the free regions (8-connected, 0 blocked), ``area``: each label's area (m²)."""
     frame, res = inp.frame, inp.frame.resolution_m
     n = len(area) - 1
@@ -320,7 +323,7 @@ def _pockets(
     rc = np.clip(rc.astype(np.int64), 0, np.array(inp.free.shape) - 1)
     region = labels[rc[:, 0], rc[:, 1]]
     served = {int(r) for r, v in zip(region, vertices, strict=True) if v.name or v.lift or v.kind != "lane"}
-    small = [r for r in range(1, n + 1) if area[r] < POCKET_M2 and r not in served]
+    small = [r for r in range(1, n + 1) if area[r] < inp.pocket_m2 and r not in served]
     if not small:
         return []
     where = []
@@ -330,8 +333,8 @@ def _pockets(
         where.append(f"{area[r]:.2f} m² at ({x:.2f}, {y:.2f})")
     more = f", and {len(small) - POCKETS_LISTED} more" if len(small) > POCKETS_LISTED else ""
     return [
-        f"{inp.storey}: {len(small)} pocket(s) of free space under {POCKET_M2:g} m² that a robot can stand "
-        f"in but not leave ({'; '.join(where)}{more}): on the graph, joined to nothing outside"
+        f"{inp.storey}: {len(small)} pocket(s) of free space under {inp.pocket_m2:g} m² that a robot can "
+        f"stand in but not leave ({'; '.join(where)}{more}): on the graph, joined to nothing outside"
     ]
 
 

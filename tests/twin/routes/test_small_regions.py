@@ -57,7 +57,24 @@ def test_a_region_of_a_square_metre_or_more_is_not_a_pocket() -> None:
     ]
 
 
-def _nearest_vertex_p95(width_m: float, height_m: float, *, beside_hall: bool = False) -> float:
+def test_the_pocket_size_is_a_skill_key() -> None:
+    free = _room_and(1.2)  # 1.44 m²: a pocket under a 2 m² limit, none under the default 1 m²
+    (note,) = [
+        n
+        for n in build_storey(StoreyInput("level-0", 0.0, FRAME, free, pocket_m2=2.0)).notes
+        if "pocket" in n
+    ]
+    assert note.startswith("level-0: 1 pocket(s) of free space under 2 m²")
+    assert not [
+        n
+        for n in build_storey(StoreyInput("level-0", 0.0, FRAME, _room_and(0.8), pocket_m2=0.0)).notes
+        if "pocket" in n
+    ]
+
+
+def _nearest_vertex_p95(
+    width_m: float, height_m: float, *, beside_hall: bool = False, small_region_m2: float = 12.0
+) -> float:
     """The 95th percentile over a room's free cells of the distance to the nearest vertex (m); with
     ``beside_hall`` the storey also has a 13.5 m² region apart from the room."""
     free = np.zeros((FRAME.height, FRAME.width), dtype=bool)
@@ -65,7 +82,7 @@ def _nearest_vertex_p95(width_m: float, height_m: float, *, beside_hall: bool = 
     room = free.copy()
     if beside_hall:
         free[5:95, 100:160] = True  # 3 m x 4.5 m: 13.5 m², more than the room's 7.5 m²
-    routes = build_storey(StoreyInput("level-0", 0.0, FRAME, free)).routes
+    routes = build_storey(StoreyInput("level-0", 0.0, FRAME, free, small_region_m2=small_region_m2)).routes
     xy = np.array([(v.x, v.y) for v in routes.vertices])
     d, _ = cKDTree(xy).query((np.argwhere(room)[:, ::-1] + 0.5) * 0.05)
     return float(np.percentile(d, 95))
@@ -74,6 +91,8 @@ def _nearest_vertex_p95(width_m: float, height_m: float, *, beside_hall: bool = 
 def test_a_room_under_twelve_square_metres_gets_vertices_about_a_quarter_metre_apart() -> None:
     assert _nearest_vertex_p95(3.0, 2.5) < 0.2  # 7.5 m²: a 0.25 m lattice
     assert _nearest_vertex_p95(4.5, 4.0) > 0.3  # 18 m²: the 0.5 m lattice
+    assert _nearest_vertex_p95(4.5, 4.0, small_region_m2=20.0) < 0.2  # small under a 20 m² limit
+    assert _nearest_vertex_p95(3.0, 2.5, small_region_m2=0.0) > 0.25  # never dense (0.18 dense)
 
 
 def test_small_rooms_keep_the_usual_lattice_where_most_free_space_is_a_larger_region() -> None:
