@@ -113,11 +113,23 @@ class Drawing:
 
     def _occupancy(self, m: LiveMap, window: Window) -> BoolArray:
         """Occupancy (before inflation) of ``window``: the static cells OR each overlay element's."""
-        occ = m.static[window.row0 : window.row1, window.col0 : window.col1].copy()
-        for iri in m.overlay:
+        r0, c0, r1, c1 = window.row0, window.col0, window.row1, window.col1
+        occ = m.static[r0:r1, c0:c1].copy()
+        cached, key = self._rasters.cells, m.key
+        for iri in m.overlay:  # a map may hold many: those whose raster lies elsewhere cost a lookup
             el = self._overlay.get(iri)
-            if el is not None:
-                self._or_raster(m, iri, el, occ, window)
+            if el is None:
+                continue
+            hit = cached[(iri, key)] if (iri, key) in cached else self._raster(m, iri, el)
+            if hit is None:
+                continue
+            win, cells = hit
+            if win.row0 >= r1 or win.row1 <= r0 or win.col0 >= c1 or win.col1 <= c0:
+                continue
+            w = win.intersect(window)
+            occ[w.row0 - r0 : w.row1 - r0, w.col0 - c0 : w.col1 - c0] |= cells[
+                w.row0 - win.row0 : w.row1 - win.row0, w.col0 - win.col0 : w.col1 - win.col0
+            ]
         return occ
 
     def _occupancy_at_once(self, m: LiveMap, window: Window) -> BoolArray:

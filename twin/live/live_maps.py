@@ -147,7 +147,7 @@ class LiveMaps(Drawing):
             if ch.new is None:
                 self._overlay.pop(ch.iri, None)
             else:
-                self._overlay[ch.iri] = OverlayElement.of(ch.new)
+                self._overlay[ch.iri] = OverlayElement.of(ch.new, previous=self._overlay.get(ch.iri))
         for m in self.skill_maps.values():
             for iri, selected in membership.get(m.plan.skill.name, {}).items():
                 if iri in self._overlay and selected:
@@ -159,10 +159,14 @@ class LiveMaps(Drawing):
         new_bounds = {i: self.bounds_of(i) for i in touched}
         updates = []
         for key, m in self.skill_maps.items():
+            now = {i for i in touched if self._member(m, i)}
+            now_base = {i for i in touched if self._base_member(m, i)}
+            if not (now or now_base or was[key] or was_base[key]):
+                continue  # none of the changed elements is (or was) in this map
             # 1. the static cells where a base element left (or came back to) this map: rare
             gone = [
                 b
-                for i in was_base[key] ^ {i for i in touched if self._base_member(m, i)}
+                for i in was_base[key] ^ now_base
                 if (b := old_bounds[i] if i in was_base[key] else new_bounds[i]) is not None
             ]
             if gone:
@@ -173,7 +177,7 @@ class LiveMaps(Drawing):
                     )
             # 2. the cells every old and new footprint can change, grown by the inflation
             boxes = [b for i in was[key] if (b := old_bounds[i]) is not None]
-            boxes += [b for i in touched if self._member(m, i) and (b := new_bounds[i]) is not None]
+            boxes += [b for i in touched if i in now and (b := new_bounds[i]) is not None]
             pad = math.ceil(m.plan.inflation_cells) + 1
             windows = dirty_windows(m.plan, boxes, pad)
             source = None

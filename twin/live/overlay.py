@@ -18,16 +18,32 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from twin.maps.grid import Window
 from twin.maps.raster import BoolArray
 from twin.maps.raster.boxes import box_footprint
 from twin.maps.render import MapPlan
 from twin.maps.scene import MeshSet
-from twin.records import FloatArray, Shape, to_world
+from twin.records import FloatArray, Mesh, Shape, to_world
 
 MapKey = tuple[str, str]
 """``(storey key, skill name)``."""
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class _MeshFacts:
+    """What an overlay element's bounds and fast path need of its mesh alone (kept while it moves)."""
+
+    box: bool
+    """Eight corners, two distinct values per axis, each corner once, 12 faces, closed."""
+    used: npt.NDArray[np.intp] | None
+    """The vertices its faces use, None if all (the bounds are those of the used vertices)."""
+
+    @classmethod
+    def of(cls, mesh: Mesh) -> _MeshFacts:
+        used = np.unique(mesh.faces)
+        return cls(_is_box_mesh(mesh), None if len(used) == len(mesh.vertices) else used.astype(np.intp))
 
 
 @dataclass(eq=False, slots=True)
@@ -41,17 +57,24 @@ class OverlayElement:
     band it crosses its cells are those of the footprint (:mod:`twin.maps.raster.boxes`), the same in every
     map of one frame, so they are computed once for all of them."""
     _meshes: MeshSet | None = None
+    _facts: _MeshFacts | None = None
 
     @classmethod
-    def of(cls, shape: Shape) -> OverlayElement:
+    def of(cls, shape: Shape, *, previous: OverlayElement | None = None) -> OverlayElement:
+        """The element of ``shape``; ``previous``: the element it was, whose facts about the mesh are
+        kept when the mesh is the same object (a move: the placement alone changed)."""
         mesh, placement = shape
         if not mesh.triangle_count:
             return cls(shape, None)
+        same = previous is not None and previous._facts is not None and previous.shape[0] is mesh
+        facts = previous._facts if same and previous is not None else _MeshFacts.of(mesh)
+        assert facts is not None
         world = to_world(mesh.vertices, placement)  # as MeshSet.build, bit for bit
-        used = world[mesh.faces.ravel()]
+        used = world if facts.used is None else world[facts.used]
         b = np.concatenate([used.min(axis=0), used.max(axis=0)])
-        footprint = box_footprint(mesh.vertices, placement) if is_upright_box(shape) else None
-        return cls(shape, None if np.isnan(b).any() else b, footprint)
+        upright = facts.box and _turns_about_z(placement)
+        footprint = box_footprint(mesh.vertices, placement) if upright else None
+        return cls(shape, None if np.isnan(b).any() else b, footprint, _facts=facts)
 
     def footprint_in(self, plan: MapPlan) -> FloatArray | None:
         """The footprint, if this is an upright box that crosses ``plan``'s band (then its cells are the
@@ -65,11 +88,18 @@ class OverlayElement:
 
 
 def is_upright_box(shape: Shape) -> bool:
+    """The shape is a box (eight corners, 12 faces, closed) turned about +z only."""
     mesh, placement = shape
+    return _is_box_mesh(mesh) and _turns_about_z(placement)
+
+
+def _turns_about_z(placement: FloatArray) -> bool:
+    r = placement[:3, :3].tolist()
+    return r[2][2] == 1.0 and r[0][2] == 0.0 and r[1][2] == 0.0 and r[2][0] == 0.0 and r[2][1] == 0.0
+
+
+def _is_box_mesh(mesh: Mesh) -> bool:
     if mesh.vertices.shape != (8, 3) or len(mesh.faces) != 12 or not mesh.closed:
-        return False
-    r = placement[:3, :3]
-    if r[2, 2] != 1.0 or r[0, 2] != 0.0 or r[1, 2] != 0.0 or r[2, 0] != 0.0 or r[2, 1] != 0.0:
         return False
     v = mesh.vertices
     lo, hi = v.min(axis=0), v.max(axis=0)

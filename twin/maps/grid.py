@@ -60,6 +60,14 @@ def grid_coordinates(
     return out
 
 
+def grid_coordinate(value: float, origin: float, resolution_m: float) -> float:
+    """:func:`grid_coordinates` of one value, in Python floats (no numpy call: for the few corners of a
+    box, where numpy's fixed cost per call is most of the time); the same float, bit for bit."""
+    c = (value - origin) / resolution_m
+    n = float(round(c))  # half to even, as np.rint
+    return n if abs(value - (origin + n * resolution_m)) <= TOLERANCES.grid_m else c
+
+
 def grid_units(length_m: float, resolution_m: float) -> float:
     """A length in grid units: a whole number of cells when it is one within ``TOLERANCES.grid_m``
     (3.3000000000000007 m at 0.1 m is 33 cells, not 33.00000000000001)."""
