@@ -101,20 +101,21 @@ class Drawing:
 
     def _or_raster(self, m: LiveMap, iri: str, el: OverlayElement, occ: BoolArray, window: Window) -> None:
         """OR the element's own occupancy on ``m`` into ``occ``, the cells of ``window``."""
-        hit = self._raster(m, iri, el)
+        cached = self._rasters.cells
+        hit = cached[(iri, m.key)] if (iri, m.key) in cached else self._raster(m, iri, el)
         if hit is None:
             return
         win, cells = hit
+        if not win.meets(window):
+            return  # its raster lies elsewhere
         w = win.intersect(window)
-        if w.empty:
-            return
         dst = occ[w.row0 - window.row0 : w.row1 - window.row0, w.col0 - window.col0 : w.col1 - window.col0]
         dst |= cells[w.row0 - win.row0 : w.row1 - win.row0, w.col0 - win.col0 : w.col1 - win.col0]
 
     def _occupancy(self, m: LiveMap, window: Window) -> BoolArray:
         """Occupancy (before inflation) of ``window``: the static cells OR each overlay element's."""
-        r0, c0, r1, c1 = window.row0, window.col0, window.row1, window.col1
-        occ = m.static[r0:r1, c0:c1].copy()
+        r0, c0 = window.row0, window.col0
+        occ = m.static[r0 : window.row1, c0 : window.col1].copy()
         cached, key = self._rasters.cells, m.key
         for iri in m.overlay:  # a map may hold many: those whose raster lies elsewhere cost a lookup
             el = self._overlay.get(iri)
@@ -124,7 +125,7 @@ class Drawing:
             if hit is None:
                 continue
             win, cells = hit
-            if win.row0 >= r1 or win.row1 <= r0 or win.col0 >= c1 or win.col1 <= c0:
+            if not win.meets(window):
                 continue
             w = win.intersect(window)
             occ[w.row0 - r0 : w.row1 - r0, w.col0 - c0 : w.col1 - c0] |= cells[
@@ -144,14 +145,15 @@ class Drawing:
         items = []
         for iri in sorted(m.overlay):
             el = self._overlay.get(iri)
-            b = None if el is None else el.bounds
-            if el is None or b is None or not in_band(b, m.plan):
-                continue
-            if not (b[0] <= x1 and b[3] >= x0 and b[1] <= y1 and b[4] >= y0):
+            if el is None:
                 continue
             if el.footprint_in(m.plan) is not None:  # drawn from its own (cached) raster: cheaper
-                self._or_raster(m, iri, el, occ, window)
-            else:
+                self._or_raster(m, iri, el, occ, window)  # (nothing where its raster is not)
+                continue
+            b = el.bounds
+            if b is None or not in_band(b, m.plan):
+                continue
+            if b[0] <= x1 and b[3] >= x0 and b[1] <= y1 and b[4] >= y0:
                 items.append((iri, *el.shape))
         if items:
             meshes = MeshSet.build(items)

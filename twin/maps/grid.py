@@ -101,6 +101,11 @@ class Window:
     def empty(self) -> bool:
         return self.row1 <= self.row0 or self.col1 <= self.col0
 
+    def meets(self, other: Window) -> bool:
+        """The two windows share a cell (their intersection is not empty)."""
+        rows = self.row0 < other.row1 and other.row0 < self.row1
+        return rows and self.col0 < other.col1 and other.col0 < self.col1
+
     def intersect(self, other: Window) -> Window:
         return Window(
             max(self.row0, other.row0),
