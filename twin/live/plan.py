@@ -368,6 +368,8 @@ def plan_observation(
         reasons: why fusion removes an element (``twin:removedBecause``: absence, a merge).
         merged: elements fusion merged into another (``twin:mergedInto``).
     """
+    if not reports:  # fusion confirmed everything: nothing to check or write
+        return ObservationPlan(ChangeSet(), ())
     sense_ns = sense_ns or {}
     reasons = reasons or {}
     merged = merged or {}
