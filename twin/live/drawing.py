@@ -83,7 +83,7 @@ class Drawing:
             shared = (iri, ("upright", m.plan.frame))  # the same cells in every band it crosses
             if shared in self._rasters.shared:
                 out = self._rasters.shared[shared]
-                self._rasters.cells[key] = out
+                self._rasters.put(key, out)
                 return out
         if b is not None and in_band(b, m.plan):
             frame = m.plan.frame
@@ -94,9 +94,9 @@ class Drawing:
                 else:
                     cells = occupancy(el.meshes(iri), _ONE, m.plan, win)
                 out = (win, cells) if cells.any() else None
-        self._rasters.cells[key] = out
+        self._rasters.put(key, out)
         if shared is not None:
-            self._rasters.shared[shared] = out
+            self._rasters.put_shared(shared, out)
         return out
 
     def _or_raster(self, m: LiveMap, iri: str, el: OverlayElement, occ: BoolArray, window: Window) -> None:

@@ -116,12 +116,23 @@ class RasterCache:
     cells: dict[tuple[str, MapKey], tuple[Window, BoolArray] | None] = field(default_factory=dict)
     shared: dict[tuple[str, object], tuple[Window, BoolArray] | None] = field(default_factory=dict)
     """Upright boxes: one raster per frame, for every map of that frame whose band they cross."""
+    _maps_of: dict[str, set[MapKey]] = field(default_factory=dict)
+    _frames_of: dict[str, set[object]] = field(default_factory=dict)
+    """Each element's keys in :attr:`cells` and :attr:`shared` (a change drops its own, not a scan)."""
+
+    def put(self, key: tuple[str, MapKey], out: tuple[Window, BoolArray] | None) -> None:
+        self.cells[key] = out
+        self._maps_of.setdefault(key[0], set()).add(key[1])
+
+    def put_shared(self, key: tuple[str, object], out: tuple[Window, BoolArray] | None) -> None:
+        self.shared[key] = out
+        self._frames_of.setdefault(key[0], set()).add(key[1])
 
     def drop(self, iri: str) -> None:
-        for key in [k for k in self.cells if k[0] == iri]:
-            del self.cells[key]
-        for shared in [k for k in self.shared if k[0] == iri]:
-            del self.shared[shared]
+        for m in self._maps_of.pop(iri, ()):
+            self.cells.pop((iri, m), None)
+        for f in self._frames_of.pop(iri, ()):
+            self.shared.pop((iri, f), None)
 
 
 def grow(w: Window, pad: int) -> Window:
