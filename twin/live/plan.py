@@ -213,7 +213,7 @@ def _upsert(step: _Step) -> ElementState:
     state = _storey(step, state, change, exists=exists)
     _lifetime(step, change, exists=exists)
     state = _descriptive(step, state, change, exists=exists)
-    return replace(state, removed=False)
+    return replace(state, removed=False) if state.removed else state
 
 
 def _door(step: _Step, state: ElementState) -> ElementState:
