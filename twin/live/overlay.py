@@ -94,7 +94,7 @@ def is_upright_box(shape: Shape) -> bool:
 
 
 def _turns_about_z(placement: FloatArray) -> bool:
-    r = placement[:3, :3].tolist()
+    r: list[list[float]] = placement[:3, :3].tolist()  # Python floats: five compares, no numpy call
     return r[2][2] == 1.0 and r[0][2] == 0.0 and r[1][2] == 0.0 and r[2][0] == 0.0 and r[2][1] == 0.0
 
 

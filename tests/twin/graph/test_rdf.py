@@ -29,7 +29,10 @@ def test_a_literal_is_written_as_pyoxigraph_writes_it_whatever_it_holds(value: s
     assert [q.object for q in store] == [ox.Literal(value, datatype=ox.NamedNode(datatype))]
 
 
-@pytest.mark.parametrize("iri", ["", "urn:a b", "urn:a<b", "urn:x\n", "urn:a\\b", "urn:a^b", "urn:{a}", 'urn:"'])
+BAD_IRIS = ["", "urn:a b", "urn:a<b", "urn:x\n", "urn:a\\b", "urn:a^b", "urn:{a}", 'urn:"']
+
+
+@pytest.mark.parametrize("iri", BAD_IRIS)
 def test_an_iri_a_change_cannot_hold_is_refused_by_name(iri: str) -> None:
     with pytest.raises(StoreError, match="Not an IRI usable in a change"):
         changes_to_sparql(ChangeSet(add=(Triple("urn:s", "urn:p", iri),)))
