@@ -2,10 +2,11 @@
 
 In process, no Zenoh: a :class:`~twin.live.TwinService` on the sample lab (imported to an on-disk store as
 ``twin serve`` would have it) and the workload of ``fusion_cost.py``: ``--robots`` robots, each with its
-own table on the ground floor, every other observation moving it 0.5 m (the first sighting at the new
-spot is held, the second moves it: a commit), the others re-reporting it with 2 cm of noise (a
-re-confirmation). ``--batch`` observations are queued before the writer takes them (1: one at a time;
-the robots' number: all at once, as when every robot sends at the same instant). The figure is the
+own table on the ground floor, every other observation moving it 0.5 m, the others re-reporting it
+with 2 cm of noise (fusion holds the first sighting at the new spot, acked unchanged and pending; the
+re-report there moves the table: a commit). ``--batch`` observations are queued before the writer
+takes them (1: one at a time; the robots' number: all at once, as when every robot sends at the same
+instant). The figure is the
 writer's thread CPU (``time.thread_time``) per observation, the best of ``--blocks`` blocks (on a
 shared machine the best block shows the code), and the CPU of each stage of the writer summed over the
 run: parse (Turtle, validation), fuse, plan, commit (the store transaction), redraw (the maps' cells),
