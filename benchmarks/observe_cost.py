@@ -6,11 +6,11 @@ own table on the ground floor, every other observation moving it 0.5 m, the othe
 with 2 cm of noise (fusion holds the first sighting at the new spot, acked unchanged and pending; the
 re-report there moves the table: a commit). ``--batch`` observations are queued before the writer
 takes them (1: one at a time; the robots' number: all at once, as when every robot sends at the same
-instant). The figure is the
-writer's thread CPU (``time.thread_time``) per observation, the best of ``--blocks`` blocks (on a
-shared machine the best block shows the code), and the CPU of each stage of the writer summed over the
-run: parse (Turtle, validation), fuse, plan, commit (the store transaction), redraw (the maps' cells),
-index (fusion's poses), membership, and the rest (batch bookkeeping, events, acks). The daemon's other
+instant). The figures are the writer's thread CPU (``time.thread_time``) per observation over the
+run and in the best of ``--blocks`` blocks (on a shared machine the best block shows the code), and
+the CPU of each stage of the writer summed over the run: parse (Turtle, validation), fuse, plan,
+commit (the store transaction), redraw (the maps' cells), index (fusion's poses), membership, and the
+rest (batch bookkeeping, events, acks). The daemon's other
 threads (the Zenoh sends of updates and acks) are not here: ``fusion_cost.py`` measures the daemon whole.
 
 ``--baseline TREE`` runs the same, alternately, with another code tree (e.g. an earlier commit's
