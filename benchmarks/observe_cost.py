@@ -10,8 +10,8 @@ instant). The figures are the writer's thread CPU (``time.thread_time``) per obs
 run and in the best of ``--blocks`` blocks (on a shared machine the best block shows the code), and
 the CPU of each stage of the writer summed over the run: parse (Turtle, validation), fuse, plan,
 commit (the store transaction), redraw (the maps' cells), index (fusion's poses), membership, and the
-rest (batch bookkeeping, events, acks). The daemon's other
-threads (the Zenoh sends of updates and acks) are not here: ``fusion_cost.py`` measures the daemon whole.
+rest (batch bookkeeping, events, acks). The daemon's other threads (the Zenoh sends of updates and
+acks) are not here: ``fusion_cost.py`` measures the daemon whole.
 
 ``--baseline TREE`` runs the same, alternately, with another code tree (e.g. an earlier commit's
 ``git archive``) on ``PYTHONPATH``; ``--repeat`` runs each that many times.
