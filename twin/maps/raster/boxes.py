@@ -68,10 +68,14 @@ def footprint_cells(
     for k, (x0, y0) in enumerate(p):
         x1, y1 = p[(k + 1) % len(p)]
         n0, n1 = -(y1 - y0), x1 - x0
-        if abs(n0) + abs(n1) < 1e-12 or any(abs(n0 * m[1] - n1 * m[0]) < 1e-12 for m in axes):
+        if n0 == 0.0 or n1 == 0.0:  # the grid's own axis (or no edge): decided above, and no tie that
+            continue  # float could decide otherwise (cell_m and grid_m keep ties nanometres away)
+        if any(abs(n0 * m[1] - n1 * m[0]) < 1e-12 for m in axes) or abs(n0) + abs(n1) < 1e-12:
             continue
         proj = [x * n0 + y * n1 for x, y in p]
         axes.append((n0, n1, (0.5 - t) * (abs(n0) + abs(n1)), min(proj), max(proj)))
+    if not axes:  # a rectangle along the grid: its cells are those of its x and y ranges
+        return out
     n0s, n1s, half, lo, hi = np.array(axes).T.reshape(5, -1, 1, 1)
     centre = (r + 0.5)[:, None] * n1s + (c + 0.5) * n0s  # (axes, rows, cols)
     out &= ((centre - half <= hi) & (centre + half >= lo)).all(axis=0)
