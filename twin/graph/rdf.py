@@ -25,6 +25,12 @@ from twin.errors import QueryError, StoreError
 from twin.graph import vocab
 
 _SERVICE = re.compile(r"\bSERVICE\b", re.IGNORECASE)
+_NOT_IN_IRI = re.compile(r'[<>"{}|\\^` \n]')
+"""Characters an IRI in a change may not hold (N-Triples' IRIREF excludes them)."""
+_NEEDS_ESCAPE = re.compile(r'[^\x20-\x7e]|["\\]')
+"""Characters of a literal's lexical form that N-Triples escapes (or that pyoxigraph may): those
+literals are written by pyoxigraph, the others as they are (the same text, without its cost)."""
+_XSD_STRING = vocab.XSD + "string"
 
 Term = ox.NamedNode | ox.BlankNode | ox.Literal | ox.Triple
 Row = dict[str, str | None]
@@ -78,7 +84,7 @@ def _term(term: Term | None) -> str | None:
 
 
 def _nt_iri(iri: str) -> str:
-    if any(c in iri for c in '<>"{}|\\^` \n') or not iri:
+    if not iri or _NOT_IN_IRI.search(iri) is not None:
         msg = f"Not an IRI usable in a change: {iri!r}."
         raise StoreError(msg)
     return f"<{iri}>"
@@ -86,7 +92,11 @@ def _nt_iri(iri: str) -> str:
 
 def _nt_object(obj: Object) -> str:
     if isinstance(obj, RdfLiteral):
-        return str(ox.Literal(obj.value, datatype=ox.NamedNode(obj.datatype)))
+        if _NEEDS_ESCAPE.search(obj.value) is not None:
+            return str(ox.Literal(obj.value, datatype=ox.NamedNode(obj.datatype)))
+        if obj.datatype == _XSD_STRING:
+            return f'"{obj.value}"'
+        return f'"{obj.value}"^^{_nt_iri(obj.datatype)}'
     return _nt_iri(obj)
 
 

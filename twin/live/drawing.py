@@ -83,7 +83,7 @@ class Drawing:
             shared = (iri, ("upright", m.plan.frame))  # the same cells in every band it crosses
             if shared in self._rasters.shared:
                 out = self._rasters.shared[shared]
-                self._rasters.cells[key] = out
+                self._rasters.put(key, out)
                 return out
         if b is not None and in_band(b, m.plan):
             frame = m.plan.frame
@@ -94,30 +94,43 @@ class Drawing:
                 else:
                     cells = occupancy(el.meshes(iri), _ONE, m.plan, win)
                 out = (win, cells) if cells.any() else None
-        self._rasters.cells[key] = out
+        self._rasters.put(key, out)
         if shared is not None:
-            self._rasters.shared[shared] = out
+            self._rasters.put_shared(shared, out)
         return out
 
     def _or_raster(self, m: LiveMap, iri: str, el: OverlayElement, occ: BoolArray, window: Window) -> None:
         """OR the element's own occupancy on ``m`` into ``occ``, the cells of ``window``."""
-        hit = self._raster(m, iri, el)
+        cached = self._rasters.cells
+        hit = cached[(iri, m.key)] if (iri, m.key) in cached else self._raster(m, iri, el)
         if hit is None:
             return
         win, cells = hit
+        if not win.meets(window):
+            return  # its raster lies elsewhere
         w = win.intersect(window)
-        if w.empty:
-            return
         dst = occ[w.row0 - window.row0 : w.row1 - window.row0, w.col0 - window.col0 : w.col1 - window.col0]
         dst |= cells[w.row0 - win.row0 : w.row1 - win.row0, w.col0 - win.col0 : w.col1 - win.col0]
 
     def _occupancy(self, m: LiveMap, window: Window) -> BoolArray:
         """Occupancy (before inflation) of ``window``: the static cells OR each overlay element's."""
-        occ = m.static[window.row0 : window.row1, window.col0 : window.col1].copy()
-        for iri in m.overlay:
+        r0, c0 = window.row0, window.col0
+        occ = m.static[r0 : window.row1, c0 : window.col1].copy()
+        cached, key = self._rasters.cells, m.key
+        for iri in m.overlay:  # a map may hold many: those whose raster lies elsewhere cost a lookup
             el = self._overlay.get(iri)
-            if el is not None:
-                self._or_raster(m, iri, el, occ, window)
+            if el is None:
+                continue
+            hit = cached[(iri, key)] if (iri, key) in cached else self._raster(m, iri, el)
+            if hit is None:
+                continue
+            win, cells = hit
+            if not win.meets(window):
+                continue
+            w = win.intersect(window)
+            occ[w.row0 - r0 : w.row1 - r0, w.col0 - c0 : w.col1 - c0] |= cells[
+                w.row0 - win.row0 : w.row1 - win.row0, w.col0 - win.col0 : w.col1 - win.col0
+            ]
         return occ
 
     def _occupancy_at_once(self, m: LiveMap, window: Window) -> BoolArray:
@@ -132,14 +145,15 @@ class Drawing:
         items = []
         for iri in sorted(m.overlay):
             el = self._overlay.get(iri)
-            b = None if el is None else el.bounds
-            if el is None or b is None or not in_band(b, m.plan):
-                continue
-            if not (b[0] <= x1 and b[3] >= x0 and b[1] <= y1 and b[4] >= y0):
+            if el is None:
                 continue
             if el.footprint_in(m.plan) is not None:  # drawn from its own (cached) raster: cheaper
-                self._or_raster(m, iri, el, occ, window)
-            else:
+                self._or_raster(m, iri, el, occ, window)  # (nothing where its raster is not)
+                continue
+            b = el.bounds
+            if b is None or not in_band(b, m.plan):
+                continue
+            if b[0] <= x1 and b[3] >= x0 and b[1] <= y1 and b[4] >= y0:
                 items.append((iri, *el.shape))
         if items:
             meshes = MeshSet.build(items)

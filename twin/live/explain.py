@@ -26,6 +26,7 @@ from twin.live.membership import rejection
 from twin.live.state import ElementState, LiveState
 from twin.maps.grid import Window
 from twin.selection.skills import SkillProfile
+from twin.tolerances import TOLERANCES
 
 NEAR_M = 1.0
 """How far from the point elements count as near, metres (default)."""
@@ -39,6 +40,12 @@ def why_not(skill: SkillProfile, state: ElementState, bounds: Any, z_lo: float, 
         return reason
     if bounds[5] < z_lo or bounds[2] > z_hi:
         return f"outside the height band {z_lo:.2f}-{z_hi:.2f} m (element {bounds[2]:.2f}-{bounds[5]:.2f} m)"
+    g = TOLERANCES.grid_m
+    if bounds[5] <= z_lo + g or bounds[2] >= z_hi - g:
+        return (
+            f"only touches the end of the height band {z_lo:.2f}-{z_hi:.2f} m (element {bounds[2]:.2f}-"
+            f"{bounds[5]:.2f} m): a solid there occupies no space in the band"
+        )
     return "selected, but its geometry does not touch this cell"
 
 

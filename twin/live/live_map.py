@@ -62,13 +62,13 @@ class LiveMap:
         """Make ``cells`` the values of ``window``; the update of the changed cells' bounding window,
         bringing the map to its next version, or None if no cell changed."""
         old = self.data[window.row0 : window.row1, window.col0 : window.col1]
-        diff = np.argwhere(cells != old)
-        if not len(diff):
+        diff = cells != old
+        rows = np.flatnonzero(diff.any(axis=1))
+        if not len(rows):
             return None
-        (r0, c0), (r1, c1) = diff.min(axis=0), diff.max(axis=0) + 1
-        changed = Window(
-            window.row0 + int(r0), window.col0 + int(c0), window.row0 + int(r1), window.col0 + int(c1)
-        )
+        cols = np.flatnonzero(diff.any(axis=0))
+        r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+        changed = Window(window.row0 + r0, window.col0 + c0, window.row0 + r1, window.col0 + c1)
         old[...] = cells
         self.version += 1
         data = self.data[changed.row0 : changed.row1, changed.col0 : changed.col1].copy()

@@ -115,6 +115,11 @@ class LiveMaps(Drawing):
         i = self.scene.elements.index.get(iri)
         return i is not None and bool(m.base_mask[i]) and not bool(self.hidden[i])
 
+    def _members(self, m: LiveMap, iris: set[str]) -> set[str]:
+        """Those of ``iris`` that ``m`` shows (:meth:`_member` of each)."""
+        overlay = self._overlay
+        return {i for i in iris if (i in m.overlay if i in overlay else self._base_member(m, i))}
+
     def _base_member(self, m: LiveMap, iri: str) -> bool:
         i = self.scene.elements.index.get(iri)
         return i is not None and bool(m.base_mask[i]) and not bool(self.hidden[i])
@@ -136,10 +141,11 @@ class LiveMaps(Drawing):
             bringing that map to its next version.
         """
         touched = {c.iri for c in geometry} | {i for sel in membership.values() for i in sel}
-        old_bounds = {i: self.bounds_of(i) for i in touched}
-        was = {k: {i for i in touched if self._member(m, i)} for k, m in self.skill_maps.items()}
-        was_base = {k: {i for i in touched if self._base_member(m, i)} for k, m in self.skill_maps.items()}
         base = self.scene.elements.index
+        in_base = [i for i in touched if i in base]  # most changes are of robots' own elements: none
+        old_bounds = {i: self.bounds_of(i) for i in touched}
+        was = {k: self._members(m, touched) for k, m in self.skill_maps.items()}
+        was_base = {k: {i for i in in_base if self._base_member(m, i)} for k, m in self.skill_maps.items()}
         for ch in geometry:
             if ch.iri in base:
                 self.hidden[base[ch.iri]] = True
@@ -147,7 +153,7 @@ class LiveMaps(Drawing):
             if ch.new is None:
                 self._overlay.pop(ch.iri, None)
             else:
-                self._overlay[ch.iri] = OverlayElement.of(ch.new)
+                self._overlay[ch.iri] = OverlayElement.of(ch.new, previous=self._overlay.get(ch.iri))
         for m in self.skill_maps.values():
             for iri, selected in membership.get(m.plan.skill.name, {}).items():
                 if iri in self._overlay and selected:
@@ -159,10 +165,14 @@ class LiveMaps(Drawing):
         new_bounds = {i: self.bounds_of(i) for i in touched}
         updates = []
         for key, m in self.skill_maps.items():
+            now = self._members(m, touched)
+            now_base = {i for i in in_base if self._base_member(m, i)}
+            if not (now or now_base or was[key] or was_base[key]):
+                continue  # none of the changed elements is (or was) in this map
             # 1. the static cells where a base element left (or came back to) this map: rare
             gone = [
                 b
-                for i in was_base[key] ^ {i for i in touched if self._base_member(m, i)}
+                for i in was_base[key] ^ now_base
                 if (b := old_bounds[i] if i in was_base[key] else new_bounds[i]) is not None
             ]
             if gone:
@@ -173,7 +183,7 @@ class LiveMaps(Drawing):
                     )
             # 2. the cells every old and new footprint can change, grown by the inflation
             boxes = [b for i in was[key] if (b := old_bounds[i]) is not None]
-            boxes += [b for i in touched if self._member(m, i) and (b := new_bounds[i]) is not None]
+            boxes += [b for i in touched if i in now and (b := new_bounds[i]) is not None]
             pad = math.ceil(m.plan.inflation_cells) + 1
             windows = dirty_windows(m.plan, boxes, pad)
             source = None

@@ -27,9 +27,9 @@ from dataclasses import dataclass
 from twin.config import Config
 from twin.errors import TwinError
 from twin.fusion.context import Fused
-from twin.fusion.footprints import Pose, pose_of
+from twin.fusion.footprints import Pose
 from twin.fusion.gates import is_candidate
-from twin.fusion.memory import expire_aliases
+from twin.fusion.memory import FusionMemory, expire_aliases
 from twin.fusion.poses import index_element
 from twin.graph import vocab
 from twin.graph.rdf import ChangeSet, Object, Triple
@@ -224,7 +224,7 @@ class Observer:
                 continue
             states.update(plan.states)
             shapes.update((g.iri, g.new) for g in plan.geometry)
-            pending.update(fused_pending(fused, plan, states))
+            pending.update(fused_pending(fused, plan, states, live.fusion))
             for subject, values in plan.written.items():
                 base = {} if subject in plan.cleared else dict(held.get(subject, live.held.get(subject, {})))
                 held[subject] = base | values
@@ -374,15 +374,16 @@ class Observer:
 
 
 def fused_pending(
-    fused: Fused, plan: ObservationPlan, states: dict[str, ElementState]
+    fused: Fused, plan: ObservationPlan, states: dict[str, ElementState], memory: FusionMemory
 ) -> dict[str, tuple[str, Pose, ElementState]]:
-    """The poses this observation gave elements, for the next observations of the batch to match."""
+    """The poses this observation gave elements, for the next observations of the batch to match
+    (through ``memory``'s cache of poses: the commit indexes the same shapes)."""
     out = {}
     for g in plan.geometry:
         state = states.get(g.iri)
         if g.new is None or state is None or state.storey is None:
             continue
-        out[g.iri] = (state.storey, pose_of(g.new), state)
+        out[g.iri] = (state.storey, memory.pose(g.iri, g.new), state)
     return out
 
 

@@ -18,17 +18,33 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from twin.maps.grid import Window
 from twin.maps.raster import BoolArray
 from twin.maps.raster.boxes import box_footprint
 from twin.maps.render import MapPlan
 from twin.maps.scene import MeshSet
-from twin.records import FloatArray, Shape, to_world
+from twin.records import FloatArray, Mesh, Shape, to_world
 from twin.tolerances import TOLERANCES
 
 MapKey = tuple[str, str]
 """``(storey key, skill name)``."""
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class _MeshFacts:
+    """What an overlay element's bounds and fast path need of its mesh alone (kept while it moves)."""
+
+    box: bool
+    """Eight corners, two distinct values per axis, each corner once, 12 faces, closed."""
+    used: npt.NDArray[np.intp] | None
+    """The vertices its faces use, None if all (the bounds are those of the used vertices)."""
+
+    @classmethod
+    def of(cls, mesh: Mesh) -> _MeshFacts:
+        used = np.unique(mesh.faces)
+        return cls(_is_box_mesh(mesh), None if len(used) == len(mesh.vertices) else used.astype(np.intp))
 
 
 @dataclass(eq=False, slots=True)
@@ -42,17 +58,24 @@ class OverlayElement:
     band it crosses its cells are those of the footprint (:mod:`twin.maps.raster.boxes`), the same in every
     map of one frame, so they are computed once for all of them."""
     _meshes: MeshSet | None = None
+    _facts: _MeshFacts | None = None
 
     @classmethod
-    def of(cls, shape: Shape) -> OverlayElement:
+    def of(cls, shape: Shape, *, previous: OverlayElement | None = None) -> OverlayElement:
+        """The element of ``shape``; ``previous``: the element it was, whose facts about the mesh are
+        kept when the mesh is the same object (a move: the placement alone changed)."""
         mesh, placement = shape
         if not mesh.triangle_count:
             return cls(shape, None)
+        same = previous is not None and previous._facts is not None and previous.shape[0] is mesh
+        facts = previous._facts if same and previous is not None else _MeshFacts.of(mesh)
+        assert facts is not None
         world = to_world(mesh.vertices, placement)  # as MeshSet.build, bit for bit
-        used = world[mesh.faces.ravel()]
+        used = world if facts.used is None else world[facts.used]
         b = np.concatenate([used.min(axis=0), used.max(axis=0)])
-        footprint = box_footprint(mesh.vertices, placement) if is_upright_box(shape) else None
-        return cls(shape, None if np.isnan(b).any() else b, footprint)
+        upright = facts.box and _turns_about_z(placement)
+        footprint = box_footprint(mesh.vertices, placement) if upright else None
+        return cls(shape, None if np.isnan(b).any() else b, footprint, _facts=facts)
 
     def footprint_in(self, plan: MapPlan) -> FloatArray | None:
         """The footprint, if this is an upright box that crosses ``plan``'s band (then its cells are the
@@ -66,11 +89,18 @@ class OverlayElement:
 
 
 def is_upright_box(shape: Shape) -> bool:
+    """The shape is a box (eight corners, 12 faces, closed) turned about +z only."""
     mesh, placement = shape
+    return _is_box_mesh(mesh) and _turns_about_z(placement)
+
+
+def _turns_about_z(placement: FloatArray) -> bool:
+    r: list[list[float]] = placement[:3, :3].tolist()  # Python floats: five compares, no numpy call
+    return r[2][2] == 1.0 and r[0][2] == 0.0 and r[1][2] == 0.0 and r[2][0] == 0.0 and r[2][1] == 0.0
+
+
+def _is_box_mesh(mesh: Mesh) -> bool:
     if mesh.vertices.shape != (8, 3) or len(mesh.faces) != 12 or not mesh.closed:
-        return False
-    r = placement[:3, :3]
-    if r[2, 2] != 1.0 or r[0, 2] != 0.0 or r[1, 2] != 0.0 or r[2, 0] != 0.0 or r[2, 1] != 0.0:
         return False
     v = mesh.vertices
     lo, hi = v.min(axis=0), v.max(axis=0)
@@ -87,12 +117,23 @@ class RasterCache:
     cells: dict[tuple[str, MapKey], tuple[Window, BoolArray] | None] = field(default_factory=dict)
     shared: dict[tuple[str, object], tuple[Window, BoolArray] | None] = field(default_factory=dict)
     """Upright boxes: one raster per frame, for every map of that frame whose band they cross."""
+    _maps_of: dict[str, set[MapKey]] = field(default_factory=dict)
+    _frames_of: dict[str, set[object]] = field(default_factory=dict)
+    """Each element's keys in :attr:`cells` and :attr:`shared` (a change drops its own, not a scan)."""
+
+    def put(self, key: tuple[str, MapKey], out: tuple[Window, BoolArray] | None) -> None:
+        self.cells[key] = out
+        self._maps_of.setdefault(key[0], set()).add(key[1])
+
+    def put_shared(self, key: tuple[str, object], out: tuple[Window, BoolArray] | None) -> None:
+        self.shared[key] = out
+        self._frames_of.setdefault(key[0], set()).add(key[1])
 
     def drop(self, iri: str) -> None:
-        for key in [k for k in self.cells if k[0] == iri]:
-            del self.cells[key]
-        for shared in [k for k in self.shared if k[0] == iri]:
-            del self.shared[shared]
+        for m in self._maps_of.pop(iri, ()):
+            self.cells.pop((iri, m), None)
+        for f in self._frames_of.pop(iri, ()):
+            self.shared.pop((iri, f), None)
 
 
 def grow(w: Window, pad: int) -> Window:

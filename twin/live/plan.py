@@ -23,10 +23,9 @@ Example::
 from __future__ import annotations
 
 import datetime
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-
-import numpy as np
 
 from twin.config import Right
 from twin.errors import ObservationError
@@ -38,7 +37,7 @@ from twin.live.same import quantised, quantised_sizes, same_mesh, same_shape
 from twin.live.state import ElementState, SiteFrame
 from twin.live.writes import Held, TripleWriter, boolean, geometry_triples, literal
 from twin.maps.shapes import box_mesh, box_placement
-from twin.records import ElementReport, GeometryChange, Shape
+from twin.records import ElementReport, GeometryChange, Mesh, Shape
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -84,7 +83,7 @@ def _shape(report: ElementReport, site: SiteFrame, current: Shape | None) -> Sha
         if storey is None:
             known = ", ".join(sorted(site.storeys)) or "none"
             raise _fail(f"Element <{report.iri}>: unknown storey {report.storey!r}; storeys: {known}.")
-        mesh = box_mesh(*quantised_sizes(b.sx, b.sy, b.sz))
+        mesh = _box_mesh(*quantised_sizes(b.sx, b.sy, b.sz))
         if current is not None and same_mesh(mesh, current[0]):
             mesh = current[0]  # a moved box keeps its mesh: one object, one literal
         return mesh, quantised(box_placement(b.cx, b.cy, storey.elevation_m + b.cz, yaw=b.yaw))
@@ -97,12 +96,20 @@ def _shape(report: ElementReport, site: SiteFrame, current: Shape | None) -> Sha
     return None
 
 
+@functools.lru_cache(maxsize=256)
+def _box_mesh(sx: float, sy: float, sz: float) -> Mesh:
+    """The box mesh of these sizes, one object per sizes (a record, never changed): a box reported
+    again at its sizes is its mesh at once (``same_mesh`` by identity)."""
+    return box_mesh(sx, sy, sz)
+
+
 def _check_inside(iri: str, shape: Shape, site: SiteFrame) -> None:
     mesh, placement = shape
     world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]
-    lo, hi = world.min(axis=0), world.max(axis=0)
+    lo, hi = world.min(axis=0).tolist(), world.max(axis=0).tolist()
     b = site.site_box
-    if (lo < np.array(b[:3])).any() or (hi > np.array(b[3:])).any():
+    below = any(v < m for v, m in zip(lo, b[:3], strict=True))
+    if below or any(v > m for v, m in zip(hi, b[3:], strict=True)):
         box = ", ".join(f"{v:.2f}" for v in (*lo, *hi))
         extent = ", ".join(f"{v:.2f}" for v in b)
         raise _fail(f"Element <{iri}>: its geometry ({box}) lies outside the site's extent ({extent}).")
@@ -206,7 +213,7 @@ def _upsert(step: _Step) -> ElementState:
     state = _storey(step, state, change, exists=exists)
     _lifetime(step, change, exists=exists)
     state = _descriptive(step, state, change, exists=exists)
-    return replace(state, removed=False)
+    return replace(state, removed=False) if state.removed else state
 
 
 def _door(step: _Step, state: ElementState) -> ElementState:
@@ -361,6 +368,8 @@ def plan_observation(
         reasons: why fusion removes an element (``twin:removedBecause``: absence, a merge).
         merged: elements fusion merged into another (``twin:mergedInto``).
     """
+    if not reports:  # fusion confirmed everything: nothing to check or write
+        return ObservationPlan(ChangeSet(), ())
     sense_ns = sense_ns or {}
     reasons = reasons or {}
     merged = merged or {}

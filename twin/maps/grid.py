@@ -60,6 +60,14 @@ def grid_coordinates(
     return out
 
 
+def grid_coordinate(value: float, origin: float, resolution_m: float) -> float:
+    """:func:`grid_coordinates` of one value, in Python floats (no numpy call: for the few corners of a
+    box, where numpy's fixed cost per call is most of the time); the same float, bit for bit."""
+    c = (value - origin) / resolution_m
+    n = float(round(c))  # half to even, as np.rint
+    return n if abs(value - (origin + n * resolution_m)) <= TOLERANCES.grid_m else c
+
+
 def grid_units(length_m: float, resolution_m: float) -> float:
     """A length in grid units: a whole number of cells when it is one within ``TOLERANCES.grid_m``
     (3.3000000000000007 m at 0.1 m is 33 cells, not 33.00000000000001)."""
@@ -92,6 +100,11 @@ class Window:
     @property
     def empty(self) -> bool:
         return self.row1 <= self.row0 or self.col1 <= self.col0
+
+    def meets(self, other: Window) -> bool:
+        """The two windows share a cell (their intersection is not empty)."""
+        rows = self.row0 < other.row1 and other.row0 < self.row1
+        return rows and self.col0 < other.col1 and other.col0 < self.col1
 
     def intersect(self, other: Window) -> Window:
         return Window(

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.conftest import examples
-from twin.maps.grid import GridFrame, grid_coordinates, grid_units
+from twin.maps.grid import GridFrame, grid_coordinate, grid_coordinates, grid_units
 from twin.maps.points import PointsPlan, best_rows
 from twin.maps.scene import StoreyInfo
 from twin.selection.skills import parse_skill
@@ -29,6 +29,21 @@ def test_a_coordinate_within_a_micrometre_of_a_line_is_on_it_and_one_beyond_is_n
     got = grid_coordinates([1.0 + 0.9e-6, 1.0 - 0.9e-6, 1.0 + 1.1e-6, 1.05], 0.0, 0.1)
     assert got[:2].tolist() == [10.0, 10.0]
     assert 10.0 < got[2] < 10.0001 and got[3] == pytest.approx(10.5)
+
+
+@settings(max_examples=examples(300), deadline=None)
+@given(
+    k=st.integers(-100_000, 100_000),
+    off=st.sampled_from([0.0, 1e-9, -1e-9, 0.99e-6, -0.99e-6, 1.01e-6, 0.5, 0.49999999, 3e-7]),
+    origin=st.sampled_from([0.0, 8.8, -3.7, 1e5 + 0.05, -2.0]),
+    res=st.sampled_from([0.05, 0.1, 0.025, 0.3, 1.0]),
+    noise=st.floats(-1e3, 1e3, allow_nan=False),
+)
+def test_one_coordinate_in_python_floats_is_the_arrays_coordinate_bit_for_bit(
+    k: int, off: float, origin: float, res: float, noise: float
+) -> None:
+    for v in (origin + k * res + off * res, noise, origin + (k + 0.5) * res):
+        assert grid_coordinate(v, origin, res) == float(grid_coordinates(v, origin, res)), v
 
 
 def test_a_coordinate_near_a_bands_end_is_on_it() -> None:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from twin.maps.grid import GridFrame, Window, grid_coordinates
+from twin.maps.grid import GridFrame, Window, grid_coordinate
 from twin.maps.raster.settings import BoolArray, FloatArray
 from twin.tolerances import TOLERANCES, Tolerances
 
@@ -47,27 +47,36 @@ def footprint_cells(
     being on it: ``(rows, cols) bool``."""
     res = frame.resolution_m
     # grid units, a coordinate within grid_m of a grid line on it: the general rasteriser's coordinates
-    ux = grid_coordinates(corners[:, 0], frame.origin_x, res)
-    p = np.stack([ux, grid_coordinates(corners[:, 1], frame.origin_y, res)], axis=1)
+    # (in Python floats: four corners cost less so than numpy's fixed cost per call)
+    p = [
+        (grid_coordinate(x, frame.origin_x, res), grid_coordinate(y, frame.origin_y, res))
+        for x, y in np.asarray(corners, dtype=np.float64).tolist()
+    ]
     t = tol.cell_m / res
     c = np.arange(window.col0, window.col1, dtype=np.float64)
     r = np.arange(window.row0, window.row1, dtype=np.float64)
     # the grid's axes: a column (row) range of cells against the polygon's x (y) range
-    ok_x = (c + t <= p[:, 0].max()) & (c + 1.0 - t >= p[:, 0].min())
-    ok_y = (r + t <= p[:, 1].max()) & (r + 1.0 - t >= p[:, 1].min())
+    xs, ys = [q[0] for q in p], [q[1] for q in p]
+    ok_x = (c + t <= max(xs)) & (c + 1.0 - t >= min(xs))
+    ok_y = (r + t <= max(ys)) & (r + 1.0 - t >= min(ys))
     out: BoolArray = np.logical_and.outer(ok_y, ok_x)
     if not out.any():
         return out
-    # the polygon's edge normals: the shrunk cell's projection is centre +- half its extent
-    edges = np.roll(p, -1, axis=0) - p
-    cx, cy = c + 0.5, r + 0.5
-    seen: list[FloatArray] = []
-    for n in np.stack([-edges[:, 1], edges[:, 0]], axis=1):
-        if abs(n[0]) + abs(n[1]) < 1e-12 or any(abs(n[0] * m[1] - n[1] * m[0]) < 1e-12 for m in seen):
-            continue  # a degenerate edge, or parallel to one tested (a parallelogram has two normals)
-        seen.append(n)
-        proj = p @ n
-        half = (0.5 - t) * (abs(n[0]) + abs(n[1]))
-        centre = cy[:, None] * n[1] + cx[None, :] * n[0]
-        out &= (centre - half <= proj.max()) & (centre + half >= proj.min())
+    # the polygon's edge normals, each axis once (a parallelogram has two), a degenerate edge none;
+    # the shrunk cell's projection on one is its centre's +- half its extent, all axes at once
+    axes: list[tuple[float, float, float, float, float]] = []  # n0, n1, half, lo, hi
+    for k, (x0, y0) in enumerate(p):
+        x1, y1 = p[(k + 1) % len(p)]
+        n0, n1 = -(y1 - y0), x1 - x0
+        if n0 == 0.0 or n1 == 0.0:  # the grid's own axis (or no edge): decided above, and no tie that
+            continue  # float could decide otherwise (cell_m and grid_m keep ties nanometres away)
+        if any(abs(n0 * m[1] - n1 * m[0]) < 1e-12 for m in axes) or abs(n0) + abs(n1) < 1e-12:
+            continue
+        proj = [x * n0 + y * n1 for x, y in p]
+        axes.append((n0, n1, (0.5 - t) * (abs(n0) + abs(n1)), min(proj), max(proj)))
+    if not axes:  # a rectangle along the grid: its cells are those of its x and y ranges
+        return out
+    n0s, n1s, half, lo, hi = np.array(axes).T.reshape(5, -1, 1, 1)
+    centre = (r + 0.5)[:, None] * n1s + (c + 0.5) * n0s  # (axes, rows, cols)
+    out &= ((centre - half <= hi) & (centre + half >= lo)).all(axis=0)
     return out
