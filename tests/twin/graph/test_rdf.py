@@ -24,9 +24,10 @@ def test_a_literal_is_written_as_pyoxigraph_writes_it_whatever_it_holds(value: s
     update = changes_to_sparql(ChangeSet(add=(Triple("urn:s", "urn:p", RdfLiteral(value, datatype)),)))
     want = str(ox.Literal(value, datatype=ox.NamedNode(datatype)))
     assert update == f"INSERT DATA {{\n<urn:s> <urn:p> {want} .\n}}"
-    store = ox.Store()
+    store, theirs = ox.Store(), ox.Store()  # the store may canonicalise a value ("1" as boolean: true)
     store.update(update)
-    assert [q.object for q in store] == [ox.Literal(value, datatype=ox.NamedNode(datatype))]
+    theirs.update(f"INSERT DATA {{ <urn:s> <urn:p> {want} . }}")
+    assert [q.object for q in store] == [q.object for q in theirs]
 
 
 BAD_IRIS = ["", "urn:a b", "urn:a<b", "urn:x\n", "urn:a\\b", "urn:a^b", "urn:{a}", 'urn:"']
