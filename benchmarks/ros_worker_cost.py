@@ -3,7 +3,7 @@ worker runs it (typed reports, views on, the view cut at a structure grid), fed 
 ``ros_ingest.py``'s robots send: per array a TF message (``map -> base_link`` at its stamp) and a
 Detection3DArray of ``--detections`` tables with tracker ids, the robot standing still. Reports the
 CPU time (``time.process_time``) per TF + array; ``--profile`` also prints a cProfile ranking.
-``--moving``: the robot moves 1 cm per array (no march reused). ``--check OUT.pkl`` writes the
+``--moving``: the robot moves 1 cm per array (no march reused). ``--check OUT`` writes the
 outcomes as plain values (to compare two code trees' outputs: the same bytes).
 
     PYTHONPATH=$PWD python benchmarks/ros_worker_cost.py --detections 20 --repeat 10 [--profile]
@@ -15,7 +15,6 @@ import argparse
 import cProfile
 import dataclasses
 import json
-import pickle
 import pstats
 import struct
 import sys
