@@ -13,7 +13,8 @@ elements that hide things are looked at by the writer's fusion, which owns them.
 
 Each worker has a pipe each way, written in batches (:data:`LINGER_S`): a robot's TF and its array, and
 the other robots' of the same moment, go to the worker as one message (one pickle, one write, one
-wake-up), and the outcomes of a batch come back as one, so the queues cost next to nothing per array.
+wake-up), and the outcomes of a batch come back as one (a long batch's every :data:`FLUSH_S`), so the
+queues cost next to nothing per array.
 
 A worker that dies is started again with what the daemon fed it (the maps, storeys, the last
 ``tf_static`` and camera info of its robots); the arrays it held are lost (counted ``worker_lost``),
@@ -238,6 +239,11 @@ its array (and other robots' of the same moment) go as one batch (one pickle, on
 the worker); the outcomes of a batch come back as one."""
 
 
+FLUSH_S = 0.003
+"""A worker sends what it made of a batch so far once it has worked on it this long (a batch of many
+robots' arrays: the first ones do not wait for the last)."""
+
+
 def _worker_main(
     robots: list[RobotSpec],
     *,
@@ -249,8 +255,8 @@ def _worker_main(
     taken: Any,
 ) -> None:
     """A worker process: batches of feeds and messages from the ``inbox`` pipe, handled in order, their
-    outcomes as one batch to the ``outbox`` pipe; ``taken`` counts the items taken (the queue's depth);
-    None stops (after the items before it)."""
+    outcomes to the ``outbox`` pipe as one batch (or one every :data:`FLUSH_S` of work); ``taken``
+    counts the items taken (the queue's depth); None stops (after the items before it)."""
     logging.basicConfig(level=logging.WARNING)
     t = RobotTranslator(robots, fusion_terms=fusion_terms, typed=typed, tf_wait_s=tf_wait_s)
     stop = False
@@ -263,25 +269,33 @@ def _worker_main(
             return
         taken.value += len(items)
         out: list[Outcome] = []
-        for item in items:
-            if item is None:
-                stop = True
-                break
-            try:
-                _handle(t, item, out)
-            except Exception:  # a bad message must never stop the worker
-                log.exception("ROS 2 ingest worker failed on %s", item[0])
+        sent_at = time.monotonic()
         try:
-            out += t.give_up_waiting()
-        except Exception:
-            log.exception("ROS 2 ingest worker failed on the arrays waiting for TF")
-        if out:
+            for item in items:
+                if item is None:
+                    stop = True
+                    break
+                try:
+                    _handle(t, item, out)
+                except Exception:  # a bad message must never stop the worker
+                    log.exception("ROS 2 ingest worker failed on %s", item[0])
+                if out and time.monotonic() - sent_at >= FLUSH_S:  # a long batch: what is done goes now
+                    _send_outcomes(outbox, out)
+                    out, sent_at = [], time.monotonic()
             try:
-                outbox.send_bytes(pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL))
-            except (OSError, KeyboardInterrupt):
-                return
+                out += t.give_up_waiting()
+            except Exception:
+                log.exception("ROS 2 ingest worker failed on the arrays waiting for TF")
+            if out:
+                _send_outcomes(outbox, out)
+        except (OSError, KeyboardInterrupt):
+            return
     with contextlib.suppress(OSError):
         outbox.send_bytes(pickle.dumps(None))  # this worker's last word
+
+
+def _send_outcomes(outbox: Any, out: list[Outcome]) -> None:
+    outbox.send_bytes(pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL))
 
 
 def _handle(t: RobotTranslator, item: tuple[Any, ...], out: list[Outcome]) -> None:
