@@ -16,8 +16,8 @@ ingestion queue was full), the ingestion and service queue depths sampled every 
 keeping up) and the latency from robot0's array that moves the table to the navigation map update's
 receipt by a subscriber. The daemon's CPU is split into its main thread (the writer), its native
 threads (named by their runtime: Zenoh's ``rx-0``, ``acc-0``, ..., RocksDB's) and the rest (Python's
-threads: Zenoh's callbacks, the ingest workers' sender and pool threads). ``--baseline TREE`` runs the same against the
-daemon of another code tree.
+threads: Zenoh's callbacks, the ingest workers' sender and pool threads). ``--baseline TREE`` runs the
+same against the daemon of another code tree.
 
     python benchmarks/ros_ingest.py --robots 10 --rate 10 --detections 20 --duration 30 --json ros.json
 """
