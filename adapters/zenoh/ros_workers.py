@@ -437,7 +437,12 @@ class WorkerPool:
                 pipe = w.inbox
             last = self._closing.is_set() and batch[-1] is None
             try:
-                pipe.send_bytes(pickle.dumps(batch, protocol=pickle.HIGHEST_PROTOCOL))
+                data = pickle.dumps(batch, protocol=pickle.HIGHEST_PROTOCOL)
+            except Exception:  # a bug must cost this batch, never the sender
+                log.exception("Could not send %d items to ROS 2 ingest worker %d", len(batch), w.index)
+                continue
+            try:
+                pipe.send_bytes(data)
             except (OSError, ValueError):  # the process died (restarted by the pool): the batch is lost
                 continue
 
