@@ -314,9 +314,9 @@ def _handle(t: RobotTranslator, item: tuple[Any, ...], out: list[Outcome]) -> No
 
 @dataclass(eq=False, slots=True)
 class _Worker:
-    """A worker process and its pipes: ``pending`` is what its sender has not written yet (under the
-    pool's lock), ``sent`` how many items it wrote to this process, ``taken`` (shared memory) how many
-    the process took: the queue's depth is ``len(pending) + sent - taken``."""
+    """A worker process and its pipes: ``pending`` is what its sender has not written yet, ``sent`` how
+    many items it wrote to this process (both under ``wake``), ``taken`` (shared memory) how many the
+    process took: the queue's depth is ``len(pending) + sent - taken``."""
 
     index: int
     robots: list[RobotSpec]
