@@ -3,8 +3,8 @@ worker runs it (typed reports, views on, the view cut at a structure grid), fed 
 ``ros_ingest.py``'s robots send: per array a TF message (``map -> base_link`` at its stamp) and a
 Detection3DArray of ``--detections`` tables with tracker ids, the robot standing still. Reports the
 CPU time (``time.process_time``) per TF + array; ``--profile`` also prints a cProfile ranking.
-``--moving``: the robot moves 1 cm per array (no march reused). ``--check OUT.pkl`` writes the
-outcomes (to compare two code trees' outputs: the same bytes).
+``--moving``: the robot moves 1 cm per array (no march reused). ``--check OUT`` writes the
+outcomes as plain values (to compare two code trees' outputs: the same bytes).
 
     PYTHONPATH=$PWD python benchmarks/ros_worker_cost.py --detections 20 --repeat 10 [--profile]
 """
@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import dataclasses
 import json
-import pickle
 import pstats
+import struct
 import sys
 import time
 from pathlib import Path
@@ -62,6 +63,22 @@ def setup(per_robot: int, arrays: int = 50, *, moving: bool = False) -> tuple[An
     return t, msgs
 
 
+def _values(v: Any) -> Any:
+    """``v`` as plain values (floats as their 8 bytes, records as tuples), whose repr is the same text
+    for equal outcomes whichever objects they share (a cached IRI is one object in every array)."""
+    if isinstance(v, float):
+        return struct.pack("<d", v)
+    if isinstance(v, np.ndarray):
+        return (v.dtype.str, v.shape, v.tobytes())
+    if isinstance(v, tuple | list):
+        return tuple(_values(x) for x in v)
+    if dataclasses.is_dataclass(v):
+        return (type(v).__name__, *(_values(getattr(v, f.name)) for f in dataclasses.fields(v)))
+    if isinstance(v, dict):
+        return tuple(sorted((k, _values(x)) for k, x in v.items()))
+    return v
+
+
 def run(t: Any, msgs: list[tuple[bytes, bytes]], repeat: int) -> list[Any]:
     out = []
     for _ in range(repeat):
@@ -82,7 +99,7 @@ def main() -> int:
     t, msgs = setup(a.detections, moving=a.moving)
     first = run(t, msgs, 1)
     if a.check is not None:
-        a.check.write_bytes(pickle.dumps([[o.translation.document for o in x] for x in first]))
+        a.check.write_bytes(repr(_values([[o.translation.document for o in x] for x in first])).encode())
     views = sum(
         1 for x in first if x and getattr(x[0], "translation", None) and x[0].translation.document.view
     )

@@ -17,6 +17,7 @@ Example::
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -108,6 +109,7 @@ class Translation:
         return ((self.document,) if self.document is not None else ()) + self.extra
 
 
+@functools.lru_cache(maxsize=8192)  # a robot's tracks are named again at every array
 def robot_iri(owner: str, kind: str, local: str) -> str:
     """A stable IRI an owner (robot or source) mints, e.g. ``urn:twin-ros:robot1:det:obj%2F7``."""
     return f"urn:twin-ros:{quote(owner, safe='')}:{kind}:{quote(local, safe='')}"

@@ -24,6 +24,7 @@ Example::
 
 from __future__ import annotations
 
+import functools
 import logging
 import re
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -84,6 +85,7 @@ class TrackerSession:
         return self.label
 
 
+@functools.lru_cache(maxsize=8192)  # a robot's tracks are named again at every array
 def session_iri(robot: str, label: str, track_id: str) -> str:
     """The IRI of track ``track_id`` of ``robot``'s session ``label``."""
     return f"urn:twin-ros:{quote(robot, safe='')}:det:{label}:{quote(track_id, safe='')}"

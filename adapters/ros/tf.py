@@ -35,6 +35,8 @@ Matrix = npt.NDArray[np.float64]
 _NS_PER_S = 1_000_000_000
 MAX_TF_BYTES = 1 << 20
 """Larger TF messages are refused before they are decoded (a transform is about 100 bytes)."""
+_MEMO = 64
+"""Lookups a buffer remembers at most between two changes."""
 
 
 class TfError(Exception):
@@ -149,12 +151,16 @@ class TfBuffer:
         self.history_ns = history_ns
         self.tolerance_ns = tolerance_ns
         self._edges: dict[str, _Edge] = {}
+        self._memo: dict[tuple[str, str, int], Matrix] = {}
+        """Lookups since the last change of the tree (an array asks for the same transform up to three
+        times: whether it waits, its boxes, its view)."""
 
     @property
     def frames(self) -> set[str]:
         return set(self._edges) | {e.parent for e in self._edges.values()}
 
     def add(self, transforms: Iterable[TransformSample], *, static: bool) -> None:
+        self._memo.clear()
         for t in transforms:
             edge = self._edges.get(t.child)
             if edge is None or edge.parent != t.parent or edge.static != static:
@@ -225,6 +231,17 @@ class TfBuffer:
         target, source = _frame(target), _frame(source)
         if target == source:
             return np.eye(4)
+        key = (target, source, stamp_ns)
+        known_result = self._memo.get(key)
+        if known_result is not None:
+            return known_result.copy()
+        result = self._lookup(target, source, stamp_ns)
+        if len(self._memo) >= _MEMO:
+            self._memo.clear()
+        self._memo[key] = result
+        return result.copy()
+
+    def _lookup(self, target: str, source: str, stamp_ns: int) -> Matrix:
         known = self.frames
         for name in (source, target):
             if name not in known:

@@ -273,7 +273,8 @@ def _thin(angles: FloatArray, near: FloatArray, far: FloatArray, step_rad: float
 class _Marched:
     """What a camera's view owes to its pose and the structure alone (not to the array's detections):
     the rays (``count`` round the circle, ``covered`` those in the frustum, at ``angles``), each's
-    ``near`` and ``far`` ends in the frustum and its distance to the structure (``first_block``).
+    ``near`` and ``far`` ends in the frustum and its distance to the structure (``first_block``; for a
+    pinhole camera inf where that lies beyond ``far``: it cannot shorten the ray's floor).
     ``count`` 0: the frustum meets no floor."""
 
     count: int
@@ -315,6 +316,72 @@ class ViewCache:
         self._key, self._value = key, value
 
 
+CHUNK_SAMPLES = 16
+"""A pinhole camera's rays are marched this many samples first, then twice as many at a time, each
+chunk only for the rays that have not met the structure yet and still reach that far."""
+
+
+def _cell_index(structure: Structure, xs: FloatArray, ys: FloatArray) -> npt.NDArray[np.intp]:
+    """Indices into ``structure.blocked`` of the cells of the points ``(xs, ys)`` (any shape; beyond the
+    grid's edge: its blocking border). Overwrites nothing it is given."""
+    f = structure.grid.frame
+    res = f.resolution_m
+    cells = np.subtract(xs, f.origin_x)  # in place from here on: the same values, no temporaries
+    cells /= res
+    np.floor(cells, out=cells)
+    cols = cells.astype(np.intp)
+    np.subtract(ys, f.origin_y, out=cells)
+    cells /= res
+    np.floor(cells, out=cells)
+    rows = cells.astype(np.intp)
+    np.clip(cols, -1, f.width, out=cols)  # beyond the grid's edge: the border, which blocks
+    np.clip(rows, -1, f.height, out=rows)
+    rows += 1
+    rows *= f.width + 2
+    rows += cols
+    rows += 1
+    return rows
+
+
+def _first_blocks(
+    structure: Structure | None,
+    ox: float,
+    oy: float,
+    angles: FloatArray,
+    dist: FloatArray,
+    *,
+    upto: FloatArray,
+    step: float,
+) -> FloatArray:
+    """``(rays,)``: for each ray from ``(ox, oy)`` at ``angles``, the distance of its first sample (at
+    ``dist``) in a blocking cell, less ``step``; inf if none at or before ``upto`` (a ray's own
+    limit: what lies beyond cannot shorten its floor). The samples are the whole march's, the same
+    floats, marched in chunks (:data:`CHUNK_SAMPLES`, doubling) for the rays still going."""
+    out = np.full(len(angles), np.inf)
+    if structure is None or len(angles) == 0:
+        return out
+    cos, sin = np.cos(angles), np.sin(angles)
+    going = np.arange(len(angles))
+    start, chunk = 0, CHUNK_SAMPLES
+    while start < len(dist):
+        d = dist[start : start + chunk]
+        start, chunk = start + chunk, 2 * chunk
+        going = going[upto[going] >= d[0]]  # rays whose limit is behind this chunk are done
+        if len(going) == 0:
+            break
+        xs = np.multiply.outer(cos[going], d)
+        xs += ox
+        ys = np.multiply.outer(sin[going], d)
+        ys += oy
+        blocked = structure.blocked[_cell_index(structure, xs, ys)]
+        blocked &= d[None, :] <= upto[going][:, None]
+        hit = blocked.any(axis=1)
+        if hit.any():
+            out[going[hit]] = d[blocked[hit].argmax(axis=1)] - step
+            going = going[~hit]
+    return out
+
+
 def _march(
     structure: Structure | None, cam: Camera, band_m: tuple[float, float], rays: int
 ) -> _Marched:
@@ -341,40 +408,27 @@ def _march(
     dist = dist[dist <= reach + 1e-9]
     if len(dist) < 2:
         return _NOTHING
+    if pinhole:  # each ray only as far as it could claim floor, and only to its first blocking cell
+        near, far = lo_all[covered], hi_all[covered]
+        first_block = _first_blocks(structure, ox, oy, angles, dist, upto=far + 2 * step, step=step)
+        return _Marched(count, step, near0, angles_all, covered, angles, near, far, first_block)
     xs = np.multiply.outer(np.cos(angles), dist)  # (rays, k); the same floats as ox + cos * dist
     xs += ox
     ys = np.multiply.outer(np.sin(angles), dist)
     ys += oy
     if structure is not None:
-        f = structure.grid.frame
-        cells = np.subtract(xs, f.origin_x)  # in place from here on: the same values, no temporaries
-        cells /= res
-        np.floor(cells, out=cells)
-        cols = cells.astype(np.intp)
-        np.subtract(ys, f.origin_y, out=cells)
-        cells /= res
-        np.floor(cells, out=cells)
-        rows = cells.astype(np.intp)
-        np.clip(cols, -1, f.width, out=cols)  # beyond the grid's edge: the border, which blocks
-        np.clip(rows, -1, f.height, out=rows)
-        rows += 1
-        rows *= f.width + 2
-        rows += cols
-        rows += 1
-        blocked = structure.blocked[rows]
+        blocked = structure.blocked[_cell_index(structure, xs, ys)]
         first_block = np.where(blocked.any(axis=1), dist[blocked.argmax(axis=1)] - step, np.inf)
     else:
         first_block = np.full(len(angles), np.inf)
-    if pinhole:
-        near, far = lo_all[covered], hi_all[covered]
-    else:  # sampled: the first run of samples in the frustum
-        seen = cam.sees(xs, ys, band_m[0]) & cam.sees(xs, ys, band_m[1]) & (dist >= cam.near_m)[None, :]
-        has = seen.any(axis=1)
-        first = seen.argmax(axis=1)
-        after = np.where(np.arange(len(dist))[None, :] >= first[:, None], ~seen, False)
-        last = np.where(after.any(axis=1), after.argmax(axis=1) - 1, len(dist) - 1)
-        near = np.where(has, dist[first], np.inf)
-        far = np.where(has, dist[last], -np.inf)
+    # sampled: the first run of samples in the frustum
+    seen = cam.sees(xs, ys, band_m[0]) & cam.sees(xs, ys, band_m[1]) & (dist >= cam.near_m)[None, :]
+    has = seen.any(axis=1)
+    first = seen.argmax(axis=1)
+    after = np.where(np.arange(len(dist))[None, :] >= first[:, None], ~seen, False)
+    last = np.where(after.any(axis=1), after.argmax(axis=1) - 1, len(dist) - 1)
+    near = np.where(has, dist[first], np.inf)
+    far = np.where(has, dist[last], -np.inf)
     return _Marched(count, step, near0, angles_all, covered, angles, near, far, first_block)
 
 

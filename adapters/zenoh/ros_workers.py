@@ -11,6 +11,11 @@ occluding maps and their updates. Occlusion (the views) runs in the worker, besi
 the sensor: the map it is cut by is fed to the worker (a copy per version), where the twin's held
 elements that hide things are looked at by the writer's fusion, which owns them.
 
+Each worker has a pipe each way, written in batches (:data:`LINGER_S`): a robot's TF and its array, and
+the other robots' of the same moment, go to the worker as one message (one pickle, one write, one
+wake-up), and the outcomes of a batch come back as one (a long batch's every :data:`FLUSH_S`), so the
+queues cost next to nothing per array.
+
 A worker that dies is started again with what the daemon fed it (the maps, storeys, the last
 ``tf_static`` and camera info of its robots); the arrays it held are lost (counted ``worker_lost``),
 never submitted twice: only what a worker put out reaches the twin.
@@ -22,6 +27,8 @@ import contextlib
 import copy
 import logging
 import multiprocessing as mp
+import multiprocessing.connection as mp_connection
+import pickle
 import queue
 import threading
 import time
@@ -226,56 +233,117 @@ class RobotTranslator:
 
 
 # --- worker processes -------------------------------------------------------------------------------
+LINGER_S = 0.002
+"""How long a worker's sender waits, once a message is queued, for more to send with it: a robot's TF and
+its array (and other robots' of the same moment) go as one batch (one pickle, one write, one wake-up of
+the worker); the outcomes of a batch come back as one."""
+
+
+FLUSH_S = 0.003
+"""A worker sends what it made of a batch so far once it has worked on it this long (a batch of many
+robots' arrays: the first ones do not wait for the last)."""
+
+
 def _worker_main(
-    robots: list[RobotSpec], *, fusion_terms: bool, typed: bool, tf_wait_s: float, inbox: Any, outbox: Any
+    robots: list[RobotSpec],
+    *,
+    fusion_terms: bool,
+    typed: bool,
+    tf_wait_s: float,
+    inbox: Any,
+    outbox: Any,
+    taken: Any,
 ) -> None:
-    """A worker process: feeds and messages from ``inbox`` in order, outcomes to ``outbox``; None stops."""
+    """A worker process: batches of feeds and messages from the ``inbox`` pipe, handled in order, their
+    outcomes to the ``outbox`` pipe as one batch (or one every :data:`FLUSH_S` of work); ``taken``
+    counts the items taken (the queue's depth); None stops (after the items before it)."""
     logging.basicConfig(level=logging.WARNING)
     t = RobotTranslator(robots, fusion_terms=fusion_terms, typed=typed, tf_wait_s=tf_wait_s)
-    while True:
+    stop = False
+    while not stop:
+        items: list[Any] = []
         try:
-            item = inbox.get(timeout=0.05 if t.waiting else 0.5)
-        except queue.Empty:
-            item = ()
+            if inbox.poll(0.05 if t.waiting else 0.5):
+                items = pickle.loads(inbox.recv_bytes())
         except (EOFError, OSError, KeyboardInterrupt):
             return
-        if item is None:
-            break
+        taken.value += len(items)
         out: list[Outcome] = []
+        sent_at = time.monotonic()
         try:
-            if item:
-                op = item[0]
-                if op == "msg":
-                    out = t.handle(item[1], item[2], item[3], item[4])
-                elif op == "storey":
-                    t.set_storey(item[1], item[2])
-                elif op == "session":
-                    t.set_session(item[1], item[2])
-                elif op == "elevations":
-                    t.set_elevations(item[1])
-                elif op == "grid":
-                    t.set_grid(item[1])
-            out += t.give_up_waiting()
-        except Exception:  # a bad message must never stop the worker
-            log.exception("ROS 2 ingest worker failed on %s", item[0] if item else "timer")
-        if out:
-            outbox.put(out)
-    outbox.put(None)  # this worker's last word
+            for item in items:
+                if item is None:
+                    stop = True
+                    break
+                try:
+                    _handle(t, item, out)
+                except Exception:  # a bad message must never stop the worker
+                    log.exception("ROS 2 ingest worker failed on %s", item[0])
+                if out and time.monotonic() - sent_at >= FLUSH_S:  # a long batch: what is done goes now
+                    _send_outcomes(outbox, out)
+                    out, sent_at = [], time.monotonic()
+            try:
+                out += t.give_up_waiting()
+            except Exception:
+                log.exception("ROS 2 ingest worker failed on the arrays waiting for TF")
+            if out:
+                _send_outcomes(outbox, out)
+        except (OSError, KeyboardInterrupt):
+            return
+    with contextlib.suppress(OSError):
+        outbox.send_bytes(pickle.dumps(None))  # this worker's last word
+
+
+def _send_outcomes(outbox: Any, out: list[Outcome]) -> None:
+    outbox.send_bytes(pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL))
+
+
+def _handle(t: RobotTranslator, item: tuple[Any, ...], out: list[Outcome]) -> None:
+    op = item[0]
+    if op == "msg":
+        out += t.handle(item[1], item[2], item[3], item[4])
+    elif op == "storey":
+        t.set_storey(item[1], item[2])
+    elif op == "session":
+        t.set_session(item[1], item[2])
+    elif op == "elevations":
+        t.set_elevations(item[1])
+    elif op == "grid":
+        t.set_grid(item[1])
 
 
 @dataclass(eq=False, slots=True)
 class _Worker:
+    """A worker process and its pipes: ``pending`` is what its sender has not written yet, ``sent`` how
+    many items it wrote to this process (both under ``wake``), ``taken`` (shared memory) how many the
+    process took: the queue's depth is ``len(pending) + sent - taken``."""
+
     index: int
     robots: list[RobotSpec]
-    inbox: Any
     process: Any = None
     started: int = 0
+    inbox: Any = None
+    """The write end of the pipe to the process."""
+    outbox: Any = None
+    """The read end of the pipe from the process (None once it said its last word or died)."""
+    taken: Any = None
+    sent: int = 0
+    pending: list[tuple[Any, ...] | None] = field(default_factory=list)
+    wake: threading.Condition = field(default_factory=threading.Condition)
+    sender: threading.Thread | None = None
+
+    def depth(self) -> int:
+        return len(self.pending) + self.sent - int(self.taken.value)
 
 
 class WorkerPool:
     """``count`` worker processes, robots sharded over them by name (each robot in one worker, its
     messages in order); their outcomes go to ``deliver`` on the pool's own thread. ``replay(robot)``
-    gives what a restarted worker must be fed again (feeds, in order)."""
+    gives what a restarted worker must be fed again (feeds, in order).
+
+    Each worker has a pipe each way: a sender thread writes what is queued for it in batches (everything
+    queued within :data:`LINGER_S` of the first: one pickle and one write), and the worker answers each
+    batch with one batch of outcomes, read by the pool's thread."""
 
     def __init__(
         self,
@@ -296,72 +364,119 @@ class WorkerPool:
         self.on_restart = on_restart
         self._args = {"fusion_terms": fusion_terms, "typed": typed, "tf_wait_s": tf_wait_s}
         self.queue_depth = queue_depth
-        self.outbox: Any = self._ctx.Queue()
         ordered = sorted(robots, key=lambda r: r.name)
         n = max(1, min(count, len(ordered)))
-        self.workers = [_Worker(i, ordered[i::n], self._ctx.Queue()) for i in range(n)]
+        self.workers = [_Worker(i, ordered[i::n]) for i in range(n)]
         self.of = {r.name: w for w in self.workers for r in w.robots}
         self.restarts = 0
         self._closing = threading.Event()
         self._lock = threading.Lock()
         for w in self.workers:
             self._start(w)
+            w.sender = threading.Thread(
+                target=self._send, args=(w,), name=f"ros-ingest-send-{w.index}", daemon=True
+            )
+            w.sender.start()
         self._thread = threading.Thread(target=self._run, name="ros-ingest-pool", daemon=True)
         self._thread.start()
 
     def _start(self, w: _Worker) -> None:
+        """Start ``w``'s process with new pipes (its condition held, or before its sender runs)."""
+        inbox_r, inbox_w = self._ctx.Pipe(duplex=False)
+        outbox_r, outbox_w = self._ctx.Pipe(duplex=False)
+        taken = self._ctx.RawValue("q", 0)
         w.process = self._ctx.Process(
             target=_worker_main,
             args=(w.robots,),
-            kwargs={**self._args, "inbox": w.inbox, "outbox": self.outbox},
+            kwargs={**self._args, "inbox": inbox_r, "outbox": outbox_w, "taken": taken},
             name=f"twin-ros-ingest-{w.index}",
             daemon=True,
         )
         w.process.start()
+        inbox_r.close()  # the process's ends: a dead process is a broken pipe / an end of file here
+        outbox_w.close()
+        w.inbox, w.outbox, w.taken, w.sent = inbox_w, outbox_r, taken, 0
         w.started += 1
 
     def put(self, owner: str, kind: str, payload: bytes, received_ns: int) -> None:
         """Queue a robot's message for its worker; queue.Full if that worker holds ``queue_depth``
-        already (the feeds are never refused: the queue itself is unbounded)."""
-        inbox = self.of[owner].inbox
-        if inbox.qsize() >= self.queue_depth:
-            raise queue.Full
-        inbox.put_nowait(("msg", owner, kind, payload, received_ns))
+        already (the feeds are never refused)."""
+        w = self.of[owner]
+        with w.wake:
+            if w.depth() >= self.queue_depth:
+                raise queue.Full
+            w.pending.append(("msg", owner, kind, payload, received_ns))
+            if len(w.pending) == 1:
+                w.wake.notify()
 
     def feed(self, item: tuple[Any, ...], robot: str | None = None) -> None:
         """Something every worker (or ``robot``'s) must know, in order with the messages."""
         for w in [self.of[robot]] if robot is not None else self.workers:
-            w.inbox.put_nowait(item)
+            with w.wake:
+                w.pending.append(item)
+                w.wake.notify()
 
     def depths(self) -> list[int]:
         out = []
         for w in self.workers:
-            try:
-                out.append(int(w.inbox.qsize()))
-            except NotImplementedError:  # macOS
-                out.append(-1)
+            with w.wake:
+                out.append(w.depth())
         return out
 
-    def _run(self) -> None:
-        finished = 0
-        next_check = 0.0
-        while finished < len(self.workers):
+    def _send(self, w: _Worker) -> None:
+        """``w``'s sender thread: what is queued for it, in batches, in order."""
+        last = False
+        while not last:
+            with w.wake:
+                while not w.pending:
+                    w.wake.wait()
+            time.sleep(LINGER_S)  # the rest of the burst (a robot's array right after its TF)
+            with w.wake:
+                batch, w.pending = w.pending, []
+                w.sent += len(batch)
+                pipe = w.inbox
+            last = self._closing.is_set() and batch[-1] is None
             try:
-                item = self.outbox.get(timeout=0.25)
-            except queue.Empty:
-                item = ()
-            except (EOFError, OSError):
-                return
-            if item is None:
-                finished += 1
+                data = pickle.dumps(batch, protocol=pickle.HIGHEST_PROTOCOL)
+            except Exception:  # a bug must cost this batch, never the sender
+                log.exception("Could not send %d items to ROS 2 ingest worker %d", len(batch), w.index)
                 continue
-            if item:
+            try:
+                pipe.send_bytes(data)
+            except (OSError, ValueError):  # the process died (restarted by the pool): the batch is lost
+                continue
+
+    def _run(self) -> None:
+        next_check = 0.0
+        while True:
+            ready = [w.outbox for w in self.workers if w.outbox is not None]
+            if self._closing.is_set() and not ready:
+                return
+            got: list[Any] = []
+            if ready:
+                with contextlib.suppress(OSError):
+                    got = list(mp_connection.wait(ready, timeout=0.25))
+            else:  # every worker dead (started again by the check below)
+                time.sleep(0.05)
+            for conn in got:
+                w = next((x for x in self.workers if x.outbox is conn), None)
+                if w is None:
+                    continue
+                try:
+                    item = pickle.loads(conn.recv_bytes())
+                except (EOFError, OSError):  # it died without its last word
+                    item = None
+                if item is None:
+                    with contextlib.suppress(OSError):
+                        conn.close()
+                    w.outbox = None
+                    continue
                 try:
                     self.deliver(item)
                 except Exception:
                     log.exception("Delivering a ROS 2 ingest worker's outcomes failed")
             now = time.monotonic()
-            if not self._closing.is_set() and now >= next_check:  # a waitpid per worker: not per item
+            if not self._closing.is_set() and now >= next_check:  # a waitpid per worker: not per batch
                 next_check = now + SUPERVISE_S
                 self._supervise()
 
@@ -376,34 +491,35 @@ class WorkerPool:
             )  # fmt: skip
             with self._lock:
                 self.restarts += 1
-            lost = w.inbox  # what the dead worker had not taken is dropped with it (counted)
-            w.inbox = self._ctx.Queue()
-            with contextlib.suppress(Exception):
-                lost.cancel_join_thread()
-                lost.close()
-            self._start(w)
-            for item in self.replay(names):
-                w.inbox.put_nowait(item)
+            with w.wake:  # what the dead worker had not taken is dropped with it (counted)
+                old = (w.inbox, w.outbox)
+                self._start(w)
+                w.pending = list(self.replay(names))
+                w.wake.notify()
+            for conn in old:
+                with contextlib.suppress(Exception):
+                    if conn is not None:
+                        conn.close()
             self.on_restart(names)
 
     def close(self, timeout_s: float = 5.0) -> None:
-        """Stop every worker (they finish what they hold), join them and the pool's thread."""
+        """Stop every worker (they finish what they hold), join them and the pool's threads."""
         self._closing.set()
         deadline = time.monotonic() + timeout_s
         for w in self.workers:
-            with contextlib.suppress(Exception):
-                w.inbox.put(None, timeout=max(0.1, deadline - time.monotonic()))
+            with w.wake:
+                w.pending.append(None)
+                w.wake.notify()
         for w in self.workers:
             w.process.join(timeout=max(0.1, deadline - time.monotonic()))
             if w.process.is_alive():
                 w.process.kill()
                 w.process.join(timeout=1.0)
-        for w in self.workers:
-            if w.process.exitcode != 0:  # a worker that did not say its last word
-                with contextlib.suppress(Exception):
-                    self.outbox.put(None)
         self._thread.join(timeout=max(0.5, deadline - time.monotonic()))
-        for q in [*(w.inbox for w in self.workers), self.outbox]:
-            with contextlib.suppress(Exception):
-                q.cancel_join_thread()
-                q.close()
+        for w in self.workers:
+            if w.sender is not None:
+                w.sender.join(timeout=max(0.1, deadline - time.monotonic()))
+            for conn in (w.inbox, w.outbox):
+                with contextlib.suppress(Exception):
+                    if conn is not None:
+                        conn.close()

@@ -21,6 +21,7 @@ Example::
 from __future__ import annotations
 
 import datetime
+import functools
 import logging
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -36,6 +37,7 @@ if TYPE_CHECKING:
     from twin.live.state import ElementState
 
 
+@functools.lru_cache(maxsize=1024)  # an array's boxes share their sense time, and the held ones repeat
 def when(ns: int) -> str:
     """A sense time as ISO 8601, to the millisecond (for messages and notes)."""
     return datetime.datetime.fromtimestamp(ns / 1e9, tz=datetime.UTC).isoformat(timespec="milliseconds")

@@ -1,7 +1,8 @@
 """The hand-written Detection3DArray decoder reads what rosbags reads, field by field, bit for bit: on
 generated arrays in both encodings (little endian by hand, big endian falls back to rosbags), and on
 hostile bytes it accepts nothing rosbags refuses (whatever it leaves, rosbags decodes or refuses). The
-boxes placed at once are box by box's, bit for bit, and refused with the same errors."""
+boxes placed at once are box by box's, bit for bit, and refused with the same errors. A TF lookup asked
+again (remembered until the tree changes) is the same, and follows a change of the tree."""
 
 from __future__ import annotations
 
@@ -26,8 +27,8 @@ from adapters.ros.detections import (
 )
 from adapters.ros.interfaces import DETECTION_3D_ARRAY
 from adapters.ros.observation_doc import RosInputError
-from adapters.ros.tf import matrix
-from tests.adapters.ros_reports import Det, cdr_detections
+from adapters.ros.tf import TfBuffer, decode_tf_message, matrix
+from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
 from tests.conftest import examples
 
 FAST = settings(max_examples=examples(120), deadline=None, suppress_health_check=list(HealthCheck))
@@ -185,3 +186,14 @@ def test_boxes_placed_at_once_are_the_boxes_placed_one_by_one_bit_for_bit_and_re
         else:
             assert not isinstance(got, RosInputError)
             assert _bits(got) == _bits(one)
+
+
+def test_a_lookup_asked_again_is_the_same_and_follows_a_change_of_the_tree() -> None:
+    tf = TfBuffer()
+    tf.add(decode_tf_message(cdr_tf([Tf("map", "base_link", (1.0, 2.0, 0.0), stamp_ns=10**9)])), static=False)
+    tf.add(decode_tf_message(cdr_tf([Tf("base_link", "cam", (0.2, 0.0, 1.0))])), static=True)
+    first = tf.lookup("map", "cam", 10**9)
+    first[0, 3] = 99.0  # the caller's copy: the buffer's memory is untouched
+    assert tf.lookup("map", "cam", 10**9)[:3, 3].tolist() == [1.2, 2.0, 1.0]
+    tf.add(decode_tf_message(cdr_tf([Tf("base_link", "cam", (0.5, 0.0, 1.0))])), static=True)
+    assert tf.lookup("map", "cam", 10**9)[:3, 3].tolist() == [1.5, 2.0, 1.0]  # the new static transform
