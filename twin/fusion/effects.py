@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from twin.fusion.footprints import Pose
-from twin.fusion.memory import Alias, Dispute, FusionMemory, Miss, Refinement, SizeEvidence
+from twin.fusion.memory import Alias, Dispute, FusionMemory, Miss, Refinement, SizeEvidence, Tentative
 
 Effect = Callable[[FusionMemory], None]
 
@@ -127,12 +127,23 @@ def drop_alias(alias: str) -> Effect:
     return run
 
 
-def count_tentative(iri: str, seen: tuple[int, int] | None) -> Effect:
+def count_tentative(iri: str, seen: Tentative | None) -> Effect:
+    """``iri`` held tentative as ``seen`` (None: no longer: created, resolved or dropped)."""
+
     def run(m: FusionMemory) -> None:
         if seen is not None:
             m.tentative[iri] = seen
         else:
             m.tentative.pop(iri, None)
+
+    return run
+
+
+def looked(robot: str, arrival_ns: int) -> Effect:
+    """``robot`` sent a view that arrived at ``arrival_ns`` (a robot whose views come often streams)."""
+
+    def run(m: FusionMemory) -> None:
+        m.views[robot] = max(arrival_ns, m.views.get(robot, arrival_ns))
 
     return run
 

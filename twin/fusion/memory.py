@@ -243,6 +243,19 @@ class ClockEstimate:
 
 
 @dataclass(frozen=True, slots=True)
+class Tentative:
+    """A robot IRI of a new object held until seen often enough: how many sightings so far and when the
+    first arrived; held from a robot that streams views (:mod:`twin.fusion.tentative`), also the robot,
+    the storey and the pose it was seen at (its next view that should have seen it without it drops it)."""
+
+    seen: int
+    since_ns: int
+    robot: str = ""
+    storey: str = ""
+    pose: Pose | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class PastPose:
     """Where an element stood until a change seen at ``until_ns`` moved or removed it."""
 
@@ -275,9 +288,11 @@ class FusionMemory:
     pose_arrays: dict[str, Any] = field(default_factory=dict)
     """Storey -> the index's poses as arrays (:class:`twin.fusion.poses.StoreyArrays`), built on use and
     dropped when the storey's poses change."""
-    tentative: dict[str, tuple[int, int]] = field(default_factory=dict)
-    """Robot IRIs of new elements seen fewer than ``tentative_sightings`` times -> (sightings so far,
-    the first one's time); forgotten after :data:`TENTATIVE_TTL_NS` (a false detection seen once)."""
+    tentative: dict[str, Tentative] = field(default_factory=dict)
+    """Robot IRIs of new elements not seen often enough yet (``tentative_sightings``,
+    ``stream_sightings``); forgotten after :data:`TENTATIVE_TTL_NS` (a false detection seen once)."""
+    views: dict[str, int] = field(default_factory=dict)
+    """Per robot, when its latest view arrived (ns): a robot whose views come often streams."""
     distinct: set[str] = field(default_factory=set)
     """Elements robots said are distinct objects (never merged into another)."""
     history: dict[str, deque[PastPose]] = field(default_factory=dict)
@@ -334,14 +349,14 @@ def expire_aliases(memory: FusionMemory, now_ns: int, ttl_ns: int) -> list[str]:
     old = [a for a, v in memory.aliases.items() if now_ns - v.used_ns > ttl_ns]
     for a in old:
         del memory.aliases[a]
-    for iri in [i for i, (_, since) in memory.tentative.items() if now_ns - since > TENTATIVE_TTL_NS]:
+    for iri in [i for i, t in memory.tentative.items() if now_ns - t.since_ns > TENTATIVE_TTL_NS]:
         del memory.tentative[iri]
     return sorted(old)
 
 
 # --- the one serialiser ------------------------------------------------------------------------------------
 
-MEMORY_FORMAT = 1
+MEMORY_FORMAT = 2
 """The version of :meth:`FusionMemory.to_json`'s layout."""
 
 
@@ -416,7 +431,11 @@ def memory_to_json(m: FusionMemory) -> dict[str, Any]:
         "format": MEMORY_FORMAT,
         "tracks": {iri: _track_json(t) for iri, t in m.tracks.items()},
         "aliases": {a: [v.target, v.used_ns] for a, v in m.aliases.items()},
-        "tentative": {iri: list(v) for iri, v in m.tentative.items()},
+        "tentative": {
+            iri: [t.seen, t.since_ns, t.robot, t.storey, None if t.pose is None else _pose_json(t.pose)]
+            for iri, t in m.tentative.items()
+        },
+        "views": dict(m.views),
         "distinct": sorted(m.distinct),
         "history": {
             iri: [[p.storey, _pose_json(p.pose), p.until_ns] for p in past] for iri, past in m.history.items()
@@ -437,7 +456,11 @@ def memory_from_json(v: dict[str, Any]) -> FusionMemory:
     m = FusionMemory(
         tracks={iri: _track(t) for iri, t in v["tracks"].items()},
         aliases={a: Alias(str(t), int(ns)) for a, (t, ns) in v["aliases"].items()},
-        tentative={iri: (int(n), int(since)) for iri, (n, since) in v["tentative"].items()},
+        tentative={
+            iri: Tentative(int(n), int(since), str(robot), str(storey), None if pose is None else _pose(pose))
+            for iri, (n, since, robot, storey, pose) in v["tentative"].items()
+        },
+        views={robot: int(ns) for robot, ns in v["views"].items()},
         distinct=set(v["distinct"]),
         clocks={
             robot: ClockEstimate(

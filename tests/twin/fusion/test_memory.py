@@ -11,7 +11,7 @@ from tests.twin.fusion.fusion_helpers import ROOM_A, box, sensed, view_only
 from tests.twin.fusion.test_clocks import FakeClock, with_clock
 from tests.twin.live_helpers import observe, started
 from twin.fusion.footprints import box_pose
-from twin.fusion.memory import Dispute, FusionMemory
+from twin.fusion.memory import Dispute, FusionMemory, Tentative
 
 S = 10**9
 
@@ -31,15 +31,18 @@ def test_a_memory_with_every_kind_of_entry_survives_a_json_round_trip() -> None:
     observe(service, "robot1", sensed(box("urn:robot1:chair", 3.0, 1.0, sx=0.5, sy=0.5), clock.now + S))
     observe(service, "robot3", view_only(clock.now + S, ROOM_A, detects=("IfcFurniture",)))
     memory = service.live.fusion
-    memory.tentative["urn:robot4:x"] = (1, clock.now)
+    memory.tentative["urn:robot4:x"] = Tentative(1, clock.now)
+    here = box_pose(1.0, 2.0, 0.3, 0.5, 0.5, 0.6, yaw=0.0)
+    memory.tentative["urn:robot4:y"] = Tentative(1, clock.now, "robot4", "ground-floor", here)
     memory.distinct.add("urn:robot1:chair")
     desk = memory.tracks["urn:robot1:desk"]
     desk.dispute = Dispute((box_pose(5.0, 2.0, 0.4, 1.0, 0.6, 0.8, yaw=0.0),) * 2, {"robot1": (0, clock.now)})
     assert memory.history and memory.clocks and memory.aliases and memory.tracks["urn:robot1:desk"].moving
+    assert memory.views  # robot3's view
     text = json.dumps(memory.to_json())
     again = FusionMemory.from_json(json.loads(text))
     assert again.to_json() == memory.to_json()
-    for name in ("tracks", "aliases", "tentative", "distinct", "history", "pairs"):
+    for name in ("tracks", "aliases", "tentative", "views", "distinct", "history", "pairs"):
         assert getattr(again, name) == getattr(memory, name), name
     assert {r: list(e.samples) for r, e in again.clocks.items()} == {
         r: list(e.samples) for r, e in memory.clocks.items()

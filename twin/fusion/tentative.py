@@ -1,0 +1,107 @@
+"""New elements: what resolves to nothing is created at once, or held until seen often enough.
+
+Two rules hold a new object back (acked in ``"tentative"``, nothing written):
+
+- ``tentative_sightings`` (1: off): every new robot IRI needs this many sightings.
+- ``stream_sightings`` (2; 1: off), **M of N for a robot that streams views**: a robot whose previous
+  view arrived within ``stream_gap_s`` reports what it sees many times a second, and its view says where
+  it looked. A new object it reports with a view is held until it is seen this many times in a row: its
+  next view that should have seen the object (:func:`twin.fusion.visibility.view_sees`, as absence
+  asks) and does not report it drops it, as a false detection. A false detection seen once is then never
+  an element, so it is never created and removed again (two revisions, and maps to every robot, for
+  nothing). A one-shot report (``twin observe``: no view, or the robot's first view in a while) creates
+  at once.
+
+Example::
+
+    streaming = streams(ctx.memory, "robot1", arrival_ns=now, rules=rules)
+    if held_back(ctx, r, pose=pose, storey="ground-floor"):
+        return                       # acked in "tentative"
+    drop_unseen(ctx, view, reported={r.iri for r in obs.reports})
+"""
+
+from __future__ import annotations
+
+from collections.abc import Set
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from twin.config import FusionRules
+from twin.fusion.effects import count_tentative
+from twin.fusion.footprints import Pose
+from twin.fusion.memory import FusionMemory, Tentative
+from twin.fusion.visibility import view_sees
+from twin.records import ElementReport, ObservedView
+
+if TYPE_CHECKING:
+    from twin.fusion.context import FusionContext
+
+VIEW_INSET_M = 0.1
+"""A held object is in a view when its footprint, this much smaller on each side, is (as in absence)."""
+
+
+def streams(memory: FusionMemory, robot: str, *, arrival_ns: int, rules: FusionRules) -> bool:
+    """Whether ``robot``, sending a view that arrived at ``arrival_ns``, streams: its previous view
+    arrived at most ``stream_gap_s`` before."""
+    last = memory.views.get(robot)
+    return last is not None and 0 <= arrival_ns - last <= rules.stream_gap_ns
+
+
+def held_back(ctx: FusionContext, r: ElementReport, *, pose: Pose | None, storey: str | None) -> bool:
+    """Whether the new object ``r`` (at ``pose`` on ``storey``) is held tentative rather than created
+    now: its sightings so far (this one counted) are fewer than the rules ask. Notes the effect either
+    way (held: counted; created: no longer held)."""
+    if r.box is None and r.geometry is None:
+        return False
+    rules = ctx.rules
+    needed = rules.tentative_sightings
+    streamed = ctx.streaming and pose is not None and storey is not None
+    if streamed:
+        needed = max(needed, rules.stream_sightings)
+    known = ctx.memory.tentative.get(r.iri)
+    if needed <= 1:
+        if known is not None:
+            ctx.out.effects.append(count_tentative(r.iri, None))
+        return False
+    seen = (known.seen if known is not None else 0) + 1
+    if seen >= needed:
+        ctx.out.effects.append(count_tentative(r.iri, None))
+        return False
+    since = known.since_ns if known is not None else ctx.arrival_ns
+    held = Tentative(seen, since, ctx.robot, storey or "", pose) if streamed else Tentative(seen, since)
+    ctx.out.tentative.append(r.iri)
+    ctx.out.effects.append(count_tentative(r.iri, held))
+    return True
+
+
+def drop_unseen(ctx: FusionContext, view: ObservedView, *, reported: Set[str]) -> None:
+    """Drop the objects this robot holds from its earlier views that ``view`` should have seen and the
+    observation does not report (``reported``: its IRIs): false detections, seen once."""
+    memory = ctx.memory
+    if not memory.tentative:
+        return
+    mine = [
+        (iri, t.pose)
+        for iri, t in memory.tentative.items()
+        if t.pose is not None and t.robot == ctx.robot and t.storey == view.storey and iri not in reported
+    ]
+    if not mine:
+        return
+    ring = np.concatenate(view.polygons)
+    lo, hi = ring.min(axis=0), ring.max(axis=0)
+    if view.origin is not None:
+        lo, hi = np.minimum(lo, view.origin[:2]), np.maximum(hi, view.origin[:2])
+    seen = view_sees(
+        view,
+        [pose for _, pose in mine],
+        iris=[iri for iri, _ in mine],
+        held=ctx.candidates_near(view.storey, lo, hi),
+        sightings=[box for _, _, box in ctx.boxes],
+        elevation_m=ctx.live.site.storeys[view.storey].elevation_m,
+        inset_m=VIEW_INSET_M,
+    )
+    for (iri, _), should in zip(mine, seen, strict=True):
+        if should:
+            ctx.out.effects.append(count_tentative(iri, None))
+            ctx.out.notes.append(f"<{iri}> dropped: {ctx.robot}'s next view should have seen it and did not")
