@@ -264,6 +264,9 @@ class PastPose:
     until_ns: int
 
 
+ABSENT = object()
+"""A journaled entry that did not exist (:meth:`FusionMemory.changing`)."""
+
 HISTORY_PER_ELEMENT = 8
 """Past poses kept per element (its last moves, or its removal)."""
 
@@ -305,6 +308,9 @@ class FusionMemory:
     (:mod:`twin.fusion.bias`)."""
     shape_poses: dict[str, tuple[object, object, Pose]] = field(default_factory=dict)
     """Element -> (mesh, placement, pose): the pose of the shape it has, computed once per shape."""
+    journal: dict[tuple[str, Any], Any] | None = None
+    """While an observation waits for the store (:meth:`begin` .. :meth:`keep` or :meth:`undo`): each
+    entry the effects changed since (part, key) -> its value before (:data:`ABSENT`: it had none)."""
 
     def pose(self, iri: str, shape: tuple[Any, Any]) -> Pose:
         """The pose of ``iri``'s current ``shape`` (cached while the shape's objects stay the same)."""
@@ -316,10 +322,55 @@ class FusionMemory:
         return pose
 
     def track(self, iri: str) -> Track:
+        """``iri``'s track, made if it has none (to change it: journaled)."""
+        if self.journal is not None:
+            self.changing("tracks", iri)
         t = self.tracks.get(iri)
         if t is None:
             t = self.tracks[iri] = Track()
         return t
+
+    def existing(self, iri: str) -> Track | None:
+        """``iri``'s track if it has one (to change it: journaled)."""
+        if self.journal is not None:
+            self.changing("tracks", iri)
+        return self.tracks.get(iri)
+
+    def changing(self, part: str, key: Any) -> None:
+        """``part`` (``"tracks"``, ``"aliases"``, ``"tentative"``, ``"views"``, ``"pairs"`` or
+        ``"distinct"``) is about to change at ``key``: while journaling, its value before is kept."""
+        journal = self.journal
+        if journal is None or (part, key) in journal:
+            return
+        if part == "distinct":
+            journal[part, key] = key in self.distinct
+            return
+        value = getattr(self, part).get(key, ABSENT)
+        if part == "tracks" and value is not ABSENT:
+            value = _track(_track_json(value))  # a copy, by the one serialiser
+        elif part == "aliases" and value is not ABSENT:
+            value = Alias(value.target, value.used_ns)
+        journal[part, key] = value  # tentative, views, pairs: values replaced, never changed in place
+
+    def begin(self) -> None:
+        """Journal the changes from here on (an observation's effects before the store accepts it)."""
+        if self.journal is None:
+            self.journal = {}
+
+    def keep(self) -> None:
+        """The store accepted the journaled changes: keep them."""
+        self.journal = None
+
+    def undo(self) -> None:
+        """The store refused: every entry changed since :meth:`begin` as it was then."""
+        journal, self.journal = self.journal or {}, None
+        for (part, key), value in journal.items():
+            if part == "distinct":
+                (self.distinct.add if value else self.distinct.discard)(key)
+            elif value is ABSENT:
+                getattr(self, part).pop(key, None)
+            else:
+                getattr(self, part)[key] = value
 
     def remember(self, iri: str, past: PastPose) -> None:
         """``iri`` stood at ``past.pose`` until ``past.until_ns``."""
