@@ -109,14 +109,14 @@ class FusionTable(ConfigTable):
     )
     stream_sightings: Annotated[Whole, Field(ge=1, le=100)] = Field(
         2,
-        description="A robot that streams views (its previous view arrived within stream_gap_s): the "
+        description="A robot that streams views (its previous view was seen within stream_gap_s): the "
         "sightings in a row a new object it reports with a view needs before it is created; its next view "
         "that should have seen it without it drops it (a false detection). 1: at once.",
     )
     stream_gap_s: Annotated[Number, Field(ge=0.0, le=3600.0)] = Field(
         2.0,
-        description="A robot whose previous view arrived at most this long ago streams (a one-shot report "
-        "with a view creates at once).",
+        description="A robot whose previous view was seen at most this long before (sense time) streams "
+        "(a one-shot report with a view creates at once).",
     )
     misses_to_remove: Annotated[Whole, Field(ge=1, le=1000)] = Field(
         3, description="Views that should have seen an element and did not, before it is removed."

@@ -143,12 +143,12 @@ def count_tentative(iri: str, seen: Tentative | None) -> Effect:
     return run
 
 
-def looked(robot: str, arrival_ns: int) -> Effect:
-    """``robot`` sent a view that arrived at ``arrival_ns`` (a robot whose views come often streams)."""
+def looked(robot: str, sense_ns: int) -> Effect:
+    """``robot`` sent a view seen at ``sense_ns`` (a robot whose views come often streams)."""
 
     def run(m: FusionMemory) -> None:
         m.changing("views", robot)
-        m.views[robot] = max(arrival_ns, m.views.get(robot, arrival_ns))
+        m.views[robot] = max(sense_ns, m.views.get(robot, sense_ns))
 
     return run
 

@@ -295,7 +295,8 @@ class FusionMemory:
     """Robot IRIs of new elements not seen often enough yet (``tentative_sightings``,
     ``stream_sightings``); forgotten after :data:`TENTATIVE_TTL_NS` (a false detection seen once)."""
     views: dict[str, int] = field(default_factory=dict)
-    """Per robot, when its latest view arrived (ns): a robot whose views come often streams."""
+    """Per robot, when its latest view was seen (sense time, corrected; ns): a robot whose views come
+    often streams (:mod:`twin.fusion.tentative`)."""
     distinct: set[str] = field(default_factory=set)
     """Elements robots said are distinct objects (never merged into another)."""
     history: dict[str, deque[PastPose]] = field(default_factory=dict)

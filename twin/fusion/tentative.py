@@ -4,17 +4,17 @@ Two rules hold a new object back (acked in ``"tentative"``, nothing written):
 
 - ``tentative_sightings`` (1: off): every new robot IRI needs this many sightings.
 - ``stream_sightings`` (2; 1: off), **M of N for a robot that streams views**: a robot whose previous
-  view arrived within ``stream_gap_s`` reports what it sees many times a second, and its view says where
-  it looked. A new object it reports with a view is held until it is seen this many times in a row: its
-  next view that should have seen the object (:func:`twin.fusion.visibility.view_sees`, as absence
-  asks) and does not report it drops it, as a false detection. A false detection seen once is then never
-  an element, so it is never created and removed again (two revisions, and maps to every robot, for
-  nothing). A one-shot report (``twin observe``: no view, or the robot's first view in a while) creates
-  at once.
+  view was seen within ``stream_gap_s`` of this one reports what it sees many times a second, and its
+  view says where it looked. A new object it reports with a view is held until it is seen this many
+  times in a row: its next view that should have seen the object
+  (:func:`twin.fusion.visibility.view_sees`, as absence asks) and does not report it drops it, as a
+  false detection. A false detection seen once is then never an element, so it is never created and
+  removed again (two revisions, and maps to every robot, for nothing). A one-shot report
+  (``twin observe``: no view, or the robot's first view in a while) creates at once.
 
 Example::
 
-    streaming = streams(ctx.memory, "robot1", arrival_ns=now, rules=rules)
+    streaming = streams(ctx.memory, "robot1", sense_ns=sense, rules=rules)   # the view's sense time
     if held_back(ctx, r, pose=pose, storey="ground-floor"):
         return                       # acked in "tentative"
     drop_unseen(ctx, view, reported={r.iri for r in obs.reports})
@@ -41,11 +41,12 @@ VIEW_INSET_M = 0.1
 """A held object is in a view when its footprint, this much smaller on each side, is (as in absence)."""
 
 
-def streams(memory: FusionMemory, robot: str, *, arrival_ns: int, rules: FusionRules) -> bool:
-    """Whether ``robot``, sending a view that arrived at ``arrival_ns``, streams: its previous view
-    arrived at most ``stream_gap_s`` before."""
+def streams(memory: FusionMemory, robot: str, *, sense_ns: int, rules: FusionRules) -> bool:
+    """Whether ``robot``, sending a view seen at ``sense_ns`` (corrected), streams: its previous view was
+    seen at most ``stream_gap_s`` before (or after: a report overtaken on the way). Sense times, not
+    arrivals: two detection arrays seen 11 s apart that arrive together are two one-shot reports."""
     last = memory.views.get(robot)
-    return last is not None and 0 <= arrival_ns - last <= rules.stream_gap_ns
+    return last is not None and abs(sense_ns - last) <= rules.stream_gap_ns
 
 
 def held_back(ctx: FusionContext, r: ElementReport, *, pose: Pose | None, storey: str | None) -> bool:

@@ -99,8 +99,8 @@ def fuse(
         robot, rights, live, states, shapes, rules, base_iri, pending, arrival_ns, max(clock.offset_ns, 0)
     )
     if view is not None and rules.enabled:
-        ctx.streaming = streams(live.fusion, robot, arrival_ns=arrival_ns, rules=rules)
-        ctx.out.effects.append(looked(robot, arrival_ns))
+        ctx.streaming = streams(live.fusion, robot, sense_ns=sense, rules=rules)
+        ctx.out.effects.append(looked(robot, sense))
     senses = [clock.sense(r.sense_ns) if r.sense_ns is not None else sense for r in obs.reports]
     if not confirm_array(ctx, obs.reports, senses):  # the common case at once: all confirmations
         for r, s in zip(obs.reports, senses, strict=True):
