@@ -10,7 +10,9 @@ Two rules hold a new object back (acked in ``"tentative"``, nothing written):
   (:func:`twin.fusion.visibility.view_sees`, as absence asks) and does not report it drops it, as a
   false detection. A false detection seen once is then never an element, so it is never created and
   removed again (two revisions, and maps to every robot, for nothing). A one-shot report
-  (``twin observe``: no view, or the robot's first view in a while) creates at once.
+  (``twin observe``: no view, or the robot's first view in a while) creates at once. A held object
+  reported again under another IRI (a detector without track ids gives each detection a one-off IRI)
+  is found by place: its footprint overlaps and its size agrees, as association asks.
 
 Example::
 
@@ -30,6 +32,7 @@ import numpy as np
 from twin.config import FusionRules
 from twin.fusion.effects import count_tentative
 from twin.fusion.footprints import Pose
+from twin.fusion.gates import matches, sizes_agree
 from twin.fusion.memory import FusionMemory, Tentative
 from twin.fusion.visibility import view_sees
 from twin.records import ElementReport, ObservedView
@@ -65,6 +68,12 @@ def held_back(ctx: FusionContext, r: ElementReport, *, pose: Pose | None, storey
         if known is not None:
             ctx.out.effects.append(count_tentative(r.iri, None))
         return False
+    if known is None and streamed and pose is not None:
+        before = same_place(ctx, pose, storey or "")  # a new IRI for it (a detector without track ids)
+        if before is not None:
+            known = ctx.memory.tentative[before]
+            ctx.held_seen.add(before)
+            ctx.out.effects.append(count_tentative(before, None))  # counted on under the new IRI
     seen = (known.seen if known is not None else 0) + 1
     if seen >= needed:
         ctx.out.effects.append(count_tentative(r.iri, None))
@@ -76,6 +85,20 @@ def held_back(ctx: FusionContext, r: ElementReport, *, pose: Pose | None, storey
     return True
 
 
+def same_place(ctx: FusionContext, pose: Pose, storey: str) -> str | None:
+    """The object this robot holds from its earlier views on ``storey`` that ``pose`` is, by place: their
+    footprints overlap and their sizes agree, as association asks (the best match), not matched yet."""
+    best, best_score = None, 0.0
+    rules = ctx.rules.default
+    for iri, t in ctx.memory.tentative.items():
+        if t.pose is None or t.robot != ctx.robot or t.storey != storey or iri in ctx.held_seen:
+            continue
+        score = matches(rules, pose, t.pose)
+        if score > best_score and sizes_agree(rules, pose, t.pose):
+            best, best_score = iri, score
+    return best
+
+
 def drop_unseen(ctx: FusionContext, view: ObservedView, *, reported: Set[str]) -> None:
     """Drop the objects this robot holds from its earlier views that ``view`` should have seen and the
     observation does not report (``reported``: its IRIs): false detections, seen once."""
@@ -85,7 +108,11 @@ def drop_unseen(ctx: FusionContext, view: ObservedView, *, reported: Set[str]) -
     mine = [
         (iri, t.pose)
         for iri, t in memory.tentative.items()
-        if t.pose is not None and t.robot == ctx.robot and t.storey == view.storey and iri not in reported
+        if t.pose is not None
+        and t.robot == ctx.robot
+        and t.storey == view.storey
+        and iri not in reported
+        and iri not in ctx.held_seen
     ]
     if not mine:
         return

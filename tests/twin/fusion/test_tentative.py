@@ -87,3 +87,15 @@ def test_stream_sightings_1_creates_a_streaming_robots_new_object_at_once() -> N
     t = time.time_ns()
     looking(service, "robot1", t)
     assert observe(service, "robot1", seen(GHOST, 2.0, 2.0, t + S // 5)).body["upserted"] == [GHOST]
+
+
+def test_a_detector_without_track_ids_is_held_by_place_and_created_at_its_second_view() -> None:
+    service, _ = started()
+    t = time.time_ns()
+    looking(service, "robot1", t)
+    first = observe(service, "robot1", seen("urn:robot1:once-1", 2.0, 2.0, t + S // 5))
+    assert first.body["tentative"] == ["urn:robot1:once-1"]
+    second = observe(service, "robot1", seen("urn:robot1:once-2", 2.02, 2.0, t + 2 * S // 5))
+    assert second.body["upserted"] == ["urn:robot1:once-2"] and not service.live.fusion.tentative
+    third = observe(service, "robot1", seen("urn:robot1:once-3", 2.01, 2.0, t + 3 * S // 5))
+    assert third.body["resolved"] == {"urn:robot1:once-3": "urn:robot1:once-2"}
