@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from twin.config import FusionRules
+from twin.fusion.absence import VIEW_INSET_M
 from twin.fusion.effects import count_tentative
 from twin.fusion.footprints import Pose
 from twin.fusion.gates import matches, sizes_agree
@@ -39,9 +40,6 @@ from twin.records import ElementReport, ObservedView
 
 if TYPE_CHECKING:
     from twin.fusion.context import FusionContext
-
-VIEW_INSET_M = 0.1
-"""A held object is in a view when its footprint, this much smaller on each side, is (as in absence)."""
 
 
 def streams(memory: FusionMemory, robot: str, *, sense_ns: int, rules: FusionRules) -> bool:
