@@ -2,7 +2,7 @@
 
 Two rules hold a new object back (acked in ``"tentative"``, nothing written):
 
-- ``tentative_sightings`` (1: off): every new robot IRI needs this many sightings.
+- ``tentative_sightings`` (1: off): every new robot IRI needs this many sightings (of that IRI).
 - ``stream_sightings`` (2; 1: off), **M of N for a robot that streams views**: a robot whose previous
   view was seen within ``stream_gap_s`` of this one reports what it sees many times a second, and its
   view says where it looked. A new object it reports with a view is held until it is seen this many
@@ -66,7 +66,7 @@ def held_back(ctx: FusionContext, r: ElementReport, *, pose: Pose | None, storey
         if known is not None:
             ctx.out.effects.append(count_tentative(r.iri, None))
         return False
-    if known is None and streamed and pose is not None:
+    if known is None and streamed and rules.stream_sightings > 1 and pose is not None:
         before = same_place(ctx, pose, storey or "")  # a new IRI for it (a detector without track ids)
         if before is not None:
             known = ctx.memory.tentative[before]
