@@ -201,6 +201,7 @@ class RobotStats:
     errors: int = 0
     saturated_sightings: int = 0
     saturated_s: float = 0.0
+    false_detections: int = 0
 
 
 BEHAVIOURS = ("normal", "restart", "clock_behind", "clock_ahead", "late", "bias")
@@ -349,6 +350,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                     and _inside(ghost.corners(), polygon).all()
                 ):
                     false_count += 1
+                    stats.false_detections += 1
                     lines.append(
                         f'<urn:sim:{name}:false-{false_count}> twin:ifcClass "IfcFurniture" ; '
                         f'twin:storey "{storey}" ; twin:box "{fx:.3f} {fy:.3f} 0.3 0.5 0.5 0.6 0" .'
@@ -959,6 +961,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         if args.saturate
         else None,
         "errors": sum(s.errors for s in stats),
+        "false_detections": sum(s.false_detections for s in stats),
         "daemon_cpu_ms_per_observation": 1e3 * cpu_main / max(1, acked_main),
         "samples": samples,
     }

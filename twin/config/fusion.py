@@ -107,6 +107,17 @@ class FusionTable(ConfigTable):
     tentative_sightings: Annotated[Whole, Field(ge=1, le=100)] = Field(
         1, description="Sightings a new element needs before it is created (1: at once)."
     )
+    stream_sightings: Annotated[Whole, Field(ge=1, le=100)] = Field(
+        2,
+        description="A robot that streams views (its previous view was seen within stream_gap_s): the "
+        "sightings in a row a new object it reports with a view needs before it is created; its next view "
+        "that should have seen it without it drops it (a false detection). 1: at once.",
+    )
+    stream_gap_s: Annotated[Number, Field(ge=0.0, le=3600.0)] = Field(
+        2.0,
+        description="A robot whose previous view was seen at most this long before (sense time) streams "
+        "(a one-shot report with a view creates at once).",
+    )
     misses_to_remove: Annotated[Whole, Field(ge=1, le=1000)] = Field(
         3, description="Views that should have seen an element and did not, before it is removed."
     )
@@ -160,6 +171,8 @@ class FusionTable(ConfigTable):
             resize_span_ns=int(self.resize_span_s * 1e9),
             merge_iou=self.merge_iou,
             tentative_sightings=self.tentative_sightings,
+            stream_sightings=self.stream_sightings,
+            stream_gap_ns=int(self.stream_gap_s * 1e9),
             alias_ttl_ns=int(self.alias_ttl_s * 1e9),
             alias_jump_m=self.alias_jump_m,
             max_skew_ns=int(self.max_clock_skew_s * 1e9),
@@ -218,6 +231,8 @@ class FusionRules:
     resize_span_ns: int = 10**9
     merge_iou: float = 0.5
     tentative_sightings: int = 1
+    stream_sightings: int = 2
+    stream_gap_ns: int = 2 * 10**9
     alias_ttl_ns: int = 3600 * 10**9
     alias_jump_m: float = 2.0
     max_skew_ns: int = 2 * 10**9

@@ -2,8 +2,8 @@
 
 A robot's IRI that is an alias resolves to its element. An IRI the twin does not know, with a box on
 a storey, resolves to the best-matching candidate element there (:mod:`twin.fusion.gates`), and becomes
-an alias of it. What resolves to nothing is a new element (held tentative until seen often enough when
-``tentative_sightings`` > 1).
+an alias of it. What resolves to nothing is a new element (held tentative until seen often enough:
+:mod:`twin.fusion.tentative`).
 
 Example::
 
@@ -28,6 +28,7 @@ from twin.fusion.effects import (
 from twin.fusion.footprints import Pose, centre_distance, heights_overlap, iou
 from twin.fusion.gates import compatible, is_candidate, kinds_agree, lies_within, matches, sizes_agree
 from twin.fusion.memory import Alias
+from twin.fusion.tentative import held_back
 from twin.records import ElementReport
 
 if TYPE_CHECKING:
@@ -124,6 +125,8 @@ def adopt(ctx: FusionContext, r: ElementReport, match: str) -> ElementReport:
     its class (the element has one)."""
     if r.iri != match:
         ctx.out.resolved[r.iri] = match
+        if r.iri in ctx.memory.tentative:  # held, and now another robot's element: no longer new
+            ctx.out.effects.append(count_tentative(r.iri, None))
         known = ctx.memory.aliases.get(r.iri)
         if known is None or known.target != match:
             ctx.out.aliases[r.iri] = match
@@ -150,13 +153,8 @@ def new_element(
         out.unaliased.append(r.iri)
         out.resolved.pop(r.iri, None)
         target = r.iri
-    if ctx.rules.tentative_sightings > 1 and (r.box is not None or r.geometry is not None):
-        seen, since = ctx.memory.tentative.get(r.iri, (0, ctx.arrival_ns))
-        if seen + 1 < ctx.rules.tentative_sightings:
-            out.tentative.append(r.iri)
-            out.effects.append(count_tentative(r.iri, (seen + 1, since)))
-            return
-        out.effects.append(count_tentative(r.iri, None))
+    if held_back(ctx, r, pose=pose, storey=storey):
+        return  # held tentative until seen often enough (twin.fusion.tentative)
     if r.distinct:
         out.effects.append(mark_distinct(r.iri))
     ctx.reports.append(replace(r, iri=target))

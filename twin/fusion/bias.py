@@ -117,6 +117,8 @@ def note_sighting(ctx: FusionContext, state: ElementState, raw: Pose, sense: int
 
     def run(m: FusionMemory) -> None:
         m.track(iri).means[robot] = mine
+        for pair in pairs:
+            m.changing("pairs", pair)
         m.pairs.update(pairs)
 
     ctx.out.effects.append(run)
@@ -152,6 +154,8 @@ def note_sightings(ctx: FusionContext, seen: Sequence[tuple[ElementState, Pose, 
     def run(m: FusionMemory) -> None:
         for iri, mine in means:
             m.track(iri).means[robot] = mine
+        for pair in pairs:
+            m.changing("pairs", pair)
         m.pairs.update(pairs)
 
     ctx.out.effects.append(run)

@@ -115,6 +115,10 @@ class FusionContext:
     bias: tuple[float, float] | None = None
     """The robot's detector bias (:func:`twin.fusion.bias.unbiased`), once ``bias_known``."""
     bias_known: bool = False
+    streaming: bool = False
+    """The robot streams views and this observation has one (:func:`twin.fusion.tentative.streams`)."""
+    held_seen: set[str] = field(default_factory=set)
+    """Held new objects (robot IRIs) this observation saw again under another IRI."""
 
     @property
     def memory(self) -> FusionMemory:

@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from twin.fusion.footprints import Pose
-from twin.fusion.memory import Alias, Dispute, FusionMemory, Miss, Refinement, SizeEvidence
+from twin.fusion.memory import Alias, Dispute, FusionMemory, Miss, Refinement, SizeEvidence, Tentative
 
 Effect = Callable[[FusionMemory], None]
 
@@ -39,7 +39,7 @@ def miss(iri: str, robot: str, sense: int) -> Effect:
 
 def forget(iri: str) -> Effect:
     def run(m: FusionMemory) -> None:
-        t = m.tracks.get(iri)
+        t = m.existing(iri)
         if t is not None:
             t.misses.clear()
             t.refinement.n = 0
@@ -92,7 +92,7 @@ def reset_refinement(iri: str) -> Effect:
     """A new pose committed: the confirmations, held moves and any dispute start again."""
 
     def run(m: FusionMemory) -> None:
-        t = m.tracks.get(iri)
+        t = m.existing(iri)
         if t is not None:
             t.refinement = Refinement()
             t.moving = None
@@ -106,6 +106,7 @@ def reset_refinement(iri: str) -> Effect:
 
 def set_alias(alias: str, target: str, now: int) -> Effect:
     def run(m: FusionMemory) -> None:
+        m.changing("aliases", alias)
         m.aliases[alias] = Alias(target, now)
 
     return run
@@ -113,6 +114,7 @@ def set_alias(alias: str, target: str, now: int) -> Effect:
 
 def use_alias(alias: str, now: int) -> Effect:
     def run(m: FusionMemory) -> None:
+        m.changing("aliases", alias)
         a = m.aliases.get(alias)
         if a is not None:
             a.used_ns = max(a.used_ns, now)
@@ -122,13 +124,17 @@ def use_alias(alias: str, now: int) -> Effect:
 
 def drop_alias(alias: str) -> Effect:
     def run(m: FusionMemory) -> None:
+        m.changing("aliases", alias)
         m.aliases.pop(alias, None)
 
     return run
 
 
-def count_tentative(iri: str, seen: tuple[int, int] | None) -> Effect:
+def count_tentative(iri: str, seen: Tentative | None) -> Effect:
+    """``iri`` held tentative as ``seen`` (None: no longer: created, resolved or dropped)."""
+
     def run(m: FusionMemory) -> None:
+        m.changing("tentative", iri)
         if seen is not None:
             m.tentative[iri] = seen
         else:
@@ -137,8 +143,22 @@ def count_tentative(iri: str, seen: tuple[int, int] | None) -> Effect:
     return run
 
 
+def looked(robot: str, sense_ns: int) -> Effect:
+    """``robot`` sent a view seen at ``sense_ns`` (a robot whose views come often streams)."""
+
+    def run(m: FusionMemory) -> None:
+        m.changing("views", robot)
+        m.views[robot] = max(sense_ns, m.views.get(robot, sense_ns))
+
+    return run
+
+
 def mark_distinct(iri: str) -> Effect:
-    return lambda m: m.distinct.add(iri)
+    def run(m: FusionMemory) -> None:
+        m.changing("distinct", iri)
+        m.distinct.add(iri)
+
+    return run
 
 
 def size_evidence(iri: str, robot: str | None, evidence: SizeEvidence | None) -> Effect:
@@ -169,7 +189,7 @@ def moved(iri: str) -> Effect:
     """The element moved: where robots put it (their means, :mod:`twin.fusion.bias`) starts again."""
 
     def run(m: FusionMemory) -> None:
-        t = m.tracks.get(iri)
+        t = m.existing(iri)
         if t is not None:
             t.means.clear()
 

@@ -243,6 +243,19 @@ class ClockEstimate:
 
 
 @dataclass(frozen=True, slots=True)
+class Tentative:
+    """A robot IRI of a new object held until seen often enough: how many sightings so far and when the
+    first arrived; held from a robot that streams views (:mod:`twin.fusion.tentative`), also the robot,
+    the storey and the pose it was seen at (its next view that should have seen it without it drops it)."""
+
+    seen: int
+    since_ns: int
+    robot: str = ""
+    storey: str = ""
+    pose: Pose | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class PastPose:
     """Where an element stood until a change seen at ``until_ns`` moved or removed it."""
 
@@ -250,6 +263,9 @@ class PastPose:
     pose: Pose
     until_ns: int
 
+
+ABSENT = object()
+"""A journaled entry that did not exist (:meth:`FusionMemory.changing`)."""
 
 HISTORY_PER_ELEMENT = 8
 """Past poses kept per element (its last moves, or its removal)."""
@@ -275,9 +291,12 @@ class FusionMemory:
     pose_arrays: dict[str, Any] = field(default_factory=dict)
     """Storey -> the index's poses as arrays (:class:`twin.fusion.poses.StoreyArrays`), built on use and
     dropped when the storey's poses change."""
-    tentative: dict[str, tuple[int, int]] = field(default_factory=dict)
-    """Robot IRIs of new elements seen fewer than ``tentative_sightings`` times -> (sightings so far,
-    the first one's time); forgotten after :data:`TENTATIVE_TTL_NS` (a false detection seen once)."""
+    tentative: dict[str, Tentative] = field(default_factory=dict)
+    """Robot IRIs of new elements not seen often enough yet (``tentative_sightings``,
+    ``stream_sightings``); forgotten after :data:`TENTATIVE_TTL_NS` (a false detection seen once)."""
+    views: dict[str, int] = field(default_factory=dict)
+    """Per robot, when its latest view was seen (sense time, corrected; ns): a robot whose views come
+    often streams (:mod:`twin.fusion.tentative`)."""
     distinct: set[str] = field(default_factory=set)
     """Elements robots said are distinct objects (never merged into another)."""
     history: dict[str, deque[PastPose]] = field(default_factory=dict)
@@ -290,6 +309,9 @@ class FusionMemory:
     (:mod:`twin.fusion.bias`)."""
     shape_poses: dict[str, tuple[object, object, Pose]] = field(default_factory=dict)
     """Element -> (mesh, placement, pose): the pose of the shape it has, computed once per shape."""
+    journal: dict[tuple[str, Any], Any] | None = None
+    """While an observation waits for the store (:meth:`begin` .. :meth:`keep` or :meth:`undo`): each
+    entry the effects changed since (part, key) -> its value before (:data:`ABSENT`: it had none)."""
 
     def pose(self, iri: str, shape: tuple[Any, Any]) -> Pose:
         """The pose of ``iri``'s current ``shape`` (cached while the shape's objects stay the same)."""
@@ -301,10 +323,55 @@ class FusionMemory:
         return pose
 
     def track(self, iri: str) -> Track:
+        """``iri``'s track, made if it has none (to change it: journaled)."""
+        if self.journal is not None:
+            self.changing("tracks", iri)
         t = self.tracks.get(iri)
         if t is None:
             t = self.tracks[iri] = Track()
         return t
+
+    def existing(self, iri: str) -> Track | None:
+        """``iri``'s track if it has one (to change it: journaled)."""
+        if self.journal is not None:
+            self.changing("tracks", iri)
+        return self.tracks.get(iri)
+
+    def changing(self, part: str, key: Any) -> None:
+        """``part`` (``"tracks"``, ``"aliases"``, ``"tentative"``, ``"views"``, ``"pairs"`` or
+        ``"distinct"``) is about to change at ``key``: while journaling, its value before is kept."""
+        journal = self.journal
+        if journal is None or (part, key) in journal:
+            return
+        if part == "distinct":
+            journal[part, key] = key in self.distinct
+            return
+        value = getattr(self, part).get(key, ABSENT)
+        if part == "tracks" and value is not ABSENT:
+            value = _track(_track_json(value))  # a copy, by the one serialiser
+        elif part == "aliases" and value is not ABSENT:
+            value = Alias(value.target, value.used_ns)
+        journal[part, key] = value  # tentative, views, pairs: values replaced, never changed in place
+
+    def begin(self) -> None:
+        """Journal the changes from here on (an observation's effects before the store accepts it)."""
+        if self.journal is None:
+            self.journal = {}
+
+    def keep(self) -> None:
+        """The store accepted the journaled changes: keep them."""
+        self.journal = None
+
+    def undo(self) -> None:
+        """The store refused: every entry changed since :meth:`begin` as it was then."""
+        journal, self.journal = self.journal or {}, None
+        for (part, key), value in journal.items():
+            if part == "distinct":
+                (self.distinct.add if value else self.distinct.discard)(key)
+            elif value is ABSENT:
+                getattr(self, part).pop(key, None)
+            else:
+                getattr(self, part)[key] = value
 
     def remember(self, iri: str, past: PastPose) -> None:
         """``iri`` stood at ``past.pose`` until ``past.until_ns``."""
@@ -334,14 +401,14 @@ def expire_aliases(memory: FusionMemory, now_ns: int, ttl_ns: int) -> list[str]:
     old = [a for a, v in memory.aliases.items() if now_ns - v.used_ns > ttl_ns]
     for a in old:
         del memory.aliases[a]
-    for iri in [i for i, (_, since) in memory.tentative.items() if now_ns - since > TENTATIVE_TTL_NS]:
+    for iri in [i for i, t in memory.tentative.items() if now_ns - t.since_ns > TENTATIVE_TTL_NS]:
         del memory.tentative[iri]
     return sorted(old)
 
 
 # --- the one serialiser ------------------------------------------------------------------------------------
 
-MEMORY_FORMAT = 1
+MEMORY_FORMAT = 2
 """The version of :meth:`FusionMemory.to_json`'s layout."""
 
 
@@ -416,7 +483,11 @@ def memory_to_json(m: FusionMemory) -> dict[str, Any]:
         "format": MEMORY_FORMAT,
         "tracks": {iri: _track_json(t) for iri, t in m.tracks.items()},
         "aliases": {a: [v.target, v.used_ns] for a, v in m.aliases.items()},
-        "tentative": {iri: list(v) for iri, v in m.tentative.items()},
+        "tentative": {
+            iri: [t.seen, t.since_ns, t.robot, t.storey, None if t.pose is None else _pose_json(t.pose)]
+            for iri, t in m.tentative.items()
+        },
+        "views": dict(m.views),
         "distinct": sorted(m.distinct),
         "history": {
             iri: [[p.storey, _pose_json(p.pose), p.until_ns] for p in past] for iri, past in m.history.items()
@@ -437,7 +508,11 @@ def memory_from_json(v: dict[str, Any]) -> FusionMemory:
     m = FusionMemory(
         tracks={iri: _track(t) for iri, t in v["tracks"].items()},
         aliases={a: Alias(str(t), int(ns)) for a, (t, ns) in v["aliases"].items()},
-        tentative={iri: (int(n), int(since)) for iri, (n, since) in v["tentative"].items()},
+        tentative={
+            iri: Tentative(int(n), int(since), str(robot), str(storey), None if pose is None else _pose(pose))
+            for iri, (n, since, robot, storey, pose) in v["tentative"].items()
+        },
+        views={robot: int(ns) for robot, ns in v["views"].items()},
         distinct=set(v["distinct"]),
         clocks={
             robot: ClockEstimate(

@@ -8,7 +8,8 @@ docs/fusion.md to each element it describes, in the table's order, each rule a f
    twin holds is stale;
 2. **association** (:mod:`twin.fusion.associate`, gates in :mod:`twin.fusion.gates`): an alias resolves
    to its element; a robot IRI the twin does not know resolves to the element it matches;
-3. **new elements**: what resolves to nothing is created (or held tentative);
+3. **new elements** (:mod:`twin.fusion.tentative`): what resolves to nothing is created, or held
+   tentative (a robot that streams views: until its next view sees it again);
 4. **confirmation or move** (:mod:`twin.fusion.confirm`): a sighting near the held pose confirms it
    (nothing written), a short move waits for agreeing sightings, a long one is applied;
 5. **merge** (:mod:`twin.fusion.merge`): a move onto another element of a compatible class merges them;
@@ -59,12 +60,13 @@ from twin.fusion.confirm import (
 from twin.fusion.confirm_array import confirm_array
 from twin.fusion.context import Fused, FusionContext, Pending, report_pose
 from twin.fusion.dispute import covered, still_covers, widen
-from twin.fusion.effects import sighting
+from twin.fusion.effects import looked, sighting
 from twin.fusion.footprints import Pose
 from twin.fusion.gates import compatible, is_candidate
 from twin.fusion.history import echo, late_news, seen_echo, seen_late
 from twin.fusion.memory import Alias
 from twin.fusion.merge import merge_or_move, unmerge
+from twin.fusion.tentative import drop_unseen, streams
 from twin.live.state import ElementState, LiveState, StoreyFrame
 from twin.records import ElementReport, Observation, Shape
 
@@ -96,10 +98,15 @@ def fuse(
     ctx = FusionContext(
         robot, rights, live, states, shapes, rules, base_iri, pending, arrival_ns, max(clock.offset_ns, 0)
     )
+    if view is not None and rules.enabled:
+        ctx.streaming = streams(live.fusion, robot, sense_ns=sense, rules=rules)
+        ctx.out.effects.append(looked(robot, sense))
     senses = [clock.sense(r.sense_ns) if r.sense_ns is not None else sense for r in obs.reports]
     if not confirm_array(ctx, obs.reports, senses):  # the common case at once: all confirmations
         for r, s in zip(obs.reports, senses, strict=True):
             _fuse_report(ctx, r, s)
+    if view is not None and rules.enabled:
+        drop_unseen(ctx, view, reported={r.iri for r in obs.reports})  # held new objects not seen again
     if view is not None and rules.enabled and "dynamic" in rights:
         absence(ctx, view=view, sense=sense)
     ctx.out.reports = tuple(ctx.reports)

@@ -8,6 +8,12 @@ committed together in one store transaction (group commit: each keeps its own re
 apply in order), then the maps are brought up to date once for all of them and each is acked with its
 revision and the map rectangles that changed. An ack always follows the commit.
 
+Fusion's effects on its memory (:mod:`twin.fusion.effects`) apply as each observation is planned, so that
+the batch's next observations see them; from the first observation that changes something they are
+journaled (:meth:`~twin.fusion.memory.FusionMemory.begin`), and a commit the store refuses (a full disk)
+undoes them: the memory is as it was before that observation (the unchanged observations acked after it
+in the batch leave no trace either), and only the robots' clock offsets, facts of the transport, stay.
+
 Skill selection of the changed elements is answered from memory (:mod:`twin.live.membership`); only a
 skill with its own SPARQL pattern asks the store.
 
@@ -190,7 +196,9 @@ class Observer:
             except TwinError as err:  # ObservationError included
                 self._reject(req, err)
                 continue
-            fused.apply(live.fusion)
+            if not plan.unchanged:  # its effects stand once the store accepts it (undone if refused)
+                live.fusion.begin()
+            fused.apply(live.fusion)  # the batch's next observations see them
             aliases.update(fused.aliases)
             aliases.update((a, None) for a in fused.unaliased)
             self.stale += len(fused.stale)
@@ -306,9 +314,11 @@ class Observer:
             self.store.apply(*(p.plan.changes for p in planned), *extra)  # durable from here on
         except TwinError as err:
             log.error("The store refused a commit of %d observations: %s", len(planned), err)
+            live.fusion.undo()  # fusion's memory as before the first of them
             for p in planned:
                 self._reject(p.request, err)
             return
+        live.fusion.keep()
         live.advance(planned[-1].revision)
         for p in planned:
             self.fusion_counts["refined"] += len(p.fused.refined)
