@@ -19,7 +19,10 @@ duplicates, ghosts (elements where no object is), ghosts whose place a robot vie
 (those fusion should have removed), objects missing, the navigation map's cells that differ from the
 true world's, and the **false-free cells**: the cells more than one cell inside a true object's
 footprint that the navigation map shows free, for objects a robot saw at least ``SETTLE_S`` ago since
-their last change, and not before the daemon's clocks settle (``CLOCK_SETTLE_S``) (free floor where a
+their last change (a ``late`` robot's sighting counts once its report arrives, and only if it was
+sensed after that change; a ``clock_behind`` or ``late`` robot's sightings sensed before the daemon's
+clock estimate settles do not count: the daemon refuses them as stale), and not before the daemon's
+clocks settle (``CLOCK_SETTLE_S``) (free floor where a
 real object stands: a robot would plan through it; cells of objects only the ``bias`` robot saw, while
 the daemon does not know its bias, are counted apart: nothing can place them right). An element
 whose footprint holds two objects' centres (a clusterer's box over pushed desks) is a **cluster**:
@@ -249,7 +252,8 @@ def robot(  # noqa: PLR0917 (a thread's target)
     tracks: dict[int, int] = {}  # object -> tracker id (restart behaviour)
     next_track, session, restart_at = 1, 0, world_t0 + RESTART_EVERY_S
     clock_offset_ns = {"clock_behind": -1, "clock_ahead": 1}.get(behaviour, 0) * int(CLOCK_OFFSET_S * 1e9)
-    outbox: list[tuple[float, str, list[int]]] = []  # late behaviour: (due, payload, seen)
+    outbox: list[tuple[float, str, list[int], float]] = []  # late behaviour: (due, payload, seen, sensed)
+    settles = world_t0 + CLOCK_SETTLE_S  # before, the daemon refuses its sightings as stale (behind, late)
     with TwinClient.connect([endpoint], prefix=prefix, timeout_s=30.0) as twin:
         period = 1.0 / args.rate
         due = time.time()
@@ -305,8 +309,8 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         if pair[0] in by_key and pair[1] in by_key:
                             seen_now.append(o.key)
                             o.seen_at = now
-                            if behaviour != "late":  # the late robot's, once its report arrives
-                                o.seen_by.add(f"{index}:{behaviour}")
+                            if behaviour != "late" and _counts(behaviour, now, settles):
+                                o.seen_by.add(f"{index}:{behaviour}")  # late: once its report arrives
                                 if o.seen_since_change is None:
                                     o.seen_since_change = now
                             if pair not in blobbed:  # the blob once per observation
@@ -328,8 +332,8 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         tracks.pop(o.key, None)
                     last_seen[o.key] = now
                     o.seen_at = now
-                    if behaviour != "late":  # the late robot's, once its report arrives
-                        o.seen_by.add(f"{index}:{behaviour}")
+                    if behaviour != "late" and _counts(behaviour, now, settles):
+                        o.seen_by.add(f"{index}:{behaviour}")  # late: once its report arrives
                         if o.seen_since_change is None:
                             o.seen_since_change = now
                     if behaviour == "restart":
@@ -360,13 +364,15 @@ def robot(  # noqa: PLR0917 (a thread's target)
             )
             payload = PREFIX + "\n".join(lines)
             if behaviour == "late":  # sensed now, arrives LATE_S later
-                outbox.append((now + LATE_S, payload, seen_now))
+                outbox.append((now + LATE_S, payload, seen_now, now))
                 if outbox[0][0] > time.time():
                     continue
-                _, payload, seen_now = outbox.pop(0)
+                _, payload, seen_now, sensed = outbox.pop(0)
                 with world.lock:
                     for k in seen_now:
                         o = world.objects[k]
+                        if sensed < o.changed_at or not _counts(behaviour, sensed, settles):
+                            continue  # it saw the object before its change (or before its clock settled)
                         o.seen_by.add(f"{index}:{behaviour}")
                         if o.seen_since_change is None:
                             o.seen_since_change = time.time()
@@ -403,6 +409,13 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         ev.first_sighting = sent
                     if changed:
                         ev.shown = acked
+
+
+def _counts(behaviour: str, sensed: float, settles: float) -> bool:
+    """Whether a robot's sighting sensed at ``sensed`` counts as seen (``seen_by``): a robot whose reports
+    look 1.5-2 s old (``clock_behind``, ``late``) has them refused as stale until the daemon's estimate
+    of its clock settles (``settles``: ``CLOCK_SETTLE_S`` after it starts)."""
+    return behaviour not in ("clock_behind", "late") or sensed >= settles
 
 
 def box_line(  # noqa: PLR0917
@@ -489,11 +502,16 @@ def sample(  # noqa: PLR0917
         and now - o.changed_at > GHOST_VIEWED_S
     )
     false_removals = 0  # elements gone although their object stands there, still, and no element has it
-    for iri, place in before.items():
+    for iri, place in before.items():  # (a cluster's box over pushed desks has both)
         if iri in elements:
             continue
         for o in present:
-            if math.dist((o.x, o.y), place) <= MATCH_M and now - o.changed_at > 3.0 and o.key not in per_obj:
+            if (
+                math.dist((o.x, o.y), place) <= MATCH_M
+                and now - o.changed_at > 3.0
+                and o.key not in per_obj
+                and o.key not in covered
+            ):
                 false_removals += 1
                 break
     before.clear()
@@ -547,6 +565,7 @@ def sample(  # noqa: PLR0917
     }
     return {
         "t": round(now - t0, 1),
+        "wall": round(now, 3),
         "elements": len(elements),
         "objects": len(present),
         "duplicates": duplicates,
