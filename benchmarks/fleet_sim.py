@@ -90,8 +90,8 @@ class Obj:
     seen_at: float = -1.0
     seen_since_change: float | None = None
     """When a robot first saw it after its last change (its false-free cells count from then)."""
-    seen_by: set[str] = field(default_factory=set)
-    """The robots (their behaviours) that saw it since its last change."""
+    seen_by: dict[str, float] = field(default_factory=dict)
+    """The robots (``index:behaviour``) that saw it since its last change -> when each first did."""
 
     def corners(self) -> np.ndarray:
         c, s = math.cos(self.yaw), math.sin(self.yaw)
@@ -310,7 +310,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                             seen_now.append(o.key)
                             o.seen_at = now
                             if behaviour != "late" and _counts(behaviour, now, settles):
-                                o.seen_by.add(f"{index}:{behaviour}")  # late: once its report arrives
+                                o.seen_by.setdefault(f"{index}:{behaviour}", now)  # late: on arrival
                                 if o.seen_since_change is None:
                                     o.seen_since_change = now
                             if pair not in blobbed:  # the blob once per observation
@@ -333,7 +333,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                     last_seen[o.key] = now
                     o.seen_at = now
                     if behaviour != "late" and _counts(behaviour, now, settles):
-                        o.seen_by.add(f"{index}:{behaviour}")  # late: once its report arrives
+                        o.seen_by.setdefault(f"{index}:{behaviour}", now)  # late: on arrival
                         if o.seen_since_change is None:
                             o.seen_since_change = now
                     if behaviour == "restart":
@@ -373,7 +373,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         o = world.objects[k]
                         if sensed < o.changed_at or not _counts(behaviour, sensed, settles):
                             continue  # it saw the object before its change (or before its clock settled)
-                        o.seen_by.add(f"{index}:{behaviour}")
+                        o.seen_by.setdefault(f"{index}:{behaviour}", time.time())
                         if o.seen_since_change is None:
                             o.seen_since_change = time.time()
             stats.sent += 1
@@ -534,7 +534,7 @@ def sample(  # noqa: PLR0917
     status = client.status()
     known = set(status.get("fusion", {}).get("detector_biases", {}))
     free_by_object = {o.key: n for o in settled if (n := false_free_cells(grid, o))}
-    unobservable = {k for k in free_by_object if _unobservable(world.objects[k], known)}
+    unobservable = {k for k in free_by_object if _unobservable(world.objects[k], known, now)}
     why = {}
     if verbose:  # what the twin says of the cells (the deciding rule, a dispute)
         for k in free_by_object:
@@ -583,11 +583,12 @@ def sample(  # noqa: PLR0917
     }
 
 
-def _unobservable(o: Obj, known_biases: set[str]) -> bool:
+def _unobservable(o: Obj, known_biases: set[str], now: float) -> bool:
     """Whether only ``bias`` robots whose bias the daemon does not know yet saw ``o`` since its last
-    change: a detector's offset is not observable from its own sightings, so nothing can place it right
-    (such cells are counted apart, ``false_free_unobservable``)."""
-    robots = [r.split(":", 1) for r in o.seen_by]
+    change (robots that first saw it less than ``SETTLE_S`` ago not counted: the sightings a short move
+    needs, the acks and the maps' coalescing): a detector's offset is not observable from its own
+    sightings, so nothing can place it right (such cells are counted apart, ``false_free_unobservable``)."""
+    robots = [r.split(":", 1) for r, first in o.seen_by.items() if now - first >= SETTLE_S]
     return bool(robots) and all(b == "bias" and f"robot{i}" not in known_biases for i, b in robots)
 
 
@@ -662,7 +663,7 @@ def pull_out(  # noqa: PLR0917
         if all(world.is_free(*p) for p in probe.corners()) and world.is_free(x, y) and not crowded:
             world.events.append(Event("pull", chair_key, now, (chair.x, chair.y), chair.corners()))
             chair.x, chair.y, chair.changed_at, chair.seen_since_change = x, y, now, None
-            chair.seen_by = set()
+            chair.seen_by = {}
             apply_truth(oracle, truth_box(chair, storey, elevation))
             return
 
@@ -691,7 +692,7 @@ def push_desk(  # noqa: PLR0917
             if all(world.is_free(*p) for p in b.corners()) and not crowded:
                 world.objects[b.key] = b
                 world.together[b.key] = a.key
-                a.changed_at, a.seen_since_change, a.seen_by = now, None, set()
+                a.changed_at, a.seen_since_change, a.seen_by = now, None, {}
                 world.events.append(Event("push", b.key, now, (x, y), b.corners()))
                 apply_truth(oracle, truth_box(b, storey, elevation))
                 return b.key, a.key
@@ -718,7 +719,7 @@ def push_apart(  # noqa: PLR0917
         b.present = False
         apply_truth(oracle, f"{PREFIX}<urn:truth:{b.key}> twin:removed true .".encode())
     for o in (a, b):
-        o.changed_at, o.seen_since_change, o.seen_by = now, None, set()
+        o.changed_at, o.seen_since_change, o.seen_by = now, None, {}
 
 
 def oracle_service(store: Path, work: Path) -> Any:
@@ -898,7 +899,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                             apply_truth(oracle, truth_box(o, storey, elevation))
                         o.changed_at = now
                         o.seen_since_change = None
-                        o.seen_by = set()
+                        o.seen_by = {}
                 if now >= next_sample and now < t_end:
                     samples.append(sample(client, world, storey, oracle, skill, t0, previous, args.verbose))
                     next_sample += 1.0
