@@ -19,12 +19,16 @@ duplicates, ghosts (elements where no object is), ghosts whose place a robot vie
 (those fusion should have removed), objects missing, the navigation map's cells that differ from the
 true world's, and the **false-free cells**: the cells more than one cell inside a true object's
 footprint that the navigation map shows free, for objects a robot saw at least ``SETTLE_S`` ago since
-their last change, and not before the daemon's clocks settle (``CLOCK_SETTLE_S``) (free floor where a
+their last change (a ``late`` robot's sighting counts once its report arrives, and only if it was
+sensed after that change; a ``clock_behind`` or ``late`` robot's sightings sensed before the daemon's
+clock estimate settles do not count: the daemon refuses them as stale), and not before the daemon's
+clocks settle (``CLOCK_SETTLE_S``) (free floor where a
 real object stands: a robot would plan through it; cells of objects only the ``bias`` robot saw, while
 the daemon does not know its bias, are counted apart: nothing can place them right). An element
 whose footprint holds two objects' centres (a clusterer's box over pushed desks) is a **cluster**:
 theirs, neither a duplicate nor a ghost. At the
-end: removals (precision and recall within 10 s of the first view without the object), the time
+end: removals (precision and recall within 10 s of the first view without the object; a move or
+removal whose old place an object fills again before that is not counted), the time
 from a move's first sighting to the ack that shows it, revisions per true change, acked sightings
 per second, and the daemon's CPU per acked observation. ``--saturate S`` adds S seconds in which the
 robots send as fast as acks come back (the acked sightings per second at saturation).
@@ -87,8 +91,8 @@ class Obj:
     seen_at: float = -1.0
     seen_since_change: float | None = None
     """When a robot first saw it after its last change (its false-free cells count from then)."""
-    seen_by: set[str] = field(default_factory=set)
-    """The robots (their behaviours) that saw it since its last change."""
+    seen_by: dict[str, float] = field(default_factory=dict)
+    """The robots (``index:behaviour``) that saw it since its last change -> when each first did."""
 
     def corners(self) -> np.ndarray:
         c, s = math.cos(self.yaw), math.sin(self.yaw)
@@ -106,6 +110,9 @@ class Event:
     first_view: float | None = None
     detected: float | None = None
     first_sighting: float | None = None
+    refilled: float | None = None
+    """When an object was first seen standing at the old place again (moved or put back there) while its
+    element was still there: nothing left to remove (not counted in the removals' recall)."""
     shown: float | None = None
 
 
@@ -250,7 +257,8 @@ def robot(  # noqa: PLR0917 (a thread's target)
     tracks: dict[int, int] = {}  # object -> tracker id (restart behaviour)
     next_track, session, restart_at = 1, 0, world_t0 + RESTART_EVERY_S
     clock_offset_ns = {"clock_behind": -1, "clock_ahead": 1}.get(behaviour, 0) * int(CLOCK_OFFSET_S * 1e9)
-    outbox: list[tuple[float, str, list[int]]] = []  # late behaviour: (due, payload, seen)
+    outbox: list[tuple[float, str, list[int], float]] = []  # late behaviour: (due, payload, seen, sensed)
+    settles = world_t0 + CLOCK_SETTLE_S  # before, the daemon refuses its sightings as stale (behind, late)
     with TwinClient.connect([endpoint], prefix=prefix, timeout_s=30.0) as twin:
         period = 1.0 / args.rate
         due = time.time()
@@ -306,8 +314,8 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         if pair[0] in by_key and pair[1] in by_key:
                             seen_now.append(o.key)
                             o.seen_at = now
-                            if behaviour != "late":  # the late robot's, once its report arrives
-                                o.seen_by.add(f"{index}:{behaviour}")
+                            if behaviour != "late" and _counts(behaviour, now, settles):
+                                o.seen_by.setdefault(f"{index}:{behaviour}", now)  # late: on arrival
                                 if o.seen_since_change is None:
                                     o.seen_since_change = now
                             if pair not in blobbed:  # the blob once per observation
@@ -329,8 +337,8 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         tracks.pop(o.key, None)
                     last_seen[o.key] = now
                     o.seen_at = now
-                    if behaviour != "late":  # the late robot's, once its report arrives
-                        o.seen_by.add(f"{index}:{behaviour}")
+                    if behaviour != "late" and _counts(behaviour, now, settles):
+                        o.seen_by.setdefault(f"{index}:{behaviour}", now)  # late: on arrival
                         if o.seen_since_change is None:
                             o.seen_since_change = now
                     if behaviour == "restart":
@@ -362,14 +370,16 @@ def robot(  # noqa: PLR0917 (a thread's target)
             )
             payload = PREFIX + "\n".join(lines)
             if behaviour == "late":  # sensed now, arrives LATE_S later
-                outbox.append((now + LATE_S, payload, seen_now))
+                outbox.append((now + LATE_S, payload, seen_now, now))
                 if outbox[0][0] > time.time():
                     continue
-                _, payload, seen_now = outbox.pop(0)
+                _, payload, seen_now, sensed = outbox.pop(0)
                 with world.lock:
                     for k in seen_now:
                         o = world.objects[k]
-                        o.seen_by.add(f"{index}:{behaviour}")
+                        if sensed < o.changed_at or not _counts(behaviour, sensed, settles):
+                            continue  # it saw the object before its change (or before its clock settled)
+                        o.seen_by.setdefault(f"{index}:{behaviour}", time.time())
                         if o.seen_since_change is None:
                             o.seen_since_change = time.time()
             stats.sent += 1
@@ -405,6 +415,13 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         ev.first_sighting = sent
                     if changed:
                         ev.shown = acked
+
+
+def _counts(behaviour: str, sensed: float, settles: float) -> bool:
+    """Whether a robot's sighting sensed at ``sensed`` counts as seen (``seen_by``): a robot whose reports
+    look 1.5-2 s old (``clock_behind``, ``late``) has them refused as stale until the daemon's estimate
+    of its clock settles (``settles``: ``CLOCK_SETTLE_S`` after it starts)."""
+    return behaviour not in ("clock_behind", "late") or sensed >= settles
 
 
 def box_line(  # noqa: PLR0917
@@ -491,11 +508,16 @@ def sample(  # noqa: PLR0917
         and now - o.changed_at > GHOST_VIEWED_S
     )
     false_removals = 0  # elements gone although their object stands there, still, and no element has it
-    for iri, place in before.items():
+    for iri, place in before.items():  # (a cluster's box over pushed desks has both)
         if iri in elements:
             continue
         for o in present:
-            if math.dist((o.x, o.y), place) <= MATCH_M and now - o.changed_at > 3.0 and o.key not in per_obj:
+            if (
+                math.dist((o.x, o.y), place) <= MATCH_M
+                and now - o.changed_at > 3.0
+                and o.key not in per_obj
+                and o.key not in covered
+            ):
                 false_removals += 1
                 break
     before.clear()
@@ -505,6 +527,10 @@ def sample(  # noqa: PLR0917
             pending = ev.kind in ("move", "remove") and ev.detected is None and ev.at <= now
             if pending and not any(math.dist(ev.place, e) <= MATCH_M for e in elements.values()):
                 ev.detected = now
+            elif pending and ev.refilled is None:
+                back = (o for o in present if o.changed_at > ev.at)
+                if any(math.dist(ev.place, (o.x, o.y)) <= MATCH_M for o in back):
+                    ev.refilled = now
     grid, _, _ = client.get_map(storey, skill)
     truth = oracle.live_maps.skill_maps[(storey, skill)].data
     cells = int((grid.data != truth).sum()) if grid.data.shape == truth.shape else -1
@@ -518,7 +544,7 @@ def sample(  # noqa: PLR0917
     status = client.status()
     known = set(status.get("fusion", {}).get("detector_biases", {}))
     free_by_object = {o.key: n for o in settled if (n := false_free_cells(grid, o))}
-    unobservable = {k for k in free_by_object if _unobservable(world.objects[k], known)}
+    unobservable = {k for k in free_by_object if _unobservable(world.objects[k], known, now)}
     why = {}
     if verbose:  # what the twin says of the cells (the deciding rule, a dispute)
         for k in free_by_object:
@@ -549,6 +575,7 @@ def sample(  # noqa: PLR0917
     }
     return {
         "t": round(now - t0, 1),
+        "wall": round(now, 3),
         "elements": len(elements),
         "objects": len(present),
         "duplicates": duplicates,
@@ -566,11 +593,12 @@ def sample(  # noqa: PLR0917
     }
 
 
-def _unobservable(o: Obj, known_biases: set[str]) -> bool:
+def _unobservable(o: Obj, known_biases: set[str], now: float) -> bool:
     """Whether only ``bias`` robots whose bias the daemon does not know yet saw ``o`` since its last
-    change: a detector's offset is not observable from its own sightings, so nothing can place it right
-    (such cells are counted apart, ``false_free_unobservable``)."""
-    robots = [r.split(":", 1) for r in o.seen_by]
+    change (robots that first saw it less than ``SETTLE_S`` ago not counted: the sightings a short move
+    needs, the acks and the maps' coalescing): a detector's offset is not observable from its own
+    sightings, so nothing can place it right (such cells are counted apart, ``false_free_unobservable``)."""
+    robots = [r.split(":", 1) for r, first in o.seen_by.items() if now - first >= SETTLE_S]
     return bool(robots) and all(b == "bias" and f"robot{i}" not in known_biases for i, b in robots)
 
 
@@ -645,7 +673,7 @@ def pull_out(  # noqa: PLR0917
         if all(world.is_free(*p) for p in probe.corners()) and world.is_free(x, y) and not crowded:
             world.events.append(Event("pull", chair_key, now, (chair.x, chair.y), chair.corners()))
             chair.x, chair.y, chair.changed_at, chair.seen_since_change = x, y, now, None
-            chair.seen_by = set()
+            chair.seen_by = {}
             apply_truth(oracle, truth_box(chair, storey, elevation))
             return
 
@@ -674,7 +702,7 @@ def push_desk(  # noqa: PLR0917
             if all(world.is_free(*p) for p in b.corners()) and not crowded:
                 world.objects[b.key] = b
                 world.together[b.key] = a.key
-                a.changed_at, a.seen_since_change, a.seen_by = now, None, set()
+                a.changed_at, a.seen_since_change, a.seen_by = now, None, {}
                 world.events.append(Event("push", b.key, now, (x, y), b.corners()))
                 apply_truth(oracle, truth_box(b, storey, elevation))
                 return b.key, a.key
@@ -701,7 +729,7 @@ def push_apart(  # noqa: PLR0917
         b.present = False
         apply_truth(oracle, f"{PREFIX}<urn:truth:{b.key}> twin:removed true .".encode())
     for o in (a, b):
-        o.changed_at, o.seen_since_change, o.seen_by = now, None, set()
+        o.changed_at, o.seen_since_change, o.seen_by = now, None, {}
 
 
 def oracle_service(store: Path, work: Path) -> Any:
@@ -881,7 +909,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                             apply_truth(oracle, truth_box(o, storey, elevation))
                         o.changed_at = now
                         o.seen_since_change = None
-                        o.seen_by = set()
+                        o.seen_by = {}
                 if now >= next_sample and now < t_end:
                     samples.append(sample(client, world, storey, oracle, skill, t0, previous, args.verbose))
                     next_sample += 1.0
@@ -906,7 +934,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         oracle.store.close()
         shutil.rmtree(work, ignore_errors=True)
     removals = [e for e in world.events if e.kind in ("move", "remove")]
-    viewed = [e for e in removals if e.first_view is not None]
+    viewed = [e for e in removals if e.first_view is not None and not _refilled_in_time(e)]
     if args.verbose:
         for e in viewed:
             if e.detected is None or e.detected - (e.first_view or 0) > 10.0:
@@ -971,6 +999,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         else float("nan")
     )
     return result
+
+
+def _refilled_in_time(e: Event) -> bool:
+    """Whether an object stood at ``e``'s old place again before the element there was due to go (within
+    10 s of the first view of the place): the element is that object's, nothing to remove."""
+    return e.refilled is not None and (e.first_view is None or e.refilled - e.first_view <= 10.0)
 
 
 def _false_removals(samples: list[dict[str, Any]]) -> int:

@@ -8,7 +8,8 @@ report (for arrays of :data:`MIN_BOXES` reports or more). It decides exactly wha
 decide, and only when every report is a plain confirmation: a box of a held, candidate element, by its
 own IRI or an alias it fits, within the confirmation distance and angle of the held pose, at the held
 sizes, whose running mean (past ``refine_after``) stays within ``refine_fraction`` of it, and nothing
-else in the report (no class change, labels, zone marks); a box seen earlier than what the twin holds
+else in the report (no class change, labels, zone marks), of an element robots do not dispute
+(:mod:`twin.fusion.dispute`: each sighting takes a side); a box seen earlier than what the twin holds
 of the element (another robot's later sighting came first) is stale, noted as the per-report rules
 note it. Anything else (a move, a new element, a resize, a refinement to commit, two reports of one
 element) returns False with nothing done: the per-report rules decide the whole observation.
@@ -34,6 +35,7 @@ from twin.fusion.bias import note_sightings, unbiased
 from twin.fusion.clocks import last_known, stale_change
 from twin.fusion.confirm import box_of, only_sighting_where_it_stands, resizable
 from twin.fusion.context import report_pose
+from twin.fusion.dispute import still_covers
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
 from twin.fusion.gates import is_candidate
 from twin.fusion.memory import FusionMemory
@@ -90,6 +92,7 @@ def _boxes(ctx: FusionContext, reports: Sequence[ElementReport], senses: Sequenc
     """Every report as a held element's box (no side effect but the robot's bias, computed once), or
     None when one is anything else."""
     aliases, states, storeys, pending = ctx.memory.aliases, ctx.states, ctx.live.site.storeys, ctx.pending
+    tracks = ctx.memory.tracks
     out: list[_Box] = []
     targets: set[str] = set()
     for given, sense in zip(reports, senses, strict=True):
@@ -106,8 +109,10 @@ def _boxes(ctx: FusionContext, reports: Sequence[ElementReport], senses: Sequenc
         storey_key = r.storey or state.storey
         storey = storeys.get(storey_key or "")
         held = ctx.held_pose(target)
-        if storey is None or storey_key is None or held is None:
-            return None
+        track = tracks.get(target)
+        disputed = track is not None and held is not None and still_covers(track.dispute, held)
+        if storey is None or storey_key is None or held is None or disputed:
+            return None  # (disputed: robots disagree on where it stands, each sighting takes a side)
         raw = report_pose(r, storey.elevation_m)
         assert raw is not None
         pose = unbiased(ctx, raw)

@@ -6,10 +6,12 @@ Two robots whose detectors differ by 20 cm, one of them the only other witness, 
 until a third robot or the detector bias (:mod:`twin.fusion.bias`) settles it; whichever pose the twin
 held, the navigation map would show free floor where the object may stand. So a robot's box element
 **covers both poses** (:func:`widen`: one box around both footprints, in the held pose's frame) and each
-later sighting takes a side (:func:`covered`); once the robots whose latest sighting took one side
-outnumber those on the other (a third robot, or a biased robot corrected), the element is put at that
-side's pose, at its own sizes. A sighting far from both (beyond ``certain_move_m``) is a move. An
-element imported from IFC, or a robot's mesh, keeps its shape: its move is held as before.
+later sighting takes a side (:func:`covered`; a robot changes sides once ``move_sightings`` of its
+sightings in a row confirm the other pose: one noisy sighting nearer the other pose is no change of
+mind); once the robots that take one side outnumber those on the other (a third robot, or a biased
+robot corrected), the element is put at that side's pose, at its own sizes. A sighting far from both
+(beyond ``certain_move_m``) is a move. An element imported from IFC, or a robot's mesh, keeps its
+shape: its move is held as before.
 
 Example::
 
@@ -38,6 +40,7 @@ from twin.fusion.confirm import (
 from twin.fusion.effects import (
     confirmed_by,
     disputed_poses,
+    leans,
     moved,
     reset_refinement,
     size_evidence,
@@ -181,6 +184,15 @@ def covered(
         ctx.out.pending.append(target)
         ctx.decide(target, f"disputed: {ctx.robot}'s sighting confirms neither pose")
         return _unless_only_seen(ctx, r, state)
+    taken = dispute.sides.get(ctx.robot)
+    if taken is not None and taken[0] != side:
+        run = dispute.leaning.get(ctx.robot, 0) + 1
+        if run < ctx.rules.move_sightings:  # one sighting nearer the other pose: a detector's outlier
+            ctx.out.effects.append(leans(target, ctx.robot, run))
+            ctx.out.pending.append(target)
+            why = f"{ctx.robot} stays on side {taken[0]}; {run} of its sightings in a row confirm {side}"
+            ctx.decide(target, f"disputed: {why}")
+            return _unless_only_seen(ctx, r, state)
     sides = {**dispute.sides, ctx.robot: (side, sense)}
     counts = [sum(1 for s, _ in sides.values() if s == i) for i in (0, 1)]
     if counts[side] <= counts[1 - side]:

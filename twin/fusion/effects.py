@@ -206,12 +206,25 @@ def disputed_poses(iri: str, dispute: Dispute | None) -> Effect:
 
 
 def took_side(iri: str, robot: str, side: int, sense: int) -> Effect:
-    """``robot``'s latest sighting of a disputed element confirmed ``side``'s pose."""
+    """``robot``'s latest sighting of a disputed element confirmed ``side``'s pose, the side it takes."""
 
     def run(m: FusionMemory) -> None:
         d = m.track(iri).dispute
         if d is not None:
             d.sides[robot] = (side, sense)
+            d.leaning.pop(robot, None)
+
+    return run
+
+
+def leans(iri: str, robot: str, sightings: int) -> Effect:
+    """``robot``'s latest ``sightings`` in a row of a disputed element confirmed the side it does not
+    take (not yet enough to change sides)."""
+
+    def run(m: FusionMemory) -> None:
+        d = m.track(iri).dispute
+        if d is not None:
+            d.leaning[robot] = sightings
 
     return run
 

@@ -120,7 +120,10 @@ class Dispute:
     poses: tuple[Pose, Pose]
     """The held pose before the dispute (side 0) and the pose the robots behind the move saw (side 1)."""
     sides: dict[str, tuple[int, int]] = field(default_factory=dict)
-    """Robot -> (the side its latest sighting confirmed, that sighting's sense time)."""
+    """Robot -> (the side it takes, the sense time of its latest sighting that confirmed it)."""
+    leaning: dict[str, int] = field(default_factory=dict)
+    """Robot -> how many of its latest sightings in a row confirmed the other side (it changes sides
+    at ``move_sightings``: one sighting nearer the other pose is a detector's outlier)."""
 
 
 @dataclass(slots=True)
@@ -446,6 +449,7 @@ def _track_json(t: Track) -> dict[str, Any]:
         else {
             "poses": [_pose_json(p) for p in t.dispute.poses],
             "sides": {r: list(v) for r, v in t.dispute.sides.items()},
+            "leaning": dict(t.dispute.leaning),
         },
     }
 
@@ -474,7 +478,11 @@ def _dispute(v: Any) -> Dispute | None:
     if v is None:
         return None
     a, b = v["poses"]
-    return Dispute((_pose(a), _pose(b)), {r: (int(side), int(ns)) for r, (side, ns) in v["sides"].items()})
+    return Dispute(
+        (_pose(a), _pose(b)),
+        {r: (int(side), int(ns)) for r, (side, ns) in v["sides"].items()},
+        {r: int(n) for r, n in v.get("leaning", {}).items()},
+    )
 
 
 def memory_to_json(m: FusionMemory) -> dict[str, Any]:

@@ -59,6 +59,21 @@ def test_a_desk_two_robots_disagree_on_covers_both_poses_until_a_third_robot_tak
     assert service.revision == 3  # created, covered, settled
 
 
+def test_one_sighting_nearer_the_other_pose_does_not_change_a_robots_side_and_settle_the_dispute() -> None:
+    service, _ = started()
+    clock = FakeClock(service.clock())
+    with_clock(service, clock)
+    pass_by(service, clock, "robot1", DESK, 5.2)  # 20 cm off, the first to see it
+    pass_by(service, clock, "robot2", "urn:robot2:d", 5.0)  # one against one: it covers both poses
+    revision = service.revision
+    outlier = box("urn:robot2:d", 5.11, 2.0, sx=1.2, sy=0.6)  # robot2's noise: nearer robot1's pose
+    assert observe(service, "robot2", sensed(outlier, clock.now)).body["pending"] == [DESK]
+    clock.now += 200 * MS
+    pass_by(service, clock, "robot2", "urn:robot2:d", 5.0)
+    assert service.revision == revision  # not settled at robot1's pose, not covered again
+    assert cell(service, 4.43, 2.0) == 100 and cell(service, 5.77, 2.0) == 100  # still both
+
+
 def test_a_biased_robots_two_quick_sightings_right_after_a_creation_do_not_move_it_first() -> None:
     service, _ = started()
     clock = FakeClock(service.clock())
