@@ -33,10 +33,8 @@ from adapters.cli.common import (
 )
 from adapters.cli.log_outlet import THREAD_NAME as OUTLET_THREAD
 from adapters.cli.log_outlet import Outlet
-from adapters.cli.map_routes import ServedRoutes, serve_routes
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
-from adapters.cli.route_updates import RouteUpdates, routes_published
 from adapters.cli.serve_settings import ServeSettings
 from adapters.rerun.settings import RerunSettings
 from adapters.ros.sessions import resume_sessions
@@ -57,6 +55,8 @@ from twin.live.events import MapPublished, PointsPublished, TwinEvent, TwinStart
 from twin.live.snapshots import Snapshots, snapshot_path
 
 if TYPE_CHECKING:
+    from adapters.cli.map_routes import ServedRoutes
+    from adapters.cli.route_updates import RouteUpdates
     from adapters.rerun import RerunRecorder
 
 log = logging.getLogger(__name__)
@@ -347,7 +347,11 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
                 finally:
                     service.sinks.remove(progress)
             daemon.drain()  # every map is declared and sent before we say so
-            routes = serve_routes(session, cfg, store, service.live_maps.scene, prefix=keys.prefix)
+            if cfg.routes:  # here: the route builders (SciPy) load only for a site with routes skills
+                from adapters.cli.map_routes import serve_routes
+                from adapters.cli.route_updates import RouteUpdates, routes_published
+
+                routes = serve_routes(session, cfg, store, service.live_maps.scene, prefix=keys.prefix)
             if routes is not None:  # a structural change makes a new graph version
                 live = service
                 for name, graph in routes.graphs.items():  # drawn over the maps in the recording
