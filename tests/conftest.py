@@ -4,6 +4,8 @@ core's tests use the box lab (``tests/twin/box_lab.py``) and never import adapte
 
 from __future__ import annotations
 
+import json
+import math
 import os
 from collections.abc import Iterator
 from pathlib import Path
@@ -64,3 +66,53 @@ def sparql_server() -> Iterator[SparqlServer]:
     server = start_sparql_server()
     yield server
     server.stop()
+
+
+# The order of the test files: slowest first, from the times of a whole run in tests/durations.json, so
+# that the two workers of `pytest -n 2 --dist loadfile` (`make test`) finish together instead of one
+# running the last slow file alone. A file's tests stay together and in their order (module fixtures
+# are built once); files not in the record (new ones) come first. Refresh the record after a change in
+# the suite's shape: `pytest -n 2 --dist loadfile --record-durations tests/durations.json`.
+DURATIONS = Path(__file__).with_name("durations.json")
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--record-durations", type=Path, metavar="FILE",
+        help="write each test file's total time (setup, call, teardown) to FILE as JSON (the order of files)",
+    )  # fmt: skip
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    recorded: dict[str, float] = json.loads(DURATIONS.read_text()) if DURATIONS.exists() else {}
+    first: dict[str, int] = {}  # each file's place in the collection: ties keep it
+    for i, item in enumerate(items):
+        first.setdefault(item.nodeid.split("::")[0], i)
+
+    def key(item: pytest.Item) -> tuple[float, int]:
+        path = item.nodeid.split("::")[0]
+        return (-recorded.get(path, math.inf), first[path])
+
+    items.sort(key=key)  # stable: a file's tests keep their order
+
+
+class _FileTimes:
+    """Sums each test file's setup, call and teardown times (on the controller: every worker reports)."""
+
+    def __init__(self, out: Path) -> None:
+        self.out = out
+        self.seconds: dict[str, float] = {}
+
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        path = report.nodeid.split("::")[0]
+        self.seconds[path] = self.seconds.get(path, 0.0) + report.duration
+
+    def pytest_sessionfinish(self) -> None:
+        ranked = dict(sorted(((p, round(s, 1)) for p, s in self.seconds.items()), key=lambda kv: -kv[1]))
+        self.out.write_text(json.dumps(ranked, indent=1) + "\n")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    out = config.getoption("--record-durations")
+    if out is not None and not hasattr(config, "workerinput"):  # the controller, or a run without xdist
+        config.pluginmanager.register(_FileTimes(out), "file-times")
