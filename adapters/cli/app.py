@@ -40,7 +40,11 @@ COMMAND_MODULES: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 """The modules of ``adapters.cli`` that add their own commands' parsers (``add_parser`` or
 ``add_parsers``), in ``twin --help``'s order, with the commands each adds. A command named here builds
-only its module's parsers; any other name (or none, or ``--help``) builds them all."""
+only its module's parsers, one of :data:`OWN_COMMANDS` none of them; any other name (or none, or
+``--help``) builds them all."""
+
+OWN_COMMANDS = ("import", "stats", "export", "backup", "query", "sample", "map")
+"""The commands whose parsers :func:`build_parser` adds itself (their modules load when they run)."""
 
 
 def _lazy(module: str, name: str) -> Callable[[argparse.Namespace, Config], int]:
@@ -183,14 +187,15 @@ def _hint(err: TwinError, args: argparse.Namespace) -> str:
 
 
 def command_of(argv: Sequence[str]) -> str | None:
-    """The command ``argv`` runs when it is one of :data:`COMMAND_MODULES`'; None when anything before
-    it is not a global option spelled out (``-h``, ``--version``, an abbreviation): every parser then."""
+    """The command ``argv`` runs when it is a known one (:data:`OWN_COMMANDS`, :data:`COMMAND_MODULES`);
+    None when anything before it is not a global option spelled out (``-h``, ``--version``, an
+    abbreviation): every parser then."""
     words = iter(argv)
     for word in words:
         if word == "--config":
             next(words, None)
         elif not (word.startswith("--config=") or word == "--verbose" or re.fullmatch(r"-v+", word)):
-            known = {name for _, names in COMMAND_MODULES for name in names}
+            known = {*OWN_COMMANDS, *(name for _, names in COMMAND_MODULES for name in names)}
             return word if word in known else None
     return None
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from adapters.cli.app import COMMAND_MODULES, build_parser, command_of
+from adapters.cli.app import COMMAND_MODULES, OWN_COMMANDS, build_parser, command_of
 from adapters.cli.reference import subcommands
 
 
@@ -20,8 +20,12 @@ def test_each_command_parses_alike_when_only_its_module_builds_its_parser() -> N
             for path, text in alone.items():
                 assert text == full[path], (module, path)
     # every command a module adds is named there (one that is not would still run, by every parser)
-    added = {path[0] for path in full} - {"import", "stats", "export", "backup", "query", "sample", "map"}
-    assert added == named
+    added = {path[0] for path in full} - set(OWN_COMMANDS)
+    assert added == named and set(OWN_COMMANDS) <= {path[0] for path in full}
+    for name in OWN_COMMANDS:
+        alone = {path: p.format_help() for path, p, _ in subcommands(build_parser(name))}
+        assert set(alone) == {path for path in full if path[0] in OWN_COMMANDS}, name
+        assert all(text == full[path] for path, text in alone.items()), name
     argv = ["--config", "x.toml", "observe", "--robot", "r1", "--box", "1,2,0,1,1,1,0", "-v"]
     assert vars(build_parser("observe").parse_args(argv)) == vars(build_parser().parse_args(argv))
 
@@ -33,7 +37,7 @@ def test_command_of_names_a_command_only_after_global_options_spelled_out() -> N
     assert command_of(["--config", "serve", "status"]) == "status"  # serve is the file's name here
     assert command_of(["-h", "serve"]) is None
     assert command_of(["--conf", "x.toml", "serve"]) is None  # an abbreviation: argparse decides
-    assert command_of(["import", "lab.ifc"]) is None  # app.py's own parsers import nothing heavy
+    assert command_of(["import", "lab.ifc"]) == "import"  # app.py's own: no module's parsers
     assert command_of(["nosuch"]) is None
     assert command_of([]) is None
 
