@@ -44,7 +44,6 @@ from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.points import ZenohPoints
-from adapters.zenoh.ros_ingest import RosIngest
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.ros_points import RosPointsPublisher
 from adapters.zenoh.session import session_config
@@ -58,6 +57,7 @@ if TYPE_CHECKING:
     from adapters.cli.map_routes import ServedRoutes
     from adapters.cli.route_updates import RouteUpdates
     from adapters.rerun import RerunRecorder
+    from adapters.zenoh.ros_ingest import RosIngest
 
 log = logging.getLogger(__name__)
 
@@ -314,6 +314,8 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
             if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
                 ros = RosMapPublisher.following(daemon, cfg)  # on the dispatcher, a lane per robot
             if cfg.sources or any(r.detections is not None for r in ros_robots(cfg).values()):
+                from adapters.zenoh.ros_ingest import RosIngest  # here: a site with no ROS input loads none
+
                 storey_of = ros.storey_of if ros is not None else (lambda _robot: None)
                 sessions = resume_sessions(service.store.select, cfg.robots)  # a restart starts none
                 ingest = RosIngest(  # the obstacles of a previous run from the graph, on TwinStarted
