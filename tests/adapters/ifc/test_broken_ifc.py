@@ -443,7 +443,10 @@ def mutate(data: bytes, edits: list[tuple[str, int, int, bytes]]) -> bytes:
 @pytest.fixture(scope="module")
 def lab_bytes(lab_text: str) -> bytes:
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["adapters.cli.app"])
+    # the CLI and what `twin import` runs (the CLI imports a command's module when it runs)
+    ctx.set_forkserver_preload(
+        ["adapters.cli.app", "adapters.cli.config_cmd", "adapters.cli.model_cmds", "adapters.cli.import_file"]
+    )
     return lab_text.encode()
 
 
