@@ -20,7 +20,7 @@ demo: $(STAMP)
 	@echo "The 'twin' command is in $(BIN)/: activate the venv ('. $(BIN)/activate') or run '$(BIN)/twin --help'."
 	@echo "Next: the five-minute tour in README.md; the documentation: 'make docs', then open site/index.html."
 
-## test: install, then run the whole test suite on both cores (what CI runs; about 8.5 min on 2 cores);
+## test: install, then run the whole test suite on both cores (what CI runs; about 7.5 min on 2 cores);
 ## each test file runs whole on one worker, slowest files first (tests/durations.json)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
