@@ -6,6 +6,9 @@ import argparse
 import re
 from pathlib import Path
 
+from adapters.cli.args import SITE_HELP as SITE_HELP  # noqa: PLC0414 (re-exported for the commands)
+from adapters.cli.args import add_client_args as add_client_args  # noqa: PLC0414
+from adapters.cli.args import add_store_args as add_store_args  # noqa: PLC0414
 from adapters.sparql.remote_store import RemoteStore
 from adapters.sparql.settings import RemoteStoreSettings, remote_store_settings
 from adapters.zenoh.client import TwinClient
@@ -89,17 +92,6 @@ def open_store(
     return EmbeddedStore.open(store_path_of(args, cfg), read_only=read_only, create=create)
 
 
-def add_store_args(sp: argparse.ArgumentParser) -> None:
-    """``--store DIR`` or ``--store-url URL``: the embedded store or a SPARQL 1.1 server."""
-    group = sp.add_mutually_exclusive_group()
-    group.add_argument("--store", help="store directory (default: store.path of the configuration)")
-    group.add_argument(
-        "--store-url",
-        metavar="URL",
-        help="a SPARQL 1.1 server holding the graph instead, e.g. http://127.0.0.1:7878 (oxigraph serve)",
-    )
-
-
 _SITE_CHARS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
 
 
@@ -113,29 +105,11 @@ def stored_site(store: GraphStore) -> str | None:
     return site if ok else None
 
 
-SITE_HELP = "site name (key prefix twin/<site>; default: site.name if set, else the one daemon running)"
-
-
 def client_prefix(args: argparse.Namespace, cfg: Config) -> str | None:
     """The key prefix a client command talks to: of ``--site`` or of a configured ``site.name``;
     None (no site given): the client talks to the one daemon alive, whatever its site."""
     site = getattr(args, "site", None)
     return key_prefix(cfg, site) if site or cfg.site_set else None
-
-
-def add_client_args(sp: argparse.ArgumentParser) -> None:
-    """What every command that talks to a running daemon takes: where, which site, how long, how."""
-    sp.add_argument(
-        "--connect",
-        action="append",
-        metavar="ENDPOINT",
-        help="the daemon or a router (repeatable; default: zenoh.connect, else zenoh.listen)",
-    )
-    sp.add_argument("--site", help=SITE_HELP)
-    sp.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the daemon (default 10)")
-    sp.add_argument(
-        "--mode", choices=["peer", "client"], help="the Zenoh session's mode (default: zenoh.mode, peer)"
-    )
 
 
 def client_endpoints(args: argparse.Namespace, cfg: Config) -> list[str]:

@@ -22,7 +22,6 @@ from adapters.cli.common import (
 from adapters.cli.progress import progress_bar
 from twin.config import Config
 from twin.errors import ModelError, QueryError, StoreError
-from twin.live.snapshots import snapshot_path
 
 
 # --- commands ---------------------------------------------------------------------------------------
@@ -73,6 +72,8 @@ def cmd_import(args: argparse.Namespace, cfg: Config) -> int:
             shutil.rmtree(store_path_of(args, cfg), ignore_errors=True)
         raise
     if remote_store_of(args, cfg) is None:  # the daemon's derived state is of the store's old contents
+        from twin.live.snapshots import snapshot_path  # here: stats, query, ... load no live twin
+
         snapshot_path(store_path_of(args, cfg)).unlink(missing_ok=True)
     seconds = time.perf_counter() - t0
     print(

@@ -1,7 +1,8 @@
 """Progress on the terminal (rich), for long work such as meshing a large model or building maps.
 
 On a terminal, a bar; when stderr is not a terminal (CI, pipes, a log file), one line as the phase
-starts and one as it ends, so that a log shows what the command was doing without a bar's redraws.
+starts and one as it ends, so that a log shows what the command was doing without a bar's redraws
+(and without importing the bar: 0.15 s of a daemon's start).
 
 Example::
 
@@ -16,7 +17,6 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
 Advance = Callable[[int, int], None]
 
@@ -30,6 +30,8 @@ def progress_bar(label: str, *, unit: str = "", console: Console | None = None) 
         with _progress_lines(label, unit, console) as advance:
             yield advance
         return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
     columns = (
         TextColumn("{task.description}"),
         BarColumn(),

@@ -33,10 +33,8 @@ from adapters.cli.common import (
 )
 from adapters.cli.log_outlet import THREAD_NAME as OUTLET_THREAD
 from adapters.cli.log_outlet import Outlet
-from adapters.cli.map_routes import ServedRoutes, serve_routes
 from adapters.cli.memory import fix_heap_thresholds, free_memory_releaser
 from adapters.cli.progress import Advance, progress_bar
-from adapters.cli.route_updates import RouteUpdates, routes_published
 from adapters.cli.serve_settings import ServeSettings
 from adapters.rerun.settings import RerunSettings
 from adapters.ros.sessions import resume_sessions
@@ -46,7 +44,6 @@ from adapters.zenoh.daemon import ZenohDaemon
 from adapters.zenoh.errors import TransportError
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.points import ZenohPoints
-from adapters.zenoh.ros_ingest import RosIngest
 from adapters.zenoh.ros_maps import RosMapPublisher
 from adapters.zenoh.ros_points import RosPointsPublisher
 from adapters.zenoh.session import session_config
@@ -57,7 +54,10 @@ from twin.live.events import MapPublished, PointsPublished, TwinEvent, TwinStart
 from twin.live.snapshots import Snapshots, snapshot_path
 
 if TYPE_CHECKING:
+    from adapters.cli.map_routes import ServedRoutes
+    from adapters.cli.route_updates import RouteUpdates
     from adapters.rerun import RerunRecorder
+    from adapters.zenoh.ros_ingest import RosIngest
 
 log = logging.getLogger(__name__)
 
@@ -314,6 +314,8 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
             if cfg.robots:  # ROS 2 map topics, and every robot's storey (robots/<name>/storey)
                 ros = RosMapPublisher.following(daemon, cfg)  # on the dispatcher, a lane per robot
             if cfg.sources or any(r.detections is not None for r in ros_robots(cfg).values()):
+                from adapters.zenoh.ros_ingest import RosIngest  # here: a site with no ROS input loads none
+
                 storey_of = ros.storey_of if ros is not None else (lambda _robot: None)
                 sessions = resume_sessions(service.store.select, cfg.robots)  # a restart starts none
                 ingest = RosIngest(  # the obstacles of a previous run from the graph, on TwinStarted
@@ -347,7 +349,11 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
                 finally:
                     service.sinks.remove(progress)
             daemon.drain()  # every map is declared and sent before we say so
-            routes = serve_routes(session, cfg, store, service.live_maps.scene, prefix=keys.prefix)
+            if cfg.routes:  # here: the route builders (SciPy) load only for a site with routes skills
+                from adapters.cli.map_routes import serve_routes
+                from adapters.cli.route_updates import RouteUpdates, routes_published
+
+                routes = serve_routes(session, cfg, store, service.live_maps.scene, prefix=keys.prefix)
             if routes is not None:  # a structural change makes a new graph version
                 live = service
                 for name, graph in routes.graphs.items():  # drawn over the maps in the recording

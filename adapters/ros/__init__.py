@@ -7,7 +7,8 @@ and decodes the messages on ``/map`` and ``/map_updates``; :mod:`~adapters.ros.m
 reads nav2's YAML + PGM pair; :mod:`~adapters.ros.png` writes a grayscale preview; and
 :mod:`~adapters.ros.files` writes all of them for one map. Everything is re-exported here.
 :mod:`~adapters.ros.settings` holds the configuration's ROS 2 keys (``[ros]``, a robot's namespace,
-topics and detections, a source's topic); it is not re-exported.
+topics and detections, a source's topic); it is not re-exported. The re-exports are imported when
+first used: the settings, which every ``twin`` command loads, need neither NumPy nor the encoders.
 
 Example::
 
@@ -19,28 +20,32 @@ Example::
 
 from __future__ import annotations
 
-from adapters.ros.cdr import OCCUPANCY_GRID as OCCUPANCY_GRID
-from adapters.ros.cdr import OCCUPANCY_GRID_UPDATE as OCCUPANCY_GRID_UPDATE
-from adapters.ros.cdr import (
-    apply_update,
-    decode_occupancy_grid,
-    decode_occupancy_grid_update,
-    encode_occupancy_grid,
-    encode_occupancy_grid_update,
-    encode_update_cells,
-)
-from adapters.ros.files import MapFiles, write_map_files
-from adapters.ros.map_server import (
-    FREE_PIXEL,
-    FREE_THRESH,
-    OCCUPIED_PIXEL,
-    OCCUPIED_THRESH,
-    UNKNOWN_PIXEL,
-    MapServerFiles,
-    read_map_server,
-    write_map_server,
-)
-from adapters.ros.png import write_png_preview
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from adapters.ros.cdr import OCCUPANCY_GRID as OCCUPANCY_GRID
+    from adapters.ros.cdr import OCCUPANCY_GRID_UPDATE as OCCUPANCY_GRID_UPDATE
+    from adapters.ros.cdr import (
+        apply_update,
+        decode_occupancy_grid,
+        decode_occupancy_grid_update,
+        encode_occupancy_grid,
+        encode_occupancy_grid_update,
+        encode_update_cells,
+    )
+    from adapters.ros.files import MapFiles, write_map_files
+    from adapters.ros.map_server import (
+        FREE_PIXEL,
+        FREE_THRESH,
+        OCCUPIED_PIXEL,
+        OCCUPIED_THRESH,
+        UNKNOWN_PIXEL,
+        MapServerFiles,
+        read_map_server,
+        write_map_server,
+    )
+    from adapters.ros.png import write_png_preview
 
 __all__ = [
     "FREE_PIXEL",
@@ -61,3 +66,33 @@ __all__ = [
     "write_map_server",
     "write_png_preview",
 ]
+
+_MODULES = {
+    "OCCUPANCY_GRID": "cdr",
+    "OCCUPANCY_GRID_UPDATE": "cdr",
+    "apply_update": "cdr",
+    "decode_occupancy_grid": "cdr",
+    "decode_occupancy_grid_update": "cdr",
+    "encode_occupancy_grid": "cdr",
+    "encode_occupancy_grid_update": "cdr",
+    "encode_update_cells": "cdr",
+    "MapFiles": "files",
+    "write_map_files": "files",
+    "FREE_PIXEL": "map_server",
+    "FREE_THRESH": "map_server",
+    "OCCUPIED_PIXEL": "map_server",
+    "OCCUPIED_THRESH": "map_server",
+    "UNKNOWN_PIXEL": "map_server",
+    "MapServerFiles": "map_server",
+    "read_map_server": "map_server",
+    "write_map_server": "map_server",
+    "write_png_preview": "png",
+}
+"""Each re-exported name and the module of this package that defines it."""
+
+
+def __getattr__(name: str) -> Any:
+    if name in _MODULES:
+        return getattr(importlib.import_module(f"adapters.ros.{_MODULES[name]}"), name)
+    msg = f"module 'adapters.ros' has no attribute {name!r}"
+    raise AttributeError(msg)

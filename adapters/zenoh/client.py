@@ -20,22 +20,23 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any, Self
+from typing import TYPE_CHECKING, Any, Self
 
-import numpy as np
-import numpy.typing as npt
-import rdflib
 import zenoh
 
-from adapters.ros import apply_update, decode_occupancy_grid, decode_occupancy_grid_update
-from adapters.ros.pcd import decode_point_cloud2
 from adapters.zenoh.errors import DaemonTimeoutError, RemoteError, TransportError
 from adapters.zenoh.keys import SiteKeys
 from adapters.zenoh.latched import LatchedSubscription
 from adapters.zenoh.probe import explain_unreachable, probe
 from adapters.zenoh.session import client_config
 from adapters.zenoh.settings import ZenohMode, ZenohSettings
-from twin.maps.grid import OccupancyGrid
+
+if TYPE_CHECKING:  # the decoders (NumPy) and rdflib are imported by what uses them: 'twin observe' does not
+    import numpy as np
+    import numpy.typing as npt
+    import rdflib
+
+    from twin.maps.grid import OccupancyGrid
 
 log = logging.getLogger(__name__)
 
@@ -88,6 +89,8 @@ class MapWatcher:
         skill: str,
         on_version: Callable[[MapVersion], None] | None,
     ) -> None:
+        import adapters.ros.cdr  # noqa: PLC0415 F401 (here, not in a callback thread: they import it too)
+
         self.storey, self.skill = storey, skill
         self.on_version = on_version
         self.latest: MapVersion | None = None
@@ -131,11 +134,15 @@ class MapWatcher:
         latest = self.latest
         if latest is not None and 0 <= version <= latest.version:
             return  # an older or repeated full map: the copy is newer
+        from adapters.ros.cdr import decode_occupancy_grid  # noqa: PLC0415 (NumPy: a map watcher's)
+
         grid, _ = decode_occupancy_grid(sample.payload.to_bytes(), storey=self.storey, skill=self.skill)
         self._accept(MapVersion(grid, revision, version, "map"))
         self._drain()
 
     def _on_update(self, sample: zenoh.Sample) -> None:
+        from adapters.ros.cdr import decode_occupancy_grid_update  # noqa: PLC0415 (NumPy: a map watcher's)
+
         revision, version = _meta(sample)
         window, cells, _ = decode_occupancy_grid_update(sample.payload.to_bytes())
         with self._cond:
@@ -143,6 +150,8 @@ class MapWatcher:
         self._drain()
 
     def _drain(self) -> None:
+        from adapters.ros.cdr import apply_update  # noqa: PLC0415 (NumPy: a map watcher's)
+
         while True:
             with self._cond:
                 base = self.latest
@@ -496,6 +505,8 @@ class TwinClient:
 
     def get_map(self, storey: str, skill: str) -> tuple[OccupancyGrid, int, int]:
         """The current map: ``(grid, revision, version)``."""
+        from adapters.ros.cdr import decode_occupancy_grid  # noqa: PLC0415 (NumPy: a map watcher's)
+
         sample = self._get(self.keys.map(storey, skill), what=f"the map {storey}/{skill}")[0]
         grid, _ = decode_occupancy_grid(sample.payload.to_bytes(), storey=storey, skill=skill)
         revision, version = _meta(sample)
@@ -514,6 +525,8 @@ class TwinClient:
                 "built after start (subscribe to the key instead: it is latched)."
             )
             raise DaemonTimeoutError(msg) from None
+        from adapters.ros.pcd import decode_point_cloud2  # noqa: PLC0415 (NumPy: a map watcher's)
+
         xyz, _, _ = decode_point_cloud2(sample.payload.to_bytes())
         revision, version = _meta(sample)
         return xyz, revision, version
@@ -552,6 +565,8 @@ class TwinClient:
         sample = self._get(self.keys.sparql, query.encode(), what="the SPARQL query")[0]
         body = sample.payload.to_bytes()
         if str(sample.encoding).startswith("text/turtle"):
+            import rdflib  # noqa: PLC0415 (rarely used, 0.2 s to import)
+
             graph = rdflib.Graph()
             graph.parse(data=body, format="turtle")
             return graph

@@ -125,8 +125,9 @@ def start_daemon(store: Path | None, *extra: str, config: Path | None = None, sc
     raise AssertionError("the daemon did not start:\n" + "\n".join(log))
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def lab_store_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The lab imported once per worker: tests read it or copy it (``fresh_store``), never change it."""
     root = tmp_path_factory.mktemp("live")
     assert twin("sample", "lab", root / "lab.ifc", "--storeys", "2").returncode == 0
     r = twin("import", root / "lab.ifc", "--store", root / "store")

@@ -42,9 +42,11 @@ def _daemon(store: Path, tmp_path: Path, name: str) -> Daemon:
     return start_daemon(copy, "--no-record")
 
 
-@pytest.fixture
-def wing(wing_store_dir: Path, tmp_path: Path) -> Iterator[Daemon]:
-    d = _daemon(wing_store_dir, tmp_path, "wing")
+@pytest.fixture(scope="module")
+def wing(wing_store_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Daemon]:
+    """One daemon for the module: its tests read its log and status, and its one observation's table
+    does not matter to the others."""
+    d = _daemon(wing_store_dir, tmp_path_factory.mktemp("wing"), "wing")
     yield d
     d.stop_cleanly()
 

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import networkx as nx
+if TYPE_CHECKING:
+    import networkx as nx
 
 __all__ = ["DoorCrossing", "Lift", "RouteGraph", "RouteLane", "RouteVertex", "StoreyRoutes"]
 
@@ -120,6 +121,8 @@ class RouteGraph:
         nodes ``(storey, index)`` with ``x``, ``y``; a two-way lane as an edge each way, a one-way
         lane as one edge its way, each weighted by its length; lift hops both ways, weighted 0.
         ``g.to_undirected()`` gives the lanes without their direction."""
+        import networkx as nx  # noqa: PLC0415 (the daemon's events hold route graphs, few walk them)
+
         g = nx.DiGraph()
         for s in self.storeys:
             for i, v in enumerate(s.vertices):

@@ -340,31 +340,53 @@ CASES: dict[str, tuple[Make, str, str]] = {
 }
 
 
+@dataclass(frozen=True, slots=True)
+class CaseRun:
+    ifc: Path
+    outcome: Outcome
+    store_left: bool  # whether the import left a store behind
+
+
+@pytest.fixture(scope="module")
+def case_run(lab_text: str, tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], CaseRun]:
+    """``twin import`` of a case's broken file, run once per module: the tests below check the same
+    import for different things (each import meshes in children: seconds)."""
+    runs: dict[str, CaseRun] = {}
+
+    def run(case: str) -> CaseRun:
+        if case not in runs:
+            root = tmp_path_factory.mktemp("case")
+            ifc = root / "broken.ifc"
+            ifc.write_bytes(CASES[case][0](lab_text))
+            outcome = import_by_command(ifc, root / "store")
+            runs[case] = CaseRun(ifc, outcome, (root / "store").exists())
+        return runs[case]
+
+    return run
+
+
 @pytest.mark.parametrize("case", list(CASES))
 def test_a_broken_file_gives_a_clear_error_or_warnings_naming_the_element(
-    case: str, lab_text: str, tmp_path: Path
+    case: str, case_run: Callable[[str], CaseRun]
 ) -> None:
-    make, kind, said = CASES[case]
-    ifc = tmp_path / "broken.ifc"
-    ifc.write_bytes(make(lab_text))
-    outcome = import_by_command(ifc, tmp_path / "store")
-    assert_clear_outcome(outcome, ifc)
+    _, kind, said = CASES[case]
+    ran = case_run(case)
+    outcome = ran.outcome
+    assert_clear_outcome(outcome, ran.ifc)
     assert outcome.code == (1 if kind == "error" else 0), outcome.stderr
     assert re.search(said, outcome.stderr), outcome.stderr
-    assert (tmp_path / "store").exists() == (kind != "error")  # a failed import leaves no store behind
+    assert ran.store_left == (kind != "error")  # a failed import leaves no store behind
 
 
 @pytest.mark.parametrize("case", [c for c in CASES if "cycle" in c or "its own operand" in c])
 def test_a_reference_cycle_is_one_error_without_warnings_from_the_children_it_stops(
-    case: str, lab_text: str, tmp_path: Path
+    case: str, case_run: Callable[[str], CaseRun]
 ) -> None:
     """The cycle check runs while the kernel children mesh; the children it kills are not reported as
     kernels that crashed."""
-    make, kind, said = CASES[case]
+    _, kind, said = CASES[case]
     assert kind == "error"
-    ifc = tmp_path / "cycle.ifc"
-    ifc.write_bytes(make(lab_text))
-    outcome = import_by_command(ifc, tmp_path / "store")
+    outcome = case_run(case).outcome
     assert outcome.code == 1 and re.search(said, outcome.stderr), outcome.stderr
     assert "crashed" not in outcome.stderr and "failed" not in outcome.stderr, outcome.stderr
 
@@ -421,7 +443,10 @@ def mutate(data: bytes, edits: list[tuple[str, int, int, bytes]]) -> bytes:
 @pytest.fixture(scope="module")
 def lab_bytes(lab_text: str) -> bytes:
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["adapters.cli.app"])
+    # the CLI and what `twin import` runs (the CLI imports a command's module when it runs)
+    ctx.set_forkserver_preload(
+        ["adapters.cli.app", "adapters.cli.config_cmd", "adapters.cli.model_cmds", "adapters.cli.import_file"]
+    )
     return lab_text.encode()
 
 
