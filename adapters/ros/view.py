@@ -178,13 +178,38 @@ def _covered_bearings(cam: Camera, band: tuple[float, float], angles: FloatArray
     return np.asarray(hit[fine])
 
 
+def _with_bearings(angles: FloatArray, bearings: FloatArray) -> FloatArray:
+    """The evenly spaced rays ``angles`` with a ray at each of ``bearings`` too, sorted: the nearest ray
+    moved onto one within a quarter of the spacing, else one added (the rays stay an eighth of the
+    spacing apart: of two bearings closer than that, the first)."""
+    if len(bearings) == 0:
+        return angles
+    step = 2 * math.pi / len(angles)
+    bearings = np.sort(bearings)
+    bearings = bearings[np.diff(bearings, prepend=-np.inf) > step / 8]
+    if len(bearings) > 1 and bearings[0] + 2 * math.pi - bearings[-1] <= step / 8:
+        bearings = bearings[:-1]
+    out = angles.copy()
+    added: list[float] = []
+    moved: set[int] = set()
+    for b in bearings.tolist():
+        i = round(b / step) % len(angles)
+        if abs((b - angles[i] + math.pi) % (2 * math.pi) - math.pi) < step / 4 and i not in moved:
+            out[i] = b
+            moved.add(i)
+        else:
+            added.append(b)
+    return np.sort(np.concatenate([out, added]) % (2 * math.pi))
+
+
 def _wedge_bearings(cam: Camera, band: tuple[float, float]) -> FloatArray:
     """The bearings (from the sensor's xy, in ``[0, 2 pi)``) that bound the blind wedge of a camera whose
     horizontal field of view lies between 180° and 360°: ``|atan2(b, a)| > hfov / 2`` is the meet of
     two half-spaces whose planes hold the sensor, so at each height of ``band`` its floor section is
     a wedge of two half-planes, its apex off the sensor's xy when the camera tilts. A ray at the
     bearing of each apex and of each edge's two directions leaves, between two neighbouring rays,
-    one straight stretch of each wedge's boundary: the chord between them stays outside it."""
+    one straight stretch of each wedge's boundary: the chord between them stays outside it (an apex at
+    the sensor's xy: a ray inside the wedge instead, its edges being rays from the sensor)."""
     if not math.pi <= cam.hfov_rad < 2 * math.pi - 1e-9:
         return np.zeros(0)
     h = cam.hfov_rad / 2
@@ -203,6 +228,9 @@ def _wedge_bearings(cam: Camera, band: tuple[float, float]) -> FloatArray:
             wy = (g[0, 0] * k[1] - g[1, 0] * k[0]) / det
             if math.hypot(wx, wy) > 1e-9:
                 bearings.append(math.atan2(wy, wx))
+            else:  # the apex at the sensor's xy: a ray inside the wedge, lest two on its edges span it
+                n1, n2 = g[0, :2] / math.hypot(*g[0, :2]), g[1, :2] / math.hypot(*g[1, :2])
+                bearings.append(math.atan2(n1[1] + n2[1], n1[0] + n2[0]))
     return np.mod(np.asarray(bearings, dtype=np.float64), 2 * math.pi)
 
 
@@ -421,13 +449,8 @@ def _march(
     angles_all = 2 * math.pi * np.arange(count) / count
     pinhole = cam.hfov_rad < math.pi
     if not pinhole:  # rays also at the bounds of the blind wedge (none for a pinhole camera: exact rays)
-        extra = _wedge_bearings(cam, band_m)
-        gap = np.abs((extra[:, None] - angles_all[None, :] + math.pi) % (2 * math.pi) - math.pi).min(axis=1)
-        extra = np.sort(extra[gap > 1e-6])  # none within a µrad of a ray (10 µm at 10 m) or of another
-        extra = extra[np.diff(extra, prepend=-np.inf) > 1e-6]
-        if len(extra):
-            angles_all = np.sort(np.concatenate([angles_all, extra]))
-            count = len(angles_all)
+        angles_all = _with_bearings(angles_all, _wedge_bearings(cam, band_m))
+        count = len(angles_all)
     step = res / 2
     near0 = max(res, 0.05)  # a ray's floor never starts closer than one cell (the sensor's own cell)
     if pinhole:
