@@ -178,21 +178,24 @@ def _covered_bearings(cam: Camera, band: tuple[float, float], angles: FloatArray
     return np.asarray(hit[fine])
 
 
+MIN_RAY_GAP_RAD = 1e-3
+"""Rays added at given bearings stay this far apart (the finest even spacing is 1.5 mrad): of two
+closer ones, the first (1 cm at 10 m; nearer, the points' 0.1 mm on the wire would fold a ring)."""
+
+
 def _with_bearings(angles: FloatArray, bearings: FloatArray) -> FloatArray:
-    """The evenly spaced rays ``angles`` with a ray at each of ``bearings`` too, sorted: the nearest ray
-    moved onto one within a quarter of the spacing, else one added (the rays stay an eighth of the
-    spacing apart: of two bearings closer than that, the first)."""
-    if len(bearings) == 0:
-        return angles
+    """The evenly spaced rays ``angles`` with a ray at each of ``bearings`` too (in their order, of two
+    closer than :data:`MIN_RAY_GAP_RAD` the first), sorted: the nearest ray moved onto one within a
+    quarter of the spacing, else one added."""
     step = 2 * math.pi / len(angles)
-    bearings = np.sort(bearings)
-    bearings = bearings[np.diff(bearings, prepend=-np.inf) > step / 8]
-    if len(bearings) > 1 and bearings[0] + 2 * math.pi - bearings[-1] <= step / 8:
-        bearings = bearings[:-1]
     out = angles.copy()
+    kept: list[float] = []
     added: list[float] = []
     moved: set[int] = set()
     for b in bearings.tolist():
+        if any(abs((b - k + math.pi) % (2 * math.pi) - math.pi) < MIN_RAY_GAP_RAD for k in kept):
+            continue
+        kept.append(b)
         i = round(b / step) % len(angles)
         if abs((b - angles[i] + math.pi) % (2 * math.pi) - math.pi) < step / 4 and i not in moved:
             out[i] = b
@@ -216,10 +219,11 @@ def _wedge_bearings(cam: Camera, band: tuple[float, float]) -> FloatArray:
     f, r = np.asarray(cam.forward), np.asarray(cam.right)
     # blind: u1 > 0 and u2 > 0, u_k = g_k . (x - px, y - py) + k_k (z - pz)
     g = np.stack([-math.sin(h) * f + math.cos(h) * r, -math.sin(h) * f - math.cos(h) * r])
-    bearings: list[float] = []
+    bearings: list[float] = []  # the rays inside a wedge whose apex is at the sensor's xy first
+    edges: list[float] = []
     for gx, gy, _ in g:
         if math.hypot(gx, gy) > 1e-12:  # the edge's line, both ways along it
-            bearings += [math.atan2(gx, -gy), math.atan2(-gx, gy)]
+            edges += [math.atan2(gx, -gy), math.atan2(-gx, gy)]
     det = float(g[0, 0] * g[1, 1] - g[0, 1] * g[1, 0])
     if abs(det) > 1e-12:
         for z in band:
@@ -227,11 +231,11 @@ def _wedge_bearings(cam: Camera, band: tuple[float, float]) -> FloatArray:
             wx = (k[0] * g[1, 1] - k[1] * g[0, 1]) / det
             wy = (g[0, 0] * k[1] - g[1, 0] * k[0]) / det
             if math.hypot(wx, wy) > 1e-9:
-                bearings.append(math.atan2(wy, wx))
+                edges.append(math.atan2(wy, wx))
             else:  # the apex at the sensor's xy: a ray inside the wedge, lest two on its edges span it
                 n1, n2 = g[0, :2] / math.hypot(*g[0, :2]), g[1, :2] / math.hypot(*g[1, :2])
                 bearings.append(math.atan2(n1[1] + n2[1], n1[0] + n2[0]))
-    return np.mod(np.asarray(bearings, dtype=np.float64), 2 * math.pi)
+    return np.mod(np.asarray(bearings + edges, dtype=np.float64), 2 * math.pi)
 
 
 def _pinhole_reach(

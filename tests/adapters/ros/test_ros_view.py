@@ -96,7 +96,7 @@ def grids(draw: st.DrawFn) -> OccupancyGrid:
     optical=False, shadow=None,
 )  # fmt: skip
 @example(  # the band's top at the camera's height: the blind wedge's apex at its xy, its edges two rays
-    grid=None, x=0.0, y=0.0, z=0.5, yaw=0.0, pitch=0.0, roll=0.5, hfov=6.25, vfov=2.0, reach=0.5, near=0.0,
+    grid=None, x=1.0, y=4.0, z=0.5, yaw=0.0, pitch=1.0, roll=0.5, hfov=6.25, vfov=None, reach=1.0, near=0.5,
     optical=False, shadow=None,
 )  # fmt: skip
 def test_the_view_is_simple_polygons_the_frustum_holds_past_no_wall_nor_detection(  # noqa: PLR0917
