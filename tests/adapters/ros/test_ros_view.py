@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Point, Polygon
 from shapely.ops import unary_union
@@ -90,6 +90,15 @@ def grids(draw: st.DrawFn) -> OccupancyGrid:
     optical=st.booleans(),
     shadow=st.one_of(st.none(), st.tuples(st.floats(-1, 9), st.floats(-1, 7), st.floats(0.1, 1.0))),
 )
+@example(  # a tilted camera wider than 180°: its blind wedge's apex is off its xy, between two rays
+    grid=OccupancyGrid(FRAME, np.zeros((FRAME.height, FRAME.width), dtype=np.int8), "s", "localization", 0.0),
+    x=2.0, y=0.0, z=1.0, yaw=0.0, pitch=1.0, roll=0.1953125, hfov=6.0, vfov=None, reach=1.5, near=0.0,
+    optical=False, shadow=None,
+)  # fmt: skip
+@example(  # the band's top at the camera's height: the blind wedge's apex at its xy, its edges two rays
+    grid=None, x=1.0, y=4.0, z=0.5, yaw=0.0, pitch=1.0, roll=0.5, hfov=6.25, vfov=None, reach=1.0, near=0.5,
+    optical=False, shadow=None,
+)  # fmt: skip
 def test_the_view_is_simple_polygons_the_frustum_holds_past_no_wall_nor_detection(  # noqa: PLR0917
     grid: OccupancyGrid | None,
     x: float,
