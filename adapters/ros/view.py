@@ -210,9 +210,10 @@ def _wedge_bearings(cam: Camera, band: tuple[float, float]) -> FloatArray:
     horizontal field of view lies between 180° and 360°: ``|atan2(b, a)| > hfov / 2`` is the meet of
     two half-spaces whose planes hold the sensor, so at each height of ``band`` its floor section is
     a wedge of two half-planes, its apex off the sensor's xy when the camera tilts. A ray at the
-    bearing of each apex and of each edge's two directions leaves, between two neighbouring rays,
-    one straight stretch of each wedge's boundary: the chord between them stays outside it (an apex at
-    the sensor's xy: a ray inside the wedge instead, its edges being rays from the sensor)."""
+    bearing of each apex, of each edge's two directions and of each point where an edge of one height
+    crosses one of the other leaves, between two neighbouring rays, one straight stretch of the two
+    wedges' boundary: the chord between them stays outside it (an apex at the sensor's xy: a ray
+    inside the wedge instead, its edges being rays from the sensor)."""
     if not math.pi <= cam.hfov_rad < 2 * math.pi - 1e-9:
         return np.zeros(0)
     h = cam.hfov_rad / 2
@@ -235,6 +236,15 @@ def _wedge_bearings(cam: Camera, band: tuple[float, float]) -> FloatArray:
             else:  # the apex at the sensor's xy: a ray inside the wedge, lest two on its edges span it
                 n1, n2 = g[0, :2] / math.hypot(*g[0, :2]), g[1, :2] / math.hypot(*g[1, :2])
                 bearings.append(math.atan2(n1[1] + n2[1], n1[0] + n2[0]))
+        # where one height's edge crosses the other's: there the blind union's boundary turns, so a
+        # ray there too leaves one straight stretch of it between neighbouring rays
+        z1, z2 = (b - cam.position[2] for b in band)
+        for za, zb in ((z1, z2), (z2, z1)):
+            k = np.array([-za * g[0, 2], -zb * g[1, 2]])
+            wx = (k[0] * g[1, 1] - k[1] * g[0, 1]) / det
+            wy = (g[0, 0] * k[1] - g[1, 0] * k[0]) / det
+            if math.hypot(wx, wy) > 1e-9:
+                edges.append(math.atan2(wy, wx))
     return np.mod(np.asarray(bearings + edges, dtype=np.float64), 2 * math.pi)
 
 
@@ -442,9 +452,7 @@ def _first_blocks(
     return out
 
 
-def _march(
-    structure: Structure | None, cam: Camera, band_m: tuple[float, float], rays: int
-) -> _Marched:
+def _march(structure: Structure | None, cam: Camera, band_m: tuple[float, float], rays: int) -> _Marched:
     """The rays of ``cam`` marched through ``structure`` (see :class:`_Marched`)."""
     ox, oy, _ = cam.position
     res = structure.grid.frame.resolution_m if structure is not None else 0.05
@@ -493,6 +501,29 @@ def _march(
     near = np.where(has, dist[first], np.inf)
     far = np.where(has, dist[last], -np.inf)
     return _Marched(count, step, near0, angles_all, covered, angles, near, far, first_block)
+
+
+def _simple(ring: Sequence[Point]) -> bool:
+    """Whether the closed ``ring``, rounded to 0.1 mm as the wire writes it, has no two non-adjacent
+    edges that meet (all pairs at once)."""
+    p = np.rint(np.asarray(ring, dtype=np.float64) * 1e4) / 1e4
+    q = np.roll(p, -1, axis=0)
+    n = len(p)
+    if n < 4:
+        return True
+
+    def side(a: FloatArray, b: FloatArray, c: FloatArray) -> FloatArray:
+        return np.sign(
+            (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1])
+            - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
+        )
+
+    a, b = p[:, None, :], q[:, None, :]
+    c, d = p[None, :, :], q[None, :, :]
+    meet = (side(a, b, c) * side(a, b, d) <= 0) & (side(c, d, a) * side(c, d, b) <= 0)
+    i, j = np.triu_indices(n, 2)
+    keep = ~((i == 0) & (j == n - 1))  # the first and the last edge share a corner
+    return not bool(meet[i[keep], j[keep]].any())
 
 
 def _roll(a: npt.NDArray[Any], shift: int) -> npt.NDArray[Any]:
@@ -581,7 +612,11 @@ def camera_view(
             polygons.append(((float(ox), float(oy)), *outer))
         else:
             inner = _points(ox, oy, a_list, lo)
-            polygons.append((*outer, *inner[::-1]))
+            ring = (*outer, *inner[::-1])
+            if cam.hfov_rad < math.pi or cam.vfov_rad is None or _simple(ring):
+                polygons.append(ring)
+            # else: a wide camera's vertical limit curves the near and far ends so that they cross
+            # between rays (a known limit): the run claims no floor rather than floor it did not see
     view = FloorView(tuple(polygons), tuple(holes))
     if not polygons or view.area < MIN_AREA_M2:
         return None

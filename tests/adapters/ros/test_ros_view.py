@@ -99,6 +99,15 @@ def grids(draw: st.DrawFn) -> OccupancyGrid:
     grid=None, x=1.0, y=4.0, z=0.5, yaw=0.0, pitch=1.0, roll=0.5, hfov=6.25, vfov=None, reach=1.0, near=0.5,
     optical=False, shadow=None,
 )  # fmt: skip
+@example(  # and with a blind zone: the two heights' wedges cross between two rays
+    grid=OccupancyGrid(FRAME, np.zeros((FRAME.height, FRAME.width), dtype=np.int8), "s", "localization", 0.0),
+    x=2.0, y=0.0, z=1.125, yaw=0.0, pitch=0.75, roll=0.1953125, hfov=6.125, vfov=None, reach=1.5, near=0.75,
+    optical=False, shadow=None,
+)  # fmt: skip
+@example(  # a wide camera with a vertical limit: near and far ends within 0.1 mm cross on the wire
+    grid=None, x=0.0, y=0.0, z=0.9765625, yaw=0.0, pitch=-0.08203125, roll=0.171875, hfov=5.0, vfov=1.515625,
+    reach=1.40625, near=0.0, optical=False, shadow=None,
+)  # fmt: skip
 def test_the_view_is_simple_polygons_the_frustum_holds_past_no_wall_nor_detection(  # noqa: PLR0917
     grid: OccupancyGrid | None,
     x: float,
