@@ -11,6 +11,7 @@ Example::
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -31,7 +32,15 @@ def merge_target(ctx: FusionContext, iri: str, state: ElementState, pose: Pose, 
     if iri in ctx.memory.distinct:
         return None
     schema = ctx.live.site.schema
+    cx, cy, own = pose.cx, pose.cy, math.hypot(pose.sx, pose.sy) / 2
     for other, held in ctx.candidates(storey).items():
+        # footprints that cannot meet (centres farther apart than their half-diagonals) first: the
+        # IoU below would be 0, and the gates before it cost far more than this
+        if (
+            abs(held.cx - cx) > own + (held.sx + held.sy) / 2
+            or abs(held.cy - cy) > own + (held.sx + held.sy) / 2
+        ):
+            continue
         if other == iri or other in ctx.used or other in ctx.memory.distinct:
             continue
         o_state = ctx.states.get(other)
