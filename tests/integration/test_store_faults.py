@@ -9,7 +9,6 @@ import contextlib
 import io
 import os
 import shutil
-import subprocess
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -21,6 +20,7 @@ from adapters.sparql.remote_store import RemoteStore
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import RemoteError
 from tests.integration.conftest import Daemon, free_port, start_daemon
+from tests.small_disk import small_tmpfs
 from tests.sparql_server import start_sparql_server
 from twin.graph.store import EmbeddedStore
 
@@ -38,16 +38,8 @@ def _table(x: float) -> str:
 @pytest.fixture
 def small_disk(tmp_path: Path) -> Iterator[Path]:
     """A 24 MiB tmpfs (root only: skipped otherwise)."""
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=24m", "tmpfs", str(disk)],
-                       capture_output=True, text=True, check=False)  # fmt: skip
-    if r.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here (needs root): {r.stderr.strip()}")
-    try:
+    with small_tmpfs(tmp_path / "disk", 24) as disk:
         yield disk
-    finally:
-        subprocess.run(["umount", "-l", str(disk)], check=False)
 
 
 def _fill(disk: Path) -> Path:

@@ -3,9 +3,7 @@ DELETE and DELETEALL per source; doors by table, GlobalId and name; MOVING chang
 
 from __future__ import annotations
 
-import contextlib
 import math
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -22,15 +20,13 @@ from adapters.ros.rmf import (
 )
 from tests.adapters.ros_reports import Obstacle, cdr_door_state, cdr_obstacles
 from tests.conftest import BASE
+from tests.small_disk import fill_until_refused, small_tmpfs
 from tests.twin.box_lab import OX, OY, box_lab
 from tests.twin.live_helpers import observe, started
-from twin.errors import StoreWriteError
 from twin.graph import vocab
 from twin.graph.import_model import import_model
-from twin.graph.rdf import ChangeSet
 from twin.graph.store import EmbeddedStore
 from twin.live import TwinService
-from twin.live.store_health import PROBE
 
 NOW = 1_700_000_000_000_000_000
 GUID = "2_bXoMMEnLjvJDRiT8YUDb"
@@ -195,13 +191,7 @@ def test_a_refused_change_of_a_held_obstacle_keeps_it_with_its_earlier_lifetime(
 def test_a_lifetime_removal_refused_by_a_full_store_is_held_and_tried_again_once_it_takes_writes(
     tmp_path: Path,
 ) -> None:
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=16m", "tmpfs", str(disk)],
-                             capture_output=True, text=True, check=False)  # fmt: skip
-    if mounted.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here (needs root): {mounted.stderr.strip()}")
-    try:
+    with small_tmpfs(tmp_path / "disk") as disk:
         store = EmbeddedStore.open(disk / "store")
         import_model(store, box_lab(), base_iri=BASE, site="test")
         service, _ = started(store)
@@ -210,15 +200,7 @@ def test_a_lifetime_removal_refused_by_a_full_store_is_held_and_tried_again_once
             1, "cam1", "L1", "human", (OX + 5.0, OY + 5.0, 0.9), (0.5, 0.5, 1.8), lifetime_ns=10**9
         )
         assert _to_twin(service, tracker.translate(cdr_obstacles(NOW, [brief]), now_ns=NOW)) is True
-        filler = disk / "filler"
-        with filler.open("wb", buffering=0) as f:
-            for size in (1 << 16, 1):
-                with contextlib.suppress(OSError):
-                    while True:
-                        f.write(b"\0" * size)
-        with contextlib.suppress(StoreWriteError):  # the log's last page may take a write or two
-            for _ in range(100):
-                service.store.apply(ChangeSet(add=(PROBE,)), ChangeSet(delete=(PROBE,)))
+        filler = fill_until_refused(disk, service.store)
         lapsed = tracker.expire(now_ns=NOW + 10**9)
         assert lapsed.removes == ("urn:twin-ros:rmf:obstacle:cam1%2F1",) and tracker.held == 0
         reply = observe(service, "obstacles", bytes(lapsed.documents[0]))  # type: ignore[arg-type]
@@ -231,5 +213,3 @@ def test_a_lifetime_removal_refused_by_a_full_store_is_held_and_tried_again_once
         assert observe(service, "obstacles", bytes(again)).ok  # type: ignore[arg-type]
         assert tracker.held == 0
         service.store.close()
-    finally:
-        subprocess.run(["umount", "-l", str(disk)], check=False)

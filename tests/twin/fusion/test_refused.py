@@ -4,8 +4,6 @@ objects as they were; once the store takes writes again the same observation cha
 
 from __future__ import annotations
 
-import contextlib
-import subprocess
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -14,15 +12,13 @@ from typing import Any
 import pytest
 
 from tests.conftest import BASE
+from tests.small_disk import fill_until_refused, small_tmpfs
 from tests.twin.box_lab import box_lab
 from tests.twin.fusion.fusion_helpers import ROOM_A, box, view, view_only
 from tests.twin.live_helpers import observe, started
-from twin.errors import StoreWriteError
 from twin.graph.import_model import import_model
-from twin.graph.rdf import ChangeSet
 from twin.graph.store import EmbeddedStore
 from twin.live import TwinService
-from twin.live.store_health import PROBE
 
 S = 10**9
 TABLE = "urn:robot1:table"
@@ -32,30 +28,13 @@ FURNITURE = ("IfcFurniture",)
 @pytest.fixture
 def small_disk(tmp_path: Path) -> Iterator[Path]:
     """A 16 MiB tmpfs (root only: skipped otherwise)."""
-    disk = tmp_path / "disk"
-    disk.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=16m", "tmpfs", str(disk)],
-                             capture_output=True, text=True, check=False)  # fmt: skip
-    if mounted.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here (needs root): {mounted.stderr.strip()}")
-    try:
+    with small_tmpfs(tmp_path / "disk") as disk:
         yield disk
-    finally:
-        subprocess.run(["umount", "-l", str(disk)], check=False)
 
 
 def fill(disk: Path, service: TwinService) -> Path:
     """Fill ``disk`` until the store refuses a write; returns the filler file (unlink it to free it)."""
-    filler = disk / "filler"
-    with filler.open("wb", buffering=0) as f:
-        for size in (1 << 16, 1):
-            with contextlib.suppress(OSError):
-                while True:
-                    f.write(b"\0" * size)
-    with contextlib.suppress(StoreWriteError):  # the log's last page may take a write or two
-        for _ in range(100):
-            service.store.apply(ChangeSet(add=(PROBE,)), ChangeSet(delete=(PROBE,)))
-    return filler
+    return fill_until_refused(disk, service.store)
 
 
 def remembered(service: TwinService) -> dict[str, Any]:
