@@ -394,83 +394,122 @@ def _upright(
     return (cx, cy, cz, size[0], size[1], size[2], yaw)
 
 
-def _boxes_in_map(
-    frames: list[Matrix], dets: list[_Detection], *, max_tilt_rad: float, max_size_m: float
-) -> list[tuple[float, float, float, float, float, float, float] | RosInputError]:
-    """:func:`box_in_map` of many boxes at once (``frames[i]``: map from detection ``i``'s frame), the
-    same floats, bit for bit: the checks of the pose and the box's matrix in numpy (the same operations
-    in the same order), the rest per box; a box whose pose or size fails goes through
-    :func:`box_in_map` for its error."""
+_BOX_PLACED = tuple[float, float, float, float, float, float, float]
+# the rotation matrix of a unit quaternion (tf.matrix's) from the products q_i * q_j, entry by entry:
+# 2 * (a + s * b), and 1 minus that on the diagonal; q = (x, y, z, w) = indices 0..3 of q q^T (flat 4 x 4)
+_ROT_A = np.array([5, 1, 2, 1, 0, 6, 2, 6, 0])  # yy, xy, xz / xy, xx, yz / xz, yz, xx
+_ROT_B = np.array([10, 11, 7, 11, 10, 3, 7, 3, 5])  # zz, zw, yw / zw, zz, xw / yw, xw, yy
+_ROT_SIGN = np.array([1.0, -1.0, 1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0])
+_ROT_DIAGONAL = np.array([0, 4, 8])
+
+
+def _rotations(q: FloatArray) -> FloatArray:
+    """``(n, 3, 3)``: the rotation matrices of unit quaternions ``q`` ``(n, 4)`` (x, y, z, w), the same
+    floats as :func:`adapters.ros.tf.quaternion_matrix` makes of each (the same products, sums and
+    differences: ``a - b`` is ``a + (-b)`` exactly)."""
+    n = len(q)
+    products = (q[:, :, None] * q[:, None, :]).reshape(n, 16)
+    rot = products[:, _ROT_A] + _ROT_SIGN * products[:, _ROT_B]
+    rot *= 2.0
+    rot[:, _ROT_DIAGONAL] = 1.0 - rot[:, _ROT_DIAGONAL]
+    return rot.reshape(n, 3, 3)
+
+
+def _placements(
+    frames: list[Matrix],
+    dets: list[_Detection],
+    boxed: list[bool],
+    *,
+    max_tilt_rad: float,
+    max_size_m: float,
+) -> tuple[list[_BOX_PLACED | RosInputError | None], FloatArray, BoolArray]:
+    """Every detection placed at once (``frames[i]``: map from detection ``i``'s frame): for those
+    ``boxed``, :func:`box_in_map`'s box or its error (the same floats, bit for bit: the same operations
+    in the same order; a box whose pose or size fails goes through :func:`box_in_map` for its error;
+    None for the others); and the footprints of all as :func:`_shadows` describes them."""
     n = len(dets)
     if n == 0:
-        return []
-    p = np.array([d.position for d in dets], dtype=np.float64)
-    q = np.array([d.orientation for d in dets], dtype=np.float64)
-    size = np.array([d.size for d in dets], dtype=np.float64)
+        return [], np.zeros((0, 5)), np.zeros(0, dtype=bool)
+    values = np.array([(*d.position, *d.orientation, *d.size) for d in dets], dtype=np.float64)
+    p, q, size = values[:, :3], values[:, 3:7], values[:, 7:]
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        finite = np.isfinite(values)
+        posed = finite[:, :7].all(axis=1) & (np.abs(p) <= MAX_COORDINATE_M).all(axis=1)
         x, y, z, w = q.T
-        norm = np.sqrt(x * x + y * y + z * z + w * w)  # left to right, as sum() adds
-        ok = (
-            np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1)
-            & (np.abs(p) <= MAX_COORDINATE_M).all(axis=1)
-            & (np.isfinite(size) & (size >= MIN_SIZE_M) & (size <= max_size_m)).all(axis=1)
+        norm = np.sqrt(x * x + y * y + z * z + w * w)  # left to right, as sum() adds (and np.linalg.norm)
+        box_ok = (
+            posed & ((size >= MIN_SIZE_M) & (size <= max_size_m)).all(axis=1) & finite[:, 7:].all(axis=1)
             & (np.abs(norm - 1.0) <= 1e-2)
         )  # fmt: skip
-        x, y, z, w = (np.where(ok, v / np.where(ok, norm, 1.0), 0.0) for v in (x, y, z, w))
-    local = np.zeros((n, 4, 4))  # tf.matrix's, row by row
-    local[:, 0, :3] = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1)
-    local[:, 1, :3] = np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1)
-    local[:, 2, :3] = np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1)
-    local[:, :3, 3] = np.where(ok[:, None], p, 0.0)
-    local[:, 3, 3] = 1.0
-    world = np.matmul(np.stack(frames), local)
-    out: list[tuple[float, float, float, float, float, float, float] | RosInputError] = []
-    for i, d in enumerate(dets):
-        try:
-            if ok[i]:
-                out.append(_upright(world[i], d.size, max_tilt_rad=max_tilt_rad))
-            else:
-                limits = {"max_tilt_rad": max_tilt_rad, "max_size_m": max_size_m}
-                out.append(box_in_map(frames[i], d.position, d.orientation, d.size, **limits))
-        except RosInputError as err:
-            out.append(err)
-    return out
+        shadow_ok = (
+            posed & finite[:, 7:].all(axis=1) & (np.abs(size) <= MAX_COORDINATE_M).all(axis=1) & (norm > 0)
+        )
+        turns = box_ok | shadow_ok
+        unit = np.where(turns[:, None], q / np.where(turns, norm, 1.0)[:, None], _NO_TURN)
+    rot = _rotations(unit)
+    m = np.array(frames)  # (n, 4, 4): map from frame
+    boxes: list[_BOX_PLACED | RosInputError | None] = [None] * n
+    if any(boxed):
+        local = np.zeros((n, 4, 4))
+        local[:, :3, :3] = rot
+        local[:, :3, 3] = np.where(box_ok[:, None], p, 0.0)
+        local[:, 3, 3] = 1.0
+        world = np.matmul(m, local)
+        # _upright's reads of each box's matrix, as Python floats at once (the same values)
+        r22, r10, r00 = world[:, 2, 2].tolist(), world[:, 1, 0].tolist(), world[:, 0, 0].tolist()
+        centres = world[:, :3, 3].tolist()
+        acos, atan2, isfinite = math.acos, math.atan2, math.isfinite
+        for i, (d, good) in enumerate(zip(dets, box_ok.tolist(), strict=True)):
+            if not boxed[i]:
+                continue
+            try:
+                if not good:
+                    limits = {"max_tilt_rad": max_tilt_rad, "max_size_m": max_size_m}
+                    boxes[i] = box_in_map(frames[i], d.position, d.orientation, d.size, **limits)
+                    continue
+                tilt = acos(max(-1.0, min(1.0, r22[i])))
+                cx, cy, cz = centres[i]
+                if tilt > max_tilt_rad or not (
+                    isfinite(cx) and isfinite(cy) and isfinite(cz) and abs(cx) <= MAX_COORDINATE_M
+                    and abs(cy) <= MAX_COORDINATE_M and abs(cz) <= MAX_COORDINATE_M
+                ):  # fmt: skip
+                    boxes[i] = _upright(world[i], d.size, max_tilt_rad=max_tilt_rad)  # raises, naming it
+                    continue
+                s = d.size
+                boxes[i] = (cx, cy, cz, s[0], s[1], s[2], atan2(r10[i], r00[i]))
+            except RosInputError as err:
+                boxes[i] = err
+    # the footprints: the map-axis-aligned extent of each box, however tilted
+    p, size = np.where(shadow_ok[:, None], p, 0.0), np.where(shadow_ok[:, None], size, 0.0)
+    m33 = m[:, :3, :3]
+    centre = np.einsum("nij,nj->ni", m33, p) + m[:, :3, 3]
+    turned = np.einsum("nij,njk->nik", m33, rot)
+    extent = np.einsum("nij,nj->ni", np.abs(turned), np.abs(size) / 2)  # half extents along map axes
+    shadows = np.zeros((n, 5))
+    shadows[:, :2] = centre[:, :2]
+    shadows[:, 2:4] = 2 * extent[:, :2]
+    return boxes, shadows, shadow_ok
+
+
+_NO_TURN = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+def _boxes_in_map(
+    frames: list[Matrix], dets: list[_Detection], *, max_tilt_rad: float, max_size_m: float
+) -> list[_BOX_PLACED | RosInputError]:
+    """:func:`box_in_map` of many boxes at once (``frames[i]``: map from detection ``i``'s frame), the
+    same floats, bit for bit (:func:`_placements`)."""
+    limits = {"max_tilt_rad": max_tilt_rad, "max_size_m": max_size_m}
+    boxes = _placements(frames, dets, [True] * len(dets), **limits)[0]
+    return [b for b in boxes if b is not None]
 
 
 def _shadows(frames: list[Matrix], dets: list[_Detection]) -> tuple[FloatArray, BoolArray]:
     """``(n, 5)`` ``(cx, cy, sx, sy, 0)``: the map-axis-aligned footprints of detections' boxes, however
     tilted (``frames[i]``: map from detection ``i``'s frame), and which could be placed (a pose or size
     that is not finite or out of range, or an orientation that is no rotation, cannot)."""
-    n = len(dets)
-    if n == 0:
-        return np.zeros((0, 5)), np.zeros(0, dtype=bool)
-    p = np.array([d.position for d in dets], dtype=np.float64)
-    q = np.array([d.orientation for d in dets], dtype=np.float64)
-    size = np.array([d.size for d in dets], dtype=np.float64)
-    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        norm = np.linalg.norm(q, axis=1)
-        ok = (
-            np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1) & np.isfinite(size).all(axis=1)
-            & (np.abs(p) <= MAX_COORDINATE_M).all(axis=1) & (np.abs(size) <= MAX_COORDINATE_M).all(axis=1)
-            & (norm > 0)
-        )  # fmt: skip
-        q = np.where(ok[:, None], q / np.where(ok, norm, 1.0)[:, None], (0.0, 0.0, 0.0, 1.0))
-    p, size = np.where(ok[:, None], p, 0.0), np.where(ok[:, None], size, 0.0)
-    x, y, z, w = q.T
-    rot = np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1),
-        ],
-        axis=1,
-    )  # (n, 3, 3): frame from box
-    m = np.stack(frames)  # (n, 4, 4): map from frame
-    centre = np.einsum("nij,nj->ni", m[:, :3, :3], p) + m[:, :3, 3]
-    world = np.einsum("nij,njk->nik", m[:, :3, :3], rot)
-    extent = np.einsum("nij,nj->ni", np.abs(world), np.abs(size) / 2)  # half extents along map axes
-    out = np.stack([centre[:, 0], centre[:, 1], 2 * extent[:, 0], 2 * extent[:, 1], np.zeros(n)], axis=1)
-    return out, np.asarray(ok)
+    _, shadows, ok = _placements(frames, dets, [False] * len(dets), max_tilt_rad=0.0, max_size_m=0.0)
+    return shadows, ok
 
 
 def _view(
@@ -533,11 +572,12 @@ def translate_detections(
     seen: set[str] = set()
     transforms: dict[tuple[str, int], Matrix] = {}
     drop_z = ctx.elevation_m if settings.z_reference == "building" else 0.0
-    placed: tuple[list[Matrix], list[_Detection]] = ([], [])  # every detection, for its shadow
     blind = False  # a detection whose place is unknown: what it hides is unknown, so no view
-    # first each detection's class and frame, then the boxes of the known classes at once, then in order
+    # first each detection's class and frame, then every box and footprint at once, then in order
     steps: list[tuple[int, _Detection, str | None, str | None, RosInputError | None, int]] = []
-    to_place: tuple[list[Matrix], list[_Detection]] = ([], [])
+    frames: list[Matrix] = []  # of every detection placed: any detection hides what stands behind it
+    placed: list[_Detection] = []
+    boxed: list[bool] = []
     for index, d in enumerate(detections):
         ifc_class = settings.classes.get(d.class_id) if d.class_id is not None else None
         why: str | None = None
@@ -557,17 +597,12 @@ def translate_detections(
         except RosInputError as err:
             steps.append((index, d, why, ifc_class, err, -1))
             continue
-        map_from_frame = transforms[key]
-        placed[0].append(map_from_frame)  # any detection hides what stands behind it
-        placed[1].append(d)
-        row = -1
-        if ifc_class is not None:
-            row = len(to_place[1])
-            to_place[0].append(map_from_frame)
-            to_place[1].append(d)
-        steps.append((index, d, why, ifc_class, None, row))
-    placed_boxes = _boxes_in_map(
-        *to_place, max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m
+        steps.append((index, d, why, ifc_class, None, len(placed)))
+        frames.append(transforms[key])
+        placed.append(d)
+        boxed.append(ifc_class is not None)
+    placed_boxes, shadows, ok = _placements(
+        frames, placed, boxed, max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m
     )
     for index, d, why, ifc_class, error, row in steps:
         if why is not None:
@@ -581,6 +616,7 @@ def translate_detections(
         if ifc_class is None:
             continue
         placed_box = placed_boxes[row]
+        assert placed_box is not None  # every detection of a known class is boxed
         if isinstance(placed_box, RosInputError):
             refused.append((placed_box.cause, str(placed_box)))
             continue
@@ -601,7 +637,6 @@ def translate_detections(
         box = (cx, cy, cz - drop_z, sx, sy, sz, yaw)
         boxes.append(BoxReport(iri, ifc_class, ctx.storey, box, kind=settings.types.get(d.class_id or "")))
     view = None
-    shadows, ok = _shadows(*placed)
     if ctx.fusion_terms and ctx.occlusion_known and not refused and not blind and ok.all():
         view = _view(settings, ctx, frame, stamp, storey=ctx.storey, shadows=shadows, drop_z=drop_z)
     write = observation_records if typed else observation_turtle

@@ -203,18 +203,25 @@ def _rad(v: float) -> float:
     return round(math.remainder(v, 2 * math.pi), 6) + 0.0
 
 
-def _ring(ring: Sequence[tuple[float, float]]) -> np.ndarray:
-    """The ring's points as :func:`_m` rounds each, at once: ``rint(v * 1e4) / 1e4`` is ``round(v, 4)``
-    wherever ``v * 1e4`` is not within 1e-6 of a half (its error is below 1e-10 for any coordinate
-    under 1e6 m); those few are rounded one by one."""
-    v = np.asarray(ring, dtype=np.float64).reshape(-1, 2)
-    scaled = v * 1e4
+def _rounded(values: np.ndarray, digits: int) -> np.ndarray:
+    """``values`` (any shape) as ``round(v, digits) + 0.0`` rounds each, at once: ``rint(v * 10**digits)
+    / 10**digits`` is that wherever ``v * 10**digits`` is not within 1e-6 of a half (its error is below
+    1e-7 for any value under 1e9 / 10**digits); those few are rounded one by one. NaN and inf stay."""
+    v = np.asarray(values, dtype=np.float64)
+    scale = 10.0**digits
+    scaled = v * scale
     k = np.rint(scaled)
-    out = k / 1e4 + 0.0
-    tie = np.abs(np.abs(scaled - k) - 0.5) < 1e-6
+    out = k / scale + 0.0
+    with np.errstate(invalid="ignore"):
+        tie = np.abs(np.abs(scaled - k) - 0.5) < 1e-6
     if tie.any():
-        out[tie] = [_m(float(x)) for x in v[tie]]
+        out[tie] = [round(float(x), digits) + 0.0 for x in v[tie]]
     return out
+
+
+def _ring(ring: Sequence[tuple[float, float]]) -> np.ndarray:
+    """The ring's points as :func:`_m` rounds each, at once (:func:`_rounded`)."""
+    return _rounded(np.asarray(ring, dtype=np.float64).reshape(-1, 2), 4)
 
 
 def observation_records(
@@ -234,13 +241,16 @@ def observation_records(
     stamp = sense_ns - sense_ns % 1000 if sense_ns is not None else None  # written to the microsecond
     each_sense = stamp if fusion_terms and not with_view else None
     reports: dict[str, ElementReport] = {}
-    for b in boxes:
-        cx, cy, cz, sx, sy, sz, yaw = b.box
+    # every box's numbers rounded as _m and _rad round each (at once: 20 boxes are 140 numbers)
+    numbers = np.array([b.box for b in boxes], dtype=np.float64).reshape(-1, 7)
+    metres = _rounded(numbers[:, :6], 4).tolist()
+    turns = _rounded(np.array([math.remainder(v, 2 * math.pi) for v in numbers[:, 6].tolist()]), 6).tolist()
+    for b, (cx, cy, cz, sx, sy, sz), yaw in zip(boxes, metres, turns, strict=True):
         reports[b.iri] = ElementReport(
             b.iri,
             ifc_class=b.ifc_class,
             storey=b.storey,
-            box=ObservedBox(_m(cx), _m(cy), _m(cz), _m(sx), _m(sy), _m(sz), _rad(yaw)),
+            box=ObservedBox(cx, cy, cz, sx, sy, sz, yaw),
             labels=(b.label,) if b.label else (),
             classes=(b.kind,) if b.kind else (),
             lifetime_s=None if b.lifetime_s is None else round(b.lifetime_s, 9),

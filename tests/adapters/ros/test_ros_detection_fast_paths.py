@@ -22,12 +22,13 @@ from adapters.ros.detections import (
     _decode_le,
     _decode_rosbags,
     _Detection,
+    _placements,
     box_in_map,
     decode_detections,
 )
 from adapters.ros.interfaces import DETECTION_3D_ARRAY
 from adapters.ros.observation_doc import RosInputError
-from adapters.ros.tf import TfBuffer, decode_tf_message, matrix
+from adapters.ros.tf import TfBuffer, decode_tf_message, matrix, quaternion_matrix
 from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
 from tests.conftest import examples
 
@@ -186,6 +187,40 @@ def test_boxes_placed_at_once_are_the_boxes_placed_one_by_one_bit_for_bit_and_re
         else:
             assert not isinstance(got, RosInputError)
             assert _bits(got) == _bits(one)
+
+
+@FAST
+@given(
+    frame=st.tuples(*(st.floats(-20, 20),) * 2, st.floats(-2, 2), st.floats(-4, 4), st.floats(-0.3, 0.3)),
+    placed=st.lists(boxes(), max_size=8),
+    boxed=st.lists(st.booleans(), min_size=8, max_size=8),
+)
+def test_the_footprints_placed_with_the_boxes_are_each_box_s_map_extent_and_only_known_ones_are_boxed(
+    frame: tuple[float, float, float, float, float],
+    placed: list[tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]],
+    boxed: list[bool],
+) -> None:
+    x, y, z, yaw, roll = frame
+    map_from_frame = matrix((x, y, z), (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))) @ matrix(
+        (0, 0, 0), (math.sin(roll / 2), 0.0, 0.0, math.cos(roll / 2))
+    )
+    dets = [_Detection("f", 0, "c", 1.0, p, o, s, "") for p, o, s in placed]  # type: ignore[arg-type]
+    wanted = boxed[: len(dets)]
+    limits = {"max_tilt_rad": math.radians(15.0), "max_size_m": 20.0}
+    got, shadows, ok = _placements([map_from_frame] * len(dets), dets, wanted, **limits)
+    assert [b is not None for b in got] == wanted
+    for d, footprint, placeable in zip(dets, shadows.tolist(), ok.tolist(), strict=True):
+        values = (*d.position, *d.orientation, *d.size)
+        norm = math.sqrt(sum(v * v for v in d.orientation)) if all(map(math.isfinite, values)) else 0.0
+        sane = all(abs(v) <= 1e5 for v in (*d.position, *d.size)) and norm > 0
+        assert placeable == sane
+        if not sane:
+            continue
+        turned = map_from_frame[:3, :3] @ quaternion_matrix([v / norm for v in d.orientation])
+        centre = map_from_frame[:3, :3] @ d.position + map_from_frame[:3, 3]
+        extent = np.abs(turned) @ np.abs(d.size)
+        want = [centre[0], centre[1], extent[0], extent[1], 0.0]
+        assert np.allclose(footprint, want, rtol=1e-12, atol=1e-9), (footprint, want)
 
 
 def test_a_lookup_asked_again_is_the_same_and_follows_a_change_of_the_tree() -> None:

@@ -16,6 +16,7 @@ from adapters.ros.observation_doc import (
     BoxReport,
     ViewReport,
     _m,
+    _rad,
     _ring,
     observation_records,
     observation_turtle,
@@ -186,6 +187,26 @@ def test_a_view_s_points_are_rounded_at_once_as_the_turtle_path_rounds_each() ->
     want = np.array([(_m(x), _m(y)) for x, y in ring])
     assert np.array_equal(got, want)
     assert not np.signbit(got).any() or np.array_equal(np.signbit(got), np.signbit(want))
+
+
+def test_a_box_s_numbers_are_rounded_at_once_as_the_turtle_path_rounds_each() -> None:
+    rng = np.random.default_rng(5)
+    ties = [k / 1e4 + 5e-5 for k in range(-40, 40)]  # halves of the last digit, and their neighbours
+    near = [float(np.nextafter(v, d)) for v in ties for d in (-1e9, 1e9)]
+    metres = [*rng.uniform(-300.0, 300.0, 600).tolist(), *ties, *near, -0.0, 1e-9, -1e-9, 3]
+    yaws = [*rng.uniform(-7.0, 7.0, 600).tolist(), *(k / 1e6 + 5e-7 for k in range(-40, 40)), -0.0, math.pi]
+    rows = [(*metres[i : i + 6], yaws[i % len(yaws)]) for i in range(0, len(metres) - 6, 6)]
+    boxes = [BoxReport(f"urn:r:{i}", "IfcFurniture", "g", row) for i, row in enumerate(rows)]
+    records = observation_records(boxes=boxes, fusion_terms=False)
+    assert records is not None
+    got = {r.iri: astuple(r.box) for r in records.reports if r.box is not None}
+    for b in boxes:
+        want = (*(_m(v) for v in b.box[:6]), _rad(b.box[6]))
+        assert [struct_bits(v) for v in got[b.iri]] == [struct_bits(v) for v in want], b.box
+
+
+def struct_bits(v: float) -> bytes:
+    return np.float64(v).tobytes()
 
 
 def test_typed_records_come_back_from_a_worker_with_every_field() -> None:
