@@ -538,7 +538,7 @@ def _view(
     )
     if seen is None:
         return None
-    return ViewReport(storey, seen.polygons, settings.detects, seen.holes, origin=cam.position)
+    return ViewReport(storey, seen.rings, settings.detects, seen.hole_rings, origin=cam.position)
 
 
 def translate_detections(

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from urllib.parse import quote
 
 import numpy as np
+import numpy.typing as npt
 
 from twin.records import ElementReport, Observation, ObservedBox, ObservedView
 
@@ -72,6 +73,10 @@ class BoxReport:
     """A descriptive type IRI (``furn:Chair`` expanded), written as ``a <kind>``."""
 
 
+Ring = tuple[tuple[float, float], ...] | npt.NDArray[np.float64]
+"""A closed ring of points: ``(x, y)`` pairs, or an ``(n, 2) float64`` array of them."""
+
+
 @dataclass(frozen=True, slots=True)
 class ViewReport:
     """What a sensor looked at: the floor it saw on ``storey`` (the union of simple ``polygons`` less
@@ -79,9 +84,9 @@ class ViewReport:
     (x, y, z above the storey's floor)."""
 
     storey: str
-    polygons: tuple[tuple[tuple[float, float], ...], ...]
+    polygons: tuple[Ring, ...]
     detects: tuple[str, ...]
-    holes: tuple[tuple[tuple[float, float], ...], ...] = ()
+    holes: tuple[Ring, ...] = ()
     origin: tuple[float, float, float] | None = None
 
 
@@ -133,8 +138,9 @@ def _metres(v: float) -> str:
     return "0" if text in ("-0", "") else text
 
 
-def _points(ring: Sequence[tuple[float, float]]) -> str:
-    return " ".join(f"{_metres(x)} {_metres(y)}" for x, y in ring)
+def _points(ring: Ring) -> str:
+    points = ring.tolist() if isinstance(ring, np.ndarray) else ring
+    return " ".join(f"{_metres(x)} {_metres(y)}" for x, y in points)
 
 
 def _radians(v: float) -> str:
@@ -219,7 +225,7 @@ def _rounded(values: np.ndarray, digits: int) -> np.ndarray:
     return out
 
 
-def _ring(ring: Sequence[tuple[float, float]]) -> np.ndarray:
+def _ring(ring: Ring | Sequence[tuple[float, float]]) -> np.ndarray:
     """The ring's points as :func:`_m` rounds each, at once (:func:`_rounded`)."""
     return _rounded(np.asarray(ring, dtype=np.float64).reshape(-1, 2), 4)
 

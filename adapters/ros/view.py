@@ -151,16 +151,29 @@ class Structure:
         return cls(grid, blocked.ravel())
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, eq=False, slots=True)
 class FloorView:
-    """The floor a sensor saw: the union of ``polygons`` less ``holes`` (map frame, metres)."""
+    """The floor a sensor saw: the union of ``rings`` less ``hole_rings`` (map frame, metres; each
+    ``(n, 2) float64``); ``polygons`` and ``holes`` are the same as tuples of points."""
 
-    polygons: tuple[Ring, ...]
-    holes: tuple[Ring, ...] = ()
+    rings: tuple[FloatArray, ...]
+    hole_rings: tuple[FloatArray, ...] = ()
+
+    @property
+    def polygons(self) -> tuple[Ring, ...]:
+        return tuple(_as_points(r) for r in self.rings)
+
+    @property
+    def holes(self) -> tuple[Ring, ...]:
+        return tuple(_as_points(r) for r in self.hole_rings)
 
     @property
     def area(self) -> float:
-        return sum(polygon_area(p) for p in self.polygons) - sum(polygon_area(h) for h in self.holes)
+        return sum(polygon_area(p) for p in self.rings) - sum(polygon_area(h) for h in self.hole_rings)
+
+
+def _as_points(ring: FloatArray) -> Ring:
+    return tuple((x, y) for x, y in ring.tolist())
 
 
 def _covered_bearings(cam: Camera, band: tuple[float, float], angles: FloatArray) -> npt.NDArray[np.bool_]:
@@ -280,7 +293,51 @@ def _pinhole_reach(
 
 def _box_entry(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) -> FloatArray:
     """``(rays,)``: the distance at which each ray from ``(ox, oy)`` first enters a box footprint
-    ``(k, 5)`` (cx, cy, sx, sy, yaw); inf if none. Boxes holding the sensor are ignored."""
+    ``(k, 5)`` (cx, cy, sx, sy, yaw); inf if none. Boxes holding the sensor are ignored.
+
+    Only the pairs of a ray and a box whose bearing from the sensor lies within the box's angular
+    reach (its circumscribed circle's, with a margin; every ray for a box that reaches the sensor) are
+    worked out, each with the same floats as all pairs would be: the others cannot meet."""
+    out = np.full(len(angles), np.inf)
+    if len(boxes) == 0 or len(angles) == 0:
+        return out
+    cx, cy, sx, sy, yaw = (boxes[:, i][None, :] for i in range(5))
+    c, s = np.cos(yaw), np.sin(yaw)
+    lx, ly = (ox - cx) * c + (oy - cy) * s, -(ox - cx) * s + (oy - cy) * c  # sensor in the box's frame
+    hx, hy = sx / 2, sy / 2
+    cos_a, sin_a = np.cos(angles), np.sin(angles)
+    # which pairs can meet: the ray's bearing within the box's circumscribed circle's reach
+    with np.errstate(divide="ignore", invalid="ignore"):
+        reach = np.hypot(hx, hy)[0]
+        gap = np.hypot(cx - ox, cy - oy)[0]
+        half = np.arcsin(np.minimum(reach / gap, 1.0)) + 1e-6
+        centre = np.arctan2(cy - oy, cx - ox)[0]
+        every = ~(gap > reach * (1.0 + 1e-9) + 1e-9)  # reaches the sensor (or not a number): every ray
+        off = np.abs((angles[:, None] - centre[None, :] + math.pi) % (2 * math.pi) - math.pi)
+        rays, which = np.nonzero((off <= half[None, :]) | every[None, :])
+    if len(rays) == 0:
+        return out
+    c, s, lx, ly, hx, hy = (v[0][which] for v in (c, s, lx, ly, hx, hy))
+    dx = cos_a[rays] * c + sin_a[rays] * s
+    dy = -cos_a[rays] * s + sin_a[rays] * c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1x, t2x = (-hx - lx) / dx, (hx - lx) / dx
+        t1y, t2y = (-hy - ly) / dy, (hy - ly) / dy
+    inside_x = np.abs(lx) < hx
+    inside_y = np.abs(ly) < hy
+    tminx = np.where(dx == 0, np.where(inside_x, -np.inf, np.inf), np.minimum(t1x, t2x))
+    tmaxx = np.where(dx == 0, np.where(inside_x, np.inf, -np.inf), np.maximum(t1x, t2x))
+    tminy = np.where(dy == 0, np.where(inside_y, -np.inf, np.inf), np.minimum(t1y, t2y))
+    tmaxy = np.where(dy == 0, np.where(inside_y, np.inf, -np.inf), np.maximum(t1y, t2y))
+    t_in, t_out = np.maximum(tminx, tminy), np.minimum(tmaxx, tmaxy)
+    holds_sensor = inside_x & inside_y
+    hit = (t_in <= t_out) & (t_in >= 0) & ~holds_sensor
+    np.minimum.at(out, rays[hit], t_in[hit])
+    return out
+
+
+def _box_entry_all(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) -> FloatArray:
+    """:func:`_box_entry` over every pair of a ray and a box (the reference it is tested against)."""
     out = np.full(len(angles), np.inf)
     if len(boxes) == 0:
         return out
@@ -356,10 +413,24 @@ class _Marched:
     near: FloatArray
     far: FloatArray
     first_block: FloatArray
+    cos_all: FloatArray
+    """``(count,)``: ``math.cos`` of each covered ray's angle (0 elsewhere), the floats its points
+    are made with; ``sin_all`` likewise."""
+    sin_all: FloatArray
 
 
 _NONE = np.zeros(0)
-_NOTHING = _Marched(0, 0.0, 0.0, _NONE, np.zeros(0, dtype=np.bool_), _NONE, _NONE, _NONE, _NONE)
+_NOTHING = _Marched(0, 0.0, 0.0, _NONE, np.zeros(0, dtype=np.bool_), _NONE, _NONE, _NONE, _NONE, _NONE, _NONE)
+
+
+def _trig(count: int, covered: npt.NDArray[np.bool_], angles: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(count,)`` each: the covered rays' cosines and sines (``math``'s, as Python makes a point
+    ``ox + math.cos(t) * r``: numpy's own may differ in the last bit), 0 elsewhere."""
+    cos_all, sin_all = np.zeros(count), np.zeros(count)
+    listed = angles.tolist()
+    cos_all[covered] = [math.cos(t) for t in listed]
+    sin_all[covered] = [math.sin(t) for t in listed]
+    return cos_all, sin_all
 
 
 class ViewCache:
@@ -482,7 +553,8 @@ def _march(structure: Structure | None, cam: Camera, band_m: tuple[float, float]
     if pinhole:  # each ray only as far as it could claim floor, and only to its first blocking cell
         near, far = lo_all[covered], hi_all[covered]
         first_block = _first_blocks(structure, ox, oy, angles, dist, upto=far + 2 * step, step=step)
-        return _Marched(count, step, near0, angles_all, covered, angles, near, far, first_block)
+        trig = _trig(count, covered, angles)
+        return _Marched(count, step, near0, angles_all, covered, angles, near, far, first_block, *trig)
     xs = np.multiply.outer(np.cos(angles), dist)  # (rays, k); the same floats as ox + cos * dist
     xs += ox
     ys = np.multiply.outer(np.sin(angles), dist)
@@ -500,10 +572,11 @@ def _march(structure: Structure | None, cam: Camera, band_m: tuple[float, float]
     last = np.where(after.any(axis=1), after.argmax(axis=1) - 1, len(dist) - 1)
     near = np.where(has, dist[first], np.inf)
     far = np.where(has, dist[last], -np.inf)
-    return _Marched(count, step, near0, angles_all, covered, angles, near, far, first_block)
+    trig = _trig(count, covered, angles)
+    return _Marched(count, step, near0, angles_all, covered, angles, near, far, first_block, *trig)
 
 
-def _simple(ring: Sequence[Point]) -> bool:
+def _simple(ring: Sequence[Point] | FloatArray) -> bool:
     """Whether the closed ``ring``, rounded to 0.1 mm as the wire writes it, has no two non-adjacent
     edges that meet (all pairs at once)."""
     p = np.rint(np.asarray(ring, dtype=np.float64) * 1e4) / 1e4
@@ -533,9 +606,15 @@ def _roll(a: npt.NDArray[Any], shift: int) -> npt.NDArray[Any]:
     return np.concatenate((a[1:], a[:1]))
 
 
-def _points(ox: float, oy: float, angles: list[float], radii: FloatArray) -> list[Point]:
-    """The points at ``radii`` along ``angles`` from ``(ox, oy)``."""
-    return [(ox + math.cos(t) * r, oy + math.sin(t) * r) for t, r in zip(angles, radii.tolist(), strict=True)]
+def _points(ox: float, oy: float, cos: FloatArray, sin: FloatArray, radii: FloatArray) -> FloatArray:
+    """``(n, 2)``: the points at ``radii`` from ``(ox, oy)`` along the rays of cosines ``cos`` and sines
+    ``sin`` (the floats of ``ox + math.cos(t) * r``, each)."""
+    out = np.empty((len(radii), 2))
+    np.multiply(cos, radii, out=out[:, 0])
+    out[:, 0] += ox
+    np.multiply(sin, radii, out=out[:, 1])
+    out[:, 1] += oy
+    return out
 
 
 def camera_view(
@@ -583,14 +662,14 @@ def camera_view(
     near_all = np.maximum(near_all, np.maximum(_roll(near_n, 1), _roll(near_n, -1)))
     valid = far_all > near_all + step
     whole_circle = bool(valid.all())
-    polygons: list[Ring] = []
-    holes: list[Ring] = []
+    polygons: list[FloatArray] = []
+    holes: list[FloatArray] = []
     step_rad = 2 * math.pi / count
     for run in _runs(valid, full=True):
         a, lo, hi = angles_all[run], near_all[run], far_all[run]
         keep = _thin(a, lo, hi, step_rad)
         keep[0] = keep[-1] = True
-        a, lo, hi = a[keep], lo[keep], hi[keep]
+        a, lo, hi, kept = a[keep], lo[keep], hi[keep], run[keep]
         at_sensor = cam.near_m <= 0 and cam.vfov_rad is None and bool((lo <= near0 + 1e-9).all())
         # a chord between two near ends cuts into the blind zone: push each out to clear its chords
         gaps = np.diff(a) % (2 * math.pi)
@@ -599,20 +678,18 @@ def camera_view(
         after = np.concatenate([gaps, [wrap]])
         half = np.minimum(np.maximum(before, after), 2.0) / 2
         lo = np.minimum(lo / np.cos(half), hi - 1e-6)
-        a_list = a.tolist()  # Python floats: the same arithmetic as numpy's scalars, much cheaper
-        outer = _points(ox, oy, a_list, hi)
+        cos, sin = marched.cos_all[kept], marched.sin_all[kept]
+        outer = _points(ox, oy, cos, sin, hi)
         if whole_circle:
             if len(outer) < 3:
                 continue
-            polygons.append(tuple(outer))
+            polygons.append(outer)
             if not at_sensor:
-                inner = _points(ox, oy, a_list, lo)
-                holes.append(tuple(inner))
+                holes.append(_points(ox, oy, cos, sin, lo))
         elif at_sensor:
-            polygons.append(((float(ox), float(oy)), *outer))
+            polygons.append(np.concatenate([[(float(ox), float(oy))], outer]))
         else:
-            inner = _points(ox, oy, a_list, lo)
-            ring = (*outer, *inner[::-1])
+            ring = np.concatenate([outer, _points(ox, oy, cos, sin, lo)[::-1]])
             if cam.hfov_rad < math.pi or cam.vfov_rad is None or _simple(ring):
                 polygons.append(ring)
             # else: a wide camera's vertical limit curves the near and far ends so that they cross
@@ -643,7 +720,7 @@ def visibility_polygon(
     return view.polygons[0] if view is not None else ()
 
 
-def polygon_area(polygon: Sequence[tuple[float, float]]) -> float:
+def polygon_area(polygon: Sequence[tuple[float, float]] | FloatArray) -> float:
     """The area of a simple polygon (shoelace), m²."""
     if len(polygon) < 3:
         return 0.0

@@ -18,8 +18,11 @@ from adapters.ros.tf import matrix
 from adapters.ros.view import (
     OCCUPIED_AT,
     Camera,
+    FloorView,
     Structure,
     ViewCache,
+    _box_entry,
+    _box_entry_all,
     _march,
     camera_view,
     visibility_polygon,
@@ -231,8 +234,11 @@ def test_a_structure_made_once_cuts_views_as_its_grid_does_and_stops_rays_at_the
         assert seen.bounds[1] >= -0.1 and seen.bounds[3] <= 6.1
 
 
-def _same(a: object, b: object) -> bool:
-    return repr(a) == repr(b)  # the polygons' floats, bit for bit (None alike)
+def _same(a: FloorView | None, b: FloorView | None) -> bool:
+    def floats(v: FloorView | None) -> object:
+        return None if v is None else (v.polygons, v.holes)
+
+    return repr(floats(a)) == repr(floats(b))  # the polygons' floats, bit for bit (None alike)
 
 
 @settings(max_examples=examples(60), deadline=None, suppress_health_check=list(HealthCheck))
@@ -324,3 +330,28 @@ def test_a_pinhole_march_in_chunks_stops_each_ray_where_the_whole_march_does(  #
     # the floor each ray claims ends at the same place, bit for bit (beyond its far end a wall is moot)
     assert np.array_equal(np.minimum(marched.far, marched.first_block), np.minimum(marched.far, full))
     assert np.array_equal(marched.first_block <= marched.far, full <= marched.far)
+
+
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=list(HealthCheck))
+@given(
+    x=st.floats(-5.0, 5.0),
+    y=st.floats(-5.0, 5.0),
+    rays=st.integers(1, 700),
+    first=st.floats(0.0, 6.3),
+    span=st.floats(0.0, 6.3),
+    boxes=st.lists(
+        st.tuples(
+            st.floats(-6.0, 6.0), st.floats(-6.0, 6.0), st.floats(0.0, 3.0), st.floats(0.0, 3.0),
+            st.floats(-4.0, 4.0),
+        ),
+        max_size=12,
+    ),
+)
+def test_the_boxes_rays_enter_are_found_among_the_pairs_that_can_meet_as_among_all_pairs(  # noqa: PLR0917
+    x: float, y: float, rays: int, first: float, span: float, boxes: list[tuple[float, ...]]
+) -> None:
+    angles = np.sort((first + span * np.arange(rays) / rays) % (2 * math.pi))  # as a march covers them
+    near = [(x + 0.05, y - 0.02, 0.3, 0.2, 0.5), (x + 0.4, y, 0.5, 0.5, 0.0)]  # holds, touches the sensor
+    shadows = np.array([*boxes, *near[: len(boxes) % 3]], dtype=np.float64).reshape(-1, 5)
+    got, want = _box_entry(x, y, angles, shadows), _box_entry_all(x, y, angles, shadows)
+    assert got.tobytes() == want.tobytes()
