@@ -3,7 +3,8 @@ worker runs it (typed reports, views on, the view cut at a structure grid), fed 
 ``ros_ingest.py``'s robots send: per array a TF message (``map -> base_link`` at its stamp) and a
 Detection3DArray of ``--detections`` tables with tracker ids, the robot standing still. Reports the
 CPU time (``time.process_time``) per TF + array; ``--profile`` also prints a cProfile ranking.
-``--moving``: the robot moves 1 cm per array (no march reused). ``--check OUT`` writes the
+``--moving``: the robot moves 1 cm per array (no march reused); ``--noise M``: each table's pose
+jitters by ``M`` metres (and M rad of yaw), seeded, as a real detector's. ``--check OUT`` writes the
 outcomes as plain values (to compare two code trees' outputs: the same bytes).
 
     PYTHONPATH=$PWD python benchmarks/ros_worker_cost.py --detections 20 --repeat 10 [--profile]
@@ -30,13 +31,15 @@ from ros_ingest import ROBOT, tables  # benchmarks/ is not a package
 NOW_NS = 1_700_000_000_000_000_000
 
 
-def setup(per_robot: int, arrays: int = 50, *, moving: bool = False) -> tuple[Any, list[tuple[bytes, bytes]]]:
+def setup(
+    per_robot: int, arrays: int = 50, *, moving: bool = False, noise: float = 0.0
+) -> tuple[Any, list[tuple[bytes, bytes]]]:
     """A translator with one robot on a 40 x 20 m structure grid at 0.05 m (walls every 4 m across and
     6.5 m along: the robot in a corridor), and ``arrays`` TF + array pairs 0.1 s apart (``moving``: the
     robot 1 cm further along x at each, its tables as far before it: no view's march is reused)."""
     from adapters.ros.detections import DetectionSettings
     from adapters.zenoh.ros_workers import RobotSpec, RobotTranslator
-    from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
+    from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf, yaw_quaternion
     from twin.maps.grid import GridFrame, OccupancyGrid
 
     data = np.zeros((400, 800), dtype=np.int8)
@@ -50,14 +53,22 @@ def setup(per_robot: int, arrays: int = 50, *, moving: bool = False) -> tuple[An
     t.set_elevations({"g": 0.0})
     t.set_grid(grid)
     spots = tables(per_robot)
+    rng = np.random.default_rng(42)
     msgs = []
     for k in range(arrays):
         stamp = NOW_NS - 6_000_000_000 + k * 100_000_000
         dx = 0.01 * k if moving else 0.0
         tf = cdr_tf([Tf("map", "base_link", (ROBOT[0] + dx, ROBOT[1], 0.0), stamp_ns=stamp)])
+        jitter = rng.normal(0.0, noise, (len(spots), 3)) if noise else np.zeros((len(spots), 3))
         dets = [
-            Det((("table", 0.9),), (x - ROBOT[0] - dx, y - ROBOT[1], 0.375), (0.2, 0.2, 0.75), id=f"t{i}")
-            for i, (x, y) in enumerate(spots)
+            Det(
+                (("table", 0.9),),
+                (x - ROBOT[0] - dx + ex, y - ROBOT[1] + ey, 0.375),
+                (0.2, 0.2, 0.75),
+                orientation=yaw_quaternion(ez),
+                id=f"t{i}",
+            )
+            for i, ((x, y), (ex, ey, ez)) in enumerate(zip(spots, jitter.tolist(), strict=True))
         ]
         msgs.append((tf, cdr_detections(stamp, "base_link", dets)))
     return t, msgs
@@ -93,10 +104,11 @@ def main() -> int:
     p.add_argument("--detections", type=int, default=20)
     p.add_argument("--repeat", type=int, default=10)
     p.add_argument("--moving", action="store_true", help="the robot moves 1 cm per array")
+    p.add_argument("--noise", type=float, default=0.0, help="the tables' pose noise, m (and rad)")
     p.add_argument("--profile", action="store_true")
     p.add_argument("--check", type=Path)
     a = p.parse_args()
-    t, msgs = setup(a.detections, moving=a.moving)
+    t, msgs = setup(a.detections, moving=a.moving, noise=a.noise)
     first = run(t, msgs, 1)
     if a.check is not None:
         a.check.write_bytes(repr(_values([[o.translation.document for o in x] for x in first])).encode())
@@ -111,6 +123,7 @@ def main() -> int:
             {
                 "detections": a.detections,
                 "moving": a.moving,
+                "noise": a.noise,
                 "arrays_with_view": f"{views}/{len(first)}",
                 "cpu_ms": round(cpu_ms, 3),
             }
