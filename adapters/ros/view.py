@@ -61,6 +61,9 @@ MAX_CHORD_RAD = math.pi / 8
 """Merged rays span at most this angle (the chord of a 5 m arc over it is 10 cm inside)."""
 OCCUPIED_AT = 50
 """Cells at or above this value block a ray (``nav_msgs/OccupancyGrid``: 100 occupied, 0 free)."""
+BLOCK = 4
+"""A pinhole camera's rays are first sampled a few cells apart against blocks of this many cells a
+side (:class:`Structure`'s ``near``), and marched sample by sample only from where structure may be."""
 COARSE_BEARINGS = 360
 COARSE_SAMPLES = 48
 MIN_AREA_M2 = 1e-2
@@ -143,12 +146,24 @@ class Structure:
     grid: OccupancyGrid
     blocked: npt.NDArray[np.bool_]
     """``((height + 2) * (width + 2),)``: row-major, the grid's cell (row, col) at (row + 1, col + 1)."""
+    near: npt.NDArray[np.bool_]
+    """Blocks of :data:`BLOCK` x :data:`BLOCK` cells of ``blocked`` (flat, row-major, ``near_width`` a
+    row): True where a blocking cell lies in the block or in one of its eight neighbours (a point in
+    a block that is not near has no blocking cell within ``BLOCK`` rows or columns of its own cell)."""
+    near_width: int
 
     @classmethod
     def of(cls, grid: OccupancyGrid) -> Structure:
-        blocked = np.ones((grid.frame.height + 2, grid.frame.width + 2), dtype=np.bool_)
+        h, w = grid.frame.height + 2, grid.frame.width + 2
+        blocked = np.ones((h, w), dtype=np.bool_)
         blocked[1:-1, 1:-1] = grid.data >= OCCUPIED_AT
-        return cls(grid, blocked.ravel())
+        bh, bw = -(-h // BLOCK), -(-w // BLOCK)
+        padded = np.ones((bh * BLOCK, bw * BLOCK), dtype=np.bool_)  # beyond the border: blocking too
+        padded[:h, :w] = blocked
+        near = np.pad(padded.reshape(bh, BLOCK, bw, BLOCK).any(axis=(1, 3)), 1, constant_values=True)
+        near[1:-1, :] |= near[:-2, :] | near[2:, :]  # and the neighbouring blocks (3 x 3)
+        near[:, 1:-1] |= near[:, :-2] | near[:, 2:]
+        return cls(grid, blocked.ravel(), np.ascontiguousarray(near[1:-1, 1:-1]).ravel(), bw)
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -272,22 +287,27 @@ def _pinhole_reach(
     f, r, d = (np.asarray(v) for v in (cam.forward, cam.right, cam.down))
     af, ar, ad = cos * f[0] + sin * f[1], cos * r[0] + sin * r[1], cos * d[0] + sin * d[1]
     th = math.tan(cam.hfov_rad / 2)
+    tv = math.tan(cam.vfov_rad / 2) if cam.vfov_rad is not None else 0.0
     lo = np.full(len(angles), max(cam.near_m, 0.0))
     hi = np.full(len(angles), float(cam.range_m))
+    # each side p + q t <= 0: q is the bearing's (the same at both heights), p the height's
+    qs = [-af, ar - th * af, -ar - th * af]
+    if cam.vfov_rad is not None:
+        qs += [ad - tv * af, -ad - tv * af]
+    signs = [(q > 0, q < 0, q == 0) for q in qs]
     for z in band:
         dz = z - cam.position[2]
         kf, kr, kd = dz * f[2], dz * r[2], dz * d[2]
-        sides = [(-kf, -af), (kr - th * kf, ar - th * af), (-kr - th * kf, -ar - th * af)]  # p + q t <= 0
+        ps = [-kf, kr - th * kf, -kr - th * kf]
         if cam.vfov_rad is not None:
-            tv = math.tan(cam.vfov_rad / 2)
-            sides += [(kd - tv * kf, ad - tv * af), (-kd - tv * kf, -ad - tv * af)]
-        for p, q in sides:
-            p_arr = np.broadcast_to(p, q.shape)
+            ps += [kd - tv * kf, -kd - tv * kf]
+        for p, q, (ahead, behind, level) in zip(ps, qs, signs, strict=True):
             with np.errstate(divide="ignore", invalid="ignore"):
-                t = -p_arr / q
-            hi = np.where(q > 0, np.minimum(hi, t), hi)
-            lo = np.where(q < 0, np.maximum(lo, t), lo)
-            hi = np.where((q == 0) & (p_arr > 0), -np.inf, hi)
+                t = np.divide(-p, q)
+            np.minimum(hi, t, out=hi, where=ahead)
+            np.maximum(lo, t, out=lo, where=behind)
+            if p > 0:
+                hi[level] = -np.inf
     return lo, hi
 
 
@@ -462,9 +482,12 @@ CHUNK_SAMPLES = 16
 chunk only for the rays that have not met the structure yet and still reach that far."""
 
 
-def _cell_index(structure: Structure, xs: FloatArray, ys: FloatArray) -> npt.NDArray[np.intp]:
-    """Indices into ``structure.blocked`` of the cells of the points ``(xs, ys)`` (any shape; beyond the
-    grid's edge: its blocking border). Overwrites nothing it is given."""
+Cells = npt.NDArray[np.intp]
+
+
+def _cells(structure: Structure, xs: FloatArray, ys: FloatArray) -> tuple[Cells, Cells]:
+    """``(rows, cols)`` in ``structure.blocked``'s bordered grid of the cells of the points ``(xs, ys)``
+    (any shape; beyond the grid's edge: its blocking border). Overwrites nothing it is given."""
     f = structure.grid.frame
     res = f.resolution_m
     cells = np.subtract(xs, f.origin_x)  # in place from here on: the same values, no temporaries
@@ -475,12 +498,20 @@ def _cell_index(structure: Structure, xs: FloatArray, ys: FloatArray) -> npt.NDA
     cells /= res
     np.floor(cells, out=cells)
     rows = cells.astype(np.intp)
-    np.clip(cols, -1, f.width, out=cols)  # beyond the grid's edge: the border, which blocks
-    np.clip(rows, -1, f.height, out=rows)
+    np.maximum(cols, -1, out=cols)  # beyond the grid's edge: the border, which blocks
+    np.minimum(cols, f.width, out=cols)
+    np.maximum(rows, -1, out=rows)
+    np.minimum(rows, f.height, out=rows)
     rows += 1
-    rows *= f.width + 2
+    cols += 1
+    return rows, cols
+
+
+def _cell_index(structure: Structure, xs: FloatArray, ys: FloatArray) -> npt.NDArray[np.intp]:
+    """Indices into ``structure.blocked`` of the cells of the points ``(xs, ys)`` (:func:`_cells`)."""
+    rows, cols = _cells(structure, xs, ys)
+    rows *= structure.grid.frame.width + 2
     rows += cols
-    rows += 1
     return rows
 
 
@@ -495,31 +526,57 @@ def _first_blocks(
     step: float,
 ) -> FloatArray:
     """``(rays,)``: for each ray from ``(ox, oy)`` at ``angles``, the distance of its first sample (at
-    ``dist``) in a blocking cell, less ``step``; inf if none at or before ``upto`` (a ray's own
-    limit: what lies beyond cannot shorten its floor). The samples are the whole march's, the same
-    floats, marched in chunks (:data:`CHUNK_SAMPLES`, doubling) for the rays still going."""
+    ``dist``, ``step`` apart, half a cell) in a blocking cell, less ``step``; inf if none at or before
+    ``upto`` (a ray's own limit: what lies beyond cannot shorten its floor). The samples are the whole
+    march's, the same floats; each ray is first looked at every ``2 BLOCK - 4`` cells against the
+    structure's blocks (``near``): a sample within ``BLOCK - 2`` cells of a look that is not near
+    structure is in a cell at most ``BLOCK`` rows and columns from the look's (a cell for the floor, one
+    for rounding), so it does not block; the samples before halfway from the last clear look to the
+    first near one are clear, and from there the ray is marched sample by sample, in chunks
+    (:data:`CHUNK_SAMPLES`, doubling) while it goes."""
     out = np.full(len(angles), np.inf)
-    if structure is None or len(angles) == 0:
+    if structure is None or len(angles) == 0 or len(dist) == 0:
         return out
     cos, sin = np.cos(angles), np.sin(angles)
-    going = np.arange(len(angles))
-    start, chunk = 0, CHUNK_SAMPLES
-    while start < len(dist):
-        d = dist[start : start + chunk]
-        start, chunk = start + chunk, 2 * chunk
-        going = going[upto[going] >= d[0]]  # rays whose limit is behind this chunk are done
+    every = 4 * BLOCK - 8  # samples (half cells) between two looks at the blocks: 2 BLOCK - 4 cells
+    coarse = dist[::every]
+    xs = np.multiply.outer(cos, coarse)
+    xs += ox
+    ys = np.multiply.outer(sin, coarse)
+    ys += oy
+    rows, cols = _cells(structure, xs, ys)
+    rows //= BLOCK
+    rows *= structure.near_width
+    cols //= BLOCK
+    rows += cols
+    near = structure.near[rows]
+    first = np.where(near.any(axis=1), near.argmax(axis=1), len(coarse))
+    # the first sample that may be in a blocking cell: past half the way from the last clear look (2 to spare)
+    pos = np.maximum(first * every - every // 2 - 2, 0)
+    going = np.nonzero(pos < len(dist))[0]
+    chunk, last = CHUNK_SAMPLES, len(dist) - 1
+    while len(going):
+        going = going[upto[going] >= dist[pos[going]]]  # rays whose limit is behind are done
         if len(going) == 0:
             break
-        xs = np.multiply.outer(cos[going], d)
+        at = pos[going][:, None] + np.arange(chunk)
+        inside = at <= last
+        np.minimum(at, last, out=at)
+        d = dist[at]
+        xs = cos[going][:, None] * d
         xs += ox
-        ys = np.multiply.outer(sin[going], d)
+        ys = sin[going][:, None] * d
         ys += oy
         blocked = structure.blocked[_cell_index(structure, xs, ys)]
-        blocked &= d[None, :] <= upto[going][:, None]
+        blocked &= inside
+        blocked &= d <= upto[going][:, None]
         hit = blocked.any(axis=1)
         if hit.any():
-            out[going[hit]] = d[blocked[hit].argmax(axis=1)] - step
-            going = going[~hit]
+            rows_hit = np.nonzero(hit)[0]
+            out[going[hit]] = d[rows_hit, blocked[hit].argmax(axis=1)] - step
+        pos[going] += chunk
+        going = going[~hit & (pos[going] <= last)]
+        chunk *= 2
     return out
 
 

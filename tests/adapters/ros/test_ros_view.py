@@ -23,6 +23,7 @@ from adapters.ros.view import (
     ViewCache,
     _box_entry,
     _box_entry_all,
+    _first_blocks,
     _march,
     camera_view,
     visibility_polygon,
@@ -355,3 +356,32 @@ def test_the_boxes_rays_enter_are_found_among_the_pairs_that_can_meet_as_among_a
     shadows = np.array([*boxes, *near[: len(boxes) % 3]], dtype=np.float64).reshape(-1, 5)
     got, want = _box_entry(x, y, angles, shadows), _box_entry_all(x, y, angles, shadows)
     assert got.tobytes() == want.tobytes()
+
+
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=list(HealthCheck))
+@given(
+    cells=st.lists(st.tuples(st.integers(0, 119), st.integers(0, 159)), max_size=400),
+    x=st.floats(-2.5, 7.5),
+    y=st.floats(-0.5, 7.0),
+    first=st.floats(0.0, 6.3),
+    span=st.floats(0.0, 6.3),
+    reach=st.floats(0.1, 9.0),
+    limit=st.floats(0.0, 9.0),
+)
+def test_rays_skip_the_blocks_far_from_structure_and_still_stop_at_the_first_blocking_sample(  # noqa: PLR0917
+    cells: list[tuple[int, int]], x: float, y: float, first: float, span: float, reach: float, limit: float
+) -> None:
+    frame = GridFrame(-1.3, 0.7, 0.05, 160, 120)  # single blocking cells strewn over an 8 x 6 m grid
+    data = np.zeros((frame.height, frame.width), dtype=np.int8)
+    for row, col in cells:
+        data[row, col] = 100
+    structure = Structure.of(OccupancyGrid(frame, data, "s", "localization", 0.0))
+    angles = np.sort((first + span * np.arange(97) / 97) % (2 * math.pi))
+    step = frame.resolution_m / 2
+    dist = np.arange(0.05, reach + step, step)
+    upto = np.where(np.arange(len(angles)) % 3 == 0, limit, np.inf)  # some rays end early
+    got = _first_blocks(structure, x, y, angles, dist, upto=upto, step=step)
+    for ray, limit_m in enumerate(upto.tolist()):  # the whole march of each ray, to its limit
+        within = dist[dist <= limit_m]
+        want = _full_first_block(structure, x, y, angles[ray : ray + 1], within) if len(within) else [np.inf]
+        assert got[ray] == want[0], (ray, got[ray], want[0])
