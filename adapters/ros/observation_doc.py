@@ -209,20 +209,26 @@ def _rad(v: float) -> float:
     return round(math.remainder(v, 2 * math.pi), 6) + 0.0
 
 
-def _rounded(values: np.ndarray, digits: int) -> np.ndarray:
-    """``values`` (any shape) as ``round(v, digits) + 0.0`` rounds each, at once: ``rint(v * 10**digits)
-    / 10**digits`` is that wherever ``v * 10**digits`` is not within 1e-6 of a half (its error is below
-    1e-7 for any value under 1e9 / 10**digits); those few are rounded one by one. NaN and inf stay."""
+def _rounded(values: np.ndarray, digits: int | np.ndarray) -> np.ndarray:
+    """``values`` (any shape) as ``round(v, digits) + 0.0`` rounds each, at once (``digits``: one for
+    all, or one per column): ``rint(v * 10**digits) / 10**digits`` is that wherever ``v * 10**digits``
+    is not within 1e-6 of a half (its error is below 1e-7 for any value under 1e9 / 10**digits);
+    those few are rounded one by one. NaN and inf stay."""
     v = np.asarray(values, dtype=np.float64)
-    scale = 10.0**digits
+    scale = 10.0 ** np.asarray(digits, dtype=np.float64)
     scaled = v * scale
     k = np.rint(scaled)
     out = k / scale + 0.0
     with np.errstate(invalid="ignore"):
         tie = np.abs(np.abs(scaled - k) - 0.5) < 1e-6
     if tie.any():
-        out[tie] = [round(float(x), digits) + 0.0 for x in v[tie]]
+        each = np.broadcast_to(np.asarray(digits), v.shape)[tie].tolist()
+        out[tie] = [round(float(x), int(n)) + 0.0 for x, n in zip(v[tie], each, strict=True)]
     return out
+
+
+_BOX_DIGITS = np.array([4, 4, 4, 4, 4, 4, 6])
+"""A box's numbers as written: metres to 0.1 mm, its yaw to 1 µrad."""
 
 
 def _ring(ring: Ring | Sequence[tuple[float, float]]) -> np.ndarray:
@@ -249,9 +255,8 @@ def observation_records(
     reports: dict[str, ElementReport] = {}
     # every box's numbers rounded as _m and _rad round each (at once: 20 boxes are 140 numbers)
     numbers = np.array([b.box for b in boxes], dtype=np.float64).reshape(-1, 7)
-    metres = _rounded(numbers[:, :6], 4).tolist()
-    turns = _rounded(np.array([math.remainder(v, 2 * math.pi) for v in numbers[:, 6].tolist()]), 6).tolist()
-    for b, (cx, cy, cz, sx, sy, sz), yaw in zip(boxes, metres, turns, strict=True):
+    numbers[:, 6] = [math.remainder(v, 2 * math.pi) for v in numbers[:, 6].tolist()]
+    for b, (cx, cy, cz, sx, sy, sz, yaw) in zip(boxes, _rounded(numbers, _BOX_DIGITS).tolist(), strict=True):
         reports[b.iri] = ElementReport(
             b.iri,
             ifc_class=b.ifc_class,

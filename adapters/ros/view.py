@@ -340,7 +340,7 @@ def _box_entry(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) -> F
     c, s, lx, ly, hx, hy = (v[0][which] for v in (c, s, lx, ly, hx, hy))
     dx = cos_a[rays] * c + sin_a[rays] * s
     dy = -cos_a[rays] * s + sin_a[rays] * c
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         t1x, t2x = (-hx - lx) / dx, (hx - lx) / dx
         t1y, t2y = (-hy - ly) / dy, (hy - ly) / dy
     inside_x = np.abs(lx) < hx
@@ -367,7 +367,7 @@ def _box_entry_all(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) 
     dx = np.cos(angles)[:, None] * c + np.sin(angles)[:, None] * s
     dy = -np.cos(angles)[:, None] * s + np.sin(angles)[:, None] * c
     hx, hy = sx / 2, sy / 2
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         t1x, t2x = (-hx - lx) / dx, (hx - lx) / dx
         t1y, t2y = (-hy - ly) / dy, (hy - ly) / dy
     inside_x = np.abs(lx) < hx
@@ -752,9 +752,26 @@ def camera_view(
             # else: a wide camera's vertical limit curves the near and far ends so that they cross
             # between rays (a known limit): the run claims no floor rather than floor it did not see
     view = FloorView(tuple(polygons), tuple(holes))
-    if not polygons or view.area < MIN_AREA_M2:
+    if not polygons or _small(view):
         return None
     return view
+
+
+def _small(view: FloorView) -> bool:
+    """Whether ``view`` claims less than :data:`MIN_AREA_M2`: its area worked out without the shoelace's
+    rolls (the last bits may differ), and exactly as :attr:`FloorView.area` does only when that is
+    within 1e-9 m² of the limit."""
+    area = 0.0
+    for rings, sign in ((view.rings, 1.0), (view.hole_rings, -1.0)):
+        for ring in rings:
+            if len(ring) < 3:
+                continue
+            x, y = ring[:, 0], ring[:, 1]
+            twice = float(x[:-1] @ y[1:] - y[:-1] @ x[1:]) + float(x[-1] * y[0] - y[-1] * x[0])
+            area += sign * abs(twice) / 2
+    if abs(area - MIN_AREA_M2) > 1e-9:
+        return area < MIN_AREA_M2
+    return view.area < MIN_AREA_M2
 
 
 def visibility_polygon(

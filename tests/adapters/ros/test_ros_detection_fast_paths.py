@@ -42,6 +42,8 @@ def _bits(value: Any) -> Any:
     """``value`` with every float as its 8 bytes (NaN's sign and payload compared too)."""
     if isinstance(value, float):
         return struct.pack("<d", value)
+    if isinstance(value, tuple) and hasattr(value, "_fields"):  # a named tuple: its fields
+        return tuple(_bits(v) for v in value)
     if isinstance(value, tuple | list):
         return type(value)(_bits(v) for v in value)
     if dataclasses.is_dataclass(value):

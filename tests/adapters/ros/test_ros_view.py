@@ -16,6 +16,7 @@ from shapely.ops import unary_union
 from adapters.ros.observation_doc import _metres
 from adapters.ros.tf import matrix
 from adapters.ros.view import (
+    MIN_AREA_M2,
     OCCUPIED_AT,
     Camera,
     FloorView,
@@ -25,6 +26,7 @@ from adapters.ros.view import (
     _box_entry_all,
     _first_blocks,
     _march,
+    _small,
     camera_view,
     visibility_polygon,
 )
@@ -385,3 +387,23 @@ def test_rays_skip_the_blocks_far_from_structure_and_still_stop_at_the_first_blo
         within = dist[dist <= limit_m]
         want = _full_first_block(structure, x, y, angles[ray : ray + 1], within) if len(within) else [np.inf]
         assert got[ray] == want[0], (ray, got[ray], want[0])
+
+
+@settings(max_examples=examples(200), deadline=None, suppress_health_check=list(HealthCheck))
+@given(
+    points=st.integers(3, 60),
+    seed=st.integers(0, 2**32 - 1),
+    scale=st.one_of(st.floats(0.01, 3.0), st.floats(0.05, 0.07)),
+    hole=st.booleans(),
+)
+def test_a_view_is_too_small_exactly_when_its_area_is_under_the_limit(
+    points: int, seed: int, scale: float, hole: bool
+) -> None:
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.uniform(0.0, 2 * math.pi, points))
+    r = scale * rng.uniform(0.5, 1.5, points)
+    ring = np.stack([12.3 + np.cos(t) * r, -4.1 + np.sin(t) * r], axis=1)
+    view = FloorView((ring,), (ring * 0.1 + (12.3 * 0.9, -4.1 * 0.9),) if hole else ())
+    assert _small(view) == (view.area < MIN_AREA_M2)
+    exact = FloorView((ring / math.sqrt(view.area / MIN_AREA_M2),))  # scaled to the limit itself
+    assert _small(exact) == (exact.area < MIN_AREA_M2)
