@@ -14,6 +14,8 @@ Arrays follow trimesh's conventions:
 
 from __future__ import annotations
 
+import operator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -328,4 +330,10 @@ def _by_fields(record: Any) -> tuple[Any, tuple[object, ...]]:
     """A record pickled as a call of its class with its fields (the ROS ingest workers hand many over):
     twice as fast to load as the setstate of a frozen dataclass with slots, and a little smaller."""
     cls = type(record)
-    return (cls, tuple(getattr(record, name) for name in cls.__slots__))  # the fields, in order
+    return (cls, _FIELDS[cls](record))
+
+
+_FIELDS: dict[type, Callable[[Any], tuple[object, ...]]] = {
+    cls: operator.attrgetter(*cls.__slots__) for cls in (ElementReport, ObservedView)
+}
+"""The records pickled by :func:`_by_fields`: their fields read at once, in order (their slots)."""
