@@ -285,17 +285,17 @@ def decode_detections(
         raise RosInputError("oversized", msg)
     out: list[_Detection] = []
     for d_frame, d_stamp, results, v, d_id in raw:
-        best = max(results, key=lambda r: r[1], default=None)
+        best = results[0] if len(results) == 1 else max(results, key=lambda r: r[1], default=None)
         out.append(
-            _Detection(
-                frame_id=d_frame or frame,
-                stamp_ns=d_stamp or stamp,
-                class_id=None if best is None else best[0],
-                score=-math.inf if best is None else best[1],
-                position=(v[0], v[1], v[2]),
-                orientation=(v[3], v[4], v[5], v[6]),
-                size=(v[7], v[8], v[9]),
-                id=d_id,
+            _Detection(  # frame_id, stamp_ns, class_id, score, position, orientation, size, id
+                d_frame or frame,
+                d_stamp or stamp,
+                None if best is None else best[0],
+                -math.inf if best is None else best[1],
+                (v[0], v[1], v[2]),
+                (v[3], v[4], v[5], v[6]),
+                (v[7], v[8], v[9]),
+                d_id,
             )
         )
     return frame, stamp, out

@@ -259,8 +259,12 @@ class TfBuffer:
         root_from_source = np.eye(4)
         for step in src_steps[: src_chain.index(common)]:
             root_from_source = step @ root_from_source
+        up = tgt_steps[: tgt_chain.index(common)]
+        if not up:  # the target is the common root (the map, as a rule): inv(I) is I, exactly
+            result: Matrix = np.eye(4) @ root_from_source
+            return result
         root_from_target = np.eye(4)
-        for step in tgt_steps[: tgt_chain.index(common)]:
+        for step in up:
             root_from_target = step @ root_from_target
-        result: Matrix = np.linalg.inv(root_from_target) @ root_from_source
+        result = np.linalg.inv(root_from_target) @ root_from_source
         return result
