@@ -326,15 +326,7 @@ def _box_entry(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) -> F
     lx, ly = (ox - cx) * c + (oy - cy) * s, -(ox - cx) * s + (oy - cy) * c  # sensor in the box's frame
     hx, hy = sx / 2, sy / 2
     cos_a, sin_a = np.cos(angles), np.sin(angles)
-    # which pairs can meet: the ray's bearing within the box's circumscribed circle's reach
-    with np.errstate(divide="ignore", invalid="ignore"):
-        reach = np.hypot(hx, hy)[0]
-        gap = np.hypot(cx - ox, cy - oy)[0]
-        half = np.arcsin(np.minimum(reach / gap, 1.0)) + 1e-6
-        centre = np.arctan2(cy - oy, cx - ox)[0]
-        every = ~(gap > reach * (1.0 + 1e-9) + 1e-9)  # reaches the sensor (or not a number): every ray
-        off = np.abs((angles[:, None] - centre[None, :] + math.pi) % (2 * math.pi) - math.pi)
-        rays, which = np.nonzero((off <= half[None, :]) | every[None, :])
+    rays, which = _pairs(ox, oy, angles, boxes)
     if len(rays) == 0:
         return out
     c, s, lx, ly, hx, hy = (v[0][which] for v in (c, s, lx, ly, hx, hy))
@@ -354,6 +346,35 @@ def _box_entry(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) -> F
     hit = (t_in <= t_out) & (t_in >= 0) & ~holds_sensor
     np.minimum.at(out, rays[hit], t_in[hit])
     return out
+
+
+def _pairs(
+    ox: float, oy: float, angles: FloatArray, boxes: FloatArray
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """``(rays, boxes)``: the pairs of a ray (``angles``, sorted in ``[0, 2 pi)``) and a box footprint
+    ``(k, 5)`` whose bearing lies within the box's angular reach from ``(ox, oy)`` (its circumscribed
+    circle's, with a margin; every ray for a box that reaches the sensor or is not a number), by box."""
+    cx, cy, sx, sy = boxes[:, 0], boxes[:, 1], boxes[:, 2], boxes[:, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        reach = np.hypot(sx / 2, sy / 2)
+        gap = np.hypot(cx - ox, cy - oy)
+        half = np.arcsin(np.minimum(reach / gap, 1.0)) + 1e-6
+        every = ~(gap > reach * (1.0 + 1e-9) + 1e-9)  # reaches the sensor (or not a number): every ray
+        low = np.mod(np.arctan2(cy - oy, cx - ox) - half, 2 * math.pi)
+        high = low + 2 * half
+    tau = 2 * math.pi
+    low, high = np.where(every, 0.0, low), np.where(every, tau, high)
+    # [low, high] within [0, 2 pi), and its part past 2 pi from 0 again
+    starts = np.concatenate([np.searchsorted(angles, low), np.zeros(len(boxes), dtype=np.intp)])
+    ends = np.concatenate(
+        [np.searchsorted(angles, np.minimum(high, tau), side="right"),
+         np.searchsorted(angles, np.where(high > tau, high - tau, -1.0), side="right")]
+    )  # fmt: skip
+    lengths = np.maximum(ends - starts, 0)
+    total = int(lengths.sum())
+    owner = np.repeat(np.tile(np.arange(len(boxes)), 2), lengths)
+    first = np.repeat(starts - (np.cumsum(lengths) - lengths), lengths)
+    return first + np.arange(total), owner
 
 
 def _box_entry_all(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) -> FloatArray:
