@@ -5,7 +5,9 @@ Detection3DArray of ``--detections`` tables with tracker ids, the robot standing
 CPU time (``time.process_time``) per TF + array; ``--profile`` also prints a cProfile ranking.
 ``--moving``: the robot moves 1 cm per array (no march reused); ``--noise M``: each table's pose
 jitters by ``M`` metres (and M rad of yaw), seeded, as a real detector's. ``--check OUT`` writes the
-outcomes as plain values (to compare two code trees' outputs: the same bytes).
+outcomes as plain values (to compare two code trees' outputs: the same bytes). ``--stages`` prints the
+CPU (thread time, with the timers' own cost) of each stage per TF + array; it finds the stages of
+either tree (before and after the boxes and footprints became one pass).
 
     PYTHONPATH=$PWD python benchmarks/ros_worker_cost.py --detections 20 --repeat 10 [--profile]
 """
@@ -90,6 +92,54 @@ def _values(v: Any) -> Any:
     return v
 
 
+STAGES = (
+    ("adapters.zenoh.ros_workers", "decode_tf_message", "TF decode"),
+    ("adapters.zenoh.ros_workers", "RobotTranslator._must_wait", "TF wait check"),
+    ("adapters.ros.detections", "decode_detections", "decode (CDR)"),
+    ("adapters.ros.detections", "_boxes_in_map", "boxes into the map + footprints"),
+    ("adapters.ros.detections", "_shadows", "boxes into the map + footprints"),
+    ("adapters.ros.detections", "_placements", "boxes into the map + footprints"),
+    ("adapters.ros.detections", "camera_view", "view"),
+    ("adapters.ros.detections", "observation_records", "records"),
+    ("adapters.zenoh.ros_workers", "translate_detections", "translate"),
+)
+
+
+def stages(t: Any, msgs: list[tuple[bytes, bytes]], repeat: int) -> dict[str, int]:
+    """µs of thread time per TF + array in each of :data:`STAGES` (those the tree has), timed by
+    wrapping them; "rest of translate" is the translation less its stages (the loop, IRIs, session)."""
+    import collections
+    import importlib
+
+    spent: collections.Counter[str] = collections.Counter()
+
+    def timed(f: Any, label: str) -> Any:
+        def g(*args: Any, **kwargs: Any) -> Any:
+            t0 = time.thread_time_ns()
+            try:
+                return f(*args, **kwargs)
+            finally:
+                spent[label] += time.thread_time_ns() - t0
+
+        return g
+
+    for module, name, label in STAGES:
+        owner: Any = importlib.import_module(module)
+        *path, attr = name.split(".")
+        for part in path:
+            owner = getattr(owner, part)
+        if hasattr(owner, attr):
+            setattr(owner, attr, timed(getattr(owner, attr), label))
+    t0 = time.process_time()
+    run(t, msgs, repeat)
+    n = repeat * len(msgs)
+    out = {"total": round(1e6 * (time.process_time() - t0) / n)}
+    out |= {k: round(v / 1000 / n) for k, v in spent.items()}
+    parts = ("decode (CDR)", "boxes into the map + footprints", "view", "records")
+    out["rest of translate"] = out.pop("translate") - sum(out.get(k, 0) for k in parts)
+    return out
+
+
 def run(t: Any, msgs: list[tuple[bytes, bytes]], repeat: int) -> list[Any]:
     out = []
     for _ in range(repeat):
@@ -107,6 +157,7 @@ def main() -> int:
     p.add_argument("--noise", type=float, default=0.0, help="the tables' pose noise, m (and rad)")
     p.add_argument("--profile", action="store_true")
     p.add_argument("--check", type=Path)
+    p.add_argument("--stages", action="store_true", help="also the CPU of each stage (µs per array)")
     a = p.parse_args()
     t, msgs = setup(a.detections, moving=a.moving, noise=a.noise)
     first = run(t, msgs, 1)
@@ -129,6 +180,8 @@ def main() -> int:
             }
         )
     )
+    if a.stages:
+        print(json.dumps(stages(t, msgs, a.repeat)))
     if a.profile:
         prof = cProfile.Profile()
         prof.enable()
