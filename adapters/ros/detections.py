@@ -423,11 +423,13 @@ def _placements(
     *,
     max_tilt_rad: float,
     max_size_m: float,
+    footprints: bool = True,
 ) -> tuple[list[_BOX_PLACED | RosInputError | None], FloatArray, BoolArray]:
     """Every detection placed at once (``frames[i]``: map from detection ``i``'s frame): for those
     ``boxed``, :func:`box_in_map`'s box or its error (the same floats, bit for bit: the same operations
     in the same order; a box whose pose or size fails goes through :func:`box_in_map` for its error;
-    None for the others); and the footprints of all as :func:`_shadows` describes them."""
+    None for the others); and the footprints of all as :func:`_shadows` describes them (``(0, 5)``
+    without ``footprints``: no view will be cut by them), with which could be placed."""
     n = len(dets)
     if n == 0:
         return [], np.zeros((0, 5)), np.zeros(0, dtype=bool)
@@ -480,6 +482,8 @@ def _placements(
                 boxes[i] = (cx, cy, cz, s[0], s[1], s[2], atan2(r10[i], r00[i]))
             except RosInputError as err:
                 boxes[i] = err
+    if not footprints:
+        return boxes, np.zeros((0, 5)), shadow_ok
     # the footprints: the map-axis-aligned extent of each box, however tilted
     p, size = np.where(shadow_ok[:, None], p, 0.0), np.where(shadow_ok[:, None], size, 0.0)
     m33 = m[:, :3, :3]
@@ -500,8 +504,9 @@ def _boxes_in_map(
 ) -> list[_BOX_PLACED | RosInputError]:
     """:func:`box_in_map` of many boxes at once (``frames[i]``: map from detection ``i``'s frame), the
     same floats, bit for bit (:func:`_placements`)."""
-    limits = {"max_tilt_rad": max_tilt_rad, "max_size_m": max_size_m}
-    boxes = _placements(frames, dets, [True] * len(dets), **limits)[0]
+    boxes = _placements(
+        frames, dets, [True] * len(dets), max_tilt_rad=max_tilt_rad, max_size_m=max_size_m, footprints=False
+    )[0]
     return [b for b in boxes if b is not None]
 
 
@@ -602,9 +607,11 @@ def translate_detections(
         frames.append(transforms[key])
         placed.append(d)
         boxed.append(ifc_class is not None)
+    viewed = ctx.fusion_terms and ctx.occlusion_known  # a view is cut by the detections' footprints
     placed_boxes, shadows, ok = _placements(
-        frames, placed, boxed, max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m
-    )
+        frames, placed, boxed, max_tilt_rad=settings.max_tilt_rad, max_size_m=settings.max_size_m,
+        footprints=viewed,
+    )  # fmt: skip
     for index, d, why, ifc_class, error, row in steps:
         if why is not None:
             ignored[why] += 1
@@ -638,7 +645,7 @@ def translate_detections(
         box = (cx, cy, cz - drop_z, sx, sy, sz, yaw)
         boxes.append(BoxReport(iri, ifc_class, ctx.storey, box, kind=settings.types.get(d.class_id or "")))
     view = None
-    if ctx.fusion_terms and ctx.occlusion_known and not refused and not blind and ok.all():
+    if viewed and not refused and not blind and ok.all():
         view = _view(settings, ctx, frame, stamp, storey=ctx.storey, shadows=shadows, drop_z=drop_z)
     write = observation_records if typed else observation_turtle
     document = write(boxes=boxes, view=view, sense_ns=stamp or None, fusion_terms=ctx.fusion_terms)
