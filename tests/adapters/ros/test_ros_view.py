@@ -407,3 +407,28 @@ def test_a_view_is_too_small_exactly_when_its_area_is_under_the_limit(
     assert _small(view) == (view.area < MIN_AREA_M2)
     exact = FloorView((ring / math.sqrt(view.area / MIN_AREA_M2),))  # scaled to the limit itself
     assert _small(exact) == (exact.area < MIN_AREA_M2)
+
+
+def test_a_view_cache_is_not_reused_after_the_robot_moves_a_centimetre_or_the_map_changes() -> None:
+    data = np.zeros((FRAME.height, FRAME.width), dtype=np.int8)
+    grid = OccupancyGrid(FRAME, data, "s", "localization", 0.0)
+    walled = data.copy()
+    walled[:, 45] = 100  # a wall across the view at x = 4.5 m
+    shadows = [(3.0, 3.2, 0.3, 0.3, 0.0)]
+    cache = ViewCache()
+    seen = []
+    for structure, x in [
+        (Structure.of(grid), 1.0),
+        (Structure.of(grid), 1.0),  # a new map version (the same cells): marched again
+        (Structure.of(OccupancyGrid(FRAME, walled, "s", "localization", 0.0)), 1.0),  # a wall: marched again
+        (Structure.of(grid), 1.01),  # moved 1 cm
+    ]:
+        cam = camera(x, 3.0, 1.0)
+        cached = camera_view(structure, cam, band_m=(0.1, 0.5), shadows=shadows, cache=cache)
+        assert _same(cached, camera_view(structure, cam, band_m=(0.1, 0.5), shadows=shadows))
+        seen.append(cached)
+    assert cache.hits == 0 and cache.misses == 4
+    assert seen[0] is not None and seen[2] is not None and seen[3] is not None
+    assert max(x for ring in seen[2].polygons for x, _ in ring) <= 4.5  # stops at the new wall
+    assert max(x for ring in seen[0].polygons for x, _ in ring) > 6.0  # the old view did not
+    assert not _same(seen[0], seen[3])
