@@ -335,7 +335,7 @@ def test_a_pinhole_march_in_chunks_stops_each_ray_where_the_whole_march_does(  #
     assert np.array_equal(marched.first_block <= marched.far, full <= marched.far)
 
 
-@settings(max_examples=examples(150), deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(100), deadline=None, suppress_health_check=list(HealthCheck))
 @given(
     x=st.floats(-5.0, 5.0),
     y=st.floats(-5.0, 5.0),
@@ -360,7 +360,7 @@ def test_the_boxes_rays_enter_are_found_among_the_pairs_that_can_meet_as_among_a
     assert got.tobytes() == want.tobytes()
 
 
-@settings(max_examples=examples(150), deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(80), deadline=None, suppress_health_check=list(HealthCheck))
 @given(
     cells=st.lists(st.tuples(st.integers(0, 119), st.integers(0, 159)), max_size=400),
     x=st.floats(-2.5, 7.5),
