@@ -115,7 +115,10 @@ def run(fusion: bool, args: argparse.Namespace) -> dict[str, Any]:
     work = Path(tempfile.mkdtemp(prefix="fusion-cost-"))
     store = live.prepare_store("lab", work)
     config = work / "cost.toml"
-    config.write_text(f"[fusion]\nenabled = {'true' if fusion else 'false'}\n")
+    text = f"[fusion]\nenabled = {'true' if fusion else 'false'}\n"
+    if args.batch_wait_ms is not None:  # (a tree before [serve] batch_wait_ms does not know the key)
+        text += f"[serve]\nbatch_wait_ms = {args.batch_wait_ms}\n"
+    config.write_text(text)
     endpoint = f"tcp/127.0.0.1:{live._free_port()}"
     daemon, line = live.serve(
         "--config", str(config), "--store", str(store), "--listen", endpoint, "--no-record"
@@ -178,6 +181,7 @@ def main() -> int:
     p.add_argument(
         "--threads", action="store_true", help="split the daemon's CPU by thread (py-spy names them)"
     )
+    p.add_argument("--batch-wait-ms", type=float, help="[serve] batch_wait_ms (default: the tree's)")
     p.add_argument("--json", type=Path)
     args = p.parse_args()
     rows = [run(mode == "on", args) for mode in args.modes.split(",")]

@@ -50,8 +50,9 @@ from twin.records import GeometryChange, Shape
 from twin.selection.skills import SkillProfile
 
 _AT_ONCE_AREA = 4
-"""Windows changed together are rendered in one pass over their bounding window when it is at most this
-many times their total area (else each alone)."""
+"""Windows changed together are rendered in one pass over their bounding window, and sent as one update
+of the bounding window of their changed cells, when it is at most this many times their total area
+(else each alone)."""
 
 
 class LiveMaps(Drawing):
@@ -138,7 +139,8 @@ class LiveMaps(Drawing):
 
         Returns:
             One update per changed region of each map (the bounding window of its changed cells), each
-            bringing that map to its next version.
+            bringing that map to its next version; changes that lie close (their bounding window at most
+            :data:`_AT_ONCE_AREA` times their windows' area) are one region.
         """
         touched = {c.iri for c in geometry} | {i for sel in membership.values() for i in sel}
         base = self.scene.elements.index
@@ -198,6 +200,10 @@ class LiveMaps(Drawing):
                     grown = grow(u, m.plan.inflation_pad).intersect(m.plan.frame.full)
                     source = (grown, self._occupancy_at_once(m, grown))
             fresh = [(win, self.render(m, win, source=source)) for win in windows]
+            if source is not None:  # changes that lie close: one update (a send, a version) for all
+                if (update := m.write_all(fresh)) is not None:
+                    updates.append(update)
+                continue
             for win, cells in fresh:  # all rendered before any is written
                 if (update := m.write(win, cells)) is not None:
                     updates.append(update)
