@@ -7,7 +7,6 @@ Example::
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,29 +61,15 @@ class LiveMap:
     def write(self, window: Window, cells: GridData) -> WindowUpdate | None:
         """Make ``cells`` the values of ``window``; the update of the changed cells' bounding window,
         bringing the map to its next version, or None if no cell changed."""
-        return self.write_all([(window, cells)])
-
-    def write_all(self, fresh: Sequence[tuple[Window, GridData]]) -> WindowUpdate | None:
-        """Make each ``(window, cells)`` of ``fresh`` the values of its window (windows that overlap
-        hold the same values where they do); one update, of the bounding window of every changed
-        cell, bringing the map to its next version, or None if no cell changed."""
-        changed: Window | None = None
-        for window, cells in fresh:
-            old = self.data[window.row0 : window.row1, window.col0 : window.col1]
-            diff = cells != old
-            rows = np.flatnonzero(diff.any(axis=1))
-            if not len(rows):
-                continue
-            cols = np.flatnonzero(diff.any(axis=0))
-            r0, r1 = window.row0 + int(rows[0]), window.row0 + int(rows[-1]) + 1
-            c0, c1 = window.col0 + int(cols[0]), window.col0 + int(cols[-1]) + 1
-            if changed is not None:
-                r0, c0 = min(r0, changed.row0), min(c0, changed.col0)
-                r1, c1 = max(r1, changed.row1), max(c1, changed.col1)
-            changed = Window(r0, c0, r1, c1)
-            old[...] = cells
-        if changed is None:
+        old = self.data[window.row0 : window.row1, window.col0 : window.col1]
+        diff = cells != old
+        rows = np.flatnonzero(diff.any(axis=1))
+        if not len(rows):
             return None
+        cols = np.flatnonzero(diff.any(axis=0))
+        r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+        changed = Window(window.row0 + r0, window.col0 + c0, window.row0 + r1, window.col0 + c1)
+        old[...] = cells
         self.version += 1
         data = self.data[changed.row0 : changed.row1, changed.col0 : changed.col1].copy()
         return WindowUpdate(self.plan.storey.key, self.plan.skill.name, changed, data, self.version)

@@ -188,7 +188,6 @@ class LiveMaps(Drawing):
             boxes += [b for i in touched if i in now and (b := new_bounds[i]) is not None]
             pad = math.ceil(m.plan.inflation_cells) + 1
             windows = dirty_windows(m.plan, boxes, pad)
-            source = None
             if len(windows) > 1:  # several changes at once: rasterise them together if they lie close
                 u = Window(
                     min(w.row0 for w in windows),
@@ -197,13 +196,14 @@ class LiveMaps(Drawing):
                     max(w.col1 for w in windows),
                 )
                 if u.shape[0] * u.shape[1] <= _AT_ONCE_AREA * sum(w.shape[0] * w.shape[1] for w in windows):
+                    # one rendering of their bounding window (its other cells come out as they are),
+                    # one update (a send, a version) for all
                     grown = grow(u, m.plan.inflation_pad).intersect(m.plan.frame.full)
                     source = (grown, self._occupancy_at_once(m, grown))
-            fresh = [(win, self.render(m, win, source=source)) for win in windows]
-            if source is not None:  # changes that lie close: one update (a send, a version) for all
-                if (update := m.write_all(fresh)) is not None:
-                    updates.append(update)
-                continue
+                    if (update := m.write(u, self.render(m, u, source=source))) is not None:
+                        updates.append(update)
+                    continue
+            fresh = [(win, self.render(m, win)) for win in windows]
             for win, cells in fresh:  # all rendered before any is written
                 if (update := m.write(win, cells)) is not None:
                     updates.append(update)
