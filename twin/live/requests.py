@@ -113,18 +113,13 @@ class RequestQueue:
         if not isinstance(request, ObserveRequest):
             return request
         batch = [request]
-        until = time.monotonic() + self.wait_s if self.wait_s > 0 else 0.0
+        if self.wait_s > 0 and self._queue.qsize() < self.max_batch - 1:
+            time.sleep(self.wait_s)  # one wake-up for those that follow, not one each
         while len(batch) < self.max_batch:
             try:
                 nxt = self._queue.get_nowait()
             except queue.Empty:
-                left = until - time.monotonic() if until else 0.0
-                if left <= 0:
-                    break
-                try:
-                    nxt = self._queue.get(timeout=left)
-                except queue.Empty:
-                    break
+                break
             if not isinstance(nxt, ObserveRequest):
                 self._held = nxt
                 break
