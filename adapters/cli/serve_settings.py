@@ -23,9 +23,9 @@ class ServeSettings(ConfigSection):
     batch_wait_ms: Annotated[Number, Field(ge=0.0, le=50.0)] = Field(
         2.0,
         description="Once the writer takes an observation, how long it waits for more to join it in one "
-        "batch (one commit, one map pass, one send of the acks and updates: robots that report at the "
-        "same instants cost the daemon less), milliseconds; the first waits that much longer for its "
-        "ack. 0: only what is queued.",
+        "batch (one commit, one map pass, one update per map: robots that report at the same instants "
+        "cost the daemon less), milliseconds; the observations wait that much longer for their acks. "
+        "0: only what is queued.",
     )
     route_files: PathSetting | None = Field(
         None,

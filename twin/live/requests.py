@@ -81,9 +81,9 @@ class RequestQueue:
     observations queued one behind the other come as one batch (group commit)."""
 
     def __init__(self, max_batch: int, *, wait_s: float = 0.0) -> None:
-        """``wait_s``: after the first observation of a batch, how long to wait for more to join it
-        (robots that report at the same instants arrive a few hundred microseconds apart; 0: take only
-        what is queued)."""
+        """``wait_s``: after taking the first observation of a batch, how long to wait (one sleep) for
+        more to join it (robots that report at the same instants arrive a few hundred microseconds
+        apart; 0: take only what is queued)."""
         self.max_batch = max(1, max_batch)
         self.wait_s = max(0.0, wait_s)
         self._queue: queue.SimpleQueue[Request] = queue.SimpleQueue()  # C: cheaper put and wake-up
