@@ -47,8 +47,7 @@ def _same(a: Observation, b: Observation) -> bool:
 def test_a_box_document_reads_as_the_full_parser_reads_it() -> None:
     label, when = vocab.RDFS_LABEL, "2026-11-28T18:00:00.123456789Z"
     doc = (
-        BOX
-        + f'<urn:r1:chair> <{T}ifcClass> "IfcFurniture"^^<{vocab.XSD_STRING}> ; '
+        BOX + f'<urn:r1:chair> <{T}ifcClass> "IfcFurniture"^^<{vocab.XSD_STRING}> ; '
         f'<{T}storey> "ground-floor" ; <{T}box> "1 2 0.4 0.5 0.5 0.8 0" ; '
         f'<{T}senseTime> "{when}"^^<{vocab.XSD_DATETIME}> ; <{label}> "a chair" ; <{label}> "b" ; .'
     ).encode()
