@@ -16,6 +16,8 @@ import argparse
 import json
 import os
 import random
+import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -63,11 +65,60 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def thread_cpu(pid: int) -> dict[int, tuple[str, float]]:
+    """Each of the process's threads: its id, its name (``comm``) and its user + system CPU seconds."""
+    out = {}
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            text = (task / "stat").read_text()
+        except OSError:  # ended meanwhile
+            continue
+        head, tail = text.rsplit(")", 1)
+        fields = tail.split()
+        out[int(task.name)] = (
+            head.split("(", 1)[1],
+            (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK"),
+        )
+    return out
+
+
+def python_thread_names(pid: int) -> dict[int, str]:
+    """The Python threads' names by thread id (``py-spy dump``; empty without py-spy)."""
+    spy = shutil.which("py-spy") or str(Path(sys.executable).parent / "py-spy")
+    try:
+        text = subprocess.run(
+            [spy, "dump", "--pid", str(pid)], check=False, capture_output=True, text=True, timeout=30
+        ).stdout
+    except (OSError, subprocess.SubprocessError):
+        return {}
+    return {
+        int(m.group(1)): m.group(2)
+        for m in re.finditer(r'^Thread (?:0x)?(\d+) \([^)]*\): "([^"]*)"', text, re.M)
+    }
+
+
+def by_thread(
+    pid: int, before: dict[int, tuple[str, float]], after: dict[int, tuple[str, float]]
+) -> dict[str, float]:
+    """CPU seconds per thread over the run, threads of one kind together: the Python threads by name
+    (the main thread is the writer), the Zenoh runtime's by name without their number."""
+    names = python_thread_names(pid)
+    out: dict[str, float] = {}
+    for tid, (comm, cpu) in after.items():
+        name = names.get(tid) or re.sub(r"[-_]?\d+$", "", comm)
+        name = "writer (MainThread)" if tid == pid else name
+        out[name] = out.get(name, 0.0) + cpu - before.get(tid, (comm, 0.0))[1]
+    return dict(sorted(out.items(), key=lambda kv: -kv[1]))
+
+
 def run(fusion: bool, args: argparse.Namespace) -> dict[str, Any]:
     work = Path(tempfile.mkdtemp(prefix="fusion-cost-"))
     store = live.prepare_store("lab", work)
     config = work / "cost.toml"
-    config.write_text(f"[fusion]\nenabled = {'true' if fusion else 'false'}\n")
+    text = f"[fusion]\nenabled = {'true' if fusion else 'false'}\n"
+    if args.batch_wait_ms is not None:  # (a tree before [serve] batch_wait_ms does not know the key)
+        text += f"[serve]\nbatch_wait_ms = {args.batch_wait_ms}\n"
+    config.write_text(text)
     endpoint = f"tcp/127.0.0.1:{live._free_port()}"
     daemon, line = live.serve(
         "--config", str(config), "--store", str(store), "--listen", endpoint, "--no-record"
@@ -96,11 +147,13 @@ def run(fusion: bool, args: argparse.Namespace) -> dict[str, Any]:
         ]
         time.sleep(max(0.0, start_at - time.time()))
         cpu0 = cpu_seconds(daemon.pid)
+        threads0 = thread_cpu(daemon.pid)
         results = [
             json.loads((c.communicate(timeout=args.duration + 120)[0] or "{}").splitlines()[-1])
             for c in children
         ]
         cpu = cpu_seconds(daemon.pid) - cpu0
+        threads = by_thread(daemon.pid, threads0, thread_cpu(daemon.pid)) if args.threads else {}
     finally:
         daemon.terminate()
         daemon.wait(timeout=30)
@@ -111,6 +164,8 @@ def run(fusion: bool, args: argparse.Namespace) -> dict[str, Any]:
         "acked_per_s": acked / args.duration,
         "daemon_cpu_s": cpu,
         "cpu_ms_per_acked": 1e3 * cpu / max(1, acked),
+        "threads_ms_per_acked": {k: 1e3 * v / max(1, acked) for k, v in threads.items()},
+        "load": os.getloadavg()[0],
     }
 
 
@@ -123,6 +178,10 @@ def main() -> int:
     p.add_argument("--rate", type=float, default=20.0)
     p.add_argument("--duration", type=float, default=20.0)
     p.add_argument("--modes", default="on,off,on", help="the runs, fusion on or off, in order")
+    p.add_argument(
+        "--threads", action="store_true", help="split the daemon's CPU by thread (py-spy names them)"
+    )
+    p.add_argument("--batch-wait-ms", type=float, help="[serve] batch_wait_ms (default: the tree's)")
     p.add_argument("--json", type=Path)
     args = p.parse_args()
     rows = [run(mode == "on", args) for mode in args.modes.split(",")]
@@ -130,8 +189,11 @@ def main() -> int:
     for r in rows:
         print(
             f"{'on' if r['fusion'] else 'off':8} {r['acked']:7d} {r['acked_per_s']:8.1f} "
-            f"{r['daemon_cpu_s']:13.2f} {r['cpu_ms_per_acked']:13.3f}"
+            f"{r['daemon_cpu_s']:13.2f} {r['cpu_ms_per_acked']:13.3f}   load {r['load']:.1f}"
         )
+        for name, ms in r["threads_ms_per_acked"].items():
+            if ms >= 0.001:
+                print(f"    {name:32} {ms:7.3f}")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
     return 0

@@ -306,6 +306,7 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
             service = TwinService(
                 store,
                 cfg,
+                batch_wait_s=cfg.section(ServeSettings).batch_wait_ms / 1e3,
                 housekeeping=[release] if release is not None else [],
                 snapshot=_snapshots(args, cfg),
             )

@@ -210,9 +210,9 @@ class ZenohDaemon:
         self.service.submit_observation(robot, sample.payload.to_bytes(), reply=None)
 
     def _on_observe(self, query: zenoh.Query) -> None:
-        robot = self.keys.robot_of(str(query.key_expr))
+        key = query.key_expr  # the reply's key, as made (a string would be parsed again)
+        robot = self.keys.robot_of(str(key))
         payload = query.payload.to_bytes() if query.payload is not None else b""
-        key = str(query.key_expr)
 
         def send(r: Reply) -> None:
             try:

@@ -14,6 +14,7 @@ Example::
 
 from __future__ import annotations
 
+import functools
 import io
 import re
 from collections.abc import Iterator
@@ -83,7 +84,9 @@ def _term(term: Term | None) -> str | None:
     return term.value
 
 
+@functools.lru_cache(maxsize=4096)
 def _nt_iri(iri: str) -> str:
+    """``<iri>``, checked (remembered: a change set names the same subjects and predicates again)."""
     if not iri or _NOT_IN_IRI.search(iri) is not None:
         msg = f"Not an IRI usable in a change: {iri!r}."
         raise StoreError(msg)

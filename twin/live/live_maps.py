@@ -50,8 +50,9 @@ from twin.records import GeometryChange, Shape
 from twin.selection.skills import SkillProfile
 
 _AT_ONCE_AREA = 4
-"""Windows changed together are rendered in one pass over their bounding window when it is at most this
-many times their total area (else each alone)."""
+"""Windows changed together are rendered in one pass over their bounding window, and sent as one update
+of the bounding window of their changed cells, when it is at most this many times their total area
+(else each alone)."""
 
 
 class LiveMaps(Drawing):
@@ -138,7 +139,8 @@ class LiveMaps(Drawing):
 
         Returns:
             One update per changed region of each map (the bounding window of its changed cells), each
-            bringing that map to its next version.
+            bringing that map to its next version; changes that lie close (their bounding window at most
+            :data:`_AT_ONCE_AREA` times their windows' area) are one region.
         """
         touched = {c.iri for c in geometry} | {i for sel in membership.values() for i in sel}
         base = self.scene.elements.index
@@ -186,7 +188,6 @@ class LiveMaps(Drawing):
             boxes += [b for i in touched if i in now and (b := new_bounds[i]) is not None]
             pad = math.ceil(m.plan.inflation_cells) + 1
             windows = dirty_windows(m.plan, boxes, pad)
-            source = None
             if len(windows) > 1:  # several changes at once: rasterise them together if they lie close
                 u = Window(
                     min(w.row0 for w in windows),
@@ -195,9 +196,14 @@ class LiveMaps(Drawing):
                     max(w.col1 for w in windows),
                 )
                 if u.shape[0] * u.shape[1] <= _AT_ONCE_AREA * sum(w.shape[0] * w.shape[1] for w in windows):
+                    # one rendering of their bounding window (its other cells come out as they are),
+                    # one update (a send, a version) for all
                     grown = grow(u, m.plan.inflation_pad).intersect(m.plan.frame.full)
                     source = (grown, self._occupancy_at_once(m, grown))
-            fresh = [(win, self.render(m, win, source=source)) for win in windows]
+                    if (update := m.write(u, self.render(m, u, source=source))) is not None:
+                        updates.append(update)
+                    continue
+            fresh = [(win, self.render(m, win)) for win in windows]
             for win, cells in fresh:  # all rendered before any is written
                 if (update := m.write(win, cells)) is not None:
                     updates.append(update)

@@ -18,7 +18,6 @@ Example::
 
 from __future__ import annotations
 
-import datetime
 import math
 import re
 from collections import defaultdict
@@ -30,6 +29,8 @@ from twin.config import Limits
 from twin.errors import ModelError, ObservationError
 from twin.graph import vocab
 from twin.graph.meshcodec import decode_mesh, decode_placement
+from twin.live.box_document import parse_box_document
+from twin.live.sense_time import sense_time_ns
 from twin.live.validate import (
     MAX_LIFETIME_S,
     MAX_VIEW_POINTS,
@@ -188,25 +189,6 @@ _VIEW_TERMS = {
     vocab.TWIN_DETECTS,
     vocab.TWIN_SENSE_TIME,
 }
-_FRACTION = re.compile(r"(\.\d{6})\d+")
-
-
-def sense_time_ns(text: str) -> int:
-    """An ``xsd:dateTime`` as nanoseconds since the epoch (no zone: UTC); ValueError if it is none."""
-    value = text.strip()
-    if value.endswith(("Z", "z")):
-        value = value[:-1] + "+00:00"
-    nanos = 0
-    m = _FRACTION.search(value)
-    if m is not None:  # Python keeps microseconds: the digits past them are added back as ns
-        extra = m.group(0)[7:]
-        nanos = int((extra + "000")[:3]) if extra else 0
-        value = value[: m.start()] + m.group(1) + value[m.end() :]
-    moment = datetime.datetime.fromisoformat(value)
-    if moment.tzinfo is None:
-        moment = moment.replace(tzinfo=datetime.UTC)
-    whole = moment.replace(microsecond=0)
-    return int(whole.timestamp()) * 1_000_000_000 + moment.microsecond * 1000 + nanos
 
 
 def _sense(subject: str, values: list[object]) -> int:
@@ -396,6 +378,8 @@ def parse_observation_document(payload: bytes | str, *, limits: Limits) -> Obser
         raise _fail(f"Observation is {len(data):,} bytes, more than the {limits.payload_bytes:,} allowed.")
     if not data.strip():
         raise _fail("Observation is empty: it must describe at least one element.")
+    if (common := parse_box_document(data, limits=limits)) is not None:
+        return common  # boxes in N-Triples form, read without an RDF parser: the same reports
     triples = _parse_turtle(data)
     by_subject: dict[str, dict[str, list[object]]] = defaultdict(lambda: defaultdict(list))
     objects_of_geometry: set[str] = set()

@@ -79,13 +79,17 @@ class TwinService:
         sinks: Sequence[TwinSink] = (),
         clock: Clock = time.time_ns,
         max_batch: int = 64,
+        batch_wait_s: float = 0.0,
         flush_every_s: float | None = None,
         housekeeping: Sequence[Callable[[], None]] = (),
         snapshot: Snapshots | None = None,
         warm_ups: Sequence[tuple[str, Callable[[LiveState], None]]] = (),
     ) -> None:
         """``max_batch``: at most this many queued observations share one commit and one map pass
-        (group commit). ``flush_every_s``: flush the store's buffers this often (if anything changed;
+        (group commit); ``batch_wait_s``: how long the writer waits, once it has taken an observation,
+        for more to join its batch (robots that report at the same instants share one commit, one map
+        pass and one send of their acks; the first waits that much longer for its ack).
+        ``flush_every_s``: flush the store's buffers this often (if anything changed;
         default ``[store] flush_every_s``), then run each of ``housekeeping`` (e.g. give freed memory
         back to the system). ``snapshot``: where the derived state is kept between runs (read by
         :meth:`start`, written on a clean stop and in the background; see :mod:`twin.live.snapshots`).
@@ -103,7 +107,7 @@ class TwinService:
         self.restored_from: int | None = None
         """The revision of the snapshot :meth:`start` restored the maps from (None: built from the store)."""
         self._completing: Restored | None = None
-        self._queue = RequestQueue(max_batch)
+        self._queue = RequestQueue(max_batch, wait_s=batch_wait_s)
         self.publication = Publication(
             emit=self._emit, clock=clock, keyframe_s=config.limits.keyframe_interval_s
         )

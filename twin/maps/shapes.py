@@ -43,7 +43,4 @@ def box_mesh(sx: float, sy: float, sz: float) -> Mesh:
 def box_placement(cx: float, cy: float, cz: float, *, yaw: float = 0.0) -> FloatArray:
     """``(4, 4) float64`` world-from-local: rotate by ``yaw`` about +z, then move to the centre."""
     c, s = math.cos(yaw), math.sin(yaw)
-    m = np.eye(4)
-    m[:2, :2] = [[c, -s], [s, c]]
-    m[:3, 3] = (cx, cy, cz)
-    return m
+    return np.array([[c, -s, 0.0, cx], [s, c, 0.0, cy], [0.0, 0.0, 1.0, cz], [0.0, 0.0, 0.0, 1.0]])
