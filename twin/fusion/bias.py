@@ -129,24 +129,49 @@ def note_sightings(ctx: FusionContext, seen: Sequence[tuple[ElementState, Pose, 
     order, as one effect with the same result: each element's mean, and each pair's difference as the
     last sighting that compares the pair leaves it (every comparison starts from the memory as it was,
     and a later one replaces an earlier), made once per pair instead of once per sighting."""
+    note_sightings_at(ctx, [(state.iri, raw.cx, raw.cy, sense) for state, raw, sense in seen])
+
+
+def note_sightings_at(ctx: FusionContext, seen: Sequence[tuple[str, float, float, int]]) -> None:
+    """:func:`note_sightings` of (element, raw x, raw y, sense time) tuples. Each pair's difference is
+    taken from the last sighting that compares it, found from the end (each robot's search stops at its
+    first comparison; the pairs in the order the first comparisons came, as in a forward pass)."""
     robot, memory = ctx.robot, ctx.memory
     far = ctx.rules.certain_move_m
     means: list[tuple[str, RobotMean]] = []
-    last: dict[str, tuple[float, float, int]] = {}  # other robot -> the last comparison (dx, dy, sense)
-    for state, raw, sense in seen:
-        track = memory.tracks.get(state.iri)
+    compared: list[tuple[RobotMean, dict[str, RobotMean], int]] = []  # mine, the others' means, sense
+    for iri, x, y, sense in seen:
+        track = memory.tracks.get(iri)
         held = track.means if track is not None else {}
-        mine = held.get(robot, RobotMean()).added(raw.cx, raw.cy, sense, weight=MEAN_WEIGHT)
-        means.append((state.iri, mine))
-        if mine.n < MEAN_MIN:
-            continue
+        mine = held.get(robot, RobotMean()).added(x, y, sense, weight=MEAN_WEIGHT)
+        means.append((iri, mine))
+        if mine.n >= MEAN_MIN and len(held) > (robot in held):
+            compared.append((mine, held, sense))
+
+    def compares(mine: RobotMean, other: str, m: RobotMean, sense: int) -> tuple[float, float] | None:
+        if other == robot or m.n < MEAN_MIN or sense - m.last_ns > RECENT_NS:
+            return None
+        dx, dy = mine.x - m.x, mine.y - m.y
+        return None if math.hypot(dx, dy) > far else (dx, dy)  # farther: a move not seen yet
+
+    everyone = {other for _, held, _ in compared for other in held} - {robot}
+    order: dict[str, None] = {}  # the first comparison of each robot, in order
+    for mine, held, sense in compared:
         for other, m in held.items():
-            if other != robot and m.n >= MEAN_MIN and sense - m.last_ns <= RECENT_NS:
-                dx, dy = mine.x - m.x, mine.y - m.y
-                if not math.hypot(dx, dy) > far:  # farther: a move the other has not seen yet
-                    last[other] = (dx, dy, sense)
+            if other not in order and compares(mine, other, m, sense) is not None:
+                order[other] = None
+        if len(order) == len(everyone):
+            break
+    last: dict[str, tuple[float, float, int]] = {}
+    for mine, held, sense in reversed(compared):
+        for other, m in held.items():
+            if other not in last and (d := compares(mine, other, m, sense)) is not None:
+                last[other] = (d[0], d[1], sense)
+        if len(last) == len(order):
+            break
     pairs = {}
-    for other, (dx, dy, sense) in last.items():
+    for other in order:
+        dx, dy, sense = last[other]
         there, back = memory.pairs.get((robot, other)), memory.pairs.get((other, robot))
         pairs[robot, other] = (there or RobotMean()).added(dx, dy, sense, weight=PAIR_WEIGHT)
         pairs[other, robot] = (back or RobotMean()).added(-dx, -dy, sense, weight=PAIR_WEIGHT)

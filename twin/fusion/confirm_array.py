@@ -29,15 +29,16 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
-from twin.fusion.associate import alias_fits, through_alias
-from twin.fusion.bias import note_sightings, unbiased
-from twin.fusion.clocks import last_known, stale_change
+from twin.config import FusionRules
+from twin.fusion.bias import note_sightings_at, unbiased
+from twin.fusion.clocks import stale_change
 from twin.fusion.confirm import box_of, only_sighting_where_it_stands, resizable
-from twin.fusion.context import report_pose
 from twin.fusion.dispute import still_covers
+from twin.fusion.effects import Effect
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
-from twin.fusion.gates import is_candidate
+from twin.fusion.gates import compatible, is_candidate, kinds_agree
 from twin.fusion.memory import FusionMemory
 from twin.records import ElementReport, FloatArray
 
@@ -45,6 +46,7 @@ if TYPE_CHECKING:
     from twin.fusion.context import FusionContext
     from twin.live.state import ElementState
 
+Index = npt.NDArray[np.intp]
 HALF_PI = math.pi / 2
 MIN_BOXES = 10
 """Fewer reports than this go through the per-report rules: cheaper than setting up the arrays (in
@@ -53,22 +55,73 @@ about 10, and 20 cost 0.27 ms here against 0.40 ms)."""
 
 
 @dataclass(slots=True)
-class _Box:
-    """One report of the array as the per-report rules would see it, before the gates."""
+class _Held:
+    """What the gates need of one held element, kept (in ``FusionMemory.confirm_cache``) while the
+    objects it was made from stay the same: its state, its held pose (the shape's), its dispute's poses,
+    the report's class and the rules."""
 
-    report: ElementReport
-    """As given (its box shifted by the robot's detector bias, once known)."""
-    target: str
     state: ElementState
-    storey: str
-    raw: Pose
-    pose: Pose
     held: Pose
-    sense: int
-    stale: bool
-    """Seen before what the twin holds of it (:func:`~twin.fusion.clocks.stale_change`): only counted."""
+    cover: object
+    """The dispute's poses (None: no dispute)."""
+    ifc_class: str | None
+    rules: FusionRules
+    ok: bool
+    """A candidate, not disputed: a box of it may confirm it."""
+    class_ok: bool
+    """The report's class and kind agree with the element's (the alias check's first gates)."""
     resizable: bool
     """A robot's box: other sizes are resize evidence (:func:`~twin.fusion.confirm.resizable`)."""
+    row: tuple[float, float, float, float, float, float, float]
+    gates: tuple[float, float, float, float]
+    """The class's confirm distance and angle, size ratio and minimum area ratio."""
+
+
+def _held(
+    ctx: FusionContext, r: ElementReport, state: ElementState, held: Pose | None, cover: object
+) -> _Held | None:
+    """:class:`_Held` of ``r``'s element (None: no held pose, nothing to confirm)."""
+    if held is None:
+        return None
+    schema = ctx.live.site.schema
+    track = ctx.memory.tracks.get(state.iri)
+    disputed = track is not None and still_covers(track.dispute, held)
+    c = ctx.rules.of(state.ifc_types)
+    class_ok = (r.ifc_class is None or compatible(schema, r.ifc_class, state)) and kinds_agree(
+        schema, (), r.ifc_class, state
+    )
+    return _Held(
+        state,
+        held,
+        cover,
+        r.ifc_class,
+        ctx.rules,
+        is_candidate(state) and not disputed,
+        class_ok,
+        resizable(ctx, state.iri),
+        _row(held),
+        (c.confirm_distance_m, c.confirm_angle_rad, c.size_ratio, c.min_area_ratio),
+    )
+
+
+@dataclass(slots=True)
+class _Array:
+    """The array's boxes as the per-report rules would see them, before the gates (row i: report i)."""
+
+    reports: list[ElementReport]
+    """As given (each box shifted by the robot's detector bias, once known)."""
+    targets: list[str]
+    held: list[_Held]
+    storeys: list[str]
+    senses: list[int]
+    stale: list[bool]
+    """Seen before what the twin holds of it (:func:`~twin.fusion.clocks.stale_change`): only counted."""
+    raw: FloatArray
+    """``(n, 7)``: the boxes' world poses (canonical), cx .. yaw."""
+    pose: FloatArray
+    """``raw`` less the robot's detector bias."""
+    refs: FloatArray
+    """``(n, 8)``: each element's confirmations so far (n, then the sums of cx .. yaw)."""
 
 
 def confirm_array(ctx: FusionContext, reports: Sequence[ElementReport], senses: Sequence[int]) -> bool:
@@ -80,78 +133,143 @@ def confirm_array(ctx: FusionContext, reports: Sequence[ElementReport], senses: 
     boxes = _boxes(ctx, reports, senses)
     if boxes is None:
         return False
-    fresh = [b for b in boxes if not b.stale]
-    sighted = _gates(ctx, fresh, _refinements(ctx.memory, fresh)) if fresh else np.zeros((0, 7))
+    fresh = np.flatnonzero(~np.array(boxes.stale, dtype=np.bool_))
+    sighted = _gates(ctx, boxes, fresh) if len(fresh) else np.zeros((0, 7))
     if sighted is None:
         return False
     _settle(ctx, boxes, fresh, sighted)
     return True
 
 
-def _boxes(ctx: FusionContext, reports: Sequence[ElementReport], senses: Sequence[int]) -> list[_Box] | None:
+def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
+    ctx: FusionContext, reports: Sequence[ElementReport], senses: Sequence[int]
+) -> _Array | None:
     """Every report as a held element's box (no side effect but the robot's bias, computed once), or
-    None when one is anything else."""
-    aliases, states, storeys, pending = ctx.memory.aliases, ctx.states, ctx.live.site.storeys, ctx.pending
-    tracks = ctx.memory.tracks
-    out: list[_Box] = []
-    targets: set[str] = set()
-    for given, sense in zip(reports, senses, strict=True):
-        r = given
-        if r.box is None or r.unmerge:
+    None when one is anything else. One pass of lookups per report (what it names, what the twin holds
+    of that: :class:`_Held`, remembered while it stays the same), the geometry as arrays."""
+    memory = ctx.memory
+    aliases, states, pending, tracks = memory.aliases, ctx.states, ctx.pending, memory.tracks
+    cache: dict[str, _Held] = memory.confirm_cache
+    storeys = ctx.live.site.storeys
+    rules = ctx.rules
+    elevations: dict[str, float] = {}
+    targets: list[str] = []
+    seen: set[str] = set()
+    helds: list[_Held] = []
+    keys: list[str] = []
+    stale: list[bool] = []
+    rows: list[tuple[float, float, float, float, float, float, float]] = []
+    refs: list[tuple[float, float, float, float, float, float, float, float]] = []
+    aliased: list[int] = []
+    for i, (r, sense) in enumerate(zip(reports, senses, strict=True)):
+        b = r.box
+        if b is None or r.unmerge:
             return None
         alias = aliases.get(r.iri)
-        target = r.iri if alias is None else alias.target
+        if alias is None:
+            target = r.iri
+        else:
+            target = alias.target
+            aliased.append(i)
         state = states.get(target)
-        if state is None or target in targets or target in pending or not is_candidate(state):
+        if state is None or target in seen or target in pending:
             return None  # unknown or removed, twice in the array, moved earlier in the batch
-        if not only_sighting_where_it_stands(r, state):
-            return None  # a change besides the box
-        storey_key = r.storey or state.storey
-        storey = storeys.get(storey_key or "")
-        held = ctx.held_pose(target)
+        seen.add(target)
         track = tracks.get(target)
-        disputed = track is not None and held is not None and still_covers(track.dispute, held)
-        if storey is None or storey_key is None or held is None or disputed:
-            return None  # (disputed: robots disagree on where it stands, each sighting takes a side)
-        raw = report_pose(r, storey.elevation_m)
-        assert raw is not None
-        pose = unbiased(ctx, raw)
-        if pose is not raw:
-            r = replace(r, box=box_of(pose, storey.elevation_m))
-        if alias is not None and alias_fits(ctx, r, state, pose) != "fits":
+        dispute = track.dispute if track is not None else None
+        cover = dispute.poses if dispute is not None else None
+        held = ctx.held_pose(target)
+        h = cache.get(target)
+        if (
+            h is None
+            or h.state is not state
+            or h.held is not held
+            or h.cover is not cover
+            or h.ifc_class != r.ifc_class
+            or h.rules is not rules
+        ):
+            made = _held(ctx, r, state, held, cover)
+            if made is None:
+                return None
+            h = cache[target] = made
+        if not h.ok or not only_sighting_where_it_stands(r, state):
+            return None  # not a candidate, disputed (each sighting takes a side), a change besides the box
+        key = r.storey or state.storey
+        if key is None:
             return None
-        targets.add(target)
-        stale = sense < last_known(ctx, target, state)
-        out.append(_Box(r, target, state, storey_key, raw, pose, held, sense, stale, resizable(ctx, target)))
-    return out
-
-
-def _refinements(memory: FusionMemory, boxes: list[_Box]) -> FloatArray:
-    """``(n, 8)``: each element's confirmations so far (n, then the sums of cx .. yaw)."""
-    rows = []
-    for b in boxes:
-        track = memory.tracks.get(b.target)
+        elevation = elevations.get(key)
+        if elevation is None:
+            storey = storeys.get(key)
+            if storey is None:
+                return None
+            elevation = elevations[key] = storey.elevation_m
+        targets.append(target)
+        helds.append(h)
+        keys.append(key)
+        rows.append((b.cx, b.cy, elevation + b.cz, b.sx, b.sy, b.sz, b.yaw))
+        stale.append(sense < max(state.sensed_ns, track.seen_ns if track is not None else 0))
         f = track.refinement if track is not None else None
-        rows.append(
-            (0, 0, 0, 0, 0, 0, 0, 0) if f is None else (f.n, f.cx, f.cy, f.cz, f.sx, f.sy, f.sz, f.yaw)
-        )
-    return np.array(rows, dtype=np.float64)
+        refs.append(_NO_REFINEMENT if f is None else (f.n, f.cx, f.cy, f.cz, f.sx, f.sy, f.sz, f.yaw))
+    raw = _canonical(np.array(rows, dtype=np.float64))  # box_pose of each
+    pose = raw
+    given = list(reports)
+    if unbiased(ctx, _ANY_POSE) is not _ANY_POSE:  # the robot's detector bias, once known
+        bias = ctx.bias
+        assert bias is not None
+        pose = raw.copy()
+        pose[:, 0] -= bias[0]
+        pose[:, 1] -= bias[1]
+        for i, row in enumerate(pose.tolist()):
+            given[i] = replace(given[i], box=box_of(Pose(*row), elevations[keys[i]]))
+    if aliased and not _aliases_fit(pose[aliased], [helds[i] for i in aliased], rules.alias_jump_m):
+        return None
+    return _Array(
+        given, targets, helds, keys, list(senses), stale, raw, pose, np.array(refs, dtype=np.float64)
+    )
 
 
-def _gates(ctx: FusionContext, boxes: list[_Box], refs: FloatArray) -> FloatArray | None:
-    """The sightings aligned with the held poses (``(n, 7)``: cx .. yaw), or None unless every box
-    confirms, at the held sizes, without a refinement to commit (:func:`twin.fusion.confirm.confirms`,
-    :func:`~twin.fusion.confirm.resize_evidence`, :func:`~twin.fusion.confirm.confirmation`)."""
+_NO_REFINEMENT = (0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+_ANY_POSE = Pose(0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
+"""A pose to ask :func:`~twin.fusion.bias.unbiased` whether the robot has a bias."""
+
+
+def _aliases_fit(pose: FloatArray, helds: list[_Held], jump_m: float) -> bool:
+    """:func:`twin.fusion.associate.alias_fits` is ``"fits"`` for every row (``"within"`` and
+    ``"fails"`` both need the per-report rules): class and kind agree, the centre no farther than
+    ``jump_m``, the heights overlap, the sizes agree."""
+    if not all(h.class_ok for h in helds):
+        return False
+    held = np.array([h.row for h in helds], dtype=np.float64)
+    ratio = np.array([h.gates[2] for h in helds], dtype=np.float64)
+    min_area = np.array([h.gates[3] for h in helds], dtype=np.float64)
+    near = np.hypot(pose[:, 0] - held[:, 0], pose[:, 1] - held[:, 1]) <= jump_m
+    zmin, zmax = pose[:, 2] - pose[:, 5] / 2, pose[:, 2] + pose[:, 5] / 2
+    hmin, hmax = held[:, 2] - held[:, 5] / 2, held[:, 2] + held[:, 5] / 2
+    overlap = (zmin <= hmax) & (hmin <= zmax)
+    sides = (np.abs(pose[:, 3:6] - held[:, 3:6]) <= ratio[:, None] * held[:, 3:6]).all(axis=1)
+    a, b = pose[:, 3] * pose[:, 4], held[:, 3] * held[:, 4]
+    small, large = np.minimum(a, b), np.maximum(a, b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        areas = (large <= 0.0) | (small / np.where(large > 0.0, large, 1.0) >= min_area)
+    return bool((near & overlap & sides & areas).all())
+
+
+def _gates(ctx: FusionContext, boxes: _Array, fresh: Index) -> FloatArray | None:
+    """The sightings aligned with the held poses (``(n, 7)``: cx .. yaw, one row per ``fresh`` box), or
+    None unless every box confirms, at the held sizes, without a refinement to commit
+    (:func:`twin.fusion.confirm.confirms`, :func:`~twin.fusion.confirm.resize_evidence`,
+    :func:`~twin.fusion.confirm.confirmation`)."""
     rules = ctx.rules
-    seen = np.array([_row(b.pose) for b in boxes], dtype=np.float64)
-    held = np.array([_row(b.held) for b in boxes], dtype=np.float64)
-    of = [rules.of(b.state.ifc_types) for b in boxes]
-    dist = np.array([c.confirm_distance_m for c in of], dtype=np.float64)
-    angle = np.array([c.confirm_angle_rad for c in of], dtype=np.float64)
+    helds = [boxes.held[i] for i in fresh.tolist()]
+    seen = boxes.pose[fresh]
+    refs = boxes.refs[fresh]
+    held = np.array([h.row for h in helds], dtype=np.float64)
+    gates = np.array([h.gates for h in helds], dtype=np.float64)
+    dist, angle = gates[:, 0], gates[:, 1]
     if not _confirms(seen, held, dist, angle).all():
         return None
     a = _aligned(seen, held)
-    resize = np.array([b.resizable for b in boxes], dtype=np.bool_)
+    resize = np.array([h.resizable for h in helds], dtype=np.bool_)
     near = (np.abs(a[:, 3:6] - held[:, 3:6]) <= dist[:, None]).all(axis=1)
     if not (near | ~resize).all():
         return None  # other sizes: resize evidence
@@ -208,24 +326,37 @@ def _canonical(p: FloatArray) -> FloatArray:
     return out
 
 
-def _settle(ctx: FusionContext, boxes: list[_Box], fresh: list[_Box], sighted: FloatArray) -> None:
+def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray) -> None:
     """What the per-report rules do for each box: a stale one noted as they note it, each confirmation
     (``fresh``, aligned as ``sighted``) counted, their memory effects as one."""
-    robot = ctx.robot
+    robot, out = ctx.robot, ctx.out
     rule = f"confirmation by {robot}: within confirm_distance_m and confirm_angle_deg"
-    for b in boxes:
-        if b.target != b.report.iri:
-            through_alias(ctx, b.report)  # resolved, and the alias used
-        ctx.boxes.append((b.storey, b.report, b.pose))
-        ctx.detected.add(b.target)
-        ctx.used.add(b.target)
-        if b.stale:
-            noted = stale_change(ctx, b.report, b.report.iri, b.state, b.sense)  # a sighting, not the latest
+    used: list[str] = []
+    for i, (r, target, key, row) in enumerate(
+        zip(boxes.reports, boxes.targets, boxes.storeys, boxes.pose.tolist(), strict=True)
+    ):
+        if target != r.iri:
+            out.resolved[r.iri] = target  # resolved, and the alias used
+            used.append(r.iri)
+        ctx.boxes.append((key, r, Pose(*row)))
+        if boxes.stale[i]:
+            noted = stale_change(ctx, r, r.iri, boxes.held[i].state, boxes.senses[i])  # not the latest
             assert noted
-            continue
-        ctx.out.seen.append(b.target)
-    note_sightings(ctx, [(b.state, b.raw, b.sense) for b in fresh])  # where its detector puts them: its bias
-    rows = [(b.target, b.sense, b.resizable, *row) for b, row in zip(fresh, sighted.tolist(), strict=True)]
+    if used:  # (the per-report rules add one such effect per report: on the aliases, not the tracks)
+        out.effects.append(_use_aliases(used, ctx.arrival_ns))
+    ctx.detected.update(boxes.targets)
+    ctx.used.update(boxes.targets)
+    picked = fresh.tolist()
+    confirmed = [boxes.targets[i] for i in picked]
+    out.seen.extend(confirmed)
+    raw = boxes.raw[fresh, :2].tolist()
+    note_sightings_at(  # where its detector puts them: its bias
+        ctx, [(boxes.targets[i], x, y, boxes.senses[i]) for i, (x, y) in zip(picked, raw, strict=True)]
+    )
+    rows = [
+        (boxes.targets[i], boxes.senses[i], boxes.held[i].resizable, *row)
+        for i, row in zip(picked, sighted.tolist(), strict=True)
+    ]
 
     def run(m: FusionMemory) -> None:
         for iri, sense, resizes, cx, cy, cz, sx, sy, sz, yaw in rows:
@@ -248,4 +379,17 @@ def _settle(ctx: FusionContext, boxes: list[_Box], fresh: list[_Box], sighted: F
             t.runs.pop(robot, None)  # this robot sees it where it is held: its own run ends
             t.decided = rule
 
-    ctx.out.effects.append(run)
+    out.effects.append(run)
+
+
+def _use_aliases(used: list[str], now: int) -> Effect:
+    """:func:`twin.fusion.effects.use_alias` of each alias in ``used``, as one effect."""
+
+    def run(m: FusionMemory) -> None:
+        for alias in used:
+            m.changing("aliases", alias)
+            a = m.aliases.get(alias)
+            if a is not None:
+                a.used_ns = max(a.used_ns, now)
+
+    return run
