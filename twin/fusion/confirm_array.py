@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -47,6 +47,7 @@ if TYPE_CHECKING:
     from twin.live.state import ElementState
 
 Index = npt.NDArray[np.intp]
+BoolArray = npt.NDArray[np.bool_]
 HALF_PI = math.pi / 2
 MIN_BOXES = 10
 """Fewer reports than this go through the per-report rules: cheaper than setting up the arrays (in
@@ -111,7 +112,7 @@ class _Array:
     reports: list[ElementReport]
     """As given (each box shifted by the robot's detector bias, once known)."""
     targets: list[str]
-    held: list[_Held]
+    layout: _Layout
     storeys: list[str]
     senses: list[int]
     stale: list[bool]
@@ -149,7 +150,8 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
     of that: :class:`_Held`, remembered while it stays the same), the geometry as arrays."""
     memory = ctx.memory
     aliases, states, pending, tracks = memory.aliases, ctx.states, ctx.pending, memory.tracks
-    cache: dict[str, _Held] = memory.confirm_cache
+    cache = _cache(memory)
+    held_of = cache.held
     storeys = ctx.live.site.storeys
     rules = ctx.rules
     elevations: dict[str, float] = {}
@@ -179,7 +181,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         dispute = track.dispute if track is not None else None
         cover = dispute.poses if dispute is not None else None
         held = ctx.held_pose(target)
-        h = cache.get(target)
+        h = held_of.get(target)
         if (
             h is None
             or h.state is not state
@@ -191,7 +193,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
             made = _held(ctx, r, state, held, cover)
             if made is None:
                 return None
-            h = cache[target] = made
+            h = held_of[target] = made
         if not h.ok or not only_sighting_where_it_stands(r, state):
             return None  # not a candidate, disputed (each sighting takes a side), a change besides the box
         key = r.storey or state.storey
@@ -221,10 +223,11 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         pose[:, 1] -= bias[1]
         for i, row in enumerate(pose.tolist()):
             given[i] = replace(given[i], box=box_of(Pose(*row), elevations[keys[i]]))
-    if aliased and not _aliases_fit(pose[aliased], [helds[i] for i in aliased], rules.alias_jump_m):
+    layout = _layout(cache, ctx.robot, helds, aliased)
+    if aliased and not _aliases_fit(pose[aliased], layout, rules.alias_jump_m):
         return None
     return _Array(
-        given, targets, helds, keys, list(senses), stale, raw, pose, np.array(refs, dtype=np.float64)
+        given, targets, layout, keys, list(senses), stale, raw, pose, np.array(refs, dtype=np.float64)
     )
 
 
@@ -233,25 +236,98 @@ _ANY_POSE = Pose(0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
 """A pose to ask :func:`~twin.fusion.bias.unbiased` whether the robot has a bias."""
 
 
-def _aliases_fit(pose: FloatArray, helds: list[_Held], jump_m: float) -> bool:
-    """:func:`twin.fusion.associate.alias_fits` is ``"fits"`` for every row (``"within"`` and
-    ``"fails"`` both need the per-report rules): class and kind agree, the centre no farther than
-    ``jump_m``, the heights overlap, the sizes agree."""
-    if not all(h.class_ok for h in helds):
-        return False
+@dataclass(slots=True)
+class _Layout:
+    """An array's held elements stacked as arrays (row i: report i), kept per robot and used again
+    while its next array names the same elements through the same IRIs, held as they were (a
+    tracker's objects, array after array)."""
+
+    helds: list[_Held]
+    aliased: list[int]
+    """The rows whose report came through an alias."""
+    held: FloatArray
+    """``(n, 7)``: the held poses, cx .. yaw."""
+    square: BoolArray
+    """The held footprints that are square (:attr:`~twin.fusion.footprints.Pose.square`)."""
+    dist: FloatArray
+    angle: FloatArray
+    ratio: FloatArray
+    min_area: FloatArray
+    resizable: BoolArray
+    class_ok: bool
+    """Every aliased row's class and kind agree with its element's."""
+
+
+@dataclass(slots=True)
+class _Cache:
+    """What confirmations at once keep between arrays (``FusionMemory.confirm_cache``)."""
+
+    held: dict[str, _Held] = field(default_factory=dict)
+    """Element -> :class:`_Held`."""
+    layouts: dict[str, _Layout] = field(default_factory=dict)
+    """Robot -> its last array's :class:`_Layout`."""
+
+
+def _cache(memory: FusionMemory) -> _Cache:
+    cache = memory.confirm_cache
+    if not isinstance(cache, _Cache):
+        cache = memory.confirm_cache = _Cache()
+    return cache
+
+
+def _layout(cache: _Cache, robot: str, helds: list[_Held], aliased: list[int]) -> _Layout:
+    """``helds`` stacked: the robot's last layout when it is the same."""
+    last = cache.layouts.get(robot)
+    if (
+        last is not None
+        and last.aliased == aliased
+        and len(last.helds) == len(helds)
+        and all(a is b for a, b in zip(last.helds, helds, strict=True))
+    ):
+        return last
     held = np.array([h.row for h in helds], dtype=np.float64)
-    ratio = np.array([h.gates[2] for h in helds], dtype=np.float64)
-    min_area = np.array([h.gates[3] for h in helds], dtype=np.float64)
-    near = np.hypot(pose[:, 0] - held[:, 0], pose[:, 1] - held[:, 1]) <= jump_m
-    zmin, zmax = pose[:, 2] - pose[:, 5] / 2, pose[:, 2] + pose[:, 5] / 2
-    hmin, hmax = held[:, 2] - held[:, 5] / 2, held[:, 2] + held[:, 5] / 2
-    overlap = (zmin <= hmax) & (hmin <= zmax)
-    sides = (np.abs(pose[:, 3:6] - held[:, 3:6]) <= ratio[:, None] * held[:, 3:6]).all(axis=1)
+    gates = np.array([h.gates for h in helds], dtype=np.float64)
+    made = _Layout(
+        helds,
+        aliased,
+        held,
+        held[:, 3] - held[:, 4] < SQUARE_TOLERANCE_M,
+        gates[:, 0].copy(),
+        gates[:, 1].copy(),
+        gates[:, 2].copy(),
+        gates[:, 3].copy(),
+        np.array([h.resizable for h in helds], dtype=np.bool_),
+        all(helds[i].class_ok for i in aliased),
+    )
+    cache.layouts[robot] = made
+    return made
+
+
+def _aliases_fit(pose: FloatArray, layout: _Layout, jump_m: float) -> bool:
+    """:func:`twin.fusion.associate.alias_fits` is ``"fits"`` for every aliased row (``pose``; ``"within"``
+    and ``"fails"`` both need the per-report rules): class and kind agree, the centre no farther than
+    ``jump_m``, the heights overlap, the sizes agree."""
+    if not layout.class_ok:
+        return False
+    rows = layout.aliased
+    held, ratio, min_area = layout.held[rows], layout.ratio[rows], layout.min_area[rows]
+    if not (np.hypot(pose[:, 0] - held[:, 0], pose[:, 1] - held[:, 1]) <= jump_m).all():
+        return False
+    half, held_half = pose[:, 5] / 2, held[:, 5] / 2
+    low, high = pose[:, 2] - half, pose[:, 2] + half
+    if not ((low <= held[:, 2] + held_half) & (held[:, 2] - held_half <= high)).all():
+        return False  # the heights do not overlap
+    if not (np.abs(pose[:, 3:6] - held[:, 3:6]) <= ratio[:, None] * held[:, 3:6]).all():
+        return False
     a, b = pose[:, 3] * pose[:, 4], held[:, 3] * held[:, 4]
     small, large = np.minimum(a, b), np.maximum(a, b)
+    return bool(_areas(small, large, min_area).all())
+
+
+def _areas(small: FloatArray, large: FloatArray, min_area: FloatArray) -> BoolArray:
+    """``large <= 0 or small / large >= min_area`` of each row."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        areas = (large <= 0.0) | (small / np.where(large > 0.0, large, 1.0) >= min_area)
-    return bool((near & overlap & sides & areas).all())
+        return np.asarray((large <= 0.0) | (small / np.where(large > 0.0, large, 1.0) >= min_area))
 
 
 def _gates(ctx: FusionContext, boxes: _Array, fresh: Index) -> FloatArray | None:
@@ -259,19 +335,25 @@ def _gates(ctx: FusionContext, boxes: _Array, fresh: Index) -> FloatArray | None
     None unless every box confirms, at the held sizes, without a refinement to commit
     (:func:`twin.fusion.confirm.confirms`, :func:`~twin.fusion.confirm.resize_evidence`,
     :func:`~twin.fusion.confirm.confirmation`)."""
-    rules = ctx.rules
-    helds = [boxes.held[i] for i in fresh.tolist()]
-    seen = boxes.pose[fresh]
-    refs = boxes.refs[fresh]
-    held = np.array([h.row for h in helds], dtype=np.float64)
-    gates = np.array([h.gates for h in helds], dtype=np.float64)
-    dist, angle = gates[:, 0], gates[:, 1]
-    if not _confirms(seen, held, dist, angle).all():
+    rules, layout = ctx.rules, boxes.layout
+    if len(fresh) == len(boxes.targets):
+        seen, refs, held = boxes.pose, boxes.refs, layout.held
+        held_square, dist, angle, resize = layout.square, layout.dist, layout.angle, layout.resizable
+    else:
+        seen, refs, held = boxes.pose[fresh], boxes.refs[fresh], layout.held[fresh]
+        held_square, dist, angle = layout.square[fresh], layout.dist[fresh], layout.angle[fresh]
+        resize = layout.resizable[fresh]
+    period = np.where((seen[:, 3] - seen[:, 4] < SQUARE_TOLERANCE_M) | held_square, HALF_PI, math.pi)
+    turn = seen[:, 6] - held[:, 6]
+    d = np.mod(turn, period)
+    if not (
+        (np.hypot(seen[:, 0] - held[:, 0], seen[:, 1] - held[:, 1]) <= dist)
+        & (np.abs(seen[:, 2] - held[:, 2]) <= dist)
+        & (np.minimum(d, period - d) <= angle)
+    ).all():
         return None
-    a = _aligned(seen, held)
-    resize = np.array([h.resizable for h in helds], dtype=np.bool_)
-    near = (np.abs(a[:, 3:6] - held[:, 3:6]) <= dist[:, None]).all(axis=1)
-    if not (near | ~resize).all():
+    a = _aligned(seen, held, period, turn)
+    if not ((np.abs(a[:, 3:6] - held[:, 3:6]) <= dist[:, None]).all(axis=1) | ~resize).all():
         return None  # other sizes: resize evidence
     n = refs[:, 0]
     check = n + 1 >= rules.refine_after
@@ -302,15 +384,15 @@ def _confirms(seen: FloatArray, held: FloatArray, dist: FloatArray, angle: Float
     return np.asarray((centre <= dist) & (np.abs(seen[:, 2] - held[:, 2]) <= dist) & (yaw <= angle))
 
 
-def _aligned(seen: FloatArray, held: FloatArray) -> FloatArray:
-    """:func:`twin.fusion.footprints.aligned` of each row."""
-    period = _period(seen, held)
-    turn = seen[:, 6] - held[:, 6]
+def _aligned(seen: FloatArray, held: FloatArray, period: FloatArray, turn: FloatArray) -> FloatArray:
+    """:func:`twin.fusion.footprints.aligned` of each row (``period``: :func:`_period`, ``turn``: the
+    yaw of ``seen`` less ``held``'s)."""
     d = np.mod(turn + period / 2, period) - period / 2
     quarter = np.mod(np.round((turn - d) / HALF_PI), 2) == 1
     out = seen.copy()
-    out[quarter, 3] = seen[quarter, 4]
-    out[quarter, 4] = seen[quarter, 3]
+    if quarter.any():
+        out[quarter, 3] = seen[quarter, 4]
+        out[quarter, 4] = seen[quarter, 3]
     out[:, 6] = held[:, 6] + d
     return out
 
@@ -340,7 +422,9 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
             used.append(r.iri)
         ctx.boxes.append((key, r, Pose(*row)))
         if boxes.stale[i]:
-            noted = stale_change(ctx, r, r.iri, boxes.held[i].state, boxes.senses[i])  # not the latest
+            noted = stale_change(
+                ctx, r, r.iri, boxes.layout.helds[i].state, boxes.senses[i]
+            )  # not the latest
             assert noted
     if used:  # (the per-report rules add one such effect per report: on the aliases, not the tracks)
         out.effects.append(_use_aliases(used, ctx.arrival_ns))
@@ -354,7 +438,7 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
         ctx, [(boxes.targets[i], x, y, boxes.senses[i]) for i, (x, y) in zip(picked, raw, strict=True)]
     )
     rows = [
-        (boxes.targets[i], boxes.senses[i], boxes.held[i].resizable, *row)
+        (boxes.targets[i], boxes.senses[i], boxes.layout.helds[i].resizable, *row)
         for i, row in zip(picked, sighted.tolist(), strict=True)
     ]
 

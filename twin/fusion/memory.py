@@ -312,9 +312,9 @@ class FusionMemory:
     (:mod:`twin.fusion.bias`)."""
     shape_poses: dict[str, tuple[object, object, Pose]] = field(default_factory=dict)
     """Element -> (mesh, placement, pose): the pose of the shape it has, computed once per shape."""
-    confirm_cache: dict[str, Any] = field(default_factory=dict)
-    """Element -> what confirmations at once (:mod:`twin.fusion.confirm_array`) need of it, kept while
-    the objects it was made from stay the same (checked at every use)."""
+    confirm_cache: Any = None
+    """What confirmations at once (:mod:`twin.fusion.confirm_array`) keep between arrays: each element's
+    gates while the objects they were made from stay the same (checked at every use)."""
     journal: dict[tuple[str, Any], Any] | None = None
     """While an observation waits for the store (:meth:`begin` .. :meth:`keep` or :meth:`undo`): each
     entry the effects changed since (part, key) -> its value before (:data:`ABSENT`: it had none)."""
