@@ -24,7 +24,7 @@ Example::
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -401,9 +401,10 @@ def _canonical(p: FloatArray) -> FloatArray:
     """:func:`twin.fusion.footprints.box_pose` of each row (``sx >= sy``, yaw in [0, pi))."""
     out = p.copy()
     swap = p[:, 4] > p[:, 3]
-    out[swap, 3] = p[swap, 4]
-    out[swap, 4] = p[swap, 3]
-    out[swap, 6] = p[swap, 6] + HALF_PI
+    if swap.any():
+        out[swap, 3] = p[swap, 4]
+        out[swap, 4] = p[swap, 3]
+        out[swap, 6] = p[swap, 6] + HALF_PI
     out[:, 6] = np.mod(out[:, 6], math.pi)
     return out
 
@@ -412,33 +413,30 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
     """What the per-report rules do for each box: a stale one noted as they note it, each confirmation
     (``fresh``, aligned as ``sighted``) counted, their memory effects as one."""
     robot, out = ctx.robot, ctx.out
+    reports, targets, senses, helds = boxes.reports, boxes.targets, boxes.senses, boxes.layout.helds
     rule = f"confirmation by {robot}: within confirm_distance_m and confirm_angle_deg"
-    used: list[str] = []
-    for i, (r, target, key, row) in enumerate(
-        zip(boxes.reports, boxes.targets, boxes.storeys, boxes.pose.tolist(), strict=True)
-    ):
-        if target != r.iri:
-            out.resolved[r.iri] = target  # resolved, and the alias used
-            used.append(r.iri)
-        ctx.boxes.append((key, r, Pose(*row)))
-        if boxes.stale[i]:
-            noted = stale_change(
-                ctx, r, r.iri, boxes.layout.helds[i].state, boxes.senses[i]
-            )  # not the latest
-            assert noted
+    used = [reports[i].iri for i in boxes.layout.aliased if targets[i] != reports[i].iri]
+    for i in boxes.layout.aliased:
+        if targets[i] != reports[i].iri:
+            out.resolved[reports[i].iri] = targets[i]  # resolved, and the alias used
+    ctx.boxes_later = _later(ctx.boxes_later, boxes)
+    if len(fresh) < len(targets):
+        for i, stale in enumerate(boxes.stale):
+            if stale:
+                noted = stale_change(ctx, reports[i], reports[i].iri, helds[i].state, senses[i])
+                assert noted  # a sighting, not the latest
     if used:  # (the per-report rules add one such effect per report: on the aliases, not the tracks)
         out.effects.append(_use_aliases(used, ctx.arrival_ns))
-    ctx.detected.update(boxes.targets)
-    ctx.used.update(boxes.targets)
+    ctx.detected.update(targets)
+    ctx.used.update(targets)
     picked = fresh.tolist()
-    confirmed = [boxes.targets[i] for i in picked]
-    out.seen.extend(confirmed)
+    out.seen.extend([targets[i] for i in picked])
     raw = boxes.raw[fresh, :2].tolist()
     note_sightings_at(  # where its detector puts them: its bias
-        ctx, [(boxes.targets[i], x, y, boxes.senses[i]) for i, (x, y) in zip(picked, raw, strict=True)]
+        ctx, [(targets[i], x, y, senses[i]) for i, (x, y) in zip(picked, raw, strict=True)]
     )
     rows = [
-        (boxes.targets[i], boxes.senses[i], boxes.layout.helds[i].resizable, *row)
+        (targets[i], senses[i], helds[i].resizable, *row)
         for i, row in zip(picked, sighted.tolist(), strict=True)
     ]
 
@@ -464,6 +462,21 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
             t.decided = rule
 
     out.effects.append(run)
+
+
+def _later(
+    before: Callable[[], list[tuple[str, ElementReport, Pose]]] | None, boxes: _Array
+) -> Callable[[], list[tuple[str, ElementReport, Pose]]]:
+    """The boxes of the array (storey, report, pose) for ``ctx.boxes``, made when they are read."""
+
+    def made() -> list[tuple[str, ElementReport, Pose]]:
+        mine = [
+            (key, r, Pose(*row))
+            for key, r, row in zip(boxes.storeys, boxes.reports, boxes.pose.tolist(), strict=True)
+        ]
+        return mine if before is None else [*before(), *mine]
+
+    return made
 
 
 def _use_aliases(used: list[str], now: int) -> Effect:
