@@ -154,7 +154,7 @@ def note_sightings_at(ctx: FusionContext, seen: Sequence[tuple[str, float, float
         dx, dy = mine.x - m.x, mine.y - m.y
         return None if math.hypot(dx, dy) > far else (dx, dy)  # farther: a move not seen yet
 
-    everyone = {other for _, held, _ in compared for other in held} - {robot}
+    everyone = set().union(*(held for _, held, _ in compared)) - {robot}
     order: dict[str, None] = {}  # the first comparison of each robot, in order
     for mine, held, sense in compared:
         for other, m in held.items():

@@ -40,7 +40,7 @@ from twin.fusion.effects import Effect
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
 from twin.fusion.gates import compatible, is_candidate, kinds_agree
 from twin.fusion.memory import FusionMemory
-from twin.records import ElementReport, FloatArray
+from twin.records import ElementReport, FloatArray, Shape
 
 if TYPE_CHECKING:
     from twin.fusion.context import FusionContext
@@ -58,10 +58,13 @@ about 10, and 20 cost 0.27 ms here against 0.40 ms)."""
 @dataclass(slots=True)
 class _Held:
     """What the gates need of one held element, kept (in ``FusionMemory.confirm_cache``) while the
-    objects it was made from stay the same: its state, its held pose (the shape's), its dispute's poses,
-    the report's class and the rules."""
+    objects it was made from stay the same: its state, its shape, its dispute's poses, the report's
+    class and the rules."""
 
     state: ElementState
+    mesh: object
+    placement: object
+    """The shape's objects (the held pose is theirs)."""
     held: Pose
     cover: object
     """The dispute's poses (None: no dispute)."""
@@ -78,12 +81,9 @@ class _Held:
     """The class's confirm distance and angle, size ratio and minimum area ratio."""
 
 
-def _held(
-    ctx: FusionContext, r: ElementReport, state: ElementState, held: Pose | None, cover: object
-) -> _Held | None:
-    """:class:`_Held` of ``r``'s element (None: no held pose, nothing to confirm)."""
-    if held is None:
-        return None
+def _held(ctx: FusionContext, r: ElementReport, state: ElementState, shape: Shape, cover: object) -> _Held:
+    """:class:`_Held` of ``r``'s element, which has ``shape``."""
+    held = ctx.memory.pose(state.iri, shape)
     schema = ctx.live.site.schema
     track = ctx.memory.tracks.get(state.iri)
     disputed = track is not None and still_covers(track.dispute, held)
@@ -93,6 +93,8 @@ def _held(
     )
     return _Held(
         state,
+        shape[0],
+        shape[1],
         held,
         cover,
         r.ifc_class,
@@ -152,6 +154,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
     aliases, states, pending, tracks = memory.aliases, ctx.states, ctx.pending, memory.tracks
     cache = _cache(memory)
     held_of = cache.held
+    shapes, shape_of = ctx.shapes, ctx.live.maps.shape_of
     storeys = ctx.live.site.storeys
     rules = ctx.rules
     elevations: dict[str, float] = {}
@@ -180,20 +183,20 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         track = tracks.get(target)
         dispute = track.dispute if track is not None else None
         cover = dispute.poses if dispute is not None else None
-        held = ctx.held_pose(target)
+        shape = shapes[target] if target in shapes else shape_of(target)  # ctx.held_pose (not pending)
+        if shape is None:
+            return None  # no held pose: nothing to confirm
         h = held_of.get(target)
         if (
             h is None
+            or h.mesh is not shape[0]
+            or h.placement is not shape[1]
             or h.state is not state
-            or h.held is not held
             or h.cover is not cover
             or h.ifc_class != r.ifc_class
             or h.rules is not rules
         ):
-            made = _held(ctx, r, state, held, cover)
-            if made is None:
-                return None
-            h = held_of[target] = made
+            h = held_of[target] = _held(ctx, r, state, shape, cover)
         if not h.ok or not only_sighting_where_it_stands(r, state):
             return None  # not a candidate, disputed (each sighting takes a side), a change besides the box
         key = r.storey or state.storey
@@ -224,7 +227,9 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         for i, row in enumerate(pose.tolist()):
             given[i] = replace(given[i], box=box_of(Pose(*row), elevations[keys[i]]))
     layout = _layout(cache, ctx.robot, helds, aliased)
-    if aliased and not _aliases_fit(pose[aliased], layout, rules.alias_jump_m):
+    if aliased and not _aliases_fit(
+        pose if len(aliased) == len(rows) else pose[aliased], layout, rules.alias_jump_m
+    ):
         return None
     return _Array(
         given, targets, layout, keys, list(senses), stale, raw, pose, np.array(refs, dtype=np.float64)
@@ -310,7 +315,10 @@ def _aliases_fit(pose: FloatArray, layout: _Layout, jump_m: float) -> bool:
     if not layout.class_ok:
         return False
     rows = layout.aliased
-    held, ratio, min_area = layout.held[rows], layout.ratio[rows], layout.min_area[rows]
+    if len(rows) == len(layout.helds):  # every report through an alias (a robot that made none of them)
+        held, ratio, min_area = layout.held, layout.ratio, layout.min_area
+    else:
+        held, ratio, min_area = layout.held[rows], layout.ratio[rows], layout.min_area[rows]
     if not (np.hypot(pose[:, 0] - held[:, 0], pose[:, 1] - held[:, 1]) <= jump_m).all():
         return False
     half, held_half = pose[:, 5] / 2, held[:, 5] / 2
@@ -357,11 +365,15 @@ def _gates(ctx: FusionContext, boxes: _Array, fresh: Index) -> FloatArray | None
         return None  # other sizes: resize evidence
     n = refs[:, 0]
     check = n + 1 >= rules.refine_after
-    if check.any():
-        mean = _canonical((refs[check, 1:] + a[check]) / (n[check] + 1)[:, None])
-        f = rules.refine_fraction
-        if not _confirms(mean, held[check], dist[check] * f, angle[check] * f).all():
+    f = rules.refine_fraction
+    if check.all():  # (after the first few arrays)
+        mean = _canonical((refs[:, 1:] + a) / (n + 1)[:, None])
+        if not _confirms(mean, held, dist * f, angle * f).all():
             return None  # the mean moved: a refinement to commit
+    elif check.any():
+        mean = _canonical((refs[check, 1:] + a[check]) / (n[check] + 1)[:, None])
+        if not _confirms(mean, held[check], dist[check] * f, angle[check] * f).all():
+            return None
     return a
 
 
