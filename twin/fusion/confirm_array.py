@@ -367,14 +367,24 @@ def _gates(ctx: FusionContext, boxes: _Array, fresh: Index) -> FloatArray | None
     check = n + 1 >= rules.refine_after
     f = rules.refine_fraction
     if check.all():  # (after the first few arrays)
-        mean = _canonical((refs[:, 1:] + a) / (n + 1)[:, None])
-        if not _confirms(mean, held, dist * f, angle * f).all():
+        if not _keeps(_canonical((refs[:, 1:] + a) / (n + 1)[:, None]), held, dist * f, angle * f, rules):
             return None  # the mean moved: a refinement to commit
     elif check.any():
         mean = _canonical((refs[check, 1:] + a[check]) / (n[check] + 1)[:, None])
-        if not _confirms(mean, held[check], dist[check] * f, angle[check] * f).all():
+        if not _keeps(mean, held[check], dist[check] * f, angle[check] * f, rules):
             return None
     return a
+
+
+def _keeps(
+    mean: FloatArray, held: FloatArray, dist: FloatArray, angle: FloatArray, rules: FusionRules
+) -> bool:
+    """Whether every refinement's ``mean`` stays within its hysteresis (``dist`` and ``angle``, already
+    ``refine_fraction`` of the class's) and within ``refine_distance_m`` of the held pose (a map cell
+    off: :func:`twin.fusion.confirm.confirmation` commits it)."""
+    if not _confirms(mean, held, dist, angle).all():
+        return False
+    return bool((np.hypot(mean[:, 0] - held[:, 0], mean[:, 1] - held[:, 1]) <= rules.refine_distance_m).all())
 
 
 def _row(p: Pose) -> tuple[float, float, float, float, float, float, float]:
