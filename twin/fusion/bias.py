@@ -51,18 +51,22 @@ RECENT_NS = 60 * 10**9
 the element starts its means again)."""
 
 
+_NO_MEAN = RobotMean()
+"""No sightings yet (only read: :meth:`~twin.fusion.memory.RobotMean.added` makes a new mean)."""
+
+
 def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None:
     """The bias a robot's boxes are corrected by (None: none): the median of its differences with its
     partners, when it differs by more than :data:`DEADBAND_M` from most of them (at least
     :data:`MIN_PARTNERS`), or, when it agrees with none, from the partners that agree with a third robot
     (:func:`vouched`). A robot that agrees with some partners and differs from one is not the one that
     is off."""
-    pairs = list(memory.pairs.items())
-    diffs = [(b, d) for (a, b), d in pairs if a == robot and d.n >= PAIR_MIN_SAMPLES]
+    diffs = [(b, d) for b, d in memory.pairs.partners(robot) if d.n >= PAIR_MIN_SAMPLES]
     differing = [(b, d) for b, d in diffs if math.hypot(d.x, d.y) > DEADBAND_M]
     if len(differing) >= MIN_PARTNERS and 2 * len(differing) > len(diffs):
         chosen = [d for _, d in differing]
     elif differing and len(differing) == len(diffs):
+        pairs = list(memory.pairs.items())
         chosen = [d for b, d in differing if vouched(pairs, b, robot)]
         if not chosen:
             return None
@@ -143,30 +147,33 @@ def note_sightings_at(ctx: FusionContext, seen: Sequence[tuple[str, float, float
     for iri, x, y, sense in seen:
         track = memory.tracks.get(iri)
         held = track.means if track is not None else {}
-        mine = held.get(robot, RobotMean()).added(x, y, sense, weight=MEAN_WEIGHT)
+        mine = (held.get(robot) or _NO_MEAN).added(x, y, sense, weight=MEAN_WEIGHT)
         means.append((iri, mine))
         if mine.n >= MEAN_MIN and len(held) > (robot in held):
             compared.append((mine, held, sense))
-
-    def compares(mine: RobotMean, other: str, m: RobotMean, sense: int) -> tuple[float, float] | None:
-        if other == robot or m.n < MEAN_MIN or sense - m.last_ns > RECENT_NS:
-            return None
-        dx, dy = mine.x - m.x, mine.y - m.y
-        return None if math.hypot(dx, dy) > far else (dx, dy)  # farther: a move not seen yet
 
     everyone = set().union(*(held for _, held, _ in compared)) - {robot}
     order: dict[str, None] = {}  # the first comparison of each robot, in order
     for mine, held, sense in compared:
         for other, m in held.items():
-            if other not in order and compares(mine, other, m, sense) is not None:
+            if (
+                other not in order
+                and other != robot
+                and m.n >= MEAN_MIN
+                and sense - m.last_ns <= RECENT_NS
+                and not math.hypot(mine.x - m.x, mine.y - m.y) > far  # farther: a move not seen yet
+            ):
                 order[other] = None
         if len(order) == len(everyone):
             break
     last: dict[str, tuple[float, float, int]] = {}
     for mine, held, sense in reversed(compared):
         for other, m in held.items():
-            if other not in last and (d := compares(mine, other, m, sense)) is not None:
-                last[other] = (d[0], d[1], sense)
+            if other in last or other == robot or m.n < MEAN_MIN or sense - m.last_ns > RECENT_NS:
+                continue
+            dx, dy = mine.x - m.x, mine.y - m.y
+            if not math.hypot(dx, dy) > far:
+                last[other] = (dx, dy, sense)
         if len(last) == len(order):
             break
     pairs = {}

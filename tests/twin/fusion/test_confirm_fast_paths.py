@@ -26,7 +26,7 @@ from twin.fusion.bias import MEAN_MIN, MEAN_WEIGHT, PAIR_WEIGHT, RECENT_NS, note
 from twin.fusion.context import FusionContext
 from twin.fusion.footprints import Pose, corners, points_in_polygon
 from twin.fusion.gates import lies_within
-from twin.fusion.memory import FusionMemory, RobotMean, Track
+from twin.fusion.memory import FusionMemory, PairTable, RobotMean, Track, memory_from_json
 from twin.live import Reply, TwinService
 from twin.records import ElementReport, Observation, ObservedBox, ObservedView
 
@@ -205,3 +205,37 @@ def test_lies_within_is_the_polygon_test() -> None:
         assert lies_within(seen, held, margin_m=margin) == polygon
         inside += polygon
     assert 300 < inside < 5700  # both answers came often
+
+
+def test_a_robots_partners_are_its_pairs_after_any_change() -> None:
+    rng = random.Random(4)
+    robots = [f"r{k}" for k in range(6)]
+    memory = FusionMemory()
+    plain: dict[tuple[str, str], RobotMean] = {}
+
+    def check() -> None:
+        assert dict(memory.pairs) == plain
+        for robot in robots:
+            mine = [(b, d) for (a, b), d in memory.pairs.items() if a == robot]
+            assert memory.pairs.partners(robot) == mine
+        again = memory_from_json(memory.to_json()).pairs
+        assert isinstance(again, PairTable)
+        assert all(again.partners(r) == memory.pairs.partners(r) for r in robots)
+
+    for step in range(400):
+        a, b = rng.sample(robots, 2)
+        value = RobotMean(step, rng.random(), rng.random(), step)
+        what = rng.random()
+        if what < 0.5:
+            memory.pairs[a, b] = plain[a, b] = value
+        elif what < 0.7:
+            memory.pairs.update({(a, b): value, (b, a): value})
+            plain.update({(a, b): value, (b, a): value})
+        elif what < 0.85:
+            assert memory.pairs.pop((a, b), None) == plain.pop((a, b), None)
+        else:  # journaled, then undone
+            memory.begin()
+            memory.changing("pairs", (a, b))
+            memory.pairs[a, b] = value
+            memory.undo()
+        check()
