@@ -142,9 +142,14 @@ class PairTable(dict[tuple[str, str], RobotMean]):
             partners.pop(key[1], None)
 
     def update(self, items: Any = (), /, **kw: Any) -> None:
-        for key, value in items.items() if hasattr(items, "items") else items:
-            self[key] = value
         assert not kw, "pairs are keyed by tuples"
+        if not isinstance(items, dict):
+            items = dict(items)
+        partners = self._partners
+        for key in items:
+            if key not in self:
+                partners.setdefault(key[0], {})[key[1]] = None
+        dict.update(self, items)
 
     def pop(self, key: tuple[str, str], *default: Any) -> Any:
         if key in self:
