@@ -149,8 +149,8 @@ def main() -> int:
     head = f"{'arrays':>7} {'robots':>6} {'boxes':>6} {'others':>7} {'aliases':>8} {'gc':>6}"
     print(f"{head} {'writer CPU ms/array':>20} {'best':>6}")
     print(
-        f"{args.arrays * args.repeat * args.robots:7d} {args.robots:6d} {len(SPOTS):6d} {args.others:7d} {'yes' if args.alias else 'no':>8} "
-        f"{args.gc:>6} {ms:20.3f} {best:6.3f}"
+        f"{args.arrays * args.repeat * args.robots:7d} {args.robots:6d} {len(SPOTS):6d} {args.others:7d} "
+        f"{'yes' if args.alias else 'no':>8} {args.gc:>6} {ms:20.3f} {best:6.3f}"
     )
     if args.json:
         row = {
