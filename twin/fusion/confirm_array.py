@@ -261,6 +261,12 @@ class _Layout:
     resizable: BoolArray
     class_ok: bool
     """Every aliased row's class and kind agree with its element's."""
+    twice: FloatArray
+    """``(2n, 7)``: :attr:`held` twice (the sightings' rows, then their means')."""
+    square_twice: BoolArray
+    limits: FloatArray
+    """``(3, 2n)``: for the sightings, the class's confirm distance (centre, height) and angle; for
+    their means, ``refine_fraction`` of those (the centre also within ``refine_distance_m``)."""
 
 
 @dataclass(slots=True)
@@ -292,17 +298,31 @@ def _layout(cache: _Cache, robot: str, helds: list[_Held], aliased: list[int]) -
         return last
     held = np.array([h.row for h in helds], dtype=np.float64)
     gates = np.array([h.gates for h in helds], dtype=np.float64)
+    dist, angle = gates[:, 0].copy(), gates[:, 1].copy()
+    rules = helds[0].rules
+    f = rules.refine_fraction
+    limits = np.array(
+        [
+            np.concatenate((dist, np.minimum(dist * f, rules.refine_distance_m))),
+            np.concatenate((dist, dist * f)),
+            np.concatenate((angle, angle * f)),
+        ]
+    )
+    square = held[:, 3] - held[:, 4] < SQUARE_TOLERANCE_M
     made = _Layout(
         helds,
         aliased,
         held,
-        held[:, 3] - held[:, 4] < SQUARE_TOLERANCE_M,
-        gates[:, 0].copy(),
-        gates[:, 1].copy(),
+        square,
+        dist,
+        angle,
         gates[:, 2].copy(),
         gates[:, 3].copy(),
         np.array([h.resizable for h in helds], dtype=np.bool_),
         all(helds[i].class_ok for i in aliased),
+        np.concatenate((held, held)),
+        np.concatenate((square, square)),
+        limits,
     )
     cache.layouts[robot] = made
     return made
@@ -344,6 +364,8 @@ def _gates(ctx: FusionContext, boxes: _Array, fresh: Index) -> FloatArray | None
     (:func:`twin.fusion.confirm.confirms`, :func:`~twin.fusion.confirm.resize_evidence`,
     :func:`~twin.fusion.confirm.confirmation`)."""
     rules, layout = ctx.rules, boxes.layout
+    if len(fresh) == len(boxes.targets) and (boxes.refs[:, 0] + 1 >= rules.refine_after).all():
+        return _gates_at_once(boxes.pose, boxes.refs, layout)
     if len(fresh) == len(boxes.targets):
         seen, refs, held = boxes.pose, boxes.refs, layout.held
         held_square, dist, angle, resize = layout.square, layout.dist, layout.angle, layout.resizable
@@ -374,6 +396,27 @@ def _gates(ctx: FusionContext, boxes: _Array, fresh: Index) -> FloatArray | None
         if not _keeps(mean, held[check], dist[check] * f, angle[check] * f, rules):
             return None
     return a
+
+
+def _gates_at_once(seen: FloatArray, refs: FloatArray, layout: _Layout) -> FloatArray | None:
+    """:func:`_gates` when every box is fresh and every element's mean is checked (the common case): the
+    sightings and their means (with this sighting) against the held poses in one pass."""
+    held = layout.held
+    period = np.where((seen[:, 3] - seen[:, 4] < SQUARE_TOLERANCE_M) | layout.square, HALF_PI, math.pi)
+    a = _aligned(seen, held, period, seen[:, 6] - held[:, 6])
+    if not ((np.abs(a[:, 3:6] - held[:, 3:6]) <= layout.dist[:, None]).all(axis=1) | ~layout.resizable).all():
+        return None  # other sizes: resize evidence
+    rows = np.concatenate((seen, _canonical((refs[:, 1:] + a) / (refs[:, :1] + 1))))
+    twice = layout.twice
+    period = np.where((rows[:, 3] - rows[:, 4] < SQUARE_TOLERANCE_M) | layout.square_twice, HALF_PI, math.pi)
+    d = np.mod(rows[:, 6] - twice[:, 6], period)
+    centre, height, angle = layout.limits
+    ok = (
+        (np.hypot(rows[:, 0] - twice[:, 0], rows[:, 1] - twice[:, 1]) <= centre)
+        & (np.abs(rows[:, 2] - twice[:, 2]) <= height)
+        & (np.minimum(d, period - d) <= angle)
+    )
+    return a if ok.all() else None  # (a mean out of bounds: a refinement to commit)
 
 
 def _keeps(
