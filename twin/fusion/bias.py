@@ -177,11 +177,12 @@ def note_sightings_at(ctx: FusionContext, seen: Sequence[tuple[str, float, float
         if len(last) == len(order):
             break
     pairs = {}
+    held_pairs = memory.pairs
     for other in order:
         dx, dy, sense = last[other]
-        there, back = memory.pairs.get((robot, other)), memory.pairs.get((other, robot))
-        pairs[robot, other] = (there or RobotMean()).added(dx, dy, sense, weight=PAIR_WEIGHT)
-        pairs[other, robot] = (back or RobotMean()).added(-dx, -dy, sense, weight=PAIR_WEIGHT)
+        there, back = held_pairs.get((robot, other)) or _NO_MEAN, held_pairs.get((other, robot)) or _NO_MEAN
+        pairs[robot, other] = there.added(dx, dy, sense, weight=PAIR_WEIGHT)
+        pairs[other, robot] = back.added(-dx, -dy, sense, weight=PAIR_WEIGHT)
 
     def run(m: FusionMemory) -> None:
         for iri, mine in means:
