@@ -7,12 +7,17 @@ at once) and one effect for the array, instead of the rules of :func:`twin.live.
 report (for arrays of :data:`MIN_BOXES` reports or more). It decides exactly what the per-report rules
 decide, and only when every report is a plain confirmation: a box of a held, candidate element, by its
 own IRI or an alias it fits, within the confirmation distance and angle of the held pose, at the held
-sizes, whose running mean (past ``refine_after``) stays within ``refine_fraction`` of it, and nothing
+sizes, whose running mean (past ``refine_after``) stays within ``refine_fraction`` of it and within
+``refine_distance_m`` of its centre, and nothing
 else in the report (no class change, labels, zone marks), of an element robots do not dispute
 (:mod:`twin.fusion.dispute`: each sighting takes a side); a box seen earlier than what the twin holds
 of the element (another robot's later sighting came first) is stale, noted as the per-report rules
 note it. Anything else (a move, a new element, a resize, a refinement to commit, two reports of one
 element) returns False with nothing done: the per-report rules decide the whole observation.
+
+Per report it makes one pass of lookups (what the report names, what the twin holds of that); what the
+gates need of each held element is remembered while the objects it was made from stay the same, and a
+robot's next array naming the same elements uses the same stacked arrays (``FusionMemory.confirm_cache``).
 
 Example::
 
