@@ -157,7 +157,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
     of that: :class:`_Held`, remembered while it stays the same), the geometry as arrays."""
     memory = ctx.memory
     aliases, states, pending, tracks = memory.aliases, ctx.states, ctx.pending, memory.tracks
-    cache = _cache(memory)
+    cache = _cache(memory, len(ctx.live.states))
     held_of = cache.held
     shapes, shape_of = ctx.shapes, ctx.live.maps.shape_of
     storeys = ctx.live.site.storeys
@@ -284,10 +284,19 @@ class _Cache:
     """Robot -> its last array's :class:`_Layout`."""
 
 
-def _cache(memory: FusionMemory) -> _Cache:
+CACHE_SLACK = 1024
+"""The cache is emptied once it holds this many more elements (or robots' layouts) than the twin holds
+elements (removed elements' entries are never used again; it fills again as arrays come)."""
+
+
+def _cache(memory: FusionMemory, elements: int) -> _Cache:
+    """The memory's cache, emptied when it holds more than ``elements`` + :data:`CACHE_SLACK` entries."""
     cache = memory.confirm_cache
     if not isinstance(cache, _Cache):
         cache = memory.confirm_cache = _Cache()
+    elif len(cache.held) > elements + CACHE_SLACK or len(cache.layouts) > CACHE_SLACK:
+        cache.held.clear()
+        cache.layouts.clear()
     return cache
 
 

@@ -23,6 +23,7 @@ from tests.twin.box_lab import OX, OY, box_lab
 from tests.twin.live_helpers import started
 from twin.config import load_config
 from twin.fusion.bias import MEAN_MIN, MEAN_WEIGHT, PAIR_WEIGHT, RECENT_NS, note_sightings_at
+from twin.fusion.confirm_array import CACHE_SLACK, _cache
 from twin.fusion.context import FusionContext
 from twin.fusion.footprints import Pose, corners, points_in_polygon
 from twin.fusion.gates import lies_within
@@ -101,6 +102,15 @@ def _fleet(seed: int, shortcut: bool, steps: int) -> tuple[list[dict[str, object
     finally:
         fuse_module.confirm_array = real
     return [r.body for r in replies], service, settled
+
+
+def test_the_confirmations_cache_is_emptied_once_it_outgrows_the_twin() -> None:
+    memory = FusionMemory()
+    cache = _cache(memory, 10)
+    cache.held.update({f"urn:gone{i}": None for i in range(10 + CACHE_SLACK)})  # type: ignore[misc]
+    assert _cache(memory, 10) is cache and len(cache.held) == 10 + CACHE_SLACK
+    cache.held["urn:one-more"] = None  # type: ignore[assignment]
+    assert not _cache(memory, 10).held
 
 
 @pytest.mark.parametrize("seed", [3, 11])
