@@ -353,23 +353,18 @@ def _aliases_fit(pose: FloatArray, layout: _Layout, jump_m: float) -> bool:
         held, ratio, min_area = layout.held, layout.ratio, layout.min_area
     else:
         held, ratio, min_area = layout.held[rows], layout.ratio[rows], layout.min_area[rows]
-    if not (np.hypot(pose[:, 0] - held[:, 0], pose[:, 1] - held[:, 1]) <= jump_m).all():
-        return False
     half, held_half = pose[:, 5] / 2, held[:, 5] / 2
-    low, high = pose[:, 2] - half, pose[:, 2] + half
-    if not ((low <= held[:, 2] + held_half) & (held[:, 2] - held_half <= high)).all():
-        return False  # the heights do not overlap
-    if not (np.abs(pose[:, 3:6] - held[:, 3:6]) <= ratio[:, None] * held[:, 3:6]).all():
-        return False
+    fits = (  # the centre near, the heights overlapping (each condition of every row, then one reduction)
+        (np.hypot(pose[:, 0] - held[:, 0], pose[:, 1] - held[:, 1]) <= jump_m)
+        & (pose[:, 2] - half <= held[:, 2] + held_half)
+        & (held[:, 2] - held_half <= pose[:, 2] + half)
+    )
     a, b = pose[:, 3] * pose[:, 4], held[:, 3] * held[:, 4]
     small, large = np.minimum(a, b), np.maximum(a, b)
-    return bool(_areas(small, large, min_area).all())
-
-
-def _areas(small: FloatArray, large: FloatArray, min_area: FloatArray) -> BoolArray:
-    """``large <= 0 or small / large >= min_area`` of each row."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.asarray((large <= 0.0) | (small / np.where(large > 0.0, large, 1.0) >= min_area))
+    fits &= (large <= 0.0) | (
+        np.divide(small, large, out=np.zeros_like(small), where=large > 0.0) >= min_area
+    )
+    return bool(fits.all() and (np.abs(pose[:, 3:6] - held[:, 3:6]) <= ratio[:, None] * held[:, 3:6]).all())
 
 
 def _gates(ctx: FusionContext, boxes: _Array, fresh: Index) -> FloatArray | None:
