@@ -7,7 +7,12 @@ a view of the room with its sensor origin (so absence and occlusion run). The fi
 CPU (``time.process_time`` around ``submit_observation`` + ``process``) per array, the median of
 ``--repeat`` blocks (on a shared machine the best block shows the code, the median the machine too);
 ``--gc freeze`` (the default) freezes the collector after the warm-up as ``twin serve`` does after
-start-up; ``--profile`` prints cProfile's top functions instead.
+start-up; ``--profile`` prints cProfile's top functions instead. With ``--robots N`` (as in
+``ros_ingest.py``, where every robot sees the same tables) N robots report the same 20 tables in turns,
+each with its own IRIs (the others' resolve through aliases), its own noise and a sense time 1 ms
+after the previous robot's (1 in 20 arrays 50 ms earlier: stale where the others saw the tables since),
+one batch per round of the N arrays: the aliases, the robot pairs' bias notes and the stale notes of a
+fleet.
 
     PYTHONPATH=$PWD python benchmarks/confirm_cost.py --arrays 300 [--profile] [--json out.json]
 """
@@ -36,11 +41,13 @@ from twin.records import ElementReport, Observation, ObservedBox, ObservedView
 
 ROBOT = "robot1"
 SX, SY, SZ = 0.5, 0.4, 0.75
+STALE = 0.05
+"""With several robots, the share of arrays seen 50 ms before the latest (stale where another saw them)."""
 SPOTS = [(8.5 + 0.9 * c, 0.5 + 0.75 * r) for r in range(5) for c in range(4)]
 """20 table spots in Room B (x 8..12, y 0..4), storey frame."""
 
 
-def setup(others: int, *, alias: bool = False) -> TwinService:
+def setup(others: int, *, alias: bool = False, robots: int = 1) -> TwinService:
     """The service with the robot's 20 tables, and ``others`` tables of other robots on the storey
     (south of the building, in rows: the rooms of the fleet's other robots). With ``alias``, another
     robot made the tables and the robot's first array resolved its own IRIs to them (aliases)."""
@@ -51,15 +58,20 @@ def setup(others: int, *, alias: bool = False) -> TwinService:
         assert reply.ok, reply
     for i in range(others):
         x, y = -19.0 + 0.9 * (i % 40), -19.0 + 0.75 * (i // 40)
-        reply = observe(service, "robot2", box_turtle(f"urn:bench:o{i}", x, y, sx=SX, sy=SY, sz=SZ))
+        reply = observe(service, "mapper", box_turtle(f"urn:bench:o{i}", x, y, sx=SX, sy=SY, sz=SZ))
         assert reply.ok, reply
     return service
 
 
-def array(rng: random.Random, sense_ns: int) -> Observation:
+def names(robots: int) -> list[str]:
+    """The robots that report the tables: the maker (:data:`ROBOT`) first."""
+    return [ROBOT, *(f"robot{k}" for k in range(2, robots + 1))]
+
+
+def array(rng: random.Random, sense_ns: int, robot: str = ROBOT) -> Observation:
     reports = tuple(
         ElementReport(
-            f"urn:bench:{ROBOT}:t{i}",
+            f"urn:bench:{robot}:t{i}",
             ifc_class="IfcFurniture",
             storey="ground-floor",
             box=ObservedBox(
@@ -81,17 +93,22 @@ def array(rng: random.Random, sense_ns: int) -> Observation:
     return Observation(reports, view)
 
 
-def run(service: TwinService, n: int, seed: int = 1) -> float:
+def run(service: TwinService, n: int, seed: int = 1, robots: int = 1) -> float:
+    """The writer's CPU ms per array over ``n`` rounds of one array per robot (one batch per round)."""
     rng = random.Random(seed)
     replies: list[object] = []
     total = 0.0
+    who = names(robots)
     for _ in range(n):
-        obs = array(rng, time.time_ns())
+        now = time.time_ns()
+        arrays = [(robot, array(rng, now + k * 10**6 - (50 * 10**6 if rng.random() < STALE else 0), robot))
+                  for k, robot in enumerate(who)]  # fmt: skip
         t = time.process_time()
-        service.submit_observation(ROBOT, obs, replies.append)
+        for robot, obs in arrays:
+            service.submit_observation(robot, obs, replies.append)
         service.process()
         total += time.process_time() - t
-    return 1e3 * total / n
+    return 1e3 * total / (n * robots)
 
 
 def main() -> int:
@@ -102,6 +119,7 @@ def main() -> int:
     )
     p.add_argument("--others", type=int, default=480, help="other robots' tables on the storey")
     p.add_argument("--alias", action="store_true", help="the robot's IRIs are aliases of another's tables")
+    p.add_argument("--robots", type=int, default=1, help="robots reporting the same tables in turns")
     p.add_argument("--profile", action="store_true")
     p.add_argument("--sort", default="cumulative", help="cProfile sort key (cumulative, tottime)")
     p.add_argument(
@@ -113,7 +131,7 @@ def main() -> int:
     p.add_argument("--json", type=Path)
     args = p.parse_args()
     service = setup(args.others, alias=args.alias)
-    run(service, 20)  # warm up (with --alias: the first array associates the robot's IRIs)
+    run(service, 20, robots=args.robots)  # warm up (the first arrays associate the robots' IRIs)
     if args.gc == "freeze":
         gc.collect()
         gc.freeze()
@@ -122,21 +140,22 @@ def main() -> int:
     if args.profile:
         prof = cProfile.Profile()
         prof.enable()
-        run(service, args.arrays, seed=2)
+        run(service, args.arrays, seed=2, robots=args.robots)
         prof.disable()
         pstats.Stats(prof).sort_stats(args.sort).print_stats(45)
         return 0
-    blocks = sorted(run(service, args.arrays, seed=2 + i) for i in range(args.repeat))
+    blocks = sorted(run(service, args.arrays, seed=2 + i, robots=args.robots) for i in range(args.repeat))
     ms, best = statistics.median(blocks), blocks[0]
-    head = f"{'arrays':>7} {'boxes':>6} {'others':>7} {'aliases':>8} {'gc':>6}"
+    head = f"{'arrays':>7} {'robots':>6} {'boxes':>6} {'others':>7} {'aliases':>8} {'gc':>6}"
     print(f"{head} {'writer CPU ms/array':>20} {'best':>6}")
     print(
-        f"{args.arrays * args.repeat:7d} {len(SPOTS):6d} {args.others:7d} {'yes' if args.alias else 'no':>8} "
-        f"{args.gc:>6} {ms:20.3f} {best:6.3f}"
+        f"{args.arrays * args.repeat * args.robots:7d} {args.robots:6d} {len(SPOTS):6d} {args.others:7d} "
+        f"{'yes' if args.alias else 'no':>8} {args.gc:>6} {ms:20.3f} {best:6.3f}"
     )
     if args.json:
         row = {
-            "arrays": args.arrays * args.repeat,
+            "arrays": args.arrays * args.repeat * args.robots,
+            "robots": args.robots,
             "others": args.others,
             "alias": args.alias,
             "gc": args.gc,

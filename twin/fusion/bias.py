@@ -51,18 +51,22 @@ RECENT_NS = 60 * 10**9
 the element starts its means again)."""
 
 
+_NO_MEAN = RobotMean()
+"""No sightings yet (only read: :meth:`~twin.fusion.memory.RobotMean.added` makes a new mean)."""
+
+
 def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None:
     """The bias a robot's boxes are corrected by (None: none): the median of its differences with its
     partners, when it differs by more than :data:`DEADBAND_M` from most of them (at least
     :data:`MIN_PARTNERS`), or, when it agrees with none, from the partners that agree with a third robot
     (:func:`vouched`). A robot that agrees with some partners and differs from one is not the one that
     is off."""
-    pairs = list(memory.pairs.items())
-    diffs = [(b, d) for (a, b), d in pairs if a == robot and d.n >= PAIR_MIN_SAMPLES]
+    diffs = [(b, d) for b, d in memory.pairs.partners(robot) if d.n >= PAIR_MIN_SAMPLES]
     differing = [(b, d) for b, d in diffs if math.hypot(d.x, d.y) > DEADBAND_M]
     if len(differing) >= MIN_PARTNERS and 2 * len(differing) > len(diffs):
         chosen = [d for _, d in differing]
     elif differing and len(differing) == len(diffs):
+        pairs = list(memory.pairs.items())
         chosen = [d for b, d in differing if vouched(pairs, b, robot)]
         if not chosen:
             return None
@@ -129,27 +133,56 @@ def note_sightings(ctx: FusionContext, seen: Sequence[tuple[ElementState, Pose, 
     order, as one effect with the same result: each element's mean, and each pair's difference as the
     last sighting that compares the pair leaves it (every comparison starts from the memory as it was,
     and a later one replaces an earlier), made once per pair instead of once per sighting."""
+    note_sightings_at(ctx, [(state.iri, raw.cx, raw.cy, sense) for state, raw, sense in seen])
+
+
+def note_sightings_at(ctx: FusionContext, seen: Sequence[tuple[str, float, float, int]]) -> None:
+    """:func:`note_sightings` of (element, raw x, raw y, sense time) tuples. Each pair's difference is
+    taken from the last sighting that compares it, found from the end (each robot's search stops at its
+    first comparison; the pairs in the order the first comparisons came, as in a forward pass)."""
     robot, memory = ctx.robot, ctx.memory
     far = ctx.rules.certain_move_m
     means: list[tuple[str, RobotMean]] = []
-    last: dict[str, tuple[float, float, int]] = {}  # other robot -> the last comparison (dx, dy, sense)
-    for state, raw, sense in seen:
-        track = memory.tracks.get(state.iri)
+    compared: list[tuple[RobotMean, dict[str, RobotMean], int]] = []  # mine, the others' means, sense
+    for iri, x, y, sense in seen:
+        track = memory.tracks.get(iri)
         held = track.means if track is not None else {}
-        mine = held.get(robot, RobotMean()).added(raw.cx, raw.cy, sense, weight=MEAN_WEIGHT)
-        means.append((state.iri, mine))
-        if mine.n < MEAN_MIN:
-            continue
+        mine = (held.get(robot) or _NO_MEAN).added(x, y, sense, weight=MEAN_WEIGHT)
+        means.append((iri, mine))
+        if mine.n >= MEAN_MIN and len(held) > (robot in held):
+            compared.append((mine, held, sense))
+
+    everyone = set().union(*(held for _, held, _ in compared)) - {robot}
+    order: dict[str, None] = {}  # the first comparison of each robot, in order
+    for mine, held, sense in compared:
         for other, m in held.items():
-            if other != robot and m.n >= MEAN_MIN and sense - m.last_ns <= RECENT_NS:
-                dx, dy = mine.x - m.x, mine.y - m.y
-                if not math.hypot(dx, dy) > far:  # farther: a move the other has not seen yet
-                    last[other] = (dx, dy, sense)
+            if (
+                other not in order
+                and other != robot
+                and m.n >= MEAN_MIN
+                and sense - m.last_ns <= RECENT_NS
+                and not math.hypot(mine.x - m.x, mine.y - m.y) > far  # farther: a move not seen yet
+            ):
+                order[other] = None
+        if len(order) == len(everyone):
+            break
+    last: dict[str, tuple[float, float, int]] = {}
+    for mine, held, sense in reversed(compared):
+        for other, m in held.items():
+            if other in last or other == robot or m.n < MEAN_MIN or sense - m.last_ns > RECENT_NS:
+                continue
+            dx, dy = mine.x - m.x, mine.y - m.y
+            if not math.hypot(dx, dy) > far:
+                last[other] = (dx, dy, sense)
+        if len(last) == len(order):
+            break
     pairs = {}
-    for other, (dx, dy, sense) in last.items():
-        there, back = memory.pairs.get((robot, other)), memory.pairs.get((other, robot))
-        pairs[robot, other] = (there or RobotMean()).added(dx, dy, sense, weight=PAIR_WEIGHT)
-        pairs[other, robot] = (back or RobotMean()).added(-dx, -dy, sense, weight=PAIR_WEIGHT)
+    held_pairs = memory.pairs
+    for other in order:
+        dx, dy, sense = last[other]
+        there, back = held_pairs.get((robot, other)) or _NO_MEAN, held_pairs.get((other, robot)) or _NO_MEAN
+        pairs[robot, other] = there.added(dx, dy, sense, weight=PAIR_WEIGHT)
+        pairs[other, robot] = back.added(-dx, -dy, sense, weight=PAIR_WEIGHT)
 
     def run(m: FusionMemory) -> None:
         for iri, mine in means:

@@ -7,12 +7,17 @@ at once) and one effect for the array, instead of the rules of :func:`twin.live.
 report (for arrays of :data:`MIN_BOXES` reports or more). It decides exactly what the per-report rules
 decide, and only when every report is a plain confirmation: a box of a held, candidate element, by its
 own IRI or an alias it fits, within the confirmation distance and angle of the held pose, at the held
-sizes, whose running mean (past ``refine_after``) stays within ``refine_fraction`` of it, and nothing
+sizes, whose running mean (past ``refine_after``) stays within ``refine_fraction`` of it and within
+``refine_distance_m`` of its centre, and nothing
 else in the report (no class change, labels, zone marks), of an element robots do not dispute
 (:mod:`twin.fusion.dispute`: each sighting takes a side); a box seen earlier than what the twin holds
 of the element (another robot's later sighting came first) is stale, noted as the per-report rules
 note it. Anything else (a move, a new element, a resize, a refinement to commit, two reports of one
 element) returns False with nothing done: the per-report rules decide the whole observation.
+
+Per report it makes one pass of lookups (what the report names, what the twin holds of that); what the
+gates need of each held element is remembered while the objects it was made from stay the same, and a
+robot's next array naming the same elements uses the same stacked arrays (``FusionMemory.confirm_cache``).
 
 Example::
 
@@ -24,27 +29,30 @@ Example::
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
-from twin.fusion.associate import alias_fits, through_alias
-from twin.fusion.bias import note_sightings, unbiased
-from twin.fusion.clocks import last_known, stale_change
+from twin.config import FusionRules
+from twin.fusion.bias import note_sightings_at, unbiased
+from twin.fusion.clocks import stale_change
 from twin.fusion.confirm import box_of, only_sighting_where_it_stands, resizable
-from twin.fusion.context import report_pose
 from twin.fusion.dispute import still_covers
+from twin.fusion.effects import Effect
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
-from twin.fusion.gates import is_candidate
+from twin.fusion.gates import compatible, is_candidate, kinds_agree
 from twin.fusion.memory import FusionMemory
-from twin.records import ElementReport, FloatArray
+from twin.records import ElementReport, FloatArray, Shape
 
 if TYPE_CHECKING:
     from twin.fusion.context import FusionContext
     from twin.live.state import ElementState
 
+Index = npt.NDArray[np.intp]
+BoolArray = npt.NDArray[np.bool_]
 HALF_PI = math.pi / 2
 MIN_BOXES = 10
 """Fewer reports than this go through the per-report rules: cheaper than setting up the arrays (in
@@ -53,22 +61,75 @@ about 10, and 20 cost 0.27 ms here against 0.40 ms)."""
 
 
 @dataclass(slots=True)
-class _Box:
-    """One report of the array as the per-report rules would see it, before the gates."""
+class _Held:
+    """What the gates need of one held element, kept (in ``FusionMemory.confirm_cache``) while the
+    objects it was made from stay the same: its state, its shape, its dispute's poses, the report's
+    class and the rules."""
 
-    report: ElementReport
-    """As given (its box shifted by the robot's detector bias, once known)."""
-    target: str
     state: ElementState
-    storey: str
-    raw: Pose
-    pose: Pose
+    mesh: object
+    placement: object
+    """The shape's objects (the held pose is theirs)."""
     held: Pose
-    sense: int
-    stale: bool
-    """Seen before what the twin holds of it (:func:`~twin.fusion.clocks.stale_change`): only counted."""
+    cover: object
+    """The dispute's poses (None: no dispute)."""
+    ifc_class: str | None
+    rules: FusionRules
+    ok: bool
+    """A candidate, not disputed: a box of it may confirm it."""
+    class_ok: bool
+    """The report's class and kind agree with the element's (the alias check's first gates)."""
     resizable: bool
     """A robot's box: other sizes are resize evidence (:func:`~twin.fusion.confirm.resizable`)."""
+    row: tuple[float, float, float, float, float, float, float]
+    gates: tuple[float, float, float, float]
+    """The class's confirm distance and angle, size ratio and minimum area ratio."""
+
+
+def _held(ctx: FusionContext, r: ElementReport, state: ElementState, shape: Shape, cover: object) -> _Held:
+    """:class:`_Held` of ``r``'s element, which has ``shape``."""
+    held = ctx.memory.pose(state.iri, shape)
+    schema = ctx.live.site.schema
+    track = ctx.memory.tracks.get(state.iri)
+    disputed = track is not None and still_covers(track.dispute, held)
+    c = ctx.rules.of(state.ifc_types)
+    class_ok = (r.ifc_class is None or compatible(schema, r.ifc_class, state)) and kinds_agree(
+        schema, (), r.ifc_class, state
+    )
+    return _Held(
+        state,
+        shape[0],
+        shape[1],
+        held,
+        cover,
+        r.ifc_class,
+        ctx.rules,
+        is_candidate(state) and not disputed,
+        class_ok,
+        resizable(ctx, state.iri),
+        _row(held),
+        (c.confirm_distance_m, c.confirm_angle_rad, c.size_ratio, c.min_area_ratio),
+    )
+
+
+@dataclass(slots=True)
+class _Array:
+    """The array's boxes as the per-report rules would see them, before the gates (row i: report i)."""
+
+    reports: list[ElementReport]
+    """As given (each box shifted by the robot's detector bias, once known)."""
+    targets: list[str]
+    layout: _Layout
+    storeys: list[str]
+    senses: list[int]
+    stale: list[bool]
+    """Seen before what the twin holds of it (:func:`~twin.fusion.clocks.stale_change`): only counted."""
+    raw: FloatArray
+    """``(n, 7)``: the boxes' world poses (canonical), cx .. yaw."""
+    pose: FloatArray
+    """``raw`` less the robot's detector bias."""
+    refs: FloatArray
+    """``(n, 8)``: each element's confirmations so far (n, then the sums of cx .. yaw)."""
 
 
 def confirm_array(ctx: FusionContext, reports: Sequence[ElementReport], senses: Sequence[int]) -> bool:
@@ -80,89 +141,302 @@ def confirm_array(ctx: FusionContext, reports: Sequence[ElementReport], senses: 
     boxes = _boxes(ctx, reports, senses)
     if boxes is None:
         return False
-    fresh = [b for b in boxes if not b.stale]
-    sighted = _gates(ctx, fresh, _refinements(ctx.memory, fresh)) if fresh else np.zeros((0, 7))
+    fresh = np.flatnonzero(~np.array(boxes.stale, dtype=np.bool_))
+    sighted = _gates(ctx, boxes, fresh) if len(fresh) else np.zeros((0, 7))
     if sighted is None:
         return False
     _settle(ctx, boxes, fresh, sighted)
     return True
 
 
-def _boxes(ctx: FusionContext, reports: Sequence[ElementReport], senses: Sequence[int]) -> list[_Box] | None:
+def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
+    ctx: FusionContext, reports: Sequence[ElementReport], senses: Sequence[int]
+) -> _Array | None:
     """Every report as a held element's box (no side effect but the robot's bias, computed once), or
-    None when one is anything else."""
-    aliases, states, storeys, pending = ctx.memory.aliases, ctx.states, ctx.live.site.storeys, ctx.pending
-    tracks = ctx.memory.tracks
-    out: list[_Box] = []
-    targets: set[str] = set()
-    for given, sense in zip(reports, senses, strict=True):
-        r = given
-        if r.box is None or r.unmerge:
+    None when one is anything else. One pass of lookups per report (what it names, what the twin holds
+    of that: :class:`_Held`, remembered while it stays the same), the geometry as arrays."""
+    memory = ctx.memory
+    aliases, states, pending, tracks = memory.aliases, ctx.states, ctx.pending, memory.tracks
+    cache = _cache(memory, len(ctx.live.states))
+    held_of = cache.held
+    shapes, shape_of = ctx.shapes, ctx.live.maps.shape_of
+    storeys = ctx.live.site.storeys
+    rules = ctx.rules
+    elevations: dict[str, float] = {}
+    targets: list[str] = []
+    seen: set[str] = set()
+    helds: list[_Held] = []
+    keys: list[str] = []
+    stale: list[bool] = []
+    rows: list[tuple[float, float, float, float, float, float, float]] = []
+    refs: list[tuple[float, float, float, float, float, float, float, float]] = []
+    aliased: list[int] = []
+    for i, (r, sense) in enumerate(zip(reports, senses, strict=True)):
+        b = r.box
+        if b is None or r.unmerge:
             return None
         alias = aliases.get(r.iri)
-        target = r.iri if alias is None else alias.target
+        if alias is None:
+            target = r.iri
+        else:
+            target = alias.target
+            aliased.append(i)
         state = states.get(target)
-        if state is None or target in targets or target in pending or not is_candidate(state):
+        if state is None or target in seen or target in pending:
             return None  # unknown or removed, twice in the array, moved earlier in the batch
-        if not only_sighting_where_it_stands(r, state):
-            return None  # a change besides the box
-        storey_key = r.storey or state.storey
-        storey = storeys.get(storey_key or "")
-        held = ctx.held_pose(target)
+        seen.add(target)
         track = tracks.get(target)
-        disputed = track is not None and held is not None and still_covers(track.dispute, held)
-        if storey is None or storey_key is None or held is None or disputed:
-            return None  # (disputed: robots disagree on where it stands, each sighting takes a side)
-        raw = report_pose(r, storey.elevation_m)
-        assert raw is not None
-        pose = unbiased(ctx, raw)
-        if pose is not raw:
-            r = replace(r, box=box_of(pose, storey.elevation_m))
-        if alias is not None and alias_fits(ctx, r, state, pose) != "fits":
+        dispute = track.dispute if track is not None else None
+        cover = dispute.poses if dispute is not None else None
+        shape = shapes[target] if target in shapes else shape_of(target)  # ctx.held_pose (not pending)
+        if shape is None:
+            return None  # no held pose: nothing to confirm
+        h = held_of.get(target)
+        if (
+            h is None
+            or h.mesh is not shape[0]
+            or h.placement is not shape[1]
+            or h.state is not state
+            or h.cover is not cover
+            or h.ifc_class != r.ifc_class
+            or h.rules is not rules
+        ):
+            h = held_of[target] = _held(ctx, r, state, shape, cover)
+        if not h.ok or not only_sighting_where_it_stands(r, state):
+            return None  # not a candidate, disputed (each sighting takes a side), a change besides the box
+        key = r.storey or state.storey
+        if key is None:
             return None
-        targets.add(target)
-        stale = sense < last_known(ctx, target, state)
-        out.append(_Box(r, target, state, storey_key, raw, pose, held, sense, stale, resizable(ctx, target)))
-    return out
-
-
-def _refinements(memory: FusionMemory, boxes: list[_Box]) -> FloatArray:
-    """``(n, 8)``: each element's confirmations so far (n, then the sums of cx .. yaw)."""
-    rows = []
-    for b in boxes:
-        track = memory.tracks.get(b.target)
+        elevation = elevations.get(key)
+        if elevation is None:
+            storey = storeys.get(key)
+            if storey is None:
+                return None
+            elevation = elevations[key] = storey.elevation_m
+        targets.append(target)
+        helds.append(h)
+        keys.append(key)
+        rows.append((b.cx, b.cy, elevation + b.cz, b.sx, b.sy, b.sz, b.yaw))
+        stale.append(sense < max(state.sensed_ns, track.seen_ns if track is not None else 0))
         f = track.refinement if track is not None else None
-        rows.append(
-            (0, 0, 0, 0, 0, 0, 0, 0) if f is None else (f.n, f.cx, f.cy, f.cz, f.sx, f.sy, f.sz, f.yaw)
-        )
-    return np.array(rows, dtype=np.float64)
-
-
-def _gates(ctx: FusionContext, boxes: list[_Box], refs: FloatArray) -> FloatArray | None:
-    """The sightings aligned with the held poses (``(n, 7)``: cx .. yaw), or None unless every box
-    confirms, at the held sizes, without a refinement to commit (:func:`twin.fusion.confirm.confirms`,
-    :func:`~twin.fusion.confirm.resize_evidence`, :func:`~twin.fusion.confirm.confirmation`)."""
-    rules = ctx.rules
-    seen = np.array([_row(b.pose) for b in boxes], dtype=np.float64)
-    held = np.array([_row(b.held) for b in boxes], dtype=np.float64)
-    of = [rules.of(b.state.ifc_types) for b in boxes]
-    dist = np.array([c.confirm_distance_m for c in of], dtype=np.float64)
-    angle = np.array([c.confirm_angle_rad for c in of], dtype=np.float64)
-    if not _confirms(seen, held, dist, angle).all():
+        refs.append(_NO_REFINEMENT if f is None else (f.n, f.cx, f.cy, f.cz, f.sx, f.sy, f.sz, f.yaw))
+    raw = _canonical(np.array(rows, dtype=np.float64))  # box_pose of each
+    pose = raw
+    given = list(reports)
+    if unbiased(ctx, _ANY_POSE) is not _ANY_POSE:  # the robot's detector bias, once known
+        bias = ctx.bias
+        assert bias is not None
+        pose = raw.copy()
+        pose[:, 0] -= bias[0]
+        pose[:, 1] -= bias[1]
+        for i, row in enumerate(pose.tolist()):
+            given[i] = replace(given[i], box=box_of(Pose(*row), elevations[keys[i]]))
+    layout = _layout(cache, ctx.robot, helds, aliased)
+    if aliased and not _aliases_fit(
+        pose if len(aliased) == len(rows) else pose[aliased], layout, rules.alias_jump_m
+    ):
         return None
-    a = _aligned(seen, held)
-    resize = np.array([b.resizable for b in boxes], dtype=np.bool_)
-    near = (np.abs(a[:, 3:6] - held[:, 3:6]) <= dist[:, None]).all(axis=1)
-    if not (near | ~resize).all():
+    return _Array(
+        given, targets, layout, keys, list(senses), stale, raw, pose, np.array(refs, dtype=np.float64)
+    )
+
+
+_NO_REFINEMENT = (0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+_ANY_POSE = Pose(0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0)
+"""A pose to ask :func:`~twin.fusion.bias.unbiased` whether the robot has a bias."""
+
+
+@dataclass(slots=True)
+class _Layout:
+    """An array's held elements stacked as arrays (row i: report i), kept per robot and used again
+    while its next array names the same elements through the same IRIs, held as they were (a
+    tracker's objects, array after array)."""
+
+    helds: list[_Held]
+    aliased: list[int]
+    """The rows whose report came through an alias."""
+    held: FloatArray
+    """``(n, 7)``: the held poses, cx .. yaw."""
+    square: BoolArray
+    """The held footprints that are square (:attr:`~twin.fusion.footprints.Pose.square`)."""
+    dist: FloatArray
+    angle: FloatArray
+    ratio: FloatArray
+    min_area: FloatArray
+    resizable: BoolArray
+    class_ok: bool
+    """Every aliased row's class and kind agree with its element's."""
+    twice: FloatArray
+    """``(2n, 7)``: :attr:`held` twice (the sightings' rows, then their means')."""
+    square_twice: BoolArray
+    limits: FloatArray
+    """``(3, 2n)``: for the sightings, the class's confirm distance (centre, height) and angle; for
+    their means, ``refine_fraction`` of those (the centre also within ``refine_distance_m``)."""
+
+
+@dataclass(slots=True)
+class _Cache:
+    """What confirmations at once keep between arrays (``FusionMemory.confirm_cache``)."""
+
+    held: dict[str, _Held] = field(default_factory=dict)
+    """Element -> :class:`_Held`."""
+    layouts: dict[str, _Layout] = field(default_factory=dict)
+    """Robot -> its last array's :class:`_Layout`."""
+
+
+CACHE_SLACK = 1024
+"""The cache is emptied once it holds this many more elements (or robots' layouts) than the twin holds
+elements (removed elements' entries are never used again; it fills again as arrays come)."""
+
+
+def _cache(memory: FusionMemory, elements: int) -> _Cache:
+    """The memory's cache, emptied when it holds more than ``elements`` + :data:`CACHE_SLACK` entries."""
+    cache = memory.confirm_cache
+    if not isinstance(cache, _Cache):
+        cache = memory.confirm_cache = _Cache()
+    elif len(cache.held) > elements + CACHE_SLACK or len(cache.layouts) > CACHE_SLACK:
+        cache.held.clear()
+        cache.layouts.clear()
+    return cache
+
+
+def _layout(cache: _Cache, robot: str, helds: list[_Held], aliased: list[int]) -> _Layout:
+    """``helds`` stacked: the robot's last layout when it is the same."""
+    last = cache.layouts.get(robot)
+    if (
+        last is not None
+        and last.aliased == aliased
+        and len(last.helds) == len(helds)
+        and all(a is b for a, b in zip(last.helds, helds, strict=True))
+    ):
+        return last
+    held = np.array([h.row for h in helds], dtype=np.float64)
+    gates = np.array([h.gates for h in helds], dtype=np.float64)
+    dist, angle = gates[:, 0].copy(), gates[:, 1].copy()
+    rules = helds[0].rules
+    f = rules.refine_fraction
+    limits = np.array(
+        [
+            np.concatenate((dist, np.minimum(dist * f, rules.refine_distance_m))),
+            np.concatenate((dist, dist * f)),
+            np.concatenate((angle, angle * f)),
+        ]
+    )
+    square = held[:, 3] - held[:, 4] < SQUARE_TOLERANCE_M
+    made = _Layout(
+        helds,
+        aliased,
+        held,
+        square,
+        dist,
+        angle,
+        gates[:, 2].copy(),
+        gates[:, 3].copy(),
+        np.array([h.resizable for h in helds], dtype=np.bool_),
+        all(helds[i].class_ok for i in aliased),
+        np.concatenate((held, held)),
+        np.concatenate((square, square)),
+        limits,
+    )
+    cache.layouts[robot] = made
+    return made
+
+
+def _aliases_fit(pose: FloatArray, layout: _Layout, jump_m: float) -> bool:
+    """:func:`twin.fusion.associate.alias_fits` is ``"fits"`` for every aliased row (``pose``; ``"within"``
+    and ``"fails"`` both need the per-report rules): class and kind agree, the centre no farther than
+    ``jump_m``, the heights overlap, the sizes agree."""
+    if not layout.class_ok:
+        return False
+    rows = layout.aliased
+    if len(rows) == len(layout.helds):  # every report through an alias (a robot that made none of them)
+        held, ratio, min_area = layout.held, layout.ratio, layout.min_area
+    else:
+        held, ratio, min_area = layout.held[rows], layout.ratio[rows], layout.min_area[rows]
+    half, held_half = pose[:, 5] / 2, held[:, 5] / 2
+    fits = (  # the centre near, the heights overlapping (each condition of every row, then one reduction)
+        (np.hypot(pose[:, 0] - held[:, 0], pose[:, 1] - held[:, 1]) <= jump_m)
+        & (pose[:, 2] - half <= held[:, 2] + held_half)
+        & (held[:, 2] - held_half <= pose[:, 2] + half)
+    )
+    a, b = pose[:, 3] * pose[:, 4], held[:, 3] * held[:, 4]
+    small, large = np.minimum(a, b), np.maximum(a, b)
+    fits &= (large <= 0.0) | (
+        np.divide(small, large, out=np.zeros_like(small), where=large > 0.0) >= min_area
+    )
+    return bool(fits.all() and (np.abs(pose[:, 3:6] - held[:, 3:6]) <= ratio[:, None] * held[:, 3:6]).all())
+
+
+def _gates(ctx: FusionContext, boxes: _Array, fresh: Index) -> FloatArray | None:
+    """The sightings aligned with the held poses (``(n, 7)``: cx .. yaw, one row per ``fresh`` box), or
+    None unless every box confirms, at the held sizes, without a refinement to commit
+    (:func:`twin.fusion.confirm.confirms`, :func:`~twin.fusion.confirm.resize_evidence`,
+    :func:`~twin.fusion.confirm.confirmation`)."""
+    rules, layout = ctx.rules, boxes.layout
+    if len(fresh) == len(boxes.targets) and (boxes.refs[:, 0] + 1 >= rules.refine_after).all():
+        return _gates_at_once(boxes.pose, boxes.refs, layout)
+    if len(fresh) == len(boxes.targets):
+        seen, refs, held = boxes.pose, boxes.refs, layout.held
+        held_square, dist, angle, resize = layout.square, layout.dist, layout.angle, layout.resizable
+    else:
+        seen, refs, held = boxes.pose[fresh], boxes.refs[fresh], layout.held[fresh]
+        held_square, dist, angle = layout.square[fresh], layout.dist[fresh], layout.angle[fresh]
+        resize = layout.resizable[fresh]
+    period = np.where((seen[:, 3] - seen[:, 4] < SQUARE_TOLERANCE_M) | held_square, HALF_PI, math.pi)
+    turn = seen[:, 6] - held[:, 6]
+    d = np.mod(turn, period)
+    if not (
+        (np.hypot(seen[:, 0] - held[:, 0], seen[:, 1] - held[:, 1]) <= dist)
+        & (np.abs(seen[:, 2] - held[:, 2]) <= dist)
+        & (np.minimum(d, period - d) <= angle)
+    ).all():
+        return None
+    a = _aligned(seen, held, period, turn)
+    if not ((np.abs(a[:, 3:6] - held[:, 3:6]) <= dist[:, None]).all(axis=1) | ~resize).all():
         return None  # other sizes: resize evidence
     n = refs[:, 0]
     check = n + 1 >= rules.refine_after
-    if check.any():
-        mean = _canonical((refs[check, 1:] + a[check]) / (n[check] + 1)[:, None])
-        f = rules.refine_fraction
-        if not _confirms(mean, held[check], dist[check] * f, angle[check] * f).all():
+    f = rules.refine_fraction
+    if check.all():  # (after the first few arrays)
+        if not _keeps(_canonical((refs[:, 1:] + a) / (n + 1)[:, None]), held, dist * f, angle * f, rules):
             return None  # the mean moved: a refinement to commit
+    elif check.any():
+        mean = _canonical((refs[check, 1:] + a[check]) / (n[check] + 1)[:, None])
+        if not _keeps(mean, held[check], dist[check] * f, angle[check] * f, rules):
+            return None
     return a
+
+
+def _gates_at_once(seen: FloatArray, refs: FloatArray, layout: _Layout) -> FloatArray | None:
+    """:func:`_gates` when every box is fresh and every element's mean is checked (the common case): the
+    sightings and their means (with this sighting) against the held poses in one pass."""
+    held = layout.held
+    period = np.where((seen[:, 3] - seen[:, 4] < SQUARE_TOLERANCE_M) | layout.square, HALF_PI, math.pi)
+    a = _aligned(seen, held, period, seen[:, 6] - held[:, 6])
+    if not ((np.abs(a[:, 3:6] - held[:, 3:6]) <= layout.dist[:, None]).all(axis=1) | ~layout.resizable).all():
+        return None  # other sizes: resize evidence
+    rows = np.concatenate((seen, _canonical((refs[:, 1:] + a) / (refs[:, :1] + 1))))
+    twice = layout.twice
+    period = np.where((rows[:, 3] - rows[:, 4] < SQUARE_TOLERANCE_M) | layout.square_twice, HALF_PI, math.pi)
+    d = np.mod(rows[:, 6] - twice[:, 6], period)
+    centre, height, angle = layout.limits
+    ok = (
+        (np.hypot(rows[:, 0] - twice[:, 0], rows[:, 1] - twice[:, 1]) <= centre)
+        & (np.abs(rows[:, 2] - twice[:, 2]) <= height)
+        & (np.minimum(d, period - d) <= angle)
+    )
+    return a if ok.all() else None  # (a mean out of bounds: a refinement to commit)
+
+
+def _keeps(
+    mean: FloatArray, held: FloatArray, dist: FloatArray, angle: FloatArray, rules: FusionRules
+) -> bool:
+    """Whether every refinement's ``mean`` stays within its hysteresis (``dist`` and ``angle``, already
+    ``refine_fraction`` of the class's) and within ``refine_distance_m`` of the held pose (a map cell
+    off: :func:`twin.fusion.confirm.confirmation` commits it)."""
+    if not _confirms(mean, held, dist, angle).all():
+        return False
+    return bool((np.hypot(mean[:, 0] - held[:, 0], mean[:, 1] - held[:, 1]) <= rules.refine_distance_m).all())
 
 
 def _row(p: Pose) -> tuple[float, float, float, float, float, float, float]:
@@ -184,15 +458,15 @@ def _confirms(seen: FloatArray, held: FloatArray, dist: FloatArray, angle: Float
     return np.asarray((centre <= dist) & (np.abs(seen[:, 2] - held[:, 2]) <= dist) & (yaw <= angle))
 
 
-def _aligned(seen: FloatArray, held: FloatArray) -> FloatArray:
-    """:func:`twin.fusion.footprints.aligned` of each row."""
-    period = _period(seen, held)
-    turn = seen[:, 6] - held[:, 6]
+def _aligned(seen: FloatArray, held: FloatArray, period: FloatArray, turn: FloatArray) -> FloatArray:
+    """:func:`twin.fusion.footprints.aligned` of each row (``period``: :func:`_period`, ``turn``: the
+    yaw of ``seen`` less ``held``'s)."""
     d = np.mod(turn + period / 2, period) - period / 2
     quarter = np.mod(np.round((turn - d) / HALF_PI), 2) == 1
     out = seen.copy()
-    out[quarter, 3] = seen[quarter, 4]
-    out[quarter, 4] = seen[quarter, 3]
+    if quarter.any():
+        out[quarter, 3] = seen[quarter, 4]
+        out[quarter, 4] = seen[quarter, 3]
     out[:, 6] = held[:, 6] + d
     return out
 
@@ -201,31 +475,44 @@ def _canonical(p: FloatArray) -> FloatArray:
     """:func:`twin.fusion.footprints.box_pose` of each row (``sx >= sy``, yaw in [0, pi))."""
     out = p.copy()
     swap = p[:, 4] > p[:, 3]
-    out[swap, 3] = p[swap, 4]
-    out[swap, 4] = p[swap, 3]
-    out[swap, 6] = p[swap, 6] + HALF_PI
+    if swap.any():
+        out[swap, 3] = p[swap, 4]
+        out[swap, 4] = p[swap, 3]
+        out[swap, 6] = p[swap, 6] + HALF_PI
     out[:, 6] = np.mod(out[:, 6], math.pi)
     return out
 
 
-def _settle(ctx: FusionContext, boxes: list[_Box], fresh: list[_Box], sighted: FloatArray) -> None:
+def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray) -> None:
     """What the per-report rules do for each box: a stale one noted as they note it, each confirmation
     (``fresh``, aligned as ``sighted``) counted, their memory effects as one."""
-    robot = ctx.robot
+    robot, out = ctx.robot, ctx.out
+    reports, targets, senses, helds = boxes.reports, boxes.targets, boxes.senses, boxes.layout.helds
     rule = f"confirmation by {robot}: within confirm_distance_m and confirm_angle_deg"
-    for b in boxes:
-        if b.target != b.report.iri:
-            through_alias(ctx, b.report)  # resolved, and the alias used
-        ctx.boxes.append((b.storey, b.report, b.pose))
-        ctx.detected.add(b.target)
-        ctx.used.add(b.target)
-        if b.stale:
-            noted = stale_change(ctx, b.report, b.report.iri, b.state, b.sense)  # a sighting, not the latest
-            assert noted
-            continue
-        ctx.out.seen.append(b.target)
-    note_sightings(ctx, [(b.state, b.raw, b.sense) for b in fresh])  # where its detector puts them: its bias
-    rows = [(b.target, b.sense, b.resizable, *row) for b, row in zip(fresh, sighted.tolist(), strict=True)]
+    used = [reports[i].iri for i in boxes.layout.aliased if targets[i] != reports[i].iri]
+    for i in boxes.layout.aliased:
+        if targets[i] != reports[i].iri:
+            out.resolved[reports[i].iri] = targets[i]  # resolved, and the alias used
+    ctx.boxes_later = _later(ctx.boxes_later, boxes)
+    if len(fresh) < len(targets):
+        for i, stale in enumerate(boxes.stale):
+            if stale:
+                noted = stale_change(ctx, reports[i], reports[i].iri, helds[i].state, senses[i])
+                assert noted  # a sighting, not the latest
+    if used:  # (the per-report rules add one such effect per report: on the aliases, not the tracks)
+        out.effects.append(_use_aliases(used, ctx.arrival_ns))
+    ctx.detected.update(targets)
+    ctx.used.update(targets)
+    picked = fresh.tolist()
+    out.seen.extend([targets[i] for i in picked])
+    raw = boxes.raw[fresh, :2].tolist()
+    note_sightings_at(  # where its detector puts them: its bias
+        ctx, [(targets[i], x, y, senses[i]) for i, (x, y) in zip(picked, raw, strict=True)]
+    )
+    rows = [
+        (targets[i], senses[i], helds[i].resizable, *row)
+        for i, row in zip(picked, sighted.tolist(), strict=True)
+    ]
 
     def run(m: FusionMemory) -> None:
         for iri, sense, resizes, cx, cy, cz, sx, sy, sz, yaw in rows:
@@ -248,4 +535,32 @@ def _settle(ctx: FusionContext, boxes: list[_Box], fresh: list[_Box], sighted: F
             t.runs.pop(robot, None)  # this robot sees it where it is held: its own run ends
             t.decided = rule
 
-    ctx.out.effects.append(run)
+    out.effects.append(run)
+
+
+def _later(
+    before: Callable[[], list[tuple[str, ElementReport, Pose]]] | None, boxes: _Array
+) -> Callable[[], list[tuple[str, ElementReport, Pose]]]:
+    """The boxes of the array (storey, report, pose) for ``ctx.boxes``, made when they are read."""
+
+    def made() -> list[tuple[str, ElementReport, Pose]]:
+        mine = [
+            (key, r, Pose(*row))
+            for key, r, row in zip(boxes.storeys, boxes.reports, boxes.pose.tolist(), strict=True)
+        ]
+        return mine if before is None else [*before(), *mine]
+
+    return made
+
+
+def _use_aliases(used: list[str], now: int) -> Effect:
+    """:func:`twin.fusion.effects.use_alias` of each alias in ``used``, as one effect."""
+
+    def run(m: FusionMemory) -> None:
+        for alias in used:
+            m.changing("aliases", alias)
+            a = m.aliases.get(alias)
+            if a is not None:
+                a.used_ns = max(a.used_ns, now)
+
+    return run

@@ -14,7 +14,7 @@ Example::
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -110,8 +110,11 @@ class FusionContext:
     """Elements this observation describes (never missed by its view)."""
     used: set[str] = field(default_factory=set)
     """Elements already matched by a report of this observation (matched at most once)."""
-    boxes: list[tuple[str, ElementReport, Pose]] = field(default_factory=list)
-    """Every box this observation reports: (storey, the report as given, its world pose)."""
+    box_list: list[tuple[str, ElementReport, Pose]] = field(default_factory=list)
+    """:attr:`boxes` made so far."""
+    boxes_later: Callable[[], list[tuple[str, ElementReport, Pose]]] | None = None
+    """Boxes to add to :attr:`boxes` when something reads them (confirmations at once make their
+    poses only if absence looks at them)."""
     bias: tuple[float, float] | None = None
     """The robot's detector bias (:func:`twin.fusion.bias.unbiased`), once ``bias_known``."""
     bias_known: bool = False
@@ -123,6 +126,14 @@ class FusionContext:
     @property
     def memory(self) -> FusionMemory:
         return self.live.fusion
+
+    @property
+    def boxes(self) -> list[tuple[str, ElementReport, Pose]]:
+        """Every box this observation reports: (storey, the report as given, its world pose)."""
+        if self.boxes_later is not None:
+            later, self.boxes_later = self.boxes_later, None
+            self.box_list.extend(later())
+        return self.box_list
 
     def shape_of(self, iri: str) -> Shape | None:
         return self.shapes[iri] if iri in self.shapes else self.live.maps.shape_of(iri)

@@ -13,6 +13,7 @@ Example::
 from __future__ import annotations
 
 import functools
+import math
 from typing import TYPE_CHECKING
 
 from twin.config.fusion import FusionClassRules
@@ -71,6 +72,9 @@ def sizes_agree(rules: FusionClassRules, seen: Pose, held: Pose) -> bool:
 def lies_within(seen: Pose, held: Pose, *, margin_m: float) -> bool:
     """Whether ``seen``'s footprint lies inside ``held``'s grown by ``margin_m`` (a partly hidden
     object's box: smaller than the object, within it)."""
+    reach = math.hypot(max(held.sx / 2 + margin_m, 0.0), max(held.sy / 2 + margin_m, 0.0))
+    if centre_distance(seen, held) > reach + 1e-6:
+        return False  # its centre (its corners' mean) is outside the grown footprint's circle: a corner too
     return bool(points_in_polygon(corners(seen), corners(held, inset=-margin_m)).all())
 
 

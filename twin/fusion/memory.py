@@ -112,6 +112,70 @@ class RobotMean:
         )
 
 
+class PairTable(dict[tuple[str, str], RobotMean]):
+    """(robot, other robot) -> their mean difference (:attr:`FusionMemory.pairs`), a dict that also
+    knows each robot's partners: a robot's detector bias reads its own pairs, not every pair of the
+    fleet (600 with 25 robots, on every array)."""
+
+    __slots__ = ("_partners",)
+
+    def __init__(self, items: Any = (), /) -> None:
+        super().__init__()
+        self._partners: dict[str, dict[str, None]] = {}
+        self.update(items)
+
+    def __reduce__(self) -> tuple[type[PairTable], tuple[dict[tuple[str, str], RobotMean]]]:
+        return (PairTable, (dict(self),))
+
+    def __setitem__(self, key: tuple[str, str], value: RobotMean) -> None:
+        if key not in self:
+            self._partners.setdefault(key[0], {})[key[1]] = None
+        super().__setitem__(key, value)
+
+    def __delitem__(self, key: tuple[str, str]) -> None:
+        super().__delitem__(key)
+        self._forget(key)
+
+    def _forget(self, key: tuple[str, str]) -> None:
+        partners = self._partners.get(key[0])
+        if partners is not None:
+            partners.pop(key[1], None)
+
+    def update(self, items: Any = (), /, **kw: Any) -> None:
+        assert not kw, "pairs are keyed by tuples"
+        if not isinstance(items, dict):
+            items = dict(items)
+        partners = self._partners
+        for key in items:
+            if key not in self:
+                partners.setdefault(key[0], {})[key[1]] = None
+        dict.update(self, items)
+
+    def pop(self, key: tuple[str, str], *default: Any) -> Any:
+        if key in self:
+            self._forget(key)
+        return super().pop(key, *default)
+
+    def popitem(self) -> tuple[tuple[str, str], RobotMean]:
+        key, value = super().popitem()
+        self._forget(key)
+        return key, value
+
+    def setdefault(self, key: tuple[str, str], default: RobotMean) -> RobotMean:
+        if key not in self:
+            self[key] = default
+        return self[key]
+
+    def clear(self) -> None:
+        super().clear()
+        self._partners.clear()
+
+    def partners(self, robot: str) -> list[tuple[str, RobotMean]]:
+        """``robot``'s pairs: (other robot, the mean difference), in the order they were made."""
+        others = self._partners.get(robot)
+        return [(b, self[robot, b]) for b in others] if others else []
+
+
 @dataclass(slots=True)
 class Dispute:
     """Robots that disagree on where an element stands: the element covers both poses
@@ -307,11 +371,14 @@ class FusionMemory:
     :data:`HISTORY_PER_ELEMENT`; a removed element's last pose too): late news is checked against them."""
     clocks: dict[str, ClockEstimate] = field(default_factory=dict)
     """Per robot, its clock offset estimate (:mod:`twin.fusion.clocks`)."""
-    pairs: dict[tuple[str, str], RobotMean] = field(default_factory=dict)
+    pairs: PairTable = field(default_factory=PairTable)
     """(robot, other robot) -> the mean difference (x, y) between where they put the elements both see
     (:mod:`twin.fusion.bias`)."""
     shape_poses: dict[str, tuple[object, object, Pose]] = field(default_factory=dict)
     """Element -> (mesh, placement, pose): the pose of the shape it has, computed once per shape."""
+    confirm_cache: Any = None
+    """What confirmations at once (:mod:`twin.fusion.confirm_array`) keep between arrays: each element's
+    gates while the objects they were made from stay the same (checked at every use)."""
     journal: dict[tuple[str, Any], Any] | None = None
     """While an observation waits for the store (:meth:`begin` .. :meth:`keep` or :meth:`undo`): each
     entry the effects changed since (part, key) -> its value before (:data:`ABSENT`: it had none)."""
@@ -528,10 +595,10 @@ def memory_from_json(v: dict[str, Any]) -> FusionMemory:
             )
             for robot, e in v["clocks"].items()
         },
-        pairs={
-            (str(a), str(b)): RobotMean(int(n), float(x), float(y), int(ns))
+        pairs=PairTable(
+            ((str(a), str(b)), RobotMean(int(n), float(x), float(y), int(ns)))
             for a, b, n, x, y, ns in v["pairs"]
-        },
+        ),
     )
     for iri, past in v["history"].items():
         for storey, pose, until in past:

@@ -204,8 +204,9 @@ class Observer:
             self.stale += len(fused.stale)
             self.fusion_counts["resolved"] += len(fused.resolved)
             self.fusion_counts["confirmed"] += len(fused.seen)
+            sighting = Sighting(req.robot, req.received_ns)  # one for all (never changed in place)
             for iri in (*(r.iri for r in reports), *fused.seen):
-                live.last_seen[iri] = Sighting(req.robot, req.received_ns)
+                live.last_seen[iri] = sighting
             if plan.unchanged:
                 self.unchanged += 1
                 if fused.notes:

@@ -13,6 +13,7 @@ Example::
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 
@@ -48,15 +49,32 @@ def _fail(message: str) -> ObservationError:
 
 def check_iri(subject: str) -> None:
     """ObservationError unless ``subject`` is an absolute IRI of at most 2048 characters."""
-    if len(subject) > 2048 or not _IRI.match(subject):
+    if len(subject) > 2048 or not _is_iri(subject):
         raise _fail(f"Element IRI {subject[:200]!r} is not an absolute IRI.")
+
+
+@functools.lru_cache(maxsize=2048)
+def _is_iri(subject: str) -> bool:
+    """Whether ``subject`` (at most 2048 characters) is an absolute IRI: remembered, the same IRIs come
+    again and again (a robot's objects, array after array)."""
+    return _IRI.match(subject) is not None
+
+
+def _is_ifc_class(name: str) -> bool:
+    """Whether ``name`` is an IFC class name (``Ifc`` and at most 64 letters or digits)."""
+    return len(name) <= 67 and _ifc_class_name(name)
+
+
+@functools.lru_cache(maxsize=256)
+def _ifc_class_name(name: str) -> bool:
+    return _IFC_CLASS.fullmatch(name) is not None
 
 
 def check_report(report: ElementReport, *, limits: Limits) -> ElementReport:
     """``report`` if its values are acceptable; ObservationError naming the first that is not."""
     subject = report.iri
     check_iri(subject)
-    if report.ifc_class is not None and not _IFC_CLASS.fullmatch(report.ifc_class):
+    if report.ifc_class is not None and not _is_ifc_class(report.ifc_class):
         raise _fail(f"Element <{subject}>: twin:ifcClass {report.ifc_class!r} is not an IFC class name.")
     if report.box is not None:
         b = report.box
@@ -126,7 +144,7 @@ def check_view(view: ObservedView, *, name: str = "[]") -> ObservedView:
     if not view.polygons:
         raise _fail(f"{where} has no twin:polygon (the floor its sensor saw).")
     for cls in view.detects:
-        if not _IFC_CLASS.fullmatch(cls):
+        if not _is_ifc_class(cls):
             raise _fail(f"{where}: twin:detects {cls!r} is not an IFC class name.")
     if not view.detects:
         raise _fail(f"{where} has no twin:detects (the IFC classes its detector reports).")
