@@ -35,7 +35,7 @@ from twin.fusion.bias import note_sightings, unbiased
 from twin.fusion.clocks import last_known, stale_change
 from twin.fusion.confirm import box_of, only_sighting_where_it_stands, resizable
 from twin.fusion.context import report_pose
-from twin.fusion.dispute import still_covers
+from twin.fusion.dispute import older_disagreement, still_covers
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
 from twin.fusion.gates import is_candidate
 from twin.fusion.memory import FusionMemory
@@ -118,10 +118,12 @@ def _boxes(ctx: FusionContext, reports: Sequence[ElementReport], senses: Sequenc
         pose = unbiased(ctx, raw)
         if pose is not raw:
             r = replace(r, box=box_of(pose, storey.elevation_m))
-        if alias is not None and alias_fits(ctx, r, state, pose) != "fits":
-            return None
-        targets.add(target)
         stale = sense < last_known(ctx, target, state)
+        if (alias is not None and alias_fits(ctx, r, state, pose) != "fits") or (
+            stale and older_disagreement(ctx, r, state, pose, held, sense)
+        ):
+            return None  # (older: seen before another robot's later sighting, a short move from it)
+        targets.add(target)
         out.append(_Box(r, target, state, storey_key, raw, pose, held, sense, stale, resizable(ctx, target)))
     return out
 
