@@ -288,20 +288,20 @@ def robot(  # noqa: PLR0917 (a thread's target)
             if behaviour == "restart" and now >= restart_at:
                 tracks.clear()
                 next_track, session, restart_at = 1, session + 1, now + RESTART_EVERY_S
+            keys: dict[str, int] = {}  # IRI -> object (the trace; VIEWED + object: its old place viewed)
             with world.lock:
                 objs = [o for o in world.objects.values() if o.present]
                 pushed = dict(world.together)
                 world.views.append((time.time(), polygon))
                 for ev in world.events:
-                    if (
-                        ev.first_view is None
-                        and ev.kind in ("move", "remove")
-                        and _inside(ev.corners, polygon).all()
-                    ):
-                        ev.first_view = time.time()
+                    if ev.kind not in ("move", "remove") or ev.detected is not None:
+                        continue
+                    if _inside(ev.corners, polygon).all():
+                        if ev.first_view is None:
+                            ev.first_view = time.time()
+                        keys[f"{VIEWED}{ev.obj}"] = ev.obj
             lines = []
             seen_now = []
-            keys: dict[str, int] = {}  # IRI -> object (the trace)
             sensed = now
             if objs:
                 centres = np.array([(o.x, o.y) for o in objs])
@@ -424,6 +424,10 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         ev.shown = acked
 
 
+VIEWED = "#viewed:"
+"""The trace's mark of a view that held a moved or removed object's old place (not yet found gone)."""
+
+
 @dataclass
 class Trace:
     """Every acked report of an object (``--trace FILE``, JSON lines): the robot, when it was sensed (true
@@ -445,6 +449,7 @@ class Trace:
         ack: dict[str, Any],
     ) -> None:
         boxes = []
+        viewed = [k for iri, k in keys.items() if iri.startswith(VIEWED)]
         for line in payload.splitlines():
             if line.startswith("<") and "twin:box" in line:
                 iri = line[1 : line.index(">")]
@@ -457,6 +462,7 @@ class Trace:
             "sent": round(sent, 3),
             "acked": round(acked, 3),
             "boxes": boxes,
+            "viewed": viewed,
             "ack": {k: v for k, v in ack.items() if k != "maps"},
         }
         self.note(record)
