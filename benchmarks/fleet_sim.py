@@ -32,6 +32,9 @@ removal whose old place an object fills again before that is not counted), the t
 from a move's first sighting to the ack that shows it, revisions per true change, acked sightings
 per second, and the daemon's CPU per acked observation. ``--saturate S`` adds S seconds in which the
 robots send as fast as acks come back (the acked sightings per second at saturation).
+``--trace FILE`` writes every acked report of an object (the robot, the true sense time, sent, acked,
+each box with its object, the ack) and every view of a moved or removed object's old place, with the
+script's events, as JSON lines: one object's story, to diagnose a false-free cell or a late removal.
 
     python benchmarks/fleet_sim.py --robots 10 --objects 30 --duration 600 --moves 20 --removals 10 \\
         --json fleet.json --plot fleet.png
