@@ -421,6 +421,8 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 for ev in world.events:
                     if ev.kind != "move" or ev.obj not in seen_now or ev.shown is not None:
                         continue
+                    if sensed < ev.at:  # a late robot's report of the object before it moved
+                        continue
                     if ev.first_sighting is None:
                         ev.first_sighting = sent
                     if changed:
