@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import datetime
 import functools
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -65,8 +66,28 @@ class ObservationPlan:
 def _iso(ns: int) -> str:
     """An ``xsd:dateTime`` to the nanosecond, UTC."""
     seconds, nanos = divmod(ns, 1_000_000_000)
-    moment = datetime.datetime.fromtimestamp(seconds, tz=datetime.UTC).strftime("%Y-%m-%dT%H:%M:%S")
-    return f"{moment}.{nanos:09d}Z"
+    return f"{_second(seconds)}.{nanos:09d}Z"
+
+
+@functools.lru_cache(maxsize=64)
+def _second(seconds: int) -> str:
+    """``YYYY-MM-DDTHH:MM:SS`` of a second, UTC (robots report many times a second: made once each)."""
+    return datetime.datetime.fromtimestamp(seconds, tz=datetime.UTC).strftime("%Y-%m-%dT%H:%M:%S")
+
+
+def _observed_at(stamp_ns: int) -> str:
+    """``datetime.fromtimestamp(stamp_ns / 1e9, tz=UTC).isoformat()``, the same text, with the second's
+    part made once per second: microseconds from the float's fraction rounded half to even, as
+    ``fromtimestamp`` rounds them (a fraction that rounds up to a whole second carries into it)."""
+    fraction, whole = math.modf(stamp_ns / 1e9)
+    micros = round(fraction * 1e6)
+    seconds = int(whole)
+    if micros >= 1_000_000:
+        micros -= 1_000_000
+        seconds += 1
+    elif micros < 0:  # before 1970
+        return datetime.datetime.fromtimestamp(stamp_ns / 1e9, tz=datetime.UTC).isoformat()
+    return f"{_second(seconds)}.{micros:06d}+00:00" if micros else f"{_second(seconds)}+00:00"
 
 
 def _fail(message: str) -> ObservationError:
@@ -382,7 +403,7 @@ def _provenance(
 ) -> ElementState:
     """Who changed the element, when it arrived, at which revision, and when it was seen."""
     r, w = step.r, step.w
-    when = datetime.datetime.fromtimestamp(stamp_ns / 1e9, tz=datetime.UTC).isoformat()
+    when = _observed_at(stamp_ns)
     w.set(r.iri, vocab.TWIN_OBSERVED_BY, literal(step.robot))
     w.set(r.iri, vocab.TWIN_OBSERVED_AT, literal(when, vocab.XSD_DATETIME))
     w.set(r.iri, vocab.TWIN_REVISION, literal(str(revision), vocab.XSD_INTEGER))

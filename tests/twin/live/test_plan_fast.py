@@ -3,6 +3,7 @@ decides and writes exactly what the array path does: each test fails if the fast
 
 from __future__ import annotations
 
+import datetime
 import math
 import random
 
@@ -148,3 +149,20 @@ def test_the_plans_of_boxes_moved_turned_and_at_the_sites_edge_equal_the_array_p
         assert a.states == b.states
         kinds.add("unchanged" if a.unchanged else "changed")
     assert kinds == {"refused", "unchanged", "changed"}
+
+
+def test_the_provenance_times_are_the_datetime_modules_text_to_the_microsecond_and_nanosecond() -> None:
+    rng = random.Random(11)
+    edges = [0, 1, 499, 500, 501, 999_499, 999_500, 999_501, 999_999_499, 999_999_500, 999_999_999]
+    for i in range(30_000):
+        second = rng.randint(0, 4_000_000_000) if i % 2 else rng.randint(1_700_000_000, 1_800_000_000)
+        ns = second * 10**9 + (rng.choice(edges) if i % 3 == 0 else rng.randint(0, 10**9 - 1))
+        expected = datetime.datetime.fromtimestamp(ns / 1e9, tz=datetime.UTC).isoformat()
+        assert plan_module._observed_at(ns) == expected, ns
+        moment = datetime.datetime.fromtimestamp(second, tz=datetime.UTC).strftime("%Y-%m-%dT%H:%M:%S")
+        assert plan_module._iso(ns) == f"{moment}.{ns % 10**9:09d}Z"
+    for ns in (-1, -1_500_000_000, -(10**9)):  # before 1970: the datetime module itself
+        assert (
+            plan_module._observed_at(ns)
+            == datetime.datetime.fromtimestamp(ns / 1e9, tz=datetime.UTC).isoformat()
+        )
