@@ -23,7 +23,7 @@ import numpy.typing as npt
 
 from twin.maps.grid import Window
 from twin.maps.raster import BoolArray
-from twin.maps.raster.boxes import box_footprint
+from twin.maps.raster.boxes import local_footprint, placed_footprint
 from twin.maps.render import MapPlan
 from twin.maps.scene import MeshSet
 from twin.records import FloatArray, Mesh, Shape, to_world
@@ -41,11 +41,18 @@ class _MeshFacts:
     """Eight corners, two distinct values per axis, each corner once, 12 faces, closed."""
     used: npt.NDArray[np.intp] | None
     """The vertices its faces use, None if all (the bounds are those of the used vertices)."""
+    local: FloatArray | None = None
+    """A box's local footprint corners (:func:`~twin.maps.raster.boxes.local_footprint`); None: no box."""
 
     @classmethod
     def of(cls, mesh: Mesh) -> _MeshFacts:
         used = np.unique(mesh.faces)
-        return cls(_is_box_mesh(mesh), None if len(used) == len(mesh.vertices) else used.astype(np.intp))
+        box = _is_box_mesh(mesh)
+        return cls(
+            box,
+            None if len(used) == len(mesh.vertices) else used.astype(np.intp),
+            local_footprint(mesh.vertices) if box else None,
+        )
 
 
 @dataclass(eq=False, slots=True)
@@ -74,8 +81,8 @@ class OverlayElement:
         world = to_world(mesh.vertices, placement)  # as MeshSet.build, bit for bit
         used = world if facts.used is None else world[facts.used]
         b = np.concatenate([used.min(axis=0), used.max(axis=0)])
-        upright = facts.box and _turns_about_z(placement)
-        footprint = box_footprint(mesh.vertices, placement) if upright else None
+        upright = facts.local is not None and _turns_about_z(placement)
+        footprint = placed_footprint(facts.local, placement) if facts.local is not None and upright else None
         return cls(shape, None if np.isnan(b).any() else b, footprint, _facts=facts)
 
     def footprint_in(self, plan: MapPlan) -> FloatArray | None:
