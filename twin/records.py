@@ -343,7 +343,7 @@ def _maker(cls: type, name: str) -> Callable[..., Any]:
     the module's global that holds it (pickle finds it again by its name)."""
     if hasattr(cls, "__post_init__"):
         raise TypeError(f"{cls.__name__} has a __post_init__: a maker would skip it")
-    slots = cls.__slots__
+    slots: tuple[str, ...] = getattr(cls, "__slots__")  # noqa: B009 (a dataclass's, unknown to mypy)
     args = ", ".join(f"f{i}" for i in range(len(slots)))
     body = "".join(f"    s{i}(r, f{i})\n" for i in range(len(slots)))
     env: dict[str, Any] = {"new": object.__new__, "cls": cls}
@@ -364,6 +364,6 @@ _MAKERS: dict[type, Callable[..., Any]] = {
     ObservedView: _make_view,
 }
 _FIELDS: dict[type, Callable[[Any], tuple[object, ...]]] = {
-    cls: operator.attrgetter(*cls.__slots__) for cls in _MAKERS
+    cls: operator.attrgetter(*getattr(cls, "__slots__")) for cls in _MAKERS  # noqa: B009
 }
 """The records pickled by :func:`_by_fields`: their fields read at once, in order (their slots)."""
