@@ -16,12 +16,13 @@ A robot's messages (TF, camera info, detection arrays) go to its ingest worker p
 (:mod:`adapters.zenoh.ros_workers`; ``[ros] ingest_workers``, 0: this process's ingest thread), the
 sources' (doors, obstacles) to the ingest thread; Zenoh's callbacks only queue them, with their arrival
 time (a full queue drops the message and counts ``overflow``, by kind: ROS topics carry no ack, and a
-slow twin must not stall Zenoh). Each resulting observation is submitted with
-``TwinService.submit_observation(owner, records)``: the core's typed records for detection arrays (no
-Turtle written and parsed again), Turtle for the rest; the same validation, rights, limits, fusion,
-durability and map updates as any observation; its ack is counted per robot or source (accepted,
-unchanged, refused by cause, last refusal) in the daemon's status (``ros_ingest``). Every cause of
-refusal is logged once per robot or source, then counted silently.
+slow twin must not stall Zenoh); those of the plain subscriptions (arrays, TF, the sources') run on
+Zenoh's receiving thread, not on a Python thread of their own each. Each resulting observation is
+submitted with ``TwinService.submit_observation(owner, records)``: the core's typed records for
+detection arrays (no Turtle written and parsed again), Turtle for the rest; the same validation, rights,
+limits, fusion, durability and map updates as any observation; its ack is counted per robot or source
+(accepted, unchanged, refused by cause, last refusal) in the daemon's status (``ros_ingest``). Every
+cause of refusal is logged once per robot or source, then counted silently.
 
 The view of a detection array is cut by the structure in the ``view_skill`` map of the robot's storey,
 which this object keeps as a sink of the service (``MapPublished``/``MapUpdated``) and feeds to the
