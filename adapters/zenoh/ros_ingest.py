@@ -16,13 +16,12 @@ A robot's messages (TF, camera info, detection arrays) go to its ingest worker p
 (:mod:`adapters.zenoh.ros_workers`; ``[ros] ingest_workers``, 0: this process's ingest thread), the
 sources' (doors, obstacles) to the ingest thread; Zenoh's callbacks only queue them, with their arrival
 time (a full queue drops the message and counts ``overflow``, by kind: ROS topics carry no ack, and a
-slow twin must not stall Zenoh); those of the plain subscriptions (arrays, TF, the sources') run on
-Zenoh's receiving thread, not on a Python thread of their own each. Each resulting observation is
-submitted with ``TwinService.submit_observation(owner, records)``: the core's typed records for
-detection arrays (no Turtle written and parsed again), Turtle for the rest; the same validation, rights,
-limits, fusion, durability and map updates as any observation; its ack is counted per robot or source
-(accepted, unchanged, refused by cause, last refusal) in the daemon's status (``ros_ingest``). Every
-cause of refusal is logged once per robot or source, then counted silently.
+slow twin must not stall Zenoh). Each resulting observation is submitted with
+``TwinService.submit_observation(owner, records)``: the core's typed records for detection arrays (no
+Turtle written and parsed again), Turtle for the rest; the same validation, rights, limits, fusion,
+durability and map updates as any observation; its ack is counted per robot or source (accepted,
+unchanged, refused by cause, last refusal) in the daemon's status (``ros_ingest``). Every cause of
+refusal is logged once per robot or source, then counted silently.
 
 The view of a detection array is cut by the structure in the ``view_skill`` map of the robot's storey,
 which this object keeps as a sink of the service (``MapPublished``/``MapUpdated``) and feeds to the
@@ -120,17 +119,6 @@ MAX_WAITING = 64
 """Arrays per robot waiting for TF at most; more are translated at once (and refused if still unresolved)."""
 MAX_STATIC = 32
 """``tf_static`` messages kept per robot, to feed a restarted worker again."""
-
-
-def _direct(handler: Callable[[zenoh.Sample], None]) -> Any:
-    """``handler`` called on Zenoh's thread that received the sample rather than handed to a Python
-    thread of its subscriber's own (Zenoh's default): the handlers only queue (no lock is held while
-    waiting for Zenoh), and with 25 robots the 750 samples a second (TF at 20 Hz, arrays at 10 Hz) each
-    woke a thread, 0.07 ms of CPU per array. Zenoh calls ``indirect`` unstable: without it, the default."""
-    try:
-        return zenoh.handlers.Callback(handler, indirect=False)
-    except TypeError:  # a Zenoh without the keyword
-        return handler
 
 
 class Submit(Protocol):
@@ -354,7 +342,7 @@ class RosIngest:
                 self._entities.append(
                     declare_latched_subscriber(session, topic.bridge_key, handler, max_samples=None)
                     if latched
-                    else session.declare_subscriber(topic.bridge_key, _direct(handler))
+                    else session.declare_subscriber(topic.bridge_key, handler)
                 )
             if "rmw_zenoh" in layouts:
                 expected = f"{dds_type_name(type_name)}/{type_hash(type_name)}"
@@ -363,7 +351,7 @@ class RosIngest:
                 self._entities.append(
                     declare_latched_subscriber(session, any_type, handler, max_samples=None)
                     if latched
-                    else session.declare_subscriber(any_type, _direct(handler))
+                    else session.declare_subscriber(any_type, handler)
                 )
                 token = node.subscriber_token(topic, entity, STATE_QOS if latched else DEFAULT_QOS)
                 entity += 1
@@ -407,7 +395,7 @@ class RosIngest:
     def _handler(self, owner: str, kind: str, expected: str | None) -> Callable[[zenoh.Sample], None]:
         put = zenoh.SampleKind.PUT
         suffix = f"/{expected}"  # the key is <topic>/<type>/<hash> (the subscription: <topic>/*/*)
-        kept = kind in ("tf_static", "camera_info")  # (Zenoh's thread: every sample of 25 robots)
+        kept = kind in ("tf_static", "camera_info")  # (looked at for every sample)
 
         def on_sample(sample: zenoh.Sample) -> None:
             if sample.kind != put:
