@@ -364,6 +364,7 @@ _MAKERS: dict[type, Callable[..., Any]] = {
     ObservedView: _make_view,
 }
 _FIELDS: dict[type, Callable[[Any], tuple[object, ...]]] = {
-    cls: operator.attrgetter(*getattr(cls, "__slots__")) for cls in _MAKERS  # noqa: B009
+    cls: operator.attrgetter(*cls.__slots__)  # type: ignore[attr-defined] # (a dataclass's)
+    for cls in _MAKERS
 }
 """The records pickled by :func:`_by_fields`: their fields read at once, in order (their slots)."""

@@ -234,7 +234,8 @@ def test_a_workers_outcome_comes_back_whole_and_its_records_stay_frozen() -> Non
     from adapters.zenoh.ros_workers import Translated
 
     report = ElementReport("urn:r:1", "IfcFurniture", "g", ObservedBox(1.0, 2.0, 0.4, 0.8, 0.6, 0.75, 0.1))
-    session = TrackerSession(started_s=17, ids={"t0": T0, "t1": None}, highest=3, last_stamp_ns=T0, restarts=2)
+    ids: dict[str, int | None] = {"t0": T0, "t1": None}
+    session = TrackerSession(started_s=17, ids=ids, highest=3, last_stamp_ns=T0, restarts=2)
     t = Translation(
         Observation((report,)), iris=("urn:r:1",), ignored={"class": 2}, refused=(("malformed", "x"),),
         extra=(b"doc",), removes=("urn:r:2",),
