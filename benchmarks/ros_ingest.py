@@ -16,8 +16,9 @@ ingestion queue was full), the ingestion and service queue depths sampled every 
 keeping up) and the latency from robot0's array that moves the table to the navigation map update's
 receipt by a subscriber. The daemon's CPU is split into its main thread (the writer), its native
 threads (named by their runtime: Zenoh's ``rx-0``, ``acc-0``, ..., RocksDB's) and the rest (Python's
-threads: Zenoh's callbacks, the ingest workers' sender and pool threads). ``--baseline TREE`` runs the
-same against the daemon of another code tree.
+threads: Zenoh's callbacks, the ingest workers' sender and pool threads); ``threads_ms_per_array``
+gives each group of them (Python threads named by ``py-spy dump``, each thread's CPU from ``schedstat``).
+``--baseline TREE`` runs the same against the daemon of another code tree.
 
     python benchmarks/ros_ingest.py --robots 10 --rate 10 --detections 20 --duration 30 --json ros.json
 """
@@ -27,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -164,16 +166,43 @@ def _cpu_s(pid: int, tid: int | None = None) -> float:
 
 def _threads_cpu_s(pid: int) -> dict[int, tuple[str, float]]:
     """Each thread of ``pid``: its name as the system knows it (Zenoh's runtime threads are named,
-    e.g. ``rx-0``, ``acc-0``; Python's threads keep the process's name) and its CPU seconds."""
+    e.g. ``rx-0``, ``acc-0``; Python's threads keep the process's name) and its CPU seconds, from
+    ``schedstat`` (nanoseconds: a hundred threads that run briefly each are not lost to the ticks of
+    ``stat``)."""
     out: dict[int, tuple[str, float]] = {}
     for tid in os.listdir(f"/proc/{pid}/task"):
         try:
             text = Path(f"/proc/{pid}/task/{tid}/stat").read_text()
-        except OSError:
+            ns = int(Path(f"/proc/{pid}/task/{tid}/schedstat").read_text().split()[0])
+        except (OSError, ValueError, IndexError):
             continue
-        fields = text.rsplit(")", 1)[1].split()
         name = text[text.index("(") + 1 : text.rindex(")")]
-        out[int(tid)] = (name, (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK"))
+        out[int(tid)] = (name, ns / 1e9)
+    return out
+
+
+def _python_threads(pid: int) -> dict[int, str]:
+    """The daemon's Python threads by OS thread id, each named by its group: its Python name
+    (``ros-ingest-pool``, ``ros-ingest-send-0``, ...; a numbered suffix dropped) or, for Zenoh's callback
+    threads, ``zenoh callbacks`` (their stack holds a callback); empty if ``py-spy`` is not at hand."""
+    import shutil
+
+    spy = shutil.which("py-spy") or str(Path(sys.executable).parent / "py-spy")
+    try:
+        text = subprocess.run(
+            [spy, "dump", "--pid", str(pid)], check=False, capture_output=True, text=True, timeout=30
+        ).stdout
+    except (OSError, subprocess.SubprocessError):
+        return {}
+    out: dict[int, str] = {}
+    for block in re.split(r"\n(?=Thread )", text):
+        m = re.match(r'Thread (\d+) \([^)]*\)(?:: "([^"]*)")?', block)
+        if m is None:
+            continue
+        name = m.group(2) or "python, unnamed"
+        if "on_sample" in block or name.endswith("(pyo3-closure)"):
+            name = "zenoh callbacks"
+        out[int(m.group(1))] = re.sub(r"-\d+$", "-N", name) if name.startswith("ros-ingest-send") else name
     return out
 
 
@@ -283,6 +312,7 @@ def run(
         s1, c1, k1, w1 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
         m1 = _cpu_s(daemon.pid, daemon.pid)
         t1 = _threads_cpu_s(daemon.pid)
+        named = _python_threads(daemon.pid)
         for pub in pubs:
             pub.wait(timeout=30)
         for reader in readers:
@@ -312,6 +342,12 @@ def run(
     workers_s = sum(k1[p] - k0.get(p, 0.0) for p in k1)
     main_name = t1.get(daemon.pid, ("", 0.0))[0]
     native_s = sum(c - t0.get(t, (n, 0.0))[1] for t, (n, c) in t1.items() if n != main_name)
+    by_thread: dict[str, float] = {}  # the daemon's threads but the writer, grouped by name
+    for t, (n, c) in t1.items():
+        if t == daemon.pid:
+            continue
+        group = "native " + re.sub(r"-?\d+$", "", n) if n != main_name else named.get(t, "python, unnamed")
+        by_thread[group] = by_thread.get(group, 0.0) + c - t0.get(t, (n, 0.0))[1]
     counts = list(final["ros_ingest"]["counts"].values())
     latencies = []
     every: list[tuple[float, float]] = []  # (s after the subscription, latency ms) of every move
@@ -335,6 +371,11 @@ def run(
         "writer_ms_per_array": round(1000 * (m1 - m0) / max(received, 1), 3),
         "daemon_threads_ms_per_array": round(1000 * (c1 - c0 - (m1 - m0)) / max(received, 1), 3),
         "daemon_native_threads_ms_per_array": round(1000 * native_s / max(received, 1), 3),
+        "threads_ms_per_array": {
+            k: round(1000 * v / max(received, 1), 3)
+            for k, v in sorted(by_thread.items(), key=lambda kv: -kv[1])
+            if 1000 * v / max(received, 1) >= 0.0005
+        },
         "workers_ms_per_array": round(1000 * workers_s / max(received, 1), 3),
         "total_ms_per_array": round(1000 * (c1 - c0 + workers_s) / max(received, 1), 3),
         "daemon_cpu_pct": round(100 * (c1 - c0) / window, 1),

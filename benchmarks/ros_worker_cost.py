@@ -7,7 +7,9 @@ CPU time (``time.process_time``) per TF + array; ``--profile`` also prints a cPr
 jitters by ``M`` metres (and M rad of yaw), seeded, as a real detector's. ``--check OUT`` writes the
 outcomes as plain values (to compare two code trees' outputs: the same bytes). ``--stages`` prints the
 CPU (thread time, with the timers' own cost) of each stage per TF + array; it finds the stages of
-either tree (before and after the boxes and footprints became one pass).
+either tree (before and after the boxes and footprints became one pass). ``--pickle`` prints what
+handing the outcomes over costs: bytes per array, µs to dump and to load (best of 5), and to load an
+array's reports alone (what the daemon's pool thread does per array).
 
     PYTHONPATH=$PWD python benchmarks/ros_worker_cost.py --detections 20 --repeat 10 [--profile]
 """
@@ -149,6 +151,30 @@ def run(t: Any, msgs: list[tuple[bytes, bytes]], repeat: int) -> list[Any]:
     return out
 
 
+def pickles(outcomes: list[Any], rounds: int = 200) -> dict[str, float]:
+    """What handing ``outcomes`` from a worker to the daemon costs per array (best of 5 timings)."""
+    import pickle
+
+    def best(f: Any) -> float:
+        times = []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            for _ in range(rounds):
+                f()
+            times.append((time.perf_counter() - t0) / rounds)
+        return 1e6 * min(times) / len(outcomes)
+
+    data = pickle.dumps(outcomes, protocol=pickle.HIGHEST_PROTOCOL)
+    reports = [o.translation.document.reports for o in outcomes]
+    data_reports = pickle.dumps(reports, protocol=pickle.HIGHEST_PROTOCOL)
+    return {
+        "bytes": round(len(data) / len(outcomes)),
+        "dump_us": round(best(lambda: pickle.dumps(outcomes, protocol=pickle.HIGHEST_PROTOCOL)), 1),
+        "load_us": round(best(lambda: pickle.loads(data)), 1),
+        "load_reports_us": round(best(lambda: pickle.loads(data_reports)), 1),
+    }
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--detections", type=int, default=20)
@@ -158,6 +184,7 @@ def main() -> int:
     p.add_argument("--profile", action="store_true")
     p.add_argument("--check", type=Path)
     p.add_argument("--stages", action="store_true", help="also the CPU of each stage (µs per array)")
+    p.add_argument("--pickle", action="store_true", help="also the outcomes' pickles (bytes, µs per array)")
     a = p.parse_args()
     t, msgs = setup(a.detections, moving=a.moving, noise=a.noise)
     first = run(t, msgs, 1)
@@ -182,6 +209,8 @@ def main() -> int:
     )
     if a.stages:
         print(json.dumps(stages(t, msgs, a.repeat)))
+    if a.pickle:
+        print(json.dumps(pickles([o for x in first for o in x])))
     if a.profile:
         prof = cProfile.Profile()
         prof.enable()

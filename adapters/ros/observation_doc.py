@@ -19,6 +19,7 @@ from __future__ import annotations
 import datetime as dt
 import functools
 import math
+import operator
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from urllib.parse import quote
@@ -112,6 +113,14 @@ class Translation:
     @property
     def documents(self) -> tuple[bytes | Observation, ...]:
         return ((self.document,) if self.document is not None else ()) + self.extra
+
+    def __reduce__(self) -> tuple[type[Translation], tuple[object, ...]]:
+        """A call with its fields (an ingest worker hands one over per array): the setstate of a frozen
+        dataclass with slots looks its fields up again at every load."""
+        return (Translation, _TRANSLATION_FIELDS(self))
+
+
+_TRANSLATION_FIELDS = operator.attrgetter(*Translation.__slots__)
 
 
 @functools.lru_cache(maxsize=8192)  # a robot's tracks are named again at every array

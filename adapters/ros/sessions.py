@@ -54,6 +54,10 @@ class TrackerSession:
     restarts: int = 0
     """Sessions started after the first (detector restarts seen)."""
 
+    def __reduce__(self) -> tuple[type[TrackerSession], tuple[object, ...]]:
+        """A call with its fields (handed over with every array an ingest worker translates)."""
+        return (TrackerSession, (self.started_s, self.ids, self.highest, self.last_stamp_ns, self.restarts))
+
     @property
     def label(self) -> str:
         return f"s{self.started_s or 0}"

@@ -393,22 +393,27 @@ class RosIngest:
                 out.put(payload, stamp)
 
     def _handler(self, owner: str, kind: str, expected: str | None) -> Callable[[zenoh.Sample], None]:
+        put = zenoh.SampleKind.PUT
+        suffix = f"/{expected}"  # the key is <topic>/<type>/<hash> (the subscription: <topic>/*/*)
+        kept = kind in ("tf_static", "camera_info")  # (looked at for every sample)
+
         def on_sample(sample: zenoh.Sample) -> None:
-            if sample.kind != zenoh.SampleKind.PUT:
+            if sample.kind != put:
                 return
             note = ""
             got_kind = kind
             if expected is not None:
                 key = str(sample.key_expr)
-                got = "/".join(key.split("/")[-2:])
-                if got != expected:
+                if not key.endswith(suffix):
+                    got = "/".join(key.split("/")[-2:])
                     got_kind, note = "wrong_type", f"{key} carries {got}, not {expected}"
             arrived = self.clock()
             payload = sample.payload.to_bytes()
             try:
                 if self._pool is not None and got_kind in ROBOT_KINDS and owner in self._robots:
                     self._pool.put(owner, got_kind, payload, arrived)
-                    self._keep(owner, got_kind, payload)
+                    if kept:
+                        self._keep(owner, got_kind, payload)
                     with self._lock:
                         c = self._counts[owner]
                         c.received += 1

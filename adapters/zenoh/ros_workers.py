@@ -27,9 +27,9 @@ import contextlib
 import copy
 import logging
 import multiprocessing as mp
-import multiprocessing.connection as mp_connection
 import pickle
 import queue
+import selectors
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -67,6 +67,10 @@ class Translated:
     received_ns: int
     session: TrackerSession | None = None
     """The robot's tracker session after this array (a copy when it comes from a worker)."""
+
+    def __reduce__(self) -> tuple[type[Translated], tuple[object, ...]]:
+        """A call with its fields (one per array from a worker; a frozen dataclass's setstate is slower)."""
+        return (Translated, (self.owner, self.translation, self.received_ns, self.session))
 
 
 @dataclass(frozen=True, slots=True)
@@ -448,37 +452,52 @@ class WorkerPool:
 
     def _run(self) -> None:
         next_check = 0.0
-        while True:
-            ready = [w.outbox for w in self.workers if w.outbox is not None]
-            if self._closing.is_set() and not ready:
-                return
-            got: list[Any] = []
-            if ready:
-                with contextlib.suppress(OSError):
-                    got = list(mp_connection.wait(ready, timeout=0.25))
-            else:  # every worker dead (started again by the check below)
-                time.sleep(0.05)
-            for conn in got:
-                w = next((x for x in self.workers if x.outbox is conn), None)
-                if w is None:
-                    continue
-                try:
-                    item = pickle.loads(conn.recv_bytes())
-                except (EOFError, OSError):  # it died without its last word
-                    item = None
-                if item is None:
+        selector = selectors.DefaultSelector()  # kept while the pipes are (one made per wait: 10 us)
+        watched: dict[Any, _Worker] = {}
+        try:
+            while True:
+                outboxes = {w.outbox: w for w in self.workers if w.outbox is not None}
+                if outboxes.keys() != watched.keys():  # a worker started again or gone quiet: a new one
+                    selector.close()  # (a closed pipe cannot be unregistered by its file number)
+                    selector = selectors.DefaultSelector()
+                    for conn in outboxes:
+                        selector.register(conn, selectors.EVENT_READ)
+                    watched = outboxes
+                if self._closing.is_set() and not watched:
+                    return
+                got: list[Any] = []
+                if watched:
                     with contextlib.suppress(OSError):
-                        conn.close()
-                    w.outbox = None
-                    continue
-                try:
-                    self.deliver(item)
-                except Exception:
-                    log.exception("Delivering a ROS 2 ingest worker's outcomes failed")
-            now = time.monotonic()
-            if not self._closing.is_set() and now >= next_check:  # a waitpid per worker: not per batch
-                next_check = now + SUPERVISE_S
-                self._supervise()
+                        got = [key.fileobj for key, _ in selector.select(timeout=0.25)]
+                else:  # every worker dead (started again by the check below)
+                    time.sleep(0.05)
+                self._take(got, watched)
+                now = time.monotonic()
+                if not self._closing.is_set() and now >= next_check:  # a waitpid per worker: not per batch
+                    next_check = now + SUPERVISE_S
+                    self._supervise()
+        finally:
+            selector.close()
+
+    def _take(self, ready: list[Any], watched: dict[Any, _Worker]) -> None:
+        """Read a batch of outcomes from each ready pipe and deliver them (the pool's thread)."""
+        for conn in ready:
+            w = watched.get(conn)
+            if w is None or w.outbox is not conn:
+                continue
+            try:
+                item = pickle.loads(conn.recv_bytes())
+            except (EOFError, OSError):  # it died without its last word
+                item = None
+            if item is None:
+                with contextlib.suppress(OSError):
+                    conn.close()
+                w.outbox = None
+                continue
+            try:
+                self.deliver(item)
+            except Exception:
+                log.exception("Delivering a ROS 2 ingest worker's outcomes failed")
 
     def _supervise(self) -> None:
         for w in self.workers:

@@ -224,3 +224,50 @@ def test_typed_records_come_back_from_a_worker_with_every_field() -> None:
     ]
     assert back.view is not None and back.view.origin == view.origin and back.view.sense_ns == T0
     assert np.array_equal(back.view.polygons[0], view.polygons[0])
+
+
+def test_a_workers_outcome_comes_back_whole_and_its_records_stay_frozen() -> None:
+    from dataclasses import FrozenInstanceError
+
+    from adapters.ros.observation_doc import Translation
+    from adapters.ros.sessions import TrackerSession
+    from adapters.zenoh.ros_workers import Translated
+
+    report = ElementReport("urn:r:1", "IfcFurniture", "g", ObservedBox(1.0, 2.0, 0.4, 0.8, 0.6, 0.75, 0.1))
+    ids: dict[str, int | None] = {"t0": T0, "t1": None}
+    session = TrackerSession(started_s=17, ids=ids, highest=3, last_stamp_ns=T0, restarts=2)
+    t = Translation(
+        Observation((report,)), iris=("urn:r:1",), ignored={"class": 2}, refused=(("malformed", "x"),),
+        extra=(b"doc",), removes=("urn:r:2",),
+    )  # fmt: skip
+    back = pickle.loads(pickle.dumps(Translated("robot0", t, 42, session), protocol=pickle.HIGHEST_PROTOCOL))
+    assert (back.owner, back.received_ns) == ("robot0", 42)
+    assert back.session == session and back.session is not session
+    assert back.translation.iris == t.iris and back.translation.ignored == {"class": 2}
+    assert back.translation.refused == t.refused and back.translation.extra == (b"doc",)
+    assert back.translation.removes == ("urn:r:2",) and back.translation.settle is None
+    assert isinstance(back.translation.document, Observation)
+    got = back.translation.document.reports[0]
+    assert got.iri == "urn:r:1" and got.box == report.box and got.removed is False
+    with pytest.raises(FrozenInstanceError):
+        got.iri = "urn:r:other"  # type: ignore[misc]
+    assert got.box is not None
+    with pytest.raises(FrozenInstanceError):
+        got.box.cx = 0.0  # type: ignore[misc]
+
+
+def test_a_record_that_checks_itself_gets_no_maker_that_would_skip_the_check() -> None:
+    from dataclasses import dataclass
+
+    from twin.records import _maker
+
+    @dataclass(frozen=True, slots=True)
+    class Checked:
+        x: float
+
+        def __post_init__(self) -> None:
+            if self.x < 0:
+                raise ValueError(self.x)
+
+    with pytest.raises(TypeError, match="__post_init__"):
+        _maker(Checked, "_make_checked")
