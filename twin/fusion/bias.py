@@ -53,6 +53,8 @@ the element starts its means again)."""
 
 _NO_MEAN = RobotMean()
 """No sightings yet (only read: :meth:`~twin.fusion.memory.RobotMean.added` makes a new mean)."""
+_NO_MEANS: dict[str, RobotMean] = {}
+"""An element without a track: no robot's mean (only read)."""
 
 
 def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None:
@@ -61,7 +63,10 @@ def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None
     :data:`MIN_PARTNERS`), or, when it agrees with none, from the partners that agree with a third robot
     (:func:`vouched`). A robot that agrees with some partners and differs from one is not the one that
     is off."""
-    diffs = [(b, d) for b, d in memory.pairs.partners(robot) if d.n >= PAIR_MIN_SAMPLES]
+    mine = memory.pairs.of(robot)
+    if not mine:
+        return None
+    diffs = [(b, d) for b, d in mine.items() if d.n >= PAIR_MIN_SAMPLES]
     differing = [(b, d) for b, d in diffs if math.hypot(d.x, d.y) > DEADBAND_M]
     if len(differing) >= MIN_PARTNERS and 2 * len(differing) > len(diffs):
         chosen = [d for _, d in differing]
@@ -139,57 +144,86 @@ def note_sightings(ctx: FusionContext, seen: Sequence[tuple[ElementState, Pose, 
 def note_sightings_at(ctx: FusionContext, seen: Sequence[tuple[str, float, float, int]]) -> None:
     """:func:`note_sightings` of (element, raw x, raw y, sense time) tuples. Each pair's difference is
     taken from the last sighting that compares it, found from the end (each robot's search stops at its
-    first comparison; the pairs in the order the first comparisons came, as in a forward pass)."""
+    first comparison; the pairs in the order the first comparisons came, as in a forward pass). The
+    effect updates the means and pairs the memory holds in place (no new objects per robot pair and
+    array), but for pairs while the memory journals (its value before is kept, not a copy)."""
     robot, memory = ctx.robot, ctx.memory
     far = ctx.rules.certain_move_m
-    means: list[tuple[str, RobotMean]] = []
-    compared: list[tuple[RobotMean, dict[str, RobotMean], int]] = []  # mine, the others' means, sense
+    means: list[tuple[str, RobotMean | None, int, float, float, int]] = []  # held mean, the new values
+    compared: list[tuple[float, float, dict[str, RobotMean], int]] = []  # my mean (x, y), the others', sense
+    tracks = memory.tracks
     for iri, x, y, sense in seen:
-        track = memory.tracks.get(iri)
-        held = track.means if track is not None else {}
-        mine = (held.get(robot) or _NO_MEAN).added(x, y, sense, weight=MEAN_WEIGHT)
-        means.append((iri, mine))
-        if mine.n >= MEAN_MIN and len(held) > (robot in held):
-            compared.append((mine, held, sense))
+        track = tracks.get(iri)
+        held = track.means if track is not None else _NO_MEANS
+        old = held.get(robot)
+        o = _NO_MEAN if old is None else old  # (RobotMean.added, without the new object)
+        a = 1.0 if o.n == 0 else max(MEAN_WEIGHT, 1.0 / (o.n + 1))
+        n, mx, my, last = o.n + 1, o.x + a * (x - o.x), o.y + a * (y - o.y), max(o.last_ns, sense)
+        means.append((iri, old, n, mx, my, last))
+        if n >= MEAN_MIN and len(held) > (old is not None):
+            compared.append((mx, my, held, sense))
 
-    everyone = set().union(*(held for _, held, _ in compared)) - {robot}
+    everyone = set().union(*(held for _, _, held, _ in compared)) - {robot}
     order: dict[str, None] = {}  # the first comparison of each robot, in order
-    for mine, held, sense in compared:
+    for mx, my, held, sense in compared:
         for other, m in held.items():
             if (
                 other not in order
                 and other != robot
                 and m.n >= MEAN_MIN
                 and sense - m.last_ns <= RECENT_NS
-                and not math.hypot(mine.x - m.x, mine.y - m.y) > far  # farther: a move not seen yet
+                and not math.hypot(mx - m.x, my - m.y) > far  # farther: a move not seen yet
             ):
                 order[other] = None
         if len(order) == len(everyone):
             break
-    last: dict[str, tuple[float, float, int]] = {}
-    for mine, held, sense in reversed(compared):
+    last_of: dict[str, tuple[float, float, int]] = {}
+    for mx, my, held, sense in reversed(compared):
         for other, m in held.items():
-            if other in last or other == robot or m.n < MEAN_MIN or sense - m.last_ns > RECENT_NS:
+            if other in last_of or other == robot or m.n < MEAN_MIN or sense - m.last_ns > RECENT_NS:
                 continue
-            dx, dy = mine.x - m.x, mine.y - m.y
+            dx, dy = mx - m.x, my - m.y
             if not math.hypot(dx, dy) > far:
-                last[other] = (dx, dy, sense)
-        if len(last) == len(order):
+                last_of[other] = (dx, dy, sense)
+        if len(last_of) == len(order):
             break
-    pairs = {}
-    held_pairs = memory.pairs
-    for other in order:
-        dx, dy, sense = last[other]
-        there, back = held_pairs.get((robot, other)) or _NO_MEAN, held_pairs.get((other, robot)) or _NO_MEAN
-        pairs[robot, other] = there.added(dx, dy, sense, weight=PAIR_WEIGHT)
-        pairs[other, robot] = back.added(-dx, -dy, sense, weight=PAIR_WEIGHT)
+    diffs = [(other, *last_of[other]) for other in order]
 
     def run(m: FusionMemory) -> None:
-        for iri, mine in means:
-            m.track(iri).means[robot] = mine
-        for pair in pairs:
-            m.changing("pairs", pair)
-        m.pairs.update(pairs)
+        for iri, old, n, mx, my, last in means:
+            held = m.track(iri).means  # (journaled: a copy of the track is kept)
+            mean = held.get(robot)
+            if mean is not None and mean is old:
+                mean.n, mean.x, mean.y, mean.last_ns = n, mx, my, last
+            else:
+                held[robot] = RobotMean(n, mx, my, last)
+        pairs = m.pairs
+        if m.journal is None:
+            mine = pairs.of(robot) or {}
+            for other, dx, dy, sense in diffs:
+                there = mine.get(other)
+                if there is None:
+                    pairs[robot, other] = there = RobotMean()
+                    mine = pairs.of(robot) or {}
+                theirs = pairs.of(other)
+                back = None if theirs is None else theirs.get(robot)
+                if back is None:
+                    pairs[other, robot] = back = RobotMean()
+                for d, x, y in ((there, dx, dy), (back, -dx, -dy)):  # RobotMean.add, inline
+                    n = d.n
+                    a = 1.0 if n == 0 else max(PAIR_WEIGHT, 1.0 / (n + 1))
+                    d.n = n + 1
+                    d.x += a * (x - d.x)
+                    d.y += a * (y - d.y)
+                    if sense > d.last_ns:
+                        d.last_ns = sense
+            return
+        for other, dx, dy, sense in diffs:  # new values: the journal keeps the old ones
+            there, back = pairs.get((robot, other)) or _NO_MEAN, pairs.get((other, robot)) or _NO_MEAN
+            m.changing("pairs", (robot, other))
+            pairs[robot, other] = there.added(dx, dy, sense, weight=PAIR_WEIGHT)
+            m.changing("pairs", (other, robot))
+            pairs[other, robot] = back.added(-dx, -dy, sense, weight=PAIR_WEIGHT)
 
     ctx.out.effects.append(run)
 

@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from operator import is_
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -141,7 +142,8 @@ def confirm_array(ctx: FusionContext, reports: Sequence[ElementReport], senses: 
     boxes = _boxes(ctx, reports, senses)
     if boxes is None:
         return False
-    fresh = np.flatnonzero(~np.array(boxes.stale, dtype=np.bool_))
+    stale = boxes.stale
+    fresh = np.arange(len(stale)) if True not in stale else np.flatnonzero(~np.array(stale, dtype=np.bool_))
     sighted = _gates(ctx, boxes, fresh) if len(fresh) else np.zeros((0, 7))
     if sighted is None:
         return False
@@ -307,7 +309,7 @@ def _layout(cache: _Cache, robot: str, helds: list[_Held], aliased: list[int]) -
         last is not None
         and last.aliased == aliased
         and len(last.helds) == len(helds)
-        and all(a is b for a, b in zip(last.helds, helds, strict=True))
+        and all(map(is_, last.helds, helds))
     ):
         return last
     held = np.array([h.row for h in helds], dtype=np.float64)
@@ -505,7 +507,7 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
     ctx.used.update(targets)
     picked = fresh.tolist()
     out.seen.extend([targets[i] for i in picked])
-    raw = boxes.raw[fresh, :2].tolist()
+    raw = (boxes.raw[:, :2] if len(picked) == len(targets) else boxes.raw[fresh, :2]).tolist()
     note_sightings_at(  # where its detector puts them: its bias
         ctx, [(targets[i], x, y, senses[i]) for i, (x, y) in zip(picked, raw, strict=True)]
     )
@@ -557,8 +559,10 @@ def _use_aliases(used: list[str], now: int) -> Effect:
     """:func:`twin.fusion.effects.use_alias` of each alias in ``used``, as one effect."""
 
     def run(m: FusionMemory) -> None:
+        journaled = m.journal is not None
         for alias in used:
-            m.changing("aliases", alias)
+            if journaled:
+                m.changing("aliases", alias)
             a = m.aliases.get(alias)
             if a is not None:
                 a.used_ns = max(a.used_ns, now)
