@@ -32,6 +32,9 @@ removal whose old place an object fills again before that is not counted), the t
 from a move's first sighting to the ack that shows it, revisions per true change, acked sightings
 per second, and the daemon's CPU per acked observation. ``--saturate S`` adds S seconds in which the
 robots send as fast as acks come back (the acked sightings per second at saturation).
+``--trace FILE`` writes every acked report of an object (the robot, the true sense time, sent, acked,
+each box with its object, the ack) and every view of a moved or removed object's old place, with the
+script's events, as JSON lines: one object's story, to diagnose a false-free cell or a late removal.
 
     python benchmarks/fleet_sim.py --robots 10 --objects 30 --duration 600 --moves 20 --removals 10 \\
         --json fleet.json --plot fleet.png
@@ -241,6 +244,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
     sat_end: float,
     stats: RobotStats,
     stop: threading.Event,
+    trace: Trace | None = None,
 ) -> None:
     from adapters.zenoh.client import TwinClient
     from twin.errors import TwinError
@@ -257,7 +261,8 @@ def robot(  # noqa: PLR0917 (a thread's target)
     tracks: dict[int, int] = {}  # object -> tracker id (restart behaviour)
     next_track, session, restart_at = 1, 0, world_t0 + RESTART_EVERY_S
     clock_offset_ns = {"clock_behind": -1, "clock_ahead": 1}.get(behaviour, 0) * int(CLOCK_OFFSET_S * 1e9)
-    outbox: list[tuple[float, str, list[int], float]] = []  # late behaviour: (due, payload, seen, sensed)
+    # late behaviour: (due, payload, seen, sensed, the IRIs' objects)
+    outbox: list[tuple[float, str, list[int], float, dict[str, int]]] = []
     settles = world_t0 + CLOCK_SETTLE_S  # before, the daemon refuses its sightings as stale (behind, late)
     with TwinClient.connect([endpoint], prefix=prefix, timeout_s=30.0) as twin:
         period = 1.0 / args.rate
@@ -286,19 +291,21 @@ def robot(  # noqa: PLR0917 (a thread's target)
             if behaviour == "restart" and now >= restart_at:
                 tracks.clear()
                 next_track, session, restart_at = 1, session + 1, now + RESTART_EVERY_S
+            keys: dict[str, int] = {}  # IRI -> object (the trace; VIEWED + object: its old place viewed)
             with world.lock:
                 objs = [o for o in world.objects.values() if o.present]
                 pushed = dict(world.together)
                 world.views.append((time.time(), polygon))
                 for ev in world.events:
-                    if (
-                        ev.first_view is None
-                        and ev.kind in ("move", "remove")
-                        and _inside(ev.corners, polygon).all()
-                    ):
-                        ev.first_view = time.time()
+                    if ev.kind not in ("move", "remove") or ev.detected is not None:
+                        continue
+                    if _inside(ev.corners, polygon).all():
+                        if ev.first_view is None:
+                            ev.first_view = time.time()
+                        keys[f"{VIEWED}{ev.obj}"] = ev.obj
             lines = []
             seen_now = []
+            sensed = now
             if objs:
                 centres = np.array([(o.x, o.y) for o in objs])
                 visible = _inside(centres, polygon) & (
@@ -348,6 +355,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                     else:
                         iri = f"urn:sim:{name}:trk-{o.key}-{epochs[o.key]}"
                     lines.append(box_line(iri, storey, o, rng, args, behaviour))
+                    keys[iri] = o.key
                     seen_now.append(o.key)
             if rng.random() < args.p_false:
                 fx, fy = polygon[rng.randrange(len(polygon))]
@@ -370,10 +378,10 @@ def robot(  # noqa: PLR0917 (a thread's target)
             )
             payload = PREFIX + "\n".join(lines)
             if behaviour == "late":  # sensed now, arrives LATE_S later
-                outbox.append((now + LATE_S, payload, seen_now, now))
+                outbox.append((now + LATE_S, payload, seen_now, now, keys))
                 if outbox[0][0] > time.time():
                     continue
-                _, payload, seen_now, sensed = outbox.pop(0)
+                _, payload, seen_now, sensed, keys = outbox.pop(0)
                 with world.lock:
                     for k in seen_now:
                         o = world.objects[k]
@@ -391,6 +399,8 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 print(f"{name}: {err}", file=sys.stderr)
                 continue
             stats.acked += 1
+            if trace is not None and keys:
+                trace.write(name, behaviour, sensed, sent, time.time(), payload, keys, ack)
             stats.sightings += len(seen_now)
             if saturating:
                 stats.saturated_sightings += len(seen_now)
@@ -411,10 +421,60 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 for ev in world.events:
                     if ev.kind != "move" or ev.obj not in seen_now or ev.shown is not None:
                         continue
+                    if sensed < ev.at:  # a late robot's report of the object before it moved
+                        continue
                     if ev.first_sighting is None:
                         ev.first_sighting = sent
                     if changed:
                         ev.shown = acked
+
+
+VIEWED = "#viewed:"
+"""The trace's mark of a view that held a moved or removed object's old place (not yet found gone)."""
+
+
+@dataclass
+class Trace:
+    """Every acked report of an object (``--trace FILE``, JSON lines): the robot, when it was sensed (true
+    time), sent and acked, each box with its object's key and the ack (less its maps), so that one object's
+    every report and what fusion answered can be read back."""
+
+    path: Path
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def write(  # noqa: PLR0917
+        self,
+        robot: str,
+        behaviour: str,
+        sensed: float,
+        sent: float,
+        acked: float,
+        payload: str,
+        keys: dict[str, int],
+        ack: dict[str, Any],
+    ) -> None:
+        boxes = []
+        viewed = [k for iri, k in keys.items() if iri.startswith(VIEWED)]
+        for line in payload.splitlines():
+            if line.startswith("<") and "twin:box" in line:
+                iri = line[1 : line.index(">")]
+                x, y = line.split('twin:box "', 1)[1].split()[:2]
+                boxes.append([keys.get(iri, -1), iri, float(x), float(y)])
+        record = {
+            "robot": robot,
+            "behaviour": behaviour,
+            "sensed": round(sensed, 3),
+            "sent": round(sent, 3),
+            "acked": round(acked, 3),
+            "boxes": boxes,
+            "viewed": viewed,
+            "ack": {k: v for k, v in ack.items() if k != "maps"},
+        }
+        self.note(record)
+
+    def note(self, record: dict[str, Any]) -> None:
+        with self.lock, self.path.open("a") as f:
+            f.write(json.dumps(record) + "\n")
 
 
 def _counts(behaviour: str, sensed: float, settles: float) -> bool:
@@ -838,13 +898,16 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         with TwinClient.connect([endpoint], prefix=prefix, timeout_s=30.0) as client:
             rev0 = int(client.status()["revision"])
             t0 = time.time()
+            trace = Trace(args.trace) if args.trace else None
+            if trace is not None:
+                args.trace.write_text(json.dumps({"t0": t0}) + "\n")
             t_end = t0 + args.duration
             sat_end = t_end + args.saturate
             cpu0 = cpu_seconds(daemon.pid)
             threads = [
                 threading.Thread(
                     target=robot,
-                    args=(i, endpoint, prefix, world, storey, args, t_end, sat_end, stats[i], stop),
+                    args=(i, endpoint, prefix, world, storey, args, t_end, sat_end, stats[i], stop, trace),
                     daemon=True,
                 )
                 for i in range(args.robots)
@@ -856,6 +919,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             aparts: list[tuple[float, int, int]] = []  # (when, pushed, against): desks pushed apart
             previous: dict[str, tuple[float, float]] = {}
             cpu_main = None
+            traced = 0
             while time.time() < sat_end:
                 now = time.time()
                 while pulls and now >= pulls[0][0]:
@@ -910,6 +974,22 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                         o.changed_at = now
                         o.seen_since_change = None
                         o.seen_by = {}
+                if trace is not None and len(world.events) > traced:
+                    with world.lock:
+                        for ev in world.events[traced:]:
+                            o = world.objects[ev.obj]
+                            trace.note(
+                                {
+                                    "event": ev.kind,
+                                    "obj": ev.obj,
+                                    "at": round(ev.at, 3),
+                                    "old": [round(v, 3) for v in ev.place],
+                                    "x": round(o.x, 3),
+                                    "y": round(o.y, 3),
+                                    "present": o.present,
+                                }
+                            )
+                        traced = len(world.events)
                 if now >= next_sample and now < t_end:
                     samples.append(sample(client, world, storey, oracle, skill, t0, previous, args.verbose))
                     next_sample += 1.0
@@ -1067,6 +1147,7 @@ def parser() -> argparse.ArgumentParser:
         help=f"robot behaviours, round-robin: {', '.join(BEHAVIOURS)}; 'mixed': all of them",
     )
     p.add_argument("--json", type=Path)
+    p.add_argument("--trace", type=Path, help="every acked report of an object and its ack (JSON lines)")
     p.add_argument("--plot", type=Path)
     p.add_argument("-v", "--verbose", action="store_true")
     return p

@@ -141,15 +141,20 @@ def stale_change(
 ) -> bool:
     """A change of a held element seen before what the twin holds of it: counted as a sighting (never
     the latest), noted stale, not planned."""
-    last = last_known(ctx, state.iri, state)
-    if sense >= last or not changes_something(r):
+    if sense >= last_known(ctx, state.iri, state) or not changes_something(r):
         return False
-    ctx.out.stale.append(reported)
-    ctx.out.notes.append(
-        f"stale: <{state.iri}> seen by {ctx.robot} at {when(sense)}, the twin holds {when(last)}"
-    )
+    note_stale(ctx, reported, state, sense)
     ctx.out.effects.append(sighting(state.iri, ctx.robot, sense, latest=False))
     return True
+
+
+def note_stale(ctx: FusionContext, reported: str, state: ElementState, sense: int) -> None:
+    """``reported`` listed in the ack's ``"stale"``, with a note of what the twin holds."""
+    ctx.out.stale.append(reported)
+    ctx.out.notes.append(
+        f"stale: <{state.iri}> seen by {ctx.robot} at {when(sense)}, the twin holds "
+        f"{when(last_known(ctx, state.iri, state))}"
+    )
 
 
 def changes_something(r: ElementReport) -> bool:

@@ -41,7 +41,7 @@ from twin.config import FusionRules
 from twin.fusion.bias import note_sightings_at, unbiased
 from twin.fusion.clocks import stale_change
 from twin.fusion.confirm import box_of, only_sighting_where_it_stands, resizable
-from twin.fusion.dispute import still_covers
+from twin.fusion.dispute import older_disagreement, still_covers
 from twin.fusion.effects import Effect
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
 from twin.fusion.gates import compatible, is_candidate, kinds_agree
@@ -233,6 +233,10 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         pose[:, 1] -= bias[1]
         for i, row in enumerate(pose.tolist()):
             given[i] = replace(given[i], box=box_of(Pose(*row), elevations[keys[i]]))
+    for i in [j for j, s in enumerate(stale) if s]:
+        sighted = Pose(*pose[i].tolist())
+        if older_disagreement(ctx, given[i], helds[i].state, sighted, helds[i].held, senses[i]):
+            return None  # (older: seen before another robot's later sighting, a short move from it)
     layout = _layout(cache, ctx.robot, helds, aliased)
     if aliased and not _aliases_fit(
         pose if len(aliased) == len(rows) else pose[aliased], layout, rules.alias_jump_m

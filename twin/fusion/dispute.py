@@ -27,12 +27,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from twin.fusion.clocks import last_known
 from twin.fusion.confirm import (
     confirms,
     far,
     mean_with,
     move,
     only_sighting,
+    only_sighting_where_it_stands,
     own_run,
     placed,
     standing,
@@ -85,6 +87,27 @@ def still_covers(dispute: Dispute | None, held: Pose) -> bool:
         and abs(cover.sx - held.sx) < 0.01
         and abs(cover.sy - held.sy) < 0.01
     )
+
+
+def older_disagreement(  # noqa: PLR0917 (the report as the rules see it)
+    ctx: FusionContext, r: ElementReport, state: ElementState, seen: Pose, held: Pose, sense: int
+) -> bool:
+    """Whether ``r``, which puts the element a short move (not beyond ``certain_move_m``) from the held
+    pose and nothing else, was seen after the element's last applied change but before another robot's
+    later sighting of it: robots that disagree on where a still object stands, not old news. Such a
+    report takes part in the dispute (held, or the element covers both poses) and is never applied as
+    a move; otherwise it would be stale, and a robot whose reports arrive late (its sense times
+    corrected to about their arrival, a few tenths of a second earlier than a streaming robot's latest
+    sighting) would never be heard against a biased robot that watches the object."""
+    if not ctx.rules.enabled or sense < state.sensed_ns or sense >= last_known(ctx, state.iri, state):
+        return False
+    if not only_sighting_where_it_stands(r, state):
+        return False  # a removal, a door, a zone, a mesh: stale as any change
+    class_rules = ctx.rules.of(state.ifc_types)
+    if far(ctx.rules, seen, held) or confirms(class_rules, seen, held, sizes=False):
+        return False
+    track = ctx.memory.tracks.get(state.iri)
+    return track is None or not still_covers(track.dispute, held)
 
 
 def _behind(

@@ -45,7 +45,7 @@ from twin.fusion.associate import (
     through_alias,
 )
 from twin.fusion.bias import note_sighting, unbiased
-from twin.fusion.clocks import refuse_future, robot_clock, stale_change, stale_tombstone
+from twin.fusion.clocks import note_stale, refuse_future, robot_clock, stale_change, stale_tombstone
 from twin.fusion.confirm import (
     box_of,
     confirmation,
@@ -59,7 +59,7 @@ from twin.fusion.confirm import (
 )
 from twin.fusion.confirm_array import confirm_array
 from twin.fusion.context import Fused, FusionContext, Pending, report_pose
-from twin.fusion.dispute import covered, still_covers, widen
+from twin.fusion.dispute import covered, older_disagreement, still_covers, widen
 from twin.fusion.effects import looked, sighting
 from twin.fusion.footprints import Pose
 from twin.fusion.gates import compatible, is_candidate
@@ -210,19 +210,21 @@ def _held_element(
     ctx.used.add(target)
     r: ElementReport | None = given if given.iri == target else replace(given, iri=target)
     assert r is not None
-    if stale_change(ctx, r, given.iri, state, sense):
-        return
-    ctx.out.effects.append(sighting(target, ctx.robot, sense))
-    if raw is not None and ctx.rules.enabled and is_candidate(state):
-        note_sighting(ctx, state, raw, sense)  # where this robot's detector puts it: its bias
     held = None
     if ctx.rules.enabled and pose is not None and storey is not None and is_candidate(state):
         held = ctx.held_pose(target)
+    # seen before another robot's later sighting, a short move from where that robot saw it: a dispute
+    older = held is not None and pose is not None and older_disagreement(ctx, r, state, pose, held, sense)
+    if not older and stale_change(ctx, r, given.iri, state, sense):
+        return
+    ctx.out.effects.append(sighting(target, ctx.robot, sense, latest=not older))
+    if raw is not None and ctx.rules.enabled and is_candidate(state) and not older:
+        note_sighting(ctx, state, raw, sense)  # where this robot's detector puts it: its bias
     if held is not None and pose is not None and storey is not None:
         class_rules = ctx.rules.of(state.ifc_types)
         track = ctx.memory.tracks.get(target)
         covers = track is not None and still_covers(track.dispute, held)  # robots disagree: it covers both
-        sizes = None if covers else resize_evidence(ctx, state, pose, held, sense)  # on strong evidence
+        sizes = None if covers or older else resize_evidence(ctx, state, pose, held, sense)  # strong evidence
         confirmed = confirms(class_rules, pose, held, sizes=False)
         if not covers and not confirmed and echo(ctx, state, pose, sense):
             seen_echo(ctx, r, state, sense)  # back where it stood before its last move, seen late
@@ -242,6 +244,9 @@ def _held_element(
                 r = hold(
                     ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes, why=why
                 )
+        elif older:  # an older report is never applied as a move
+            note_stale(ctx, given.iri, state, sense)
+            return
         else:
             r, pose = move(ctx, r, state, seen=pose, held=held, storey=storey, sense=sense, sizes=sizes)
             r = merge_or_move(ctx, r, state, pose, storey.key, sense=sense)

@@ -118,7 +118,7 @@ def test_confirmations_at_once_decide_as_the_rules_do_on_random_fleets(seed: int
     fast, a, settled = _fleet(seed, True, 260)
     slow, b, off = _fleet(seed, False, 260)
     assert off == 0
-    assert 60 < settled < 250  # the shortcut was taken, and declined (a robot's noise, a move, other sizes)
+    assert 40 < settled < 250  # the shortcut was taken, and declined (a robot's noise, a move, other sizes)
     assert fast == slow
     assert any("stale" in r for r in fast) and any("resolved" in r for r in fast)
     ma, mb = a.live.fusion.to_json(), b.live.fusion.to_json()

@@ -127,3 +127,21 @@ def test_a_desk_placed_by_a_biased_robot_follows_the_two_robots_that_agree_while
     bounds = service.live_maps.bounds_of(DESK)
     assert bounds is not None and abs((bounds[0] + bounds[3]) / 2 - (OX + 5.0)) < 0.02
     assert service.revision == 3  # created; both poses covered while 1 against 1; the majority's; no flapping
+
+
+def test_a_late_robots_sightings_just_older_than_a_watching_biased_robots_latest_cover_its_pose() -> None:
+    service, _ = started()
+    clock = FakeClock(service.clock())
+    with_clock(service, clock)
+    for i in range(60):  # robot4 (20 cm off) watches the desk at 5 Hz, its creator
+        observe(service, "robot4", sensed(box(DESK, 5.2, 2.0, sx=1.2, sy=0.6), clock.now))
+        clock.now += 100 * MS
+        if i >= 5:  # robot3's reports arrive 2.0-2.4 s after they were sensed: its sense times, corrected
+            late = 2000 * MS if i == 5 else 2400 * MS  # by the least lag, come 0.3 s before robot4's latest
+            reply = observe(
+                service, "robot3", sensed(box("urn:robot3:d", 5.0, 2.0, sx=1.2, sy=0.6), clock.now - late)
+            )
+            assert reply.ok, reply.body
+        clock.now += 100 * MS
+    assert cell(service, 4.43, 2.0) == 100 and cell(service, 5.77, 2.0) == 100  # robot3's desk and robot4's
+    assert service.revision == 2  # created, then covered; never moved to the older report
