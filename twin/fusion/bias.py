@@ -215,8 +215,7 @@ def note_sightings_at(ctx: FusionContext, seen: Sequence[tuple[str, float, float
                     d.n = n + 1
                     d.x += a * (x - d.x)
                     d.y += a * (y - d.y)
-                    if sense > d.last_ns:
-                        d.last_ns = sense
+                    d.last_ns = max(d.last_ns, sense)
             return
         for other, dx, dy, sense in diffs:  # new values: the journal keeps the old ones
             there, back = pairs.get((robot, other)) or _NO_MEAN, pairs.get((other, robot)) or _NO_MEAN

@@ -239,7 +239,10 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
             return None  # (older: seen before another robot's later sighting, a short move from it)
     layout = _layout(cache, ctx.robot, helds, aliased)
     if aliased and not _aliases_fit(
-        pose if len(aliased) == len(rows) else pose[aliased], layout, rules.alias_jump_m
+        pose if len(aliased) == len(rows) else pose[aliased],
+        layout,
+        rules.alias_jump_m,
+        gated=True not in stale,  # (every box fresh: the confirmation gates check each one next)
     ):
         return None
     return _Array(
@@ -278,6 +281,46 @@ class _Layout:
     limits: FloatArray
     """``(3, 2n)``: for the sightings, the class's confirm distance (centre, height) and angle; for
     their means, ``refine_fraction`` of those (the centre also within ``refine_distance_m``)."""
+    alias: _AliasGates
+
+
+HEIGHT_MARGIN_M = 1e-6
+"""How much more than the confirm distance an aliased element's half height must be for its box's
+height gate to imply that the heights overlap (far more than the floats' rounding)."""
+
+
+@dataclass(slots=True)
+class _AliasGates:
+    """The aliased rows' side of :func:`_aliases_fit`, computed once per layout."""
+
+    held: FloatArray
+    """``(k, 7)``: the aliased rows' held poses."""
+    area: FloatArray
+    positive: bool
+    """Every held area is positive (the area ratio needs no guard)."""
+    tolerance: FloatArray
+    """``(k, 3)``: the size gate, ``size_ratio`` of the held sizes."""
+    min_area: FloatArray
+    gated: bool
+    """The confirmation gates imply the alias's centre and height gates (each row's confirm distance
+    within ``alias_jump_m`` and :data:`HEIGHT_MARGIN_M` less than its half height): a box the
+    confirmation gates check needs only the alias's size gates here."""
+
+
+def _alias_gates(held: FloatArray, gates: FloatArray, aliased: list[int], jump_m: float) -> _AliasGates:
+    """:class:`_AliasGates` of the ``aliased`` rows of ``held`` and ``gates`` (:attr:`_Held.gates`)."""
+    if len(aliased) < len(held):
+        held, gates = held[aliased], gates[aliased]
+    dist, ratio, min_area = gates[:, 0], gates[:, 2], gates[:, 3]
+    area = held[:, 3] * held[:, 4]
+    return _AliasGates(
+        held,
+        area,
+        bool((area > 0.0).all()),
+        ratio[:, None] * held[:, 3:6],
+        min_area,
+        bool((dist <= jump_m).all() and (dist + HEIGHT_MARGIN_M <= held[:, 5] / 2).all()),
+    )
 
 
 @dataclass(slots=True)
@@ -343,17 +386,27 @@ def _layout(cache: _Cache, robot: str, helds: list[_Held], aliased: list[int]) -
         np.concatenate((held, held)),
         np.concatenate((square, square)),
         limits,
+        _alias_gates(held, gates, aliased, rules.alias_jump_m),
     )
     cache.layouts[robot] = made
     return made
 
 
-def _aliases_fit(pose: FloatArray, layout: _Layout, jump_m: float) -> bool:
+def _aliases_fit(pose: FloatArray, layout: _Layout, jump_m: float, *, gated: bool = False) -> bool:
     """:func:`twin.fusion.associate.alias_fits` is ``"fits"`` for every aliased row (``pose``; ``"within"``
     and ``"fails"`` both need the per-report rules): class and kind agree, the centre no farther than
-    ``jump_m``, the heights overlap, the sizes agree."""
+    ``jump_m``, the heights overlap, the sizes agree. With ``gated`` (the confirmation gates check
+    every row next: every box fresh), only the size gates when the confirmation gates imply the
+    others (:attr:`_AliasGates.gated`): a row they would fail, those fail."""
     if not layout.class_ok:
         return False
+    g = layout.alias
+    if gated and g.gated and g.positive:
+        a, b = pose[:, 3] * pose[:, 4], g.area
+        return bool(
+            (np.minimum(a, b) / np.maximum(a, b) >= g.min_area).all()
+            and (np.abs(pose[:, 3:6] - g.held[:, 3:6]) <= g.tolerance).all()
+        )
     rows = layout.aliased
     if len(rows) == len(layout.helds):  # every report through an alias (a robot that made none of them)
         held, ratio, min_area = layout.held, layout.ratio, layout.min_area

@@ -111,16 +111,6 @@ class RobotMean:
             self.n + 1, self.x + a * (x - self.x), self.y + a * (y - self.y), max(self.last_ns, sense_ns)
         )
 
-    def add(self, x: float, y: float, sense_ns: int, *, weight: float) -> None:
-        """:meth:`added`, in place (the same values): only for a mean no journal or other holder keeps
-        (:meth:`FusionMemory.changing` keeps a pair's value before, not a copy)."""
-        a = 1.0 if self.n == 0 else max(weight, 1.0 / (self.n + 1))
-        self.n += 1
-        self.x += a * (x - self.x)
-        self.y += a * (y - self.y)
-        if sense_ns > self.last_ns:
-            self.last_ns = sense_ns
-
 
 class PairTable(dict[tuple[str, str], RobotMean]):
     """(robot, other robot) -> their mean difference (:attr:`FusionMemory.pairs`), a dict that also
