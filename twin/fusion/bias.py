@@ -190,32 +190,43 @@ def note_sightings_at(ctx: FusionContext, seen: Sequence[tuple[str, float, float
     diffs = [(other, *last_of[other]) for other in order]
 
     def run(m: FusionMemory) -> None:
+        journaled, tracks = m.journal is not None, m.tracks
         for iri, old, n, mx, my, last in means:
-            held = m.track(iri).means  # (journaled: a copy of the track is kept)
+            t = m.track(iri) if journaled else tracks.get(iri)  # (journaled: a copy of the track is kept)
+            held = (t if t is not None else m.track(iri)).means
             mean = held.get(robot)
             if mean is not None and mean is old:
                 mean.n, mean.x, mean.y, mean.last_ns = n, mx, my, last
             else:
                 held[robot] = RobotMean(n, mx, my, last)
         pairs = m.pairs
-        if m.journal is None:
+        if not journaled:  # RobotMean.added of each pair, in place
             mine = pairs.of(robot) or {}
             for other, dx, dy, sense in diffs:
-                there = mine.get(other)
-                if there is None:
-                    pairs[robot, other] = there = RobotMean()
+                d = mine.get(other)
+                if d is None:
+                    pairs[robot, other] = d = RobotMean()
                     mine = pairs.of(robot) or {}
+                k = d.n
+                a = 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
+                d.n, d.x, d.y, d.last_ns = (
+                    k + 1,
+                    d.x + a * (dx - d.x),
+                    d.y + a * (dy - d.y),
+                    max(d.last_ns, sense),
+                )
                 theirs = pairs.of(other)
-                back = None if theirs is None else theirs.get(robot)
-                if back is None:
-                    pairs[other, robot] = back = RobotMean()
-                for d, x, y in ((there, dx, dy), (back, -dx, -dy)):  # RobotMean.add, inline
-                    n = d.n
-                    a = 1.0 if n == 0 else max(PAIR_WEIGHT, 1.0 / (n + 1))
-                    d.n = n + 1
-                    d.x += a * (x - d.x)
-                    d.y += a * (y - d.y)
-                    d.last_ns = max(d.last_ns, sense)
+                d = None if theirs is None else theirs.get(robot)
+                if d is None:
+                    pairs[other, robot] = d = RobotMean()
+                k = d.n
+                a = 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
+                d.n, d.x, d.y, d.last_ns = (
+                    k + 1,
+                    d.x + a * (-dx - d.x),
+                    d.y + a * (-dy - d.y),
+                    max(d.last_ns, sense),
+                )
             return
         for other, dx, dy, sense in diffs:  # new values: the journal keeps the old ones
             there, back = pairs.get((robot, other)) or _NO_MEAN, pairs.get((other, robot)) or _NO_MEAN
