@@ -39,7 +39,7 @@ import numpy.typing as npt
 
 from twin.config import FusionRules
 from twin.fusion.bias import note_sightings_at, unbiased
-from twin.fusion.clocks import stale_change
+from twin.fusion.clocks import note_stale
 from twin.fusion.confirm import box_of, only_sighting_where_it_stands, resizable
 from twin.fusion.dispute import older_disagreement, still_covers
 from twin.fusion.effects import Effect
@@ -233,11 +233,16 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         pose[:, 1] -= bias[1]
         for i, row in enumerate(pose.tolist()):
             given[i] = replace(given[i], box=box_of(Pose(*row), elevations[keys[i]]))
-    for i in [j for j, s in enumerate(stale) if s]:
-        sighted = Pose(*pose[i].tolist())
-        if older_disagreement(ctx, given[i], helds[i].state, sighted, helds[i].held, senses[i]):
-            return None  # (older: seen before another robot's later sighting, a short move from it)
     layout = _layout(cache, ctx.robot, helds, aliased)
+    if True in stale:
+        old = [j for j, s in enumerate(stale) if s]
+        confirming = _confirms(pose[old], layout.held[old], layout.dist[old], layout.angle[old]).tolist()
+        for i, confirms_held in zip(old, confirming, strict=True):
+            if confirms_held:
+                continue  # it confirms the held pose: not a disagreement (older_disagreement's confirms)
+            sighted = Pose(*pose[i].tolist())
+            if older_disagreement(ctx, given[i], helds[i].state, sighted, helds[i].held, senses[i]):
+                return None  # (older: seen before another robot's later sighting, a short move from it)
     if aliased and not _aliases_fit(
         pose if len(aliased) == len(rows) else pose[aliased],
         layout,
@@ -553,11 +558,12 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
         if targets[i] != reports[i].iri:
             out.resolved[reports[i].iri] = targets[i]  # resolved, and the alias used
     ctx.boxes_later = _later(ctx.boxes_later, boxes)
-    if len(fresh) < len(targets):
+    if len(fresh) < len(targets):  # stale_change of each (a sighting, not the latest), one effect
+        old = [(targets[i], senses[i]) for i, stale in enumerate(boxes.stale) if stale]
         for i, stale in enumerate(boxes.stale):
             if stale:
-                noted = stale_change(ctx, reports[i], reports[i].iri, helds[i].state, senses[i])
-                assert noted  # a sighting, not the latest
+                note_stale(ctx, reports[i].iri, helds[i].state, senses[i])
+        out.effects.append(_stale_sightings(old, robot))
     if used:  # (the per-report rules add one such effect per report: on the aliases, not the tracks)
         out.effects.append(_use_aliases(used, ctx.arrival_ns))
     ctx.detected.update(targets)
@@ -610,6 +616,20 @@ def _later(
         return mine if before is None else [*before(), *mine]
 
     return made
+
+
+def _stale_sightings(seen: list[tuple[str, int]], robot: str) -> Effect:
+    """:func:`twin.fusion.effects.sighting` (``latest=False``) of each (element, sense time), as one
+    effect."""
+
+    def run(m: FusionMemory) -> None:
+        for iri, sense in seen:
+            t = m.track(iri)
+            latest = t.seen_ns
+            t.sighted(robot, sense)
+            t.seen_ns = latest
+
+    return run
 
 
 def _use_aliases(used: list[str], now: int) -> Effect:
