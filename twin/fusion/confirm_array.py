@@ -40,7 +40,7 @@ import numpy.typing as npt
 from twin.config import FusionRules
 from twin.fusion.bias import note_sightings_at, unbiased
 from twin.fusion.clocks import note_stale
-from twin.fusion.confirm import box_of, only_sighting_where_it_stands, resizable
+from twin.fusion.confirm import box_of, resizable
 from twin.fusion.dispute import older_disagreement, still_covers
 from twin.fusion.effects import Effect
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
@@ -77,7 +77,8 @@ class _Held:
     ifc_class: str | None
     rules: FusionRules
     ok: bool
-    """A candidate, not disputed: a box of it may confirm it."""
+    """A candidate, not disputed, of the report's class (the class part of
+    :func:`~twin.fusion.confirm.only_sighting_where_it_stands`): a box of it may confirm it."""
     class_ok: bool
     """The report's class and kind agree with the element's (the alias check's first gates)."""
     resizable: bool
@@ -105,7 +106,13 @@ def _held(ctx: FusionContext, r: ElementReport, state: ElementState, shape: Shap
         cover,
         r.ifc_class,
         ctx.rules,
-        is_candidate(state) and not disputed,
+        is_candidate(state)
+        and not disputed
+        and (
+            r.ifc_class is None
+            or r.ifc_class in state.ifc_types
+            or r.ifc_class.lower() == state.ifc_class.lower()
+        ),
         class_ok,
         resizable(ctx, state.iri),
         _row(held),
@@ -204,7 +211,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
             or h.rules is not rules
         ):
             h = held_of[target] = _held(ctx, r, state, shape, cover)
-        if not h.ok or not only_sighting_where_it_stands(r, state):
+        if not h.ok or not _only_box(r):
             return None  # not a candidate, disputed (each sighting takes a side), a change besides the box
         key = r.storey or state.storey
         if key is None:
@@ -252,6 +259,22 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         return None
     return _Array(
         given, targets, layout, keys, list(senses), stale, raw, pose, np.array(refs, dtype=np.float64)
+    )
+
+
+def _only_box(r: ElementReport) -> bool:
+    """:func:`~twin.fusion.confirm.only_sighting_where_it_stands` but for the class (:attr:`_Held.ok`)."""
+    return (
+        r.geometry is None
+        and r.placement is None
+        and not r.removed
+        and r.is_open is None
+        and r.keepout is None
+        and r.speed_limit is None
+        and not r.labels
+        and not r.materials
+        and not r.classes
+        and not r.unmerge
     )
 
 
