@@ -141,15 +141,50 @@ def note_sightings(ctx: FusionContext, seen: Sequence[tuple[ElementState, Pose, 
     note_sightings_at(ctx, [(state.iri, raw.cx, raw.cy, sense) for state, raw, sense in seen])
 
 
+MeanUpdate = tuple[str, RobotMean | None, int, float, float, int]
+"""(element, the robot's mean the memory held when noted (None: none), its new n, x, y, last_ns)."""
+PairUpdate = tuple[str, float, float, int]
+"""(other robot, the difference x, y, sense time): a comparison that updates both of the pair's means."""
+
+
 def note_sightings_at(ctx: FusionContext, seen: Sequence[tuple[str, float, float, int]]) -> None:
     """:func:`note_sightings` of (element, raw x, raw y, sense time) tuples. Each pair's difference is
     taken from the last sighting that compares it, found from the end (each robot's search stops at its
     first comparison; the pairs in the order the first comparisons came, as in a forward pass). The
     effect updates the means and pairs the memory holds in place (no new objects per robot pair and
     array), but for pairs while the memory journals (its value before is kept, not a copy)."""
+    robot = ctx.robot
+    means, diffs = sightings_noted(ctx, seen)
+
+    def run(m: FusionMemory) -> None:
+        journaled, tracks = m.journal is not None, m.tracks
+        for iri, old, n, mx, my, last in means:
+            t = m.track(iri) if journaled else tracks.get(iri)  # (journaled: a copy of the track is kept)
+            set_mean((t if t is not None else m.track(iri)).means, robot, old, n, mx, my, last)
+        update_pairs(m, robot, diffs)
+
+    ctx.out.effects.append(run)
+
+
+def set_mean(  # noqa: PLR0917 (a MeanUpdate)
+    held: dict[str, RobotMean], robot: str, old: RobotMean | None, n: int, x: float, y: float, last_ns: int
+) -> None:
+    """The robot's mean in ``held`` (a track's means) as noted: ``old`` changed in place while held."""
+    mean = held.get(robot)
+    if mean is not None and mean is old:
+        mean.n, mean.x, mean.y, mean.last_ns = n, x, y, last_ns
+    else:
+        held[robot] = RobotMean(n, x, y, last_ns)
+
+
+def sightings_noted(
+    ctx: FusionContext, seen: Sequence[tuple[str, float, float, int]]
+) -> tuple[list[MeanUpdate], list[PairUpdate]]:
+    """What :func:`note_sightings_at` applies: each element's new mean, each pair's comparison (in
+    order); :func:`set_mean` and :func:`update_pairs` apply them, once the observation is accepted."""
     robot, memory = ctx.robot, ctx.memory
     far = ctx.rules.certain_move_m
-    means: list[tuple[str, RobotMean | None, int, float, float, int]] = []  # held mean, the new values
+    means: list[MeanUpdate] = []
     compared: list[tuple[float, float, dict[str, RobotMean], int]] = []  # my mean (x, y), the others', sense
     tracks = memory.tracks
     for iri, x, y, sense in seen:
@@ -187,55 +222,47 @@ def note_sightings_at(ctx: FusionContext, seen: Sequence[tuple[str, float, float
                 last_of[other] = (dx, dy, sense)
         if len(last_of) == len(order):
             break
-    diffs = [(other, *last_of[other]) for other in order]
+    return means, [(other, *last_of[other]) for other in order]
 
-    def run(m: FusionMemory) -> None:
-        journaled, tracks = m.journal is not None, m.tracks
-        for iri, old, n, mx, my, last in means:
-            t = m.track(iri) if journaled else tracks.get(iri)  # (journaled: a copy of the track is kept)
-            held = (t if t is not None else m.track(iri)).means
-            mean = held.get(robot)
-            if mean is not None and mean is old:
-                mean.n, mean.x, mean.y, mean.last_ns = n, mx, my, last
-            else:
-                held[robot] = RobotMean(n, mx, my, last)
-        pairs = m.pairs
-        if not journaled:  # RobotMean.added of each pair, in place
-            mine = pairs.of(robot) or {}
-            for other, dx, dy, sense in diffs:
-                d = mine.get(other)
-                if d is None:
-                    pairs[robot, other] = d = RobotMean()
-                    mine = pairs.of(robot) or {}
-                k = d.n
-                a = 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
-                d.n, d.x, d.y, d.last_ns = (
-                    k + 1,
-                    d.x + a * (dx - d.x),
-                    d.y + a * (dy - d.y),
-                    max(d.last_ns, sense),
-                )
-                theirs = pairs.of(other)
-                d = None if theirs is None else theirs.get(robot)
-                if d is None:
-                    pairs[other, robot] = d = RobotMean()
-                k = d.n
-                a = 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
-                d.n, d.x, d.y, d.last_ns = (
-                    k + 1,
-                    d.x + a * (-dx - d.x),
-                    d.y + a * (-dy - d.y),
-                    max(d.last_ns, sense),
-                )
-            return
-        for other, dx, dy, sense in diffs:  # new values: the journal keeps the old ones
-            there, back = pairs.get((robot, other)) or _NO_MEAN, pairs.get((other, robot)) or _NO_MEAN
-            m.changing("pairs", (robot, other))
-            pairs[robot, other] = there.added(dx, dy, sense, weight=PAIR_WEIGHT)
-            m.changing("pairs", (other, robot))
-            pairs[other, robot] = back.added(-dx, -dy, sense, weight=PAIR_WEIGHT)
 
-    ctx.out.effects.append(run)
+def update_pairs(m: FusionMemory, robot: str, diffs: list[PairUpdate]) -> None:
+    """Each comparison in ``diffs`` added to the robot's pair with the other (both ways), in order: in
+    place, or new values while the memory journals."""
+    pairs, journaled = m.pairs, m.journal is not None
+    if not journaled:  # RobotMean.added of each pair, in place
+        mine = pairs.of(robot) or {}
+        for other, dx, dy, sense in diffs:
+            d = mine.get(other)
+            if d is None:
+                pairs[robot, other] = d = RobotMean()
+                mine = pairs.of(robot) or {}
+            k = d.n
+            a = 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
+            d.n, d.x, d.y, d.last_ns = (
+                k + 1,
+                d.x + a * (dx - d.x),
+                d.y + a * (dy - d.y),
+                max(d.last_ns, sense),
+            )
+            theirs = pairs.of(other)
+            d = None if theirs is None else theirs.get(robot)
+            if d is None:
+                pairs[other, robot] = d = RobotMean()
+            k = d.n
+            a = 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
+            d.n, d.x, d.y, d.last_ns = (
+                k + 1,
+                d.x + a * (-dx - d.x),
+                d.y + a * (-dy - d.y),
+                max(d.last_ns, sense),
+            )
+        return
+    for other, dx, dy, sense in diffs:  # new values: the journal keeps the old ones
+        there, back = pairs.get((robot, other)) or _NO_MEAN, pairs.get((other, robot)) or _NO_MEAN
+        m.changing("pairs", (robot, other))
+        pairs[robot, other] = there.added(dx, dy, sense, weight=PAIR_WEIGHT)
+        m.changing("pairs", (other, robot))
+        pairs[other, robot] = back.added(-dx, -dy, sense, weight=PAIR_WEIGHT)
 
 
 def detector_biases(memory: FusionMemory) -> dict[str, list[float]]:

@@ -38,14 +38,14 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.config import FusionRules
-from twin.fusion.bias import note_sightings_at, unbiased
+from twin.fusion.bias import sightings_noted, unbiased, update_pairs
 from twin.fusion.clocks import note_stale
 from twin.fusion.confirm import box_of, resizable
 from twin.fusion.dispute import older_disagreement, still_covers
 from twin.fusion.effects import Effect
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
 from twin.fusion.gates import compatible, is_candidate, kinds_agree
-from twin.fusion.memory import FusionMemory
+from twin.fusion.memory import FusionMemory, RobotMean
 from twin.records import ElementReport, FloatArray, Shape
 
 if TYPE_CHECKING:
@@ -310,6 +310,9 @@ class _Layout:
     """``(3, 2n)``: for the sightings, the class's confirm distance (centre, height) and angle; for
     their means, ``refine_fraction`` of those (the centre also within ``refine_distance_m``)."""
     alias: _AliasGates
+    sizes: FloatArray
+    """``(n, 3)``: how far each size may be from the held one without being resize evidence: the
+    confirm distance, infinite where the element is not :attr:`resizable`."""
 
 
 HEIGHT_MARGIN_M = 1e-6
@@ -400,6 +403,7 @@ def _layout(cache: _Cache, robot: str, helds: list[_Held], aliased: list[int]) -
         ]
     )
     square = held[:, 3] - held[:, 4] < SQUARE_TOLERANCE_M
+    resizes = np.array([h.resizable for h in helds], dtype=np.bool_)
     made = _Layout(
         helds,
         aliased,
@@ -409,12 +413,13 @@ def _layout(cache: _Cache, robot: str, helds: list[_Held], aliased: list[int]) -
         angle,
         gates[:, 2].copy(),
         gates[:, 3].copy(),
-        np.array([h.resizable for h in helds], dtype=np.bool_),
+        resizes,
         all(helds[i].class_ok for i in aliased),
         np.concatenate((held, held)),
         np.concatenate((square, square)),
         limits,
         _alias_gates(held, gates, aliased, rules.alias_jump_m),
+        np.where(resizes[:, None], dist[:, None], np.inf).repeat(3, axis=1),
     )
     cache.layouts[robot] = made
     return made
@@ -500,7 +505,7 @@ def _gates_at_once(seen: FloatArray, refs: FloatArray, layout: _Layout) -> Float
     held = layout.held
     period = np.where((seen[:, 3] - seen[:, 4] < SQUARE_TOLERANCE_M) | layout.square, HALF_PI, math.pi)
     a = _aligned(seen, held, period, seen[:, 6] - held[:, 6])
-    if not ((np.abs(a[:, 3:6] - held[:, 3:6]) <= layout.dist[:, None]).all(axis=1) | ~layout.resizable).all():
+    if not (np.abs(a[:, 3:6] - held[:, 3:6]) <= layout.sizes).all():
         return None  # other sizes: resize evidence
     rows = np.concatenate((seen, _canonical((refs[:, 1:] + a) / (refs[:, :1] + 1))))
     twice = layout.twice
@@ -594,17 +599,22 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
     picked = fresh.tolist()
     out.seen.extend([targets[i] for i in picked])
     raw = (boxes.raw[:, :2] if len(picked) == len(targets) else boxes.raw[fresh, :2]).tolist()
-    note_sightings_at(  # where its detector puts them: its bias
+    means, diffs = sightings_noted(  # where its detector puts them: its bias (note_sightings_at)
         ctx, [(targets[i], x, y, senses[i]) for i, (x, y) in zip(picked, raw, strict=True)]
     )
     rows = [
-        (targets[i], senses[i], helds[i].resizable, *row)
-        for i, row in zip(picked, sighted.tolist(), strict=True)
+        (targets[i], senses[i], helds[i].resizable, mean, *row)
+        for i, mean, row in zip(picked, means, sighted.tolist(), strict=True)
     ]
 
-    def run(m: FusionMemory) -> None:
-        for iri, sense, resizes, cx, cy, cz, sx, sy, sz, yaw in rows:
+    def run(m: FusionMemory) -> None:  # (the bias notes' effect and the confirmations', as one)
+        for iri, sense, resizes, (_, old, n, mx, my, last), cx, cy, cz, sx, sy, sz, yaw in rows:
             t = m.track(iri)
+            mean = t.means.get(robot)  # bias.set_mean
+            if mean is not None and mean is old:
+                mean.n, mean.x, mean.y, mean.last_ns = n, mx, my, last
+            else:
+                t.means[robot] = RobotMean(n, mx, my, last)
             t.sighted(robot, sense)
             if resizes:
                 t.sizes.pop(robot, None)  # a sighting at the held sizes clears the robot's evidence
@@ -622,6 +632,7 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
             t.confirmed[robot] = max(sense, t.confirmed.get(robot, sense))
             t.runs.pop(robot, None)  # this robot sees it where it is held: its own run ends
             t.decided = rule
+        update_pairs(m, robot, diffs)
 
     out.effects.append(run)
 

@@ -10,13 +10,16 @@
 - The bias notes' effect (which changes the memory's means and pairs in place) while the memory journals:
   undone, the memory as before; kept, as without a journal.
 - The alias check of an array whose boxes the confirmation gates check next (sizes only, when those
-  gates imply the centre and height gates) against the whole alias check, both followed by the gates.
+  gates imply the centre and height gates) against the whole alias check, both followed by the gates;
+  the gates at once (sizes against a tolerance that is infinite where an element is not resizable)
+  against the gates of an array's first sightings.
 """
 
 from __future__ import annotations
 
 import math
 import random
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -33,6 +36,7 @@ from twin.fusion.confirm_array import (
     _aliases_fit,
     _cache,
     _canonical,
+    _gates,
     _gates_at_once,
     _Held,
     _layout,
@@ -336,6 +340,8 @@ def test_an_arrays_alias_check_before_the_gates_decides_as_the_whole_check(
         pose = _canonical(boxes)
         refs = np.hstack((np.full((n, 1), 1e6), 1e6 * layout.held))  # means at the held poses
         gates = _gates_at_once(pose, refs, layout) is not None
+        first = SimpleNamespace(targets=[""] * n, refs=np.zeros((n, 8)), pose=pose, layout=layout)
+        assert gates == (_gates(SimpleNamespace(rules=rules), first, np.arange(n)) is not None)  # type: ignore[arg-type]
         rows = pose if len(aliased) == n else pose[aliased]
         whole = _aliases_fit(rows, layout, jump) and gates
         fast = _aliases_fit(rows, layout, jump, gated=True) and gates
