@@ -581,10 +581,13 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
     robot, out = ctx.robot, ctx.out
     reports, targets, senses, helds = boxes.reports, boxes.targets, boxes.senses, boxes.layout.helds
     rule = f"confirmation by {robot}: within confirm_distance_m and confirm_angle_deg"
-    used = [reports[i].iri for i in boxes.layout.aliased if targets[i] != reports[i].iri]
+    used: list[str] = []
+    resolved = out.resolved
     for i in boxes.layout.aliased:
-        if targets[i] != reports[i].iri:
-            out.resolved[reports[i].iri] = targets[i]  # resolved, and the alias used
+        iri, target = reports[i].iri, targets[i]
+        if target != iri:
+            resolved[iri] = target  # resolved, and the alias used
+            used.append(iri)
     ctx.boxes_later = _later(ctx.boxes_later, boxes)
     if len(fresh) < len(targets):  # stale_change of each (a sighting, not the latest), one effect
         old = [(targets[i], senses[i]) for i, stale in enumerate(boxes.stale) if stale]
@@ -596,15 +599,20 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
         out.effects.append(_use_aliases(used, ctx.arrival_ns))
     ctx.detected.update(targets)
     ctx.used.update(targets)
-    picked = fresh.tolist()
-    out.seen.extend([targets[i] for i in picked])
-    raw = (boxes.raw[:, :2] if len(picked) == len(targets) else boxes.raw[fresh, :2]).tolist()
+    if len(fresh) == len(targets):
+        seen, at, resizes = targets, senses, [h.resizable for h in helds]
+        raw = boxes.raw[:, :2].tolist()
+    else:
+        picked = fresh.tolist()
+        seen, at = [targets[i] for i in picked], [senses[i] for i in picked]
+        resizes, raw = [helds[i].resizable for i in picked], boxes.raw[fresh, :2].tolist()
+    out.seen.extend(seen)
     means, diffs = sightings_noted(  # where its detector puts them: its bias (note_sightings_at)
-        ctx, [(targets[i], x, y, senses[i]) for i, (x, y) in zip(picked, raw, strict=True)]
+        ctx, [(iri, x, y, sense) for iri, (x, y), sense in zip(seen, raw, at, strict=True)]
     )
     rows = [
-        (targets[i], senses[i], helds[i].resizable, mean, *row)
-        for i, mean, row in zip(picked, means, sighted.tolist(), strict=True)
+        (iri, sense, r, mean, *row)
+        for iri, sense, r, mean, row in zip(seen, at, resizes, means, sighted.tolist(), strict=True)
     ]
 
     def run(m: FusionMemory) -> None:  # (the bias notes' effect and the confirmations', as one)
