@@ -26,8 +26,8 @@ Example::
 from __future__ import annotations
 
 import logging
-from collections import ChainMap, Counter, OrderedDict
-from collections.abc import Callable, Sequence
+from collections import Counter, OrderedDict
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 from twin.config import Config
@@ -50,6 +50,7 @@ from twin.live.events import (
     TwinEvent,
 )
 from twin.live.fuse import fuse
+from twin.live.layered import Layered
 from twin.live.membership import membership
 from twin.live.parse import parse_observation_document
 from twin.live.plan import ObservationPlan, plan_observation
@@ -161,7 +162,7 @@ class Observer:
                     if req.observation is None
                     else check_observation(req.observation, limits=self.config.limits)
                 )
-                current = ChainMap(states, live.states) if states else live.states  # a ChainMap is slower
+                current = Layered(states, live.states) if states else live.states
                 fused = fuse(
                     obs,
                     robot=req.robot,
@@ -186,7 +187,7 @@ class Observer:
                         r.iri: shapes[r.iri] if r.iri in shapes else live.maps.shape_of(r.iri)
                         for r in reports
                     },
-                    held=ChainMap[str, dict[str, Object | None]](held, live.held),
+                    held=Layered[str, Mapping[str, Object | None]](held, live.held),
                     revision=live.revision + len(planned) + 1,
                     stamp_ns=req.received_ns,
                     sense_ns=fused.sense,

@@ -14,6 +14,7 @@ Example::
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -22,7 +23,7 @@ import numpy.typing as npt
 
 from twin.maps.grid import Window
 from twin.maps.raster import BoolArray
-from twin.maps.raster.boxes import box_footprint
+from twin.maps.raster.boxes import local_footprint, placed_footprint
 from twin.maps.render import MapPlan
 from twin.maps.scene import MeshSet
 from twin.records import FloatArray, Mesh, Shape, to_world
@@ -40,11 +41,18 @@ class _MeshFacts:
     """Eight corners, two distinct values per axis, each corner once, 12 faces, closed."""
     used: npt.NDArray[np.intp] | None
     """The vertices its faces use, None if all (the bounds are those of the used vertices)."""
+    local: FloatArray | None = None
+    """A box's local footprint corners (:func:`~twin.maps.raster.boxes.local_footprint`); None: no box."""
 
     @classmethod
     def of(cls, mesh: Mesh) -> _MeshFacts:
         used = np.unique(mesh.faces)
-        return cls(_is_box_mesh(mesh), None if len(used) == len(mesh.vertices) else used.astype(np.intp))
+        box = _is_box_mesh(mesh)
+        return cls(
+            box,
+            None if len(used) == len(mesh.vertices) else used.astype(np.intp),
+            local_footprint(mesh.vertices) if box else None,
+        )
 
 
 @dataclass(eq=False, slots=True)
@@ -73,8 +81,8 @@ class OverlayElement:
         world = to_world(mesh.vertices, placement)  # as MeshSet.build, bit for bit
         used = world if facts.used is None else world[facts.used]
         b = np.concatenate([used.min(axis=0), used.max(axis=0)])
-        upright = facts.box and _turns_about_z(placement)
-        footprint = box_footprint(mesh.vertices, placement) if upright else None
+        upright = facts.local is not None and _turns_about_z(placement)
+        footprint = placed_footprint(facts.local, placement) if facts.local is not None and upright else None
         return cls(shape, None if np.isnan(b).any() else b, footprint, _facts=facts)
 
     def footprint_in(self, plan: MapPlan) -> FloatArray | None:
@@ -156,27 +164,39 @@ def crosses(b: FloatArray | None, plan: MapPlan) -> bool:
 def dirty_windows(plan: MapPlan, boxes: Sequence[FloatArray], pad: int) -> list[Window]:
     """Disjoint windows of ``plan``'s grid covering ``boxes`` (world AABBs in the map's band), grown by
     ``pad`` cells; windows that touch are merged (a table moved across a storey dirties two small
-    windows, not the rectangle between them)."""
-    windows = []
+    windows, not the rectangle between them).
+
+    Worked in Python numbers (each box's six floats read at once, the windows as tuples until the end):
+    the same arithmetic as :func:`in_band`, :meth:`GridFrame.window_for`, :func:`grow` and
+    :meth:`Window.intersect`, and the same merges in the same order."""
+    frame = plan.frame
+    g = TOLERANCES.grid_m
+    z_top, z_bottom = plan.z_hi + g, plan.z_lo - g
+    res, ox, oy, height, width = frame.resolution_m, frame.origin_x, frame.origin_y, frame.height, frame.width
+    floor = math.floor
+    windows: list[tuple[int, int, int, int]] = []
     for b in boxes:
-        if not in_band(b, plan):
-            continue
-        grown = grow(plan.frame.window_for(b[0], b[1], b[3], b[4]), pad).intersect(plan.frame.full)
-        if not grown.empty:
-            windows.append(grown)
+        xmin, ymin, zmin, xmax, ymax, zmax = b.tolist()
+        if zmin > z_top or zmax < z_bottom:
+            continue  # not in the band
+        r0, c0 = max(floor((ymin - oy) / res), 0), max(floor((xmin - ox) / res), 0)
+        r1, c1 = min(floor((ymax - oy) / res) + 1, height), min(floor((xmax - ox) / res) + 1, width)
+        r0, c0 = max(r0 - pad, 0), max(c0 - pad, 0)
+        r1, c1 = min(r1 + pad, height), min(c1 + pad, width)
+        if r1 > r0 and c1 > c0:
+            windows.append((r0, c0, r1, c1))
     merged = True
     while merged and len(windows) > 1:
         merged = False
         for i in range(len(windows)):
+            a0, a1, a2, a3 = windows[i]
             for j in range(i + 1, len(windows)):
-                a, c = windows[i], windows[j]
-                if a.row0 <= c.row1 and c.row0 <= a.row1 and a.col0 <= c.col1 and c.col0 <= a.col1:
-                    windows[i] = Window(
-                        min(a.row0, c.row0), min(a.col0, c.col0), max(a.row1, c.row1), max(a.col1, c.col1)
-                    )
+                e0, e1, e2, e3 = windows[j]
+                if a0 <= e2 and e0 <= a2 and a1 <= e3 and e1 <= a3:
+                    windows[i] = (min(a0, e0), min(a1, e1), max(a2, e2), max(a3, e3))
                     del windows[j]
                     merged = True
                     break
             if merged:
                 break
-    return windows
+    return [Window(*w) for w in windows]

@@ -24,8 +24,11 @@ from __future__ import annotations
 
 import datetime
 import functools
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+
+import numpy as np
 
 from twin.config import Right
 from twin.errors import ObservationError
@@ -33,11 +36,12 @@ from twin.graph import vocab
 from twin.graph.ifc_classes import supertypes
 from twin.graph.meshcodec import encode_placement
 from twin.graph.rdf import ChangeSet, Object, Triple
-from twin.live.same import quantised, quantised_sizes, same_mesh, same_shape
+from twin.live.same import quantised, quantised_box_values, quantised_sizes, same_mesh, same_shape
 from twin.live.state import ElementState, SiteFrame
 from twin.live.writes import Held, TripleWriter, boolean, geometry_triples, literal
 from twin.maps.shapes import box_mesh, box_placement
 from twin.records import ElementReport, GeometryChange, Mesh, Shape
+from twin.tolerances import TOLERANCES
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -62,8 +66,28 @@ class ObservationPlan:
 def _iso(ns: int) -> str:
     """An ``xsd:dateTime`` to the nanosecond, UTC."""
     seconds, nanos = divmod(ns, 1_000_000_000)
-    moment = datetime.datetime.fromtimestamp(seconds, tz=datetime.UTC).strftime("%Y-%m-%dT%H:%M:%S")
-    return f"{moment}.{nanos:09d}Z"
+    return f"{_second(seconds)}.{nanos:09d}Z"
+
+
+@functools.lru_cache(maxsize=64)
+def _second(seconds: int) -> str:
+    """``YYYY-MM-DDTHH:MM:SS`` of a second, UTC (robots report many times a second: made once each)."""
+    return datetime.datetime.fromtimestamp(seconds, tz=datetime.UTC).strftime("%Y-%m-%dT%H:%M:%S")
+
+
+def _observed_at(stamp_ns: int) -> str:
+    """``datetime.fromtimestamp(stamp_ns / 1e9, tz=UTC).isoformat()``, the same text, with the second's
+    part made once per second: microseconds from the float's fraction rounded half to even, as
+    ``fromtimestamp`` rounds them (a fraction that rounds up to a whole second carries into it)."""
+    fraction, whole = math.modf(stamp_ns / 1e9)
+    micros = round(fraction * 1e6)
+    seconds = int(whole)
+    if micros >= 1_000_000:
+        micros -= 1_000_000
+        seconds += 1
+    elif micros < 0:  # before 1970
+        return datetime.datetime.fromtimestamp(stamp_ns / 1e9, tz=datetime.UTC).isoformat()
+    return f"{_second(seconds)}.{micros:06d}+00:00" if micros else f"{_second(seconds)}+00:00"
 
 
 def _fail(message: str) -> ObservationError:
@@ -75,8 +99,9 @@ def _need(rights: frozenset[Right], right: Right, robot: str, what: str) -> None
         raise _fail(f"Robot {robot!r} may not {what} (it lacks the {right!r} right).")
 
 
-def _shape(report: ElementReport, site: SiteFrame, current: Shape | None) -> Shape | None:
-    """The element's reported mesh and placement, None when the report leaves the geometry alone."""
+def _shape(report: ElementReport, site: SiteFrame, current: Shape | None) -> tuple[Shape | None, str | None]:
+    """The element's reported mesh and placement, None when the report leaves the geometry alone; and
+    for a box, its placement's literal text (made with the placement, in Python floats)."""
     if report.box is not None:
         b = report.box
         storey = site.storeys.get(report.storey or "")
@@ -86,14 +111,18 @@ def _shape(report: ElementReport, site: SiteFrame, current: Shape | None) -> Sha
         mesh = _box_mesh(*quantised_sizes(b.sx, b.sy, b.sz))
         if current is not None and same_mesh(mesh, current[0]):
             mesh = current[0]  # a moved box keeps its mesh: one object, one literal
-        return mesh, quantised(box_placement(b.cx, b.cy, storey.elevation_m + b.cz, yaw=b.yaw))
+        cz = storey.elevation_m + b.cz
+        values = quantised_box_values(b.cx, b.cy, cz, b.yaw)
+        if values is None:  # not finite, or far out: the array path (the extent check refuses it)
+            return (mesh, quantised(box_placement(b.cx, b.cy, cz, yaw=b.yaw))), None
+        return (mesh, np.array(values).reshape(4, 4)), " ".join(map(repr, values))
     if report.geometry is not None:
-        return report.geometry.mesh, report.geometry.placement
+        return (report.geometry.mesh, report.geometry.placement), None
     if report.placement is not None:
         if current is None:
             raise _fail(f"Element <{report.iri}>: twin:placement moves an element, but it has no geometry.")
-        return current[0], report.placement
-    return None
+        return (current[0], report.placement), None
+    return None, None
 
 
 @functools.lru_cache(maxsize=256)
@@ -247,22 +276,67 @@ def _zones(step: _Step, state: ElementState) -> ElementState:
 def _geometry(step: _Step, change: Right, *, exists: bool) -> None:
     """The reported shape, written only when it differs (a move: the placement alone)."""
     r, w, current = step.r, step.w, step.current
-    shape = _shape(r, step.site, current)
+    shape, text = _shape(r, step.site, current)
     if shape is None:
         return
-    _check_inside(r.iri, shape, step.site)
-    if current is not None and same_shape(shape, current):
+    if text is None or not _box_inside(shape, step.site):
+        _check_inside(r.iri, shape, step.site)
+    moved = current is None or (text is not None and _box_moved(shape, current))
+    if not moved and current is not None and same_shape(shape, current):
         return
     if exists:
         _need(step.rights, change, step.robot, f"change <{r.iri}>")
     g = vocab.geometry_iri(r.iri)
     if current is not None and shape[0] is current[0]:  # a move: the placement only
-        w.set(g, vocab.TWIN_PLACEMENT, literal(encode_placement(shape[1]), vocab.TWIN_MATRIX4))
+        placement = encode_placement(shape[1]) if text is None else text
+        w.set(g, vocab.TWIN_PLACEMENT, literal(placement, vocab.TWIN_MATRIX4))
     else:
         w.clear(g)
         for t in geometry_triples(r.iri, *shape):
             w.set(t.subject, t.predicate, t.object)
     step.geometry.append(GeometryChange(r.iri, shape))
+
+
+_MARGIN_M = 1e-6
+"""How far from a limit the Python-float checks of a box decide alone: their world coordinates differ
+from the array path's by rounding (about 1e-12 m in a building); nearer, the array path decides."""
+
+
+def _box_inside(shape: Shape, site: SiteFrame) -> bool:
+    """A box (a centred mesh of corners ±h, an upright placement) lies inside the site by more than
+    :data:`_MARGIN_M`: its world extent is the centre ± |R| h. False: let :func:`_check_inside` say."""
+    mesh, placement = shape
+    corner: list[float] = mesh.vertices[7].tolist()  # the (+, +, +) corner: half the sizes
+    rows: list[list[float]] = placement.tolist()
+    hx, hy, hz = corner
+    (r00, r01, _, tx), (r10, r11, _, ty), (_, _, _, tz), _ = rows
+    ex, ey = abs(r00) * hx + abs(r01) * hy, abs(r10) * hx + abs(r11) * hy
+    lo_x, lo_y, lo_z, hi_x, hi_y, hi_z = site.site_box
+    m = _MARGIN_M
+    return (
+        tx - ex > lo_x + m
+        and ty - ey > lo_y + m
+        and tz - hz > lo_z + m
+        and tx + ex < hi_x - m
+        and ty + ey < hi_y - m
+        and tz + hz < hi_z - m
+    )
+
+
+def _box_moved(shape: Shape, current: Shape) -> bool:
+    """A box (centred: each corner's opposite is a corner) at the held mesh whose centre moved by more
+    than ``same_position_m`` (and :data:`_MARGIN_M`) along an axis: not the same shape, whatever the
+    turn (of a corner and its opposite, one moves by at least the centre's move). False: let
+    :func:`~twin.live.same.same_shape` say."""
+    if shape[0] is not current[0]:
+        return False
+    a, b = shape[1], current[1]
+    limit = TOLERANCES.same_position_m + _MARGIN_M
+    return (
+        abs(float(a[0, 3]) - float(b[0, 3])) > limit
+        or abs(float(a[1, 3]) - float(b[1, 3])) > limit
+        or abs(float(a[2, 3]) - float(b[2, 3])) > limit
+    )
 
 
 def _storey(step: _Step, state: ElementState, change: Right, *, exists: bool) -> ElementState:
@@ -329,7 +403,7 @@ def _provenance(
 ) -> ElementState:
     """Who changed the element, when it arrived, at which revision, and when it was seen."""
     r, w = step.r, step.w
-    when = datetime.datetime.fromtimestamp(stamp_ns / 1e9, tz=datetime.UTC).isoformat()
+    when = _observed_at(stamp_ns)
     w.set(r.iri, vocab.TWIN_OBSERVED_BY, literal(step.robot))
     w.set(r.iri, vocab.TWIN_OBSERVED_AT, literal(when, vocab.XSD_DATETIME))
     w.set(r.iri, vocab.TWIN_REVISION, literal(str(revision), vocab.XSD_INTEGER))

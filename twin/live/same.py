@@ -15,6 +15,8 @@ Example::
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from twin.records import FloatArray, Mesh, Shape, to_world
@@ -80,3 +82,32 @@ def quantised(placement: FloatArray) -> FloatArray:
     out = np.round(placement, 9)
     out[:3, 3] = np.round(placement[:3, 3], 6)
     return np.asarray(out)
+
+
+_BIG = 2.0**52  # beyond this, x * 10**k has no fraction left to round: left to numpy
+
+
+def _rint_scaled(x: float, f: float) -> float | None:
+    """``np.round(x, k)`` for ``f = 10.0**k``, bit for bit (numpy multiplies, rounds half to even and
+    divides back; so does this, and keeps the sign of a zero); None when ``x * f`` is not finite or is
+    too large for an exact ``round``."""
+    y = x * f
+    if not -_BIG < y < _BIG:  # also a NaN
+        return None
+    r = round(y)  # half to even, as rint
+    return r / f if r else math.copysign(0.0, y) / f
+
+
+def quantised_box_values(cx: float, cy: float, cz: float, yaw: float) -> list[float] | None:
+    """``quantised(box_placement(cx, cy, cz, yaw=yaw))`` as its 16 floats, row-major, bit for bit, in
+    Python floats (a dozen numpy calls on a 4x4 array cost more than the arithmetic); None when a value
+    is not finite or very large (then the array path says what it does)."""
+    if not math.isfinite(yaw):
+        return None
+    c, s = math.cos(yaw), math.sin(yaw)  # as box_placement
+    q9, q6 = 1e9, 1e6
+    rc, rs, rns = _rint_scaled(c, q9), _rint_scaled(s, q9), _rint_scaled(-s, q9)
+    x, y, z = _rint_scaled(cx, q6), _rint_scaled(cy, q6), _rint_scaled(cz, q6)
+    if rc is None or rs is None or rns is None or x is None or y is None or z is None:
+        return None
+    return [rc, rns, 0.0, x, rs, rc, 0.0, y, 0.0, 0.0, 1.0, z, 0.0, 0.0, 0.0, 1.0]

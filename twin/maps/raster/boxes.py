@@ -34,9 +34,19 @@ def box_footprint(vertices: FloatArray, placement: FloatArray) -> FloatArray:
     ``vertices``: the box's 8 local corners (two distinct values per axis); ``placement``: its 4x4
     local-to-world matrix, turning about +z only.
     """
+    return placed_footprint(local_footprint(vertices), placement)
+
+
+def local_footprint(vertices: FloatArray) -> FloatArray:
+    """The local XY corners ``(4, 2)`` of a box's footprint, in order around it (a mesh's own: kept
+    while the box moves)."""
     lo, hi = vertices[:, :2].min(axis=0), vertices[:, :2].max(axis=0)
-    local = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
-    return local @ placement[:2, :2].T + placement[:2, 3]
+    return np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+
+
+def placed_footprint(local: FloatArray, placement: FloatArray) -> FloatArray:
+    """:func:`box_footprint` of the box whose :func:`local_footprint` is ``local``."""
+    return np.asarray(local @ placement[:2, :2].T + placement[:2, 3])
 
 
 def footprint_cells(
