@@ -53,6 +53,8 @@ the element starts its means again)."""
 
 _NO_MEAN = RobotMean()
 """No sightings yet (only read: :meth:`~twin.fusion.memory.RobotMean.added` makes a new mean)."""
+_NO_MEANS: dict[str, RobotMean] = {}
+"""An element without a track: no robot's mean (only read)."""
 
 
 def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None:
@@ -61,7 +63,10 @@ def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None
     :data:`MIN_PARTNERS`), or, when it agrees with none, from the partners that agree with a third robot
     (:func:`vouched`). A robot that agrees with some partners and differs from one is not the one that
     is off."""
-    diffs = [(b, d) for b, d in memory.pairs.partners(robot) if d.n >= PAIR_MIN_SAMPLES]
+    mine = memory.pairs.of(robot)
+    if not mine:
+        return None
+    diffs = [(b, d) for b, d in mine.items() if d.n >= PAIR_MIN_SAMPLES]
     differing = [(b, d) for b, d in diffs if math.hypot(d.x, d.y) > DEADBAND_M]
     if len(differing) >= MIN_PARTNERS and 2 * len(differing) > len(diffs):
         chosen = [d for _, d in differing]
@@ -136,62 +141,128 @@ def note_sightings(ctx: FusionContext, seen: Sequence[tuple[ElementState, Pose, 
     note_sightings_at(ctx, [(state.iri, raw.cx, raw.cy, sense) for state, raw, sense in seen])
 
 
+MeanUpdate = tuple[str, RobotMean | None, int, float, float, int]
+"""(element, the robot's mean the memory held when noted (None: none), its new n, x, y, last_ns)."""
+PairUpdate = tuple[str, float, float, int]
+"""(other robot, the difference x, y, sense time): a comparison that updates both of the pair's means."""
+
+
 def note_sightings_at(ctx: FusionContext, seen: Sequence[tuple[str, float, float, int]]) -> None:
     """:func:`note_sightings` of (element, raw x, raw y, sense time) tuples. Each pair's difference is
     taken from the last sighting that compares it, found from the end (each robot's search stops at its
-    first comparison; the pairs in the order the first comparisons came, as in a forward pass)."""
+    first comparison; the pairs in the order the first comparisons came, as in a forward pass). The
+    effect updates the means and pairs the memory holds in place (no new objects per robot pair and
+    array), but for pairs while the memory journals (its value before is kept, not a copy)."""
+    robot = ctx.robot
+    means, diffs = sightings_noted(ctx, seen)
+
+    def run(m: FusionMemory) -> None:
+        journaled, tracks = m.journal is not None, m.tracks
+        for iri, old, n, mx, my, last in means:
+            t = m.track(iri) if journaled else tracks.get(iri)  # (journaled: a copy of the track is kept)
+            set_mean((t if t is not None else m.track(iri)).means, robot, old, n, mx, my, last)
+        update_pairs(m, robot, diffs)
+
+    ctx.out.effects.append(run)
+
+
+def set_mean(  # noqa: PLR0917 (a MeanUpdate)
+    held: dict[str, RobotMean], robot: str, old: RobotMean | None, n: int, x: float, y: float, last_ns: int
+) -> None:
+    """The robot's mean in ``held`` (a track's means) as noted: ``old`` changed in place while held."""
+    mean = held.get(robot)
+    if mean is not None and mean is old:
+        mean.n, mean.x, mean.y, mean.last_ns = n, x, y, last_ns
+    else:
+        held[robot] = RobotMean(n, x, y, last_ns)
+
+
+def sightings_noted(
+    ctx: FusionContext, seen: Sequence[tuple[str, float, float, int]]
+) -> tuple[list[MeanUpdate], list[PairUpdate]]:
+    """What :func:`note_sightings_at` applies: each element's new mean, each pair's comparison (in
+    order); :func:`set_mean` and :func:`update_pairs` apply them, once the observation is accepted."""
     robot, memory = ctx.robot, ctx.memory
     far = ctx.rules.certain_move_m
-    means: list[tuple[str, RobotMean]] = []
-    compared: list[tuple[RobotMean, dict[str, RobotMean], int]] = []  # mine, the others' means, sense
+    means: list[MeanUpdate] = []
+    compared: list[tuple[float, float, dict[str, RobotMean], int]] = []  # my mean (x, y), the others', sense
+    tracks = memory.tracks
     for iri, x, y, sense in seen:
-        track = memory.tracks.get(iri)
-        held = track.means if track is not None else {}
-        mine = (held.get(robot) or _NO_MEAN).added(x, y, sense, weight=MEAN_WEIGHT)
-        means.append((iri, mine))
-        if mine.n >= MEAN_MIN and len(held) > (robot in held):
-            compared.append((mine, held, sense))
+        track = tracks.get(iri)
+        held = track.means if track is not None else _NO_MEANS
+        old = held.get(robot)
+        o = _NO_MEAN if old is None else old  # (RobotMean.added, without the new object)
+        a = 1.0 if o.n == 0 else max(MEAN_WEIGHT, 1.0 / (o.n + 1))
+        n, mx, my, last = o.n + 1, o.x + a * (x - o.x), o.y + a * (y - o.y), max(o.last_ns, sense)
+        means.append((iri, old, n, mx, my, last))
+        if n >= MEAN_MIN and len(held) > (old is not None):
+            compared.append((mx, my, held, sense))
 
-    everyone = set().union(*(held for _, held, _ in compared)) - {robot}
+    everyone = set().union(*(held for _, _, held, _ in compared)) - {robot}
     order: dict[str, None] = {}  # the first comparison of each robot, in order
-    for mine, held, sense in compared:
+    for mx, my, held, sense in compared:
         for other, m in held.items():
             if (
                 other not in order
                 and other != robot
                 and m.n >= MEAN_MIN
                 and sense - m.last_ns <= RECENT_NS
-                and not math.hypot(mine.x - m.x, mine.y - m.y) > far  # farther: a move not seen yet
+                and not math.hypot(mx - m.x, my - m.y) > far  # farther: a move not seen yet
             ):
                 order[other] = None
         if len(order) == len(everyone):
             break
-    last: dict[str, tuple[float, float, int]] = {}
-    for mine, held, sense in reversed(compared):
+    last_of: dict[str, tuple[float, float, int]] = {}
+    for mx, my, held, sense in reversed(compared):
         for other, m in held.items():
-            if other in last or other == robot or m.n < MEAN_MIN or sense - m.last_ns > RECENT_NS:
+            if other in last_of or other == robot or m.n < MEAN_MIN or sense - m.last_ns > RECENT_NS:
                 continue
-            dx, dy = mine.x - m.x, mine.y - m.y
+            dx, dy = mx - m.x, my - m.y
             if not math.hypot(dx, dy) > far:
-                last[other] = (dx, dy, sense)
-        if len(last) == len(order):
+                last_of[other] = (dx, dy, sense)
+        if len(last_of) == len(order):
             break
-    pairs = {}
-    held_pairs = memory.pairs
-    for other in order:
-        dx, dy, sense = last[other]
-        there, back = held_pairs.get((robot, other)) or _NO_MEAN, held_pairs.get((other, robot)) or _NO_MEAN
+    return means, [(other, *last_of[other]) for other in order]
+
+
+def update_pairs(m: FusionMemory, robot: str, diffs: list[PairUpdate]) -> None:
+    """Each comparison in ``diffs`` added to the robot's pair with the other (both ways), in order: in
+    place, or new values while the memory journals."""
+    pairs, journaled = m.pairs, m.journal is not None
+    if not journaled:  # RobotMean.added of each pair, in place
+        mine = pairs.of(robot) or {}
+        for other, dx, dy, sense in diffs:
+            d = mine.get(other)
+            if d is None:
+                pairs[robot, other] = d = RobotMean()
+                mine = pairs.of(robot) or {}
+            k = d.n
+            a = 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
+            d.n, d.x, d.y, d.last_ns = (
+                k + 1,
+                d.x + a * (dx - d.x),
+                d.y + a * (dy - d.y),
+                max(d.last_ns, sense),
+            )
+            theirs = pairs.of(other)
+            d = None if theirs is None else theirs.get(robot)
+            if d is None:
+                pairs[other, robot] = d = RobotMean()
+            k = d.n
+            a = 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
+            d.n, d.x, d.y, d.last_ns = (
+                k + 1,
+                d.x + a * (-dx - d.x),
+                d.y + a * (-dy - d.y),
+                max(d.last_ns, sense),
+            )
+        return
+    for other, dx, dy, sense in diffs:  # new values: the journal keeps the old ones
+        there, back = pairs.get((robot, other)) or _NO_MEAN, pairs.get((other, robot)) or _NO_MEAN
+        m.changing("pairs", (robot, other))
         pairs[robot, other] = there.added(dx, dy, sense, weight=PAIR_WEIGHT)
+        m.changing("pairs", (other, robot))
         pairs[other, robot] = back.added(-dx, -dy, sense, weight=PAIR_WEIGHT)
-
-    def run(m: FusionMemory) -> None:
-        for iri, mine in means:
-            m.track(iri).means[robot] = mine
-        for pair in pairs:
-            m.changing("pairs", pair)
-        m.pairs.update(pairs)
-
-    ctx.out.effects.append(run)
 
 
 def detector_biases(memory: FusionMemory) -> dict[str, list[float]]:

@@ -31,20 +31,21 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from operator import is_
 from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from twin.config import FusionRules
-from twin.fusion.bias import note_sightings_at, unbiased
-from twin.fusion.clocks import stale_change
-from twin.fusion.confirm import box_of, only_sighting_where_it_stands, resizable
+from twin.fusion.bias import sightings_noted, unbiased, update_pairs
+from twin.fusion.clocks import note_stale
+from twin.fusion.confirm import box_of, resizable
 from twin.fusion.dispute import older_disagreement, still_covers
 from twin.fusion.effects import Effect
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
 from twin.fusion.gates import compatible, is_candidate, kinds_agree
-from twin.fusion.memory import FusionMemory
+from twin.fusion.memory import FusionMemory, RobotMean
 from twin.records import ElementReport, FloatArray, Shape
 
 if TYPE_CHECKING:
@@ -76,7 +77,8 @@ class _Held:
     ifc_class: str | None
     rules: FusionRules
     ok: bool
-    """A candidate, not disputed: a box of it may confirm it."""
+    """A candidate, not disputed, of the report's class (the class part of
+    :func:`~twin.fusion.confirm.only_sighting_where_it_stands`): a box of it may confirm it."""
     class_ok: bool
     """The report's class and kind agree with the element's (the alias check's first gates)."""
     resizable: bool
@@ -104,7 +106,13 @@ def _held(ctx: FusionContext, r: ElementReport, state: ElementState, shape: Shap
         cover,
         r.ifc_class,
         ctx.rules,
-        is_candidate(state) and not disputed,
+        is_candidate(state)
+        and not disputed
+        and (
+            r.ifc_class is None
+            or r.ifc_class in state.ifc_types
+            or r.ifc_class.lower() == state.ifc_class.lower()
+        ),
         class_ok,
         resizable(ctx, state.iri),
         _row(held),
@@ -141,7 +149,8 @@ def confirm_array(ctx: FusionContext, reports: Sequence[ElementReport], senses: 
     boxes = _boxes(ctx, reports, senses)
     if boxes is None:
         return False
-    fresh = np.flatnonzero(~np.array(boxes.stale, dtype=np.bool_))
+    stale = boxes.stale
+    fresh = np.arange(len(stale)) if True not in stale else np.flatnonzero(~np.array(stale, dtype=np.bool_))
     sighted = _gates(ctx, boxes, fresh) if len(fresh) else np.zeros((0, 7))
     if sighted is None:
         return False
@@ -202,7 +211,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
             or h.rules is not rules
         ):
             h = held_of[target] = _held(ctx, r, state, shape, cover)
-        if not h.ok or not only_sighting_where_it_stands(r, state):
+        if not h.ok or not _only_box(r):
             return None  # not a candidate, disputed (each sighting takes a side), a change besides the box
         key = r.storey or state.storey
         if key is None:
@@ -231,17 +240,41 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         pose[:, 1] -= bias[1]
         for i, row in enumerate(pose.tolist()):
             given[i] = replace(given[i], box=box_of(Pose(*row), elevations[keys[i]]))
-    for i in [j for j, s in enumerate(stale) if s]:
-        sighted = Pose(*pose[i].tolist())
-        if older_disagreement(ctx, given[i], helds[i].state, sighted, helds[i].held, senses[i]):
-            return None  # (older: seen before another robot's later sighting, a short move from it)
     layout = _layout(cache, ctx.robot, helds, aliased)
+    if True in stale:
+        old = [j for j, s in enumerate(stale) if s]
+        confirming = _confirms(pose[old], layout.held[old], layout.dist[old], layout.angle[old]).tolist()
+        for i, confirms_held in zip(old, confirming, strict=True):
+            if confirms_held:
+                continue  # it confirms the held pose: not a disagreement (older_disagreement's confirms)
+            sighted = Pose(*pose[i].tolist())
+            if older_disagreement(ctx, given[i], helds[i].state, sighted, helds[i].held, senses[i]):
+                return None  # (older: seen before another robot's later sighting, a short move from it)
     if aliased and not _aliases_fit(
-        pose if len(aliased) == len(rows) else pose[aliased], layout, rules.alias_jump_m
+        pose if len(aliased) == len(rows) else pose[aliased],
+        layout,
+        rules.alias_jump_m,
+        gated=True not in stale,  # (every box fresh: the confirmation gates check each one next)
     ):
         return None
     return _Array(
         given, targets, layout, keys, list(senses), stale, raw, pose, np.array(refs, dtype=np.float64)
+    )
+
+
+def _only_box(r: ElementReport) -> bool:
+    """:func:`~twin.fusion.confirm.only_sighting_where_it_stands` but for the class (:attr:`_Held.ok`)."""
+    return (
+        r.geometry is None
+        and r.placement is None
+        and not r.removed
+        and r.is_open is None
+        and r.keepout is None
+        and r.speed_limit is None
+        and not r.labels
+        and not r.materials
+        and not r.classes
+        and not r.unmerge
     )
 
 
@@ -276,6 +309,49 @@ class _Layout:
     limits: FloatArray
     """``(3, 2n)``: for the sightings, the class's confirm distance (centre, height) and angle; for
     their means, ``refine_fraction`` of those (the centre also within ``refine_distance_m``)."""
+    alias: _AliasGates
+    sizes: FloatArray
+    """``(n, 3)``: how far each size may be from the held one without being resize evidence: the
+    confirm distance, infinite where the element is not :attr:`resizable`."""
+
+
+HEIGHT_MARGIN_M = 1e-6
+"""How much more than the confirm distance an aliased element's half height must be for its box's
+height gate to imply that the heights overlap (far more than the floats' rounding)."""
+
+
+@dataclass(slots=True)
+class _AliasGates:
+    """The aliased rows' side of :func:`_aliases_fit`, computed once per layout."""
+
+    held: FloatArray
+    """``(k, 7)``: the aliased rows' held poses."""
+    area: FloatArray
+    positive: bool
+    """Every held area is positive (the area ratio needs no guard)."""
+    tolerance: FloatArray
+    """``(k, 3)``: the size gate, ``size_ratio`` of the held sizes."""
+    min_area: FloatArray
+    gated: bool
+    """The confirmation gates imply the alias's centre and height gates (each row's confirm distance
+    within ``alias_jump_m`` and :data:`HEIGHT_MARGIN_M` less than its half height): a box the
+    confirmation gates check needs only the alias's size gates here."""
+
+
+def _alias_gates(held: FloatArray, gates: FloatArray, aliased: list[int], jump_m: float) -> _AliasGates:
+    """:class:`_AliasGates` of the ``aliased`` rows of ``held`` and ``gates`` (:attr:`_Held.gates`)."""
+    if len(aliased) < len(held):
+        held, gates = held[aliased], gates[aliased]
+    dist, ratio, min_area = gates[:, 0], gates[:, 2], gates[:, 3]
+    area = held[:, 3] * held[:, 4]
+    return _AliasGates(
+        held,
+        area,
+        bool((area > 0.0).all()),
+        ratio[:, None] * held[:, 3:6],
+        min_area,
+        bool((dist <= jump_m).all() and (dist + HEIGHT_MARGIN_M <= held[:, 5] / 2).all()),
+    )
 
 
 @dataclass(slots=True)
@@ -311,7 +387,7 @@ def _layout(cache: _Cache, robot: str, helds: list[_Held], aliased: list[int]) -
         last is not None
         and last.aliased == aliased
         and len(last.helds) == len(helds)
-        and all(a is b for a, b in zip(last.helds, helds, strict=True))
+        and all(map(is_, last.helds, helds))
     ):
         return last
     held = np.array([h.row for h in helds], dtype=np.float64)
@@ -327,6 +403,7 @@ def _layout(cache: _Cache, robot: str, helds: list[_Held], aliased: list[int]) -
         ]
     )
     square = held[:, 3] - held[:, 4] < SQUARE_TOLERANCE_M
+    resizes = np.array([h.resizable for h in helds], dtype=np.bool_)
     made = _Layout(
         helds,
         aliased,
@@ -336,22 +413,33 @@ def _layout(cache: _Cache, robot: str, helds: list[_Held], aliased: list[int]) -
         angle,
         gates[:, 2].copy(),
         gates[:, 3].copy(),
-        np.array([h.resizable for h in helds], dtype=np.bool_),
+        resizes,
         all(helds[i].class_ok for i in aliased),
         np.concatenate((held, held)),
         np.concatenate((square, square)),
         limits,
+        _alias_gates(held, gates, aliased, rules.alias_jump_m),
+        np.where(resizes[:, None], dist[:, None], np.inf).repeat(3, axis=1),
     )
     cache.layouts[robot] = made
     return made
 
 
-def _aliases_fit(pose: FloatArray, layout: _Layout, jump_m: float) -> bool:
+def _aliases_fit(pose: FloatArray, layout: _Layout, jump_m: float, *, gated: bool = False) -> bool:
     """:func:`twin.fusion.associate.alias_fits` is ``"fits"`` for every aliased row (``pose``; ``"within"``
     and ``"fails"`` both need the per-report rules): class and kind agree, the centre no farther than
-    ``jump_m``, the heights overlap, the sizes agree."""
+    ``jump_m``, the heights overlap, the sizes agree. With ``gated`` (the confirmation gates check
+    every row next: every box fresh), only the size gates when the confirmation gates imply the
+    others (:attr:`_AliasGates.gated`): a row they would fail, those fail."""
     if not layout.class_ok:
         return False
+    g = layout.alias
+    if gated and g.gated and g.positive:
+        a, b = pose[:, 3] * pose[:, 4], g.area
+        return bool(
+            (np.minimum(a, b) / np.maximum(a, b) >= g.min_area).all()
+            and (np.abs(pose[:, 3:6] - g.held[:, 3:6]) <= g.tolerance).all()
+        )
     rows = layout.aliased
     if len(rows) == len(layout.helds):  # every report through an alias (a robot that made none of them)
         held, ratio, min_area = layout.held, layout.ratio, layout.min_area
@@ -417,7 +505,7 @@ def _gates_at_once(seen: FloatArray, refs: FloatArray, layout: _Layout) -> Float
     held = layout.held
     period = np.where((seen[:, 3] - seen[:, 4] < SQUARE_TOLERANCE_M) | layout.square, HALF_PI, math.pi)
     a = _aligned(seen, held, period, seen[:, 6] - held[:, 6])
-    if not ((np.abs(a[:, 3:6] - held[:, 3:6]) <= layout.dist[:, None]).all(axis=1) | ~layout.resizable).all():
+    if not (np.abs(a[:, 3:6] - held[:, 3:6]) <= layout.sizes).all():
         return None  # other sizes: resize evidence
     rows = np.concatenate((seen, _canonical((refs[:, 1:] + a) / (refs[:, :1] + 1))))
     twice = layout.twice
@@ -493,34 +581,48 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
     robot, out = ctx.robot, ctx.out
     reports, targets, senses, helds = boxes.reports, boxes.targets, boxes.senses, boxes.layout.helds
     rule = f"confirmation by {robot}: within confirm_distance_m and confirm_angle_deg"
-    used = [reports[i].iri for i in boxes.layout.aliased if targets[i] != reports[i].iri]
+    used: list[str] = []
+    resolved = out.resolved
     for i in boxes.layout.aliased:
-        if targets[i] != reports[i].iri:
-            out.resolved[reports[i].iri] = targets[i]  # resolved, and the alias used
+        iri, target = reports[i].iri, targets[i]
+        if target != iri:
+            resolved[iri] = target  # resolved, and the alias used
+            used.append(iri)
     ctx.boxes_later = _later(ctx.boxes_later, boxes)
-    if len(fresh) < len(targets):
+    if len(fresh) < len(targets):  # stale_change of each (a sighting, not the latest), one effect
+        old = [(targets[i], senses[i]) for i, stale in enumerate(boxes.stale) if stale]
         for i, stale in enumerate(boxes.stale):
             if stale:
-                noted = stale_change(ctx, reports[i], reports[i].iri, helds[i].state, senses[i])
-                assert noted  # a sighting, not the latest
+                note_stale(ctx, reports[i].iri, helds[i].state, senses[i])
+        out.effects.append(_stale_sightings(old, robot))
     if used:  # (the per-report rules add one such effect per report: on the aliases, not the tracks)
         out.effects.append(_use_aliases(used, ctx.arrival_ns))
     ctx.detected.update(targets)
     ctx.used.update(targets)
-    picked = fresh.tolist()
-    out.seen.extend([targets[i] for i in picked])
-    raw = boxes.raw[fresh, :2].tolist()
-    note_sightings_at(  # where its detector puts them: its bias
-        ctx, [(targets[i], x, y, senses[i]) for i, (x, y) in zip(picked, raw, strict=True)]
+    if len(fresh) == len(targets):
+        seen, at, resizes = targets, senses, [h.resizable for h in helds]
+        raw = boxes.raw[:, :2].tolist()
+    else:
+        picked = fresh.tolist()
+        seen, at = [targets[i] for i in picked], [senses[i] for i in picked]
+        resizes, raw = [helds[i].resizable for i in picked], boxes.raw[fresh, :2].tolist()
+    out.seen.extend(seen)
+    means, diffs = sightings_noted(  # where its detector puts them: its bias (note_sightings_at)
+        ctx, [(iri, x, y, sense) for iri, (x, y), sense in zip(seen, raw, at, strict=True)]
     )
     rows = [
-        (targets[i], senses[i], helds[i].resizable, *row)
-        for i, row in zip(picked, sighted.tolist(), strict=True)
+        (iri, sense, r, mean, *row)
+        for iri, sense, r, mean, row in zip(seen, at, resizes, means, sighted.tolist(), strict=True)
     ]
 
-    def run(m: FusionMemory) -> None:
-        for iri, sense, resizes, cx, cy, cz, sx, sy, sz, yaw in rows:
+    def run(m: FusionMemory) -> None:  # (the bias notes' effect and the confirmations', as one)
+        for iri, sense, resizes, (_, old, n, mx, my, last), cx, cy, cz, sx, sy, sz, yaw in rows:
             t = m.track(iri)
+            mean = t.means.get(robot)  # bias.set_mean
+            if mean is not None and mean is old:
+                mean.n, mean.x, mean.y, mean.last_ns = n, mx, my, last
+            else:
+                t.means[robot] = RobotMean(n, mx, my, last)
             t.sighted(robot, sense)
             if resizes:
                 t.sizes.pop(robot, None)  # a sighting at the held sizes clears the robot's evidence
@@ -538,6 +640,7 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
             t.confirmed[robot] = max(sense, t.confirmed.get(robot, sense))
             t.runs.pop(robot, None)  # this robot sees it where it is held: its own run ends
             t.decided = rule
+        update_pairs(m, robot, diffs)
 
     out.effects.append(run)
 
@@ -557,12 +660,28 @@ def _later(
     return made
 
 
+def _stale_sightings(seen: list[tuple[str, int]], robot: str) -> Effect:
+    """:func:`twin.fusion.effects.sighting` (``latest=False``) of each (element, sense time), as one
+    effect."""
+
+    def run(m: FusionMemory) -> None:
+        for iri, sense in seen:
+            t = m.track(iri)
+            latest = t.seen_ns
+            t.sighted(robot, sense)
+            t.seen_ns = latest
+
+    return run
+
+
 def _use_aliases(used: list[str], now: int) -> Effect:
     """:func:`twin.fusion.effects.use_alias` of each alias in ``used``, as one effect."""
 
     def run(m: FusionMemory) -> None:
+        journaled = m.journal is not None
         for alias in used:
-            m.changing("aliases", alias)
+            if journaled:
+                m.changing("aliases", alias)
             a = m.aliases.get(alias)
             if a is not None:
                 a.used_ns = max(a.used_ns, now)

@@ -115,21 +115,23 @@ class RobotMean:
 class PairTable(dict[tuple[str, str], RobotMean]):
     """(robot, other robot) -> their mean difference (:attr:`FusionMemory.pairs`), a dict that also
     knows each robot's partners: a robot's detector bias reads its own pairs, not every pair of the
-    fleet (600 with 25 robots, on every array)."""
+    fleet (600 with 25 robots, on every array). Robot -> other robot -> the same mean as the table's."""
 
     __slots__ = ("_partners",)
 
     def __init__(self, items: Any = (), /) -> None:
         super().__init__()
-        self._partners: dict[str, dict[str, None]] = {}
+        self._partners: dict[str, dict[str, RobotMean]] = {}
         self.update(items)
 
     def __reduce__(self) -> tuple[type[PairTable], tuple[dict[tuple[str, str], RobotMean]]]:
         return (PairTable, (dict(self),))
 
     def __setitem__(self, key: tuple[str, str], value: RobotMean) -> None:
-        if key not in self:
-            self._partners.setdefault(key[0], {})[key[1]] = None
+        partners = self._partners.get(key[0])
+        if partners is None:
+            partners = self._partners[key[0]] = {}
+        partners[key[1]] = value
         super().__setitem__(key, value)
 
     def __delitem__(self, key: tuple[str, str]) -> None:
@@ -146,9 +148,8 @@ class PairTable(dict[tuple[str, str], RobotMean]):
         if not isinstance(items, dict):
             items = dict(items)
         partners = self._partners
-        for key in items:
-            if key not in self:
-                partners.setdefault(key[0], {})[key[1]] = None
+        for key, value in items.items():
+            partners.setdefault(key[0], {})[key[1]] = value
         dict.update(self, items)
 
     def pop(self, key: tuple[str, str], *default: Any) -> Any:
@@ -173,7 +174,12 @@ class PairTable(dict[tuple[str, str], RobotMean]):
     def partners(self, robot: str) -> list[tuple[str, RobotMean]]:
         """``robot``'s pairs: (other robot, the mean difference), in the order they were made."""
         others = self._partners.get(robot)
-        return [(b, self[robot, b]) for b in others] if others else []
+        return list(others.items()) if others else []
+
+    def of(self, robot: str) -> dict[str, RobotMean] | None:
+        """``robot``'s pairs as other robot -> the mean difference (only to read, or to change a mean
+        in place: the table holds the same objects)."""
+        return self._partners.get(robot)
 
 
 @dataclass(slots=True)

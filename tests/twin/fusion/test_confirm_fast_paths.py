@@ -7,12 +7,19 @@
   pair's last comparison from the end) against a pass over every comparison.
 - :func:`twin.fusion.gates.lies_within` (which rejects a far centre before the polygon test) against the
   polygon test alone.
+- The bias notes' effect (which changes the memory's means and pairs in place) while the memory journals:
+  undone, the memory as before; kept, as without a journal.
+- The alias check of an array whose boxes the confirmation gates check next (sizes only, when those
+  gates imply the centre and height gates) against the whole alias check, both followed by the gates;
+  the gates at once (sizes against a tolerance that is infinite where an element is not resizable)
+  against the gates of an array's first sightings.
 """
 
 from __future__ import annotations
 
 import math
 import random
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -21,9 +28,20 @@ import twin.live.fuse as fuse_module
 from tests.conftest import imported
 from tests.twin.box_lab import OX, OY, box_lab
 from tests.twin.live_helpers import started
-from twin.config import load_config
+from twin.config import FusionRules, load_config
 from twin.fusion.bias import MEAN_MIN, MEAN_WEIGHT, PAIR_WEIGHT, RECENT_NS, note_sightings_at
-from twin.fusion.confirm_array import CACHE_SLACK, _cache
+from twin.fusion.confirm import only_sighting_where_it_stands
+from twin.fusion.confirm_array import (
+    CACHE_SLACK,
+    _aliases_fit,
+    _cache,
+    _canonical,
+    _gates,
+    _gates_at_once,
+    _Held,
+    _layout,
+    _only_box,
+)
 from twin.fusion.context import FusionContext
 from twin.fusion.footprints import Pose, corners, points_in_polygon
 from twin.fusion.gates import lies_within
@@ -231,6 +249,9 @@ def test_a_robots_partners_are_its_pairs_after_any_change() -> None:
         again = memory_from_json(memory.to_json()).pairs
         assert isinstance(again, PairTable)
         assert all(again.partners(r) == memory.pairs.partners(r) for r in robots)
+        for (a, b), d in memory.pairs.items():  # the same objects: a mean changed in place is both
+            partners = memory.pairs.of(a)
+            assert partners is not None and partners[b] is d
 
     for step in range(400):
         a, b = rng.sample(robots, 2)
@@ -249,3 +270,109 @@ def test_a_robots_partners_are_its_pairs_after_any_change() -> None:
             memory.pairs[a, b] = value
             memory.undo()
         check()
+
+
+@pytest.mark.parametrize("keep", [False, True])
+def test_bias_notes_while_journaled_are_undone_or_kept_as_without_a_journal(keep: bool) -> None:
+    service, _ = started()
+    live = service.live
+    robots, iris, now = [f"r{k}" for k in range(8)], [f"urn:e{i}" for i in range(12)], 2 * 10**18
+    seen = [(iri, 0.01 * k, -0.01 * k, now + k) for k, iri in enumerate(iris[:9])]
+
+    def noted(journal: bool) -> FusionMemory:
+        live.fusion = memory = _memory(3, robots, iris, now)
+        ctx = FusionContext("r0", frozenset(), live, live.states, {}, service.config.fusion, "", {}, now)
+        note_sightings_at(ctx, seen)
+        if journal:
+            memory.begin()
+        ctx.out.effects[0](memory)
+        if journal:
+            memory.keep() if keep else memory.undo()
+        return memory
+
+    plain, journaled = noted(False), noted(True)
+    before = _memory(3, robots, iris, now).to_json()
+    assert plain.to_json() != before  # the notes changed means and pairs
+    assert journaled.to_json() == (plain.to_json() if keep else before)
+    assert list(journaled.pairs.items()) == list(
+        (plain if keep else _memory(3, robots, iris, now)).pairs.items()
+    )
+
+
+def _held_row(rules: FusionRules, pose: Pose, *, resizes: bool) -> _Held:
+    c = rules.default
+    row = (pose.cx, pose.cy, pose.cz, pose.sx, pose.sy, pose.sz, pose.yaw)
+    gates = (c.confirm_distance_m, c.confirm_angle_rad, c.size_ratio, c.min_area_ratio)
+    return _Held(None, None, None, pose, None, None, rules, True, True, resizes, row, gates)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("height", "jump"), [(0.75, 2.0), (0.75, 0.1), (0.2, 2.0)])
+def test_an_arrays_alias_check_before_the_gates_decides_as_the_whole_check(
+    height: float, jump: float
+) -> None:
+    rules = FusionRules(alias_jump_m=jump)
+    rng = np.random.default_rng(int(height * 100 + jump * 10))
+    outcomes = {True: 0, False: 0}
+    relied = 0  # the whole check failed on the centre or the heights, the gates then failed too
+    for _ in range(400):
+        n = 12
+        held = [
+            Pose(x, y, height / 2, 0.6, 0.4, height, yaw)
+            for x, y, yaw in rng.uniform((0, 0, 0), (10, 10, math.pi), (n, 3)).tolist()
+        ]
+        helds = [_held_row(rules, p, resizes=bool(rng.random() < 0.7)) for p in held]
+        aliased = sorted(rng.choice(n, int(rng.integers(1, n + 1)), replace=False).tolist())
+        layout = _layout(_cache(FusionMemory(), n), "r", helds, aliased)
+        boxes = layout.held + rng.normal(0, 0.005, (n, 7))
+        for i in rng.choice(n, int(rng.integers(0, 3)), replace=False):  # a few boxes off, one way each
+            way = int(rng.integers(6))
+            if way < 2:  # the centre 3 m off (beyond the jump) or 0.3 m (beyond the gates)
+                boxes[i, 0] += (3.0, 0.3)[way] * rng.choice((-1, 1))
+            elif way == 2:  # the height
+                boxes[i, 2] += rng.choice((0.2, 0.5, 1.0))
+            elif way == 3:  # other sizes, or a smaller area
+                boxes[i, 3] *= rng.choice((1.2, 1.5, 2.0))
+            elif way == 4:
+                boxes[i, 5] *= rng.choice((0.3, 0.8))
+            else:  # the same box described turned by a quarter
+                boxes[i, [3, 4]] = boxes[i, [4, 3]]
+                boxes[i, 6] += math.pi / 2
+        pose = _canonical(boxes)
+        refs = np.hstack((np.full((n, 1), 1e6), 1e6 * layout.held))  # means at the held poses
+        gates = _gates_at_once(pose, refs, layout) is not None
+        first = SimpleNamespace(targets=[""] * n, refs=np.zeros((n, 8)), pose=pose, layout=layout)
+        assert gates == (_gates(SimpleNamespace(rules=rules), first, np.arange(n)) is not None)  # type: ignore[arg-type]
+        rows = pose if len(aliased) == n else pose[aliased]
+        whole = _aliases_fit(rows, layout, jump) and gates
+        fast = _aliases_fit(rows, layout, jump, gated=True) and gates
+        assert fast == whole
+        outcomes[whole] += 1
+        relied += _aliases_fit(rows, layout, jump, gated=True) and not _aliases_fit(rows, layout, jump)
+    assert outcomes[True] > 20 and outcomes[False] > 20
+    assert relied > 0 if (height, jump) == (0.75, 2.0) else relied == 0  # only where the gates imply them
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        {},
+        {"labels": ("a desk",)},
+        {"materials": ("oak",)},
+        {"classes": ("https://w3id.org/furn#Table",)},
+        {"keepout": True},
+        {"speed_limit": 30},
+        {"is_open": True},
+        {"removed": True},
+        {"unmerge": True},
+        {"placement": np.eye(4)},
+        {"distinct": True},
+        {"lifetime_s": 5.0},
+    ],
+)
+def test_a_box_alone_is_what_only_sighting_where_it_stands_accepts(change: dict[str, object]) -> None:
+    service, _ = started()
+    state = next(s for s in service.live.states.values() if s.ifc_class)
+    box = ObservedBox(1.0, 2.0, 0.4, 0.5, 0.4, 0.8, 0.0)
+    for ifc_class in (None, state.ifc_class):
+        r = ElementReport(state.iri, ifc_class, "ground-floor", box, **change)  # type: ignore[arg-type]
+        assert _only_box(r) == only_sighting_where_it_stands(r, state)
