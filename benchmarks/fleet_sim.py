@@ -133,6 +133,8 @@ class World:
     views: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (time, polygon), recent
     together: dict[int, int] = field(default_factory=dict)
     """Desks pushed together: the pushed one -> the one it stands against (one box for a clusterer)."""
+    ghosts: dict[str, GhostWatch] = field(default_factory=dict)
+    """The twin's elements where no object is (the sampler's): the views since that held each."""
     lock: threading.Lock = field(default_factory=threading.Lock)
 
     def cell(self, x: float, y: float) -> tuple[int, int]:
@@ -521,6 +523,72 @@ def twin_elements(client: Any, storey: str) -> dict[str, Any]:
     return out
 
 
+@dataclass
+class GhostWatch:
+    """An element where no object is, at one pose: since when the sampler found it so, and the times of
+    the views since then that held its footprint as absence asks (``views_holding``)."""
+
+    since: float
+    pose: tuple[float, float, float, float, float]  # cx, cy, sx, sy, yaw: a new pose starts afresh
+    checked: float  # views up to this time were looked at
+    held: list[float] = field(default_factory=list)
+
+
+def views_holding(pose: Any, views: list[tuple[float, np.ndarray]]) -> list[float]:
+    """The times of ``views`` (time, polygon) that should have seen an element at ``pose`` (a
+    ``twin.fusion.footprints.Pose``) as the daemon's absence rule asks: its footprint, ``VIEW_INSET_M``
+    inside its edges, wholly in the polygon by area (the simulated views carry no origin: no sight lines)."""
+    from twin.fusion.absence import VIEW_INSET_M
+    from twin.fusion.footprints import corners
+    from twin.fusion.visibility import inside_by_area
+
+    inset = corners(pose, inset=VIEW_INSET_M)[None]
+    return [t for t, polygon in views if bool(inside_by_area(inset, [polygon])[0])]
+
+
+def removable_at(held: list[float], misses: int, span_s: float) -> float | None:
+    """When views at ``held`` (times, ascending), each a miss, first give absence what it needs to remove
+    an element (``misses`` of them spread over ``span_s``), or None: not yet."""
+    held = sorted(held)
+    for i, t in enumerate(held):
+        if i + 1 >= misses and t - held[0] >= span_s:
+            return t
+    return None
+
+
+def _rules_misses() -> tuple[int, float]:
+    """The daemon's ``[fusion] misses_to_remove`` and ``miss_span_s`` (the defaults: ``fleet.toml`` keeps
+    them)."""
+    from twin.config.fusion import FusionTable
+
+    table = FusionTable()
+    return int(table.misses_to_remove), float(table.miss_span_s)
+
+
+def _watch(
+    world: World, iri: str, pose: Any, views: list[tuple[float, np.ndarray]], now: float
+) -> GhostWatch:
+    """The ghost ``iri``'s record, brought up to ``views``: started afresh when it is new or its pose
+    changed (absence counts misses of the pose it holds), the views since then that held it added."""
+    key = (round(pose.cx, 2), round(pose.cy, 2), round(pose.sx, 2), round(pose.sy, 2), round(pose.yaw, 2))
+    watch = world.ghosts.get(iri)
+    if watch is None or watch.pose != key:
+        watch = world.ghosts[iri] = GhostWatch(since=now, pose=key, checked=now)
+        return watch
+    fresh = [(t, p) for t, p in views if watch.checked < t <= now]
+    watch.held.extend(views_holding(pose, fresh))
+    watch.checked = now
+    return watch
+
+
+def viewed_ghost(watch: GhostWatch, now: float, misses: int, span_s: float) -> bool:
+    """Whether a ghost has had, since it is one, the views absence needs, ``GHOST_VIEWED_S`` ago or more:
+    fusion should have removed it (a ghost no view has held whole, as often as the rules ask, is not yet
+    decidable: counted in ``ghosts`` only)."""
+    at = removable_at(watch.held, misses, span_s)
+    return at is not None and now - at >= GHOST_VIEWED_S
+
+
 def sample(  # noqa: PLR0917
     client: Any,
     world: World,
@@ -539,9 +607,10 @@ def sample(  # noqa: PLR0917
     with world.lock:
         present = [o for o in world.objects.values() if o.present]
         world.views = [(t, p) for t, p in world.views if now - t < 60.0]
-        old_views = [p for t, p in world.views if now - t >= GHOST_VIEWED_S]
+        views = list(world.views)
     per_obj: dict[int, int] = {}
     ghosts, viewed_ghosts, clusters = [], 0, 0
+    rules = _rules_misses()
     covered: set[int] = set()
     centres = np.array([(o.x, o.y) for o in present]) if present else np.zeros((0, 2))
     for iri, (ex, ey) in elements.items():
@@ -556,8 +625,10 @@ def sample(  # noqa: PLR0917
             per_obj[best.key] = per_obj.get(best.key, 0) + 1
         else:
             ghosts.append(iri)
-            if any(_inside(np.array([[ex, ey]]), p)[0] for p in old_views):
+            if viewed_ghost(_watch(world, iri, poses[iri], views, now), now, *rules):
                 viewed_ghosts += 1
+    for iri in set(world.ghosts) - set(ghosts):  # removed, or an object stands there now
+        del world.ghosts[iri]
     duplicates = sum(n - 1 for n in per_obj.values() if n > 1)
     missing = sum(
         1
