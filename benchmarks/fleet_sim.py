@@ -15,8 +15,11 @@ as one box over both, pushed 0.8 m apart 10 s later). The truth is also applied,
 own in this process (fusion off), whose maps are the maps of the true world.
 
 Every second: the twin's IfcFurniture elements (SPARQL) against the true objects (within 0.5 m):
-duplicates, ghosts (elements where no object is), ghosts whose place a robot viewed 10 s ago or more
-(those fusion should have removed), objects missing, the navigation map's cells that differ from the
+duplicates (elements beyond an object's nearest within 0.5 m), ghosts (elements where no object is),
+and the **viewed** ones: those the views since they became one held as the daemon's absence rule asks
+(the footprint 0.1 m inside its edges wholly in a view, ``misses_to_remove`` views over ``miss_span_s``)
+10 s ago or more (fusion should have removed them; a view from before the object left, or one that held
+only part of the footprint, is no miss), objects missing, the navigation map's cells that differ from the
 true world's, and the **false-free cells**: the cells more than one cell inside a true object's
 footprint that the navigation map shows free, for objects a robot saw at least ``SETTLE_S`` ago since
 their last change (a ``late`` robot's sighting counts once its report arrives, and only if it was
@@ -608,7 +611,7 @@ def sample(  # noqa: PLR0917
         present = [o for o in world.objects.values() if o.present]
         world.views = [(t, p) for t, p in world.views if now - t < 60.0]
         views = list(world.views)
-    per_obj: dict[int, int] = {}
+    per_obj: dict[int, list[str]] = {}  # object -> the elements nearest it (within MATCH_M)
     ghosts, viewed_ghosts, clusters = [], 0, 0
     rules = _rules_misses()
     covered: set[int] = set()
@@ -622,14 +625,25 @@ def sample(  # noqa: PLR0917
         near = [o for o in present if math.dist((o.x, o.y), (ex, ey)) <= MATCH_M]
         if near:
             best = min(near, key=lambda o: math.dist((o.x, o.y), (ex, ey)))
-            per_obj[best.key] = per_obj.get(best.key, 0) + 1
+            per_obj.setdefault(best.key, []).append(iri)
         else:
             ghosts.append(iri)
             if viewed_ghost(_watch(world, iri, poses[iri], views, now), now, *rules):
                 viewed_ghosts += 1
-    for iri in set(world.ghosts) - set(ghosts):  # removed, or an object stands there now
-        del world.ghosts[iri]
-    duplicates = sum(n - 1 for n in per_obj.values() if n > 1)
+    duplicate_iris = {}  # object -> the elements beyond its nearest: each as a ghost would be
+    viewed_duplicates = 0
+    for key, iris in per_obj.items():
+        if len(iris) < 2:
+            continue
+        o = world.objects[key]
+        extra = sorted(iris, key=lambda i: math.dist((o.x, o.y), elements[i]))[1:]
+        duplicate_iris[key] = extra
+        for iri in extra:
+            if viewed_ghost(_watch(world, iri, poses[iri], views, now), now, *rules):
+                viewed_duplicates += 1
+    for iri in set(world.ghosts) - set(ghosts) - {i for e in duplicate_iris.values() for i in e}:
+        del world.ghosts[iri]  # removed, or an object of its own stands there now
+    duplicates = sum(len(iris) - 1 for iris in per_obj.values())
     missing = sum(
         1
         for o in present
@@ -710,6 +724,8 @@ def sample(  # noqa: PLR0917
         "elements": len(elements),
         "objects": len(present),
         "duplicates": duplicates,
+        "viewed_duplicates": viewed_duplicates,
+        "duplicate_iris": {str(k): v for k, v in sorted(duplicate_iris.items())},
         "clusters": clusters,
         "ghosts": len(ghosts),
         "viewed_ghosts": viewed_ghosts,
@@ -1119,6 +1135,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "final": final,
         "max_duplicates": max((s["duplicates"] for s in late), default=0),
         "max_viewed_ghosts": max((s["viewed_ghosts"] for s in late), default=0),
+        "max_viewed_duplicates": max((s["viewed_duplicates"] for s in late), default=0),
+        "samples_with_viewed_ghosts": sum(1 for s in late if s["viewed_ghosts"]),
+        "samples_with_viewed_duplicates": sum(1 for s in late if s["viewed_duplicates"]),
+        "samples_with_ghosts": sum(1 for s in late if s["ghosts"]),
+        "samples_with_duplicates": sum(1 for s in late if s["duplicates"]),
         "mean_cells_differ": float(np.mean([s["cells_differ"] for s in late])) if late else 0.0,
         "max_false_free_cells": max((s["false_free_cells"] for s in samples), default=0),
         "max_false_free_unobservable": max((s["false_free_unobservable"] for s in samples), default=0),
@@ -1177,7 +1198,7 @@ def plot(result: dict[str, Any], path: Path) -> None:
     ax[0].plot(t, [x["elements"] for x in s], label="twin elements")
     ax[0].plot(t, [x["duplicates"] for x in s], label="duplicates")
     ax[0].plot(t, [x["ghosts"] for x in s], label="ghosts")
-    ax[0].plot(t, [x["viewed_ghosts"] for x in s], label="ghosts viewed 10 s ago")
+    ax[0].plot(t, [x["viewed_ghosts"] for x in s], label="ghosts absence could remove 10 s ago")
     ax[0].legend(loc="upper right", fontsize=8)
     ax[1].plot(t, [x["revision"] for x in s], label="revision")
     ax[1].plot(t, [x["cells_differ"] for x in s], label="navigation cells differing from the truth")
