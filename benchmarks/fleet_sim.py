@@ -788,7 +788,19 @@ def tuck_chair(  # noqa: PLR0917
 ) -> tuple[int, int] | None:
     """A new chair tucked under a present table-sized object (a 0.45 m chair inside its footprint,
     taller than it): returns (chair, table), or None when no object is large enough."""
+    def spot(t: Obj) -> tuple[float, float]:
+        shift = t.sx / 2 - CHAIR[0] / 2 - 0.05
+        return t.x + shift * math.cos(t.yaw), t.y + shift * math.sin(t.yaw)
+
     tables = [o for o in world.objects.values() if o.present and o.sx >= 0.75 and o.sy >= 0.5]
+    tables = [  # never a second chair where one is still tucked (one never pulled out: no room beside)
+        t
+        for t in tables
+        if not any(
+            o.present and o.key != t.key and math.dist((o.x, o.y), spot(t)) < CHAIR[0]
+            for o in world.objects.values()
+        )
+    ]
     if not tables:
         return None
     t = rng.choice(tables)
