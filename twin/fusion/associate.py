@@ -13,6 +13,7 @@ Example::
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal
 
@@ -32,6 +33,8 @@ from twin.fusion.tentative import held_back
 from twin.records import ElementReport
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     from twin.fusion.context import FusionContext
     from twin.live.state import ElementState
 
@@ -76,6 +79,31 @@ def alias_fits(
     if sizes_agree(rules, pose, held):
         return "fits"
     return "within" if lies_within(pose, held, margin_m=rules.confirm_distance_m) else "fails"
+
+
+def contested_aliases(ctx: FusionContext, reports: Sequence[ElementReport]) -> set[str]:
+    """The robot IRIs of ``reports`` (one observation) whose alias names an element that another of
+    its reports names too: an element is one object, so it keeps the report by its own IRI, else the one
+    nearest the pose it holds; the others' aliases are contested (dropped, associated afresh). Two
+    chairs once seen as one never drag their element back and forth between them."""
+    claims: dict[str, list[ElementReport]] = {}
+    for r in reports:
+        if r.box is None or r.unmerge:
+            continue
+        alias = ctx.memory.aliases.get(r.iri)
+        claims.setdefault(r.iri if alias is None else alias.target, []).append(r)
+    out: set[str] = set()
+    for target, rs in claims.items():
+        if len(rs) < 2 or all(r.iri == target for r in rs):
+            continue
+        held = ctx.held_pose(target)
+        if held is None:
+            continue
+        own = [r for r in rs if r.iri == target]
+        far = [math.hypot(r.box.cx - held.cx, r.box.cy - held.cy) if r.box else math.inf for r in rs]
+        keep = own[0] if own else rs[far.index(min(far))]
+        out.update(r.iri for r in rs if r is not keep)
+    return out
 
 
 def drop_failed_alias(ctx: FusionContext, r: ElementReport, target: str) -> None:

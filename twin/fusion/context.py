@@ -110,6 +110,9 @@ class FusionContext:
     """Elements this observation describes (never missed by its view)."""
     used: set[str] = field(default_factory=set)
     """Elements already matched by a report of this observation (matched at most once)."""
+    contested: set[str] = field(default_factory=set)
+    """Robot IRIs whose alias names an element another report of this observation is nearer
+    (:func:`twin.fusion.associate.contested_aliases`): dropped, associated afresh."""
     box_list: list[tuple[str, ElementReport, Pose]] = field(default_factory=list)
     """:attr:`boxes` made so far."""
     boxes_later: Callable[[], list[tuple[str, ElementReport, Pose]]] | None = None

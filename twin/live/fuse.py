@@ -39,6 +39,7 @@ from twin.fusion.associate import (
     adopt,
     alias_fits,
     associate,
+    contested_aliases,
     drop_failed_alias,
     new_element,
     seen_within,
@@ -102,7 +103,9 @@ def fuse(
         ctx.streaming = streams(live.fusion, robot, sense_ns=sense, rules=rules)
         ctx.out.effects.append(looked(robot, sense))
     senses = [clock.sense(r.sense_ns) if r.sense_ns is not None else sense for r in obs.reports]
-    if not confirm_array(ctx, obs.reports, senses):  # the common case at once: all confirmations
+    if rules.enabled:
+        ctx.contested = contested_aliases(ctx, obs.reports)  # one element, one object per observation
+    if ctx.contested or not confirm_array(ctx, obs.reports, senses):  # the common case: confirmations
         for r, s in zip(obs.reports, senses, strict=True):
             _fuse_report(ctx, r, s)
     if view is not None and rules.enabled:
@@ -184,7 +187,7 @@ def _checked_alias(  # noqa: PLR0917 (the report's state so far)
     adapter does). Returns (target, alias, state), None when decided here."""
     if alias is None or state is None or state.removed or pose is None or not ctx.rules.enabled:
         return target, alias, state
-    fit = alias_fits(ctx, r, state, pose)  # an alias is checked, not trusted
+    fit = "fails" if r.iri in ctx.contested else alias_fits(ctx, r, state, pose)  # checked, not trusted
     if fit == "within":
         seen_within(ctx, r, target, sense)  # a partly hidden view of it: no move
         return None

@@ -126,3 +126,19 @@ def test_a_detector_of_ifc_furniture_that_resolves_to_the_imported_table_also_mi
     for i in range(1, 5):  # the table is gone: the same detector's views of room A miss it
         observe(service, "robot1", view_only(t + i * 5 * 10**8, ROOM_A, detects=("IfcFurniture",)))
     assert service.states[TABLE].removed
+
+
+def test_two_chairs_once_seen_as_one_never_drag_their_element_back_and_forth_when_one_moves() -> None:
+    service, _ = started()
+    chair = {"sx": 0.5, "sy": 0.5, "sz": 0.9}
+    observe(service, "robot1", box("urn:robot1:chair", 5.0, 2.0, **chair))
+    for iri in ("urn:robot2:7", "urn:robot2:8"):  # two tracks of what looked like one chair
+        assert observe(service, "robot2", box(iri, 5.02, 2.0, **chair)).body["resolved"] == {
+            iri: "urn:robot1:chair"
+        }
+    both = box("urn:robot2:7", 5.0, 2.0, **chair) + box("urn:robot2:8", 6.5, 2.0, **chair).split(b"\n", 1)[1]
+    first = observe(service, "robot2", both)  # one stayed, one moved 1.5 m (within alias_jump_m)
+    assert first.body["upserted"] == ["urn:robot2:8"], first.body
+    again = observe(service, "robot2", both)
+    assert again.body.get("unchanged") is True and not again.body["upserted"], again.body
+    assert cell(service, 5.0, 2.0) == 100 and cell(service, 6.5, 2.0) == 100
