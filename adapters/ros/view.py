@@ -332,6 +332,19 @@ def _box_entry(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) -> F
     c, s, lx, ly, hx, hy = (v[0][which] for v in (c, s, lx, ly, hx, hy))
     dx = cos_a[rays] * c + sin_a[rays] * s
     dy = -cos_a[rays] * s + sin_a[rays] * c
+    t_in, hit = _slab_entry((lx, ly), (hx, hy), (dx, dy))
+    np.minimum.at(out, rays[hit], t_in[hit])
+    return out
+
+
+_Pair = tuple[FloatArray, FloatArray]
+
+
+def _slab_entry(sensor: _Pair, half: _Pair, ray: _Pair) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """The slab test of rays against boxes in each box's frame (broadcast): the sensor at ``(lx, ly)``,
+    the box's half sizes ``(hx, hy)``, the ray's direction ``(dx, dy)``. Returns the distance at which
+    each ray enters its box and whether it does (ahead of the sensor, the sensor not inside the box)."""
+    (lx, ly), (hx, hy), (dx, dy) = sensor, half, ray
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         t1x, t2x = (-hx - lx) / dx, (hx - lx) / dx
         t1y, t2y = (-hy - ly) / dy, (hy - ly) / dy
@@ -342,10 +355,8 @@ def _box_entry(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) -> F
     tminy = np.where(dy == 0, np.where(inside_y, -np.inf, np.inf), np.minimum(t1y, t2y))
     tmaxy = np.where(dy == 0, np.where(inside_y, np.inf, -np.inf), np.maximum(t1y, t2y))
     t_in, t_out = np.maximum(tminx, tminy), np.minimum(tmaxx, tmaxy)
-    holds_sensor = inside_x & inside_y
-    hit = (t_in <= t_out) & (t_in >= 0) & ~holds_sensor
-    np.minimum.at(out, rays[hit], t_in[hit])
-    return out
+    hit = (t_in <= t_out) & (t_in >= 0) & ~(inside_x & inside_y)
+    return t_in, hit
 
 
 def _pairs(
@@ -387,19 +398,7 @@ def _box_entry_all(ox: float, oy: float, angles: FloatArray, boxes: FloatArray) 
     lx, ly = (ox - cx) * c + (oy - cy) * s, -(ox - cx) * s + (oy - cy) * c  # sensor in the box's frame
     dx = np.cos(angles)[:, None] * c + np.sin(angles)[:, None] * s
     dy = -np.cos(angles)[:, None] * s + np.sin(angles)[:, None] * c
-    hx, hy = sx / 2, sy / 2
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        t1x, t2x = (-hx - lx) / dx, (hx - lx) / dx
-        t1y, t2y = (-hy - ly) / dy, (hy - ly) / dy
-    inside_x = np.abs(lx) < hx
-    inside_y = np.abs(ly) < hy
-    tminx = np.where(dx == 0, np.where(inside_x, -np.inf, np.inf), np.minimum(t1x, t2x))
-    tmaxx = np.where(dx == 0, np.where(inside_x, np.inf, -np.inf), np.maximum(t1x, t2x))
-    tminy = np.where(dy == 0, np.where(inside_y, -np.inf, np.inf), np.minimum(t1y, t2y))
-    tmaxy = np.where(dy == 0, np.where(inside_y, np.inf, -np.inf), np.maximum(t1y, t2y))
-    t_in, t_out = np.maximum(tminx, tminy), np.minimum(tmaxx, tmaxy)
-    holds_sensor = inside_x & inside_y
-    hit = (t_in <= t_out) & (t_in >= 0) & ~holds_sensor
+    t_in, hit = _slab_entry((lx, ly), (sx / 2, sy / 2), (dx, dy))
     return np.asarray(np.where(hit, t_in, np.inf).min(axis=1))
 
 

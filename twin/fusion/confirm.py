@@ -148,8 +148,9 @@ def only_sighting(r: ElementReport, state: ElementState) -> bool:
     )
 
 
-def only_sighting_where_it_stands(r: ElementReport, state: ElementState) -> bool:
-    """:func:`only_sighting` of ``r`` without its box and storey (without making that report)."""
+def only_a_box(r: ElementReport) -> bool:
+    """Whether ``r`` says nothing but where the element stands (and its class): no geometry, placement,
+    removal, door, zone, label, material, class or unmerge."""
     return (
         r.geometry is None
         and r.placement is None
@@ -161,12 +162,13 @@ def only_sighting_where_it_stands(r: ElementReport, state: ElementState) -> bool
         and not r.materials
         and not r.classes
         and not r.unmerge
-        and (
-            r.ifc_class is None
-            or r.ifc_class in state.ifc_types
-            or r.ifc_class.lower() == state.ifc_class.lower()
-        )
     )
+
+
+def only_sighting_where_it_stands(r: ElementReport, state: ElementState) -> bool:
+    """:func:`only_sighting` of ``r`` without its box and storey (without making that report)."""
+    c = r.ifc_class
+    return only_a_box(r) and (c is None or c in state.ifc_types or c.lower() == state.ifc_class.lower())
 
 
 def confirmation(

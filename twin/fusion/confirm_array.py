@@ -40,7 +40,7 @@ import numpy.typing as npt
 from twin.config import FusionRules
 from twin.fusion.bias import sightings_noted, unbiased, update_pairs
 from twin.fusion.clocks import note_stale
-from twin.fusion.confirm import box_of, resizable
+from twin.fusion.confirm import box_of, only_a_box, resizable
 from twin.fusion.dispute import older_disagreement, still_covers
 from twin.fusion.effects import Effect
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
@@ -211,7 +211,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
             or h.rules is not rules
         ):
             h = held_of[target] = _held(ctx, r, state, shape, cover)
-        if not h.ok or not _only_box(r):
+        if not h.ok or not only_a_box(r):
             return None  # not a candidate, disputed (each sighting takes a side), a change besides the box
         key = r.storey or state.storey
         if key is None:
@@ -259,22 +259,6 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         return None
     return _Array(
         given, targets, layout, keys, list(senses), stale, raw, pose, np.array(refs, dtype=np.float64)
-    )
-
-
-def _only_box(r: ElementReport) -> bool:
-    """:func:`~twin.fusion.confirm.only_sighting_where_it_stands` but for the class (:attr:`_Held.ok`)."""
-    return (
-        r.geometry is None
-        and r.placement is None
-        and not r.removed
-        and r.is_open is None
-        and r.keepout is None
-        and r.speed_limit is None
-        and not r.labels
-        and not r.materials
-        and not r.classes
-        and not r.unmerge
     )
 
 

@@ -30,7 +30,6 @@ from tests.twin.box_lab import OX, OY, box_lab
 from tests.twin.live_helpers import started
 from twin.config import FusionRules, load_config
 from twin.fusion.bias import MEAN_MIN, MEAN_WEIGHT, PAIR_WEIGHT, RECENT_NS, note_sightings_at
-from twin.fusion.confirm import only_sighting_where_it_stands
 from twin.fusion.confirm_array import (
     CACHE_SLACK,
     _aliases_fit,
@@ -40,7 +39,6 @@ from twin.fusion.confirm_array import (
     _gates_at_once,
     _Held,
     _layout,
-    _only_box,
 )
 from twin.fusion.context import FusionContext
 from twin.fusion.footprints import Pose, corners, points_in_polygon
@@ -350,29 +348,3 @@ def test_an_arrays_alias_check_before_the_gates_decides_as_the_whole_check(
         relied += _aliases_fit(rows, layout, jump, gated=True) and not _aliases_fit(rows, layout, jump)
     assert outcomes[True] > 20 and outcomes[False] > 20
     assert relied > 0 if (height, jump) == (0.75, 2.0) else relied == 0  # only where the gates imply them
-
-
-@pytest.mark.parametrize(
-    "change",
-    [
-        {},
-        {"labels": ("a desk",)},
-        {"materials": ("oak",)},
-        {"classes": ("https://w3id.org/furn#Table",)},
-        {"keepout": True},
-        {"speed_limit": 30},
-        {"is_open": True},
-        {"removed": True},
-        {"unmerge": True},
-        {"placement": np.eye(4)},
-        {"distinct": True},
-        {"lifetime_s": 5.0},
-    ],
-)
-def test_a_box_alone_is_what_only_sighting_where_it_stands_accepts(change: dict[str, object]) -> None:
-    service, _ = started()
-    state = next(s for s in service.live.states.values() if s.ifc_class)
-    box = ObservedBox(1.0, 2.0, 0.4, 0.5, 0.4, 0.8, 0.0)
-    for ifc_class in (None, state.ifc_class):
-        r = ElementReport(state.iri, ifc_class, "ground-floor", box, **change)  # type: ignore[arg-type]
-        assert _only_box(r) == only_sighting_where_it_stands(r, state)
