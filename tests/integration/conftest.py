@@ -61,8 +61,11 @@ class Daemon:
             code, _ = self.stop(sig, timeout)
         except subprocess.TimeoutExpired:
             self.process.kill()
-            self.process.wait(timeout=10)
-            raise AssertionError(f"the daemon did not stop within {timeout} s") from None
+            out, _ = self.process.communicate(timeout=10)
+            self.log += out.splitlines()
+            raise AssertionError(
+                f"the daemon did not stop within {timeout} s; its last lines:\n" + "\n".join(self.log[-40:])
+            ) from None
         fatal = [line for line in self.log if "FATAL" in line]
         assert code == 0 and not fatal, f"stop by {sig}: exit {code}:\n" + "\n".join(self.log[-30:])
 
