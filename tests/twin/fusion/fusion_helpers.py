@@ -2,13 +2,55 @@
 
 from __future__ import annotations
 
+import contextlib
 import datetime
+from collections.abc import Iterator
+from dataclasses import dataclass
 
+import twin.live.fuse as fuse_module
 from tests.twin.box_lab import OX, OY
 from tests.twin.live_helpers import PREFIX, box_turtle
 from twin.live import TwinService
 
 FURN = "http://pi.pauwel.be/voc/furniture#"
+
+
+class Clock:
+    """A service's clock that the test moves (``clock.ns += ...``)."""
+
+    def __init__(self) -> None:
+        self.ns = 1_800_000_000 * 10**9
+
+    def __call__(self) -> int:
+        return self.ns
+
+
+@dataclass
+class Settled:
+    """How many arrays :func:`~twin.fusion.confirm_array.confirm_array` settled at once."""
+
+    arrays: int = 0
+
+
+@contextlib.contextmanager
+def confirmations_at_once(enabled: bool) -> Iterator[Settled]:
+    """Within: fusion's confirmations at once counted (``enabled``) or never taken (every report goes
+    through the per-report rules), to compare both paths on the same script."""
+    real = fuse_module.confirm_array
+    settled = Settled()
+
+    def counted(*args: object, **kw: object) -> bool:
+        ok = enabled and real(*args, **kw)  # type: ignore[arg-type]
+        settled.arrays += ok
+        return ok
+
+    fuse_module.confirm_array = counted  # type: ignore[assignment]
+    try:
+        yield settled
+    finally:
+        fuse_module.confirm_array = real
+
+
 NAV = ("ground-floor", "lab-navigation")
 
 

@@ -14,9 +14,9 @@ import random
 import numpy as np
 import pytest
 
-import twin.live.fuse as fuse_module
 from tests.conftest import imported
 from tests.twin.box_lab import OX, OY, box_lab
+from tests.twin.fusion.fusion_helpers import Clock, confirmations_at_once
 from twin.config import load_config
 from twin.live import Reply, TwinService
 from twin.records import ElementReport, Observation, ObservedBox, ObservedView
@@ -27,14 +27,6 @@ SPOTS = [(8.5 + 0.9 * c, 0.6 + 1.0 * r) for r in range(3) for c in range(4)]
 ROOM_B = np.array([[OX + x, OY + y] for x, y in ((8.1, 0.1), (11.9, 0.1), (11.9, 3.9), (8.1, 3.9))])
 BIAS = {"robot1": 0.0, "robot2": 0.0, "robot3": 0.2}
 """robot3's detector puts everything 20 cm east (a bias the others' sightings reveal)."""
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.ns = 1_800_000_000 * 10**9
-
-    def __call__(self) -> int:
-        return self.ns
 
 
 def _array(rng: random.Random, robot: str, spots: list[tuple[float, float]], sense: int) -> Observation:
@@ -62,18 +54,8 @@ def _run(shortcut: bool) -> tuple[list[dict[str, object]], TwinService, int]:
     clock = Clock()
     service = TwinService(imported(box_lab()), load_config(), clock=clock)
     service.start()
-    settled = 0
-    real = fuse_module.confirm_array
-
-    def counted(*args: object, **kw: object) -> bool:
-        nonlocal settled
-        ok = shortcut and real(*args, **kw)  # type: ignore[arg-type]
-        settled += ok
-        return ok
-
-    fuse_module.confirm_array = counted  # type: ignore[assignment]
     replies: list[Reply] = []
-    try:
+    with confirmations_at_once(shortcut) as settled:
         rng = random.Random(7)
         spots = list(SPOTS)
         for step in range(600):
@@ -88,9 +70,7 @@ def _run(shortcut: bool) -> tuple[list[dict[str, object]], TwinService, int]:
             obs = _array(rng, robot, spots, clock.ns - (70_000_000 if late else 20_000_000))
             service.submit_observation(robot, obs, replies.append)
             service.process()
-    finally:
-        fuse_module.confirm_array = real
-    return [r.body for r in replies], service, settled
+    return [r.body for r in replies], service, settled.arrays
 
 
 @pytest.fixture(scope="module")

@@ -24,9 +24,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-import twin.live.fuse as fuse_module
 from tests.conftest import imported
 from tests.twin.box_lab import OX, OY, box_lab
+from tests.twin.fusion.fusion_helpers import Clock, confirmations_at_once
 from tests.twin.live_helpers import started
 from twin.config import FusionRules, load_config
 from twin.fusion.bias import MEAN_MIN, MEAN_WEIGHT, PAIR_WEIGHT, RECENT_NS, note_sightings_at
@@ -52,14 +52,6 @@ SPOTS = [(8.6 + 0.9 * c, 0.6 + 0.9 * r) for r in range(4) for c in range(4)]
 """16 table spots in Room B, storey frame."""
 
 
-class Clock:
-    def __init__(self) -> None:
-        self.ns = 1_800_000_000 * 10**9
-
-    def __call__(self) -> int:
-        return self.ns
-
-
 def _fleet(seed: int, shortcut: bool, steps: int) -> tuple[list[dict[str, object]], TwinService, int]:
     """``steps`` arrays of a random fleet of six robots on 16 tables (robot0 makes them), to a service
     with confirmations at once on or off (the per-report rules for every report)."""
@@ -72,18 +64,8 @@ def _fleet(seed: int, shortcut: bool, steps: int) -> tuple[list[dict[str, object
     clock = Clock()
     service = TwinService(imported(box_lab()), load_config(), clock=clock)
     service.start()
-    settled = 0
-    real = fuse_module.confirm_array
-
-    def counted(*args: object, **kw: object) -> bool:
-        nonlocal settled
-        ok = shortcut and real(*args, **kw)  # type: ignore[arg-type]
-        settled += ok
-        return ok
-
-    fuse_module.confirm_array = counted  # type: ignore[assignment]
     replies: list[Reply] = []
-    try:
+    with confirmations_at_once(shortcut) as settled:
         for step in range(steps):
             clock.ns += 25_000_000
             robot = robots[0] if step < 2 else rng.choice(robots)
@@ -115,9 +97,7 @@ def _fleet(seed: int, shortcut: bool, steps: int) -> tuple[list[dict[str, object
             )
             service.submit_observation(robot, Observation(tuple(reports), view), replies.append)
             service.process()
-    finally:
-        fuse_module.confirm_array = real
-    return [r.body for r in replies], service, settled
+    return [r.body for r in replies], service, settled.arrays
 
 
 def test_the_confirmations_cache_is_emptied_once_it_outgrows_the_twin() -> None:
