@@ -17,7 +17,6 @@ import json
 import os
 import random
 import re
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -65,35 +64,11 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def thread_cpu(pid: int) -> dict[int, tuple[str, float]]:
-    """Each of the process's threads: its id, its name (``comm``) and its user + system CPU seconds."""
-    out = {}
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        try:
-            text = (task / "stat").read_text()
-        except OSError:  # ended meanwhile
-            continue
-        head, tail = text.rsplit(")", 1)
-        fields = tail.split()
-        out[int(task.name)] = (
-            head.split("(", 1)[1],
-            (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK"),
-        )
-    return out
-
-
 def python_thread_names(pid: int) -> dict[int, str]:
     """The Python threads' names by thread id (``py-spy dump``; empty without py-spy)."""
-    spy = shutil.which("py-spy") or str(Path(sys.executable).parent / "py-spy")
-    try:
-        text = subprocess.run(
-            [spy, "dump", "--pid", str(pid)], check=False, capture_output=True, text=True, timeout=30
-        ).stdout
-    except (OSError, subprocess.SubprocessError):
-        return {}
     return {
         int(m.group(1)): m.group(2)
-        for m in re.finditer(r'^Thread (?:0x)?(\d+) \([^)]*\): "([^"]*)"', text, re.M)
+        for m in re.finditer(r'^Thread (?:0x)?(\d+) \([^)]*\): "([^"]*)"', live.py_spy_dump(pid), re.M)
     }
 
 
@@ -147,13 +122,13 @@ def run(fusion: bool, args: argparse.Namespace) -> dict[str, Any]:
         ]
         time.sleep(max(0.0, start_at - time.time()))
         cpu0 = cpu_seconds(daemon.pid)
-        threads0 = thread_cpu(daemon.pid)
+        threads0 = live.thread_cpu(daemon.pid)
         results = [
             json.loads((c.communicate(timeout=args.duration + 120)[0] or "{}").splitlines()[-1])
             for c in children
         ]
         cpu = cpu_seconds(daemon.pid) - cpu0
-        threads = by_thread(daemon.pid, threads0, thread_cpu(daemon.pid)) if args.threads else {}
+        threads = by_thread(daemon.pid, threads0, live.thread_cpu(daemon.pid)) if args.threads else {}
     finally:
         daemon.terminate()
         daemon.wait(timeout=30)

@@ -62,6 +62,33 @@ def _proc_mb(pid: int, field: str) -> float:
     return 0.0
 
 
+def thread_cpu(pid: int) -> dict[int, tuple[str, float]]:
+    """Each thread of ``pid``: its name as the system knows it (Zenoh's runtime threads are named,
+    e.g. ``rx-0``, ``acc-0``; Python's threads keep the process's name) and its CPU seconds, from
+    ``schedstat`` (nanoseconds: a hundred threads that run briefly each are not lost to the ticks of
+    ``stat``)."""
+    out: dict[int, tuple[str, float]] = {}
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            text = Path(f"/proc/{pid}/task/{tid}/stat").read_text()
+            ns = int(Path(f"/proc/{pid}/task/{tid}/schedstat").read_text().split()[0])
+        except (OSError, ValueError, IndexError):  # ended meanwhile
+            continue
+        out[int(tid)] = (text[text.index("(") + 1 : text.rindex(")")], ns / 1e9)
+    return out
+
+
+def py_spy_dump(pid: int) -> str:
+    """``py-spy dump`` of ``pid``'s Python threads (their names and stacks; empty without py-spy)."""
+    spy = shutil.which("py-spy") or str(Path(sys.executable).parent / "py-spy")
+    try:
+        return subprocess.run(
+            [spy, "dump", "--pid", str(pid)], check=False, capture_output=True, text=True, timeout=30
+        ).stdout
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
 def serve(*args: str) -> tuple[subprocess.Popen[str], str]:
     """Start ``twin serve ARGS`` and wait for its "serving" line; return the process and that line."""
     daemon = subprocess.Popen(

@@ -164,36 +164,11 @@ def _cpu_s(pid: int, tid: int | None = None) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _threads_cpu_s(pid: int) -> dict[int, tuple[str, float]]:
-    """Each thread of ``pid``: its name as the system knows it (Zenoh's runtime threads are named,
-    e.g. ``rx-0``, ``acc-0``; Python's threads keep the process's name) and its CPU seconds, from
-    ``schedstat`` (nanoseconds: a hundred threads that run briefly each are not lost to the ticks of
-    ``stat``)."""
-    out: dict[int, tuple[str, float]] = {}
-    for tid in os.listdir(f"/proc/{pid}/task"):
-        try:
-            text = Path(f"/proc/{pid}/task/{tid}/stat").read_text()
-            ns = int(Path(f"/proc/{pid}/task/{tid}/schedstat").read_text().split()[0])
-        except (OSError, ValueError, IndexError):
-            continue
-        name = text[text.index("(") + 1 : text.rindex(")")]
-        out[int(tid)] = (name, ns / 1e9)
-    return out
-
-
 def _python_threads(pid: int) -> dict[int, str]:
     """The daemon's Python threads by OS thread id, each named by its group: its Python name
     (``ros-ingest-pool``, ``ros-ingest-send-0``, ...; a numbered suffix dropped) or, for Zenoh's callback
     threads, ``zenoh callbacks`` (their stack holds a callback); empty if ``py-spy`` is not at hand."""
-    import shutil
-
-    spy = shutil.which("py-spy") or str(Path(sys.executable).parent / "py-spy")
-    try:
-        text = subprocess.run(
-            [spy, "dump", "--pid", str(pid)], check=False, capture_output=True, text=True, timeout=30
-        ).stdout
-    except (OSError, subprocess.SubprocessError):
-        return {}
+    text = live.py_spy_dump(pid)
     out: dict[int, str] = {}
     for block in re.split(r"\n(?=Thread )", text):
         m = re.match(r'Thread (\d+) \([^)]*\)(?:: "([^"]*)")?', block)
@@ -303,7 +278,7 @@ def run(
         time.sleep(warmup)
         s0, c0, k0, w0 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
         m0 = _cpu_s(daemon.pid, daemon.pid)  # the main thread: the writer (`TwinService.serve_forever`)
-        t0 = _threads_cpu_s(daemon.pid)
+        t0 = live.thread_cpu(daemon.pid)
         depths: list[tuple[int, int]] = []
         while time.monotonic() - t_start < duration - 0.5:
             time.sleep(1.0)
@@ -311,7 +286,7 @@ def run(
             depths.append((int(s["ros_ingest"]["queue_depth"]), int(s["queue_depth"])))
         s1, c1, k1, w1 = _status(endpoint), _cpu_s(daemon.pid), _children_cpu_s(daemon.pid), time.monotonic()
         m1 = _cpu_s(daemon.pid, daemon.pid)
-        t1 = _threads_cpu_s(daemon.pid)
+        t1 = live.thread_cpu(daemon.pid)
         named = _python_threads(daemon.pid)
         for pub in pubs:
             pub.wait(timeout=30)
