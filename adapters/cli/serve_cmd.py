@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import faulthandler
 import gc
 import logging
 import multiprocessing
@@ -122,6 +123,10 @@ STOP_TIMED_OUT = 124
 """The exit code of a stop that did not end within ``[serve] stop_timeout_s`` (as timeout(1) exits)."""
 INTERRUPTED = 130
 """The exit code of a start-up interrupted by SIGINT or SIGTERM (as the other commands)."""
+STACKS_SIGNAL = signal.SIGUSR1
+"""The signal on which the daemon writes every Python thread's stack to stderr and runs on (Python's
+:mod:`faulthandler`, written from the signal handler: it works when the threads are stuck, even in a
+native call that holds the GIL). ``kill -USR1 PID`` when a daemon does not answer or does not stop."""
 
 
 class _Signals:
@@ -244,6 +249,7 @@ def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
     signals = _Signals()
     signal.signal(signal.SIGINT, signals)
     signal.signal(signal.SIGTERM, signals)
+    faulthandler.register(STACKS_SIGNAL, all_threads=True)  # `kill -USR1 PID`: every thread's stack
     try:
         return _serve(args, cfg, signals)
     except KeyboardInterrupt:  # during start-up: what was opened is closed again on the way out

@@ -60,11 +60,14 @@ class Daemon:
         try:
             code, _ = self.stop(sig, timeout)
         except subprocess.TimeoutExpired:
+            self.process.send_signal(signal.SIGUSR1)  # the daemon writes every thread's stack (faulthandler)
+            time.sleep(2.0)
             self.process.kill()
             out, _ = self.process.communicate(timeout=10)
             self.log += out.splitlines()
             raise AssertionError(
-                f"the daemon did not stop within {timeout} s; its last lines:\n" + "\n".join(self.log[-40:])
+                f"the daemon did not stop within {timeout} s; its last lines and its threads' stacks:\n"
+                + "\n".join(self.log[-200:])
             ) from None
         fatal = [line for line in self.log if "FATAL" in line]
         assert code == 0 and not fatal, f"stop by {sig}: exit {code}:\n" + "\n".join(self.log[-30:])

@@ -110,3 +110,20 @@ def test_a_stop_waits_for_an_abandoned_query_that_ends_in_time_and_exits_0(
     code, seconds = d.stop(signal.SIGINT, timeout=60)
     assert code == 0 and any("stopped cleanly" in line for line in d.log), d.log
     assert seconds >= 0.4  # it waited for the query's worker
+
+
+def test_sigusr1_writes_every_threads_stack_and_the_daemon_serves_on_and_stops_cleanly(
+    fresh_store: Path,
+) -> None:
+    from tests.integration.conftest import lines_until
+
+    d = start_daemon(fresh_store, "--no-record", "--no-snapshot")
+    try:
+        d.process.send_signal(signal.SIGUSR1)
+        lines = lines_until(d, lambda line: "serve_forever" in line, timeout_s=10)
+        threads = [line for line in lines if line.startswith(("Thread 0x", "Current thread 0x"))]
+        assert len(threads) >= 2 and any("serve_forever" in line for line in lines), "\n".join(lines)
+        with TwinClient.connect([d.endpoint]) as client:
+            assert client.status()["revision"] == 0
+    finally:
+        d.stop_cleanly()
