@@ -12,6 +12,7 @@ import logging
 import multiprocessing
 import os
 import signal
+import socket
 import sys
 import threading
 import time
@@ -131,19 +132,70 @@ native call that holds the GIL). ``kill -USR1 PID`` when a daemon does not answe
 
 class _Signals:
     """SIGINT and SIGTERM: during start-up they interrupt it (KeyboardInterrupt, exit 130); once the
-    daemon serves, they ask for a clean stop (:attr:`stop`). A second signal during a stop is ignored."""
+    daemon serves, they ask for a clean stop (:attr:`stop`). A second signal during a stop is ignored.
 
-    def __init__(self) -> None:
+    Python runs a signal's handler on the main thread, between two bytecodes: a main thread held in a
+    native call would not see the signal. So the C handler also writes the signal's number to a socket
+    (:func:`signal.set_wakeup_fd`) that a thread of its own reads: it asks for the stop too, and arms
+    :data:`LAST_RESORT_S` after it, :mod:`faulthandler`'s native timer that writes every thread's stack
+    and ends the process (code 1) should the stop not end, even with the GIL held. Example::
+
+        signals = _Signals(stop_timeout_s=10.0)
+        signals.install()  # the handlers, the wakeup socket and its thread (as long as the process)
+        signals.stop.wait()
+    """
+
+    def __init__(self, stop_timeout_s: float, *, margin_s: float | None = None) -> None:
         self.stop = threading.Event()
         self.serving = False
+        self.last_resort_s = 2 * stop_timeout_s + (LAST_RESORT_S if margin_s is None else margin_s)
+        self._lock = threading.RLock()  # the main thread's handler may run again inside it
+        self._interrupted = False
+        self._reader: socket.socket | None = None
+        self._writer: socket.socket | None = None
+        self._thread: threading.Thread | None = None
 
-    def __call__(self, signum: int, frame: Any) -> None:
-        if self.stop.is_set():
-            return
-        self.stop.set()
-        if not self.serving:
-            threading.Thread(target=_interrupt_deadline, name="twin-stop-watchdog", daemon=True).start()
+    def install(self) -> None:
+        signal.signal(signal.SIGINT, self)
+        signal.signal(signal.SIGTERM, self)
+        self._reader, self._writer = socket.socketpair()
+        self._writer.setblocking(False)
+        signal.set_wakeup_fd(self._writer.fileno(), warn_on_full_buffer=False)
+        self._thread = threading.Thread(target=self._read, name=SIGNALS_THREAD, daemon=True)
+        self._thread.start()
+
+    def __call__(self, signum: int, frame: Any) -> None:  # the main thread's handler
+        self._request()
+        if not self.serving and not self._interrupted:
+            self._interrupted = True
             raise KeyboardInterrupt
+
+    def _read(self) -> None:
+        assert self._reader is not None
+        while data := self._reader.recv(64):
+            if any(n in (signal.SIGINT, signal.SIGTERM) for n in data):
+                self._request()
+
+    def _request(self) -> None:
+        """The first signal: the stop, or (during start-up) the interrupt's deadline; once, whichever
+        thread sees it first."""
+        with self._lock:
+            if self.stop.is_set():
+                return
+            self.stop.set()
+            serving = self.serving
+        if serving:
+            faulthandler.dump_traceback_later(self.last_resort_s, exit=True)
+        else:
+            threading.Thread(target=_interrupt_deadline, name=STOP_WATCHDOG, daemon=True).start()
+
+
+SIGNALS_THREAD = "twin-signals"
+STOP_WATCHDOG = "twin-stop-watchdog"
+LAST_RESORT_S = 5.0
+"""How long after twice ``[serve] stop_timeout_s`` (when the stop's own watchdog should have ended the
+process with 124) :mod:`faulthandler`'s native timer ends a stop that still runs: it needs no Python
+thread to run, so it ends a process whose GIL is held by a stuck native call, after writing the stacks."""
 
 
 OUTLET_CLOSE_S = 2.0
@@ -175,7 +227,7 @@ class _Stop:
         self.phase = "finishing the queued requests"
         self.left: list[str] = []
         self._done = threading.Event()
-        self._watchdog = threading.Thread(target=self._watch, name="twin-stop-watchdog", daemon=True)
+        self._watchdog = threading.Thread(target=self._watch, name=STOP_WATCHDOG, daemon=True)
         self._watchdog.start()
 
     def remaining(self) -> float:
@@ -246,9 +298,8 @@ class _CloudProgress:
 
 
 def cmd_serve(args: argparse.Namespace, cfg: Config) -> int:
-    signals = _Signals()
-    signal.signal(signal.SIGINT, signals)
-    signal.signal(signal.SIGTERM, signals)
+    signals = _Signals(cfg.section(ServeSettings).stop_timeout_s)
+    signals.install()
     faulthandler.register(STACKS_SIGNAL, all_threads=True)  # `kill -USR1 PID`: every thread's stack
     try:
         return _serve(args, cfg, signals)
@@ -447,12 +498,16 @@ def _serve(args: argparse.Namespace, cfg: Config, signals: _Signals) -> int:
     _leave(0, outlet=outlet)
 
 
+_OWN_THREADS = (STOP_WATCHDOG, OUTLET_THREAD, SIGNALS_THREAD)
+"""The threads that live until the process ends: the stop's deadline, the output and the signals."""
+
+
 def _threads_left(stopping: _Stop) -> list[str]:
     """The Python threads other than this one and the watchdog still running at the deadline (each
     joined until then): a thread left to the interpreter's finalization is a bug, named here."""
     names: list[str] = []
     for thread in threading.enumerate():
-        if thread is threading.current_thread() or thread.name in ("twin-stop-watchdog", OUTLET_THREAD):
+        if thread is threading.current_thread() or thread.name in _OWN_THREADS:
             continue
         thread.join(stopping.remaining())
         if thread.is_alive():
