@@ -13,7 +13,8 @@ from adapters.ros.interfaces import OBSTACLES
 from adapters.zenoh.client import TwinClient
 from tests.adapters.ros_reports import Obstacle, cdr_obstacles
 from tests.integration.conftest import Daemon, start_daemon
-from tests.integration.test_ros_ingest import Publisher, cells, config, counts, settled_map, wait_until
+from tests.integration.settled import map_where
+from tests.integration.test_ros_ingest import Publisher, cells, config, counts, wait_until
 from twin.maps.grid import OccupancyGrid
 
 pytestmark = pytest.mark.slow
@@ -49,8 +50,7 @@ def test_delete_deleteall_and_lifetimes_of_obstacles_hold_across_a_restart(
             robot.send("/rmf_obstacles", OBSTACLES, cdr_obstacles(stamp, [kept, brief, other, other2]))
             wait_until(client, lambda s: s["ros_ingest"]["obstacles_held"] == 4)
             added_at = time.monotonic()
-            grid = settled_map(client)
-            assert all(_at(grid, x) for x in (10.0, 12.0, 14.0, 16.0))
+            map_where(client, lambda g: all(_at(g, x) for x in (10.0, 12.0, 14.0, 16.0)), "the 4 obstacles")
             robot.close_stdin_and_wait()
         d.stop_cleanly()
 
@@ -64,19 +64,21 @@ def test_delete_deleteall_and_lifetimes_of_obstacles_hold_across_a_restart(
             # the brief one may run out of lifetime meanwhile on a loaded machine: 3 held, or 2 after 6 s
             status = wait_until(client, lambda s: s["ros_ingest"]["obstacles_held"] == 3 - _expired(added_at))
             assert "unknown_id" not in counts(status, "obstacles").get("ignored", {})
-            grid = settled_map(client)
-            assert not _at(grid, 10.0) and _at(grid, 14.0) and _at(grid, 16.0)
+            map_where(
+                client, lambda g: not _at(g, 10.0) and _at(g, 14.0) and _at(g, 16.0), "the kept one deleted"
+            )
             everything = Obstacle(0, "cam_b", "L1", "", (0, 0, 0), (0, 0, 0), action=DELETEALL)
             robot.send("/rmf_obstacles", OBSTACLES, cdr_obstacles(stamp, [everything]))
             wait_until(client, lambda s: s["ros_ingest"]["obstacles_held"] == 1 - _expired(added_at))
-            grid = settled_map(client)
+            grid = map_where(
+                client, lambda g: not any(_at(g, x) for x in (10.0, 14.0, 16.0)), "cam_b's deleted"
+            )
             brief_held = client.status()["ros_ingest"]["obstacles_held"] == 1  # held then, so in the map
             assert not any(_at(grid, x) for x in (10.0, 14.0, 16.0))
             assert _at(grid, 12.0) or not brief_held
             wait_until(client, lambda s: s["ros_ingest"]["obstacles_held"] == 0, timeout_s=20)
             assert time.monotonic() - added_at < 6 + 8  # its lifetime, from before the restart, held
-            grid = settled_map(client)
-            assert not _at(grid, 12.0)
+            grid = map_where(client, lambda g: not _at(g, 12.0), "the brief one gone at its lifetime's end")
             assert np.count_nonzero(grid.data == OCCUPIED) > 0
             robot.close_stdin_and_wait()
     finally:
