@@ -135,7 +135,6 @@ def test_via_ros_a_restarted_detectors_reused_id_is_a_new_object_and_a_daemon_re
             status = wait_until(client, lambda s: counts(s, "robot1")["accepted"] == 2)
             sessions = status["ros_ingest"]["tracker_sessions"]["robot1"]
             assert sessions["restarts"] == 1, sessions
-            time.sleep(0.5)
             assert cell(client, 16.6, 7.0) == OCCUPIED and cell(client, 17.6, 7.0) == OCCUPIED
             rows = client.sparql('SELECT ?e WHERE { ?e twin:ifcClass "IfcFurniture" }')["results"]["bindings"]
             assert len(rows) == 2, rows
