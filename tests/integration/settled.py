@@ -1,6 +1,8 @@
-"""The daemon's current map once it shows a revision: the writer acks an observation (or counts it in the
-status) before its dispatcher hands the map's update to the holder that answers ``get_map``, so a read
-right after may see the map as it was (on a loaded machine, for longer than any fixed sleep)."""
+"""The daemon's current map once it shows a revision. A Zenoh ack leaves through the daemon's dispatcher
+after the map updates it caused reached the holder that answers ``get_map``, but the ROS 2 ingestion's
+counts and the status are told on the writer's thread, before: a map read right after them may be the
+map as it was (on a loaded machine, for longer than any fixed sleep). Waiting on the revision also
+replaces the fixed sleeps that were taken after Zenoh acks."""
 
 from __future__ import annotations
 

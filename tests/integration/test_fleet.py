@@ -31,8 +31,9 @@ def observe(d: Daemon, robot: str, iri: str, box: str) -> dict[str, object]:
 
 
 def cell(client: TwinClient, x: float, y: float) -> int:
-    """The ground floor's navigation cell at ``(x, y)`` once the map shows the store's revision: call it
-    when the last commit changed that map, or when the map shows every commit since."""
+    """The ground floor's navigation cell at ``(x, y)`` once the map shows the store's revision (after a
+    ROS 2 report counted in the status; a Zenoh ack comes after its map update): call it when the last
+    commit changed that map, or when the map shows every commit since."""
     grid = settled_map(client)
     f = grid.frame
     return int(grid.data[int((y - f.origin_y) / f.resolution_m), int((x - f.origin_x) / f.resolution_m)])
