@@ -130,14 +130,14 @@ HOLD_S = 60.0
 NOT_HELD, STOPPED_WHILE_HELD, GAVE_UP = 0, 1, 2
 
 
-def _held_until_stopped(held_ids: frozenset[int], outcome: Any) -> Callable[..., None]:
-    """:func:`run_kernel`, but the child given exactly ``held_ids`` waits, before it meshes anything,
-    until the parent asks it to stop (its stop flag), then meshes as asked: a busy child however fast
-    its products are and however loaded the machine. It sets ``outcome`` (a shared value) to
-    :data:`STOPPED_WHILE_HELD`, or to :data:`GAVE_UP` if no stop came in :data:`HOLD_S`."""
+def _held_until_stopped(held_ids: frozenset[int] | None, outcome: Any) -> Callable[..., None]:
+    """:func:`run_kernel`, but the child given exactly ``held_ids`` (None: every child) waits, before it
+    meshes anything, until the parent asks it to stop (its stop flag), then meshes as asked: a busy
+    child however fast its products are and however loaded the machine. It sets ``outcome`` (a shared
+    value) to :data:`STOPPED_WHILE_HELD`, or to :data:`GAVE_UP` if no stop came in :data:`HOLD_S`."""
 
     def run(f: Any, ids: list[int], kernel: str, conn: Any, stop: Any, **kwargs: Any) -> None:
-        if frozenset(ids) == held_ids:
+        if held_ids is None or frozenset(ids) == held_ids:
             deadline = time.monotonic() + HOLD_S
             while not stop.value and time.monotonic() < deadline:
                 time.sleep(0.005)
@@ -226,10 +226,14 @@ def _walls_and_round_bars() -> tuple[Any, list[Any], list[Any]]:
     return g.file, [*walls, *bars], bars
 
 
-def test_a_cancelled_job_hands_nothing_on_and_its_arrivals_end(lab: tuple[Path, LabLayout]) -> None:
+def test_a_cancelled_job_hands_nothing_on_and_its_arrivals_end(
+    lab: tuple[Path, LabLayout], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Children killed by a cancel leave nothing to a next kernel, and whoever reads the arrivals is
     told that the meshing is over."""
     f, products, _ = _lab_products(lab)
+    held = _held_until_stopped(None, mp.get_context("fork").RawValue("b", NOT_HELD))
+    monkeypatch.setattr("adapters.ifc.geometry.run_kernel", held)  # none ends before the cancel
     job = start_meshing(f, products, kernels=("opencascade", "manifold"), threads=2)
     job.cancel()
     ended = threading.Event()
