@@ -1,10 +1,11 @@
 """A robot whose clock is off, reporting at 5 Hz (for the clocks test, own process).
 
-Usage: python -m tests.integration.clock_robot ENDPOINT ROBOT OFFSET_S DURATION_S KIND
+Usage: python -m tests.integration.clock_robot ENDPOINT ROBOT OFFSET_S COUNT KIND
 
 KIND ``chair``: sees the chair at world (12.0, 6.0) in each observation; ``view``: looks at the floor
 around it (a view of IfcFurniture) and sees nothing. Every sense time is the robot's clock: the
-daemon's plus OFFSET_S. Prints one JSON line at the end: {"sent", "stale", "refused"}.
+daemon's plus OFFSET_S. It makes COUNT observations (0: until its stdin closes), then prints one JSON
+line: {"sent", "stale", "refused"}.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 import sys
+import threading
 import time
 
 from adapters.zenoh.client import TwinClient
@@ -28,11 +30,15 @@ def stamp(ns: int) -> str:
 
 
 def main() -> int:
-    endpoint, robot, offset_s, duration_s, kind = sys.argv[1:]
-    offset, end = int(float(offset_s) * 1e9), time.monotonic() + float(duration_s)
+    endpoint, robot, offset_s, count, kind = sys.argv[1:]
+    offset, left = int(float(offset_s) * 1e9), int(count) or -1
+    closed = threading.Event()
+    if left < 0:
+        threading.Thread(target=lambda: (sys.stdin.read(), closed.set()), daemon=True).start()
     sent = stale = refused = 0
     with TwinClient.connect([endpoint], timeout_s=30.0) as twin:
-        while time.monotonic() < end:
+        while left and not closed.is_set():
+            left -= 1
             now = stamp(time.time_ns() + offset)
             if kind == "chair":
                 doc = (

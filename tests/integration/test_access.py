@@ -60,9 +60,10 @@ def secrets(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def as_robot(d: Daemon, secrets: Path, user: str, *, password: str | None = None) -> TwinClient:
+    """A robot's client; its requests wait as long as a loaded machine needs (a denied one ends at once)."""
     auth = AuthSettings(user=user, password_file=secrets / f"{password or user}.password")
     return TwinClient.connect(
-        [d.endpoint], settings=ZenohSettings(auth=auth), mode="client", timeout_s=3.0, prefix=LAB
+        [d.endpoint], settings=ZenohSettings(auth=auth), mode="client", timeout_s=30.0, prefix=LAB
     )
 
 
@@ -93,7 +94,7 @@ def test_a_robot_observes_under_its_own_name_but_not_under_another_robots(
         t0 = time.monotonic()
         with pytest.raises(DaemonTimeoutError):
             robot1.observe("robot2", table("urn:test:stolen-table", x=18.0))
-        assert time.monotonic() - t0 < 2.5, "a denied query should end at once, not by its timeout"
+        assert time.monotonic() - t0 < 15.0, "a denied query should end at once, not by its 30 s timeout"
         robot1.publish_observation("robot2", table("urn:test:stolen-put", x=19.0))
         time.sleep(0.5)
         assert not exists(robot1, "urn:test:stolen-table")
@@ -270,11 +271,13 @@ def test_with_mutual_tls_a_robot_is_its_certificate(
     d = tls_daemon(lab_store_dir, tmp_path, pki, mutual=True)
     try:
         with TwinClient.connect(
-            [d.endpoint], settings=tls_settings(pki, "robot1"), mode="client", timeout_s=3.0, prefix=LAB
+            [d.endpoint], settings=tls_settings(pki, "robot1"), mode="client", timeout_s=30.0, prefix=LAB
         ) as robot1:
             assert robot1.observe("robot1", table("urn:test:mtls-table"))["ok"]
+            robot1.timeout_s = 3.0  # denied: no answer
             with pytest.raises(DaemonTimeoutError):
                 robot1.observe("robot2", table("urn:test:mtls-stolen", x=18.0))
+            robot1.timeout_s = 30.0
             assert exists(robot1, "urn:test:mtls-table")
             assert not exists(robot1, "urn:test:mtls-stolen")
         with pytest.raises(TransportError, match="Cannot open a Zenoh session"):
@@ -310,13 +313,13 @@ def clouds(
     stopped(d)
 
 
-def as_certified(d: Daemon, ca: CertificateAuthority, name: str, timeout_s: float = 3.0) -> TwinClient:
+def as_certified(d: Daemon, ca: CertificateAuthority, name: str, timeout_s: float = 30.0) -> TwinClient:
     return TwinClient.connect(
         [d.endpoint], settings=tls_settings(ca, name), mode="client", timeout_s=timeout_s, prefix=LAB
     )
 
 
-def _wait(got: list[bytes], n: int = 1, timeout_s: float = 10.0) -> None:
+def _wait(got: list[bytes], n: int = 1, timeout_s: float = 30.0) -> None:
     deadline = time.monotonic() + timeout_s
     while len(got) < n and time.monotonic() < deadline:
         time.sleep(0.05)

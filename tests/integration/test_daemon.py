@@ -13,6 +13,7 @@ import pytest
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import RemoteError
 from tests.integration.conftest import Daemon, JsonLinesProcess, start_daemon, twin
+from tests.integration.settled import settled, settled_map
 from twin.maps.grid import OCCUPIED
 
 pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
@@ -74,9 +75,8 @@ def test_a_table_reaches_the_navigation_map_by_an_update_and_its_removal_restore
     first = next(ln for ln in sub.lines if ln.get("skill") == "navigation" and ln.get("version") == v0 + 1)
     assert first["via"] == "update"  # the changed rectangle arrives before the full map
 
-    _settle()
     with TwinClient.connect([daemon.endpoint]) as client:
-        nav1, rev1, v1 = client.get_map("ground-floor", "navigation")
+        nav1, rev1, v1 = settled(client, revision=ack["revision"])
         loc1, _, _ = client.get_map("ground-floor", "localization")
     assert rev1 == 1 and v1 == v0 + 1
     diff = np.argwhere(nav1.data != nav0.data)
@@ -96,18 +96,13 @@ def test_a_table_reaches_the_navigation_map_by_an_update_and_its_removal_restore
     np.testing.assert_array_equal(copies["localization"], loc0.data)
 
 
-def _settle() -> None:
-    time.sleep(0.5)  # full maps are coalesced (at most every 0.2 s): let the latest be published
-
-
 def test_opening_the_door_frees_its_cells_in_navigation_maps(daemon: Daemon) -> None:
     with TwinClient.connect([daemon.endpoint]) as client:
         before, _, _ = client.get_map("ground-floor", "navigation")
         door = door_of(client)
         ack = client.observe("robot1", f"<{door}> <{TWIN}isOpen> true .")
         assert ack["ok"]
-        _settle()
-        after, _, _ = client.get_map("ground-floor", "navigation")
+        after = settled_map(client, revision=ack["revision"])
     freed = (before.data == OCCUPIED) & (after.data != OCCUPIED)
     assert freed.sum() > 10
     assert not ((after.data == OCCUPIED) & (before.data != OCCUPIED)).any()
@@ -116,9 +111,8 @@ def test_opening_the_door_frees_its_cells_in_navigation_maps(daemon: Daemon) -> 
 def test_a_late_subscriber_gets_the_current_map_by_get_and_by_history(daemon: Daemon, tmp_path: Path) -> None:
     r = observe(daemon, "--box", TABLE_BOX, "--class", "IfcFurniture", "--storey", "ground-floor")
     assert r.returncode == 0, r.stderr
-    time.sleep(0.5)
     with TwinClient.connect([daemon.endpoint]) as client:
-        current, revision, version = client.get_map("ground-floor", "navigation")
+        current, revision, version = settled(client, revision=1)
         assert revision == 1 and version == 2
         with client.watch("ground-floor", "navigation") as watcher:
             got = watcher.wait_for(lambda v: v.version == version, timeout_s=10)
@@ -241,8 +235,7 @@ def test_a_re_confirmation_from_another_process_is_acked_unchanged_and_publishes
     with TwinClient.connect([daemon.endpoint]) as client:
         first = client.observe("robot1", _box_turtle())
         assert first["ok"] and first["revision"] == 1 and "unchanged" not in first
-        _settle()
-        _, _, version = client.get_map("ground-floor", "navigation")
+        _, _, version = settled(client, revision=1)
         sub = Subscriber(daemon, tmp_path, "navigation")
         sub.until("navigation", version)
         for _ in range(10):
@@ -255,7 +248,7 @@ def test_a_re_confirmation_from_another_process_is_acked_unchanged_and_publishes
                 "removed": [],
                 "maps": [],
             }
-        _settle()
+        time.sleep(0.5)  # what a re-confirmation wrongly published would have reached the subscriber
         status = client.status()
         assert status["revision"] == 1
         assert status["observations"] == {"accepted": 1, "unchanged": 10, "rejected": 0}

@@ -12,6 +12,7 @@ import pytest
 
 from adapters.zenoh.client import TwinClient
 from tests.integration.conftest import Daemon, start_daemon, twin
+from tests.integration.settled import settled_map
 from twin.maps.grid import OCCUPIED
 
 pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
@@ -30,7 +31,10 @@ def observe(d: Daemon, robot: str, iri: str, box: str) -> dict[str, object]:
 
 
 def cell(client: TwinClient, x: float, y: float) -> int:
-    grid, _, _ = client.get_map("ground-floor", "navigation")
+    """The ground floor's navigation cell at ``(x, y)`` once the map shows the store's revision (after a
+    ROS 2 report counted in the status; a Zenoh ack comes after its map update): call it when the last
+    commit changed that map, or when the map shows every commit since."""
+    grid = settled_map(client)
     f = grid.frame
     return int(grid.data[int((y - f.origin_y) / f.resolution_m), int((x - f.origin_x) / f.resolution_m)])
 

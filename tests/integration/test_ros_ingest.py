@@ -42,6 +42,7 @@ from tests.adapters.ros_reports import (
     cdr_tf,
 )
 from tests.integration.conftest import Daemon, JsonLinesProcess, start_daemon
+from tests.integration.settled import settled_map
 from twin.maps.grid import OccupancyGrid
 
 pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
@@ -132,12 +133,6 @@ def cells(grid: OccupancyGrid, x: float, y: float, sx: float, sy: float, *, grow
     inside_x = np.abs(cx - x) <= sx / 2 + grow
     inside_y = np.abs(cy - y) <= sy / 2 + grow
     return inside_y[:, None] & inside_x[None, :]
-
-
-def settled_map(client: TwinClient, skill: str = "navigation") -> OccupancyGrid:
-    time.sleep(0.5)  # full maps are coalesced (0.2 s)
-    grid, _, _ = client.get_map("ground-floor", skill)
-    return grid
 
 
 def test_detections_doors_and_obstacles_from_ros_reach_the_navigation_map(

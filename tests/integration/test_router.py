@@ -19,6 +19,7 @@ import pytest
 from adapters.zenoh.client import TwinClient
 from adapters.zenoh.errors import DaemonTimeoutError
 from tests.integration.conftest import ROOT, Daemon, free_port, start_daemon, twin
+from twin.maps.grid import OccupancyGrid
 
 pytestmark = pytest.mark.slow  # a daemon, robots or shared models: left out by make test-fast
 
@@ -147,6 +148,23 @@ def first_cloud(
         time.sleep(0.2)
 
 
+def _map_at(robot: TwinClient, version: int) -> tuple[OccupancyGrid, int, int]:
+    """The site's navigation map once ``robot`` is answered with ``version``."""
+    deadline = time.monotonic() + 30
+    while (got := robot.get_map(*NAV))[2] != version:
+        assert time.monotonic() < deadline, f"the map is at version {got[2]}, not {version}, after 30 s"
+        time.sleep(0.1)
+    return got
+
+
+def _until_stored(late: TwinClient, version: int, cloud: tuple[str, str], cloud_version: int) -> None:
+    """Until the router's storage answers with the map's and the cloud's last versions."""
+    deadline = time.monotonic() + 30
+    while (late.get_map(*NAV)[2], late.get_points(*cloud)[2]) != (version, cloud_version):
+        assert time.monotonic() < deadline, "the router's storage did not get the last versions in 30 s"
+        time.sleep(0.1)
+
+
 def test_the_routers_storage_serves_a_sites_maps_and_clouds_while_its_daemon_is_down(
     lab_store_dir: Path, tmp_path: Path, router: Router
 ) -> None:
@@ -161,15 +179,17 @@ def test_the_routers_storage_serves_a_sites_maps_and_clouds_while_its_daemon_is_
             robot.observe("robot1", table(18.0))
             robot.delete_skill("lidar-gone")  # its clouds are deleted: the storage forgets them
             latest_cloud = first_cloud(robot, *cloud, newer_than=live_cloud[2])  # at most one a second
-            time.sleep(1.0)  # the update and the new cloud reach the router's storage
-            latest = robot.get_map(*NAV)
-            assert latest[2] > live[2]
+            (version_now,) = [
+                m["version"] for m in robot.status()["maps"] if (m["storey"], m["skill"]) == NAV
+            ]
+            assert version_now > live[2]
+            latest = _map_at(robot, version_now)  # the daemon's or the storage's answer: the same by now
             assert len(latest_cloud[0]) > len(live_cloud[0])  # the table's voxels
     finally:
         stopped(north)
-    time.sleep(0.5)
     with TwinClient.connect([router.endpoint], prefix="twin/north", mode="client") as late:
         assert not late.daemon_alive()
+        _until_stored(late, latest[2], cloud, latest_cloud[2])  # the last puts may still be on their way
         grid, _, version = late.get_map(*NAV)  # answered by the router's storage
         assert version == latest[2]
         np.testing.assert_array_equal(grid.data, latest[0].data)

@@ -60,7 +60,7 @@ def test_a_router_killed_and_restarted_costs_the_daemon_nothing(lab_store_dir: P
     shutil.copytree(lab_store_dir, tmp_path / "store")
     d = start_daemon(tmp_path / "store", "--no-record", "--mode", "client", "--connect", endpoint)
     try:
-        with TwinClient.connect([endpoint], prefix="twin/lab", mode="client", timeout_s=5) as robot:
+        with TwinClient.connect([endpoint], prefix="twin/lab", mode="client", timeout_s=30) as robot:
             watch = robot.watch(*NAV)
             first = watch.wait_for(lambda v: True, timeout_s=10)
             before = robot.observe("robot1", _table(16.0))
@@ -69,10 +69,12 @@ def test_a_router_killed_and_restarted_costs_the_daemon_nothing(lab_store_dir: P
             router.kill()
             router.wait(timeout=10)
             refused = False
+            robot.timeout_s = 5.0  # not longer than that for a request nobody takes
             try:
                 during = robot.observe("robot1", _table(16.5))  # nobody to take it
             except Exception:
                 refused = True
+            robot.timeout_s = 30.0  # what a loaded machine may need
             router = _router(endpoint)
             _until("the daemon answers through the new router", lambda: "revision" in robot.status())
             status = robot.status()

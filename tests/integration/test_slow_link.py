@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -108,10 +108,26 @@ class RosFollower:
             assert time.monotonic() < deadline, "no map"
             time.sleep(0.01)
 
+    def updated(self) -> int:
+        with self.lock:
+            return len(self.updates)
+
+    def shows(self, cells: np.ndarray) -> bool:
+        with self.lock:
+            return self.grid is not None and np.array_equal(self.grid, cells)
+
     def close(self) -> None:
         self._map.undeclare()
         self._upd.undeclare()
         self.session.close()
+
+
+def _until(predicate: Callable[[], bool], timeout_s: float = 60.0) -> None:
+    """Until ``predicate()`` holds; the deadline only bounds a failure."""
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.01)
 
 
 def _table(i: int) -> str:
@@ -149,13 +165,15 @@ def test_a_robot_joining_late_over_a_slow_link_gets_the_map_then_every_update_in
         watcher_client = TwinClient.connect([d.endpoint])
         watcher = watcher_client.watch("ground-floor", "navigation")
         bridge.wait_for_map()
-        time.sleep(1.5)
+        # moves go on until the slow robot applied 20 updates after its map (not every move is one)
+        _until(lambda: moves[0] >= 30 and slow.updated() >= 20)
         stop.set()
         thread.join(timeout=30)
-        time.sleep(1.0)  # the last updates over the slow link
         with TwinClient.connect([d.endpoint]) as client:
             current, _, version = client.get_map("ground-floor", "navigation")
             status = client.status()
+        for robot in (slow, fast, bridge):  # the last updates, over the slow link too
+            _until(lambda robot=robot: robot.shows(current.data))
         listed = [m for m in status["maps"] if (m["storey"], m["skill"]) == ("ground-floor", "navigation")]
         assert [m["version"] for m in listed] == [version]  # the latest version, not the last full map's
         native = watcher.wait_for(lambda v: v.version == version, timeout_s=10)

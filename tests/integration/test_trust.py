@@ -15,7 +15,7 @@ import pytest
 from adapters.ros.interfaces import DETECTION_3D_ARRAY, TF_MESSAGE
 from adapters.zenoh.client import TwinClient
 from tests.adapters.ros_reports import OPTICAL, Det, Tf, cdr_detections, cdr_tf
-from tests.integration.conftest import ROOT, Daemon, start_daemon, twin
+from tests.integration.conftest import ROOT, Daemon, lines_until, start_daemon, twin
 from tests.integration.test_fleet import cell
 from tests.integration.test_ros_ingest import Publisher, counts, wait_until
 from tests.integration.test_ros_ingest import config as ros_config
@@ -67,7 +67,7 @@ def test_a_robot_whose_clock_is_1_5_s_behind_keeps_the_chair_it_sees_in_another_
     d = start_daemon(fresh_store, "--no-record")
     try:
 
-        def robot(name: str, offset: str, seconds: str, kind: str) -> subprocess.Popen[str]:
+        def robot(name: str, offset: str, count: str, kind: str) -> subprocess.Popen[str]:
             args = [
                 sys.executable,
                 "-m",
@@ -75,16 +75,19 @@ def test_a_robot_whose_clock_is_1_5_s_behind_keeps_the_chair_it_sees_in_another_
                 d.endpoint,
                 name,
                 offset,
-                seconds,
+                count,
                 kind,
             ]
-            return subprocess.Popen(args, stdout=subprocess.PIPE, text=True, cwd=ROOT)
+            return subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=ROOT)
 
-        robots = [robot("robot1", "-1.5", "15", "chair")]
-        time.sleep(7.0)  # robot1's clock offset is known ([fusion] clock_settle_s) before robot2 looks
-        robots.append(robot("robot2", "0", "6", "view"))
-        results = [json.loads(p.communicate(timeout=120)[0].splitlines()[-1]) for p in robots]
-        assert results[0]["sent"] > 20 and results[0]["stale"] == 0 and results[1]["sent"] > 20, results
+        chair = robot("robot1", "-1.5", "0", "chair")  # until its stdin closes
+        # robot1's clock offset is known ([fusion] clock_settle_s) before robot2 looks: the daemon says so
+        settled = lines_until(d, lambda line: "Robot 'robot1''s clock is off" in line, 120.0)
+        assert settled and "clock is off" in settled[-1], settled[-20:]
+        view = robot("robot2", "0", "30", "view")
+        looked = json.loads(view.communicate(timeout=120)[0].splitlines()[-1])
+        saw = json.loads(chair.communicate(timeout=60)[0].splitlines()[-1])  # its stdin closed: it ends
+        assert saw["sent"] > 1 and saw["stale"] == saw["refused"] == 0 and looked["sent"] == 30, (saw, looked)
         with TwinClient.connect([d.endpoint]) as client:
             rows = client.sparql("SELECT ?r WHERE { <urn:robot1:chair> twin:removed ?r }")
             assert not rows["results"]["bindings"], "the chair robot1 kept seeing was removed"
@@ -132,7 +135,6 @@ def test_via_ros_a_restarted_detectors_reused_id_is_a_new_object_and_a_daemon_re
             status = wait_until(client, lambda s: counts(s, "robot1")["accepted"] == 2)
             sessions = status["ros_ingest"]["tracker_sessions"]["robot1"]
             assert sessions["restarts"] == 1, sessions
-            time.sleep(0.5)
             assert cell(client, 16.6, 7.0) == OCCUPIED and cell(client, 17.6, 7.0) == OCCUPIED
             rows = client.sparql('SELECT ?e WHERE { ?e twin:ifcClass "IfcFurniture" }')["results"]["bindings"]
             assert len(rows) == 2, rows

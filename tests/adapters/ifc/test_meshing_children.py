@@ -4,8 +4,11 @@ core idles: every product meshed once, the same meshes however many cores it use
 from __future__ import annotations
 
 import dataclasses
+import multiprocessing as mp
 import threading
+import time
 import weakref
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +18,7 @@ import pytest
 
 from adapters.ifc.errors import IfcFileError
 from adapters.ifc.geometry import INSTANCE_WEIGHT, MeshResult, _shards, shared_maps, start_meshing
-from adapters.ifc.kernel_child import _placements, _unique_rows, placed
+from adapters.ifc.kernel_child import _placements, _unique_rows, placed, run_kernel
 from adapters.ifc.kernel_choice import KernelChoice
 from adapters.ifc.read_model import start_reading, with_geometry
 from adapters.ifc.sample_lab import LabLayout
@@ -122,31 +125,56 @@ def test_one_or_two_cores_give_the_same_meshes(lab: tuple[Path, LabLayout], kern
     assert two.children >= 2
 
 
+HOLD_S = 60.0
+"""How long a held child waits to be asked to stop before it gives up (only when the split is broken)."""
+NOT_HELD, STOPPED_WHILE_HELD, GAVE_UP = 0, 1, 2
+
+
+def _held_until_stopped(held_ids: frozenset[int] | None, outcome: Any) -> Callable[..., None]:
+    """:func:`run_kernel`, but the child given exactly ``held_ids`` (None: every child) waits, before it
+    meshes anything, until the parent asks it to stop (its stop flag), then meshes as asked: a busy
+    child however fast its products are and however loaded the machine. It sets ``outcome`` (a shared
+    value) to :data:`STOPPED_WHILE_HELD`, or to :data:`GAVE_UP` if no stop came in :data:`HOLD_S`."""
+
+    def run(f: Any, ids: list[int], kernel: str, conn: Any, stop: Any, **kwargs: Any) -> None:
+        if held_ids is None or frozenset(ids) == held_ids:
+            deadline = time.monotonic() + HOLD_S
+            while not stop.value and time.monotonic() < deadline:
+                time.sleep(0.005)
+            outcome.value = STOPPED_WHILE_HELD if stop.value else GAVE_UP
+        run_kernel(f, ids, kernel, conn, stop, **kwargs)
+
+    return run
+
+
 def test_a_busy_child_is_split_when_a_core_idles_and_the_meshes_are_those_of_one_child(
-    lab: tuple[Path, LabLayout],
+    lab: tuple[Path, LabLayout], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """With every child worth splitting, the first child to finish (manifold, on the spaces alone) makes
-    the other (OpenCASCADE, on every element) hand over what it has not meshed to two new children, and
+    """The first child to finish (manifold, on the spaces alone) makes the other (OpenCASCADE, on every
+    element, held until it is asked to stop) hand over what it has not meshed to two new children, and
     the meshes are those of one child."""
     f, products, _ = _lab_products(lab)
     routed = [p for p in products if p.is_a("IfcElement")]
     meshed: list[int] = []
     with start_meshing(f, products, kernels=("manifold", "opencascade"), threads=1, routed=routed) as job:
         alone = job.result()
+    outcome = mp.get_context("fork").RawValue("b", NOT_HELD)
+    held = _held_until_stopped(frozenset(p.id() for p in routed), outcome)
+    monkeypatch.setattr("adapters.ifc.geometry.run_kernel", held)
     with start_meshing(
         f,
         products,
         kernels=("manifold", "opencascade"),
         threads=2,
         routed=routed,
-        split_min_s=0.0,
         progress=lambda done, total: meshed.append(done),
     ) as job:
         split = job.result()
+    assert outcome.value != NOT_HELD, "no child was given every element: none was held"
+    assert outcome.value != GAVE_UP, f"the busy child was not asked to stop within {HOLD_S:.0f} s"
     assert alone.splits == 0
-    # a split hands what the stopped child left to two children, or to one when it had a single
-    # product left by the time it stopped (a race with its last mesh: seen once on a loaded machine)
-    assert split.splits >= 1 and split.children >= alone.children + 1
+    # the held child meshed one product at most: what it left goes to two children
+    assert split.splits >= 1 and split.children >= alone.children + 2
     assert meshed == sorted(meshed) and meshed[-1] == len(products)
     _assert_same(alone, split)
 
@@ -198,10 +226,14 @@ def _walls_and_round_bars() -> tuple[Any, list[Any], list[Any]]:
     return g.file, [*walls, *bars], bars
 
 
-def test_a_cancelled_job_hands_nothing_on_and_its_arrivals_end(lab: tuple[Path, LabLayout]) -> None:
+def test_a_cancelled_job_hands_nothing_on_and_its_arrivals_end(
+    lab: tuple[Path, LabLayout], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Children killed by a cancel leave nothing to a next kernel, and whoever reads the arrivals is
     told that the meshing is over."""
     f, products, _ = _lab_products(lab)
+    held = _held_until_stopped(None, mp.get_context("fork").RawValue("b", NOT_HELD))
+    monkeypatch.setattr("adapters.ifc.geometry.run_kernel", held)  # none ends before the cancel
     job = start_meshing(f, products, kernels=("opencascade", "manifold"), threads=2)
     job.cancel()
     ended = threading.Event()

@@ -80,7 +80,8 @@ def send_array(session: zenoh.Session, stamp: int) -> None:
     session.put("robot1/detections", cdr_detections(stamp, "camera_optical_frame", [table]))
 
 
-def wait(test: object, timeout_s: float = 10.0) -> None:
+def wait(test: object, timeout_s: float = 30.0) -> None:
+    """Until ``test()`` holds; the deadline only bounds a failure (a worker starts slowly under load)."""
     deadline = time.monotonic() + timeout_s
     while not test():  # type: ignore[operator]
         assert time.monotonic() < deadline
@@ -128,13 +129,13 @@ def test_a_diagnostic_array_with_the_counts_is_published_and_warns_after_a_refus
         "robot1/diagnostics", lambda s: got.append(deserialize_message(s.payload.to_bytes(), DiagnosticArray))
     )
     session.put("robot1/detections", b"\x00\x01\x00\x00not cdr")
-    wait(lambda: any(a.status and a.status[0].level == b"\x01" for a in got), timeout_s=5)
+    wait(lambda: any(a.status and a.status[0].level == b"\x01" for a in got))
     warned = next(a for a in got if a.status[0].level == b"\x01").status[0]
     assert warned.name == "twin_ingest: robot1"
     values = {kv.key: kv.value for kv in warned.values}
     assert values["refused.malformed"] == "1" and values["last_refusal"].startswith("malformed: ")
     count = len(got)
-    wait(lambda: len(got) > count, timeout_s=5)
+    wait(lambda: len(got) > count)
     assert got[-1].status[0].level == b"\x00"  # nothing refused since: OK again
     sub.undeclare()
 

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-import threading
-import time
+import types
 
 import numpy as np
+import pytest
 
+import twin.live.requests as requests_module
 from tests.twin.live_helpers import Recorder, box_turtle, started
 from twin.live import Reply, TwinService
 from twin.live.events import MapUpdated
@@ -84,19 +85,21 @@ def test_a_batch_of_robots_acks_and_maps_as_one_observation_at_a_time() -> None:
     assert sorted(map(str, batched.store.select(triples))) == sorted(map(str, single.store.select(triples)))
 
 
-def test_the_writer_waits_its_batch_window_for_observations_that_follow_the_first() -> None:
+def test_the_writer_waits_its_batch_window_for_observations_that_follow_the_first(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     q = RequestQueue(64, wait_s=0.2)
     q.put(ObserveRequest("robot0", b"0", None, 0))
+    waited: list[float] = []
 
-    def later() -> None:
+    def window(seconds: float) -> None:  # two observations come while the writer waits its window
+        waited.append(seconds)
         for i in (1, 2):
-            time.sleep(0.02)
             q.put(ObserveRequest(f"robot{i}", b"", None, 0))
 
-    t = threading.Thread(target=later)
-    t.start()
+    monkeypatch.setattr(requests_module, "time", types.SimpleNamespace(sleep=window))
     batch = q.take()
-    t.join()
+    assert waited == [0.2]  # one wait, not one per observation
     assert isinstance(batch, list) and [r.robot for r in batch] == ["robot0", "robot1", "robot2"]
     assert RequestQueue(64).take() is None
     alone = RequestQueue(64)  # no window: only what is queued
