@@ -70,7 +70,7 @@ class Daemon:
                 + "\n".join(self.log[-200:])
             ) from None
         fatal = [line for line in self.log if "FATAL" in line]
-        assert code == 0 and not fatal, f"stop by {sig}: exit {code}:\n" + "\n".join(self.log[-30:])
+        assert code == 0 and not fatal, f"stop by {sig}: exit {code}:\n" + "\n".join(self.log[-200:])
 
 
 def lines_until(daemon: Daemon, found: Callable[[str], bool], timeout_s: float = 10.0) -> list[str]:
