@@ -12,7 +12,9 @@ start-up; ``--profile`` prints cProfile's top functions instead. With ``--robots
 each with its own IRIs (the others' resolve through aliases), its own noise and a sense time 1 ms
 after the previous robot's (1 in 20 arrays 50 ms earlier: stale where the others saw the tables since),
 one batch per round of the N arrays: the aliases, the robot pairs' bias notes and the stale notes of a
-fleet.
+fleet. With ``--moves K`` the last table moves 1.2 m (beyond ``certain_move_m``, into the room's free
+corner) every K rounds and back, as in ``ros_ingest.py``: the robots' arrays that follow the move in
+its batch.
 
     PYTHONPATH=$PWD python benchmarks/confirm_cost.py --arrays 300 [--profile] [--json out.json]
 """
@@ -45,6 +47,8 @@ STALE = 0.05
 """With several robots, the share of arrays seen 50 ms before the latest (stale where another saw them)."""
 SPOTS = [(8.5 + 0.9 * c, 0.5 + 0.75 * r) for r in range(5) for c in range(4)]
 """20 table spots in Room B (x 8..12, y 0..4), storey frame."""
+MOVED = (11.75, 2.4)
+"""Where the last table goes (``--moves``): 1.2 m from its spot, clear of the others."""
 
 
 def setup(others: int, *, alias: bool = False, robots: int = 1) -> TwinService:
@@ -68,7 +72,8 @@ def names(robots: int) -> list[str]:
     return [ROBOT, *(f"robot{k}" for k in range(2, robots + 1))]
 
 
-def array(rng: random.Random, sense_ns: int, robot: str = ROBOT) -> Observation:
+def array(rng: random.Random, sense_ns: int, robot: str = ROBOT, *, moved: bool = False) -> Observation:
+    spots = [*SPOTS[:-1], MOVED] if moved else SPOTS
     reports = tuple(
         ElementReport(
             f"urn:bench:{robot}:t{i}",
@@ -84,7 +89,7 @@ def array(rng: random.Random, sense_ns: int, robot: str = ROBOT) -> Observation:
                 rng.gauss(0, 0.009),
             ),
         )
-        for i, (x, y) in enumerate(SPOTS)
+        for i, (x, y) in enumerate(spots)
     )
     room = np.array([[OX + x, OY + y] for x, y in ((8.1, 0.1), (11.9, 0.1), (11.9, 3.9), (8.1, 3.9))])
     view = ObservedView(
@@ -93,15 +98,18 @@ def array(rng: random.Random, sense_ns: int, robot: str = ROBOT) -> Observation:
     return Observation(reports, view)
 
 
-def run(service: TwinService, n: int, seed: int = 1, robots: int = 1) -> float:
-    """The writer's CPU ms per array over ``n`` rounds of one array per robot (one batch per round)."""
+def run(service: TwinService, n: int, seed: int = 1, robots: int = 1, moves: int = 0) -> float:
+    """The writer's CPU ms per array over ``n`` rounds of one array per robot (one batch per round);
+    the last table moved every ``moves`` rounds (0: never)."""
     rng = random.Random(seed)
     replies: list[object] = []
     total = 0.0
     who = names(robots)
-    for _ in range(n):
+    for step in range(n):
         now = time.time_ns()
-        arrays = [(robot, array(rng, now + k * 10**6 - (50 * 10**6 if rng.random() < STALE else 0), robot))
+        moved = moves > 0 and (step // moves) % 2 == 1
+        arrays = [(robot, array(rng, now + k * 10**6 - (50 * 10**6 if rng.random() < STALE else 0), robot,
+                                moved=moved))
                   for k, robot in enumerate(who)]  # fmt: skip
         t = time.process_time()
         for robot, obs in arrays:
@@ -120,6 +128,7 @@ def main() -> int:
     p.add_argument("--others", type=int, default=480, help="other robots' tables on the storey")
     p.add_argument("--alias", action="store_true", help="the robot's IRIs are aliases of another's tables")
     p.add_argument("--robots", type=int, default=1, help="robots reporting the same tables in turns")
+    p.add_argument("--moves", type=int, default=0, help="the last table moves every this many rounds")
     p.add_argument("--profile", action="store_true")
     p.add_argument("--sort", default="cumulative", help="cProfile sort key (cumulative, tottime)")
     p.add_argument(
@@ -131,7 +140,8 @@ def main() -> int:
     p.add_argument("--json", type=Path)
     args = p.parse_args()
     service = setup(args.others, alias=args.alias)
-    run(service, 20, robots=args.robots)  # warm up (the first arrays associate the robots' IRIs)
+    # warm up (the first arrays associate the robots' IRIs)
+    run(service, 20, robots=args.robots, moves=args.moves)
     if args.gc == "freeze":
         gc.collect()
         gc.freeze()
@@ -140,17 +150,20 @@ def main() -> int:
     if args.profile:
         prof = cProfile.Profile()
         prof.enable()
-        run(service, args.arrays, seed=2, robots=args.robots)
+        run(service, args.arrays, seed=2, robots=args.robots, moves=args.moves)
         prof.disable()
         pstats.Stats(prof).sort_stats(args.sort).print_stats(45)
         return 0
-    blocks = sorted(run(service, args.arrays, seed=2 + i, robots=args.robots) for i in range(args.repeat))
+    blocks = sorted(
+        run(service, args.arrays, seed=2 + k, robots=args.robots, moves=args.moves)
+        for k in range(args.repeat)
+    )
     ms, best = statistics.median(blocks), blocks[0]
-    head = f"{'arrays':>7} {'robots':>6} {'boxes':>6} {'others':>7} {'aliases':>8} {'gc':>6}"
+    head = f"{'arrays':>7} {'robots':>6} {'boxes':>6} {'others':>7} {'aliases':>8} {'moves':>6} {'gc':>6}"
     print(f"{head} {'writer CPU ms/array':>20} {'best':>6}")
     print(
         f"{args.arrays * args.repeat * args.robots:7d} {args.robots:6d} {len(SPOTS):6d} {args.others:7d} "
-        f"{'yes' if args.alias else 'no':>8} {args.gc:>6} {ms:20.3f} {best:6.3f}"
+        f"{'yes' if args.alias else 'no':>8} {args.moves:6d} {args.gc:>6} {ms:20.3f} {best:6.3f}"
     )
     if args.json:
         row = {
@@ -158,6 +171,7 @@ def main() -> int:
             "robots": args.robots,
             "others": args.others,
             "alias": args.alias,
+            "moves": args.moves,
             "gc": args.gc,
             "writer_ms": ms,
             "best_ms": best,

@@ -18,6 +18,8 @@ element) returns False with nothing done: the per-report rules decide the whole 
 Per report it makes one pass of lookups (what the report names, what the twin holds of that); what the
 gates need of each held element is remembered while the objects it was made from stay the same, and a
 robot's next array naming the same elements uses the same stacked arrays (``FusionMemory.confirm_cache``).
+An element moved earlier in the batch (another robot's array) is held where that move put it, as the
+per-report rules hold it: the arrays that follow a move in its batch are settled here too.
 
 Example::
 
@@ -165,7 +167,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
     None when one is anything else. One pass of lookups per report (what it names, what the twin holds
     of that: :class:`_Held`, remembered while it stays the same), the geometry as arrays."""
     memory = ctx.memory
-    aliases, states, pending, tracks = memory.aliases, ctx.states, ctx.pending, memory.tracks
+    aliases, states, tracks = memory.aliases, ctx.states, memory.tracks
     cache = _cache(memory, len(ctx.live.states))
     held_of = cache.held
     shapes, shape_of = ctx.shapes, ctx.live.maps.shape_of
@@ -191,13 +193,15 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
             target = alias.target
             aliased.append(i)
         state = states.get(target)
-        if state is None or target in seen or target in pending:
-            return None  # unknown or removed, twice in the array, moved earlier in the batch
+        if state is None or target in seen:
+            return None  # unknown, twice in the array
         seen.add(target)
         track = tracks.get(target)
         dispute = track.dispute if track is not None else None
         cover = dispute.poses if dispute is not None else None
-        shape = shapes[target] if target in shapes else shape_of(target)  # ctx.held_pose (not pending)
+        # ctx.held_pose: an element moved earlier in the batch has its new shape in ctx.shapes, whose
+        # pose is the one ctx.pending holds (twin.live.observe.fused_pending: memory.pose of that shape)
+        shape = shapes[target] if target in shapes else shape_of(target)
         if shape is None:
             return None  # no held pose: nothing to confirm
         h = held_of.get(target)
