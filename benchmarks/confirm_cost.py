@@ -1,9 +1,10 @@
 """What a confirming array costs the writer: ms of CPU per array of 20 boxes that all confirm, with a view.
 
 In process, no Zenoh, no ROS: a :class:`~twin.live.TwinService` on the box lab (the core's test
-building) holds 20 tables that one robot created in Room B; the robot then submits typed records (as
-the ROS ingest workers do) at the tables' poses with a camera's noise (5 mm, 0.5 deg), each array with
-a view of the room with its sensor origin (so absence and occlusion run). The figure is the writer's
+building) holds 20 tables that one robot created in Room B; the robot then submits typed records
+(checked as the ROS ingest workers check them) at the tables' poses with a camera's noise (5 mm,
+0.5 deg), each array with a view of the room with its sensor origin (so absence and occlusion run).
+The figure is the writer's
 CPU (``time.process_time`` around ``submit_observation`` + ``process``) per array, the median of
 ``--repeat`` blocks (on a shared machine the best block shows the code, the median the machine too);
 ``--gc freeze`` (the default) freezes the collector after the warm-up as ``twin serve`` does after
@@ -40,6 +41,11 @@ from tests.twin.box_lab import OX, OY
 from tests.twin.live_helpers import box_turtle, observe, started
 from twin.live import TwinService
 from twin.records import ElementReport, Observation, ObservedBox, ObservedView
+
+try:  # the ingest workers check the records they make (not in a tree before that)
+    from twin.live.validate import checked
+except ImportError:  # pragma: no cover
+    checked = None  # type: ignore[assignment]
 
 ROBOT = "robot1"
 SX, SY, SZ = 0.5, 0.4, 0.75
@@ -111,6 +117,8 @@ def run(service: TwinService, n: int, seed: int = 1, robots: int = 1, moves: int
         arrays = [(robot, array(rng, now + k * 10**6 - (50 * 10**6 if rng.random() < STALE else 0), robot,
                                 moved=moved))
                   for k, robot in enumerate(who)]  # fmt: skip
+        if checked is not None:  # as a worker hands them over
+            arrays = [(robot, checked(obs, limits=service.config.limits)) for robot, obs in arrays]  # type: ignore[misc]
         t = time.process_time()
         for robot, obs in arrays:
             service.submit_observation(robot, obs, replies.append)
