@@ -47,7 +47,7 @@ from twin.fusion.dispute import older_disagreement, still_covers
 from twin.fusion.effects import Effect
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
 from twin.fusion.gates import compatible, is_candidate, kinds_agree
-from twin.fusion.memory import FusionMemory, RobotMean
+from twin.fusion.memory import FusionMemory, RobotMean, RobotSightings
 from twin.records import ElementReport, FloatArray, Shape
 
 if TYPE_CHECKING:
@@ -604,14 +604,27 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
     ]
 
     def run(m: FusionMemory) -> None:  # (the bias notes' effect and the confirmations', as one)
+        journaled, tracks = m.journal is not None, m.tracks
         for iri, sense, resizes, (_, old, n, mx, my, last), cx, cy, cz, sx, sy, sz, yaw in rows:
-            t = m.track(iri)
+            t = m.track(iri) if journaled else tracks.get(iri) or m.track(iri)
             mean = t.means.get(robot)  # bias.set_mean
             if mean is not None and mean is old:
                 mean.n, mean.x, mean.y, mean.last_ns = n, mx, my, last
             else:
                 t.means[robot] = RobotMean(n, mx, my, last)
-            t.sighted(robot, sense)
+            s = t.robots.get(robot)  # Track.sighted
+            if s is None:
+                t.robots[robot] = RobotSightings(1, sense, sense)
+            else:
+                s.count += 1
+                if sense < s.first_ns:  # noqa: PLR1730 (min and max are calls: 20 boxes an array)
+                    s.first_ns = sense
+                if sense > s.last_ns:  # noqa: PLR1730
+                    s.last_ns = sense
+            if sense > t.seen_ns:  # noqa: PLR1730
+                t.seen_ns = sense
+            if t.misses:
+                t.misses = [miss for miss in t.misses if miss.sense_ns > sense]
             if resizes:
                 t.sizes.pop(robot, None)  # a sighting at the held sizes clears the robot's evidence
             f = t.refinement
@@ -624,9 +637,13 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
             f.sz += sz
             f.yaw += yaw
             t.moving = None
-            t.movers.clear()
-            t.confirmed[robot] = max(sense, t.confirmed.get(robot, sense))
-            t.runs.pop(robot, None)  # this robot sees it where it is held: its own run ends
+            if t.movers:
+                t.movers.clear()
+            confirmed = t.confirmed.get(robot)
+            if confirmed is None or sense > confirmed:
+                t.confirmed[robot] = sense
+            if t.runs:
+                t.runs.pop(robot, None)  # this robot sees it where it is held: its own run ends
             t.decided = rule
         update_pairs(m, robot, diffs)
 
