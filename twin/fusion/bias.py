@@ -66,11 +66,16 @@ def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None
     mine = memory.pairs.of(robot)
     if not mine:
         return None
-    diffs = [(b, d) for b, d in mine.items() if d.n >= PAIR_MIN_SAMPLES]
-    differing = [(b, d) for b, d in diffs if math.hypot(d.x, d.y) > DEADBAND_M]
-    if len(differing) >= MIN_PARTNERS and 2 * len(differing) > len(diffs):
+    diffs = 0  # partners with enough comparisons, and those of them it differs from
+    differing: list[tuple[str, RobotMean]] = []
+    for b, d in mine.items():
+        if d.n >= PAIR_MIN_SAMPLES:
+            diffs += 1
+            if math.hypot(d.x, d.y) > DEADBAND_M:
+                differing.append((b, d))
+    if len(differing) >= MIN_PARTNERS and 2 * len(differing) > diffs:
         chosen = [d for _, d in differing]
-    elif differing and len(differing) == len(diffs):
+    elif differing and len(differing) == diffs:
         pairs = list(memory.pairs.items())
         chosen = [d for b, d in differing if vouched(pairs, b, robot)]
         if not chosen:

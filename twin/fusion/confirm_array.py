@@ -179,8 +179,9 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
     helds: list[_Held] = []
     keys: list[str] = []
     stale: list[bool] = []
-    rows: list[tuple[float, float, float, float, float, float, float]] = []
-    refs: list[tuple[float, float, float, float, float, float, float, float]] = []
+    rows: list[tuple[float, ...]] = []
+    """Per report: its box (cx .. yaw, z above the storey's floor) and its element's confirmations so far
+    (n, then the sums of cx .. yaw), made into one array at once."""
     aliased: list[int] = []
     for i, (r, sense) in enumerate(zip(reports, senses, strict=True)):
         b = r.box
@@ -229,11 +230,16 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         targets.append(target)
         helds.append(h)
         keys.append(key)
-        rows.append((b.cx, b.cy, elevation + b.cz, b.sx, b.sy, b.sz, b.yaw))
         stale.append(sense < max(state.sensed_ns, track.seen_ns if track is not None else 0))
         f = track.refinement if track is not None else None
-        refs.append(_NO_REFINEMENT if f is None else (f.n, f.cx, f.cy, f.cz, f.sx, f.sy, f.sz, f.yaw))
-    raw = _canonical(np.array(rows, dtype=np.float64))  # box_pose of each
+        z = elevation + b.cz
+        rows.append(
+            (b.cx, b.cy, z, b.sx, b.sy, b.sz, b.yaw, *_NO_REFINEMENT)
+            if f is None
+            else (b.cx, b.cy, z, b.sx, b.sy, b.sz, b.yaw, f.n, f.cx, f.cy, f.cz, f.sx, f.sy, f.sz, f.yaw)
+        )
+    both = np.array(rows, dtype=np.float64)
+    raw = _canonical(both[:, :7])  # box_pose of each
     pose = raw
     given = list(reports)
     if unbiased(ctx, _ANY_POSE) is not _ANY_POSE:  # the robot's detector bias, once known
@@ -262,7 +268,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
     ):
         return None
     return _Array(
-        given, targets, layout, keys, list(senses), stale, raw, pose, np.array(refs, dtype=np.float64)
+        given, targets, layout, keys, list(senses), stale, raw, pose, both[:, 7:]
     )
 
 
