@@ -175,7 +175,6 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
     rules = ctx.rules
     elevations: dict[str, float] = {}
     targets: list[str] = []
-    seen: set[str] = set()
     helds: list[_Held] = []
     keys: list[str] = []
     stale: list[bool] = []
@@ -194,9 +193,8 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
             target = alias.target
             aliased.append(i)
         state = states.get(target)
-        if state is None or target in seen:
-            return None  # unknown, twice in the array
-        seen.add(target)
+        if state is None:
+            return None  # unknown (twice in the array: below)
         track = tracks.get(target)
         dispute = track.dispute if track is not None else None
         cover = dispute.poses if dispute is not None else None
@@ -230,7 +228,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         targets.append(target)
         helds.append(h)
         keys.append(key)
-        stale.append(sense < max(state.sensed_ns, track.seen_ns if track is not None else 0))
+        stale.append(sense < state.sensed_ns or (track is not None and sense < track.seen_ns))
         f = track.refinement if track is not None else None
         z = elevation + b.cz
         rows.append(
@@ -238,6 +236,8 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
             if f is None
             else (b.cx, b.cy, z, b.sx, b.sy, b.sz, b.yaw, f.n, f.cx, f.cy, f.cz, f.sx, f.sy, f.sz, f.yaw)
         )
+    if len(set(targets)) < len(targets):
+        return None  # an element twice in the array
     both = np.array(rows, dtype=np.float64)
     raw = _canonical(both[:, :7])  # box_pose of each
     pose = raw
@@ -503,11 +503,12 @@ def _gates_at_once(seen: FloatArray, refs: FloatArray, layout: _Layout) -> Float
     rows = np.concatenate((seen, _canonical((refs[:, 1:] + a) / (refs[:, :1] + 1))))
     twice = layout.twice
     period = np.where((rows[:, 3] - rows[:, 4] < SQUARE_TOLERANCE_M) | layout.square_twice, HALF_PI, math.pi)
-    d = np.mod(rows[:, 6] - twice[:, 6], period)
+    delta = rows - twice  # (each column as the gates below take it, in one operation)
+    d = np.mod(delta[:, 6], period)
     centre, height, angle = layout.limits
     ok = (
-        (np.hypot(rows[:, 0] - twice[:, 0], rows[:, 1] - twice[:, 1]) <= centre)
-        & (np.abs(rows[:, 2] - twice[:, 2]) <= height)
+        (np.hypot(delta[:, 0], delta[:, 1]) <= centre)
+        & (np.abs(delta[:, 2]) <= height)
         & (np.minimum(d, period - d) <= angle)
     )
     return a if _every(ok) else None  # (a mean out of bounds: a refinement to commit)
@@ -557,7 +558,8 @@ def _confirms(seen: FloatArray, held: FloatArray, dist: FloatArray, angle: Float
 def _aligned(seen: FloatArray, held: FloatArray, period: FloatArray, turn: FloatArray) -> FloatArray:
     """:func:`twin.fusion.footprints.aligned` of each row (``period``: :func:`_period`, ``turn``: the
     yaw of ``seen`` less ``held``'s)."""
-    d = np.mod(turn + period / 2, period) - period / 2
+    half = period / 2
+    d = np.mod(turn + half, period) - half
     quarter = np.mod(np.rint((turn - d) / HALF_PI), 2) == 1  # (np.round to 0 decimals is rint)
     out = seen.copy()
     if _some(quarter):
