@@ -15,7 +15,8 @@ after the previous robot's (1 in 20 arrays 50 ms earlier: stale where the others
 one batch per round of the N arrays: the aliases, the robot pairs' bias notes and the stale notes of a
 fleet. With ``--moves K`` the last table moves 1.2 m (beyond ``certain_move_m``, into the room's free
 corner) every K rounds and back, as in ``ros_ingest.py``: the robots' arrays that follow the move in
-its batch.
+its batch. With ``--single`` each array is a batch of its own, as the daemon's writer mostly takes
+them at 25 robots x 10 Hz (arrays come one by one, a few ms apart).
 
     PYTHONPATH=$PWD python benchmarks/confirm_cost.py --arrays 300 [--profile] [--json out.json]
 """
@@ -104,9 +105,11 @@ def array(rng: random.Random, sense_ns: int, robot: str = ROBOT, *, moved: bool 
     return Observation(reports, view)
 
 
-def run(service: TwinService, n: int, seed: int = 1, robots: int = 1, moves: int = 0) -> float:
-    """The writer's CPU ms per array over ``n`` rounds of one array per robot (one batch per round);
-    the last table moved every ``moves`` rounds (0: never)."""
+def run(
+    service: TwinService, n: int, seed: int = 1, *, robots: int = 1, moves: int = 0, single: bool = False
+) -> float:
+    """The writer's CPU ms per array over ``n`` rounds of one array per robot (one batch per round, or
+    with ``single`` one per array); the last table moved every ``moves`` rounds (0: never)."""
     rng = random.Random(seed)
     replies: list[object] = []
     total = 0.0
@@ -122,6 +125,8 @@ def run(service: TwinService, n: int, seed: int = 1, robots: int = 1, moves: int
         t = time.process_time()
         for robot, obs in arrays:
             service.submit_observation(robot, obs, replies.append)
+            if single:
+                service.process()
         service.process()
         total += time.process_time() - t
     return 1e3 * total / (n * robots)
@@ -137,6 +142,9 @@ def main() -> int:
     p.add_argument("--alias", action="store_true", help="the robot's IRIs are aliases of another's tables")
     p.add_argument("--robots", type=int, default=1, help="robots reporting the same tables in turns")
     p.add_argument("--moves", type=int, default=0, help="the last table moves every this many rounds")
+    p.add_argument(
+        "--single", action="store_true", help="one batch per array (as the daemon's writer mostly takes them)"
+    )
     p.add_argument("--profile", action="store_true")
     p.add_argument("--sort", default="cumulative", help="cProfile sort key (cumulative, tottime)")
     p.add_argument(
@@ -149,7 +157,7 @@ def main() -> int:
     args = p.parse_args()
     service = setup(args.others, alias=args.alias)
     # warm up (the first arrays associate the robots' IRIs)
-    run(service, 20, robots=args.robots, moves=args.moves)
+    run(service, 20, robots=args.robots, moves=args.moves, single=args.single)
     if args.gc == "freeze":
         gc.collect()
         gc.freeze()
@@ -158,20 +166,22 @@ def main() -> int:
     if args.profile:
         prof = cProfile.Profile()
         prof.enable()
-        run(service, args.arrays, seed=2, robots=args.robots, moves=args.moves)
+        run(service, args.arrays, seed=2, robots=args.robots, moves=args.moves, single=args.single)
         prof.disable()
         pstats.Stats(prof).sort_stats(args.sort).print_stats(45)
         return 0
     blocks = sorted(
-        run(service, args.arrays, seed=2 + k, robots=args.robots, moves=args.moves)
+        run(service, args.arrays, seed=2 + k, robots=args.robots, moves=args.moves, single=args.single)
         for k in range(args.repeat)
     )
     ms, best = statistics.median(blocks), blocks[0]
-    head = f"{'arrays':>7} {'robots':>6} {'boxes':>6} {'others':>7} {'aliases':>8} {'moves':>6} {'gc':>6}"
+    head = f"{'arrays':>7} {'robots':>6} {'boxes':>6} {'others':>7} {'aliases':>8} {'moves':>6} {'single':>6}"
+    head += f" {'gc':>6}"
     print(f"{head} {'writer CPU ms/array':>20} {'best':>6}")
     print(
         f"{args.arrays * args.repeat * args.robots:7d} {args.robots:6d} {len(SPOTS):6d} {args.others:7d} "
-        f"{'yes' if args.alias else 'no':>8} {args.moves:6d} {args.gc:>6} {ms:20.3f} {best:6.3f}"
+        f"{'yes' if args.alias else 'no':>8} {args.moves:6d} {'yes' if args.single else 'no':>6} "
+        f"{args.gc:>6} {ms:20.3f} {best:6.3f}"
     )
     if args.json:
         row = {
@@ -180,6 +190,7 @@ def main() -> int:
             "others": args.others,
             "alias": args.alias,
             "moves": args.moves,
+            "single": args.single,
             "gc": args.gc,
             "writer_ms": ms,
             "best_ms": best,
