@@ -1,9 +1,10 @@
 """What a confirming array costs the writer: ms of CPU per array of 20 boxes that all confirm, with a view.
 
 In process, no Zenoh, no ROS: a :class:`~twin.live.TwinService` on the box lab (the core's test
-building) holds 20 tables that one robot created in Room B; the robot then submits typed records (as
-the ROS ingest workers do) at the tables' poses with a camera's noise (5 mm, 0.5 deg), each array with
-a view of the room with its sensor origin (so absence and occlusion run). The figure is the writer's
+building) holds 20 tables that one robot created in Room B; the robot then submits typed records
+(checked as the ROS ingest workers check them) at the tables' poses with a camera's noise (5 mm,
+0.5 deg), each array with a view of the room with its sensor origin (so absence and occlusion run).
+The figure is the writer's
 CPU (``time.process_time`` around ``submit_observation`` + ``process``) per array, the median of
 ``--repeat`` blocks (on a shared machine the best block shows the code, the median the machine too);
 ``--gc freeze`` (the default) freezes the collector after the warm-up as ``twin serve`` does after
@@ -12,7 +13,10 @@ start-up; ``--profile`` prints cProfile's top functions instead. With ``--robots
 each with its own IRIs (the others' resolve through aliases), its own noise and a sense time 1 ms
 after the previous robot's (1 in 20 arrays 50 ms earlier: stale where the others saw the tables since),
 one batch per round of the N arrays: the aliases, the robot pairs' bias notes and the stale notes of a
-fleet.
+fleet. With ``--moves K`` the last table moves 1.2 m (beyond ``certain_move_m``, into the room's free
+corner) every K rounds and back, as in ``ros_ingest.py``: the robots' arrays that follow the move in
+its batch. With ``--single`` each array is a batch of its own, as the daemon's writer mostly takes
+them at 25 robots x 10 Hz (arrays come one by one, a few ms apart).
 
     PYTHONPATH=$PWD python benchmarks/confirm_cost.py --arrays 300 [--profile] [--json out.json]
 """
@@ -39,12 +43,19 @@ from tests.twin.live_helpers import box_turtle, observe, started
 from twin.live import TwinService
 from twin.records import ElementReport, Observation, ObservedBox, ObservedView
 
+try:  # the ingest workers check the records they make (not in a tree before that)
+    from twin.live.validate import checked
+except ImportError:  # pragma: no cover
+    checked = None  # type: ignore[assignment]
+
 ROBOT = "robot1"
 SX, SY, SZ = 0.5, 0.4, 0.75
 STALE = 0.05
 """With several robots, the share of arrays seen 50 ms before the latest (stale where another saw them)."""
 SPOTS = [(8.5 + 0.9 * c, 0.5 + 0.75 * r) for r in range(5) for c in range(4)]
 """20 table spots in Room B (x 8..12, y 0..4), storey frame."""
+MOVED = (11.75, 2.4)
+"""Where the last table goes (``--moves``): 1.2 m from its spot, clear of the others."""
 
 
 def setup(others: int, *, alias: bool = False, robots: int = 1) -> TwinService:
@@ -68,7 +79,8 @@ def names(robots: int) -> list[str]:
     return [ROBOT, *(f"robot{k}" for k in range(2, robots + 1))]
 
 
-def array(rng: random.Random, sense_ns: int, robot: str = ROBOT) -> Observation:
+def array(rng: random.Random, sense_ns: int, robot: str = ROBOT, *, moved: bool = False) -> Observation:
+    spots = [*SPOTS[:-1], MOVED] if moved else SPOTS
     reports = tuple(
         ElementReport(
             f"urn:bench:{robot}:t{i}",
@@ -84,7 +96,7 @@ def array(rng: random.Random, sense_ns: int, robot: str = ROBOT) -> Observation:
                 rng.gauss(0, 0.009),
             ),
         )
-        for i, (x, y) in enumerate(SPOTS)
+        for i, (x, y) in enumerate(spots)
     )
     room = np.array([[OX + x, OY + y] for x, y in ((8.1, 0.1), (11.9, 0.1), (11.9, 3.9), (8.1, 3.9))])
     view = ObservedView(
@@ -93,19 +105,28 @@ def array(rng: random.Random, sense_ns: int, robot: str = ROBOT) -> Observation:
     return Observation(reports, view)
 
 
-def run(service: TwinService, n: int, seed: int = 1, robots: int = 1) -> float:
-    """The writer's CPU ms per array over ``n`` rounds of one array per robot (one batch per round)."""
+def run(
+    service: TwinService, n: int, seed: int = 1, *, robots: int = 1, moves: int = 0, single: bool = False
+) -> float:
+    """The writer's CPU ms per array over ``n`` rounds of one array per robot (one batch per round, or
+    with ``single`` one per array); the last table moved every ``moves`` rounds (0: never)."""
     rng = random.Random(seed)
     replies: list[object] = []
     total = 0.0
     who = names(robots)
-    for _ in range(n):
+    for step in range(n):
         now = time.time_ns()
-        arrays = [(robot, array(rng, now + k * 10**6 - (50 * 10**6 if rng.random() < STALE else 0), robot))
+        moved = moves > 0 and (step // moves) % 2 == 1
+        arrays = [(robot, array(rng, now + k * 10**6 - (50 * 10**6 if rng.random() < STALE else 0), robot,
+                                moved=moved))
                   for k, robot in enumerate(who)]  # fmt: skip
+        if checked is not None:  # as a worker hands them over
+            arrays = [(robot, checked(obs, limits=service.config.limits)) for robot, obs in arrays]  # type: ignore[misc]
         t = time.process_time()
         for robot, obs in arrays:
             service.submit_observation(robot, obs, replies.append)
+            if single:
+                service.process()
         service.process()
         total += time.process_time() - t
     return 1e3 * total / (n * robots)
@@ -120,6 +141,10 @@ def main() -> int:
     p.add_argument("--others", type=int, default=480, help="other robots' tables on the storey")
     p.add_argument("--alias", action="store_true", help="the robot's IRIs are aliases of another's tables")
     p.add_argument("--robots", type=int, default=1, help="robots reporting the same tables in turns")
+    p.add_argument("--moves", type=int, default=0, help="the last table moves every this many rounds")
+    p.add_argument(
+        "--single", action="store_true", help="one batch per array (as the daemon's writer mostly takes them)"
+    )
     p.add_argument("--profile", action="store_true")
     p.add_argument("--sort", default="cumulative", help="cProfile sort key (cumulative, tottime)")
     p.add_argument(
@@ -131,7 +156,8 @@ def main() -> int:
     p.add_argument("--json", type=Path)
     args = p.parse_args()
     service = setup(args.others, alias=args.alias)
-    run(service, 20, robots=args.robots)  # warm up (the first arrays associate the robots' IRIs)
+    # warm up (the first arrays associate the robots' IRIs)
+    run(service, 20, robots=args.robots, moves=args.moves, single=args.single)
     if args.gc == "freeze":
         gc.collect()
         gc.freeze()
@@ -140,17 +166,22 @@ def main() -> int:
     if args.profile:
         prof = cProfile.Profile()
         prof.enable()
-        run(service, args.arrays, seed=2, robots=args.robots)
+        run(service, args.arrays, seed=2, robots=args.robots, moves=args.moves, single=args.single)
         prof.disable()
         pstats.Stats(prof).sort_stats(args.sort).print_stats(45)
         return 0
-    blocks = sorted(run(service, args.arrays, seed=2 + i, robots=args.robots) for i in range(args.repeat))
+    blocks = sorted(
+        run(service, args.arrays, seed=2 + k, robots=args.robots, moves=args.moves, single=args.single)
+        for k in range(args.repeat)
+    )
     ms, best = statistics.median(blocks), blocks[0]
-    head = f"{'arrays':>7} {'robots':>6} {'boxes':>6} {'others':>7} {'aliases':>8} {'gc':>6}"
+    head = f"{'arrays':>7} {'robots':>6} {'boxes':>6} {'others':>7} {'aliases':>8} {'moves':>6} {'single':>6}"
+    head += f" {'gc':>6}"
     print(f"{head} {'writer CPU ms/array':>20} {'best':>6}")
     print(
         f"{args.arrays * args.repeat * args.robots:7d} {args.robots:6d} {len(SPOTS):6d} {args.others:7d} "
-        f"{'yes' if args.alias else 'no':>8} {args.gc:>6} {ms:20.3f} {best:6.3f}"
+        f"{'yes' if args.alias else 'no':>8} {args.moves:6d} {'yes' if args.single else 'no':>6} "
+        f"{args.gc:>6} {ms:20.3f} {best:6.3f}"
     )
     if args.json:
         row = {
@@ -158,6 +189,8 @@ def main() -> int:
             "robots": args.robots,
             "others": args.others,
             "alias": args.alias,
+            "moves": args.moves,
+            "single": args.single,
             "gc": args.gc,
             "writer_ms": ms,
             "best_ms": best,

@@ -27,6 +27,7 @@ from urllib.parse import quote
 import numpy as np
 import numpy.typing as npt
 
+from twin.live.validate import Checked
 from twin.records import ElementReport, Observation, ObservedBox, ObservedView
 
 __all__ = [
@@ -96,8 +97,9 @@ class Translation:
     """A message turned into an observation: ``document`` (None: nothing to tell the twin), the robot
     IRIs it describes, and what was left out (``ignored``: by cause; ``refused``: (cause, message))."""
 
-    document: bytes | Observation | None
-    """Turtle (the wire format), or the typed records the same Turtle parses to (in the daemon's process)."""
+    document: bytes | Observation | Checked | None
+    """Turtle (the wire format), or the typed records the same Turtle parses to (in the daemon's process;
+    :class:`~twin.live.validate.Checked` once an ingest worker checked them)."""
     iris: tuple[str, ...] = ()
     ignored: dict[str, int] = field(default_factory=dict)
     refused: tuple[tuple[str, str], ...] = ()
@@ -111,7 +113,7 @@ class Translation:
     twin refused while it still holds the element)."""
 
     @property
-    def documents(self) -> tuple[bytes | Observation, ...]:
+    def documents(self) -> tuple[bytes | Observation | Checked, ...]:
         return ((self.document,) if self.document is not None else ()) + self.extra
 
     def __reduce__(self) -> tuple[type[Translation], tuple[object, ...]]:

@@ -94,6 +94,7 @@ from twin.graph.rdf import Row
 from twin.live.events import MapPublished, MapUpdated, RobotStoreyChanged, TwinEvent, TwinStarted
 from twin.live.parse import parse_observation
 from twin.live.requests import Reply, ReplyFn
+from twin.live.validate import Checked
 from twin.maps.grid import OccupancyGrid
 from twin.records import Observation
 
@@ -128,7 +129,7 @@ class Submit(Protocol):
     def __call__(
         self,
         robot: str,
-        payload: bytes | Observation,
+        payload: bytes | Observation | Checked,
         reply: ReplyFn | None = None,
         *,
         received_ns: int | None = None,
@@ -302,13 +303,13 @@ class RosIngest:
         if worker_count == 0 or not specs:
             self._translator = RobotTranslator(
                 specs, fusion_terms=self.fusion_terms, typed=typed, clock=clock, tf_wait_s=self.tf_wait_s,
-                max_waiting=MAX_WAITING, storey_of=storey_of,
+                max_waiting=MAX_WAITING, storey_of=storey_of, limits=config.limits,
             )  # fmt: skip
         else:
             self._pool = WorkerPool(
                 specs, worker_count, deliver=self._outcomes, replay=self._replay, on_restart=self._restarted,
                 fusion_terms=self.fusion_terms, typed=typed, tf_wait_s=self.tf_wait_s,
-                queue_depth=self.queue_depth,
+                queue_depth=self.queue_depth, limits=config.limits,
             )  # fmt: skip
             for name in self._robots:
                 self._pool.feed(("storey", name, storey_of(name)), robot=name)

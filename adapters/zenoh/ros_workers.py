@@ -33,7 +33,7 @@ import selectors
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from adapters.ros.detections import (
@@ -47,8 +47,11 @@ from adapters.ros.observation_doc import RosInputError, Translation
 from adapters.ros.sessions import TrackerSession
 from adapters.ros.tf import TfBuffer, decode_tf_message
 from adapters.ros.view import Structure, ViewCache
+from twin.config import Limits
 from twin.errors import MapError
+from twin.live.validate import checked
 from twin.maps.grid import OccupancyGrid
+from twin.records import Observation
 
 __all__ = ["Outcome", "Refused", "RobotTranslator", "Translated", "Waited", "WorkerPool"]
 
@@ -125,10 +128,13 @@ class RobotTranslator:
         tf_wait_s: float = 0.5,
         max_waiting: int = 64,
         storey_of: Callable[[str], str | None] | None = None,
+        limits: Limits | None = None,
     ) -> None:
         """``storey_of``: a robot's current storey, asked at each array (in the daemon's process);
-        None: the storeys fed with :meth:`set_storey` (in a worker)."""
+        None: the storeys fed with :meth:`set_storey` (in a worker). ``limits``: the twin's, to check
+        typed records here (:func:`twin.live.validate.checked`: the writer need not check them again)."""
         self.storey_of = storey_of
+        self.limits = limits
         self.robots = {r.name: _Robot(r, session=copy.deepcopy(r.session)) for r in robots}
         self.fusion_terms = fusion_terms
         self.typed = typed
@@ -233,6 +239,8 @@ class RobotTranslator:
             t = translate_detections(payload, robot.spec.settings, ctx, typed=self.typed)
         except RosInputError as err:
             return Refused(name, err.cause, str(err))
+        if self.limits is not None and isinstance(t.document, Observation):  # checked here, not by the writer
+            t = replace(t, document=checked(t.document, limits=self.limits))
         return Translated(name, t, received_ns, copy.copy(robot.session))
 
 
@@ -257,12 +265,13 @@ def _worker_main(
     inbox: Any,
     outbox: Any,
     taken: Any,
+    limits: Limits | None = None,
 ) -> None:
     """A worker process: batches of feeds and messages from the ``inbox`` pipe, handled in order, their
     outcomes to the ``outbox`` pipe as one batch (or one every :data:`FLUSH_S` of work); ``taken``
     counts the items taken (the queue's depth); None stops (after the items before it)."""
     logging.basicConfig(level=logging.WARNING)
-    t = RobotTranslator(robots, fusion_terms=fusion_terms, typed=typed, tf_wait_s=tf_wait_s)
+    t = RobotTranslator(robots, fusion_terms=fusion_terms, typed=typed, tf_wait_s=tf_wait_s, limits=limits)
     stop = False
     while not stop:
         items: list[Any] = []
@@ -361,12 +370,15 @@ class WorkerPool:
         typed: bool,
         tf_wait_s: float,
         queue_depth: int,
+        limits: Limits | None = None,
     ) -> None:
+        """``limits``: the twin's, for the workers to check the typed records they make (see
+        :class:`RobotTranslator`)."""
         self._ctx = mp.get_context("spawn")  # no fork: the daemon holds Zenoh's and the store's threads
         self.deliver = deliver
         self.replay = replay
         self.on_restart = on_restart
-        self._args = {"fusion_terms": fusion_terms, "typed": typed, "tf_wait_s": tf_wait_s}
+        self._args = {"fusion_terms": fusion_terms, "typed": typed, "tf_wait_s": tf_wait_s, "limits": limits}
         self.queue_depth = queue_depth
         ordered = sorted(robots, key=lambda r: r.name)
         n = max(1, min(count, len(ordered)))

@@ -58,7 +58,7 @@ def absence(ctx: FusionContext, *, view: ObservedView, sense: int) -> None:
     schema = ctx.live.site.schema
     storey = view.storey
     ring = np.concatenate(view.polygons)
-    lo, hi = ring.min(axis=0), ring.max(axis=0)
+    lo, hi = np.minimum.reduce(ring), np.maximum.reduce(ring)  # (ring.min(axis=0), without the wrapper)
     if view.origin is not None:  # what may stand between the sensor and the floor it saw
         lo, hi = np.minimum(lo, view.origin[:2]), np.maximum(hi, view.origin[:2])
     held = ctx.candidates_near(storey, lo, hi)  # view_sees looks at no other (the same in its order)

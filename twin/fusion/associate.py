@@ -86,13 +86,15 @@ def contested_aliases(ctx: FusionContext, reports: Sequence[ElementReport]) -> s
     its reports names too: an element is one object, so it keeps the report by its own IRI, else the one
     nearest the pose it holds; the others' aliases are contested (dropped, associated afresh). Two
     chairs once seen as one never drag their element back and forth between them."""
-    claims: dict[str, list[ElementReport]] = {}
-    for r in reports:
-        if r.box is None or r.unmerge:
-            continue
-        alias = ctx.memory.aliases.get(r.iri)
-        claims.setdefault(r.iri if alias is None else alias.target, []).append(r)
+    aliases = ctx.memory.aliases
+    named = [(r, aliases.get(r.iri)) for r in reports if r.box is not None and not r.unmerge]
+    targets = [r.iri if alias is None else alias.target for r, alias in named]
     out: set[str] = set()
+    if len(set(targets)) == len(targets):
+        return out  # every element named once (the common case)
+    claims: dict[str, list[ElementReport]] = {}
+    for (r, _), target in zip(named, targets, strict=True):
+        claims.setdefault(target, []).append(r)
     for target, rs in claims.items():
         if len(rs) < 2 or all(r.iri == target for r in rs):
             continue

@@ -51,6 +51,11 @@ RECENT_NS = 60 * 10**9
 the element starts its means again)."""
 
 
+_MEAN_PLAIN = round(1 / MEAN_WEIGHT) + 1
+_PAIR_PLAIN = round(1 / PAIR_WEIGHT) + 1
+"""From this many values on, a mean's weight is :data:`MEAN_WEIGHT` (:data:`PAIR_WEIGHT`): 1 / (n + 1) is
+smaller (what :meth:`~twin.fusion.memory.RobotMean.added`'s ``max`` gives, without the call)."""
+
 _NO_MEAN = RobotMean()
 """No sightings yet (only read: :meth:`~twin.fusion.memory.RobotMean.added` makes a new mean)."""
 _NO_MEANS: dict[str, RobotMean] = {}
@@ -66,11 +71,16 @@ def applied_bias(memory: FusionMemory, robot: str) -> tuple[float, float] | None
     mine = memory.pairs.of(robot)
     if not mine:
         return None
-    diffs = [(b, d) for b, d in mine.items() if d.n >= PAIR_MIN_SAMPLES]
-    differing = [(b, d) for b, d in diffs if math.hypot(d.x, d.y) > DEADBAND_M]
-    if len(differing) >= MIN_PARTNERS and 2 * len(differing) > len(diffs):
+    diffs = 0  # partners with enough comparisons, and those of them it differs from
+    differing: list[tuple[str, RobotMean]] = []
+    for b, d in mine.items():
+        if d.n >= PAIR_MIN_SAMPLES:
+            diffs += 1
+            if math.hypot(d.x, d.y) > DEADBAND_M:
+                differing.append((b, d))
+    if len(differing) >= MIN_PARTNERS and 2 * len(differing) > diffs:
         chosen = [d for _, d in differing]
-    elif differing and len(differing) == len(diffs):
+    elif differing and len(differing) == diffs:
         pairs = list(memory.pairs.items())
         chosen = [d for b, d in differing if vouched(pairs, b, robot)]
         if not chosen:
@@ -192,8 +202,10 @@ def sightings_noted(
         held = track.means if track is not None else _NO_MEANS
         old = held.get(robot)
         o = _NO_MEAN if old is None else old  # (RobotMean.added, without the new object)
-        a = 1.0 if o.n == 0 else max(MEAN_WEIGHT, 1.0 / (o.n + 1))
-        n, mx, my, last = o.n + 1, o.x + a * (x - o.x), o.y + a * (y - o.y), max(o.last_ns, sense)
+        k = o.n
+        a = MEAN_WEIGHT if k >= _MEAN_PLAIN else 1.0 if k == 0 else max(MEAN_WEIGHT, 1.0 / (k + 1))
+        last = o.last_ns if o.last_ns > sense else sense
+        n, mx, my = k + 1, o.x + a * (x - o.x), o.y + a * (y - o.y)
         means.append((iri, old, n, mx, my, last))
         if n >= MEAN_MIN and len(held) > (old is not None):
             compared.append((mx, my, held, sense))
@@ -237,25 +249,19 @@ def update_pairs(m: FusionMemory, robot: str, diffs: list[PairUpdate]) -> None:
                 pairs[robot, other] = d = RobotMean()
                 mine = pairs.of(robot) or {}
             k = d.n
-            a = 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
-            d.n, d.x, d.y, d.last_ns = (
-                k + 1,
-                d.x + a * (dx - d.x),
-                d.y + a * (dy - d.y),
-                max(d.last_ns, sense),
-            )
+            a = PAIR_WEIGHT if k >= _PAIR_PLAIN else 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
+            d.n, d.x, d.y = k + 1, d.x + a * (dx - d.x), d.y + a * (dy - d.y)
+            if sense > d.last_ns:  # noqa: PLR1730 (max is a call: 48 pairs an array with 25 robots)
+                d.last_ns = sense
             theirs = pairs.of(other)
             d = None if theirs is None else theirs.get(robot)
             if d is None:
                 pairs[other, robot] = d = RobotMean()
             k = d.n
-            a = 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
-            d.n, d.x, d.y, d.last_ns = (
-                k + 1,
-                d.x + a * (-dx - d.x),
-                d.y + a * (-dy - d.y),
-                max(d.last_ns, sense),
-            )
+            a = PAIR_WEIGHT if k >= _PAIR_PLAIN else 1.0 if k == 0 else max(PAIR_WEIGHT, 1.0 / (k + 1))
+            d.n, d.x, d.y = k + 1, d.x + a * (-dx - d.x), d.y + a * (-dy - d.y)
+            if sense > d.last_ns:  # noqa: PLR1730
+                d.last_ns = sense
         return
     for other, dx, dy, sense in diffs:  # new values: the journal keeps the old ones
         there, back = pairs.get((robot, other)) or _NO_MEAN, pairs.get((other, robot)) or _NO_MEAN

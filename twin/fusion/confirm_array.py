@@ -18,6 +18,8 @@ element) returns False with nothing done: the per-report rules decide the whole 
 Per report it makes one pass of lookups (what the report names, what the twin holds of that); what the
 gates need of each held element is remembered while the objects it was made from stay the same, and a
 robot's next array naming the same elements uses the same stacked arrays (``FusionMemory.confirm_cache``).
+An element moved earlier in the batch (another robot's array) is held where that move put it, as the
+per-report rules hold it: the arrays that follow a move in its batch are settled here too.
 
 Example::
 
@@ -45,7 +47,7 @@ from twin.fusion.dispute import older_disagreement, still_covers
 from twin.fusion.effects import Effect
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
 from twin.fusion.gates import compatible, is_candidate, kinds_agree
-from twin.fusion.memory import FusionMemory, RobotMean
+from twin.fusion.memory import FusionMemory, RobotMean, RobotSightings
 from twin.records import ElementReport, FloatArray, Shape
 
 if TYPE_CHECKING:
@@ -165,7 +167,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
     None when one is anything else. One pass of lookups per report (what it names, what the twin holds
     of that: :class:`_Held`, remembered while it stays the same), the geometry as arrays."""
     memory = ctx.memory
-    aliases, states, pending, tracks = memory.aliases, ctx.states, ctx.pending, memory.tracks
+    aliases, states, tracks = memory.aliases, ctx.states, memory.tracks
     cache = _cache(memory, len(ctx.live.states))
     held_of = cache.held
     shapes, shape_of = ctx.shapes, ctx.live.maps.shape_of
@@ -173,12 +175,12 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
     rules = ctx.rules
     elevations: dict[str, float] = {}
     targets: list[str] = []
-    seen: set[str] = set()
     helds: list[_Held] = []
     keys: list[str] = []
     stale: list[bool] = []
-    rows: list[tuple[float, float, float, float, float, float, float]] = []
-    refs: list[tuple[float, float, float, float, float, float, float, float]] = []
+    rows: list[tuple[float, ...]] = []
+    """Per report: its box (cx .. yaw, z above the storey's floor) and its element's confirmations so far
+    (n, then the sums of cx .. yaw), made into one array at once."""
     aliased: list[int] = []
     for i, (r, sense) in enumerate(zip(reports, senses, strict=True)):
         b = r.box
@@ -191,13 +193,14 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
             target = alias.target
             aliased.append(i)
         state = states.get(target)
-        if state is None or target in seen or target in pending:
-            return None  # unknown or removed, twice in the array, moved earlier in the batch
-        seen.add(target)
+        if state is None:
+            return None  # unknown (twice in the array: below)
         track = tracks.get(target)
         dispute = track.dispute if track is not None else None
         cover = dispute.poses if dispute is not None else None
-        shape = shapes[target] if target in shapes else shape_of(target)  # ctx.held_pose (not pending)
+        # ctx.held_pose: an element moved earlier in the batch has its new shape in ctx.shapes, whose
+        # pose is the one ctx.pending holds (twin.live.observe.fused_pending: memory.pose of that shape)
+        shape = shapes[target] if target in shapes else shape_of(target)
         if shape is None:
             return None  # no held pose: nothing to confirm
         h = held_of.get(target)
@@ -225,11 +228,18 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
         targets.append(target)
         helds.append(h)
         keys.append(key)
-        rows.append((b.cx, b.cy, elevation + b.cz, b.sx, b.sy, b.sz, b.yaw))
-        stale.append(sense < max(state.sensed_ns, track.seen_ns if track is not None else 0))
+        stale.append(sense < state.sensed_ns or (track is not None and sense < track.seen_ns))
         f = track.refinement if track is not None else None
-        refs.append(_NO_REFINEMENT if f is None else (f.n, f.cx, f.cy, f.cz, f.sx, f.sy, f.sz, f.yaw))
-    raw = _canonical(np.array(rows, dtype=np.float64))  # box_pose of each
+        z = elevation + b.cz
+        rows.append(
+            (b.cx, b.cy, z, b.sx, b.sy, b.sz, b.yaw, *_NO_REFINEMENT)
+            if f is None
+            else (b.cx, b.cy, z, b.sx, b.sy, b.sz, b.yaw, f.n, f.cx, f.cy, f.cz, f.sx, f.sy, f.sz, f.yaw)
+        )
+    if len(set(targets)) < len(targets):
+        return None  # an element twice in the array
+    both = np.array(rows, dtype=np.float64)
+    raw = _canonical(both[:, :7])  # box_pose of each
     pose = raw
     given = list(reports)
     if unbiased(ctx, _ANY_POSE) is not _ANY_POSE:  # the robot's detector bias, once known
@@ -258,7 +268,7 @@ def _boxes(  # noqa: PLR0911 (each return: a report the per-report rules decide)
     ):
         return None
     return _Array(
-        given, targets, layout, keys, list(senses), stale, raw, pose, np.array(refs, dtype=np.float64)
+        given, targets, layout, keys, list(senses), stale, raw, pose, both[:, 7:]
     )
 
 
@@ -420,9 +430,8 @@ def _aliases_fit(pose: FloatArray, layout: _Layout, jump_m: float, *, gated: boo
     g = layout.alias
     if gated and g.gated and g.positive:
         a, b = pose[:, 3] * pose[:, 4], g.area
-        return bool(
-            (np.minimum(a, b) / np.maximum(a, b) >= g.min_area).all()
-            and (np.abs(pose[:, 3:6] - g.held[:, 3:6]) <= g.tolerance).all()
+        return _every(np.minimum(a, b) / np.maximum(a, b) >= g.min_area) and _every(
+            np.abs(pose[:, 3:6] - g.held[:, 3:6]) <= g.tolerance
         )
     rows = layout.aliased
     if len(rows) == len(layout.helds):  # every report through an alias (a robot that made none of them)
@@ -449,7 +458,7 @@ def _gates(ctx: FusionContext, boxes: _Array, fresh: Index) -> FloatArray | None
     (:func:`twin.fusion.confirm.confirms`, :func:`~twin.fusion.confirm.resize_evidence`,
     :func:`~twin.fusion.confirm.confirmation`)."""
     rules, layout = ctx.rules, boxes.layout
-    if len(fresh) == len(boxes.targets) and (boxes.refs[:, 0] + 1 >= rules.refine_after).all():
+    if len(fresh) == len(boxes.targets) and _every(boxes.refs[:, 0] + 1 >= rules.refine_after):
         return _gates_at_once(boxes.pose, boxes.refs, layout)
     if len(fresh) == len(boxes.targets):
         seen, refs, held = boxes.pose, boxes.refs, layout.held
@@ -489,19 +498,20 @@ def _gates_at_once(seen: FloatArray, refs: FloatArray, layout: _Layout) -> Float
     held = layout.held
     period = np.where((seen[:, 3] - seen[:, 4] < SQUARE_TOLERANCE_M) | layout.square, HALF_PI, math.pi)
     a = _aligned(seen, held, period, seen[:, 6] - held[:, 6])
-    if not (np.abs(a[:, 3:6] - held[:, 3:6]) <= layout.sizes).all():
+    if not _every(np.abs(a[:, 3:6] - held[:, 3:6]) <= layout.sizes):
         return None  # other sizes: resize evidence
     rows = np.concatenate((seen, _canonical((refs[:, 1:] + a) / (refs[:, :1] + 1))))
     twice = layout.twice
     period = np.where((rows[:, 3] - rows[:, 4] < SQUARE_TOLERANCE_M) | layout.square_twice, HALF_PI, math.pi)
-    d = np.mod(rows[:, 6] - twice[:, 6], period)
+    delta = rows - twice  # (each column as the gates below take it, in one operation)
+    d = np.mod(delta[:, 6], period)
     centre, height, angle = layout.limits
     ok = (
-        (np.hypot(rows[:, 0] - twice[:, 0], rows[:, 1] - twice[:, 1]) <= centre)
-        & (np.abs(rows[:, 2] - twice[:, 2]) <= height)
+        (np.hypot(delta[:, 0], delta[:, 1]) <= centre)
+        & (np.abs(delta[:, 2]) <= height)
         & (np.minimum(d, period - d) <= angle)
     )
-    return a if ok.all() else None  # (a mean out of bounds: a refinement to commit)
+    return a if _every(ok) else None  # (a mean out of bounds: a refinement to commit)
 
 
 def _keeps(
@@ -513,6 +523,17 @@ def _keeps(
     if not _confirms(mean, held, dist, angle).all():
         return False
     return bool((np.hypot(mean[:, 0] - held[:, 0], mean[:, 1] - held[:, 1]) <= rules.refine_distance_m).all())
+
+
+def _every(mask: BoolArray) -> bool:
+    """``mask.all()`` (any shape) without the method's Python-level wrapper: a third of its cost on the
+    20-40 rows of an array, where a dozen such tests are made per array."""
+    return int(np.count_nonzero(mask)) == mask.size
+
+
+def _some(mask: BoolArray) -> bool:
+    """``mask.any()``, as :func:`_every`."""
+    return int(np.count_nonzero(mask)) > 0
 
 
 def _row(p: Pose) -> tuple[float, float, float, float, float, float, float]:
@@ -537,10 +558,11 @@ def _confirms(seen: FloatArray, held: FloatArray, dist: FloatArray, angle: Float
 def _aligned(seen: FloatArray, held: FloatArray, period: FloatArray, turn: FloatArray) -> FloatArray:
     """:func:`twin.fusion.footprints.aligned` of each row (``period``: :func:`_period`, ``turn``: the
     yaw of ``seen`` less ``held``'s)."""
-    d = np.mod(turn + period / 2, period) - period / 2
-    quarter = np.mod(np.round((turn - d) / HALF_PI), 2) == 1
+    half = period / 2
+    d = np.mod(turn + half, period) - half
+    quarter = np.mod(np.rint((turn - d) / HALF_PI), 2) == 1  # (np.round to 0 decimals is rint)
     out = seen.copy()
-    if quarter.any():
+    if _some(quarter):
         out[quarter, 3] = seen[quarter, 4]
         out[quarter, 4] = seen[quarter, 3]
     out[:, 6] = held[:, 6] + d
@@ -551,7 +573,7 @@ def _canonical(p: FloatArray) -> FloatArray:
     """:func:`twin.fusion.footprints.box_pose` of each row (``sx >= sy``, yaw in [0, pi))."""
     out = p.copy()
     swap = p[:, 4] > p[:, 3]
-    if swap.any():
+    if _some(swap):
         out[swap, 3] = p[swap, 4]
         out[swap, 4] = p[swap, 3]
         out[swap, 6] = p[swap, 6] + HALF_PI
@@ -600,14 +622,27 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
     ]
 
     def run(m: FusionMemory) -> None:  # (the bias notes' effect and the confirmations', as one)
+        journaled, tracks = m.journal is not None, m.tracks
         for iri, sense, resizes, (_, old, n, mx, my, last), cx, cy, cz, sx, sy, sz, yaw in rows:
-            t = m.track(iri)
+            t = m.track(iri) if journaled else tracks.get(iri) or m.track(iri)
             mean = t.means.get(robot)  # bias.set_mean
             if mean is not None and mean is old:
                 mean.n, mean.x, mean.y, mean.last_ns = n, mx, my, last
             else:
                 t.means[robot] = RobotMean(n, mx, my, last)
-            t.sighted(robot, sense)
+            s = t.robots.get(robot)  # Track.sighted
+            if s is None:
+                t.robots[robot] = RobotSightings(1, sense, sense)
+            else:
+                s.count += 1
+                if sense < s.first_ns:  # noqa: PLR1730 (min and max are calls: 20 boxes an array)
+                    s.first_ns = sense
+                if sense > s.last_ns:  # noqa: PLR1730
+                    s.last_ns = sense
+            if sense > t.seen_ns:  # noqa: PLR1730
+                t.seen_ns = sense
+            if t.misses:
+                t.misses = [miss for miss in t.misses if miss.sense_ns > sense]
             if resizes:
                 t.sizes.pop(robot, None)  # a sighting at the held sizes clears the robot's evidence
             f = t.refinement
@@ -620,9 +655,13 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
             f.sz += sz
             f.yaw += yaw
             t.moving = None
-            t.movers.clear()
-            t.confirmed[robot] = max(sense, t.confirmed.get(robot, sense))
-            t.runs.pop(robot, None)  # this robot sees it where it is held: its own run ends
+            if t.movers:
+                t.movers.clear()
+            confirmed = t.confirmed.get(robot)
+            if confirmed is None or sense > confirmed:
+                t.confirmed[robot] = sense
+            if t.runs:
+                t.runs.pop(robot, None)  # this robot sees it where it is held: its own run ends
             t.decided = rule
         update_pairs(m, robot, diffs)
 

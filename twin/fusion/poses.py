@@ -55,7 +55,8 @@ class StoreyArrays:
         """Indices of the poses whose centre lies within their ``reach`` of the box ``lo``..``hi``."""
         r = self.reach
         ok = (lo[0] - r <= self.cx) & (self.cx <= hi[0] + r) & (lo[1] - r <= self.cy) & (self.cy <= hi[1] + r)
-        return np.flatnonzero(ok)
+        found: npt.NDArray[np.intp] = ok.nonzero()[0]  # (np.flatnonzero of a 1-d mask, without the wrapper)
+        return found
 
 
 def storey_arrays(live: LiveState, storey: str) -> StoreyArrays:

@@ -103,13 +103,15 @@ def fuse(
         ctx.streaming = streams(live.fusion, robot, sense_ns=sense, rules=rules)
         ctx.out.effects.append(looked(robot, sense))
     senses = [clock.sense(r.sense_ns) if r.sense_ns is not None else sense for r in obs.reports]
-    if rules.enabled:
-        ctx.contested = contested_aliases(ctx, obs.reports)  # one element, one object per observation
-    if ctx.contested or not confirm_array(ctx, obs.reports, senses):  # the common case: confirmations
+    # the common case: confirmations at once (never of an observation that names an element twice, so
+    # nothing is contested then)
+    if not confirm_array(ctx, obs.reports, senses):
+        if rules.enabled:
+            ctx.contested = contested_aliases(ctx, obs.reports)  # one element, one object per observation
         for r, s in zip(obs.reports, senses, strict=True):
             _fuse_report(ctx, r, s)
-    if view is not None and rules.enabled:
-        drop_unseen(ctx, view, reported={r.iri for r in obs.reports})  # held new objects not seen again
+    if view is not None and rules.enabled and live.fusion.tentative:  # held new objects not seen again
+        drop_unseen(ctx, view, reported={r.iri for r in obs.reports})
     if view is not None and rules.enabled and "dynamic" in rights:
         absence(ctx, view=view, sense=sense)
     ctx.out.reports = tuple(ctx.reports)

@@ -157,11 +157,11 @@ class Observer:
         now = self.clock()
         for req in batch:
             try:
-                obs = (
-                    self._parse(req.payload)
-                    if req.observation is None
-                    else check_observation(req.observation, limits=self.config.limits)
-                )
+                obs = req.observation
+                if obs is None:
+                    obs = self._parse(req.payload)
+                elif not req.checked:
+                    check_observation(obs, limits=self.config.limits)
                 current = Layered(states, live.states) if states else live.states
                 fused = fuse(
                     obs,

@@ -43,6 +43,9 @@ class ObserveRequest:
     reply: ReplyFn | None
     received_ns: int
     observation: Observation | None = None
+    checked: bool = False
+    """``observation`` passed :func:`~twin.live.validate.check_observation` under the writer's limits
+    where it was made (:class:`~twin.live.validate.Checked`): not checked again."""
 
 
 @dataclass(frozen=True, slots=True)

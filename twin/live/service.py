@@ -52,6 +52,7 @@ from twin.live.snapshots import Restored, Snapshots
 from twin.live.state import ElementState, LiveState
 from twin.live.status import service_status
 from twin.live.store_health import WatchedStore
+from twin.live.validate import Checked
 from twin.records import Observation
 from twin.selection.skills import SkillProfile
 
@@ -281,18 +282,22 @@ class TwinService:
     def submit_observation(
         self,
         robot: str,
-        payload: bytes | Observation,
+        payload: bytes | Observation | Checked,
         reply: ReplyFn | None = None,
         *,
         received_ns: int | None = None,
     ) -> None:
         """Queue an observation by ``robot``: a Turtle document, or the typed records an adapter in this
-        process made (validated by the same checks as a parsed document: :mod:`twin.live.validate`);
-        ``reply`` gets the ack (or error) once it is durable. ``received_ns``: when it arrived, if it
-        was taken where it arrived (default: now)."""
+        process made (validated by the same checks as a parsed document: :mod:`twin.live.validate`;
+        :class:`~twin.live.validate.Checked` records, checked where they were made under the same
+        limits, are not checked again); ``reply`` gets the ack (or error) once it is durable.
+        ``received_ns``: when it arrived, if it was taken where it arrived (default: now)."""
         now = self.clock() if received_ns is None else received_ns
         if isinstance(payload, Observation):
             self._queue.put(ObserveRequest(robot, b"", reply, now, observation=payload))
+        elif isinstance(payload, Checked):
+            passed = payload.passed(self.config.limits)
+            self._queue.put(ObserveRequest(robot, b"", reply, now, payload.observation, checked=passed))
         else:
             self._queue.put(ObserveRequest(robot, bytes(payload), reply, now))
 

@@ -6,6 +6,11 @@ What needs the syntax (a literal's datatype, one value per term, unknown terms) 
 needs the graph (does the element exist, may this robot change it) is :mod:`twin.live`'s. Here: the
 values themselves, against :class:`~twin.config.Limits`.
 
+Where typed records are made in another process (the ROS 2 ingest workers), they are checked there
+(:func:`checked`): a :class:`Checked` observation carries the limits it passed, and the writer takes it
+without checking it again when its own limits are the same (:meth:`Checked.passed`). One that fails
+goes on unmarked, and the writer refuses it with the same message, counted as any refusal.
+
 Example::
 
     check_observation(Observation((ElementReport("urn:r:1", "IfcFurniture", "s", box),)), limits=Limits())
@@ -16,6 +21,7 @@ from __future__ import annotations
 import functools
 import math
 import re
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -27,10 +33,13 @@ from twin.records import ElementReport, Observation, ObservedView
 __all__ = [
     "MAX_LIFETIME_S",
     "MAX_VIEW_POINTS",
+    "Checked",
     "check_iri",
     "check_observation",
     "check_report",
     "check_view",
+    "checked",
+    "limits_key",
 ]
 
 MAX_VIEW_POINTS = 4096
@@ -167,3 +176,39 @@ def check_observation(observation: Observation, *, limits: Limits) -> Observatio
     for report in observation.reports:
         check_report(report, limits=limits)
     return observation
+
+
+LimitsKey = tuple[object, ...]
+
+
+@functools.lru_cache(maxsize=8)
+def limits_key(limits: Limits) -> LimitsKey:
+    """Every value of ``limits``, in order: what two processes compare to know that they check alike."""
+    return tuple(limits.model_dump().values())
+
+
+@dataclass(frozen=True, slots=True)
+class Checked:
+    """An observation that passed :func:`check_observation` where it was made, under the limits whose
+    :func:`limits_key` is ``limits`` (made by :func:`checked`)."""
+
+    observation: Observation
+    limits: LimitsKey
+
+    def passed(self, limits: Limits) -> bool:
+        """Whether it passed the checks of ``limits`` (the same values): nothing to check again."""
+        return self.limits == limits_key(limits)
+
+    def __reduce__(self) -> tuple[type[Checked], tuple[Observation, LimitsKey]]:
+        """A call with its fields (one per array from an ingest worker; see :mod:`twin.records`)."""
+        return (Checked, (self.observation, self.limits))
+
+
+def checked(observation: Observation, *, limits: Limits) -> Observation | Checked:
+    """``observation`` as :class:`Checked` if it passes :func:`check_observation`, else as it is (the
+    writer checks it again and refuses it, with the same message)."""
+    try:
+        check_observation(observation, limits=limits)
+    except ObservationError:
+        return observation
+    return Checked(observation, limits_key(limits))

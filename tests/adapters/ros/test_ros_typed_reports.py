@@ -31,7 +31,7 @@ from twin.errors import ObservationError
 from twin.graph.vocab import FURN
 from twin.live import Reply, TwinService
 from twin.live.parse import parse_observation_document
-from twin.live.validate import check_observation
+from twin.live.validate import Checked, check_observation, checked, limits_key
 from twin.records import ElementReport, Observation, ObservedBox, ObservedView
 
 S = 1_000_000_000
@@ -224,6 +224,54 @@ def test_typed_records_come_back_from_a_worker_with_every_field() -> None:
     ]
     assert back.view is not None and back.view.origin == view.origin and back.view.sense_ns == T0
     assert np.array_equal(back.view.polygons[0], view.polygons[0])
+
+
+def test_records_a_worker_checked_under_the_writers_limits_are_not_checked_again() -> None:
+    box = (1, 2, 0.3, 0.4, 0.4, 0.6, 0)
+    good = observation_records(boxes=[BoxReport("urn:twin-ros:r:det:1", "IfcFurniture", "ground-floor", box)])
+    bad = observation_records(
+        boxes=[BoxReport("not an iri", "IfcFurniture", "ground-floor", (0, 0, 0.3, 0.2, 0.2, 0.6, 0))]
+    )
+    assert good is not None and bad is not None
+    made = checked(good, limits=Limits())
+    assert isinstance(made, Checked) and made.observation is good and made.passed(Limits())
+    assert not made.passed(Limits(box_size_m=0.3))  # a writer with other limits checks it again
+    assert checked(bad, limits=Limits()) is bad  # goes on unmarked: the writer refuses it
+    back = pickle.loads(pickle.dumps(made, protocol=pickle.HIGHEST_PROTOCOL))
+    assert isinstance(back, Checked) and back.limits == made.limits
+    assert [astuple(r) for r in back.observation.reports] == [astuple(r) for r in good.reports]
+    service, _ = started()
+    replies: list[list[Reply]] = [[], [], []]
+    service.submit_observation("robot1", checked(bad, limits=Limits()), replies[0].append)
+    trusted = Checked(bad, limits_key(service.config.limits))  # (marked as a worker marks what passed)
+    service.submit_observation("robot1", trusted, replies[1].append)
+    other = Checked(bad, limits_key(Limits(box_size_m=49.0)))  # checked under other limits
+    service.submit_observation("robot1", other, replies[2].append)
+    service.process()
+    [unmarked], [taken], [rechecked] = replies
+    assert not unmarked.ok and "is not an absolute IRI" in str(unmarked.body["error"])
+    assert not taken.ok and "is not an absolute IRI" not in str(taken.body["error"])  # not checked again
+    assert not rechecked.ok and "is not an absolute IRI" in str(rechecked.body["error"])
+
+
+def test_a_translator_with_the_twins_limits_hands_over_checked_records() -> None:
+    from adapters.zenoh.ros_workers import RobotSpec, RobotTranslator, Translated
+
+    settings = DetectionSettings(robot="r", classes={"table": "IfcFurniture"}, range_m=3.0)
+    documents = []
+    for limits in (Limits(), None):
+        t = RobotTranslator(
+            [RobotSpec("r", settings, None)], fusion_terms=True, typed=True, clock=lambda: T0, limits=limits
+        )
+        t.set_storey("r", "ground-floor")
+        t.handle("r", "tf", cdr_tf([Tf("map", "base_link", (*ROOM_B, 0.2), stamp_ns=T0)]), 0)
+        (out,) = t.handle("r", "detections", cdr_detections(T0, "base_link", arrays()[0][1]), 0)
+        assert isinstance(out, Translated)
+        documents.append(out.translation.document)
+    made, plain = documents
+    assert isinstance(made, Checked) and made.passed(Limits())
+    assert isinstance(plain, Observation)  # (no limits: the writer checks it)
+    assert [astuple(r) for r in made.observation.reports] == [astuple(r) for r in plain.reports]
 
 
 def test_a_workers_outcome_comes_back_whole_and_its_records_stay_frozen() -> None:

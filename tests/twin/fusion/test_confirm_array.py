@@ -10,6 +10,7 @@ graph must come out the same, while most arrays take the shortcut.
 from __future__ import annotations
 
 import random
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -113,3 +114,43 @@ def test_the_twin_is_the_same_with_and_without_the_shortcut(both) -> None:  # ty
         if sa is not None and sb is not None:
             np.testing.assert_array_equal(sa[1], sb[1])
             np.testing.assert_array_equal(sa[0].vertices, sb[0].vertices)
+
+
+def _seen_by(robot: str, obs: Observation) -> Observation:
+    """``obs`` (robot1's boxes) as ``robot`` reports it: its own IRIs."""
+    return replace(obs, reports=tuple(replace(r, iri=r.iri.replace("robot1", robot)) for r in obs.reports))
+
+
+def _moved_in_a_batch(shortcut: bool) -> tuple[list[dict[str, object]], TwinService, int]:
+    """robot1 makes the tables, robot4 (noise as robot1's) sees them (aliases); then, in one batch,
+    robot1 sees table 2 moved 2.9 m (a certain move) and robot4 confirms it there."""
+    clock = Clock()
+    service = TwinService(imported(box_lab()), load_config(), clock=clock)
+    service.start()
+    replies: list[Reply] = []
+    rng = random.Random(3)
+    spots = list(SPOTS)
+    with confirmations_at_once(shortcut) as settled:
+        for step in range(30):
+            clock.ns += 30_000_000
+            robot = ("robot1", "robot4")[step % 2]
+            obs = _seen_by(robot, _array(rng, "robot1", spots, clock.ns - 20_000_000))
+            service.submit_observation(robot, obs, replies.append)
+            service.process()
+        before = settled.arrays
+        spots[2] = (spots[2][0], spots[2][1] + 2.9)
+        clock.ns += 30_000_000
+        for k, robot in enumerate(("robot1", "robot4")):
+            obs = _seen_by(robot, _array(rng, "robot1", spots, clock.ns - 20_000_000 + k * 1_000_000))
+            service.submit_observation(robot, obs, replies.append)
+        service.process()
+    return [r.body for r in replies], service, settled.arrays - before
+
+
+def test_an_array_that_confirms_a_move_made_earlier_in_its_batch_is_settled_at_once() -> None:
+    fast, a, settled = _moved_in_a_batch(True)
+    slow, b, _ = _moved_in_a_batch(False)
+    assert settled == 1  # robot4's array; robot1's moved the table (the per-report rules)
+    assert fast[-2]["unchanged"] and fast[-1]["upserted"]  # (the move is acked after its commit)
+    assert fast == slow
+    assert a.live.fusion.to_json() == b.live.fusion.to_json()

@@ -52,10 +52,15 @@ SPOTS = [(8.6 + 0.9 * c, 0.6 + 0.9 * r) for r in range(4) for c in range(4)]
 """16 table spots in Room B, storey frame."""
 
 
-def _fleet(seed: int, shortcut: bool, steps: int) -> tuple[list[dict[str, object]], TwinService, int]:
+def _fleet(
+    seed: int, shortcut: bool, steps: int, *, batches: bool = False
+) -> tuple[list[dict[str, object]], TwinService, int]:
     """``steps`` arrays of a random fleet of six robots on 16 tables (robot0 makes them), to a service
-    with confirmations at once on or off (the per-report rules for every report)."""
+    with confirmations at once on or off (the per-report rules for every report). With ``batches``,
+    one to six arrays share a batch (the arrays after a move confirm where it put the table), and some
+    moves are certain ones (0.55-0.65 m)."""
     rng = random.Random(seed)
+    cut = random.Random(seed + 1)  # where batches end (``batches``)
     robots = [f"robot{k}" for k in range(6)]
     noise = {r: rng.choice((0.002, 0.005, 0.01, 0.08)) for r in robots}  # 0.08 m: beyond the gates at times
     bias = {r: 0.0 for r in robots} | {"robot4": 0.18}
@@ -69,9 +74,11 @@ def _fleet(seed: int, shortcut: bool, steps: int) -> tuple[list[dict[str, object
         for step in range(steps):
             clock.ns += 25_000_000
             robot = robots[0] if step < 2 else rng.choice(robots)
-            if rng.random() < 0.01:  # a table moved (far, into the room's free floor, or a short move)
+            if rng.random() < (0.03 if batches else 0.01):  # a table moved (short; with batches far too)
                 k = rng.randrange(len(spots))
-                spots[k] = (spots[k][0] + rng.choice((0.25, -0.25)), spots[k][1])
+                far = batches and cut.random() < 0.5
+                dx = cut.choice((0.55, -0.6, 0.65)) if far else rng.choice((0.25, -0.25))
+                spots[k] = (spots[k][0] + dx, spots[k][1])
             reports = []
             for i, (x, y) in enumerate(spots):
                 sx, sy = sizes[i]
@@ -96,7 +103,9 @@ def _fleet(seed: int, shortcut: bool, steps: int) -> tuple[list[dict[str, object
                 "ground-floor", (ROOM_B,), ("IfcFurniture",), sense_ns=sense, origin=(OX + 10, OY + 2, 1.2)
             )
             service.submit_observation(robot, Observation(tuple(reports), view), replies.append)
-            service.process()
+            if not batches or cut.random() < 0.3:
+                service.process()
+        service.process()
     return [r.body for r in replies], service, settled.arrays
 
 
@@ -120,6 +129,25 @@ def test_confirmations_at_once_decide_as_the_rules_do_on_random_fleets(seed: int
     ma, mb = a.live.fusion.to_json(), b.live.fusion.to_json()
     assert ma["tracks"] == mb["tracks"]
     assert ma == mb  # aliases, pairs (in their order), tentative, ...
+    assert a.live.revision == b.live.revision
+    for iri in a.live.states:
+        sa, sb = a.live.maps.shape_of(iri), b.live.maps.shape_of(iri)
+        assert (sa is None) == (sb is None)
+        if sa is not None and sb is not None:
+            np.testing.assert_array_equal(sa[1], sb[1])
+            np.testing.assert_array_equal(sa[0].vertices, sb[0].vertices)
+
+
+@pytest.mark.parametrize("seed", [5, 8])
+def test_confirmations_at_once_decide_as_the_rules_do_on_random_fleets_in_batches(seed: int) -> None:
+    fast, a, settled = _fleet(seed, True, 260, batches=True)
+    slow, b, off = _fleet(seed, False, 260, batches=True)
+    assert off == 0
+    assert 40 < settled < 250
+    assert fast == slow
+    assert sum("upserted" in r and bool(r["upserted"]) for r in fast) >= 3  # moves (and refinements) applied
+    ma, mb = a.live.fusion.to_json(), b.live.fusion.to_json()
+    assert ma == mb
     assert a.live.revision == b.live.revision
     for iri in a.live.states:
         sa, sb = a.live.maps.shape_of(iri), b.live.maps.shape_of(iri)
