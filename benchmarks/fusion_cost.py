@@ -123,12 +123,15 @@ def run(fusion: bool, args: argparse.Namespace) -> dict[str, Any]:
         time.sleep(max(0.0, start_at - time.time()))
         cpu0 = cpu_seconds(daemon.pid)
         threads0 = live.thread_cpu(daemon.pid)
+        spy = live.py_spy_record(daemon.pid, args.profile, args.duration) if args.profile else None
         results = [
             json.loads((c.communicate(timeout=args.duration + 120)[0] or "{}").splitlines()[-1])
             for c in children
         ]
         cpu = cpu_seconds(daemon.pid) - cpu0
         threads = by_thread(daemon.pid, threads0, live.thread_cpu(daemon.pid)) if args.threads else {}
+        if spy is not None:
+            spy.wait(timeout=60)
     finally:
         daemon.terminate()
         daemon.wait(timeout=30)
@@ -157,6 +160,12 @@ def main() -> int:
         "--threads", action="store_true", help="split the daemon's CPU by thread (py-spy names them)"
     )
     p.add_argument("--batch-wait-ms", type=float, help="[serve] batch_wait_ms (default: the tree's)")
+    p.add_argument(
+        "--profile",
+        type=Path,
+        help="py-spy record the daemon over the run into this file (collapsed stacks; it costs CPU: "
+        "not for the figures)",
+    )
     p.add_argument("--json", type=Path)
     args = p.parse_args()
     rows = [run(mode == "on", args) for mode in args.modes.split(",")]

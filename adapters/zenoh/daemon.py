@@ -224,7 +224,7 @@ class ZenohDaemon:
                 query.drop()  # finalise now: the robot's get returns at once, not when Python frees it
 
         def reply(r: Reply) -> None:  # on the writer's thread: after the map updates, off the thread
-            self.outbox.put(lambda: self.site.put(lambda: send(r)))
+            self.outbox.join(lambda: self.site.join(lambda: send(r)))  # a batch's acks: one wake-up each
 
         self.service.submit_observation(robot, payload, reply=reply)
 

@@ -7,10 +7,16 @@ ack still follows the map updates of its change. The daemon runs several (:mod:`
 its dispatcher, and one *lane* per link (the site's keys, each ROS 2 robot), so that a send blocked by a
 slow link holds only that link's lane.
 
+Sends that come in a burst (a batch's acks: up to a few dozen at once) are *joined*: a joined send
+queued right after another joined one (nothing put between them) runs with it as one job, so that the
+outbox's thread wakes once for the burst, not once per send; the order stays the order they were
+queued in.
+
 Example::
 
     outbox = Outbox()
     outbox.put(lambda: publisher.put(payload))
+    outbox.join(lambda: reply(a)); outbox.join(lambda: reply(b))    # one wake-up for both
     outbox.drain()    # wait until everything put so far was sent
     outbox.close()    # drain, then stop the thread
 """
@@ -32,6 +38,8 @@ class Outbox:
 
     def __init__(self, name: str = "zenoh-outbox") -> None:
         self._jobs: queue.SimpleQueue[Job | None] = queue.SimpleQueue()
+        self._lock = threading.Lock()  # orders put and join between threads; held for a queue put
+        self._open: list[Job] | None = None  # the joined sends queued as one job, not yet taken
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._closed = False
         self._thread.start()
@@ -40,12 +48,34 @@ class Outbox:
         """Queue ``job``; after :meth:`close` it runs at once on the caller's thread."""
         if self._closed:
             _run_one(job)
-        else:
+            return
+        with self._lock:
+            self._open = None  # a send joined later must not overtake this one
             self._jobs.put(job)
+
+    def join(self, job: Job) -> None:
+        """Queue ``job`` as :meth:`put` does, run with the joined jobs queued right before it (nothing
+        put between them) as one job of the outbox's thread, each on its own (a failing one is logged)."""
+        if self._closed:
+            _run_one(job)
+            return
+        with self._lock:
+            if self._open is not None:
+                self._open.append(job)
+                return
+            group = self._open = [job]
+            self._jobs.put(lambda: self._run_joined(group))
+
+    def _run_joined(self, group: list[Job]) -> None:
+        with self._lock:  # taken: the jobs joined from now on form the next group
+            if self._open is group:
+                self._open = None
+        for job in group:
+            _run_one(job)
 
     @property
     def depth(self) -> int:
-        """Sends queued and not yet made."""
+        """Sends queued and not yet made (joined sends count as one job)."""
         return self._jobs.qsize()
 
     def drain(self, timeout_s: float = 30.0) -> bool:
@@ -53,14 +83,16 @@ class Outbox:
         if self._closed:
             return True
         done = threading.Event()
-        self._jobs.put(done.set)
+        self.put(done.set)
         return done.wait(timeout_s)
 
     def close(self, timeout_s: float = 30.0) -> None:
         """Make every queued send, then stop the thread."""
         if self._closed:
             return
-        self._jobs.put(None)
+        with self._lock:
+            self._open = None
+            self._jobs.put(None)
         self._thread.join(timeout_s)
         if self._thread.is_alive():
             log.error("The Zenoh outbox did not empty within %.0f s (%d sends left)", timeout_s, self.depth)

@@ -79,16 +79,33 @@ def _is_box_mesh(vertices: FloatArray) -> FloatArray | None:
     return np.asarray(half * 2)
 
 
-def pose_of(shape: Shape) -> Pose:
-    """The smallest upright box around a mesh placed in the world."""
+BoxSizes = tuple[float, float, float]
+"""A box mesh's sizes along its local axes (:func:`box_sizes`)."""
+
+
+def box_sizes(vertices: FloatArray) -> BoxSizes | None:
+    """The sizes of a box mesh centred on its origin, or None: what :func:`pose_of` tests, for a caller
+    that keeps it while the mesh stays the same object (a moving element: only its placement changes)."""
+    sizes = _is_box_mesh(vertices)
+    if sizes is None:
+        return None
+    sx, sy, sz = sizes.tolist()
+    return sx, sy, sz
+
+
+def pose_of(shape: Shape, *, box: BoxSizes | None = None) -> Pose:
+    """The smallest upright box around a mesh placed in the world. ``box``: the mesh's
+    :func:`box_sizes` when known (a box mesh), else the mesh is tested here."""
     mesh, placement = shape
-    sizes = _is_box_mesh(mesh.vertices)
-    if sizes is not None and abs(placement[2, 0]) < 1e-9 and abs(placement[2, 1]) < 1e-9:
-        scale = np.linalg.norm(placement[:3, :3], axis=0)
-        yaw = math.atan2(placement[1, 0], placement[0, 0])
-        cx, cy, cz = (float(v) for v in placement[:3, 3])
-        sx, sy, sz = (float(v) for v in sizes * scale)
-        return box_pose(cx, cy, cz, sx, sy, sz, yaw=yaw)
+    sizes = box if box is not None else box_sizes(mesh.vertices)
+    if sizes is not None:
+        (r00, r01, r02, cx), (r10, r11, r12, cy), (r20, r21, r22, cz) = placement[:3].tolist()
+        if abs(r20) < 1e-9 and abs(r21) < 1e-9:
+            # in Python floats, as np.linalg.norm(placement[:3, :3], axis=0) sums (rows in order)
+            sx = sizes[0] * math.sqrt(r00 * r00 + r10 * r10 + r20 * r20)
+            sy = sizes[1] * math.sqrt(r01 * r01 + r11 * r11 + r21 * r21)
+            sz = sizes[2] * math.sqrt(r02 * r02 + r12 * r12 + r22 * r22)
+            return box_pose(cx, cy, cz, sx, sy, sz, yaw=math.atan2(r10, r00))
     world = mesh.vertices @ placement[:3, :3].T + placement[:3, 3]
     if len(world) == 0:
         x, y, z = (float(v) for v in placement[:3, 3])

@@ -47,3 +47,40 @@ def test_close_makes_every_queued_send_and_later_sends_run_at_once() -> None:
     assert seen == list(range(50))
     outbox.put(lambda: seen.append(99))  # after close: on the caller's thread
     assert seen[-1] == 99
+
+
+def test_joined_sends_queued_in_a_row_run_as_one_job_and_never_overtake_a_put() -> None:
+    outbox = Outbox()
+    gate = threading.Event()
+    seen: list[int] = []
+    outbox.put(gate.wait)
+    outbox.join(lambda: seen.append(1))
+    outbox.put(lambda: seen.append(2))
+    for i in (3, 4, 5):
+        outbox.join(lambda i=i: seen.append(i))
+    assert outbox.depth == 4  # the gate, [1], 2, [3, 4, 5]
+    gate.set()
+    assert outbox.drain()
+    outbox.join(lambda: seen.append(6))  # the group taken: a new one
+    outbox.close()
+    assert seen == [1, 2, 3, 4, 5, 6]
+
+
+def test_a_failing_joined_send_is_logged_and_the_others_of_its_group_are_still_made(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    outbox = Outbox()
+    gate = threading.Event()
+    seen: list[int] = []
+
+    def boom() -> None:
+        raise RuntimeError("the query is gone")
+
+    outbox.put(gate.wait)
+    outbox.join(lambda: seen.append(1))
+    outbox.join(boom)
+    outbox.join(lambda: seen.append(3))
+    gate.set()
+    outbox.close()
+    assert seen == [1, 3]
+    assert "A Zenoh send failed" in caplog.text
