@@ -123,6 +123,15 @@ class ZenohDaemon:
         ):
             self.outbox.put(lambda: self._dispatch(event))
 
+    def work_begins(self) -> None:
+        """The writer begins a piece of work (:class:`~twin.live.events.GatheringSink`): its events and
+        acks gather on the dispatcher's outbox until it ends (one wake-up of the dispatcher, not one
+        per ack in the middle of a batch)."""
+        self.outbox.hold()
+
+    def work_ends(self) -> None:
+        self.outbox.release()
+
     def drain(self) -> None:
         """Wait until every map sample and reply queued so far was sent (on every lane)."""
         self.outbox.drain()

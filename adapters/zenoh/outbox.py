@@ -10,7 +10,11 @@ slow link holds only that link's lane.
 Sends that come in a burst (a batch's acks: up to a few dozen at once) are *joined*: a joined send
 queued right after another joined one (nothing put between them) runs with it as one job, so that the
 outbox's thread wakes once for the burst, not once per send; the order stays the order they were
-queued in.
+queued in. And while the writer *holds* the outbox (:meth:`Outbox.hold`, for one piece of its work: a
+batch of observations, its map updates and its acks), what it puts gathers and goes to the outbox's
+thread as one job when it lets go (:meth:`Outbox.release`): the thread is not woken in the middle of
+the batch to fight the writer for the interpreter. Another thread's put, a drain or a close hands on
+what was gathered first, so the order is always the order of the puts.
 
 Example::
 
@@ -40,6 +44,8 @@ class Outbox:
         self._jobs: queue.SimpleQueue[Job | None] = queue.SimpleQueue()
         self._lock = threading.Lock()  # orders put and join between threads; held for a queue put
         self._open: list[Job] | None = None  # the joined sends queued as one job, not yet taken
+        self._holder: int | None = None  # the thread whose puts gather (hold .. release)
+        self._held: list[Job] = []
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._closed = False
         self._thread.start()
@@ -50,6 +56,8 @@ class Outbox:
             _run_one(job)
             return
         with self._lock:
+            if self._gathered(job):
+                return
             self._open = None  # a send joined later must not overtake this one
             self._jobs.put(job)
 
@@ -60,18 +68,49 @@ class Outbox:
             _run_one(job)
             return
         with self._lock:
+            if self._gathered(job):
+                return
             if self._open is not None:
                 self._open.append(job)
                 return
             group = self._open = [job]
             self._jobs.put(lambda: self._run_joined(group))
 
+    def hold(self) -> None:
+        """From now on gather the calling thread's puts and joins, in order, until :meth:`release`."""
+        with self._lock:
+            self._queue_held()
+            self._holder = threading.get_ident()
+
+    def release(self) -> None:
+        """Queue what was gathered since :meth:`hold` as one job, and gather no more."""
+        with self._lock:
+            self._holder = None
+            self._queue_held()
+
+    def _gathered(self, job: Job) -> bool:
+        """(Lock held.) ``job`` gathered, if its thread holds the outbox; another thread's job first
+        queues what was gathered (the order of the puts is the order of the sends)."""
+        if self._holder is None:
+            return False
+        if self._holder == threading.get_ident():
+            self._held.append(job)
+            return True
+        self._queue_held()
+        return False
+
+    def _queue_held(self) -> None:
+        """(Lock held.) What was gathered, queued as one job."""
+        if self._held:
+            jobs, self._held = self._held, []
+            self._open = None
+            self._jobs.put(lambda: _run_all(jobs))
+
     def _run_joined(self, group: list[Job]) -> None:
         with self._lock:  # taken: the jobs joined from now on form the next group
             if self._open is group:
                 self._open = None
-        for job in group:
-            _run_one(job)
+        _run_all(group)
 
     @property
     def depth(self) -> int:
@@ -83,7 +122,10 @@ class Outbox:
         if self._closed:
             return True
         done = threading.Event()
-        self.put(done.set)
+        with self._lock:  # what its own thread gathered too
+            self._queue_held()
+            self._open = None
+            self._jobs.put(done.set)
         return done.wait(timeout_s)
 
     def close(self, timeout_s: float = 30.0) -> None:
@@ -91,6 +133,8 @@ class Outbox:
         if self._closed:
             return
         with self._lock:
+            self._holder = None
+            self._queue_held()
             self._open = None
             self._jobs.put(None)
         self._thread.join(timeout_s)
@@ -101,6 +145,11 @@ class Outbox:
     def _run(self) -> None:
         while (job := self._jobs.get()) is not None:
             _run_one(job)
+
+
+def _run_all(jobs: list[Job]) -> None:
+    for job in jobs:
+        _run_one(job)
 
 
 def _run_one(job: Job) -> None:

@@ -29,7 +29,14 @@ from twin.config import Config
 from twin.errors import TwinError
 from twin.fusion.poses import build_poses
 from twin.graph.store import GraphStore
-from twin.live.events import ElementShape, RobotStoreyChanged, TwinEvent, TwinSink, TwinStarted
+from twin.live.events import (
+    ElementShape,
+    GatheringSink,
+    RobotStoreyChanged,
+    TwinEvent,
+    TwinSink,
+    TwinStarted,
+)
 from twin.live.explain import explain_cell
 from twin.live.live_maps import LiveMaps
 from twin.live.live_points import PointsPublication
@@ -240,6 +247,14 @@ class TwinService:
             except Exception:  # a sink must never stop the twin
                 log.exception("Sink %s failed on %s", type(sink).__name__, type(event).__name__)
 
+    @staticmethod
+    def _tell(sinks: Sequence[GatheringSink], what: str) -> None:
+        for sink in sinks:
+            try:
+                getattr(sink, what)()
+            except Exception:  # a sink must never stop the twin
+                log.exception("Sink %s failed on %s", type(sink).__name__, what)
+
     def flush_full_maps(self, *, due_only: bool = False) -> None:
         """Publish the full version of every map changed since its last full publication; with
         ``due_only``, only the keyframes that are due (``keyframe_interval_s`` since the last one)."""
@@ -344,20 +359,25 @@ class TwinService:
         handled = 0
         work = self._queue.take(timeout_s)
         until = None if budget_s is None else time.monotonic() + budget_s
+        gathering = [s for s in self.sinks if isinstance(s, GatheringSink)] if work is not None else []
         while work is not None:
-            if isinstance(work, list):  # observations queued one behind the other: one batch
-                self._observe(work)
-                handled += len(work)
-            elif isinstance(work, ExplainRequest):
-                self._explain(work)
-                handled += 1
-            elif isinstance(work, StoreyRequest):
-                self._switch_storey(work)
-                handled += 1
-            else:
-                self._change_skill(work)
-                handled += 1
-            self.flush_full_maps(due_only=True)
+            self._tell(gathering, "work_begins")
+            try:
+                if isinstance(work, list):  # observations queued one behind the other: one batch
+                    self._observe(work)
+                    handled += len(work)
+                elif isinstance(work, ExplainRequest):
+                    self._explain(work)
+                    handled += 1
+                elif isinstance(work, StoreyRequest):
+                    self._switch_storey(work)
+                    handled += 1
+                else:
+                    self._change_skill(work)
+                    handled += 1
+                self.flush_full_maps(due_only=True)
+            finally:
+                self._tell(gathering, "work_ends")  # what they gathered goes on, in order
             work = None if until is not None and time.monotonic() >= until else self._queue.take()
         self.flush_full_maps(due_only=True)
         return handled

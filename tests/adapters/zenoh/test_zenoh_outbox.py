@@ -84,3 +84,26 @@ def test_a_failing_joined_send_is_logged_and_the_others_of_its_group_are_still_m
     outbox.close()
     assert seen == [1, 3]
     assert "A Zenoh send failed" in caplog.text
+
+
+def test_a_holders_sends_gather_until_it_lets_go_and_another_threads_put_hands_them_on_first() -> None:
+    outbox = Outbox()
+    seen: list[str] = []
+    outbox.hold()
+    outbox.put(lambda: seen.append("update"))
+    outbox.join(lambda: seen.append("ack 1"))
+    outbox.join(lambda: seen.append("ack 2"))
+    assert outbox.depth == 0  # gathered: the outbox's thread was not woken
+    outbox.release()
+    assert outbox.drain()
+    assert seen == ["update", "ack 1", "ack 2"]
+    outbox.hold()
+    outbox.join(lambda: seen.append("ack 3"))
+    other = threading.Thread(target=outbox.put, args=(lambda: seen.append("other thread"),))
+    other.start()
+    other.join()
+    outbox.join(lambda: seen.append("ack 4"))
+    assert outbox.drain(timeout_s=5)  # the holder's own drain sends what it gathered: no wait for release
+    assert seen[3:] == ["ack 3", "other thread", "ack 4"]
+    outbox.release()
+    outbox.close()

@@ -275,3 +275,31 @@ def test_queued_observations_commit_one_by_one_and_share_one_map_pass_that_equal
         "SELECT ?e ?rev WHERE { ?e twin:revision ?rev . FILTER(STRSTARTS(STR(?e), 'urn:robot1:')) }"
     )
     assert {r["e"]: int(r["rev"] or -1) for r in rows} == {"urn:robot1:a": 6, "urn:robot1:b": 5}
+
+
+def test_a_gathering_sink_is_told_when_each_piece_of_work_begins_and_ends_around_its_events() -> None:
+    log: list[str] = []
+
+    class Gathering:
+        def emit(self, event: object) -> None:
+            log.append(type(event).__name__)
+
+        def work_begins(self) -> None:
+            log.append("begins")
+
+        def work_ends(self) -> None:
+            log.append("ends")
+
+    class Broken(Gathering):
+        def work_begins(self) -> None:
+            raise RuntimeError("the session is gone")
+
+    store = imported(box_lab())
+    service = TwinService(store, load_config(), sinks=[Broken(), Gathering()])
+    service.start()
+    log.clear()
+    for x in (6.0, 6.0, 7.0):  # one batch: a new table, its re-confirmation, a move
+        service.submit_observation("robot1", box_turtle(TABLE, x, 2.0), lambda r: log.append(f"ack {r.ok}"))
+    assert service.process() == 3
+    assert log[0] == "begins" and log[-1] == "ends" and log.count("begins") == 1  # the broken one: logged
+    assert log.count("ack True") == 3 and "MapUpdated" in log and log.count("ends") == 2
