@@ -126,10 +126,13 @@ class ZenohDaemon:
     def work_begins(self) -> None:
         """The writer begins a piece of work (:class:`~twin.live.events.GatheringSink`): its events and
         acks gather on the dispatcher's outbox until it ends (one wake-up of the dispatcher, not one
-        per ack in the middle of a batch)."""
+        per ack in the middle of a batch), and the dispatcher gathers their sends on the site lane
+        the same way (one wake-up of the lane for the batch's updates and acks)."""
         self.outbox.hold()
+        self.outbox.put(self.site.hold)
 
     def work_ends(self) -> None:
+        self.outbox.put(self.site.release)
         self.outbox.release()
 
     def drain(self) -> None:
