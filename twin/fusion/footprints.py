@@ -61,11 +61,33 @@ class Pose:
         return self.sx * self.sy
 
 
+_NEW = object.__new__
+_SET_CX, _SET_CY, _SET_CZ, _SET_SX, _SET_SY, _SET_SZ, _SET_YAW = (
+    getattr(Pose, f).__set__ for f in ("cx", "cy", "cz", "sx", "sy", "sz", "yaw")
+)
+assert Pose.__slots__ == ("cx", "cy", "cz", "sx", "sy", "sz", "yaw")
+
+
+def _pose(cx: float, cy: float, cz: float, sx: float, sy: float, sz: float, yaw: float) -> Pose:  # noqa: PLR0917
+    """``Pose(cx, cy, cz, sx, sy, sz, yaw)`` made in half the time: its slots set through their
+    descriptors, where the frozen dataclass's ``__init__`` calls ``object.__setattr__`` for each (the
+    fusion rules make a few poses for every report)."""
+    p = _NEW(Pose)
+    _SET_CX(p, cx)
+    _SET_CY(p, cy)
+    _SET_CZ(p, cz)
+    _SET_SX(p, sx)
+    _SET_SY(p, sy)
+    _SET_SZ(p, sz)
+    _SET_YAW(p, yaw)
+    return p
+
+
 def box_pose(cx: float, cy: float, cz: float, sx: float, sy: float, sz: float, *, yaw: float) -> Pose:  # noqa: PLR0917
     """The canonical pose of a box (centre z is the world z of its middle)."""
     if sy > sx:
         sx, sy, yaw = sy, sx, yaw + math.pi / 2
-    return Pose(cx, cy, cz, sx, sy, sz, yaw % math.pi)
+    return _pose(cx, cy, cz, sx, sy, sz, yaw % math.pi)
 
 
 def _is_box_mesh(vertices: FloatArray) -> FloatArray | None:
@@ -242,7 +264,7 @@ def aligned(seen: Pose, held: Pose) -> Pose:
     d = (seen.yaw - held.yaw + period / 2) % period - period / 2
     quarter = round((seen.yaw - held.yaw - d) / (math.pi / 2)) % 2 == 1
     sx, sy = (seen.sy, seen.sx) if quarter else (seen.sx, seen.sy)
-    return Pose(seen.cx, seen.cy, seen.cz, sx, sy, seen.sz, held.yaw + d)
+    return _pose(seen.cx, seen.cy, seen.cz, sx, sy, seen.sz, held.yaw + d)
 
 
 def inside(points: FloatArray, polygons: Sequence[FloatArray]) -> bool:

@@ -3,14 +3,17 @@ Python floats, its box test remembered while it moves."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
+import pytest
 
 from twin.fusion.footprints import (
     Pose,
     _is_box_mesh,
     _monotone_chain,
+    _pose,
     box_pose,
     box_sizes,
     convex_hull,
@@ -74,3 +77,11 @@ def test_the_memory_tests_a_moving_mesh_once_and_gives_the_pose_of_its_new_place
     assert memory.pose("e", (mesh, moved)) == pose_of((mesh, moved)) != first
     assert memory.pose("e", (not_a_box, moved)) == pose_of((not_a_box, moved))  # a new mesh: tested again
     assert memory.shape_poses["e"][3] is None
+
+
+def test_a_pose_made_through_its_slots_is_the_frozen_record_its_constructor_makes() -> None:
+    made, built = _pose(1.0, 2.0, 0.375, 0.8, 0.6, 0.75, 3.0), Pose(1.0, 2.0, 0.375, 0.8, 0.6, 0.75, 3.0)
+    assert made == built and hash(made) == hash(built) and repr(made) == repr(built)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        made.cx = 2.0  # type: ignore[misc]
+    assert type(box_pose(1.0, 2.0, 0.375, 0.6, 0.8, 0.75, yaw=3.1)) is Pose
