@@ -94,8 +94,8 @@ def py_spy_record(pid: int, out: Path, duration_s: float) -> subprocess.Popen[by
     one line per stack with its count, threads by id); the caller waits for it."""
     spy = shutil.which("py-spy") or str(Path(sys.executable).parent / "py-spy")
     return subprocess.Popen(
-        [spy, "record", "--pid", str(pid), "--duration", str(max(1, round(duration_s))), "--rate", "250",
-         "--format", "raw", "--threads", "--nonblocking", "-o", str(out)],
+        [spy, "record", "--pid", str(pid), "--duration", str(max(1, round(duration_s)))]
+        + ["--rate", "250", "--format", "raw", "--threads", "--nonblocking", "-o", str(out)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
