@@ -114,6 +114,7 @@ class TwinService:
         self.restored_from: int | None = None
         """The revision of the snapshot :meth:`start` restored the maps from (None: built from the store)."""
         self._completing: Restored | None = None
+        self._gathering: Sequence[GatheringSink] = ()  # the sinks that gather, in the piece of work under way
         self._queue = RequestQueue(max_batch, wait_s=batch_wait_s)
         self.publication = Publication(
             emit=self._emit, clock=clock, keyframe_s=config.limits.keyframe_interval_s
@@ -154,6 +155,7 @@ class TwinService:
             clock=self.clock,
             publication=self.publication,
             base_iri=self._base_iri,
+            hand_over=self._hand_over,
         )
         self._flushed_at = (time.monotonic(), live.revision)
         stamp = self.clock()
@@ -246,6 +248,12 @@ class TwinService:
                 sink.emit(event)
             except Exception:  # a sink must never stop the twin
                 log.exception("Sink %s failed on %s", type(sink).__name__, type(event).__name__)
+
+    def _hand_over(self) -> None:
+        """What the gathering sinks gathered so far in this piece of work goes on now (the batch's acks
+        before its commit: sent while the store writes, as without gathering)."""
+        self._tell(self._gathering, "work_ends")
+        self._tell(self._gathering, "work_begins")
 
     @staticmethod
     def _tell(sinks: Sequence[GatheringSink], what: str) -> None:
@@ -362,6 +370,7 @@ class TwinService:
         gathering = [s for s in self.sinks if isinstance(s, GatheringSink)] if work is not None else []
         while work is not None:
             self._tell(gathering, "work_begins")
+            self._gathering = gathering  # (a commit hands over what they gathered before it)
             try:
                 if isinstance(work, list):  # observations queued one behind the other: one batch
                     self._observe(work)
@@ -377,6 +386,7 @@ class TwinService:
                     handled += 1
                 self.flush_full_maps(due_only=True)
             finally:
+                self._gathering = ()
                 self._tell(gathering, "work_ends")  # what they gathered goes on, in order
             work = None if until is not None and time.monotonic() >= until else self._queue.take()
         self.flush_full_maps(due_only=True)
