@@ -123,18 +123,6 @@ class ZenohDaemon:
         ):
             self.outbox.put(lambda: self._dispatch(event))
 
-    def work_begins(self) -> None:
-        """The writer begins a piece of work (:class:`~twin.live.events.GatheringSink`): its events and
-        acks gather on the dispatcher's outbox until it ends (one wake-up of the dispatcher, not one
-        per ack in the middle of a batch), and the dispatcher gathers their sends on the site lane
-        the same way (one wake-up of the lane for the batch's updates and acks)."""
-        self.outbox.hold()
-        self.outbox.put(self.site.hold)
-
-    def work_ends(self) -> None:
-        self.outbox.put(self.site.release)
-        self.outbox.release()
-
     def drain(self) -> None:
         """Wait until every map sample and reply queued so far was sent (on every lane)."""
         self.outbox.drain()
@@ -236,7 +224,7 @@ class ZenohDaemon:
                 query.drop()  # finalise now: the robot's get returns at once, not when Python frees it
 
         def reply(r: Reply) -> None:  # on the writer's thread: after the map updates, off the thread
-            self.outbox.join(lambda: self.site.join(lambda: send(r)))  # a batch's acks: one wake-up each
+            self.outbox.put(lambda: self.site.put(lambda: send(r)))
 
         self.service.submit_observation(robot, payload, reply=reply)
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Protocol
 
 from twin.maps.grid import GridData, GridFrame, OccupancyGrid, Window
 from twin.maps.points import PointCloud
@@ -229,14 +229,3 @@ class TwinSink(Protocol):
     """Receives the service's events, in order, on the service's thread: return quickly."""
 
     def emit(self, event: TwinEvent) -> None: ...
-
-
-@runtime_checkable
-class GatheringSink(Protocol):
-    """A sink that may gather what the writer hands it during one piece of work (a batch of observations:
-    its events and, for a transport, its acks) and pass it on when that piece ends, in the same order:
-    one hand-over to the sink's own threads instead of one per event or ack."""
-
-    def work_begins(self) -> None: ...
-
-    def work_ends(self) -> None: ...

@@ -110,11 +110,7 @@ class Observer:
         clock: Callable[[], int],
         publication: Publication,
         base_iri: str = "",
-        hand_over: Callable[[], None] = lambda: None,
     ) -> None:
-        """``hand_over``: called before a commit, so that the sinks that gather a batch's sends
-        (:class:`~twin.live.events.GatheringSink`) pass on the acks of the batch's observations so far
-        (re-confirmations) while the store writes."""
         self.store = store
         self.config = config
         self.live = live
@@ -130,7 +126,6 @@ class Observer:
         """What fusion decided, counted: resolved IRIs, confirmations, refined poses, merges, removals
         by absence, creations and moves (the last four of committed observations)."""
         self.base_iri = base_iri
-        self.hand_over = hand_over
         self._parsed: OrderedDict[bytes, Observation] = OrderedDict()
 
     def _parse(self, payload: bytes) -> Observation:
@@ -316,7 +311,6 @@ class Observer:
         alias_changes: ChangeSet | None = None,
     ) -> None:
         live = self.live
-        self.hand_over()
         try:
             extra = (alias_changes,) if alias_changes else ()
             self.store.apply(*(p.plan.changes for p in planned), *extra)  # durable from here on

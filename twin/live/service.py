@@ -29,14 +29,7 @@ from twin.config import Config
 from twin.errors import TwinError
 from twin.fusion.poses import build_poses
 from twin.graph.store import GraphStore
-from twin.live.events import (
-    ElementShape,
-    GatheringSink,
-    RobotStoreyChanged,
-    TwinEvent,
-    TwinSink,
-    TwinStarted,
-)
+from twin.live.events import ElementShape, RobotStoreyChanged, TwinEvent, TwinSink, TwinStarted
 from twin.live.explain import explain_cell
 from twin.live.live_maps import LiveMaps
 from twin.live.live_points import PointsPublication
@@ -114,7 +107,6 @@ class TwinService:
         self.restored_from: int | None = None
         """The revision of the snapshot :meth:`start` restored the maps from (None: built from the store)."""
         self._completing: Restored | None = None
-        self._gathering: Sequence[GatheringSink] = ()  # the sinks that gather, in the piece of work under way
         self._queue = RequestQueue(max_batch, wait_s=batch_wait_s)
         self.publication = Publication(
             emit=self._emit, clock=clock, keyframe_s=config.limits.keyframe_interval_s
@@ -155,7 +147,6 @@ class TwinService:
             clock=self.clock,
             publication=self.publication,
             base_iri=self._base_iri,
-            hand_over=self._hand_over,
         )
         self._flushed_at = (time.monotonic(), live.revision)
         stamp = self.clock()
@@ -248,20 +239,6 @@ class TwinService:
                 sink.emit(event)
             except Exception:  # a sink must never stop the twin
                 log.exception("Sink %s failed on %s", type(sink).__name__, type(event).__name__)
-
-    def _hand_over(self) -> None:
-        """What the gathering sinks gathered so far in this piece of work goes on now (the batch's acks
-        before its commit: sent while the store writes, as without gathering)."""
-        self._tell(self._gathering, "work_ends")
-        self._tell(self._gathering, "work_begins")
-
-    @staticmethod
-    def _tell(sinks: Sequence[GatheringSink], what: str) -> None:
-        for sink in sinks:
-            try:
-                getattr(sink, what)()
-            except Exception:  # a sink must never stop the twin
-                log.exception("Sink %s failed on %s", type(sink).__name__, what)
 
     def flush_full_maps(self, *, due_only: bool = False) -> None:
         """Publish the full version of every map changed since its last full publication; with
@@ -367,27 +344,20 @@ class TwinService:
         handled = 0
         work = self._queue.take(timeout_s)
         until = None if budget_s is None else time.monotonic() + budget_s
-        gathering = [s for s in self.sinks if isinstance(s, GatheringSink)] if work is not None else []
         while work is not None:
-            self._tell(gathering, "work_begins")
-            self._gathering = gathering  # (a commit hands over what they gathered before it)
-            try:
-                if isinstance(work, list):  # observations queued one behind the other: one batch
-                    self._observe(work)
-                    handled += len(work)
-                elif isinstance(work, ExplainRequest):
-                    self._explain(work)
-                    handled += 1
-                elif isinstance(work, StoreyRequest):
-                    self._switch_storey(work)
-                    handled += 1
-                else:
-                    self._change_skill(work)
-                    handled += 1
-                self.flush_full_maps(due_only=True)
-            finally:
-                self._gathering = ()
-                self._tell(gathering, "work_ends")  # what they gathered goes on, in order
+            if isinstance(work, list):  # observations queued one behind the other: one batch
+                self._observe(work)
+                handled += len(work)
+            elif isinstance(work, ExplainRequest):
+                self._explain(work)
+                handled += 1
+            elif isinstance(work, StoreyRequest):
+                self._switch_storey(work)
+                handled += 1
+            else:
+                self._change_skill(work)
+                handled += 1
+            self.flush_full_maps(due_only=True)
             work = None if until is not None and time.monotonic() >= until else self._queue.take()
         self.flush_full_maps(due_only=True)
         return handled

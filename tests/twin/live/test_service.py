@@ -275,37 +275,3 @@ def test_queued_observations_commit_one_by_one_and_share_one_map_pass_that_equal
         "SELECT ?e ?rev WHERE { ?e twin:revision ?rev . FILTER(STRSTARTS(STR(?e), 'urn:robot1:')) }"
     )
     assert {r["e"]: int(r["rev"] or -1) for r in rows} == {"urn:robot1:a": 6, "urn:robot1:b": 5}
-
-
-def test_a_gathering_sink_is_told_when_each_piece_of_work_begins_and_ends_around_its_events() -> None:
-    log: list[str] = []
-
-    class Gathering:
-        def __init__(self, name: str) -> None:
-            self.name = name
-
-        def emit(self, event: object) -> None:
-            if isinstance(event, MapUpdated):
-                log.append(f"{self.name} update")
-
-        def work_begins(self) -> None:
-            if self.name == "broken":
-                raise RuntimeError("the session is gone")
-            log.append(f"{self.name} begins")
-
-        def work_ends(self) -> None:
-            log.append(f"{self.name} ends")
-
-    store = imported(box_lab())
-    service = TwinService(store, load_config(), sinks=[Gathering("broken"), Gathering("sink")])
-    service.start()
-    observe(service, "robot1", box_turtle(TABLE, 6.0, 2.0))
-    log.clear()
-    for x in (6.0, 7.0):  # one batch: a re-confirmation, a move
-        service.submit_observation("robot1", box_turtle(TABLE, x, 2.0), lambda r: log.append(f"ack {r.ok}"))
-    assert service.process() == 2
-    mine = [e for e in log if not e.startswith("broken")]  # the broken sink stopped nothing
-    # the re-confirmation's ack is handed over before the commit (sent while the store writes), then the
-    # commit's updates and ack, handed over when the batch ends
-    assert mine[:4] == ["sink begins", "ack True", "sink ends", "sink begins"]
-    assert mine[-2:] == ["ack True", "sink ends"] and set(mine[4:-2]) == {"sink update"}
