@@ -37,6 +37,8 @@ def robot(endpoint: str, prefix: str, index: int, rate: float, duration: float, 
     name = f"robot{index}"
     x0, y = 11.2 + 0.95 * index, 6.9 if index % 2 else 5.6
     acked = moves = 0
+    waits: list[float] = []  # ms from the request to its ack: committed
+    held: list[float] = []  # unchanged (a move held until a second sighting agrees, a re-confirmation)
     with TwinClient.connect([endpoint], prefix=prefix, timeout_s=30.0) as twin:
         time.sleep(max(0.0, start_at - time.time()))
         i, spot = 0, 0
@@ -52,10 +54,13 @@ def robot(endpoint: str, prefix: str, index: int, rate: float, duration: float, 
                 f'<urn:cost:{name}:table> <{TWIN}ifcClass> "IfcFurniture" ; <{TWIN}storey> "ground-floor" ; '
                 f'<{TWIN}box> "{x:.4f} {y + dy:.4f} 0.375 0.8 0.6 0.75 0.0" .'
             )
-            if twin.observe(name, payload).get("ok"):
+            t = time.perf_counter()
+            ack = twin.observe(name, payload)
+            if ack.get("ok"):
                 acked += 1
+                (held if ack.get("unchanged") else waits).append(1e3 * (time.perf_counter() - t))
             i += 1
-    print(json.dumps({"acked": acked, "moves": moves}), flush=True)
+    print(json.dumps({"acked": acked, "moves": moves, "ack_ms": waits, "unchanged_ack_ms": held}), flush=True)
     return 0
 
 
@@ -123,17 +128,26 @@ def run(fusion: bool, args: argparse.Namespace) -> dict[str, Any]:
         time.sleep(max(0.0, start_at - time.time()))
         cpu0 = cpu_seconds(daemon.pid)
         threads0 = live.thread_cpu(daemon.pid)
+        spy = live.py_spy_record(daemon.pid, args.profile, args.duration) if args.profile else None
         results = [
             json.loads((c.communicate(timeout=args.duration + 120)[0] or "{}").splitlines()[-1])
             for c in children
         ]
         cpu = cpu_seconds(daemon.pid) - cpu0
         threads = by_thread(daemon.pid, threads0, live.thread_cpu(daemon.pid)) if args.threads else {}
+        if spy is not None:
+            spy.wait(timeout=60)
     finally:
         daemon.terminate()
         daemon.wait(timeout=30)
     acked = sum(r.get("acked", 0) for r in results)
+    waits = sorted(w for r in results for w in r.get("ack_ms", []))
+    held = sorted(w for r in results for w in r.get("unchanged_ack_ms", []))
     return {
+        "ack_ms_p50": waits[len(waits) // 2] if waits else float("nan"),
+        "ack_ms_p90": waits[int(len(waits) * 0.9)] if waits else float("nan"),
+        "unchanged_ack_ms_p50": held[len(held) // 2] if held else float("nan"),
+        "unchanged_ack_ms_p90": held[int(len(held) * 0.9)] if held else float("nan"),
         "fusion": fusion,
         "acked": acked,
         "acked_per_s": acked / args.duration,
@@ -157,6 +171,12 @@ def main() -> int:
         "--threads", action="store_true", help="split the daemon's CPU by thread (py-spy names them)"
     )
     p.add_argument("--batch-wait-ms", type=float, help="[serve] batch_wait_ms (default: the tree's)")
+    p.add_argument(
+        "--profile",
+        type=Path,
+        help="py-spy record the daemon over the run into this file (collapsed stacks; it costs CPU: "
+        "not for the figures)",
+    )
     p.add_argument("--json", type=Path)
     args = p.parse_args()
     rows = [run(mode == "on", args) for mode in args.modes.split(",")]
@@ -164,7 +184,9 @@ def main() -> int:
     for r in rows:
         print(
             f"{'on' if r['fusion'] else 'off':8} {r['acked']:7d} {r['acked_per_s']:8.1f} "
-            f"{r['daemon_cpu_s']:13.2f} {r['cpu_ms_per_acked']:13.3f}   load {r['load']:.1f}"
+            f"{r['daemon_cpu_s']:13.2f} {r['cpu_ms_per_acked']:13.3f}   load {r['load']:.1f}   "
+            f"ack p50 {r['ack_ms_p50']:.1f} ms, p90 {r['ack_ms_p90']:.1f} ms; unchanged "
+            f"p50 {r['unchanged_ack_ms_p50']:.1f} ms, p90 {r['unchanged_ack_ms_p90']:.1f} ms"
         )
         for name, ms in r["threads_ms_per_acked"].items():
             if ms >= 0.001:

@@ -89,6 +89,18 @@ def py_spy_dump(pid: int) -> str:
         return ""
 
 
+def py_spy_record(pid: int, out: Path, duration_s: float) -> subprocess.Popen[bytes]:
+    """Start ``py-spy record`` of ``pid``'s threads for ``duration_s`` into ``out`` (collapsed stacks,
+    one line per stack with its count, threads by id); the caller waits for it."""
+    spy = shutil.which("py-spy") or str(Path(sys.executable).parent / "py-spy")
+    how = ["--rate", "250", "--format", "raw", "--threads", "--nonblocking", "-o", str(out)]
+    return subprocess.Popen(
+        [spy, "record", "--pid", str(pid), "--duration", str(max(1, round(duration_s))), *how],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+
+
 def serve(*args: str) -> tuple[subprocess.Popen[str], str]:
     """Start ``twin serve ARGS`` and wait for its "serving" line; return the process and that line."""
     daemon = subprocess.Popen(

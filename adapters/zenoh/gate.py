@@ -44,7 +44,8 @@ class CallbackGate:
             finally:
                 with self._cond:
                     self._running -= 1
-                    self._cond.notify_all()
+                    if self._closed:  # only a close waits (it closes first, under the same lock)
+                        self._cond.notify_all()
 
         return guarded
 

@@ -22,7 +22,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
-from twin.fusion.footprints import Pose, box_pose, pose_of
+from twin.fusion.footprints import BoxSizes, Pose, box_pose, box_sizes, pose_of
 
 TENTATIVE_TTL_NS = 60 * 10**9
 """A tentative robot IRI not seen often enough within this long is forgotten."""
@@ -380,8 +380,9 @@ class FusionMemory:
     pairs: PairTable = field(default_factory=PairTable)
     """(robot, other robot) -> the mean difference (x, y) between where they put the elements both see
     (:mod:`twin.fusion.bias`)."""
-    shape_poses: dict[str, tuple[object, object, Pose]] = field(default_factory=dict)
-    """Element -> (mesh, placement, pose): the pose of the shape it has, computed once per shape."""
+    shape_poses: dict[str, tuple[object, object, Pose, BoxSizes | None]] = field(default_factory=dict)
+    """Element -> (mesh, placement, pose, the mesh's box sizes if a box): the pose of the shape it has,
+    computed once per shape; the box test once per mesh (a move keeps the mesh)."""
     confirm_cache: Any = None
     """What confirmations at once (:mod:`twin.fusion.confirm_array`) keep between arrays: each element's
     gates while the objects they were made from stay the same (checked at every use)."""
@@ -392,10 +393,15 @@ class FusionMemory:
     def pose(self, iri: str, shape: tuple[Any, Any]) -> Pose:
         """The pose of ``iri``'s current ``shape`` (cached while the shape's objects stay the same)."""
         cached = self.shape_poses.get(iri)
-        if cached is not None and cached[0] is shape[0] and cached[1] is shape[1]:
-            return cached[2]
-        pose = pose_of(shape)
-        self.shape_poses[iri] = (shape[0], shape[1], pose)
+        box = None
+        if cached is not None and cached[0] is shape[0]:
+            if cached[1] is shape[1]:
+                return cached[2]
+            box = cached[3]  # moved: the same mesh, tested once
+        if box is None:
+            box = box_sizes(shape[0].vertices)
+        pose = pose_of(shape, box=box)
+        self.shape_poses[iri] = (shape[0], shape[1], pose, box)
         return pose
 
     def track(self, iri: str) -> Track:

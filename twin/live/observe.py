@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import logging
 from collections import Counter, OrderedDict
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from twin.config import Config
@@ -187,7 +187,7 @@ class Observer:
                         r.iri: shapes[r.iri] if r.iri in shapes else live.maps.shape_of(r.iri)
                         for r in reports
                     },
-                    held=Layered[str, Mapping[str, Object | None]](held, live.held),
+                    held=Layered(held, live.held),  # (not Layered[...](): a generic alias costs a call)
                     revision=live.revision + len(planned) + 1,
                     stamp_ns=req.received_ns,
                     sense_ns=fused.sense,
