@@ -58,7 +58,8 @@ class RosSubscriber(JsonLinesProcess):
         out.mkdir(parents=True, exist_ok=True)
         super().__init__("tests.integration.ros_subscriber", d.endpoint, layout, "0", ns, str(out), topic)
         self.out = out
-        assert self.next()["ready"]
+        while "ready" not in self.next():  # a message may come first: the subscriptions start before "ready"
+            pass
 
     def until(self, kind: str, count: int = 1) -> None:
         while sum(1 for ln in self.lines if ln.get("kind") == kind) < count:
@@ -172,7 +173,8 @@ class StoreyPublisher(JsonLinesProcess):
 
     def __init__(self, d: Daemon, layout: str, ns: str) -> None:
         super().__init__("tests.integration.ros_storey_publisher", d.endpoint, layout, "0", ns)
-        assert self.next()["ready"]
+        while "ready" not in self.next():  # a message may come first: the subscriptions start before "ready"
+            pass
 
     def send(self, storey: str) -> None:
         assert self.process.stdin is not None
