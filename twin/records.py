@@ -379,10 +379,11 @@ def boxed_report(
     """``ElementReport(iri, ifc_class=, storey=, box=ObservedBox(*box), labels=, classes=, sense_ns=,
     lifetime_s=)`` (every other field its default), made by the makers (:func:`_maker`): the ROS ingest
     workers make 20 an array, 1 us each instead of 3."""
-    return _make_report(
+    report: ElementReport = _make_report(
         iri, ifc_class, storey, _make_box(*box), None, None, None, False, None, None, labels, (), classes,
         sense_ns, False, False, lifetime_s,
     )  # fmt: skip
+    return report
 
 
 _FIELDS: dict[type, Callable[[Any], tuple[object, ...]]] = {
