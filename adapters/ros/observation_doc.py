@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from twin.live.validate import Checked
-from twin.records import ElementReport, Observation, ObservedBox, ObservedView
+from twin.records import ElementReport, Observation, ObservedView, boxed_report
 
 __all__ = [
     "BoxReport",
@@ -268,15 +268,15 @@ def observation_records(
     numbers = np.array([b.box for b in boxes], dtype=np.float64).reshape(-1, 7)
     numbers[:, 6] = [math.remainder(v, 2 * math.pi) for v in numbers[:, 6].tolist()]
     for b, (cx, cy, cz, sx, sy, sz, yaw) in zip(boxes, _rounded(numbers, _BOX_DIGITS).tolist(), strict=True):
-        reports[b.iri] = ElementReport(
+        reports[b.iri] = boxed_report(
             b.iri,
-            ifc_class=b.ifc_class,
-            storey=b.storey,
-            box=ObservedBox(cx, cy, cz, sx, sy, sz, yaw),
+            b.ifc_class,
+            b.storey,
+            (cx, cy, cz, sx, sy, sz, yaw),
             labels=(b.label,) if b.label else (),
             classes=(b.kind,) if b.kind else (),
-            lifetime_s=None if b.lifetime_s is None else round(b.lifetime_s, 9),
             sense_ns=each_sense,
+            lifetime_s=None if b.lifetime_s is None else round(b.lifetime_s, 9),
         )
     for iri, is_open in doors:
         reports[iri] = ElementReport(iri, is_open=is_open, sense_ns=each_sense)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import gc
 import logging
 import multiprocessing as mp
 import pickle
@@ -251,6 +252,12 @@ its array (and other robots' of the same moment) go as one batch (one pickle, on
 the worker); the outcomes of a batch come back as one."""
 
 
+WORKER_GC_THRESHOLD = (20_000, 50, 100)
+"""A worker's collector thresholds: an array makes about a hundred container objects that outlive the
+records' making (its reports, boxes, tuples; freed by their counts once handed over), so the default
+700 ran a young collection every few arrays over everything young; cycles are rare here."""
+
+
 FLUSH_S = 0.003
 """A worker sends what it made of a batch so far once it has worked on it this long (a batch of many
 robots' arrays: the first ones do not wait for the last)."""
@@ -272,6 +279,8 @@ def _worker_main(
     counts the items taken (the queue's depth); None stops (after the items before it)."""
     logging.basicConfig(level=logging.WARNING)
     t = RobotTranslator(robots, fusion_terms=fusion_terms, typed=typed, tf_wait_s=tf_wait_s, limits=limits)
+    gc.freeze()  # what the start made (modules, type stores, the robots' state) is not collected again
+    gc.set_threshold(*WORKER_GC_THRESHOLD)
     stop = False
     while not stop:
         items: list[Any] = []

@@ -319,3 +319,21 @@ def test_a_record_that_checks_itself_gets_no_maker_that_would_skip_the_check() -
 
     with pytest.raises(TypeError, match="__post_init__"):
         _maker(Checked, "_make_checked")
+
+
+def test_a_boxed_report_made_without_the_dataclass_init_has_every_field_the_init_gives() -> None:
+    from twin.records import boxed_report
+
+    box = (1.5, -2.25, 0.375, 0.2, 0.3, 0.75, -1.25)
+    cases = [(("t1",), (FURN + "Table",), 17_000, 2.5), ((), (), None, None)]
+    for labels, classes, sense_ns, lifetime_s in cases:
+        fast = boxed_report(
+            "urn:x", "IfcFurniture", "urn:s", box, labels=labels, classes=classes, sense_ns=sense_ns,
+            lifetime_s=lifetime_s,
+        )  # fmt: skip
+        slow = ElementReport(
+            "urn:x", ifc_class="IfcFurniture", storey="urn:s", box=ObservedBox(*box), labels=labels,
+            classes=classes, sense_ns=sense_ns, lifetime_s=lifetime_s,
+        )  # fmt: skip
+        assert astuple(fast) == astuple(slow)
+        assert type(fast) is ElementReport and type(fast.box) is ObservedBox
