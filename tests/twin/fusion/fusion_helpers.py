@@ -7,6 +7,8 @@ import datetime
 from collections.abc import Iterator
 from dataclasses import dataclass
 
+import numpy as np
+
 import twin.live.fuse as fuse_module
 from tests.twin.box_lab import OX, OY
 from tests.twin.live_helpers import PREFIX, box_turtle
@@ -112,3 +114,13 @@ def size_of(service: TwinService, iri: str) -> tuple[float, float, float]:
     b = service.live_maps.bounds_of(iri)
     assert b is not None
     return (round(b[3] - b[0], 3), round(b[4] - b[1], 3), round(b[5] - b[2], 3))
+
+
+def assert_same_shapes(a: TwinService, b: TwinService) -> None:
+    """Every element of ``a`` has the shape it has in ``b`` (mesh vertices and placement, or none)."""
+    for iri in a.live.states:
+        sa, sb = a.live.maps.shape_of(iri), b.live.maps.shape_of(iri)
+        assert (sa is None) == (sb is None), iri
+        if sa is not None and sb is not None:
+            np.testing.assert_array_equal(sa[1], sb[1])
+            np.testing.assert_array_equal(sa[0].vertices, sb[0].vertices)

@@ -17,7 +17,7 @@ import pytest
 
 from tests.conftest import imported
 from tests.twin.box_lab import OX, OY, box_lab
-from tests.twin.fusion.fusion_helpers import Clock, confirmations_at_once
+from tests.twin.fusion.fusion_helpers import Clock, assert_same_shapes, confirmations_at_once
 from twin.config import load_config
 from twin.live import Reply, TwinService
 from twin.records import ElementReport, Observation, ObservedBox, ObservedView
@@ -108,12 +108,7 @@ def test_the_twin_is_the_same_with_and_without_the_shortcut(both) -> None:  # ty
     (_, a, _), (_, b, _) = both
     assert a.live.revision == b.live.revision > 1
     assert set(a.live.states) == set(b.live.states)
-    for iri in a.live.states:
-        sa, sb = a.live.maps.shape_of(iri), b.live.maps.shape_of(iri)
-        assert (sa is None) == (sb is None)
-        if sa is not None and sb is not None:
-            np.testing.assert_array_equal(sa[1], sb[1])
-            np.testing.assert_array_equal(sa[0].vertices, sb[0].vertices)
+    assert_same_shapes(a, b)
 
 
 def _seen_by(robot: str, obs: Observation) -> Observation:

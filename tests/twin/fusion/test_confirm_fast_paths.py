@@ -26,7 +26,7 @@ import pytest
 
 from tests.conftest import imported
 from tests.twin.box_lab import OX, OY, box_lab
-from tests.twin.fusion.fusion_helpers import Clock, confirmations_at_once
+from tests.twin.fusion.fusion_helpers import Clock, assert_same_shapes, confirmations_at_once
 from tests.twin.live_helpers import started
 from twin.config import FusionRules, load_config
 from twin.fusion.bias import MEAN_MIN, MEAN_WEIGHT, PAIR_WEIGHT, RECENT_NS, note_sightings_at
@@ -130,12 +130,7 @@ def test_confirmations_at_once_decide_as_the_rules_do_on_random_fleets(seed: int
     assert ma["tracks"] == mb["tracks"]
     assert ma == mb  # aliases, pairs (in their order), tentative, ...
     assert a.live.revision == b.live.revision
-    for iri in a.live.states:
-        sa, sb = a.live.maps.shape_of(iri), b.live.maps.shape_of(iri)
-        assert (sa is None) == (sb is None)
-        if sa is not None and sb is not None:
-            np.testing.assert_array_equal(sa[1], sb[1])
-            np.testing.assert_array_equal(sa[0].vertices, sb[0].vertices)
+    assert_same_shapes(a, b)
 
 
 @pytest.mark.parametrize("seed", [5, 8])
@@ -149,12 +144,7 @@ def test_confirmations_at_once_decide_as_the_rules_do_on_random_fleets_in_batche
     ma, mb = a.live.fusion.to_json(), b.live.fusion.to_json()
     assert ma == mb
     assert a.live.revision == b.live.revision
-    for iri in a.live.states:
-        sa, sb = a.live.maps.shape_of(iri), b.live.maps.shape_of(iri)
-        assert (sa is None) == (sb is None)
-        if sa is not None and sb is not None:
-            np.testing.assert_array_equal(sa[1], sb[1])
-            np.testing.assert_array_equal(sa[0].vertices, sb[0].vertices)
+    assert_same_shapes(a, b)
 
 
 def _pairs_by_every_comparison(
