@@ -106,8 +106,7 @@ BoxSizes = tuple[float, float, float]
 
 
 def box_sizes(vertices: FloatArray) -> BoxSizes | None:
-    """The sizes of a box mesh centred on its origin, or None: what :func:`pose_of` tests, for a caller
-    that keeps it while the mesh stays the same object (a moving element: only its placement changes)."""
+    """The sizes of a box mesh centred on its origin, or None: what :func:`pose_of` tests."""
     sizes = _is_box_mesh(vertices)
     if sizes is None:
         return None
@@ -115,11 +114,15 @@ def box_sizes(vertices: FloatArray) -> BoxSizes | None:
     return sx, sy, sz
 
 
-def pose_of(shape: Shape, *, box: BoxSizes | None = None) -> Pose:
-    """The smallest upright box around a mesh placed in the world. ``box``: the mesh's
-    :func:`box_sizes` when known (a box mesh), else the mesh is tested here."""
+def pose_of(shape: Shape) -> Pose:
+    """The smallest upright box around a mesh placed in the world."""
+    return placed_pose(shape, box_sizes(shape[0].vertices))
+
+
+def placed_pose(shape: Shape, sizes: BoxSizes | None) -> Pose:
+    """:func:`pose_of` given the mesh's :func:`box_sizes` (None: not a box mesh), for a caller that
+    keeps them while the mesh stays the same object (a moving element: only its placement changes)."""
     mesh, placement = shape
-    sizes = box if box is not None else box_sizes(mesh.vertices)
     if sizes is not None:
         (r00, r01, r02, cx), (r10, r11, r12, cy), (r20, r21, r22, cz) = placement[:3].tolist()
         if abs(r20) < 1e-9 and abs(r21) < 1e-9:

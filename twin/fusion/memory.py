@@ -22,7 +22,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
-from twin.fusion.footprints import BoxSizes, Pose, box_pose, box_sizes, pose_of
+from twin.fusion.footprints import BoxSizes, Pose, box_pose, box_sizes, placed_pose
 
 TENTATIVE_TTL_NS = 60 * 10**9
 """A tentative robot IRI not seen often enough within this long is forgotten."""
@@ -393,14 +393,13 @@ class FusionMemory:
     def pose(self, iri: str, shape: tuple[Any, Any]) -> Pose:
         """The pose of ``iri``'s current ``shape`` (cached while the shape's objects stay the same)."""
         cached = self.shape_poses.get(iri)
-        box = None
         if cached is not None and cached[0] is shape[0]:
             if cached[1] is shape[1]:
                 return cached[2]
-            box = cached[3]  # moved: the same mesh, tested once
-        if box is None:
+            box = cached[3]  # moved: the same mesh, tested once (None: not a box)
+        else:
             box = box_sizes(shape[0].vertices)
-        pose = pose_of(shape, box=box)
+        pose = placed_pose(shape, box)
         self.shape_poses[iri] = (shape[0], shape[1], pose, box)
         return pose
 

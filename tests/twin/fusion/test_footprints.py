@@ -18,6 +18,7 @@ from twin.fusion.footprints import (
     box_sizes,
     convex_hull,
     min_area_rectangle,
+    placed_pose,
     pose_of,
 )
 from twin.fusion.memory import FusionMemory
@@ -65,7 +66,7 @@ def test_a_box_pose_in_floats_is_the_numpy_pose_bit_for_bit_with_its_sizes_given
         if expected is None:
             continue
         assert pose_of((mesh, placement)) == expected
-        assert pose_of((mesh, placement), box=box_sizes(mesh.vertices)) == expected
+        assert placed_pose((mesh, placement), box_sizes(mesh.vertices)) == expected
 
 
 def test_the_memory_tests_a_moving_mesh_once_and_gives_the_pose_of_its_new_placement() -> None:
