@@ -47,7 +47,7 @@ from twin.fusion.dispute import older_disagreement, still_covers
 from twin.fusion.effects import Effect
 from twin.fusion.footprints import SQUARE_TOLERANCE_M, Pose
 from twin.fusion.gates import compatible, is_candidate, kinds_agree
-from twin.fusion.memory import FusionMemory, RobotMean, RobotSightings
+from twin.fusion.memory import FusionMemory, RobotMean
 from twin.records import ElementReport, FloatArray, Shape
 
 if TYPE_CHECKING:
@@ -630,19 +630,7 @@ def _settle(ctx: FusionContext, boxes: _Array, fresh: Index, sighted: FloatArray
                 mean.n, mean.x, mean.y, mean.last_ns = n, mx, my, last
             else:
                 t.means[robot] = RobotMean(n, mx, my, last)
-            s = t.robots.get(robot)  # Track.sighted
-            if s is None:
-                t.robots[robot] = RobotSightings(1, sense, sense)
-            else:
-                s.count += 1
-                if sense < s.first_ns:  # noqa: PLR1730 (min and max are calls: 20 boxes an array)
-                    s.first_ns = sense
-                if sense > s.last_ns:  # noqa: PLR1730
-                    s.last_ns = sense
-            if sense > t.seen_ns:  # noqa: PLR1730
-                t.seen_ns = sense
-            if t.misses:
-                t.misses = [miss for miss in t.misses if miss.sense_ns > sense]
+            t.sighted(robot, sense)
             if resizes:
                 t.sizes.pop(robot, None)  # a sighting at the held sizes clears the robot's evidence
             f = t.refinement

@@ -240,9 +240,12 @@ class Track:
             self.robots[robot] = RobotSightings(1, sense_ns, sense_ns)
         else:
             s.count += 1
-            s.first_ns = min(s.first_ns, sense_ns)
-            s.last_ns = max(s.last_ns, sense_ns)
-        self.seen_ns = max(self.seen_ns, sense_ns)
+            if sense_ns < s.first_ns:  # noqa: PLR1730 (min and max are calls: 20 boxes an array)
+                s.first_ns = sense_ns
+            if sense_ns > s.last_ns:  # noqa: PLR1730
+                s.last_ns = sense_ns
+        if sense_ns > self.seen_ns:  # noqa: PLR1730
+            self.seen_ns = sense_ns
         if self.misses:
             self.misses = [m for m in self.misses if m.sense_ns > sense_ns]
 
