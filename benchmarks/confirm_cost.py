@@ -58,15 +58,31 @@ MOVED = (11.75, 2.4)
 """Where the last table goes (``--moves``): 1.2 m from its spot, clear of the others."""
 
 
-def setup(others: int, *, alias: bool = False, robots: int = 1) -> TwinService:
+def offset(robot: str, distinct: bool) -> tuple[float, float]:
+    """Where ``robot``'s tables and view lie, from Room B's (``--distinct``: each robot's own place, in
+    rows north of the building; else every robot reports Room B's tables)."""
+    if not distinct or robot == ROBOT:
+        return 0.0, 0.0
+    k = int(robot.removeprefix("robot"))
+    return -27.0 + 5.0 * (k % 8), 6.0 + 5.0 * ((k - 2) // 8)
+
+
+def setup(others: int, *, alias: bool = False, robots: int = 1, distinct: bool = False) -> TwinService:
     """The service with the robot's 20 tables, and ``others`` tables of other robots on the storey
     (south of the building, in rows: the rooms of the fleet's other robots). With ``alias``, another
-    robot made the tables and the robot's first array resolved its own IRIs to them (aliases)."""
+    robot made the tables and the robot's first array resolved its own IRIs to them (aliases). With
+    ``distinct``, each of the ``robots`` made 20 tables of its own, in a place of its own."""
     service, _ = started()
     for i, (x, y) in enumerate(SPOTS):
         maker = "robot0" if alias else ROBOT
         reply = observe(service, maker, box_turtle(f"urn:bench:{maker}:t{i}", x, y, sx=SX, sy=SY, sz=SZ))
         assert reply.ok, reply
+    for robot in names(robots)[1:] if distinct else ():
+        dx, dy = offset(robot, distinct)
+        for i, (x, y) in enumerate(SPOTS):
+            turtle = box_turtle(f"urn:bench:{robot}:t{i}", x + dx, y + dy, sx=SX, sy=SY, sz=SZ)
+            reply = observe(service, robot, turtle)
+            assert reply.ok, reply
     for i in range(others):
         x, y = -19.0 + 0.9 * (i % 40), -19.0 + 0.75 * (i // 40)
         reply = observe(service, "mapper", box_turtle(f"urn:bench:o{i}", x, y, sx=SX, sy=SY, sz=SZ))
@@ -79,16 +95,19 @@ def names(robots: int) -> list[str]:
     return [ROBOT, *(f"robot{k}" for k in range(2, robots + 1))]
 
 
-def array(rng: random.Random, sense_ns: int, robot: str = ROBOT, *, moved: bool = False) -> Observation:
-    spots = [*SPOTS[:-1], MOVED] if moved else SPOTS
+def array(
+    rng: random.Random, sense_ns: int, robot: str = ROBOT, *, moved: bool = False, distinct: bool = False
+) -> Observation:
+    spots = [*SPOTS[:-1], MOVED] if moved and (robot == ROBOT or not distinct) else SPOTS
+    dx, dy = offset(robot, distinct)
     reports = tuple(
         ElementReport(
             f"urn:bench:{robot}:t{i}",
             ifc_class="IfcFurniture",
             storey="ground-floor",
             box=ObservedBox(
-                OX + x + rng.gauss(0, 0.005),
-                OY + y + rng.gauss(0, 0.005),
+                OX + x + dx + rng.gauss(0, 0.005),
+                OY + y + dy + rng.gauss(0, 0.005),
                 SZ / 2,
                 SX,
                 SY,
@@ -98,15 +117,22 @@ def array(rng: random.Random, sense_ns: int, robot: str = ROBOT, *, moved: bool 
         )
         for i, (x, y) in enumerate(spots)
     )
-    room = np.array([[OX + x, OY + y] for x, y in ((8.1, 0.1), (11.9, 0.1), (11.9, 3.9), (8.1, 3.9))])
-    view = ObservedView(
-        "ground-floor", (room,), ("IfcFurniture",), sense_ns=sense_ns, origin=(OX + 10.0, OY + 2.0, 1.2)
-    )
+    corners = ((8.1, 0.1), (11.9, 0.1), (11.9, 3.9), (8.1, 3.9))
+    room = np.array([[OX + x + dx, OY + y + dy] for x, y in corners])
+    origin = (OX + 10.0 + dx, OY + 2.0 + dy, 1.2)
+    view = ObservedView("ground-floor", (room,), ("IfcFurniture",), sense_ns=sense_ns, origin=origin)
     return Observation(reports, view)
 
 
 def run(
-    service: TwinService, n: int, seed: int = 1, *, robots: int = 1, moves: int = 0, single: bool = False
+    service: TwinService,
+    n: int,
+    seed: int = 1,
+    *,
+    robots: int = 1,
+    moves: int = 0,
+    single: bool = False,
+    distinct: bool = False,
 ) -> float:
     """The writer's CPU ms per array over ``n`` rounds of one array per robot (one batch per round, or
     with ``single`` one per array); the last table moved every ``moves`` rounds (0: never)."""
@@ -118,7 +144,7 @@ def run(
         now = time.time_ns()
         moved = moves > 0 and (step // moves) % 2 == 1
         arrays = [(robot, array(rng, now + k * 10**6 - (50 * 10**6 if rng.random() < STALE else 0), robot,
-                                moved=moved))
+                                moved=moved, distinct=distinct))
                   for k, robot in enumerate(who)]  # fmt: skip
         if checked is not None:  # as a worker hands them over
             arrays = [(robot, checked(obs, limits=service.config.limits)) for robot, obs in arrays]  # type: ignore[misc]
@@ -141,6 +167,11 @@ def main() -> int:
     p.add_argument("--others", type=int, default=480, help="other robots' tables on the storey")
     p.add_argument("--alias", action="store_true", help="the robot's IRIs are aliases of another's tables")
     p.add_argument("--robots", type=int, default=1, help="robots reporting the same tables in turns")
+    p.add_argument(
+        "--distinct",
+        action="store_true",
+        help="each robot reports 20 tables of its own, in a place of its own (no aliases, no bias pairs)",
+    )
     p.add_argument("--moves", type=int, default=0, help="the last table moves every this many rounds")
     p.add_argument(
         "--single", action="store_true", help="one batch per array (as the daemon's writer mostly takes them)"
@@ -155,9 +186,10 @@ def main() -> int:
     )
     p.add_argument("--json", type=Path)
     args = p.parse_args()
-    service = setup(args.others, alias=args.alias)
+    service = setup(args.others, alias=args.alias, robots=args.robots, distinct=args.distinct)
     # warm up (the first arrays associate the robots' IRIs)
-    run(service, 20, robots=args.robots, moves=args.moves, single=args.single)
+    options = {"robots": args.robots, "moves": args.moves, "single": args.single, "distinct": args.distinct}
+    run(service, 20, **options)
     if args.gc == "freeze":
         gc.collect()
         gc.freeze()
@@ -166,12 +198,12 @@ def main() -> int:
     if args.profile:
         prof = cProfile.Profile()
         prof.enable()
-        run(service, args.arrays, seed=2, robots=args.robots, moves=args.moves, single=args.single)
+        run(service, args.arrays, seed=2, **options)
         prof.disable()
         pstats.Stats(prof).sort_stats(args.sort).print_stats(45)
         return 0
     blocks = sorted(
-        run(service, args.arrays, seed=2 + k, robots=args.robots, moves=args.moves, single=args.single)
+        run(service, args.arrays, seed=2 + k, **options)
         for k in range(args.repeat)
     )
     ms, best = statistics.median(blocks), blocks[0]

@@ -133,6 +133,12 @@ def model_label(name: str) -> str:
     return name if name in MODELS else Path(name).stem
 
 
+def import_store(ifc: Path, store: Path) -> Path:
+    """``twin import`` of ``ifc`` into ``store``."""
+    subprocess.run(_twin("import", str(ifc), "--store", str(store)), check=True, capture_output=True)
+    return store
+
+
 def prepare_store(name: str, work: Path) -> Path:
     store = work / "store"
     ifc = model_path(name)

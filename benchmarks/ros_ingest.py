@@ -9,6 +9,14 @@ per robot) play the robots on loopback: every ``1 / --rate`` s each robot publis
 everything its view holds, each with a tracker id; all but one keep their pose (confirmations), the
 last moves 1.0 m every 2 s (beyond ``certain_move_m``, into free floor). Publishers' CPU is not counted.
 
+``--views distinct`` (the default, as the issue that set the targets asks: robots at distinct poses
+whose views do not overlap) stands each robot in a room of its own (6 x 4 m, one storey of as many
+rooms as robots, written with the sample lab's builder), facing its own tables: no other robot sees
+them. ``--views shared`` stands every robot at the same pose in the lab's corridor, all reporting the
+same tables (each through its own tracker ids): the worst case for the writer, where every array
+resolves through aliases, every robot compares its detector with 24 others (the bias notes) and a
+third of the arrays come after another robot's later sighting of the same tables (stale).
+
 Measured over the steady window (after ``--warmup`` s): the daemon process's CPU time (utime + stime)
 per array received, its ingest workers' (child processes), the total, the acked rate (accepted +
 unchanged acks per second, from the status's ``ros_ingest`` counts), refusals (``overflow`` = an
@@ -27,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import re
 import subprocess
@@ -42,12 +51,60 @@ import live  # benchmarks/ is not a package
 
 ROOT = live.ROOT
 ROBOT = (15.0, 7.0)  # every robot's base_link in the map: in the lab's corridor (free floor), facing +x
+ROOM = (6.0, 4.0)
+"""``--views distinct``: each robot's room, inside its walls (m); the robot stands 0.5 m from the room's
+west wall, half way across, facing +x: its tables lie 1.0-4.0 m ahead, within 1.0 m of its axis."""
+WALL_M = 0.2
 MOVE_S = 2.0
 """Every this many seconds (of the wall clock, which every publisher process shares) the last table
 moves 1.0 m across the corridor and back (beyond ``[fusion] certain_move_m``, into free floor): a change
 among the confirmations, whose navigation map update is timed from robot0's send to the update's
 receipt."""
 MOVER = (19.0, 6.6, 1.0)  # x, y and the y shift of the table that moves
+
+
+def rooms(robots: int) -> tuple[int, int]:
+    """Columns and rows of the ``--views distinct`` building's rooms."""
+    cols = max(1, math.ceil(math.sqrt(robots)))
+    return cols, max(1, math.ceil(robots / cols))
+
+
+def base(robot: int, robots: int, views: str) -> tuple[float, float]:
+    """Where robot ``robot`` (of ``robots``) stands (map frame): ``ROBOT`` with shared views, else in its
+    own room."""
+    if views == "shared":
+        return ROBOT
+    from twin.samples.lab_plan import BUILDING_OFFSET
+
+    cols, _ = rooms(robots)
+    col, row = robot % cols, robot // cols
+    return (
+        BUILDING_OFFSET[0] + col * (ROOM[0] + WALL_M) + 0.5,
+        BUILDING_OFFSET[1] + row * (ROOM[1] + WALL_M) + ROOM[1] / 2,
+    )
+
+
+def write_rooms(path: Path, robots: int) -> None:
+    """The ``--views distinct`` building: one storey ("Ground floor") of ``rooms(robots)`` rooms of
+    ``ROOM`` in a grid, full-height concrete walls between them, on one slab."""
+    from adapters.ifc.sample_lab import write_plans
+    from twin.samples.lab_plan import Box, ElementPlan, StoreyPlan
+
+    cols, rows = rooms(robots)
+    w, h = cols * (ROOM[0] + WALL_M), rows * (ROOM[1] + WALL_M)
+    xs = [c * (ROOM[0] + WALL_M) for c in range(cols + 1)]  # each wall's far side
+    ys = [r * (ROOM[1] + WALL_M) for r in range(rows + 1)]
+    t = WALL_M
+    walls = [
+        *(ElementPlan(f"Wall x{i}", Box(x - t, -t, 0, x, h, 2.7), "Concrete") for i, x in enumerate(xs)),
+        *(ElementPlan(f"Wall y{i}", Box(-t, y - t, 0, w, y, 2.7), "Concrete") for i, y in enumerate(ys)),
+    ]
+    outline = ((-WALL_M, -WALL_M), (w, -WALL_M), (w, h), (-WALL_M, h))
+    slab = ElementPlan(
+        "Ground floor slab", Box(-WALL_M, -WALL_M, -0.2, w, h, 0.0), "Concrete", "IfcSlab",
+        predefined_type="FLOOR", outline=outline,
+    )  # fmt: skip
+    write_plans(path, (StoreyPlan("Ground floor", 0.0, (*walls, slab), ()),))
 
 
 def tables(per_robot: int) -> list[tuple[float, float]]:
@@ -67,6 +124,7 @@ def publisher(
     layout: str,
     first: int = 0,
     count: int | None = None,
+    views: str = "distinct",
 ) -> int:
     """Publish the TF and detections of robots ``first`` .. ``first + count`` (of ``robots``) at
     ``rate`` for ``duration`` seconds."""
@@ -104,11 +162,12 @@ def publisher(
             shift = MOVER[2] * (now % 2)
             last = len(spots) - 1
             for r, (tf_pub, det_pub) in zip(mine, outs, strict=True):
-                tf_pub.put(cdr_tf([Tf("map", "base_link", (*ROBOT, 0.0), stamp_ns=stamp)]), **extra)
+                at = (*base(r, robots, views), 0.0)
+                tf_pub.put(cdr_tf([Tf("map", "base_link", at, stamp_ns=stamp)]), **extra)
                 dets = [
                     Det(
                         (("table", 0.9),),
-                        (x - ROBOT[0], y - ROBOT[1] + (shift if i == last else 0.0), 0.375),
+                        (x - ROBOT[0], y - ROBOT[1] + (shift if i == last and r == 0 else 0.0), 0.375),
                         (0.2, 0.2, 0.75),
                         id=f"t{i}",
                     )
@@ -213,14 +272,22 @@ def run(
     publishers: int,
     root: Path = ROOT,
     workers: int | None = None,
+    extra: str = "",
+    views: str = "distinct",
 ) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        store = live.prepare_store("lab", work)
+        if views == "shared":
+            store = live.prepare_store("lab", work)
+        else:
+            store = work / "store"
+            write_rooms(work / "rooms.ifc", robots)
+            live.import_store(work / "rooms.ifc", store)
         cfg = work / "robots.toml"
         ros = "" if workers is None else f"[ros]\ningest_workers = {workers}\n"
         cfg.write_text(
-            ros
+            extra
+            + ros
             + "".join(
                 f'[robots.robot{r}]\nnamespace = "/robot{r}"\nstorey = "ground-floor"\nros = ["{layout}"]\n'
                 f'[robots.robot{r}.detections]\nclasses = {{ table = "IfcFurniture" }}\n'
@@ -234,7 +301,7 @@ def run(
         drain = threading.Thread(target=lambda: [None for _ in daemon.stdout or []], daemon=True)
         drain.start()
         per = -(-robots // max(1, publishers))
-        args = [endpoint, str(robots), str(rate), str(per_robot), str(duration), layout]
+        args = [endpoint, str(robots), str(rate), str(per_robot), str(duration), layout, views]
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
         pubs = [
             subprocess.Popen(
@@ -272,7 +339,7 @@ def run(
         updates: list[float] = []
         watcher = zenoh.open(client_config([endpoint]))
         watch = watcher.declare_subscriber(
-            "twin/lab/map_updates/ground-floor/navigation", lambda _: updates.append(time.time())
+            "twin/*/map_updates/ground-floor/navigation", lambda _: updates.append(time.time())
         )
         t_start, wall_start = time.monotonic(), time.time()
         time.sleep(warmup)
@@ -335,6 +402,7 @@ def run(
                 latencies.append(1000 * (after[0] - t))  # still being created is timed by the next one
     return {
         "layout": layout,
+        "views": views,
         "robots": robots,
         "rate_hz": rate,
         "detections": per_robot,
@@ -396,10 +464,10 @@ def _serve(cfg: Path, store: Path, endpoint: str, root: Path = ROOT) -> subproce
 
 def main() -> int:
     if len(sys.argv) > 1 and sys.argv[1] == "--child":
-        endpoint, robots, rate, per_robot, duration, layout, first, count = sys.argv[2:]
+        endpoint, robots, rate, per_robot, duration, layout, views, first, count = sys.argv[2:]
         return publisher(
             endpoint, robots=int(robots), rate=float(rate), per_robot=int(per_robot),
-            duration=float(duration), layout=layout, first=int(first), count=int(count),
+            duration=float(duration), layout=layout, first=int(first), count=int(count), views=views,
         )  # fmt: skip
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--robots", type=int, default=10)
@@ -422,6 +490,20 @@ def main() -> int:
         type=Path,
         help="also run the daemon of this code tree (e.g. `git archive cd19a56 | tar -x -C TREE`)",
     )
+    p.add_argument(
+        "--views",
+        choices=["distinct", "shared"],
+        default="distinct",
+        help="distinct: each robot in a room of its own, its own tables (the issue's setup); shared: "
+        "every robot at one pose, all reporting the same tables (the writer's worst case)",
+    )
+    p.add_argument(
+        "--extra",
+        default="",
+        metavar="TOML",
+        help="TOML put before the robots in this tree's configuration (not the baseline's), "
+        "e.g. '[serve]\\nbatch_wait_ms = 10' (the baseline then runs the same tree without it)",
+    )
     p.add_argument("--translate-only", action="store_true", help="time the translation in-process only")
     a = p.parse_args()
     if a.translate_only:
@@ -429,9 +511,10 @@ def main() -> int:
         return 0
     common = {
         "robots": a.robots, "rate": a.rate, "per_robot": a.detections, "duration": a.duration,
-        "warmup": a.warmup, "layout": a.layout, "publishers": a.publishers or a.robots,
+        "warmup": a.warmup, "layout": a.layout, "publishers": a.publishers or a.robots, "views": a.views,
     }  # fmt: skip
-    result: dict[str, Any] = {"this": run(**common, workers=a.workers)}
+    extra = a.extra.replace("\\n", "\n") + "\n"
+    result: dict[str, Any] = {"this": run(**common, workers=a.workers, extra=extra)}
     if a.baseline is not None:
         result["baseline"] = run(**common, root=a.baseline.resolve())
     print(json.dumps(result, indent=1))

@@ -104,6 +104,22 @@ def build_lab(
     return builder.file, lab_layout(storeys=storeys)
 
 
+def write_plans(path: str | Path, plans: tuple[StoreyPlan, ...]) -> None:
+    """Write storey plans other than the lab's (the same builder: walls, slabs, furniture, spaces) to
+    ``path`` as IFC4 in metres, e.g. a benchmark's building of many rooms.
+
+    Example::
+
+        from twin.samples.lab_plan import StoreyPlan
+
+        write_plans("cells.ifc", (StoreyPlan("Ground floor", 0.0, elements, ()),))
+    """
+    builder = _LabBuilder("metre")
+    builder.build(plans)
+    builder.file.write(str(path))
+    log.info("Wrote %d storey plan(s) to %s.", len(plans), path)
+
+
 # --- generation -----------------------------------------------------------------------------------
 
 

@@ -500,3 +500,33 @@ def test_slabs_door_and_opening_are_the_same_in_metre_and_foot_files(lab_files):
         (metre_id, metre_box), (foot_id, foot_box) = found["metre"][key], found["foot"][key]
         assert metre_id == foot_id, key
         assert_box_close(foot_box, metre_box, f"{key[1]} (foot against metre)")
+
+
+def test_write_plans_writes_a_building_of_other_plans_with_its_walls_where_the_plan_puts_them(
+    tmp_path: Path,
+) -> None:
+    from adapters.ifc.sample_lab import write_plans
+    from twin.samples.lab_plan import ElementPlan, StoreyPlan
+
+    walls = tuple(
+        ElementPlan(f"Wall {i}", Box(6.0 * i, 0.0, 0.0, 6.0 * i + 0.2, 4.0, 2.7), "Concrete")
+        for i in range(3)
+    )
+    path = tmp_path / "rooms.ifc"
+    write_plans(path, (StoreyPlan("Ground floor", 0.0, walls, ()),))
+    model = ifcopenshell.open(str(path))
+    storeys = model.by_type("IfcBuildingStorey")
+    assert [s.Name for s in storeys] == ["Ground floor"]
+    settings = ifcopenshell.geom.settings()
+    settings.set("use-world-coords", True)
+    found = {}
+    for wall in model.by_type("IfcWall"):
+        verts = np.array(ifcopenshell.geom.create_shape(settings, wall).geometry.verts).reshape(-1, 3)
+        found[wall.Name] = (verts.min(axis=0), verts.max(axis=0))
+    assert sorted(found) == ["Wall 0", "Wall 1", "Wall 2"]
+    for i in range(3):
+        lo, hi = found[f"Wall {i}"]
+        expected_lo = np.array([6.0 * i, 0.0, 0.0]) + BUILDING_OFFSET
+        expected_hi = np.array([6.0 * i + 0.2, 4.0, 2.7]) + BUILDING_OFFSET
+        assert np.allclose(lo, expected_lo, atol=TOLERANCE_M)
+        assert np.allclose(hi, expected_hi, atol=TOLERANCE_M)
