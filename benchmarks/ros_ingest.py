@@ -173,7 +173,9 @@ def publisher(
                     )
                     for i, (x, y) in enumerate(spots)
                 ]
-                if moved and r == mine[0]:  # the first send of the move by this process
+                if moved and r == (mine[0] if views == "shared" else 0):  # the move's first send
+                    # (shared views: every robot's table moves, each process's first send; distinct
+                    # views: robot 0's alone)
                     print(json.dumps({"moved": time.time(), "phase": now}), flush=True)
                 det_pub.put(cdr_detections(stamp, "base_link", dets), **extra)
                 sent += 1
