@@ -164,10 +164,11 @@ def publisher(
             for r, (tf_pub, det_pub) in zip(mine, outs, strict=True):
                 at = (*base(r, robots, views), 0.0)
                 tf_pub.put(cdr_tf([Tf("map", "base_link", at, stamp_ns=stamp)]), **extra)
+                moves = r == 0 or views == "shared"  # (distinct views: robot 0's table alone)
                 dets = [
                     Det(
                         (("table", 0.9),),
-                        (x - ROBOT[0], y - ROBOT[1] + (shift if i == last and r == 0 else 0.0), 0.375),
+                        (x - ROBOT[0], y - ROBOT[1] + (shift if i == last and moves else 0.0), 0.375),
                         (0.2, 0.2, 0.75),
                         id=f"t{i}",
                     )
