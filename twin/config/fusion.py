@@ -135,6 +135,13 @@ class FusionTable(ConfigTable):
     alias_ttl_s: Annotated[Number, Field(gt=0.0)] = Field(
         3600.0, description="A robot IRI that resolved to an element is forgotten when unused this long."
     )
+    tombstone_ttl_s: Annotated[Number, Field(ge=0.0)] = Field(
+        3600.0,
+        description="A removed element robots added is forgotten (memory and graph) once its removal's "
+        "sense time is this old: a later report of its IRI with a class creates it anew, and a sighting "
+        "sensed before the removal that arrives later than this is no longer refused as stale. 0: never "
+        "forget (the graph keeps every removal, growing with every IRI robots mint).",
+    )
     max_clock_skew_s: Annotated[Number, Field(ge=0.0, le=3600.0)] = Field(
         2.0,
         description="Until a robot's clock offset is known (clock_settle_s), a sense time later than the "
@@ -175,6 +182,7 @@ class FusionTable(ConfigTable):
             stream_gap_ns=int(self.stream_gap_s * 1e9),
             alias_ttl_ns=int(self.alias_ttl_s * 1e9),
             alias_jump_m=self.alias_jump_m,
+            tombstone_ttl_ns=int(self.tombstone_ttl_s * 1e9),
             max_skew_ns=int(self.max_clock_skew_s * 1e9),
             max_clock_offset_ns=int(self.max_clock_offset_s * 1e9),
             clock_window_ns=int(self.clock_window_s * 1e9),
@@ -235,6 +243,7 @@ class FusionRules:
     stream_gap_ns: int = 2 * 10**9
     alias_ttl_ns: int = 3600 * 10**9
     alias_jump_m: float = 2.0
+    tombstone_ttl_ns: int = 3600 * 10**9
     max_skew_ns: int = 2 * 10**9
     max_clock_offset_ns: int = 5 * 10**8
     clock_window_ns: int = 60 * 10**9

@@ -57,6 +57,7 @@ from twin.live.plan import ObservationPlan, plan_observation
 from twin.live.publication import Publication
 from twin.live.requests import ObserveRequest, Reply
 from twin.live.state import ElementState, LiveState, Sighting
+from twin.live.tombstones import FORGET_BATCH, due_tombstones, forget_changes, forget_element
 from twin.live.validate import check_observation
 from twin.records import ElementReport, GeometryChange, Observation, Shape
 
@@ -259,6 +260,31 @@ class Observer:
             except TwinError as err:
                 log.warning("Could not forget %d aliases: %s", len(old), err)
         return len(old)
+
+    def forget_tombstones(self, *, limit: int = FORGET_BATCH) -> int:
+        """Forget the removed elements whose removal was sensed more than ``[fusion] tombstone_ttl_s``
+        ago (at most ``limit``, oldest first; see :mod:`twin.live.tombstones`): their triples in one
+        store transaction, then everything the writer holds of them. Returns how many (a store that
+        refuses keeps them all, for the next pass)."""
+        due = due_tombstones(
+            self.live,
+            now_ns=self.clock(),
+            ttl_ns=self.config.fusion.tombstone_ttl_ns,
+            base_iri=self.base_iri,
+            limit=limit,
+        )
+        if not due:
+            return 0
+        try:
+            self.store.apply(forget_changes(self.store, due))
+        except TwinError as err:
+            log.warning("Could not forget %d removed elements: %s", len(due), err)
+            return 0
+        for iri in due:
+            forget_element(self.live, iri)
+        self.fusion_counts["forgotten"] += len(due)
+        log.debug("Forgot %d removed elements (oldest <%s>)", len(due), due[0])
+        return len(due)
 
     def expire_unconfirmed(self) -> list[str]:
         """Remove the robot-added elements nobody has seen for their class's ``[fusion] ttl_s`` (off

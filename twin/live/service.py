@@ -52,6 +52,7 @@ from twin.live.snapshots import Restored, Snapshots
 from twin.live.state import ElementState, LiveState
 from twin.live.status import service_status
 from twin.live.store_health import WatchedStore
+from twin.live.tombstones import FORGET_BATCH, forget_restored
 from twin.live.validate import Checked
 from twin.records import Observation
 from twin.selection.skills import SkillProfile
@@ -60,7 +61,8 @@ log = logging.getLogger(__name__)
 
 Clock = Callable[[], int]
 _ALIAS_CHECK_S = 10.0
-"""How often the writer looks for aliases unused for ``[fusion] alias_ttl_s``."""
+"""How often the writer looks for aliases unused for ``[fusion] alias_ttl_s`` and for tombstones older
+than ``[fusion] tombstone_ttl_s``."""
 _HOUSEKEEPING_S = 1.0
 """How long the writer works through its queue before it looks at its flushes, expiries and snapshot
 (a queue that never runs dry, at saturation, would hold them back for good: memory and the store's log
@@ -133,8 +135,12 @@ class TwinService:
         self.restored_from = None if restored is None else restored.revision
         scene = live.maps.scene
         self._live = live
+        forgotten: list[str] = []
         if restored is not None:
             catch_up(self.store, live, restored)
+            forgotten = forget_restored(self.store, live, self._base_iri)
+            if forgotten:
+                log.info("Forgot %d removed elements the snapshot still held", len(forgotten))
         if self.config.fusion.enabled:  # before serving: the first observation waits for nothing
             t_poses = time.perf_counter()
             build_poses(live)
@@ -172,9 +178,12 @@ class TwinService:
             time.perf_counter() - t0,
         )
         if self.snapshot is not None and (
-            restored is None or restored.skills != frozenset(live.skills) or restored.revision < live.revision
+            restored is None
+            or restored.skills != frozenset(live.skills)
+            or restored.revision < live.revision
+            or forgotten
         ):
-            self.snapshot.save_in_background(live)  # rebuilt or replayed: keep the result
+            self.snapshot.save_in_background(live)  # rebuilt, replayed or pruned: keep the result
 
     def warm_up(self) -> None:
         """Build now what the first request would otherwise wait for, so that a started service is
@@ -373,6 +382,7 @@ class TwinService:
         """Handle requests until ``stop`` is set, then finish what is queued and publish every map.
         ``on_stop`` runs first when the stop is seen (e.g. let no new request in)."""
         aliases_checked = time.monotonic()
+        backlog = False  # the last pass forgot a full batch of tombstones: more are due
         while not stop.is_set():
             self.process(timeout_s=poll_s, budget_s=_HOUSEKEEPING_S)
             self.recover_store(due_only=True)
@@ -381,6 +391,9 @@ class TwinService:
                 aliases_checked = time.monotonic()
                 self.observer.expire_aliases()
                 self.observer.expire_unconfirmed()
+                backlog = True
+            if backlog:  # a batch a turn, the queue served in between (see twin.live.tombstones)
+                backlog = self.observer.forget_tombstones() == FORGET_BATCH
             if self.snapshot is not None and self.snapshot.due(self.revision):
                 self.snapshot.save_in_background(self.live)
         if on_stop is not None:

@@ -55,11 +55,13 @@ def service_status(service: TwinService) -> dict[str, object]:
     obs = service.observer
     now = service.clock()
     triples = _triples(service)  # first: asking the store is what finds it unreachable
+    states = list(live.states.values())  # (read off the writer's thread: one copy for both counts)
+    removed = sum(1 for s in states if s.removed)
     return {
         "site": service.config.site,
         "revision": live.revision,
         "store": service.store_health.text,
-        "elements": sum(1 for s in list(live.states.values()) if not s.removed),
+        "elements": len(states) - removed,
         "triples": triples,
         "skills": sorted(live.skills),
         "storeys": [s.key for s in live.maps.scene.storeys],
@@ -84,6 +86,7 @@ def service_status(service: TwinService) -> dict[str, object]:
         "fusion": {
             "aliases": len(live.fusion.aliases),
             "tracked": len(live.fusion.tracks),
+            "tombstones": removed,
             "stale": obs.stale,
             "clock_offsets": clock_offsets(live.fusion),
             "detector_biases": detector_biases(live.fusion),

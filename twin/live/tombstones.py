@@ -1,0 +1,110 @@
+"""Forgetting tombstones: a removed element is kept only as long as its tombstone serves a purpose.
+
+A removed element stays as a tombstone (``twin:removed true`` with its removal's sense time and
+provenance, no geometry) so that a sighting sensed before the removal that arrives later does not bring
+it back (:func:`~twin.fusion.clocks.stale_tombstone`), and so that the graph says when and by whom it
+was removed. Robots mint new IRIs all day (Open-RMF obstacles that expire, objects removed by absence),
+so kept forever the tombstones would grow the writer's memory and the graph without bound.
+
+The writer forgets a tombstone once its removal's sense time (on the daemon's clock, the one the stale
+check compares with) is more than ``[fusion] tombstone_ttl_s`` old: everything it holds of the element
+(its state, held triples, last sighting, fusion's history, pose caches, the aliases that name it) and
+every triple of it in the graph (its own and those that point to it: the storey's
+``bot:containsElement``, aliases), in one store transaction per pass and at most
+:data:`FORGET_BATCH` elements a pass. Elements imported from the IFC model keep their tombstones (the
+building bounds their number, and the graph keeps the record that the model's element is gone). A
+report of a forgotten IRI with a class creates a new element, as after any removal.
+
+Example::
+
+    due = due_tombstones(live, now_ns=clock(), ttl_ns=rules.tombstone_ttl_ns, base_iri=base_iri)
+    store.apply(forget_changes(store, live, due))
+    for iri in due:
+        forget_element(live, iri)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from twin.graph import vocab
+from twin.graph.rdf import ChangeSet, Triple
+from twin.graph.store import GraphStore
+from twin.live.state import LiveState
+
+FORGET_BATCH = 500
+"""Tombstones forgotten in one pass at most (one store transaction): a backlog of thousands (a first
+start with a short ``tombstone_ttl_s`` on an old graph) is worked off over several passes, between
+which the writer serves its queue."""
+
+
+def due_tombstones(
+    live: LiveState, *, now_ns: int, ttl_ns: int, base_iri: str, limit: int = FORGET_BATCH
+) -> list[str]:
+    """The removed elements (not imported from the model: ``base_iri``) whose removal was sensed more
+    than ``ttl_ns`` before ``now_ns``, oldest first, at most ``limit``; none when ``ttl_ns`` is 0."""
+    if ttl_ns <= 0:
+        return []
+    due = [
+        (state.sensed_ns, iri)
+        for iri, state in live.states.items()
+        if state.removed and now_ns - state.sensed_ns > ttl_ns and not (base_iri and iri.startswith(base_iri))
+    ]
+    due.sort()
+    return [iri for _, iri in due[:limit]]
+
+
+def forget_changes(store: GraphStore, iris: Sequence[str]) -> ChangeSet:
+    """Every triple of ``iris`` in the graph: their own (and their geometry nodes'), and those that
+    point to them (exact deletes, found with one query)."""
+    if not iris:
+        return ChangeSet()
+    values = " ".join(f"<{i}>" for i in iris)
+    rows = store.select(f"SELECT ?s ?p ?e WHERE {{ VALUES ?e {{ {values} }} ?s ?p ?e FILTER(isIRI(?s)) }}")
+    incoming = tuple(Triple(r["s"] or "", r["p"] or "", r["e"] or "") for r in rows)
+    own = tuple((s, None) for i in iris for s in (i, vocab.geometry_iri(i)))
+    return ChangeSet(remove=own, delete=incoming)
+
+
+def forget_element(live: LiveState, iri: str) -> None:
+    """Forget everything the writer holds of ``iri`` (a tombstone): its state, held triples, last
+    sighting, fusion's memory of it and the aliases that name it (the graph's triples are the caller's:
+    :func:`forget_changes`)."""
+    live.states.pop(iri, None)
+    live.held.pop(iri, None)
+    live.held.pop(vocab.geometry_iri(iri), None)
+    live.last_seen.pop(iri, None)
+    memory = live.fusion
+    memory.tracks.pop(iri, None)
+    memory.history.pop(iri, None)
+    memory.shape_poses.pop(iri, None)
+    memory.tentative.pop(iri, None)
+    memory.distinct.discard(iri)
+    for alias in memory.aliases_of(iri):
+        del memory.aliases[alias]
+        live.last_seen.pop(alias, None)
+    if memory.poses is not None:
+        for storey, poses in memory.poses.items():
+            if poses.pop(iri, None) is not None:
+                memory.pose_arrays.pop(storey, None)
+    held = getattr(memory.confirm_cache, "held", None)  # confirmations at once: per-element entries
+    if isinstance(held, dict):
+        held.pop(iri, None)
+
+
+def forget_restored(store: GraphStore, live: LiveState, base_iri: str) -> list[str]:
+    """After a start from a snapshot: forget the tombstones the snapshot holds that the graph no longer
+    does (forgotten after the snapshot was taken), and fusion's history of elements the twin does not
+    hold, so that a restart never brings a forgotten tombstone back. Returns the IRIs forgotten."""
+    kept = {r["e"] or "" for r in store.select("SELECT ?e WHERE { ?e twin:removed true }")}
+    gone = [
+        iri
+        for iri, state in live.states.items()
+        if state.removed and iri not in kept and not (base_iri and iri.startswith(base_iri))
+    ]
+    for iri in gone:
+        forget_element(live, iri)
+    history = live.fusion.history
+    for iri in [i for i in history if i not in live.states]:
+        del history[iri]
+    return gone
