@@ -26,7 +26,7 @@ Example::
 from __future__ import annotations
 
 import logging
-from collections import Counter, OrderedDict
+from collections import Counter, OrderedDict, deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -57,7 +57,7 @@ from twin.live.plan import ObservationPlan, plan_observation
 from twin.live.publication import Publication
 from twin.live.requests import ObserveRequest, Reply
 from twin.live.state import ElementState, LiveState, Sighting
-from twin.live.tombstones import FORGET_BATCH, due_tombstones, forget_changes, forget_element
+from twin.live.tombstones import FORGET_BATCH, due_tombstones, forget_changes, forget_element, still_due
 from twin.live.validate import check_observation
 from twin.records import ElementReport, GeometryChange, Observation, Shape
 
@@ -128,6 +128,7 @@ class Observer:
         by absence, creations and moves (the last four of committed observations)."""
         self.base_iri = base_iri
         self._parsed: OrderedDict[bytes, Observation] = OrderedDict()
+        self._due: deque[str] = deque()  # tombstones found due, oldest first, not forgotten yet
 
     def _parse(self, payload: bytes) -> Observation:
         parsed = self._parsed.get(payload)
@@ -266,19 +267,21 @@ class Observer:
         ago (at most ``limit``, oldest first; see :mod:`twin.live.tombstones`): their triples in one
         store transaction, then everything the writer holds of them. Returns how many (a store that
         refuses keeps them all, for the next pass)."""
-        due = due_tombstones(
-            self.live,
-            now_ns=self.clock(),
-            ttl_ns=self.config.fusion.tombstone_ttl_ns,
-            base_iri=self.base_iri,
-            limit=limit,
-        )
+        live, now, ttl = self.live, self.clock(), self.config.fusion.tombstone_ttl_ns
+        if not self._due:  # one walk of the states, worked off over the next passes
+            self._due.extend(due_tombstones(live, now_ns=now, ttl_ns=ttl, base_iri=self.base_iri))
+        due: list[str] = []
+        while self._due and len(due) < limit:
+            iri = self._due.popleft()
+            if still_due(live, iri, now_ns=now, ttl_ns=ttl):
+                due.append(iri)
         if not due:
             return 0
         try:
             self.store.apply(forget_changes(self.store, due))
         except TwinError as err:
             log.warning("Could not forget %d removed elements: %s", len(due), err)
+            self._due.extendleft(reversed(due))
             return 0
         for iri in due:
             forget_element(self.live, iri)

@@ -11,15 +11,16 @@ check compares with) is more than ``[fusion] tombstone_ttl_s`` old: everything i
 (its state, held triples, last sighting, fusion's history, pose caches, the aliases that name it) and
 every triple of it in the graph (its own and those that point to it: the storey's
 ``bot:containsElement``, aliases), in one store transaction per pass and at most
-:data:`FORGET_BATCH` elements a pass. Elements imported from the IFC model keep their tombstones (the
-building bounds their number, and the graph keeps the record that the model's element is gone). A
-report of a forgotten IRI with a class creates a new element, as after any removal.
+:data:`FORGET_BATCH` elements a pass (those one walk of the states found due are worked off over the
+next passes before the states are walked again). Elements imported from the IFC model keep their
+tombstones (the building bounds their number, and the graph keeps the record that the model's element
+is gone). A report of a forgotten IRI with a class creates a new element, as after any removal.
 
 Example::
 
     due = due_tombstones(live, now_ns=clock(), ttl_ns=rules.tombstone_ttl_ns, base_iri=base_iri)
-    store.apply(forget_changes(store, live, due))
-    for iri in due:
+    store.apply(forget_changes(store, due[:FORGET_BATCH]))
+    for iri in due[:FORGET_BATCH]:
         forget_element(live, iri)
 """
 
@@ -32,17 +33,15 @@ from twin.graph.rdf import ChangeSet, Triple
 from twin.graph.store import GraphStore
 from twin.live.state import LiveState
 
-FORGET_BATCH = 500
-"""Tombstones forgotten in one pass at most (one store transaction): a backlog of thousands (a first
-start with a short ``tombstone_ttl_s`` on an old graph) is worked off over several passes, between
-which the writer serves its queue."""
+FORGET_BATCH = 200
+"""Tombstones forgotten in one pass at most (one store transaction, about 0.2 ms each on an on-disk
+store): a backlog of thousands (a first start with a short ``tombstone_ttl_s`` on an old graph) is
+worked off over several passes, between which the writer serves its queue."""
 
 
-def due_tombstones(
-    live: LiveState, *, now_ns: int, ttl_ns: int, base_iri: str, limit: int = FORGET_BATCH
-) -> list[str]:
+def due_tombstones(live: LiveState, *, now_ns: int, ttl_ns: int, base_iri: str) -> list[str]:
     """The removed elements (not imported from the model: ``base_iri``) whose removal was sensed more
-    than ``ttl_ns`` before ``now_ns``, oldest first, at most ``limit``; none when ``ttl_ns`` is 0."""
+    than ``ttl_ns`` before ``now_ns``, oldest first; none when ``ttl_ns`` is 0."""
     if ttl_ns <= 0:
         return []
     due = [
@@ -51,7 +50,13 @@ def due_tombstones(
         if state.removed and now_ns - state.sensed_ns > ttl_ns and not (base_iri and iri.startswith(base_iri))
     ]
     due.sort()
-    return [iri for _, iri in due[:limit]]
+    return [iri for _, iri in due]
+
+
+def still_due(live: LiveState, iri: str, *, now_ns: int, ttl_ns: int) -> bool:
+    """Whether ``iri``, found due earlier, still is (not created again since)."""
+    state = live.states.get(iri)
+    return state is not None and state.removed and now_ns - state.sensed_ns > ttl_ns > 0
 
 
 def forget_changes(store: GraphStore, iris: Sequence[str]) -> ChangeSet:
