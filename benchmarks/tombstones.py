@@ -6,7 +6,9 @@ leave a tombstone per IRI. In process, no Zenoh: a :class:`~twin.live.TwinServic
 its housekeeping forgets tombstones older than ``[fusion] tombstone_ttl_s``), and a robot that adds
 ``--rate`` new 0.3 m obstacles a second, each removed ``--alive`` obstacles later. Every ``--sample-s``
 a row: the elements the writer holds (states, tombstones among them), the store's triples, the
-process's RSS, the store directory's size, the forgotten count and the longest forgetting pass.
+Python heap (``tracemalloc``, started before the service: the writer's own memory, without the store's
+RocksDB buffers), the process's RSS, the store directory's size, the forgotten count and the longest
+forgetting pass.
 
 ``--compare`` runs two such processes side by side under the same load (the same machine, the same
 minutes): one with ``--ttl`` (e.g. 30 s), one with ``tombstone_ttl_s = 0`` (never forget, as before).
@@ -25,6 +27,7 @@ import sys
 import tempfile
 import threading
 import time
+import tracemalloc
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -61,6 +64,7 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
     from twin.graph.store import EmbeddedStore
     from twin.live import TwinService
 
+    tracemalloc.start()
     work = Path(tempfile.mkdtemp(prefix="tombstones-"))
     rows: list[dict[str, Any]] = []
     try:
@@ -103,6 +107,7 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
                                 "states": len(states),
                                 "tombstones": sum(s.removed for s in states),
                                 "triples": len(store),
+                                "heap_mb": round(tracemalloc.get_traced_memory()[0] / 2**20, 1),
                                 "rss_mb": round(live._proc_mb(os.getpid(), "VmRSS"), 1),
                                 "store_mb": round(_dir_mb(store_path), 1),
                                 "forgotten": observer.fusion_counts["forgotten"],
@@ -128,11 +133,11 @@ def run(args: argparse.Namespace) -> list[dict[str, Any]]:
 
 def _table(runs: dict[str, list[dict[str, Any]]]) -> str:
     names = list(runs)
-    head = "| t (s) | " + " | ".join(f"{n}: states / triples / RSS MB / store MB" for n in names) + " |"
+    head = "| t (s) | " + " | ".join(f"{n}: states / triples / heap MB / RSS MB" for n in names) + " |"
     lines = [head, "|---|" + "---|" * len(names)]
     for i in range(min(len(r) for r in runs.values())):
         cells = [
-            f"{r[i]['states']} / {r[i]['triples']:,} / {r[i]['rss_mb']} / {r[i]['store_mb']}"
+            f"{r[i]['states']} / {r[i]['triples']:,} / {r[i]['heap_mb']} / {r[i]['rss_mb']}"
             for r in (runs[n] for n in names)
         ]
         lines.append(f"| {runs[names[0]][i]['t_s']} | " + " | ".join(cells) + " |")

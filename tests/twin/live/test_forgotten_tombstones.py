@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import threading
+import time
 from dataclasses import replace
 from pathlib import Path
 
+import pytest
+
+import twin.live.service as service_module
 from tests.conftest import imported
 from tests.twin.box_lab import box_lab, element_iri, spec
 from tests.twin.fusion.fusion_helpers import Clock, sensed
@@ -151,3 +155,24 @@ def test_a_backlog_of_tombstones_is_forgotten_in_batches_oldest_first_skipping_t
     assert service.observer.forget_tombstones(limit=2) == 0
     assert [i for i in iris if i in service.states] == [iris[2]] and not service.states[iris[2]].removed
     assert not any(triples_of(service, i) for i in (*iris[:2], *iris[3:]))
+
+
+def test_the_serving_writer_forgets_due_tombstones_in_its_housekeeping(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(service_module, "_ALIAS_CHECK_S", 0.0)  # every turn of the loop, not every 10 s
+    clock = Clock()
+    service = serving(clock=clock)
+    removed_at = chair_seen_then_removed(service, clock)
+    clock.ns = removed_at + HOUR_NS + 10**9
+    stop = threading.Event()
+    writer = threading.Thread(target=service.serve_forever, args=(stop,), kwargs={"poll_s": 0.01})
+    writer.start()
+    try:
+        deadline = time.monotonic() + 10.0
+        while CHAIR in service.states and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        stop.set()
+        writer.join()
+    assert CHAIR not in service.states and triples_of(service, CHAIR) == 0
