@@ -57,7 +57,7 @@ from twin.live.plan import ObservationPlan, plan_observation
 from twin.live.publication import Publication
 from twin.live.requests import ObserveRequest, Reply
 from twin.live.state import ElementState, LiveState, Sighting
-from twin.live.tombstones import FORGET_BATCH, due_tombstones, forget_changes, forget_element, still_due
+from twin.live.tombstones import FORGET_BATCH, due_tombstones, forget_changes, forget_elements, still_due
 from twin.live.validate import check_observation
 from twin.records import ElementReport, GeometryChange, Observation, Shape
 
@@ -278,13 +278,12 @@ class Observer:
         if not due:
             return 0
         try:
-            self.store.apply(forget_changes(self.store, due))
+            self.store.apply(forget_changes(self.store, live, due))
         except TwinError as err:
             log.warning("Could not forget %d removed elements: %s", len(due), err)
             self._due.extendleft(reversed(due))
             return 0
-        for iri in due:
-            forget_element(self.live, iri)
+        forget_elements(live, due)
         self.fusion_counts["forgotten"] += len(due)
         log.debug("Forgot %d removed elements (oldest <%s>)", len(due), due[0])
         return len(due)

@@ -10,7 +10,8 @@ The writer forgets a tombstone once its removal's sense time (on the daemon's cl
 check compares with) is more than ``[fusion] tombstone_ttl_s`` old: everything it holds of the element
 (its state, held triples, last sighting, fusion's history, pose caches, the aliases that name it) and
 every triple of it in the graph (its own and those that point to it: the storey's
-``bot:containsElement``, aliases), in one store transaction per pass and at most
+``bot:containsElement``, aliases; a merged element's IRI stays an alias of the element kept, until it
+expires as aliases do), in one store transaction per pass and at most
 :data:`FORGET_BATCH` elements a pass (those one walk of the states found due are worked off over the
 next passes before the states are walked again). Elements imported from the IFC model keep their
 tombstones (the building bounds their number, and the graph keeps the record that the model's element
@@ -19,9 +20,8 @@ is gone). A report of a forgotten IRI with a class creates a new element, as aft
 Example::
 
     due = due_tombstones(live, now_ns=clock(), ttl_ns=rules.tombstone_ttl_ns, base_iri=base_iri)
-    store.apply(forget_changes(store, due[:FORGET_BATCH]))
-    for iri in due[:FORGET_BATCH]:
-        forget_element(live, iri)
+    store.apply(forget_changes(store, live, due[:FORGET_BATCH]))
+    forget_elements(live, due[:FORGET_BATCH])
 """
 
 from __future__ import annotations
@@ -59,42 +59,48 @@ def still_due(live: LiveState, iri: str, *, now_ns: int, ttl_ns: int) -> bool:
     return state is not None and state.removed and now_ns - state.sensed_ns > ttl_ns > 0
 
 
-def forget_changes(store: GraphStore, iris: Sequence[str]) -> ChangeSet:
+def forget_changes(store: GraphStore, live: LiveState, iris: Sequence[str]) -> ChangeSet:
     """Every triple of ``iris`` in the graph: their own (and their geometry nodes'), and those that
-    point to them (exact deletes, found with one query)."""
+    point to them (exact deletes, found with one query); but an IRI that is itself an alias (a merged
+    element's: it resolves to the element kept) keeps its ``twin:aliasOf``, which expires as aliases do."""
     if not iris:
         return ChangeSet()
     values = " ".join(f"<{i}>" for i in iris)
     rows = store.select(f"SELECT ?s ?p ?e WHERE {{ VALUES ?e {{ {values} }} ?s ?p ?e FILTER(isIRI(?s)) }}")
     incoming = tuple(Triple(r["s"] or "", r["p"] or "", r["e"] or "") for r in rows)
     own = tuple((s, None) for i in iris for s in (i, vocab.geometry_iri(i)))
-    return ChangeSet(remove=own, delete=incoming)
+    aliases = live.fusion.aliases
+    kept = tuple(Triple(i, vocab.TWIN_ALIAS_OF, aliases[i].target) for i in iris if i in aliases)
+    return ChangeSet(remove=own, delete=incoming, add=kept)
 
 
-def forget_element(live: LiveState, iri: str) -> None:
-    """Forget everything the writer holds of ``iri`` (a tombstone): its state, held triples, last
-    sighting, fusion's memory of it and the aliases that name it (the graph's triples are the caller's:
-    :func:`forget_changes`)."""
-    live.states.pop(iri, None)
-    live.held.pop(iri, None)
-    live.held.pop(vocab.geometry_iri(iri), None)
-    live.last_seen.pop(iri, None)
+def forget_elements(live: LiveState, iris: Sequence[str]) -> None:
+    """Forget everything the writer holds of ``iris`` (tombstones): their states, held triples, last
+    sightings, fusion's memory of them and the aliases that name them (the graph's triples are the
+    caller's: :func:`forget_changes`)."""
     memory = live.fusion
-    memory.tracks.pop(iri, None)
-    memory.history.pop(iri, None)
-    memory.shape_poses.pop(iri, None)
-    memory.tentative.pop(iri, None)
-    memory.distinct.discard(iri)
-    for alias in memory.aliases_of(iri):
+    for iri in iris:
+        live.states.pop(iri, None)
+        live.held.pop(iri, None)
+        live.held.pop(vocab.geometry_iri(iri), None)
+        live.last_seen.pop(iri, None)
+        memory.tracks.pop(iri, None)
+        memory.history.pop(iri, None)
+        memory.shape_poses.pop(iri, None)
+        memory.tentative.pop(iri, None)
+        memory.distinct.discard(iri)
+    gone = set(iris)
+    for alias in [a for a, v in memory.aliases.items() if v.target in gone]:
         del memory.aliases[alias]
         live.last_seen.pop(alias, None)
     if memory.poses is not None:
         for storey, poses in memory.poses.items():
-            if poses.pop(iri, None) is not None:
+            if any([poses.pop(iri, None) is not None for iri in iris]):
                 memory.pose_arrays.pop(storey, None)
     held = getattr(memory.confirm_cache, "held", None)  # confirmations at once: per-element entries
     if isinstance(held, dict):
-        held.pop(iri, None)
+        for iri in iris:
+            held.pop(iri, None)
 
 
 def forget_restored(store: GraphStore, live: LiveState, base_iri: str) -> list[str]:
@@ -107,8 +113,7 @@ def forget_restored(store: GraphStore, live: LiveState, base_iri: str) -> list[s
         for iri, state in live.states.items()
         if state.removed and iri not in kept and not (base_iri and iri.startswith(base_iri))
     ]
-    for iri in gone:
-        forget_element(live, iri)
+    forget_elements(live, gone)
     history = live.fusion.history
     for iri in [i for i in history if i not in live.states]:
         del history[iri]

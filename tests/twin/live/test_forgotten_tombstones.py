@@ -13,7 +13,7 @@ import twin.live.service as service_module
 from tests.conftest import imported
 from tests.twin.box_lab import box_lab, element_iri, spec
 from tests.twin.fusion.fusion_helpers import Clock, sensed
-from tests.twin.live_helpers import PREFIX, box_turtle, observe
+from tests.twin.live_helpers import PREFIX, TWIN, box_turtle, observe
 from twin.config import load_config
 from twin.graph.store import GraphStore
 from twin.live import TwinService
@@ -176,3 +176,20 @@ def test_the_serving_writer_forgets_due_tombstones_in_its_housekeeping(
         stop.set()
         writer.join()
     assert CHAIR not in service.states and triples_of(service, CHAIR) == 0
+
+
+def test_a_merged_elements_iri_stays_an_alias_of_the_element_kept_when_its_tombstone_is_forgotten() -> None:
+    clock = Clock()
+    service = serving(clock=clock)
+    moved, kept = "urn:robot1:crate-a", "urn:robot2:crate-b"
+    assert observe(service, "robot1", box_turtle(moved, 2.0, 2.0)).ok
+    assert observe(service, "robot2", box_turtle(kept, 5.0, 1.0)).ok
+    clock.ns += 10**9
+    assert observe(service, "robot1", box_turtle(moved, 5.0, 1.0)).body.get("merged") == {moved: kept}
+    clock.ns += HOUR_NS + 10**9
+    assert service.observer.forget_tombstones() == 1
+    assert moved not in service.states
+    rows = service.store.select(f"SELECT ?p ?o WHERE {{ <{moved}> ?p ?o }}")
+    assert rows == [{"p": f"{TWIN}aliasOf", "o": kept}]
+    again = observe(service, "robot1", box_turtle(moved, 5.05, 1.0))
+    assert again.body.get("resolved") == {moved: kept} and moved not in service.states
