@@ -48,7 +48,8 @@ class ModelStats:
     gets wrong (boolean results, curved profiles), manifold the rest."""
     removed: int = 0
     """Elements a robot removed: kept in the graph as tombstones (``twin:removed true``, no geometry), so
-    that the removal's time stays known, and left out of every other count."""
+    that the removal's time stays known (a robot-added element's for ``[fusion] tombstone_ttl_s``), and
+    left out of every other count."""
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
