@@ -11,7 +11,16 @@ either tree (before and after the boxes and footprints became one pass). ``--pic
 handing the outcomes over costs: bytes per array, µs to dump and to load (best of 5), and to load an
 array's reports alone (what the daemon's pool thread does per array).
 
+``--views shared|distinct`` plays a worker of ``ros_ingest.py`` instead: ``--robots`` robots (default
+25) in one translator, placed as ``ros_ingest.py --views`` places them (shared: all at one pose in the
+lab's corridor; distinct: each in a room of its own of the generated rooms building), each with its
+own TF and array per tick (0.1 s), handled round-robin as a worker takes its batches; the records
+checked against the twin's limits and the collector set as the workers do; the view cut at the
+daemon's own localization map of that building (the lab's, 14.3 x 6.4 m; the rooms building's,
+33.2 x 23.2 m; made by importing the building and starting a twin on it: a few seconds).
+
     PYTHONPATH=$PWD python benchmarks/ros_worker_cost.py --detections 20 --repeat 10 [--profile]
+    PYTHONPATH=$PWD python benchmarks/ros_worker_cost.py --views distinct --repeat 3 --stages
 """
 
 from __future__ import annotations
@@ -19,6 +28,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 import dataclasses
+import gc
 import json
 import pstats
 import struct
@@ -114,7 +124,7 @@ def setup_fleet(views: str, robots: int, per_robot: int, ticks: int = 40) -> tup
     (the twin's limits: records checked), and ``ticks`` rounds of each robot's TF + array, 0.1 s apart,
     robot by robot (robot 0's last table 1.0 m aside every other 2 s, as its publisher moves it)."""
     from adapters.ros.detections import DetectionSettings
-    from adapters.zenoh.ros_workers import RobotSpec, RobotTranslator
+    from adapters.zenoh.ros_workers import WORKER_GC_THRESHOLD, RobotSpec, RobotTranslator
     from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
     from twin.config import load_config
 
@@ -135,6 +145,8 @@ def setup_fleet(views: str, robots: int, per_robot: int, ticks: int = 40) -> tup
         t.set_storey(n, grid.storey)
     t.set_elevations({grid.storey: 0.0})
     t.set_grid(grid)
+    gc.freeze()  # as a worker: what its start made is not collected again, young passes rarer
+    gc.set_threshold(*WORKER_GC_THRESHOLD)
     spots = tables(per_robot)
     msgs = []
     for k in range(ticks):
