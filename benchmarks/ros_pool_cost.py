@@ -6,7 +6,12 @@ holds the interpreter ``--writer-ms`` per array, as the daemon's writer does whi
 the CPU per array of each thread of this process (the pool's sender and reader threads, the caller
 that puts, the stand-in writer) and of the worker process.
 
+``--views shared|distinct``: the robots placed as ``ros_ingest.py --views`` places them, each its own
+TF, the view cut at that building's localization map (``ros_worker_cost.py --views``), the records
+checked against the twin's limits as the daemon's workers do.
+
     PYTHONPATH=$PWD python benchmarks/ros_pool_cost.py --robots 10 --rate 100 --seconds 10
+    PYTHONPATH=$PWD python benchmarks/ros_pool_cost.py --robots 25 --rate 250 --seconds 6 --views distinct
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ros_ingest import ROBOT, tables  # benchmarks/ is not a package
+from ros_ingest import ROBOT, base, tables  # benchmarks/ is not a package
 
 
 def _threads_cpu_s() -> dict[int, float]:
@@ -50,11 +55,20 @@ def main() -> int:
     p.add_argument("--detections", type=int, default=20)
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--writer-ms", type=float, default=0.8)
+    p.add_argument("--views", choices=["shared", "distinct"], help="as ros_ingest.py --views places them")
     a = p.parse_args()
-    data = np.zeros((400, 800), dtype=np.int8)
-    data[::80, :] = 100
-    data[:, ::130] = 100
-    grid = OccupancyGrid(GridFrame(0.0, 0.0, 0.05, 800, 400), data, "g", "localization", 0.0)
+    limits = None
+    if a.views is None:
+        data = np.zeros((400, 800), dtype=np.int8)
+        data[::80, :] = 100
+        data[:, ::130] = 100
+        grid = OccupancyGrid(GridFrame(0.0, 0.0, 0.05, 800, 400), data, "g", "localization", 0.0)
+    else:
+        from ros_worker_cost import localization_grid
+
+        from twin.config import load_config
+
+        grid, limits = localization_grid(a.views, a.robots), load_config().limits
     names = [f"robot{i}" for i in range(a.robots)]
     specs = [
         RobotSpec(n, DetectionSettings(robot=n, classes={"table": "IfcFurniture"}), "localization")
@@ -69,12 +83,12 @@ def main() -> int:
 
     pool = WorkerPool(
         specs, 1, deliver=deliver, replay=lambda _: [], on_restart=lambda _: None,
-        fusion_terms=True, typed=True, tf_wait_s=0.5, queue_depth=100_000,
+        fusion_terms=True, typed=True, tf_wait_s=0.5, queue_depth=100_000, limits=limits,
     )  # fmt: skip
-    pool.feed(("elevations", {"g": 0.0}))
+    pool.feed(("elevations", {grid.storey: 0.0}))
     pool.feed(("grid", grid))
     for name in names:
-        pool.feed(("storey", name, "g"), robot=name)
+        pool.feed(("storey", name, grid.storey), robot=name)
     handled = [0]
 
     def writer() -> None:
@@ -92,15 +106,22 @@ def main() -> int:
         start, tick, sent = time.monotonic(), 0, 0
         while time.monotonic() - start < seconds:
             stamp = time.time_ns()
-            tf = cdr_tf([Tf("map", "base_link", (*ROBOT, 0.0), stamp_ns=stamp)])
             dets = [
                 Det((("table", 0.9),), (x - ROBOT[0], y - ROBOT[1], 0.375), (0.2, 0.2, 0.75), id=f"t{i}")
                 for i, (x, y) in enumerate(spots)
             ]
             array = cdr_detections(stamp, "base_link", dets)
-            for n in names:
+            if a.views is None:  # every robot the same message (one object)
+                tf = cdr_tf([Tf("map", "base_link", (*ROBOT, 0.0), stamp_ns=stamp)])
+                messages = [(tf, array)] * len(names)
+            else:  # each robot its own pose, its own objects (as they come from Zenoh)
+                at = [(*base(r, len(names), a.views), 0.0) for r in range(len(names))]
+                messages = [
+                    (cdr_tf([Tf("map", "base_link", p, stamp_ns=stamp)]), bytes(bytearray(array))) for p in at
+                ]
+            for n, (tf, det) in zip(names, messages, strict=True):
                 pool.put(n, "tf", tf, stamp)
-                pool.put(n, "detections", array, stamp)
+                pool.put(n, "detections", det, stamp)
                 sent += 1
             tick += 1
             time.sleep(max(0.0, start + tick * len(names) / a.rate - time.monotonic()))

@@ -11,7 +11,16 @@ either tree (before and after the boxes and footprints became one pass). ``--pic
 handing the outcomes over costs: bytes per array, µs to dump and to load (best of 5), and to load an
 array's reports alone (what the daemon's pool thread does per array).
 
+``--views shared|distinct`` plays a worker of ``ros_ingest.py`` instead: ``--robots`` robots (default
+25) in one translator, placed as ``ros_ingest.py --views`` places them (shared: all at one pose in the
+lab's corridor; distinct: each in a room of its own of the generated rooms building), each with its
+own TF and array per tick (0.1 s), handled round-robin as a worker takes its batches; the records
+checked against the twin's limits and the collector set as the workers do; the view cut at the
+daemon's own localization map of that building (the lab's, 14.3 x 6.4 m; the rooms building's,
+33.2 x 23.2 m; made by importing the building and starting a twin on it: a few seconds).
+
     PYTHONPATH=$PWD python benchmarks/ros_worker_cost.py --detections 20 --repeat 10 [--profile]
+    PYTHONPATH=$PWD python benchmarks/ros_worker_cost.py --views distinct --repeat 3 --stages
 """
 
 from __future__ import annotations
@@ -19,6 +28,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 import dataclasses
+import gc
 import json
 import pstats
 import struct
@@ -30,14 +40,18 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ros_ingest import ROBOT, tables  # benchmarks/ is not a package
+from ros_ingest import MOVER, ROBOT, base, tables  # benchmarks/ is not a package
 
 NOW_NS = 1_700_000_000_000_000_000
 
 
+Message = tuple[str, bytes, bytes]
+"""A robot's name, its TF message and its array of the same stamp."""
+
+
 def setup(
     per_robot: int, arrays: int = 50, *, moving: bool = False, noise: float = 0.0
-) -> tuple[Any, list[tuple[bytes, bytes]]]:
+) -> tuple[Any, list[Message]]:
     """A translator with one robot on a 40 x 20 m structure grid at 0.05 m (walls every 4 m across and
     6.5 m along: the robot in a corridor), and ``arrays`` TF + array pairs 0.1 s apart (``moving``: the
     robot 1 cm further along x at each, its tables as far before it: no view's march is reused)."""
@@ -74,7 +88,82 @@ def setup(
             )
             for i, ((x, y), (ex, ey, ez)) in enumerate(zip(spots, jitter.tolist(), strict=True))
         ]
-        msgs.append((tf, cdr_detections(stamp, "base_link", dets)))
+        msgs.append(("robot0", tf, cdr_detections(stamp, "base_link", dets)))
+    return t, msgs
+
+
+def localization_grid(views: str, robots: int) -> Any:
+    """The daemon's localization map of ``ros_ingest.py``'s building (``views``: the lab's or the
+    rooms building of ``robots`` rooms), made as ``twin serve`` makes it (imported, then the twin
+    started on it)."""
+    import tempfile
+
+    import live
+    from ros_ingest import write_rooms
+
+    from twin.config import load_config
+    from twin.graph.store import EmbeddedStore
+    from twin.live import TwinService
+
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        if views == "shared":
+            store = live.prepare_store("lab", work)
+        else:
+            store = work / "store"
+            write_rooms(work / "rooms.ifc", robots)
+            live.import_store(work / "rooms.ifc", store)
+        with EmbeddedStore.open(store) as st:
+            service = TwinService(st, load_config())
+            service.start()
+            return service.live_maps.skill_maps[("ground-floor", "localization")].grid()
+
+
+def setup_fleet(views: str, robots: int, per_robot: int, ticks: int = 40) -> tuple[Any, list[Message]]:
+    """A translator of ``robots`` robots as one worker of ``ros_ingest.py --views VIEWS`` holds them
+    (the twin's limits: records checked), and ``ticks`` rounds of each robot's TF + array, 0.1 s apart,
+    robot by robot (robot 0's last table 1.0 m aside every other 2 s, as its publisher moves it)."""
+    from adapters.ros.detections import DetectionSettings
+    from adapters.zenoh.ros_workers import WORKER_GC_THRESHOLD, RobotSpec, RobotTranslator
+    from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
+    from twin.config import load_config
+
+    grid = localization_grid(views, robots)
+    names = [f"robot{r}" for r in range(robots)]
+    specs = [
+        RobotSpec(
+            n,
+            DetectionSettings(robot=n, classes={"table": "IfcFurniture"}, max_detections=per_robot),
+            "localization",
+        )
+        for n in names
+    ]
+    t = RobotTranslator(
+        specs, fusion_terms=True, typed=True, clock=lambda: NOW_NS, limits=load_config().limits
+    )
+    for n in names:
+        t.set_storey(n, grid.storey)
+    t.set_elevations({grid.storey: 0.0})
+    t.set_grid(grid)
+    gc.freeze()  # as a worker: what its start made is not collected again, young passes rarer
+    gc.set_threshold(*WORKER_GC_THRESHOLD)
+    spots = tables(per_robot)
+    msgs = []
+    for k in range(ticks):
+        stamp = NOW_NS - 6_000_000_000 + k * 100_000_000
+        shift = MOVER[2] * ((k // 20) % 2)
+        for r, name in enumerate(names):
+            tf = cdr_tf([Tf("map", "base_link", (*base(r, robots, views), 0.0), stamp_ns=stamp)])
+            dets = [
+                Det(
+                    (("table", 0.9),),
+                    (x - ROBOT[0], y - ROBOT[1] + (shift if i == len(spots) - 1 and r == 0 else 0.0), 0.375),
+                    (0.2, 0.2, 0.75),
+                    id=f"t{i}",
+                )
+                for i, (x, y) in enumerate(spots)
+            ]
+            msgs.append((name, tf, cdr_detections(stamp, "base_link", dets)))
     return t, msgs
 
 
@@ -107,7 +196,7 @@ STAGES = (
 )
 
 
-def stages(t: Any, msgs: list[tuple[bytes, bytes]], repeat: int) -> dict[str, int]:
+def stages(t: Any, msgs: list[Message], repeat: int) -> dict[str, int]:
     """µs of thread time per TF + array in each of :data:`STAGES` (those the tree has), timed by
     wrapping them; "rest of translate" is the translation less its stages (the loop, IRIs, session)."""
     import collections
@@ -142,13 +231,19 @@ def stages(t: Any, msgs: list[tuple[bytes, bytes]], repeat: int) -> dict[str, in
     return out
 
 
-def run(t: Any, msgs: list[tuple[bytes, bytes]], repeat: int) -> list[Any]:
+def run(t: Any, msgs: list[Message], repeat: int) -> list[Any]:
     out = []
     for _ in range(repeat):
-        for tf, det in msgs:
-            t.handle("robot0", "tf", tf, 0)
-            out.append(t.handle("robot0", "detections", det, 0))
+        for robot, tf, det in msgs:
+            t.handle(robot, "tf", tf, 0)
+            out.append(t.handle(robot, "detections", det, 0))
     return out
+
+
+def _observation(outcome: Any) -> Any:
+    """An outcome's observation (checked against the limits: inside its ``Checked``)."""
+    doc = outcome.translation.document
+    return getattr(doc, "observation", doc)
 
 
 def pickles(outcomes: list[Any], rounds: int = 200) -> dict[str, float]:
@@ -165,7 +260,7 @@ def pickles(outcomes: list[Any], rounds: int = 200) -> dict[str, float]:
         return 1e6 * min(times) / len(outcomes)
 
     data = pickle.dumps(outcomes, protocol=pickle.HIGHEST_PROTOCOL)
-    reports = [o.translation.document.reports for o in outcomes]
+    reports = [_observation(o).reports for o in outcomes]
     data_reports = pickle.dumps(reports, protocol=pickle.HIGHEST_PROTOCOL)
     return {
         "bytes": round(len(data) / len(outcomes)),
@@ -185,14 +280,21 @@ def main() -> int:
     p.add_argument("--check", type=Path)
     p.add_argument("--stages", action="store_true", help="also the CPU of each stage (µs per array)")
     p.add_argument("--pickle", action="store_true", help="also the outcomes' pickles (bytes, µs per array)")
+    p.add_argument(
+        "--views",
+        choices=["shared", "distinct"],
+        help="play a worker of ros_ingest.py --views VIEWS (--robots robots, the daemon's localization map)",
+    )
+    p.add_argument("--robots", type=int, default=25, help="with --views: the robots (default 25)")
     a = p.parse_args()
-    t, msgs = setup(a.detections, moving=a.moving, noise=a.noise)
+    if a.views is not None:
+        t, msgs = setup_fleet(a.views, a.robots, a.detections)
+    else:
+        t, msgs = setup(a.detections, moving=a.moving, noise=a.noise)
     first = run(t, msgs, 1)
     if a.check is not None:
         a.check.write_bytes(repr(_values([[o.translation.document for o in x] for x in first])).encode())
-    views = sum(
-        1 for x in first if x and getattr(x[0], "translation", None) and x[0].translation.document.view
-    )
+    views = sum(1 for x in first if x and getattr(x[0], "translation", None) and _observation(x[0]).view)
     t0 = time.process_time()
     run(t, msgs, a.repeat)
     cpu_ms = 1000 * (time.process_time() - t0) / (a.repeat * len(msgs))
@@ -200,6 +302,8 @@ def main() -> int:
         json.dumps(
             {
                 "detections": a.detections,
+                "views": a.views,
+                "robots": a.robots if a.views else 1,
                 "moving": a.moving,
                 "noise": a.noise,
                 "arrays_with_view": f"{views}/{len(first)}",
@@ -210,7 +314,7 @@ def main() -> int:
     if a.stages:
         print(json.dumps(stages(t, msgs, a.repeat)))
     if a.pickle:
-        print(json.dumps(pickles([o for x in first for o in x])))
+        print(json.dumps(pickles([o for x in first[:50] for o in x])))  # as many arrays as one robot's
     if a.profile:
         prof = cProfile.Profile()
         prof.enable()

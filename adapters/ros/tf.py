@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import bisect
 import math
+import struct
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
@@ -66,35 +67,95 @@ def _frame(name: str) -> str:
     return name[1:] if name.startswith("/") else name
 
 
+_RawTransform = tuple[str, str, int, int, tuple[float, ...]]
+"""A transform as decoded: frame_id, child_frame_id, stamp sec and nanosec, and 7 floats (translation
+x y z, rotation x y z w)."""
+_U32 = struct.Struct("<I")
+_TIME = struct.Struct("<iI")
+_TRANSFORM = struct.Struct("<7d")
+_MIN_TRANSFORM_BYTES = 8 + 5 + 5 + 56
+"""The fewest bytes a transform takes (a stamp, two empty strings, seven doubles; padding aside)."""
+
+
+def _decode_le(payload: bytes | bytearray | memoryview) -> list[_RawTransform] | None:
+    """A little-endian CDR TFMessage decoded by hand (its layout is fixed: a count, then per transform a
+    header, the child's frame and seven doubles); None if anything is unusual (another encoding, a
+    count that does not fit, a string without its terminator or not UTF-8, trailing bytes): rosbags
+    then decodes it or says why not, so both refuse the same messages."""
+    if not isinstance(payload, bytes | bytearray | memoryview) or bytes(payload[:2]) != b"\x00\x01":
+        return None
+    data = bytes(payload[4:])
+    end = len(data)
+    u32, unpack_time, unpack_transform = _U32.unpack_from, _TIME.unpack_from, _TRANSFORM.unpack_from
+
+    def string(pos: int) -> tuple[str, int]:
+        pos += -pos % 4
+        (n,) = u32(data, pos)
+        stop = pos + 4 + n
+        if n < 1 or stop > end or data[stop - 1] != 0:
+            raise ValueError
+        return data[pos + 4 : stop - 1].decode(), stop
+
+    try:
+        (count,) = u32(data, 0)
+        pos = 4
+        if count * _MIN_TRANSFORM_BYTES > end - pos:
+            return None
+        out: list[_RawTransform] = []
+        for _ in range(count):
+            pos += -pos % 4
+            sec, nanosec = unpack_time(data, pos)
+            parent, pos = string(pos + 8)
+            child, pos = string(pos)
+            pos += -pos % 8
+            values = unpack_transform(data, pos)
+            pos += 56
+            out.append((parent, child, sec, nanosec, values))
+    except (struct.error, ValueError, UnicodeDecodeError):
+        return None
+    if pos > end or pos + 3 < end:  # rosbags allows at most 3 bytes of padding after the message
+        return None
+    return out
+
+
+def _decode_rosbags(payload: bytes | bytearray | memoryview) -> list[_RawTransform]:
+    """The same as :func:`_decode_le`, by rosbags (any encoding); MapError if malformed."""
+    message = _deserialize(payload, TF_MESSAGE)
+    out: list[_RawTransform] = []
+    for ts in message.transforms:
+        t, q, stamp = ts.transform.translation, ts.transform.rotation, ts.header.stamp
+        values = (t.x, t.y, t.z, q.x, q.y, q.z, q.w)
+        out.append((ts.header.frame_id, ts.child_frame_id, int(stamp.sec), int(stamp.nanosec), values))
+    return out
+
+
 def decode_tf_message(payload: bytes | bytearray | memoryview) -> list[TransformSample]:
     """The transforms of a CDR ``tf2_msgs/msg/TFMessage``; MapError if malformed or not finite, or a
-    quaternion is not a rotation."""
+    quaternion is not a rotation. Little-endian messages are read by hand (:func:`_decode_le`), others
+    (and anything unusual) by rosbags: the same values either way."""
     if len(payload) > MAX_TF_BYTES:
         msg = f"A TFMessage of {len(payload)} bytes is larger than the limit {MAX_TF_BYTES}."
         raise MapError(msg)
-    message = _deserialize(payload, TF_MESSAGE)
+    raw = _decode_le(payload)
+    if raw is None:
+        raw = _decode_rosbags(payload)
     out: list[TransformSample] = []
-    for ts in message.transforms:
-        t, q = ts.transform.translation, ts.transform.rotation
-        values = (t.x, t.y, t.z, q.x, q.y, q.z, q.w)
+    for frame_id, child_frame_id, sec, nanosec, values in raw:
+        tx, ty, tz, qx, qy, qz, qw = values
         if not all(math.isfinite(v) for v in values):
-            msg = f"Transform {ts.header.frame_id!r} -> {ts.child_frame_id!r} is not finite: {values}."
+            msg = f"Transform {frame_id!r} -> {child_frame_id!r} is not finite: {values}."
             raise MapError(msg)
-        norm = math.sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w)
+        norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
         if abs(norm - 1.0) > 1e-3:
-            msg = (
-                f"Transform {ts.header.frame_id!r} -> {ts.child_frame_id!r} has a quaternion of norm {norm}."
-            )
+            msg = f"Transform {frame_id!r} -> {child_frame_id!r} has a quaternion of norm {norm}."
             raise MapError(msg)
-        parent, child = _frame(ts.header.frame_id), _frame(ts.child_frame_id)
+        parent, child = _frame(frame_id), _frame(child_frame_id)
         if not parent or not child or parent == child:
             msg = f"Transform {parent!r} -> {child!r} does not join two named frames."
             raise MapError(msg)
-        stamp = int(ts.header.stamp.sec) * _NS_PER_S + int(ts.header.stamp.nanosec)
+        stamp = sec * _NS_PER_S + nanosec
         out.append(
-            TransformSample(
-                parent, child, stamp, (t.x, t.y, t.z), (q.x / norm, q.y / norm, q.z / norm, q.w / norm)
-            )
+            TransformSample(parent, child, stamp, (tx, ty, tz), (qx / norm, qy / norm, qz / norm, qw / norm))
         )
     return out
 
