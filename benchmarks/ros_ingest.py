@@ -107,6 +107,15 @@ def write_rooms(path: Path, robots: int) -> None:
     write_plans(path, (StoreyPlan("Ground floor", 0.0, (*walls, slab), ()),))
 
 
+def views_store(views: str, robots: int, work: Path) -> Path:
+    """The store the daemon serves (in ``work``): the lab with shared views, else the building of
+    ``rooms(robots)`` rooms (:func:`write_rooms`)."""
+    if views == "shared":
+        return live.prepare_store("lab", work)
+    write_rooms(work / "rooms.ifc", robots)
+    return live.import_store(work / "rooms.ifc", work / "store")
+
+
 def tables(per_robot: int) -> list[tuple[float, float]]:
     """``per_robot`` table positions (the last one the mover) in front of the robots, inside their view
     (90 deg, 5 m): every robot reports everything it sees, so its views miss nothing."""
@@ -280,12 +289,7 @@ def run(
 ) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        if views == "shared":
-            store = live.prepare_store("lab", work)
-        else:
-            store = work / "store"
-            write_rooms(work / "rooms.ifc", robots)
-            live.import_store(work / "rooms.ifc", store)
+        store = views_store(views, robots, work)
         cfg = work / "robots.toml"
         ros = "" if workers is None else f"[ros]\ningest_workers = {workers}\n"
         cfg.write_text(

@@ -98,21 +98,14 @@ def localization_grid(views: str, robots: int) -> Any:
     started on it)."""
     import tempfile
 
-    import live
-    from ros_ingest import write_rooms
+    from ros_ingest import views_store
 
     from twin.config import load_config
     from twin.graph.store import EmbeddedStore
     from twin.live import TwinService
 
     with tempfile.TemporaryDirectory() as tmp:
-        work = Path(tmp)
-        if views == "shared":
-            store = live.prepare_store("lab", work)
-        else:
-            store = work / "store"
-            write_rooms(work / "rooms.ifc", robots)
-            live.import_store(work / "rooms.ifc", store)
+        store = views_store(views, robots, Path(tmp))
         with EmbeddedStore.open(store) as st:
             service = TwinService(st, load_config())
             service.start()

@@ -41,6 +41,7 @@ import numpy as np
 import numpy.typing as npt
 
 from adapters.ros.cdr import _deserialize
+from adapters.ros.cdr_le import TIME, U32, body, ends_at, read_string
 from adapters.ros.interfaces import CAMERA_INFO, DETECTION_3D_ARRAY
 from adapters.ros.observation_doc import (
     BoxReport,
@@ -190,8 +191,6 @@ def _stamp(header: Any) -> int:
 _RawDetection = tuple[str, int, list[tuple[str, float]], tuple[float, ...], str]
 """A detection as decoded: frame_id, stamp (ns), its hypotheses (class_id, score), its box's centre
 pose and size (10 floats: position, orientation x y z w, size) and its id."""
-_U32 = struct.Struct("<I")
-_TIME = struct.Struct("<iI")
 _F64 = struct.Struct("<d")
 _BOX = struct.Struct("<10d")
 _POSE_WITH_COVARIANCE = 8 * (7 + 36)
@@ -202,23 +201,15 @@ def _decode_le(payload: bytes | bytearray | memoryview) -> tuple[str, int, list[
     detection a header, hypotheses, a box and an id); None if anything is unusual (another encoding,
     a length or count that does not fit, a string without its terminator or not UTF-8, trailing
     bytes): rosbags then decodes it or says why not, so both refuse the same messages."""
-    if not isinstance(payload, bytes | bytearray | memoryview) or bytes(payload[:2]) != b"\x00\x01":
+    data = body(payload)
+    if data is None:
         return None
-    data = bytes(payload[4:])
     end = len(data)
-    u32, unpack_time, f64, box = _U32.unpack_from, _TIME.unpack_from, _F64.unpack_from, _BOX.unpack_from
-
-    def string(pos: int) -> tuple[str, int]:
-        pos += -pos % 4
-        (n,) = u32(data, pos)
-        stop = pos + 4 + n
-        if n < 1 or stop > end or data[stop - 1] != 0:
-            raise ValueError
-        return data[pos + 4 : stop - 1].decode(), stop
+    u32, unpack_time, f64, box = U32.unpack_from, TIME.unpack_from, _F64.unpack_from, _BOX.unpack_from
 
     try:
         sec, nsec = unpack_time(data, 0)
-        frame, pos = string(8)
+        frame, pos = read_string(data, 8)
         pos += -pos % 4
         (count,) = u32(data, pos)
         pos += 4
@@ -228,7 +219,7 @@ def _decode_le(payload: bytes | bytearray | memoryview) -> tuple[str, int, list[
         for _ in range(count):
             pos += -pos % 4
             d_sec, d_nsec = unpack_time(data, pos)
-            d_frame, pos = string(pos + 8)
+            d_frame, pos = read_string(data, pos + 8)
             pos += -pos % 4
             (n_results,) = u32(data, pos)
             pos += 4
@@ -236,18 +227,18 @@ def _decode_le(payload: bytes | bytearray | memoryview) -> tuple[str, int, list[
                 return None
             results: list[tuple[str, float]] = []
             for _ in range(n_results):
-                class_id, pos = string(pos)
+                class_id, pos = read_string(data, pos)
                 pos += -pos % 8
                 (score,) = f64(data, pos)
                 pos += 8 + _POSE_WITH_COVARIANCE  # the hypothesis's pose: not used
                 results.append((class_id, score))
             pos += -pos % 8
             values = box(data, pos)
-            d_id, pos = string(pos + 80)
+            d_id, pos = read_string(data, pos + 80)
             out.append((d_frame, d_sec * _NS_PER_S + d_nsec, results, values, d_id))
     except (struct.error, ValueError, UnicodeDecodeError):
         return None
-    if pos > end or pos + 3 < end:  # rosbags allows at most 3 bytes of padding after the message
+    if not ends_at(pos, data):
         return None
     return frame, sec * _NS_PER_S + nsec, out
 

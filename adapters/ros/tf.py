@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from adapters.ros.cdr import _deserialize
+from adapters.ros.cdr_le import TIME, U32, body, ends_at, read_string
 from adapters.ros.interfaces import TF_MESSAGE
 from twin.errors import MapError
 
@@ -70,8 +71,6 @@ def _frame(name: str) -> str:
 _RawTransform = tuple[str, str, int, int, tuple[float, ...]]
 """A transform as decoded: frame_id, child_frame_id, stamp sec and nanosec, and 7 floats (translation
 x y z, rotation x y z w)."""
-_U32 = struct.Struct("<I")
-_TIME = struct.Struct("<iI")
 _TRANSFORM = struct.Struct("<7d")
 _MIN_TRANSFORM_BYTES = 8 + 5 + 5 + 56
 """The fewest bytes a transform takes (a stamp, two empty strings, seven doubles; padding aside)."""
@@ -82,19 +81,11 @@ def _decode_le(payload: bytes | bytearray | memoryview) -> list[_RawTransform] |
     header, the child's frame and seven doubles); None if anything is unusual (another encoding, a
     count that does not fit, a string without its terminator or not UTF-8, trailing bytes): rosbags
     then decodes it or says why not, so both refuse the same messages."""
-    if not isinstance(payload, bytes | bytearray | memoryview) or bytes(payload[:2]) != b"\x00\x01":
+    data = body(payload)
+    if data is None:
         return None
-    data = bytes(payload[4:])
     end = len(data)
-    u32, unpack_time, unpack_transform = _U32.unpack_from, _TIME.unpack_from, _TRANSFORM.unpack_from
-
-    def string(pos: int) -> tuple[str, int]:
-        pos += -pos % 4
-        (n,) = u32(data, pos)
-        stop = pos + 4 + n
-        if n < 1 or stop > end or data[stop - 1] != 0:
-            raise ValueError
-        return data[pos + 4 : stop - 1].decode(), stop
+    u32, unpack_time, unpack_transform = U32.unpack_from, TIME.unpack_from, _TRANSFORM.unpack_from
 
     try:
         (count,) = u32(data, 0)
@@ -105,15 +96,15 @@ def _decode_le(payload: bytes | bytearray | memoryview) -> list[_RawTransform] |
         for _ in range(count):
             pos += -pos % 4
             sec, nanosec = unpack_time(data, pos)
-            parent, pos = string(pos + 8)
-            child, pos = string(pos)
+            parent, pos = read_string(data, pos + 8)
+            child, pos = read_string(data, pos)
             pos += -pos % 8
             values = unpack_transform(data, pos)
             pos += 56
             out.append((parent, child, sec, nanosec, values))
     except (struct.error, ValueError, UnicodeDecodeError):
         return None
-    if pos > end or pos + 3 < end:  # rosbags allows at most 3 bytes of padding after the message
+    if not ends_at(pos, data):
         return None
     return out
 
