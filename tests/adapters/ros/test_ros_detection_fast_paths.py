@@ -6,9 +6,7 @@ again (remembered until the tree changes) is the same, and follows a change of t
 
 from __future__ import annotations
 
-import dataclasses
 import math
-import struct
 from typing import Any
 
 import numpy as np
@@ -29,6 +27,7 @@ from adapters.ros.detections import (
 from adapters.ros.interfaces import DETECTION_3D_ARRAY
 from adapters.ros.observation_doc import RosInputError
 from adapters.ros.tf import TfBuffer, decode_tf_message, matrix, quaternion_matrix
+from tests.adapters.ros.hand_decoders import bits, mutated
 from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
 from tests.conftest import examples
 
@@ -36,19 +35,6 @@ FAST = settings(max_examples=examples(120), deadline=None, suppress_health_check
 floats = st.floats(allow_nan=True, allow_infinity=True, width=64)
 text = st.text(max_size=12)
 stamps = st.tuples(st.integers(-(2**31), 2**31 - 1), st.integers(0, 2**32 - 1))
-
-
-def _bits(value: Any) -> Any:
-    """``value`` with every float as its 8 bytes (NaN's sign and payload compared too)."""
-    if isinstance(value, float):
-        return struct.pack("<d", value)
-    if isinstance(value, tuple) and hasattr(value, "_fields"):  # a named tuple: its fields
-        return tuple(_bits(v) for v in value)
-    if isinstance(value, tuple | list):
-        return type(value)(_bits(v) for v in value)
-    if dataclasses.is_dataclass(value):
-        return tuple(_bits(getattr(value, f.name)) for f in dataclasses.fields(value))
-    return value
 
 
 @st.composite
@@ -102,9 +88,9 @@ def test_the_hand_decoder_reads_every_field_rosbags_reads_and_big_endian_goes_to
     le, be = _cdr(message), _cdr(message, little_endian=False)
     fast = _decode_le(le)
     assert fast is not None
-    assert _bits(fast) == _bits(_decode_rosbags(le)) == _bits(_decode_rosbags(be))
+    assert bits(fast) == bits(_decode_rosbags(le)) == bits(_decode_rosbags(be))
     assert _decode_le(be) is None
-    assert _bits(decode_detections(le, max_detections=8)) == _bits(decode_detections(be, max_detections=8))
+    assert bits(decode_detections(le, max_detections=8)) == bits(decode_detections(be, max_detections=8))
 
 
 @FAST
@@ -117,11 +103,7 @@ def test_the_hand_decoder_reads_every_field_rosbags_reads_and_big_endian_goes_to
 def test_on_hostile_bytes_the_hand_decoder_accepts_nothing_rosbags_refuses(
     message: Any, cut: int, flips: list[tuple[int, int]], tail: bytes
 ) -> None:
-    raw = bytearray(_cdr(message))
-    for at, value in flips:
-        if at < len(raw):
-            raw[at] = value
-    payload = bytes(raw[: max(cut, 0)]) + tail if cut < len(raw) else bytes(raw) + tail
+    payload = mutated(_cdr(message), cut, flips, tail)
     fast = _decode_le(payload)
     try:
         slow = _decode_rosbags(payload)
@@ -129,7 +111,7 @@ def test_on_hostile_bytes_the_hand_decoder_accepts_nothing_rosbags_refuses(
         slow = None
     if fast is not None:
         assert slow is not None, "the hand decoder accepted what rosbags refuses"
-        assert _bits(fast) == _bits(slow)
+        assert bits(fast) == bits(slow)
 
 
 def test_a_truncated_array_is_refused_as_malformed_naming_its_size() -> None:
@@ -188,7 +170,7 @@ def test_boxes_placed_at_once_are_the_boxes_placed_one_by_one_bit_for_bit_and_re
             assert (got.cause, str(got)) == (one.cause, str(one))
         else:
             assert not isinstance(got, RosInputError)
-            assert _bits(got) == _bits(one)
+            assert bits(got) == bits(one)
 
 
 @FAST

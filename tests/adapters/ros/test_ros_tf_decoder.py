@@ -5,7 +5,6 @@ rosbags refuses (whatever it leaves, rosbags decodes or refuses)."""
 
 from __future__ import annotations
 
-import struct
 from typing import Any
 
 import pytest
@@ -15,6 +14,7 @@ from hypothesis import strategies as st
 from adapters.ros.cdr import _typestore
 from adapters.ros.interfaces import TF_MESSAGE
 from adapters.ros.tf import TransformSample, _decode_le, _decode_rosbags, decode_tf_message
+from tests.adapters.ros.hand_decoders import bits, mutated
 from tests.adapters.ros_reports import Tf, cdr_tf
 from tests.conftest import examples
 from twin.errors import MapError
@@ -24,17 +24,6 @@ floats = st.floats(allow_nan=True, allow_infinity=True, width=64)
 text = st.text(max_size=12)
 stamps = st.tuples(st.integers(-(2**31), 2**31 - 1), st.integers(0, 2**32 - 1))
 unit = st.sampled_from([(0.0, 0.0, 0.0, 1.0), (0.0, 0.0, 0.6, 0.8), (0.5, -0.5, 0.5, 0.5)])
-
-
-def _bits(value: Any) -> Any:
-    """``value`` with every float as its 8 bytes (NaN's sign and payload compared too)."""
-    if isinstance(value, float):
-        return struct.pack("<d", value)
-    if isinstance(value, TransformSample):
-        return _bits((value.parent, value.child, value.stamp_ns, value.translation, value.rotation))
-    if isinstance(value, tuple | list):
-        return type(value)(_bits(v) for v in value)
-    return value
 
 
 @st.composite
@@ -69,7 +58,7 @@ def _cdr(message: Any, *, little_endian: bool = True) -> bytes:
 def _decoded(payload: bytes) -> Any:
     """What :func:`decode_tf_message` makes of ``payload``: its transforms' bits, or its error's text."""
     try:
-        return _bits(decode_tf_message(payload))
+        return bits(decode_tf_message(payload))
     except MapError as err:
         return ("refused", str(err))
 
@@ -82,7 +71,7 @@ def test_the_hand_decoder_reads_every_field_rosbags_reads_and_big_endian_goes_to
     le, be = _cdr(message), _cdr(message, little_endian=False)
     fast = _decode_le(le)
     assert fast is not None
-    assert _bits(fast) == _bits(_decode_rosbags(le)) == _bits(_decode_rosbags(be))
+    assert bits(fast) == bits(_decode_rosbags(le)) == bits(_decode_rosbags(be))
     assert _decode_le(be) is None
     assert _decoded(le) == _decoded(be)  # the same transforms, or refused with the same message
 
@@ -97,11 +86,7 @@ def test_the_hand_decoder_reads_every_field_rosbags_reads_and_big_endian_goes_to
 def test_on_hostile_bytes_the_hand_decoder_accepts_nothing_rosbags_refuses(
     message: Any, cut: int, flips: list[tuple[int, int]], tail: bytes
 ) -> None:
-    raw = bytearray(_cdr(message))
-    for at, value in flips:
-        if at < len(raw):
-            raw[at] = value
-    payload = bytes(raw[:cut]) + tail if cut < len(raw) else bytes(raw) + tail
+    payload = mutated(_cdr(message), cut, flips, tail)
     fast = _decode_le(payload)
     try:
         slow = _decode_rosbags(payload)
@@ -109,7 +94,7 @@ def test_on_hostile_bytes_the_hand_decoder_accepts_nothing_rosbags_refuses(
         slow = None
     if fast is not None:
         assert slow is not None, "the hand decoder accepted what rosbags refuses"
-        assert _bits(fast) == _bits(slow)
+        assert bits(fast) == bits(slow)
 
 
 @pytest.mark.parametrize(
