@@ -374,6 +374,14 @@ def _cache(memory: FusionMemory, elements: int) -> _Cache:
     return cache
 
 
+def forget(memory: FusionMemory, iris: Sequence[str]) -> None:
+    """Drop what confirmations at once keep of ``iris`` (elements the twin no longer holds)."""
+    cache = memory.confirm_cache
+    if isinstance(cache, _Cache):
+        for iri in iris:
+            cache.held.pop(iri, None)
+
+
 def _layout(cache: _Cache, robot: str, helds: list[_Held], aliased: list[int]) -> _Layout:
     """``helds`` stacked: the robot's last layout when it is the same."""
     last = cache.layouts.get(robot)

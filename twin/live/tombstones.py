@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from twin.fusion import confirm_array
 from twin.graph import vocab
 from twin.graph.rdf import ChangeSet, Triple
 from twin.graph.store import GraphStore
@@ -97,10 +98,7 @@ def forget_elements(live: LiveState, iris: Sequence[str]) -> None:
         for storey, poses in memory.poses.items():
             if any([poses.pop(iri, None) is not None for iri in iris]):
                 memory.pose_arrays.pop(storey, None)
-    held = getattr(memory.confirm_cache, "held", None)  # confirmations at once: per-element entries
-    if isinstance(held, dict):
-        for iri in iris:
-            held.pop(iri, None)
+    confirm_array.forget(memory, iris)
 
 
 def forget_restored(store: GraphStore, live: LiveState, base_iri: str) -> list[str]:
