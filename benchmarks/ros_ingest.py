@@ -116,6 +116,25 @@ def views_store(views: str, robots: int, work: Path) -> Path:
     return live.import_store(work / "rooms.ifc", work / "store")
 
 
+def robot_array(stamp_ns: int, per_robot: int, shift: float = 0.0) -> bytes:
+    """A robot's CDR Detection3DArray in ``base_link``: its ``per_robot`` tables (:func:`tables`, seen from
+    ``ROBOT``), each with its tracker id, the last one ``shift`` m aside (the mover)."""
+    from tests.adapters.ros_reports import Det, cdr_detections
+
+    spots = tables(per_robot)
+    last = len(spots) - 1
+    dets = [
+        Det(
+            (("table", 0.9),),
+            (x - ROBOT[0], y - ROBOT[1] + (shift if i == last else 0.0), 0.375),
+            (0.2, 0.2, 0.75),
+            id=f"t{i}",
+        )
+        for i, (x, y) in enumerate(spots)
+    ]
+    return cdr_detections(stamp_ns, "base_link", dets)
+
+
 def tables(per_robot: int) -> list[tuple[float, float]]:
     """``per_robot`` table positions (the last one the mover) in front of the robots, inside their view
     (90 deg, 5 m): every robot reports everything it sees, so its views miss nothing."""
@@ -142,9 +161,8 @@ def publisher(
     from adapters.ros.interfaces import DETECTION_3D_ARRAY, TF_MESSAGE
     from adapters.ros.rmw_zenoh import RosTopic, attachment
     from adapters.zenoh.session import client_config
-    from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
+    from tests.adapters.ros_reports import Tf, cdr_tf
 
-    spots = tables(per_robot)
     with zenoh.open(client_config([endpoint])) as session:
         outs = []
         mine = range(first, robots if count is None else min(robots, first + count))
@@ -169,25 +187,16 @@ def publisher(
             now = int(stamp / 1e9 / MOVE_S)
             moved, phase = now != phase, now
             shift = MOVER[2] * (now % 2)
-            last = len(spots) - 1
             for r, (tf_pub, det_pub) in zip(mine, outs, strict=True):
                 at = (*base(r, robots, views), 0.0)
                 tf_pub.put(cdr_tf([Tf("map", "base_link", at, stamp_ns=stamp)]), **extra)
                 moves = r == 0 or views == "shared"  # (distinct views: robot 0's table alone)
-                dets = [
-                    Det(
-                        (("table", 0.9),),
-                        (x - ROBOT[0], y - ROBOT[1] + (shift if i == last and moves else 0.0), 0.375),
-                        (0.2, 0.2, 0.75),
-                        id=f"t{i}",
-                    )
-                    for i, (x, y) in enumerate(spots)
-                ]
+                array = robot_array(stamp, per_robot, shift if moves else 0.0)
                 if moved and r == (mine[0] if views == "shared" else 0):  # the move's first send
                     # (shared views: every robot's table moves, each process's first send; distinct
                     # views: robot 0's alone)
                     print(json.dumps({"moved": time.time(), "phase": now}), flush=True)
-                det_pub.put(cdr_detections(stamp, "base_link", dets), **extra)
+                det_pub.put(array, **extra)
                 sent += 1
             tick += 1
             time.sleep(max(0.0, start + tick / rate - time.monotonic()))

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ros_ingest import ROBOT, base, tables  # benchmarks/ is not a package
+from ros_ingest import ROBOT, base, robot_array  # benchmarks/ is not a package
 
 
 def _threads_cpu_s() -> dict[int, float]:
@@ -46,7 +46,7 @@ def main() -> int:
 
     from adapters.ros.detections import DetectionSettings
     from adapters.zenoh.ros_workers import RobotSpec, Translated, WorkerPool
-    from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
+    from tests.adapters.ros_reports import Tf, cdr_tf
     from twin.maps.grid import GridFrame, OccupancyGrid
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -100,17 +100,12 @@ def main() -> int:
 
     writer_thread = threading.Thread(target=writer, name="writer (stand-in)")
     writer_thread.start()
-    spots = tables(a.detections)
 
     def publish(seconds: float) -> int:
         start, tick, sent = time.monotonic(), 0, 0
         while time.monotonic() - start < seconds:
             stamp = time.time_ns()
-            dets = [
-                Det((("table", 0.9),), (x - ROBOT[0], y - ROBOT[1], 0.375), (0.2, 0.2, 0.75), id=f"t{i}")
-                for i, (x, y) in enumerate(spots)
-            ]
-            array = cdr_detections(stamp, "base_link", dets)
+            array = robot_array(stamp, a.detections)
             if a.views is None:  # every robot the same message (one object)
                 tf = cdr_tf([Tf("map", "base_link", (*ROBOT, 0.0), stamp_ns=stamp)])
                 messages = [(tf, array)] * len(names)

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ros_ingest import MOVER, ROBOT, base, tables  # benchmarks/ is not a package
+from ros_ingest import MOVER, ROBOT, base, robot_array, tables  # benchmarks/ is not a package
 
 NOW_NS = 1_700_000_000_000_000_000
 
@@ -118,7 +118,7 @@ def setup_fleet(views: str, robots: int, per_robot: int, ticks: int = 40) -> tup
     robot by robot (robot 0's last table 1.0 m aside every other 2 s, as its publisher moves it)."""
     from adapters.ros.detections import DetectionSettings
     from adapters.zenoh.ros_workers import WORKER_GC_THRESHOLD, RobotSpec, RobotTranslator
-    from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
+    from tests.adapters.ros_reports import Tf, cdr_tf
     from twin.config import load_config
 
     grid = localization_grid(views, robots)
@@ -140,23 +140,13 @@ def setup_fleet(views: str, robots: int, per_robot: int, ticks: int = 40) -> tup
     t.set_grid(grid)
     gc.freeze()  # as a worker: what its start made is not collected again, young passes rarer
     gc.set_threshold(*WORKER_GC_THRESHOLD)
-    spots = tables(per_robot)
     msgs = []
     for k in range(ticks):
         stamp = NOW_NS - 6_000_000_000 + k * 100_000_000
         shift = MOVER[2] * ((k // 20) % 2)
         for r, name in enumerate(names):
             tf = cdr_tf([Tf("map", "base_link", (*base(r, robots, views), 0.0), stamp_ns=stamp)])
-            dets = [
-                Det(
-                    (("table", 0.9),),
-                    (x - ROBOT[0], y - ROBOT[1] + (shift if i == len(spots) - 1 and r == 0 else 0.0), 0.375),
-                    (0.2, 0.2, 0.75),
-                    id=f"t{i}",
-                )
-                for i, (x, y) in enumerate(spots)
-            ]
-            msgs.append((name, tf, cdr_detections(stamp, "base_link", dets)))
+            msgs.append((name, tf, robot_array(stamp, per_robot, shift if r == 0 else 0.0)))
     return t, msgs
 
 
