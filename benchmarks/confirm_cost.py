@@ -133,6 +133,7 @@ def run(
     moves: int = 0,
     single: bool = False,
     distinct: bool = False,
+    flush: bytearray | None = None,
 ) -> float:
     """The writer's CPU ms per array over ``n`` rounds of one array per robot (one batch per round, or
     with ``single`` one per array); the last table moved every ``moves`` rounds (0: never)."""
@@ -148,11 +149,15 @@ def run(
                   for k, robot in enumerate(who)]  # fmt: skip
         if checked is not None:  # as a worker hands them over
             arrays = [(robot, checked(obs, limits=service.config.limits)) for robot, obs in arrays]  # type: ignore[misc]
-        t = time.process_time()
-        for robot, obs in arrays:
+        for k, (robot, obs) in enumerate(arrays):
+            if flush is not None and (single or k == 0):  # (not timed: the caches as the writer finds them)
+                flush[::64] = bytes(len(flush[::64]))
+            t = time.process_time()
             service.submit_observation(robot, obs, replies.append)
             if single:
                 service.process()
+            total += time.process_time() - t
+        t = time.process_time()
         service.process()
         total += time.process_time() - t
     return 1e3 * total / (n * robots)
@@ -176,6 +181,12 @@ def main() -> int:
     p.add_argument(
         "--single", action="store_true", help="one batch per array (as the daemon's writer mostly takes them)"
     )
+    p.add_argument(
+        "--flush",
+        type=int,
+        default=0,
+        help="MB written over between arrays, not timed (32: the caches as the daemon's writer finds them)",
+    )
     p.add_argument("--profile", action="store_true")
     p.add_argument("--sort", default="cumulative", help="cProfile sort key (cumulative, tottime)")
     p.add_argument(
@@ -189,6 +200,7 @@ def main() -> int:
     service = setup(args.others, alias=args.alias, robots=args.robots, distinct=args.distinct)
     # warm up (the first arrays associate the robots' IRIs)
     options = {"robots": args.robots, "moves": args.moves, "single": args.single, "distinct": args.distinct}
+    flush = bytearray(args.flush << 20) if args.flush else None
     run(service, 20, **options)
     if args.gc == "freeze":
         gc.collect()
@@ -198,12 +210,12 @@ def main() -> int:
     if args.profile:
         prof = cProfile.Profile()
         prof.enable()
-        run(service, args.arrays, seed=2, **options)
+        run(service, args.arrays, seed=2, flush=flush, **options)
         prof.disable()
         pstats.Stats(prof).sort_stats(args.sort).print_stats(45)
         return 0
     blocks = sorted(
-        run(service, args.arrays, seed=2 + k, **options)
+        run(service, args.arrays, seed=2 + k, flush=flush, **options)
         for k in range(args.repeat)
     )
     ms, best = statistics.median(blocks), blocks[0]
