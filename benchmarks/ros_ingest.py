@@ -447,6 +447,7 @@ def run(
         "arrays_received_total": total(final, "arrays"),
         "waited_for_tf": sum(int(c["waited_for_tf"]) for c in counts),
         "overflow": sum(int(c["refused"].get("overflow", 0)) for c in counts),
+        "outcomes_per_bunch": _per_bunch(s0, s1),
         "queue_depth_max": max((d[0] for d in depths), default=0),
         "service_queue_max": max((d[1] for d in depths), default=0),
         "queue_depth_last": depths[-1] if depths else None,
@@ -459,6 +460,16 @@ def run(
         "move_update_ms_every": every,
         "fusion": final.get("fusion", {}),
     }
+
+
+def _per_bunch(s0: dict[str, Any], s1: dict[str, Any]) -> float | None:
+    """The workers' outcomes per batch handed to the daemon in the window (None: a tree without the
+    counts, or no workers)."""
+    a, b = s0["ros_ingest"], s1["ros_ingest"]
+    if "worker_bunches" not in b:
+        return None
+    bunches = b["worker_bunches"] - a["worker_bunches"]
+    return round((b["worker_outcomes"] - a["worker_outcomes"]) / max(bunches, 1), 2)
 
 
 def _serve(cfg: Path, store: Path, endpoint: str, root: Path = ROOT) -> subprocess.Popen[str]:

@@ -99,6 +99,16 @@ class RosSettings(ConfigSection):
         "(then it is translated, or refused if it still does not resolve).",
     )
 
+    hold_steady_ms: Number = Field(
+        40.0,
+        ge=0.0,
+        le=1000.0,
+        description="How long an ingest worker holds the detection arrays that only re-confirm what the "
+        "robot's last array said (the same tracks, every box where it was within a detector's noise) to "
+        "pass them to the twin in bunches, which cost the writer less CPU each; an array with any change "
+        "passes at once, with what was held before it. 0: every array at once.",
+    )
+
     def workers(self) -> int:
         """``ingest_workers``, or the number of cores minus one (at least one)."""
         if self.ingest_workers is not None:

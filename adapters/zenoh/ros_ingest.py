@@ -219,6 +219,7 @@ class RosIngest:
         self.typed = typed
         self.queue_depth = ros.ingest_queue if queue_depth is None else queue_depth
         self.tf_wait_s = ros.tf_wait_s
+        self.hold_steady_s = ros.hold_steady_ms / 1e3
         worker_count = ros.workers() if workers is None else max(0, workers)
         self.select = select
         self._held: list[tuple[str, int | None]] = []
@@ -309,7 +310,7 @@ class RosIngest:
             self._pool = WorkerPool(
                 specs, worker_count, deliver=self._outcomes, replay=self._replay, on_restart=self._restarted,
                 fusion_terms=self.fusion_terms, typed=typed, tf_wait_s=self.tf_wait_s,
-                queue_depth=self.queue_depth, limits=config.limits,
+                queue_depth=self.queue_depth, limits=config.limits, hold_steady_s=self.hold_steady_s,
             )  # fmt: skip
             for name in self._robots:
                 self._pool.feed(("storey", name, storey_of(name)), robot=name)
@@ -680,6 +681,12 @@ class RosIngest:
                 "workers": 0 if pool is None else len(pool.workers),
                 "worker_restarts": 0 if pool is None else pool.restarts,
                 "tf_wait_s": self.tf_wait_s,
+                "hold_steady_ms": round(self.hold_steady_s * 1e3, 3),
+                **(
+                    {"worker_bunches": pool.bunches, "worker_outcomes": pool.outcomes}
+                    if pool is not None
+                    else {}
+                ),
                 "views": self.fusion_terms,
                 "obstacles_held": sum(t.held for t in self._obstacles.values()),
                 "counts": counts,

@@ -48,6 +48,7 @@ from adapters.ros.observation_doc import RosInputError, Translation
 from adapters.ros.sessions import TrackerSession
 from adapters.ros.tf import TfBuffer, decode_tf_message
 from adapters.ros.view import Structure, ViewCache
+from adapters.zenoh.ros_hold import SteadyHold
 from twin.config import Limits
 from twin.errors import MapError
 from twin.live.validate import checked
@@ -273,19 +274,24 @@ def _worker_main(
     outbox: Any,
     taken: Any,
     limits: Limits | None = None,
+    hold_s: float = 0.0,
 ) -> None:
     """A worker process: batches of feeds and messages from the ``inbox`` pipe, handled in order, their
-    outcomes to the ``outbox`` pipe as one batch (or one every :data:`FLUSH_S` of work); ``taken``
+    outcomes to the ``outbox`` pipe as one batch (or one every :data:`FLUSH_S` of work), the steady
+    arrays among them held up to ``hold_s`` (:class:`~adapters.zenoh.ros_hold.SteadyHold`); ``taken``
     counts the items taken (the queue's depth); None stops (after the items before it)."""
     logging.basicConfig(level=logging.WARNING)
     t = RobotTranslator(robots, fusion_terms=fusion_terms, typed=typed, tf_wait_s=tf_wait_s, limits=limits)
+    hold = SteadyHold(hold_s)
     gc.freeze()  # what the start made (modules, type stores, the robots' state) is not collected again
     gc.set_threshold(*WORKER_GC_THRESHOLD)
     stop = False
     while not stop:
         items: list[Any] = []
+        wait = 0.05 if t.waiting else 0.5
+        held = hold.wait_s(time.monotonic())
         try:
-            if inbox.poll(0.05 if t.waiting else 0.5):
+            if inbox.poll(wait if held is None else min(wait, held)):
                 items = pickle.loads(inbox.recv_bytes())
         except (EOFError, OSError, KeyboardInterrupt):
             return
@@ -302,21 +308,25 @@ def _worker_main(
                 except Exception:  # a bad message must never stop the worker
                     log.exception("ROS 2 ingest worker failed on %s", item[0])
                 if out and time.monotonic() - sent_at >= FLUSH_S:  # a long batch: what is done goes now
-                    _send_outcomes(outbox, out)
+                    hold.add(out, time.monotonic())
                     out, sent_at = [], time.monotonic()
+                    if hold.due(sent_at):
+                        _send_outcomes(outbox, hold.take())
             try:
                 out += t.give_up_waiting()
             except Exception:
                 log.exception("ROS 2 ingest worker failed on the arrays waiting for TF")
-            if out:
-                _send_outcomes(outbox, out)
+            now = time.monotonic()
+            hold.add(out, now)
+            if hold.due(now) or (stop and hold.held):
+                _send_outcomes(outbox, hold.take())
         except (OSError, KeyboardInterrupt):
             return
     with contextlib.suppress(OSError):
         outbox.send_bytes(pickle.dumps(None))  # this worker's last word
 
 
-def _send_outcomes(outbox: Any, out: list[Outcome]) -> None:
+def _send_outcomes(outbox: Any, out: list[Any]) -> None:
     outbox.send_bytes(pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL))
 
 
@@ -380,20 +390,32 @@ class WorkerPool:
         tf_wait_s: float,
         queue_depth: int,
         limits: Limits | None = None,
+        hold_steady_s: float = 0.0,
     ) -> None:
         """``limits``: the twin's, for the workers to check the typed records they make (see
-        :class:`RobotTranslator`)."""
+        :class:`RobotTranslator`); ``hold_steady_s``: how long a worker holds steady arrays
+        (:mod:`adapters.zenoh.ros_hold`)."""
         self._ctx = mp.get_context("spawn")  # no fork: the daemon holds Zenoh's and the store's threads
         self.deliver = deliver
         self.replay = replay
         self.on_restart = on_restart
-        self._args = {"fusion_terms": fusion_terms, "typed": typed, "tf_wait_s": tf_wait_s, "limits": limits}
+        self._args = {
+            "fusion_terms": fusion_terms,
+            "typed": typed,
+            "tf_wait_s": tf_wait_s,
+            "limits": limits,
+            "hold_s": hold_steady_s,
+        }
         self.queue_depth = queue_depth
         ordered = sorted(robots, key=lambda r: r.name)
         n = max(1, min(count, len(ordered)))
         self.workers = [_Worker(i, ordered[i::n]) for i in range(n)]
         self.of = {r.name: w for w in self.workers for r in w.robots}
         self.restarts = 0
+        self.bunches = 0
+        """Batches of outcomes read from the workers (the pool's thread writes it)."""
+        self.outcomes = 0
+        """Outcomes in them: ``outcomes / bunches`` is how many the writer gets at once."""
         self._closing = threading.Event()
         self._lock = threading.Lock()
         for w in self.workers:
@@ -515,6 +537,8 @@ class WorkerPool:
                     conn.close()
                 w.outbox = None
                 continue
+            self.bunches += 1
+            self.outcomes += len(item)
             try:
                 self.deliver(item)
             except Exception:

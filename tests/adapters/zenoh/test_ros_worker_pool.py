@@ -11,6 +11,7 @@ import threading
 import time
 
 from adapters.ros.detections import DetectionSettings
+from adapters.zenoh.ros_hold import SETTLE_ARRAYS
 from adapters.zenoh.ros_workers import Outcome, Refused, RobotSpec, Translated, WorkerPool
 from tests.adapters.ros_reports import Det, cdr_detections
 
@@ -55,5 +56,52 @@ def test_a_burst_beyond_the_queue_limit_is_refused_and_the_rest_come_back_in_ord
         while pool.depths() != [0]:
             assert time.monotonic() < deadline
             time.sleep(0.01)
+    finally:
+        pool.close()
+
+
+def test_a_worker_holds_steady_arrays_and_passes_a_move_at_once_with_them_and_the_rest_at_its_stop() -> None:
+    got: list[Outcome] = []
+    lock = threading.Condition()
+
+    def deliver(outcomes: list[Outcome]) -> None:
+        with lock:
+            got.extend(outcomes)
+            lock.notify_all()
+
+    def until(n: int) -> list[int]:
+        with lock:
+            assert lock.wait_for(lambda: len(got) >= n, timeout=60), len(got)
+            return [o.received_ns for o in got if isinstance(o, Translated)]
+
+    spec = RobotSpec("robot1", DetectionSettings(robot="robot1", classes={"table": "IfcFurniture"}), None)
+    pool = WorkerPool(
+        [spec], 1, deliver=deliver, replay=lambda _: [], on_restart=lambda _: None,
+        fusion_terms=False, typed=True, tf_wait_s=0.0, queue_depth=64, hold_steady_s=30.0,
+    )  # fmt: skip
+    sent: list[int] = []
+
+    def send(x: float) -> None:
+        stamp = 1_700_000_000_000_000_000 + len(sent) * 10**8
+        table = Det((("table", 0.9),), (x, 0.0, 0.4), (1.2, 0.8, 0.8), id="7")
+        pool.put("robot1", "detections", cdr_detections(stamp, "map", [table]), stamp)
+        sent.append(stamp)
+
+    try:
+        pool.feed(("storey", "robot1", "ground-floor"), robot="robot1")
+        pool.feed(("elevations", {"ground-floor": 0.0}))
+        for _ in range(1 + SETTLE_ARRAYS):  # a new track, then the arrays that settle it: at once
+            send(1.0)
+            assert until(len(sent)) == sent
+        for _ in range(3):  # re-confirmations: held
+            send(1.0)
+        time.sleep(1.0)
+        with lock:
+            assert len(got) == 1 + SETTLE_ARRAYS
+        send(2.0)  # a move: at once, after the held ones
+        assert until(len(sent)) == sent
+        send(2.0)
+        pool.close()  # the worker's stop passes on what it holds
+        assert until(len(sent)) == sent
     finally:
         pool.close()

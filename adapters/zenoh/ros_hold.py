@@ -1,0 +1,202 @@
+"""Steady arrays held back: an ingest worker passes a robot's re-confirmations on in bunches.
+
+Almost every detection array a robot sends says again what its previous one said: the same tracks, each
+box where it was. The writer settles such an array with array operations (confirmations at once), and
+what that costs is mostly the caches it finds cold: alone, a confirming array costs the writer about
+three times what it costs in a bunch of ten (``benchmarks/confirm_cost.py --flush 32``, with and without
+``--single``). :class:`SteadyHold` lets an ingest worker hold such *steady* outcomes for up to
+``[ros] hold_steady_ms`` and pass them on together; anything else passes at once, with what was held
+before it (a worker's outcomes keep their order):
+
+- an array is steady when it is a single document of plain boxes (no other change: geometry, doors,
+  zones, labels, removals) of the same tracks as the robot's last array passed on, each box within
+  :data:`STEADY_M` and :data:`STEADY_RAD` of that array's box of the same track, of the same class and
+  storey;
+- after an array that is not (a track appears, is lost or moves), that robot's next
+  :data:`SETTLE_ARRAYS` arrays pass at once (the sightings that complete a move);
+- refusals, TF waits and anything but an array pass at once.
+
+So a move, a new object or a lost one reaches the twin as soon as it did before; a re-confirmation up to
+``hold_steady_ms`` later (its sense time is its own: the twin orders sightings by when they were seen).
+
+Example::
+
+    hold = SteadyHold(0.04)
+    hold.add(outcomes, time.monotonic())
+    if hold.due(time.monotonic()):
+        send(hold.take())
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from twin.live.validate import Checked
+from twin.records import ElementReport, Observation
+
+__all__ = ["SETTLE_ARRAYS", "STEADY_M", "STEADY_RAD", "SteadyHold"]
+
+STEADY_M = 0.12
+"""How far a track's box centre (and each of its sizes) may be from the last one passed on for the array
+to be steady: far beyond a detector's noise (the boxes of a detector with 2 cm of noise pass it once in
+some 8,000 sightings), under the confirmation distance of furniture (0.15 m). A box that crosses it is
+passed at once; one that does not still reaches the twin within ``hold_steady_ms``."""
+STEADY_RAD = math.radians(6.0)
+"""How far its yaw may turn (modulo a half turn) for the array to be steady."""
+SETTLE_ARRAYS = 3
+"""How many arrays of a robot pass at once after one that changed something (the sightings that complete
+a move: ``[fusion] move_sightings`` is 2 by default)."""
+
+_Key = tuple[str | None, str | None, tuple[str, ...]]
+"""A report's class, storey and extra classes."""
+_Box = tuple[float, float, float, float, float, float, float]
+
+
+class _Translated(Protocol):
+    """:class:`~adapters.zenoh.ros_workers.Translated` as the hold reads it."""
+
+    @property
+    def owner(self) -> str: ...
+
+    @property
+    def translation(self) -> _Translation: ...
+
+
+class _Translation(Protocol):
+    @property
+    def document(self) -> object: ...
+
+    @property
+    def extra(self) -> tuple[object, ...]: ...
+
+    @property
+    def refused(self) -> tuple[tuple[str, str], ...]: ...
+
+
+@dataclass(slots=True)
+class _Robot:
+    """What a robot's arrays said when they last changed (track -> box, class), and how many arrays
+    still pass at once."""
+
+    boxes: dict[str, tuple[_Box, _Key]] = field(default_factory=dict)
+    settling: int = 0
+
+
+class SteadyHold:
+    """A worker's outcomes, held while each is steady (see the module's docstring) for at most
+    ``hold_s`` from the first held; ``hold_s`` 0 holds nothing."""
+
+    def __init__(self, hold_s: float) -> None:
+        self.hold_s = hold_s
+        self.held: list[object] = []
+        self._since = math.inf
+        self._urgent = False
+        self._robots: dict[str, _Robot] = {}
+        self.bunches = 0
+        """Bunches taken (for the benchmarks: outcomes per bunch)."""
+
+    def add(self, outcomes: Sequence[object], now: float) -> None:
+        """Hold ``outcomes`` (in order after what is held); one that is not steady makes the hold due."""
+        if not outcomes:
+            return
+        if not self.held:
+            self._since = now
+        self.held += outcomes
+        if self.hold_s <= 0.0:
+            self._urgent = True
+            return
+        for o in outcomes:
+            if not self._steady(o):
+                self._urgent = True
+
+    def due(self, now: float) -> bool:
+        """Whether what is held should go now: something not steady, or held ``hold_s``."""
+        return bool(self.held) and (self._urgent or now - self._since >= self.hold_s)
+
+    def wait_s(self, now: float) -> float | None:
+        """How long until what is held is due (None: nothing held)."""
+        if not self.held:
+            return None
+        return 0.0 if self._urgent else max(0.0, self._since + self.hold_s - now)
+
+    def take(self) -> list[object]:
+        """What is held, in order; the hold is empty again."""
+        out, self.held = self.held, []
+        self._urgent, self._since = False, math.inf
+        self.bunches += 1
+        return out
+
+    def _steady(self, outcome: object) -> bool:
+        """Whether ``outcome`` is a steady array (and the robot's last array passed on, if it is one)."""
+        translation = getattr(outcome, "translation", None)
+        if translation is None:
+            return False  # a refusal, a wait for TF
+        t: _Translated = outcome  # type: ignore[assignment]
+        doc = t.translation.document
+        if isinstance(doc, Checked):
+            doc = doc.observation
+        robot = self._robots.get(t.owner)
+        if robot is None:
+            robot = self._robots[t.owner] = _Robot()
+        if not isinstance(doc, Observation) or t.translation.extra or t.translation.refused:
+            robot.boxes, robot.settling = {}, SETTLE_ARRAYS
+            return False
+        boxes = _boxes(doc.reports)
+        if boxes is None or not _same(robot.boxes, boxes):
+            robot.boxes, robot.settling = boxes or {}, SETTLE_ARRAYS
+            return False
+        if robot.settling > 0:  # (the arrays that complete a change pass at once)
+            robot.settling -= 1
+            return False
+        return True
+
+
+def _boxes(reports: tuple[ElementReport, ...]) -> dict[str, tuple[_Box, _Key]] | None:
+    """Each report's box and class by track, or None unless every report is a plain box."""
+    out: dict[str, tuple[_Box, _Key]] = {}
+    for r in reports:
+        b = r.box
+        if (
+            b is None
+            or r.geometry is not None
+            or r.placement is not None
+            or r.removed
+            or r.is_open is not None
+            or r.keepout is not None
+            or r.speed_limit is not None
+            or r.labels
+            or r.materials
+            or r.distinct
+            or r.unmerge
+            or r.lifetime_s is not None
+        ):
+            return None
+        out[r.iri] = ((b.cx, b.cy, b.cz, b.sx, b.sy, b.sz, b.yaw), (r.ifc_class, r.storey, r.classes))
+    return out
+
+
+def _same(last: dict[str, tuple[_Box, _Key]], now: dict[str, tuple[_Box, _Key]]) -> bool:
+    """Whether ``now`` holds the tracks of ``last``, each box within the steady bounds of its last, of the
+    same class (the last boxes stay the reference: a slow drift adds up to a change)."""
+    if len(last) != len(now) or not last:
+        return False
+    for iri, (box, key) in now.items():
+        was = last.get(iri)
+        if was is None or was[1] != key:
+            return False
+        a = was[0]
+        if (
+            math.hypot(box[0] - a[0], box[1] - a[1]) > STEADY_M
+            or abs(box[2] - a[2]) > STEADY_M
+            or abs(box[3] - a[3]) > STEADY_M
+            or abs(box[4] - a[4]) > STEADY_M
+            or abs(box[5] - a[5]) > STEADY_M
+        ):
+            return False
+        turn = (box[6] - a[6]) % math.pi
+        if min(turn, math.pi - turn) > STEADY_RAD:
+            return False
+    return True
