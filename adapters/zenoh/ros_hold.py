@@ -5,8 +5,8 @@ box where it was. The writer settles such an array with array operations (confir
 what that costs is mostly the caches it finds cold: alone, a confirming array costs the writer about
 three times what it costs in a bunch of ten (``benchmarks/confirm_cost.py --flush 32``, with and without
 ``--single``). :class:`SteadyHold` lets an ingest worker hold such *steady* outcomes for up to
-``[ros] hold_steady_ms`` and pass them on together; anything else passes at once, with what was held
-before it (a worker's outcomes keep their order):
+``[ros] hold_steady_ms`` and pass them on together; anything else passes at once, with what its robot
+held before it (a robot's outcomes keep their order; another robot's held outcomes wait for their time):
 
 - an array is steady when it is a single document of plain boxes (no other change: geometry, doors,
   zones, labels, removals) of the same tracks as the robot's last array passed on, each box within
@@ -24,7 +24,7 @@ Example::
     hold = SteadyHold(0.04)
     hold.add(outcomes, time.monotonic())
     if hold.due(time.monotonic()):
-        send(hold.take())
+        send(hold.take(time.monotonic()))
 """
 
 from __future__ import annotations
@@ -87,34 +87,34 @@ class _Robot:
 
 class SteadyHold:
     """A worker's outcomes, held while each is steady (see the module's docstring) for at most
-    ``hold_s`` from the first held; ``hold_s`` 0 holds nothing."""
+    ``hold_s`` from the first held; ``hold_s`` 0 holds nothing. An outcome that is not steady makes
+    its robot's outcomes due (what it held before, then that one); the other robots' stay held."""
 
     def __init__(self, hold_s: float) -> None:
         self.hold_s = hold_s
         self.held: list[object] = []
         self._since = math.inf
-        self._urgent = False
+        self._urgent: set[str] = set()
+        """The robots whose held outcomes are due."""
         self._robots: dict[str, _Robot] = {}
         self.bunches = 0
-        """Bunches taken (for the benchmarks: outcomes per bunch)."""
+        """Bunches taken."""
 
     def add(self, outcomes: Sequence[object], now: float) -> None:
-        """Hold ``outcomes`` (in order after what is held); one that is not steady makes the hold due."""
+        """Hold ``outcomes`` (in order after what is held)."""
         if not outcomes:
             return
         if not self.held:
             self._since = now
         self.held += outcomes
-        if self.hold_s <= 0.0:
-            self._urgent = True
-            return
         for o in outcomes:
-            if not self._steady(o):
-                self._urgent = True
+            if self.hold_s <= 0.0 or not self._steady(o):
+                self._urgent.add(getattr(o, "owner", ""))
 
     def due(self, now: float) -> bool:
-        """Whether what is held should go now: something not steady, or held ``hold_s``."""
-        return bool(self.held) and (self._urgent or now - self._since >= self.hold_s)
+        """Whether some of what is held should go now: a robot's outcome that is not steady, or what
+        was held ``hold_s`` ago."""
+        return bool(self.held) and (bool(self._urgent) or now - self._since >= self.hold_s)
 
     def wait_s(self, now: float) -> float | None:
         """How long until what is held is due (None: nothing held)."""
@@ -122,10 +122,18 @@ class SteadyHold:
             return None
         return 0.0 if self._urgent else max(0.0, self._since + self.hold_s - now)
 
-    def take(self) -> list[object]:
-        """What is held, in order; the hold is empty again."""
-        out, self.held = self.held, []
-        self._urgent, self._since = False, math.inf
+    def take(self, now: float) -> list[object]:
+        """What is due, in order: everything once held ``hold_s``, else the outcomes of the robots with
+        an outcome that is not steady (the rest stay held, from when they were)."""
+        if now - self._since >= self.hold_s:
+            out, self.held = self.held, []
+        else:
+            urgent = self._urgent
+            out = [o for o in self.held if getattr(o, "owner", "") in urgent]
+            self.held = [o for o in self.held if getattr(o, "owner", "") not in urgent]
+        self._urgent = set()
+        if not self.held:
+            self._since = math.inf
         self.bunches += 1
         return out
 

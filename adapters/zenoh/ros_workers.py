@@ -27,6 +27,7 @@ import contextlib
 import copy
 import gc
 import logging
+import math
 import multiprocessing as mp
 import pickle
 import queue
@@ -311,15 +312,17 @@ def _worker_main(
                     hold.add(out, time.monotonic())
                     out, sent_at = [], time.monotonic()
                     if hold.due(sent_at):
-                        _send_outcomes(outbox, hold.take())
+                        _send_outcomes(outbox, hold.take(sent_at))
             try:
                 out += t.give_up_waiting()
             except Exception:
                 log.exception("ROS 2 ingest worker failed on the arrays waiting for TF")
             now = time.monotonic()
             hold.add(out, now)
-            if hold.due(now) or (stop and hold.held):
-                _send_outcomes(outbox, hold.take())
+            if stop and hold.held:
+                _send_outcomes(outbox, hold.take(math.inf))
+            elif hold.due(now):
+                _send_outcomes(outbox, hold.take(now))
         except (OSError, KeyboardInterrupt):
             return
     with contextlib.suppress(OSError):

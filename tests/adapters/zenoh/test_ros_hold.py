@@ -35,7 +35,7 @@ def settled(hold: SteadyHold, robot: str = "robot1") -> float:
     for _ in range(1 + SETTLE_ARRAYS):
         hold.add([array(robot)], now)
         assert hold.due(now)
-        hold.take()
+        hold.take(now)
         now += 0.1
     return now
 
@@ -56,7 +56,7 @@ def test_steady_arrays_are_held_until_the_hold_has_passed_and_then_go_together_i
     assert not hold.due(now + 0.039)
     assert hold.wait_s(now + 0.03) is not None
     assert hold.due(now + 0.041)
-    assert hold.take() == [first, second]
+    assert hold.take(now + 0.041) == [first, second]
     assert not hold.due(now + 1.0) and hold.wait_s(now + 1.0) is None
 
 
@@ -68,7 +68,7 @@ def test_a_moved_box_goes_at_once_with_what_was_held_before_it() -> None:
     assert not hold.due(now)
     hold.add([moved], now + 0.01)
     assert hold.due(now + 0.01)
-    assert hold.take() == [steady, moved]
+    assert hold.take(now + 0.01) == [steady, moved]
 
 
 def test_the_arrays_after_a_move_pass_at_once_then_the_new_place_is_steady() -> None:
@@ -78,7 +78,7 @@ def test_the_arrays_after_a_move_pass_at_once_then_the_new_place_is_steady() -> 
     for k in range(1 + SETTLE_ARRAYS):  # the move, then the sightings that complete it
         hold.add([array(moved=there)], now + k)
         assert hold.due(now + k), k
-        hold.take()
+        hold.take(now + k)
     hold.add([array(moved=there)], now + 10)
     assert not hold.due(now + 10)
 
@@ -99,7 +99,7 @@ def test_a_track_that_appears_or_is_lost_goes_at_once() -> None:
     now = settled(hold)
     hold.add([array(moved={"urn:r:t3": (7.0, 2.0)})], now)
     assert hold.due(now)
-    hold.take()
+    hold.take(now)
     hold = SteadyHold(10.0)
     now = settled(hold)
     lost = array()
@@ -122,6 +122,23 @@ def test_anything_but_a_plain_array_of_boxes_goes_at_once() -> None:
         now = settled(hold)
         hold.add([outcome], now)
         assert hold.due(now), outcome
+
+
+def test_a_change_takes_its_robots_held_arrays_and_leaves_the_others_held_until_their_time() -> None:
+    hold = SteadyHold(0.04)
+    settled(hold, "robot2")
+    now = settled(hold, "robot1")
+    mine, theirs = array("robot1"), array("robot2")
+    moved = array("robot1", moved={"urn:r:t2": (4.8, 2.0)})
+    later = array("robot2")
+    hold.add([theirs, mine], now)
+    hold.add([moved, later], now + 0.01)
+    assert hold.due(now + 0.01)
+    assert hold.take(now + 0.01) == [mine, moved]
+    assert not hold.due(now + 0.03) and hold.wait_s(now + 0.03) is not None
+    assert hold.due(now + 0.041)
+    assert hold.take(now + 0.041) == [theirs, later]
+    assert hold.wait_s(now + 1) is None
 
 
 def test_each_robot_is_steady_on_its_own() -> None:
