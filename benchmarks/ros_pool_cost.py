@@ -56,6 +56,7 @@ def main() -> int:
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--writer-ms", type=float, default=0.8)
     p.add_argument("--views", choices=["shared", "distinct"], help="as ros_ingest.py --views places them")
+    p.add_argument("--hold-ms", type=float, default=0.0, help="[ros] hold_steady_ms of the worker")
     a = p.parse_args()
     limits = None
     if a.views is None:
@@ -84,6 +85,7 @@ def main() -> int:
     pool = WorkerPool(
         specs, 1, deliver=deliver, replay=lambda _: [], on_restart=lambda _: None,
         fusion_terms=True, typed=True, tf_wait_s=0.5, queue_depth=100_000, limits=limits,
+        hold_steady_s=a.hold_ms / 1e3,
     )  # fmt: skip
     pool.feed(("elevations", {grid.storey: 0.0}))
     pool.feed(("grid", grid))

@@ -152,9 +152,9 @@ class SteadyHold:
         if not isinstance(doc, Observation) or t.translation.extra or t.translation.refused:
             robot.boxes, robot.settling = {}, SETTLE_ARRAYS
             return False
-        boxes = _boxes(doc.reports)
-        if boxes is None or not _same(robot.boxes, boxes):
-            robot.boxes, robot.settling = boxes or {}, SETTLE_ARRAYS
+        reports = doc.reports
+        if not _same(robot.boxes, reports):  # (compared as they are: a dict made only on a change)
+            robot.boxes, robot.settling = _boxes(reports) or {}, SETTLE_ARRAYS
             return False
         if robot.settling > 0:  # (the arrays that complete a change pass at once)
             robot.settling -= 1
@@ -162,49 +162,56 @@ class SteadyHold:
         return True
 
 
+def _plain(r: ElementReport) -> bool:
+    """Whether ``r`` is a box and nothing else that changes the twin."""
+    return not (
+        r.box is None
+        or r.geometry is not None
+        or r.placement is not None
+        or r.removed
+        or r.is_open is not None
+        or r.keepout is not None
+        or r.speed_limit is not None
+        or r.labels
+        or r.materials
+        or r.distinct
+        or r.unmerge
+        or r.lifetime_s is not None
+    )
+
+
 def _boxes(reports: tuple[ElementReport, ...]) -> dict[str, tuple[_Box, _Key]] | None:
-    """Each report's box and class by track, or None unless every report is a plain box."""
+    """Each report's box and class by track, or None unless every report is :func:`_plain`."""
     out: dict[str, tuple[_Box, _Key]] = {}
     for r in reports:
         b = r.box
-        if (
-            b is None
-            or r.geometry is not None
-            or r.placement is not None
-            or r.removed
-            or r.is_open is not None
-            or r.keepout is not None
-            or r.speed_limit is not None
-            or r.labels
-            or r.materials
-            or r.distinct
-            or r.unmerge
-            or r.lifetime_s is not None
-        ):
+        if b is None or not _plain(r):
             return None
         out[r.iri] = ((b.cx, b.cy, b.cz, b.sx, b.sy, b.sz, b.yaw), (r.ifc_class, r.storey, r.classes))
     return out
 
 
-def _same(last: dict[str, tuple[_Box, _Key]], now: dict[str, tuple[_Box, _Key]]) -> bool:
-    """Whether ``now`` holds the tracks of ``last``, each box within the steady bounds of its last, of the
-    same class (the last boxes stay the reference: a slow drift adds up to a change)."""
-    if len(last) != len(now) or not last:
+def _same(last: dict[str, tuple[_Box, _Key]], reports: tuple[ElementReport, ...]) -> bool:
+    """Whether ``reports`` are plain boxes of the tracks of ``last``, each within the steady bounds of its
+    box there, of the same class (the last boxes stay the reference: a slow drift adds up to a change)."""
+    if len(last) != len(reports) or not last:
         return False
-    for iri, (box, key) in now.items():
-        was = last.get(iri)
-        if was is None or was[1] != key:
+    hypot, pi = math.hypot, math.pi
+    for r in reports:
+        was = last.get(r.iri)
+        b = r.box
+        if was is None or b is None or was[1] != (r.ifc_class, r.storey, r.classes) or not _plain(r):
             return False
         a = was[0]
         if (
-            math.hypot(box[0] - a[0], box[1] - a[1]) > STEADY_M
-            or abs(box[2] - a[2]) > STEADY_M
-            or abs(box[3] - a[3]) > STEADY_M
-            or abs(box[4] - a[4]) > STEADY_M
-            or abs(box[5] - a[5]) > STEADY_M
+            hypot(b.cx - a[0], b.cy - a[1]) > STEADY_M
+            or abs(b.cz - a[2]) > STEADY_M
+            or abs(b.sx - a[3]) > STEADY_M
+            or abs(b.sy - a[4]) > STEADY_M
+            or abs(b.sz - a[5]) > STEADY_M
         ):
             return False
-        turn = (box[6] - a[6]) % math.pi
-        if min(turn, math.pi - turn) > STEADY_RAD:
+        turn = (b.yaw - a[6]) % pi
+        if min(turn, pi - turn) > STEADY_RAD:
             return False
     return True
