@@ -35,9 +35,10 @@ removal whose old place an object fills again before that is not counted), the t
 from a move's first sighting to the ack that shows it, revisions per true change, acked sightings
 per second, and the daemon's CPU per acked observation. ``--saturate S`` adds S seconds in which the
 robots send as fast as acks come back (the acked sightings per second at saturation).
-``--trace FILE`` writes every acked report of an object (the robot, the true sense time, sent, acked,
-each box with its object, the ack) and every view of a moved or removed object's old place, with the
-script's events, as JSON lines: one object's story, to diagnose a false-free cell or a late removal.
+``--trace FILE`` writes every acked observation (the robot, the true sense time, sent, acked, each box
+with its object, the ack, the payload as sent) and every view of a moved or removed object's old place,
+with the script's events, as JSON lines: one object's story, to diagnose a false-free cell or a late
+removal; ``fleet_replay.py`` replays it through an in-process twin, the same way every time.
 
     python benchmarks/fleet_sim.py --robots 10 --objects 30 --duration 600 --moves 20 --removals 10 \\
         --json fleet.json --plot fleet.png
@@ -404,7 +405,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                 print(f"{name}: {err}", file=sys.stderr)
                 continue
             stats.acked += 1
-            if trace is not None and keys:
+            if trace is not None:
                 trace.write(name, behaviour, sensed, sent, time.time(), payload, keys, ack)
             stats.sightings += len(seen_now)
             if saturating:
@@ -440,9 +441,10 @@ VIEWED = "#viewed:"
 
 @dataclass
 class Trace:
-    """Every acked report of an object (``--trace FILE``, JSON lines): the robot, when it was sensed (true
-    time), sent and acked, each box with its object's key and the ack (less its maps), so that one object's
-    every report and what fusion answered can be read back."""
+    """Every acked observation (``--trace FILE``, JSON lines): the robot, when it was sensed (true time),
+    sent and acked, each box with its object's key, the ack (less its maps) and the payload as sent, so
+    that one object's every report and what fusion answered can be read back, and the run replayed
+    (``fleet_replay.py``)."""
 
     path: Path
     lock: threading.Lock = field(default_factory=threading.Lock)
@@ -474,6 +476,7 @@ class Trace:
             "boxes": boxes,
             "viewed": viewed,
             "ack": {k: v for k, v in ack.items() if k != "maps"},
+            "payload": payload,
         }
         self.note(record)
 

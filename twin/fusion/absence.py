@@ -25,6 +25,7 @@ from twin.fusion.effects import forget, miss
 from twin.fusion.footprints import Pose, heights_overlap
 from twin.fusion.gates import compatible, is_candidate, kinds_agree, lies_within
 from twin.fusion.memory import Miss
+from twin.fusion.merge import merge, one_object
 from twin.fusion.visibility import view_sees
 from twin.records import ElementReport, ObservedView
 
@@ -49,6 +50,44 @@ def covered(ctx: FusionContext, storey: str, pose: Pose, state: ElementState) ->
         and lies_within(pose, box, margin_m=margin)
         for s, r, box in ctx.boxes
     )
+
+
+def covered_by_another(
+    ctx: FusionContext, storey: str, iri: str, pose: Pose, state: ElementState
+) -> str | None:
+    """The element a box of this observation that covers ``iri``'s footprint is a sighting of, when the
+    two are one object (:func:`twin.fusion.merge.one_object`): then ``iri`` is a second element of what
+    the robot saw as one, not a neighbour under a box over both. An element imported from IFC is never
+    merged into a robot's here, nor an element marked distinct."""
+    memory, out = ctx.memory, ctx.out
+    base = ctx.base_iri
+    if iri in memory.distinct or (base and iri.startswith(base)):
+        return None
+    schema = ctx.live.site.schema
+    margin = ctx.rules.of(state.ifc_types).confirm_distance_m
+    for s, r, box in ctx.boxes:
+        kept = out.resolved.get(r.iri, r.iri)
+        kept = out.merged.get(kept, kept)
+        if s != storey or kept == iri or kept not in ctx.detected or kept in memory.distinct:
+            continue
+        if not (
+            compatible(schema, r.ifc_class or state.ifc_class, state)
+            and kinds_agree(schema, r.classes, r.ifc_class, state)
+            and heights_overlap(box, pose)
+            and lies_within(pose, box, margin_m=margin)
+        ):
+            continue
+        pending = ctx.pending.get(kept)
+        other = ctx.states.get(kept) or (pending[2] if pending is not None else None)
+        held = ctx.held_pose(kept)
+        if (
+            other is not None
+            and held is not None
+            and is_candidate(other)
+            and one_object(ctx, other, held, state, pose)
+        ):
+            return kept
+    return None
 
 
 def absence(ctx: FusionContext, *, view: ObservedView, sense: int) -> None:
@@ -87,7 +126,10 @@ def absence(ctx: FusionContext, *, view: ObservedView, sense: int) -> None:
         if not seen:
             continue
         if covered(ctx, storey, pose, state):
-            continue  # a box over it and its neighbours (two desks pushed together seen as one)
+            kept = covered_by_another(ctx, storey, iri, pose, state)
+            if kept is not None:  # the box is another element of the same object: one element of it
+                ctx.reports.append(merge(ctx, iri, kept, sense=sense))
+            continue  # else a box over it and its neighbours (two desks pushed together seen as one)
         track = memory.tracks.get(iri)
         if sense <= max(state.sensed_ns, track.seen_ns if track is not None else 0):
             continue  # seen (or changed) at or after this view

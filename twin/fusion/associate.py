@@ -122,24 +122,27 @@ def drop_failed_alias(ctx: FusionContext, r: ElementReport, target: str) -> None
 def associate(ctx: FusionContext, r: ElementReport, pose: Pose, storey: str) -> Association:
     """Which candidate element on ``storey`` ``r`` (at ``pose``) is: the best match of a compatible class
     and kind, overlapping footprint and height, and compatible size (:mod:`twin.fusion.gates`), not
-    matched yet by this observation."""
+    matched yet by this observation. Else the element it is a partly hidden view of (it fails only the
+    size gate and lies inside the footprint), matched or not: a partial view neither is an object of its
+    own nor takes the element from the full report of it in the same observation."""
     schema = ctx.live.site.schema
     best, best_score = None, 0.0
     within, within_score = None, -1.0
     for iri, held in ctx.candidates(storey).items():
-        if iri in ctx.used:
-            continue
         state = ctx.states.get(iri)
         if state is None or not is_candidate(state) or not compatible(schema, r.ifc_class or "", state):
             continue
         if not kinds_agree(schema, r.classes, r.ifc_class, state):
             continue
         rules = ctx.rules.of(state.ifc_types)
-        score = matches(rules, pose, held)
-        if score > 0.0 and sizes_agree(rules, pose, held):
-            if score > best_score:
+        if iri in ctx.used:  # matched once: only a partial view may name it again
+            full = sizes_agree(rules, pose, held)
+        else:
+            score = matches(rules, pose, held)
+            full = score > 0.0 and sizes_agree(rules, pose, held)
+            if full and score > best_score:
                 best, best_score = iri, score
-        elif (
+        if not full and (
             heights_overlap(pose, held)
             and lies_within(pose, held, margin_m=rules.confirm_distance_m)
             and iou(pose, held) > within_score
@@ -198,11 +201,11 @@ def new_element(
 
 def seen_within(ctx: FusionContext, r: ElementReport, element: str, sense: int) -> None:
     """``r`` is a partly hidden view of ``element``: it confirms the element is there (a sighting: no
-    miss, no move, no new element, no alias)."""
+    miss, no move, no new element, no alias). The element is not matched by it: a full report of it in
+    the same observation still resolves to it (a chair under a table and the table, in either order)."""
     ctx.out.resolved[r.iri] = element
     ctx.out.seen.append(element)
     ctx.out.effects.append(sighting(element, ctx.robot, sense))
     ctx.detected.add(element)
-    ctx.used.add(element)
     ctx.out.notes.append(f"<{r.iri}> seen by {ctx.robot}: part of <{element}> (smaller, within it)")
     ctx.decide(element, f"partial view by {ctx.robot}: a smaller box within its footprint confirms it")

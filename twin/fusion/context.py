@@ -109,7 +109,8 @@ class FusionContext:
     detected: set[str] = field(default_factory=set)
     """Elements this observation describes (never missed by its view)."""
     used: set[str] = field(default_factory=set)
-    """Elements already matched by a report of this observation (matched at most once)."""
+    """Elements already matched by a report of this observation (matched at most once; a partial view
+    of an element, :func:`twin.fusion.associate.seen_within`, does not match it)."""
     contested: set[str] = field(default_factory=set)
     """Robot IRIs whose alias names an element another report of this observation is nearer
     (:func:`twin.fusion.associate.contested_aliases`): dropped, associated afresh."""

@@ -27,11 +27,24 @@ if TYPE_CHECKING:
     from twin.live.state import ElementState
 
 
+def one_object(ctx: FusionContext, state: ElementState, pose: Pose, other: ElementState, held: Pose) -> bool:
+    """Whether the element ``state`` at ``pose`` and ``other`` at ``held`` are one object: a compatible
+    class (either way), kind and size, heights that overlap and footprints that overlap by ``merge_iou``
+    (both candidates: dynamic, not zones)."""
+    schema = ctx.live.site.schema
+    if not (compatible(schema, state.ifc_class, other) or compatible(schema, other.ifc_class, state)):
+        return False
+    if not kinds_agree(schema, tuple(state.classes), state.ifc_class, other):
+        return False  # a chair moved under a table stays a chair
+    if not sizes_agree(ctx.rules.of(other.ifc_types), pose, held):
+        return False  # a box over two desks is neither
+    return heights_overlap(pose, held) and iou(pose, held) >= ctx.rules.merge_iou
+
+
 def merge_target(ctx: FusionContext, iri: str, state: ElementState, pose: Pose, storey: str) -> str | None:
     """Another element this one overlaps so much after its move that they are one object."""
     if iri in ctx.memory.distinct:
         return None
-    schema = ctx.live.site.schema
     cx, cy, own = pose.cx, pose.cy, math.hypot(pose.sx, pose.sy) / 2
     for other, held in ctx.candidates(storey).items():
         # footprints that cannot meet (centres farther apart than their half-diagonals) first: the
@@ -44,15 +57,7 @@ def merge_target(ctx: FusionContext, iri: str, state: ElementState, pose: Pose, 
         if other == iri or other in ctx.used or other in ctx.memory.distinct:
             continue
         o_state = ctx.states.get(other)
-        if o_state is None or not is_candidate(o_state):
-            continue
-        if not (compatible(schema, state.ifc_class, o_state) or compatible(schema, o_state.ifc_class, state)):
-            continue
-        if not kinds_agree(schema, tuple(state.classes), state.ifc_class, o_state):
-            continue  # a chair moved under a table stays a chair
-        if not sizes_agree(ctx.rules.of(o_state.ifc_types), pose, held):
-            continue  # a box over two desks is neither
-        if heights_overlap(pose, held) and iou(pose, held) >= ctx.rules.merge_iou:
+        if o_state is not None and is_candidate(o_state) and one_object(ctx, state, pose, o_state, held):
             return other
     return None
 

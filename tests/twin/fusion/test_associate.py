@@ -57,6 +57,21 @@ def test_a_smaller_box_of_a_robots_table_without_a_type_confirms_it_and_changes_
     assert size_of(service, table)[:2] == (1.0, 0.6) and service.revision == 1
 
 
+def test_a_tucked_chair_and_its_table_in_one_observation_both_resolve_to_the_table_in_either_order() -> None:
+    service, _ = started()
+    table = "urn:robot1:table-1"
+    observe(service, "robot1", box(table, 6.0, 2.0, sx=1.0, sy=0.6))
+    # the robot's IRIs are fresh (its tracker lost both for a while); a document's reports are taken in
+    # the order of their IRIs: the chair's partial view first ("trk-19" < "trk-7"), then the other way
+    for chair_iri, table_iri in (("urn:robot2:trk-19", "urn:robot2:trk-7"), ("urn:robot3:b", "urn:robot3:a")):
+        chair = box(chair_iri, 6.2, 2.0, sx=0.45, sy=0.45, sz=0.9)
+        both = chair + box(table_iri, 6.01, 2.0, sx=1.0, sy=0.6).split(b"\n", 1)[1]
+        reply = observe(service, table_iri.split(":")[1], both)
+        assert reply.body["resolved"] == {chair_iri: table, table_iri: table}, reply.body
+        assert reply.body["unchanged"] is True and not reply.body["upserted"]
+    assert sorted(i for i in service.states if i.startswith("urn:")) == [table] and service.revision == 1
+
+
 def test_two_desks_pushed_together_seen_as_one_box_keep_their_sizes_and_are_not_missed() -> None:
     service, _ = started()
     left, right = "urn:robot1:desk-1", "urn:robot1:desk-2"

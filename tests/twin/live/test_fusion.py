@@ -224,6 +224,22 @@ def test_a_table_not_seen_in_views_over_a_second_is_removed_with_the_reason() ->
     assert_maps_equal_a_rebuild(service)
 
 
+def test_two_elements_of_one_table_that_a_view_sees_as_one_box_are_merged_not_excused_as_covered() -> None:
+    service, _ = started()
+    observe(service, "robot1", box_turtle(TABLE, 6.6, 2.0))
+    # a detector's double detection in one document: the table is matched once, the other box is an
+    # object of its own (the rules' way to a duplicate; others: a settled dispute, a late creation)
+    double = box_turtle("urn:robot2:a", 6.61, 2.0) + box_turtle("urn:robot2:b", 6.6, 2.02).split(b"\n", 1)[1]
+    assert observe(service, "robot2", double).body["upserted"] == ["urn:robot2:b"]
+    # robot1 sees one table there: its box (its own element) covers the other element's footprint
+    seen = observe(service, "robot1", box_turtle(TABLE, 6.6, 2.01) + view(service.clock(), CORRIDOR))
+    assert seen.body["removed"] == ["urn:robot2:b"] and seen.body["merged"] == {"urn:robot2:b": TABLE}
+    assert dynamic_elements(service) == sorted([TABLE, element_iri(spec("Table"))])
+    again = observe(service, "robot2", box_turtle("urn:robot2:b", 6.6, 2.02))
+    assert again.body["resolved"] == {"urn:robot2:b": TABLE} and again.body["unchanged"] is True
+    assert_maps_equal_a_rebuild(service)
+
+
 def test_a_sighting_between_misses_resets_them_and_structure_and_zones_are_never_removed() -> None:
     service, _ = started()
     t = service.clock() - 10 * 10**9
