@@ -463,12 +463,13 @@ def run(
 
 
 def _per_bunch(s0: dict[str, Any], s1: dict[str, Any]) -> float | None:
-    """The workers' outcomes per batch handed to the daemon in the window (None: a tree without the
+    """The workers' outcomes per batch delivered to the writer in the window (None: a tree without the
     counts, or no workers)."""
     a, b = s0["ros_ingest"], s1["ros_ingest"]
     if "worker_bunches" not in b:
         return None
-    bunches = b["worker_bunches"] - a["worker_bunches"]
+    key = "worker_deliveries" if "worker_deliveries" in b else "worker_bunches"
+    bunches = b[key] - a[key]
     return round((b["worker_outcomes"] - a["worker_outcomes"]) / max(bunches, 1), 2)
 
 

@@ -103,7 +103,7 @@ class RosSettings(ConfigSection):
         0.0,
         ge=0.0,
         le=1000.0,
-        description="How long an ingest worker holds the detection arrays that only re-confirm what the "
+        description="How long the daemon holds the detection arrays that only re-confirm what the "
         "robot's last array said (the same tracks, every box where it was within a detector's noise) to "
         "pass them to the twin in bunches, which cost the writer less CPU each; an array with any change "
         "passes at once, with what its robot held before it. 0 (the default): every array at once; "

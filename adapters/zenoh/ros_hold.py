@@ -1,10 +1,11 @@
-"""Steady arrays held back: an ingest worker passes a robot's re-confirmations on in bunches.
+"""Steady arrays held back: the daemon passes a robot's re-confirmations to the writer in bunches.
 
 Almost every detection array a robot sends says again what its previous one said: the same tracks, each
 box where it was. The writer settles such an array with array operations (confirmations at once), and
 what that costs is mostly the caches it finds cold: alone, a confirming array costs the writer about
 three times what it costs in a bunch of ten (``benchmarks/confirm_cost.py --flush 32``, with and without
-``--single``). :class:`SteadyHold` lets an ingest worker hold such *steady* outcomes for up to
+``--single``). :class:`SteadyHold` lets the thread that reads the ingest workers' results
+(:class:`~adapters.zenoh.ros_workers.WorkerPool`) hold such *steady* outcomes for up to
 ``[ros] hold_steady_ms`` and pass them on together; anything else passes at once, with what its robot
 held before it (a robot's outcomes keep their order; another robot's held outcomes wait for their time):
 
@@ -86,7 +87,7 @@ class _Robot:
 
 
 class SteadyHold:
-    """A worker's outcomes, held while each is steady (see the module's docstring) for at most
+    """The workers' outcomes, held while each is steady (see the module's docstring) for at most
     ``hold_s`` from the first held; ``hold_s`` 0 holds nothing. An outcome that is not steady makes
     its robot's outcomes due (what it held before, then that one); the other robots' stay held."""
 

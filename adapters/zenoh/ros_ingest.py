@@ -683,7 +683,11 @@ class RosIngest:
                 "tf_wait_s": self.tf_wait_s,
                 "hold_steady_ms": round(self.hold_steady_s * 1e3, 3),
                 **(
-                    {"worker_bunches": pool.bunches, "worker_outcomes": pool.outcomes}
+                    {
+                        "worker_bunches": pool.bunches,
+                        "worker_outcomes": pool.outcomes,
+                        "worker_deliveries": pool.delivered,
+                    }
                     if pool is not None
                     else {}
                 ),

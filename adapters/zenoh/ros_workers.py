@@ -275,24 +275,19 @@ def _worker_main(
     outbox: Any,
     taken: Any,
     limits: Limits | None = None,
-    hold_s: float = 0.0,
 ) -> None:
     """A worker process: batches of feeds and messages from the ``inbox`` pipe, handled in order, their
-    outcomes to the ``outbox`` pipe as one batch (or one every :data:`FLUSH_S` of work), the steady
-    arrays among them held up to ``hold_s`` (:class:`~adapters.zenoh.ros_hold.SteadyHold`); ``taken``
+    outcomes to the ``outbox`` pipe as one batch (or one every :data:`FLUSH_S` of work); ``taken``
     counts the items taken (the queue's depth); None stops (after the items before it)."""
     logging.basicConfig(level=logging.WARNING)
     t = RobotTranslator(robots, fusion_terms=fusion_terms, typed=typed, tf_wait_s=tf_wait_s, limits=limits)
-    hold = SteadyHold(hold_s)
     gc.freeze()  # what the start made (modules, type stores, the robots' state) is not collected again
     gc.set_threshold(*WORKER_GC_THRESHOLD)
     stop = False
     while not stop:
         items: list[Any] = []
-        wait = 0.05 if t.waiting else 0.5
-        held = hold.wait_s(time.monotonic())
         try:
-            if inbox.poll(wait if held is None else min(wait, held)):
+            if inbox.poll(0.05 if t.waiting else 0.5):
                 items = pickle.loads(inbox.recv_bytes())
         except (EOFError, OSError, KeyboardInterrupt):
             return
@@ -309,27 +304,21 @@ def _worker_main(
                 except Exception:  # a bad message must never stop the worker
                     log.exception("ROS 2 ingest worker failed on %s", item[0])
                 if out and time.monotonic() - sent_at >= FLUSH_S:  # a long batch: what is done goes now
-                    hold.add(out, time.monotonic())
+                    _send_outcomes(outbox, out)
                     out, sent_at = [], time.monotonic()
-                    if hold.due(sent_at):
-                        _send_outcomes(outbox, hold.take(sent_at))
             try:
                 out += t.give_up_waiting()
             except Exception:
                 log.exception("ROS 2 ingest worker failed on the arrays waiting for TF")
-            now = time.monotonic()
-            hold.add(out, now)
-            if stop and hold.held:
-                _send_outcomes(outbox, hold.take(math.inf))
-            elif hold.due(now):
-                _send_outcomes(outbox, hold.take(now))
+            if out:
+                _send_outcomes(outbox, out)
         except (OSError, KeyboardInterrupt):
             return
     with contextlib.suppress(OSError):
         outbox.send_bytes(pickle.dumps(None))  # this worker's last word
 
 
-def _send_outcomes(outbox: Any, out: list[Any]) -> None:
+def _send_outcomes(outbox: Any, out: list[Outcome]) -> None:
     outbox.send_bytes(pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL))
 
 
@@ -396,8 +385,8 @@ class WorkerPool:
         hold_steady_s: float = 0.0,
     ) -> None:
         """``limits``: the twin's, for the workers to check the typed records they make (see
-        :class:`RobotTranslator`); ``hold_steady_s``: how long a worker holds steady arrays
-        (:mod:`adapters.zenoh.ros_hold`)."""
+        :class:`RobotTranslator`); ``hold_steady_s``: how long the pool's thread holds steady arrays
+        before it delivers them (:mod:`adapters.zenoh.ros_hold`)."""
         self._ctx = mp.get_context("spawn")  # no fork: the daemon holds Zenoh's and the store's threads
         self.deliver = deliver
         self.replay = replay
@@ -407,7 +396,6 @@ class WorkerPool:
             "typed": typed,
             "tf_wait_s": tf_wait_s,
             "limits": limits,
-            "hold_s": hold_steady_s,
         }
         self.queue_depth = queue_depth
         ordered = sorted(robots, key=lambda r: r.name)
@@ -418,7 +406,12 @@ class WorkerPool:
         self.bunches = 0
         """Batches of outcomes read from the workers (the pool's thread writes it)."""
         self.outcomes = 0
-        """Outcomes in them: ``outcomes / bunches`` is how many the writer gets at once."""
+        """Outcomes in them."""
+        self.delivered = 0
+        """Batches delivered (after the hold: ``outcomes / delivered`` is how many the writer gets at
+        once)."""
+        self._hold = SteadyHold(hold_steady_s)
+        """Steady arrays held back (the pool's thread alone uses it)."""
         self._closing = threading.Event()
         self._lock = threading.Lock()
         for w in self.workers:
@@ -510,15 +503,21 @@ class WorkerPool:
                         selector.register(conn, selectors.EVENT_READ)
                     watched = outboxes
                 if self._closing.is_set() and not watched:
+                    if self._hold.held:
+                        self._deliver(self._hold.take(math.inf))
                     return
                 got: list[Any] = []
+                wait = self._hold.wait_s(time.monotonic())
+                wait = 0.25 if wait is None else min(0.25, wait)
                 if watched:
                     with contextlib.suppress(OSError):
-                        got = [key.fileobj for key, _ in selector.select(timeout=0.25)]
+                        got = [key.fileobj for key, _ in selector.select(timeout=wait)]
                 else:  # every worker dead (started again by the check below)
-                    time.sleep(0.05)
+                    time.sleep(min(0.05, wait))
                 self._take(got, watched)
                 now = time.monotonic()
+                if self._hold.due(now):
+                    self._deliver(self._hold.take(now))
                 if not self._closing.is_set() and now >= next_check:  # a waitpid per worker: not per batch
                     next_check = now + SUPERVISE_S
                     self._supervise()
@@ -526,7 +525,7 @@ class WorkerPool:
             selector.close()
 
     def _take(self, ready: list[Any], watched: dict[Any, _Worker]) -> None:
-        """Read a batch of outcomes from each ready pipe and deliver them (the pool's thread)."""
+        """Read a batch of outcomes from each ready pipe into the hold (the pool's thread)."""
         for conn in ready:
             w = watched.get(conn)
             if w is None or w.outbox is not conn:
@@ -542,10 +541,14 @@ class WorkerPool:
                 continue
             self.bunches += 1
             self.outcomes += len(item)
-            try:
-                self.deliver(item)
-            except Exception:
-                log.exception("Delivering a ROS 2 ingest worker's outcomes failed")
+            self._hold.add(item, time.monotonic())
+
+    def _deliver(self, outcomes: list[Any]) -> None:
+        self.delivered += 1
+        try:
+            self.deliver(outcomes)
+        except Exception:
+            log.exception("Delivering a ROS 2 ingest worker's outcomes failed")
 
     def _supervise(self) -> None:
         for w in self.workers:

@@ -60,7 +60,7 @@ def test_a_burst_beyond_the_queue_limit_is_refused_and_the_rest_come_back_in_ord
         pool.close()
 
 
-def test_a_worker_holds_steady_arrays_and_passes_a_move_at_once_with_them_and_the_rest_at_its_stop() -> None:
+def test_the_pool_holds_steady_arrays_and_passes_a_move_at_once_with_them_and_the_rest_at_its_stop() -> None:
     got: list[Outcome] = []
     lock = threading.Condition()
 
@@ -101,7 +101,7 @@ def test_a_worker_holds_steady_arrays_and_passes_a_move_at_once_with_them_and_th
         send(2.0)  # a move: at once, after the held ones
         assert until(len(sent)) == sent
         send(2.0)
-        pool.close()  # the worker's stop passes on what it holds
+        pool.close()  # the stop passes on what is held
         assert until(len(sent)) == sent
     finally:
         pool.close()
