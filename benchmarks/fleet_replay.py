@@ -108,9 +108,9 @@ def follow(objects: dict[int, tuple[float, float]], moved: set[int], record: dic
 
 class FreeWatch:
     """fleet_sim's **false-free cells**, replayed: the cells more than one cell inside a true object's
-    footprint that the navigation map shows free, for objects a robot saw at least ``SETTLE_S`` ago since
-    their last change (its rules: ``_counts``, a ``late`` robot's sighting on arrival if sensed after the
-    change, not before the clocks settle). An object's footprint: where it stands (``follow``) with the
+    footprint that the navigation map shows free, for objects a robot saw (``SIGHTINGS`` times) at least
+    ``SETTLE_S`` ago since their last change (its rules: ``_counts``, a ``late`` robot's sighting on
+    arrival, not before the clocks settle). An object's footprint: where it stands (``follow``) with the
     sizes and heading of the latest box a robot whose boxes are neither late nor biased reported of it
     (its detector noise, 3 cm and 2 degrees, within the one-cell inset)."""
 
@@ -119,6 +119,7 @@ class FreeWatch:
         self.shape: dict[int, tuple[float, float, float, float]] = {}  # key -> sx, sy, sz, yaw
         self.seen_since: dict[int, float] = {}
         self.seen_by: dict[int, set[str]] = {}
+        self.sightings: dict[tuple[int, str], int] = {}  # (object, robot) -> since its change
 
     def event(self, record: dict[str, Any], objects: dict[int, tuple[float, float]]) -> None:
         """A move, removal, push or push apart: the objects it changed are unseen since (a push changes
@@ -134,6 +135,7 @@ class FreeWatch:
         for k in keys:
             self.seen_since.pop(k, None)
             self.seen_by.pop(k, None)
+            self.sightings = {s: n for s, n in self.sightings.items() if s[0] != k}
 
     def report(self, record: dict[str, Any]) -> None:
         """A traced observation: each object's box shape, and who saw it since its change."""
@@ -152,9 +154,12 @@ class FreeWatch:
         if not fleet_sim._counts(behaviour, sensed, settles):
             return
         when = float(record["sent"]) if behaviour == "late" else sensed
+        robot = f"{record['robot']}:{behaviour}"
         for k in keys:
-            self.seen_since.setdefault(k, when)
-            self.seen_by.setdefault(k, set()).add(f"{record['robot']}:{behaviour}")
+            n = self.sightings[k, robot] = self.sightings.get((k, robot), 0) + 1
+            if n >= fleet_sim.SIGHTINGS:
+                self.seen_since.setdefault(k, when)
+                self.seen_by.setdefault(k, set()).add(robot)
 
     def count(
         self, service: Any, objects: dict[int, tuple[float, float]], now: float, skill: tuple[str, str]
