@@ -111,12 +111,14 @@ class FreeWatch:
     footprint that the navigation map shows free, for objects a robot saw (``SIGHTINGS`` times) at least
     ``SETTLE_S`` ago since their last change (its rules: ``_counts``, a ``late`` robot's sighting on
     arrival, not before the clocks settle). An object's footprint: where it stands (``follow``) with the
-    sizes and heading of the latest box a robot whose boxes are neither late nor biased reported of it
-    (its detector noise, 3 cm and 2 degrees, within the one-cell inset)."""
+    sizes and heading the script's event gives (traces since they are), else those of the latest box a
+    robot whose boxes are neither late nor biased reported of it (its detector noise, 3 cm and 2
+    degrees: a cell or two counted now and then)."""
 
     def __init__(self, t0: float) -> None:
         self.t0 = t0
         self.shape: dict[int, tuple[float, float, float, float]] = {}  # key -> sx, sy, sz, yaw
+        self.truth: dict[int, tuple[float, float, float, float]] = {}  # from the script's events
         self.seen_since: dict[int, float] = {}
         self.seen_by: dict[int, set[str]] = {}
         self.sightings: dict[tuple[int, str], int] = {}  # (object, robot) -> since its change
@@ -132,6 +134,8 @@ class FreeWatch:
                 keys.append(min(others)[1])
                 if record["event"] == "push" and keys[1] in self.shape:  # a desk like it
                     self.shape[keys[0]] = self.shape[keys[1]]
+        if "shape" in record:  # traced since the shapes were: the truth
+            self.truth[keys[0]] = tuple(record["shape"])
         for k in keys:
             self.seen_since.pop(k, None)
             self.seen_by.pop(k, None)
@@ -168,12 +172,12 @@ class FreeWatch:
         grid = service.live_maps.skill_maps[skill].grid()
         out = {}
         for k, (x, y) in objects.items():
-            since = self.seen_since.get(k)
-            if since is None or k not in self.shape:
+            since, shape = self.seen_since.get(k), self.truth.get(k, self.shape.get(k))
+            if since is None or shape is None:
                 continue
             if now - max(since, self.t0 + fleet_sim.CLOCK_SETTLE_S) < fleet_sim.SETTLE_S:
                 continue
-            sx, sy, sz, yaw = self.shape[k]
+            sx, sy, sz, yaw = shape
             n = fleet_sim.false_free_cells(grid, fleet_sim.Obj(k, x, y, yaw, sx, sy, sz))
             if n:
                 out[k] = n

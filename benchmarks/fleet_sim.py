@@ -1100,6 +1100,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                     "old": [round(v, 3) for v in ev.place],
                                     "x": round(o.x, 3),
                                     "y": round(o.y, 3),
+                                    "shape": [round(v, 4) for v in (o.sx, o.sy, o.sz, o.yaw)],
                                     "present": o.present,
                                 }
                             )
