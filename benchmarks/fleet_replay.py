@@ -13,7 +13,8 @@ elements within ``MATCH_M`` of an object (the object nearest each element), two 
 an element whose footprint holds two objects (a clusterer's box over pushed desks) is theirs, no
 duplicate. Where the objects stand comes from the trace: each one's first box from a robot whose boxes
 are neither late nor biased, then the script's events. It prints the seconds with duplicates, the
-merges, how many acks differ from the run's, and the elements and revision at the end.
+merges, how many acks differ from the run's, and the elements and revision at the end; and the
+**false-free cells** as fleet_sim counts them (``FreeWatch``), each second with some and who saw the object.
 
     python benchmarks/fleet_sim.py --robots 10 --duration 240 --objects 30 --moves 20 --removals 10 \\
         --tucks 4 --pushes 4 --behaviours mixed --trace fleet.jsonl
