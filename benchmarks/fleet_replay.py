@@ -13,7 +13,8 @@ elements within ``MATCH_M`` of an object (the object nearest each element), two 
 an element whose footprint holds two objects (a clusterer's box over pushed desks) is theirs, no
 duplicate. Where the objects stand comes from the trace: each one's first box from a robot whose boxes
 are neither late nor biased, then the script's events. It prints the seconds with duplicates, the
-merges, how many acks differ from the run's, and the elements and revision at the end.
+merges, how many acks differ from the run's, and the elements and revision at the end; and the
+**false-free cells** as fleet_sim counts them (``FreeWatch``), each second with some and who saw the object.
 
     python benchmarks/fleet_sim.py --robots 10 --duration 240 --objects 30 --moves 20 --removals 10 \\
         --tucks 4 --pushes 4 --behaviours mixed --trace fleet.jsonl
@@ -34,7 +35,8 @@ from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import live  # benchmarks/ is not a package
+import fleet_sim  # benchmarks/ is not a package
+import live
 
 MATCH_M = 0.5
 """fleet_sim's: a twin element within this of an object's centre is that object."""
@@ -105,6 +107,84 @@ def follow(objects: dict[int, tuple[float, float]], moved: set[int], record: dic
             objects[key] = (float(x), float(y))
 
 
+class FreeWatch:
+    """fleet_sim's **false-free cells**, replayed: the cells more than one cell inside a true object's
+    footprint that the navigation map shows free, for objects a robot saw (``SIGHTINGS`` times) at least
+    ``SETTLE_S`` ago since their last change (its rules: ``_counts``, a ``late`` robot's sighting on
+    arrival, not before the clocks settle). An object's footprint: where it stands (``follow``) with the
+    sizes and heading the script's event gives (traces since they are), else those of the latest box a
+    robot whose boxes are neither late nor biased reported of it (its detector noise, 3 cm and 2
+    degrees: a cell or two counted now and then)."""
+
+    def __init__(self, t0: float) -> None:
+        self.t0 = t0
+        self.shape: dict[int, tuple[float, float, float, float]] = {}  # key -> sx, sy, sz, yaw
+        self.truth: dict[int, tuple[float, float, float, float]] = {}  # from the script's events
+        self.seen_since: dict[int, float] = {}
+        self.seen_by: dict[int, set[str]] = {}
+        self.sightings: dict[tuple[int, str], int] = {}  # (object, robot) -> since its change
+
+    def event(self, record: dict[str, Any], objects: dict[int, tuple[float, float]]) -> None:
+        """A move, removal, push or push apart: the objects it changed are unseen since (a push changes
+        the desk it was pushed against too: the nearest other object)."""
+        keys = [int(record["obj"])]
+        if record["event"] in ("push", "apart"):
+            x, y = record["old"]
+            others = [(math.dist((x, y), p), k) for k, p in objects.items() if k != keys[0]]
+            if others:
+                keys.append(min(others)[1])
+                if record["event"] == "push" and keys[1] in self.shape:  # a desk like it
+                    self.shape[keys[0]] = self.shape[keys[1]]
+        if "shape" in record:  # traced since the shapes were: the truth
+            self.truth[keys[0]] = tuple(record["shape"])
+        for k in keys:
+            self.seen_since.pop(k, None)
+            self.seen_by.pop(k, None)
+            self.sightings = {s: n for s, n in self.sightings.items() if s[0] != k}
+
+    def report(self, record: dict[str, Any]) -> None:
+        """A traced observation: each object's box shape, and who saw it since its change."""
+        behaviour, sensed = record["behaviour"], float(record["sensed"])
+        settles = self.t0 + fleet_sim.CLOCK_SETTLE_S
+        keys = {int(k) for k, *_ in record["boxes"] if k >= 0}
+        for _, iri, *_ in record["boxes"]:
+            if ":blob-" in iri:  # a clusterer's box over two pushed desks: both seen
+                keys.update(int(k) for k in iri.rsplit(":blob-", 1)[1].split("-"))
+        if behaviour not in ("late", "bias"):
+            boxes = {iri: k for k, iri, *_ in record["boxes"] if k >= 0}
+            for line in record["payload"].splitlines():
+                if line.startswith("<") and 'twin:box "' in line and line[1 : line.index(">")] in boxes:
+                    v = [float(x) for x in line.split('twin:box "', 1)[1].split('"')[0].split()]
+                    self.shape[boxes[line[1 : line.index(">")]]] = (v[3], v[4], v[5], v[6])
+        if not fleet_sim._counts(behaviour, sensed, settles):
+            return
+        when = float(record["sent"]) if behaviour == "late" else sensed
+        robot = f"{record['robot']}:{behaviour}"
+        for k in keys:
+            n = self.sightings[k, robot] = self.sightings.get((k, robot), 0) + 1
+            if n >= fleet_sim.SIGHTINGS:
+                self.seen_since.setdefault(k, when)
+                self.seen_by.setdefault(k, set()).add(robot)
+
+    def count(
+        self, service: Any, objects: dict[int, tuple[float, float]], now: float, skill: tuple[str, str]
+    ) -> dict[int, int]:
+        """Object -> its false-free cells now (the objects with any)."""
+        grid = service.live_maps.skill_maps[skill].grid()
+        out = {}
+        for k, (x, y) in objects.items():
+            since, shape = self.seen_since.get(k), self.truth.get(k, self.shape.get(k))
+            if since is None or shape is None:
+                continue
+            if now - max(since, self.t0 + fleet_sim.CLOCK_SETTLE_S) < fleet_sim.SETTLE_S:
+                continue
+            sx, sy, sz, yaw = shape
+            n = fleet_sim.false_free_cells(grid, fleet_sim.Obj(k, x, y, yaw, sx, sy, sz))
+            if n:
+                out[k] = n
+        return out
+
+
 def replay(args: argparse.Namespace) -> int:
     from twin.config import load_config
     from twin.graph.store import EmbeddedStore
@@ -121,7 +201,13 @@ def replay(args: argparse.Namespace) -> int:
     work = Path(tempfile.mkdtemp(prefix="fleet-replay-"))
     clock = [0]
     try:
-        store = EmbeddedStore.open(live.prepare_store(args.model, work))
+        path = live.prepare_store(args.model, work)
+        skill = (
+            ("ground-floor", "lab-navigation")
+            if args.model == "lab"
+            else (live.busiest(path)[0], "navigation")
+        )
+        store = EmbeddedStore.open(path)
         config = work / "fleet.toml"
         config.write_text(f"[fusion]\ntentative_sightings = {args.tentative}\n")
         service = TwinService(store, load_config(config), clock=lambda: clock[0])
@@ -129,13 +215,18 @@ def replay(args: argparse.Namespace) -> int:
         objects: dict[int, tuple[float, float]] = {}
         moved: set[int] = set()
         differ, merges, seconds = 0, 0, 0
+        watch = FreeWatch(t0)
+        free_max, free_seconds = 0, 0
         next_sample = t0 + 1.0
         for r in stream:
             if r["sent"] - t0 > args.until:
                 break
+            if "event" in r:
+                watch.event(r, objects)
             follow(objects, moved, r)
             if "event" in r:
                 continue
+            watch.report(r)
             clock[0] = int(r["sent"] * 1e9)
             replies: list[Any] = []
             service.submit_observation(r["robot"], r["payload"].encode(), replies.append)
@@ -153,10 +244,16 @@ def replay(args: argparse.Namespace) -> int:
                 seconds += bool(found)
                 if found:
                     print(f"{r['sent'] - t0:7.2f} duplicates {found}")
+                free = watch.count(service, objects, r["sent"], skill)
+                if free:
+                    free_max, free_seconds = max(free_max, sum(free.values())), free_seconds + 1
+                    seen = {k: sorted(watch.seen_by.get(k, ())) for k in free}
+                    print(f"{r['sent'] - t0:7.2f} false-free cells {free} seen by {seen}")
         elements = sum(1 for s in service.states.values() if not s.is_static and not s.removed)
         print(
             f"replayed {len(records)} observations: {seconds} seconds with duplicates, {merges} merges, "
-            f"{differ} acks differ from the run's; {elements} elements, revision {service.revision}"
+            f"{differ} acks differ from the run's; {elements} elements, revision {service.revision}; "
+            f"false-free cells max {free_max} ({free_seconds} seconds)"
         )
         store.close()
         return 1 if seconds else 0

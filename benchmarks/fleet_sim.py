@@ -22,7 +22,8 @@ and the **viewed** ones: those the views since they became one held as the daemo
 only part of the footprint, is no miss), objects missing, the navigation map's cells that differ from the
 true world's, and the **false-free cells**: the cells more than one cell inside a true object's
 footprint that the navigation map shows free, for objects a robot saw at least ``SETTLE_S`` ago since
-their last change (a ``late`` robot's sighting counts once its report arrives, and only if it was
+their last change, twice (``SIGHTINGS``: the daemon's M of N; one glimpse creates or moves nothing)
+(a ``late`` robot's sighting counts once its report arrives, and only if it was
 sensed after that change; a ``clock_behind`` or ``late`` robot's sightings sensed before the daemon's
 clock estimate settles do not count: the daemon refuses them as stale), and not before the daemon's
 clocks settle (``CLOCK_SETTLE_S``) (free floor where a
@@ -99,7 +100,22 @@ class Obj:
     seen_since_change: float | None = None
     """When a robot first saw it after its last change (its false-free cells count from then)."""
     seen_by: dict[str, float] = field(default_factory=dict)
-    """The robots (``index:behaviour``) that saw it since its last change -> when each first did."""
+    """The robots (``index:behaviour``) that saw it since its last change -> when each first did
+    (``SIGHTINGS`` times: the second sighting)."""
+    sightings: dict[str, int] = field(default_factory=dict)
+    """How many times each robot saw it since its last change."""
+
+    def sighted(self, robot: str, when: float) -> None:
+        """``robot`` (``index:behaviour``) saw it at ``when``: counts from its ``SIGHTINGS``-th sighting."""
+        n = self.sightings[robot] = self.sightings.get(robot, 0) + 1
+        if n >= SIGHTINGS:
+            self.seen_by.setdefault(robot, when)
+            if self.seen_since_change is None:
+                self.seen_since_change = when
+
+    def unseen(self, now: float) -> None:
+        """It changed at ``now``: nobody has seen it since."""
+        self.changed_at, self.seen_since_change, self.seen_by, self.sightings = now, None, {}, {}
 
     def corners(self) -> np.ndarray:
         c, s = math.cos(self.yaw), math.sin(self.yaw)
@@ -233,6 +249,10 @@ BIAS_M = 0.2
 SETTLE_S = 3.0
 """An object's false-free cells count from this long after a robot first saw it since its last change
 (the sightings a short move needs, the acks, and the maps' coalescing)."""
+SIGHTINGS = 2
+"""A robot has seen an object since its change once it has sighted it this many times: the daemon's
+``stream_sightings`` and ``move_sightings`` (M of N: one glimpse of a desk moved out of its element's
+reach, a robot passing a doorway, creates nothing, as a false detection does not)."""
 CLOCK_SETTLE_S = 5.0
 """The daemon's ``[fusion] clock_settle_s``: before a robot's reports span it, its sense times are compared
 uncorrected (a robot 1.5 s behind has its sightings refused as stale); false-free cells count from
@@ -328,9 +348,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                             seen_now.append(o.key)
                             o.seen_at = now
                             if behaviour != "late" and _counts(behaviour, now, settles):
-                                o.seen_by.setdefault(f"{index}:{behaviour}", now)  # late: on arrival
-                                if o.seen_since_change is None:
-                                    o.seen_since_change = now
+                                o.sighted(f"{index}:{behaviour}", now)  # late: on arrival
                             if pair not in blobbed:  # the blob once per observation
                                 blobbed.add(pair)
                                 blob = cluster(by_key[pair[1]], by_key[pair[0]])
@@ -351,9 +369,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                     last_seen[o.key] = now
                     o.seen_at = now
                     if behaviour != "late" and _counts(behaviour, now, settles):
-                        o.seen_by.setdefault(f"{index}:{behaviour}", now)  # late: on arrival
-                        if o.seen_since_change is None:
-                            o.seen_since_change = now
+                        o.sighted(f"{index}:{behaviour}", now)  # late: on arrival
                     if behaviour == "restart":
                         if o.key not in tracks:
                             tracks[o.key], next_track = next_track, next_track + 1
@@ -393,9 +409,7 @@ def robot(  # noqa: PLR0917 (a thread's target)
                         o = world.objects[k]
                         if sensed < o.changed_at or not _counts(behaviour, sensed, settles):
                             continue  # it saw the object before its change (or before its clock settled)
-                        o.seen_by.setdefault(f"{index}:{behaviour}", time.time())
-                        if o.seen_since_change is None:
-                            o.seen_since_change = time.time()
+                        o.sighted(f"{index}:{behaviour}", time.time())
             stats.sent += 1
             sent = time.time()
             try:
@@ -834,8 +848,8 @@ def pull_out(  # noqa: PLR0917
         )
         if all(world.is_free(*p) for p in probe.corners()) and world.is_free(x, y) and not crowded:
             world.events.append(Event("pull", chair_key, now, (chair.x, chair.y), chair.corners()))
-            chair.x, chair.y, chair.changed_at, chair.seen_since_change = x, y, now, None
-            chair.seen_by = {}
+            chair.x, chair.y = x, y
+            chair.unseen(now)
             apply_truth(oracle, truth_box(chair, storey, elevation))
             return
 
@@ -864,7 +878,7 @@ def push_desk(  # noqa: PLR0917
             if all(world.is_free(*p) for p in b.corners()) and not crowded:
                 world.objects[b.key] = b
                 world.together[b.key] = a.key
-                a.changed_at, a.seen_since_change, a.seen_by = now, None, {}
+                a.unseen(now)
                 world.events.append(Event("push", b.key, now, (x, y), b.corners()))
                 apply_truth(oracle, truth_box(b, storey, elevation))
                 return b.key, a.key
@@ -891,7 +905,7 @@ def push_apart(  # noqa: PLR0917
         b.present = False
         apply_truth(oracle, f"{PREFIX}<urn:truth:{b.key}> twin:removed true .".encode())
     for o in (a, b):
-        o.changed_at, o.seen_since_change, o.seen_by = now, None, {}
+        o.unseen(now)
 
 
 def oracle_service(store: Path, work: Path) -> Any:
@@ -1073,9 +1087,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                 continue
                             o.x, o.y, o.yaw = spot
                             apply_truth(oracle, truth_box(o, storey, elevation))
-                        o.changed_at = now
-                        o.seen_since_change = None
-                        o.seen_by = {}
+                        o.unseen(now)
                 if trace is not None and len(world.events) > traced:
                     with world.lock:
                         for ev in world.events[traced:]:
@@ -1088,6 +1100,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                     "old": [round(v, 3) for v in ev.place],
                                     "x": round(o.x, 3),
                                     "y": round(o.y, 3),
+                                    "shape": [round(v, 4) for v in (o.sx, o.sy, o.sz, o.yaw)],
                                     "present": o.present,
                                 }
                             )

@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal
 
+from twin.fusion.confirm import box_of
 from twin.fusion.effects import (
     confirmed_by,
     count_tentative,
@@ -186,8 +187,12 @@ def new_element(
         out.unaliased.append(r.iri)
         out.resolved.pop(r.iri, None)
         target = r.iri
-    if held_back(ctx, r, pose=pose, storey=storey):
+    admitted = held_back(ctx, r, pose=pose, storey=storey)
+    if admitted.held:
         return  # held tentative until seen often enough (twin.fusion.tentative)
+    if admitted.pose is not None and storey is not None:  # the mean of its held sightings
+        pose = admitted.pose
+        r = replace(r, box=box_of(pose, ctx.live.site.storeys[storey].elevation_m))
     if r.distinct:
         out.effects.append(mark_distinct(r.iri))
     ctx.reports.append(replace(r, iri=target))

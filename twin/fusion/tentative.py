@@ -12,27 +12,33 @@ Two rules hold a new object back (acked in ``"tentative"``, nothing written):
   removed again (two revisions, and maps to every robot, for nothing). A one-shot report
   (``twin observe``: no view, or the robot's first view in a while) creates at once. A held object
   reported again under another IRI (a detector without track ids gives each detection a one-off IRI)
-  is found by place: its footprint overlaps and its size agrees, as association asks.
+  is found by place: its footprint overlaps and its size agrees, as association asks. It is created
+  at the **mean of its sightings** (each aligned with the others': a flipped heading averages as the
+  same yaw), as a short move is: a pose taken from one noisy sighting may be a map cell off, free floor
+  inside the object until ``refine_after`` confirmations put it right, and a robot that glimpses an
+  object a few times never sends them.
 
 Example::
 
     streaming = streams(ctx.memory, "robot1", sense_ns=sense, rules=rules)   # the view's sense time
-    if held_back(ctx, r, pose=pose, storey="ground-floor"):
+    admitted = held_back(ctx, r, pose=pose, storey="ground-floor")
+    if admitted.held:
         return                       # acked in "tentative"
+    pose = admitted.pose or pose     # the mean of its held sightings
     drop_unseen(ctx, view, reported={r.iri for r in obs.reports})
 """
 
 from __future__ import annotations
 
 from collections.abc import Set
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from twin.config import FusionRules
 from twin.fusion.absence import VIEW_INSET_M
 from twin.fusion.effects import count_tentative
-from twin.fusion.footprints import Pose
+from twin.fusion.footprints import Pose, aligned, box_pose
 from twin.fusion.gates import matches, sizes_agree
 from twin.fusion.memory import FusionMemory, Tentative
 from twin.fusion.visibility import view_sees
@@ -50,12 +56,24 @@ def streams(memory: FusionMemory, robot: str, *, sense_ns: int, rules: FusionRul
     return last is not None and abs(sense_ns - last) <= rules.stream_gap_ns
 
 
-def held_back(ctx: FusionContext, r: ElementReport, *, pose: Pose | None, storey: str | None) -> bool:
+class Admission(NamedTuple):
+    """What :func:`held_back` decided of a new object: held tentative, or created (at ``pose``, the mean
+    of its held sightings and this one; None: where this report puts it)."""
+
+    held: bool
+    pose: Pose | None = None
+
+
+CREATED = Admission(held=False)
+
+
+def held_back(ctx: FusionContext, r: ElementReport, *, pose: Pose | None, storey: str | None) -> Admission:
     """Whether the new object ``r`` (at ``pose`` on ``storey``) is held tentative rather than created
-    now: its sightings so far (this one counted) are fewer than the rules ask. Notes the effect either
-    way (held: counted; created: no longer held)."""
+    now: its sightings so far (this one counted) are fewer than the rules ask; created, where (the mean
+    of its sightings, once a robot that streams held it). Notes the effect either way (held: counted;
+    created: no longer held)."""
     if r.box is None and r.geometry is None:
-        return False
+        return CREATED
     rules = ctx.rules
     needed = rules.tentative_sightings
     streamed = ctx.streaming and pose is not None and storey is not None
@@ -65,7 +83,7 @@ def held_back(ctx: FusionContext, r: ElementReport, *, pose: Pose | None, storey
     if needed <= 1:
         if known is not None:
             ctx.out.effects.append(count_tentative(r.iri, None))
-        return False
+        return CREATED
     if known is None and streamed and rules.stream_sightings > 1 and pose is not None:
         before = same_place(ctx, pose, storey or "")  # a new IRI for it (a detector without track ids)
         if before is not None:
@@ -73,14 +91,33 @@ def held_back(ctx: FusionContext, r: ElementReport, *, pose: Pose | None, storey
             ctx.held_seen.add(before)
             ctx.out.effects.append(count_tentative(before, None))  # counted on under the new IRI
     seen = (known.seen if known is not None else 0) + 1
+    mean = pose
+    if streamed and pose is not None and known is not None and known.pose is not None:
+        mean = running_mean(known.pose, known.seen, pose)
     if seen >= needed:
         ctx.out.effects.append(count_tentative(r.iri, None))
-        return False
+        return Admission(held=False, pose=mean if mean is not pose else None)
     since = known.since_ns if known is not None else ctx.arrival_ns
-    held = Tentative(seen, since, ctx.robot, storey or "", pose) if streamed else Tentative(seen, since)
+    held = Tentative(seen, since, ctx.robot, storey or "", mean) if streamed else Tentative(seen, since)
     ctx.out.tentative.append(r.iri)
     ctx.out.effects.append(count_tentative(r.iri, held))
-    return True
+    return Admission(held=True)
+
+
+def running_mean(mean: Pose, n: int, pose: Pose) -> Pose:
+    """The mean of ``n`` sightings (``mean``) and one more, ``pose``, aligned with it first (a flipped
+    heading or a quarter turn of a square footprint averages as the same yaw)."""
+    a = aligned(pose, mean)
+    k = n + 1
+    return box_pose(
+        (mean.cx * n + a.cx) / k,
+        (mean.cy * n + a.cy) / k,
+        (mean.cz * n + a.cz) / k,
+        (mean.sx * n + a.sx) / k,
+        (mean.sy * n + a.sy) / k,
+        (mean.sz * n + a.sz) / k,
+        yaw=(mean.yaw * n + a.yaw) / k,
+    )
 
 
 def same_place(ctx: FusionContext, pose: Pose, storey: str) -> str | None:

@@ -4,11 +4,16 @@ detection, never created nor removed); a one-shot report creates at once."""
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 
+import pytest
+
+from tests.twin.box_lab import OX, OY
 from tests.twin.fusion.fusion_helpers import CORRIDOR, ROOM_A, box, view, view_only
 from tests.twin.live_helpers import observe, started
+from twin.fusion.footprints import pose_of
 from twin.live import TwinService
 
 S = 10**9
@@ -99,3 +104,23 @@ def test_a_detector_without_track_ids_is_held_by_place_and_created_at_its_second
     assert second.body["upserted"] == ["urn:robot1:once-2"] and not service.live.fusion.tentative
     third = observe(service, "robot1", seen("urn:robot1:once-3", 2.01, 2.0, t + 3 * S // 5))
     assert third.body["resolved"] == {"urn:robot1:once-3": "urn:robot1:once-2"}
+
+
+def test_a_streaming_robots_new_object_is_created_at_the_mean_of_its_held_sightings_not_its_last() -> None:
+    # a desk glimpsed twice, its boxes 6 cm apart (a detector's noise; the second with its heading
+    # flipped): created where the last one put it, it would stand a map cell off, free floor inside
+    # it until refine_after confirmations that a passing robot never sends
+    service, _ = started()
+    t = time.time_ns()
+    looking(service, "robot1", t)
+    desk = box(CHAIR, 2.0, 2.0, sx=1.2, sy=0.6, yaw=0.02) + view(t + S // 5, ROOM_A, detects=FURNITURE)
+    assert observe(service, "robot1", desk).body["tentative"] == [CHAIR]
+    again = box(CHAIR, 2.06, 1.98, sx=1.22, sy=0.6, yaw=math.pi) + view(
+        t + 2 * S // 5, ROOM_A, detects=FURNITURE
+    )
+    assert observe(service, "robot1", again).body["upserted"] == [CHAIR]
+    shape = service.live_maps.shape_of(CHAIR)
+    assert shape is not None
+    pose = pose_of(shape)
+    assert (pose.cx - OX, pose.cy - OY) == (pytest.approx(2.03, abs=1e-3), pytest.approx(1.99, abs=1e-3))
+    assert (pose.sx, pose.yaw % math.pi) == (pytest.approx(1.21, abs=1e-3), pytest.approx(0.01, abs=1e-3))
