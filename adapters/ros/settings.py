@@ -107,7 +107,8 @@ class RosSettings(ConfigSection):
         "robot's last array said (the same tracks, every box where it was within a detector's noise) to "
         "pass them to the twin in bunches, which cost the writer less CPU each; an array with any change "
         "passes at once, with what its robot held before it. 0 (the default): every array at once; "
-        "40 trades some of the workers' CPU for the writer's (docs/ros2-reporting.md).",
+        "40 trades some CPU of the daemon's thread that reads the workers' results for the writer's "
+        "(docs/ros2-reporting.md).",
     )
 
     def workers(self) -> int:

@@ -3,16 +3,16 @@
 Almost every detection array a robot sends says again what its previous one said: the same tracks, each
 box where it was. The writer settles such an array with array operations (confirmations at once), and
 what that costs is mostly the caches it finds cold: alone, a confirming array costs the writer about
-three times what it costs in a bunch of ten (``benchmarks/confirm_cost.py --flush 32``, with and without
+three times what it costs in a bunch (``benchmarks/confirm_cost.py --flush 32``, with and without
 ``--single``). :class:`SteadyHold` lets the thread that reads the ingest workers' results
 (:class:`~adapters.zenoh.ros_workers.WorkerPool`) hold such *steady* outcomes for up to
 ``[ros] hold_steady_ms`` and pass them on together; anything else passes at once, with what its robot
 held before it (a robot's outcomes keep their order; another robot's held outcomes wait for their time):
 
 - an array is steady when it is a single document of plain boxes (no other change: geometry, doors,
-  zones, labels, removals) of the same tracks as the robot's last array passed on, each box within
-  :data:`STEADY_M` and :data:`STEADY_RAD` of that array's box of the same track, of the same class and
-  storey;
+  zones, labels, removals) of the same tracks as the robot's last array that changed something, each
+  box within :data:`STEADY_M` and :data:`STEADY_RAD` of that array's box of the same track, of the
+  same class and storey;
 - after an array that is not (a track appears, is lost or moves), that robot's next
   :data:`SETTLE_ARRAYS` arrays pass at once (the sightings that complete a move);
 - refusals, TF waits and anything but an array pass at once.
@@ -139,7 +139,7 @@ class SteadyHold:
         return out
 
     def _steady(self, outcome: object) -> bool:
-        """Whether ``outcome`` is a steady array (and the robot's last array passed on, if it is one)."""
+        """Whether ``outcome`` is a steady array (if it is not, it becomes the robot's reference)."""
         translation = getattr(outcome, "translation", None)
         if translation is None:
             return False  # a refusal, a wait for TF

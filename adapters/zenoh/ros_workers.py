@@ -555,6 +555,8 @@ class WorkerPool:
             if w.process.is_alive() or self._closing.is_set():
                 continue
             names = [r.name for r in w.robots]
+            if self._hold.held:  # (the replay resumes the tracker sessions the writer was told of)
+                self._deliver(self._hold.take(math.inf))
             log.warning(
                 "ROS 2 ingest worker %d (robots %s) exited with code %s; starting it again",
                 w.index, ", ".join(names), w.process.exitcode,

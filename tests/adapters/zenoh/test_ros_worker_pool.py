@@ -100,7 +100,14 @@ def test_the_pool_holds_steady_arrays_and_passes_a_move_at_once_with_them_and_th
             assert len(got) == 1 + SETTLE_ARRAYS
         send(2.0)  # a move: at once, after the held ones
         assert until(len(sent)) == sent
-        send(2.0)
+        for _ in range(SETTLE_ARRAYS):  # the sightings that complete it: at once
+            send(2.0)
+            assert until(len(sent)) == sent
+        for _ in range(2):  # re-confirmations of the new place: held
+            send(2.0)
+        time.sleep(1.0)
+        with lock:
+            assert len(got) == len(sent) - 2
         pool.close()  # the stop passes on what is held
         assert until(len(sent)) == sent
     finally:
