@@ -33,8 +33,8 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
 
+from adapters.zenoh.ros_outcomes import Outcome, Translated
 from twin.live.validate import Checked
 from twin.records import ElementReport, Observation
 
@@ -56,27 +56,6 @@ _Key = tuple[str | None, str | None, tuple[str, ...]]
 _Box = tuple[float, float, float, float, float, float, float]
 
 
-class _Translated(Protocol):
-    """:class:`~adapters.zenoh.ros_workers.Translated` as the hold reads it."""
-
-    @property
-    def owner(self) -> str: ...
-
-    @property
-    def translation(self) -> _Translation: ...
-
-
-class _Translation(Protocol):
-    @property
-    def document(self) -> object: ...
-
-    @property
-    def extra(self) -> tuple[object, ...]: ...
-
-    @property
-    def refused(self) -> tuple[tuple[str, str], ...]: ...
-
-
 @dataclass(slots=True)
 class _Robot:
     """What a robot's arrays said when they last changed (track -> box, class), and how many arrays
@@ -93,7 +72,7 @@ class SteadyHold:
 
     def __init__(self, hold_s: float) -> None:
         self.hold_s = hold_s
-        self.held: list[object] = []
+        self.held: list[Outcome] = []
         self._since = math.inf
         self._urgent: set[str] = set()
         """The robots whose held outcomes are due."""
@@ -101,7 +80,7 @@ class SteadyHold:
         self.bunches = 0
         """Bunches taken."""
 
-    def add(self, outcomes: Sequence[object], now: float) -> None:
+    def add(self, outcomes: Sequence[Outcome], now: float) -> None:
         """Hold ``outcomes`` (in order after what is held)."""
         if not outcomes:
             return
@@ -110,7 +89,7 @@ class SteadyHold:
         self.held += outcomes
         for o in outcomes:
             if self.hold_s <= 0.0 or not self._steady(o):
-                self._urgent.add(getattr(o, "owner", ""))
+                self._urgent.add(o.owner)
 
     def due(self, now: float) -> bool:
         """Whether some of what is held should go now: a robot's outcome that is not steady, or what
@@ -123,27 +102,26 @@ class SteadyHold:
             return None
         return 0.0 if self._urgent else max(0.0, self._since + self.hold_s - now)
 
-    def take(self, now: float) -> list[object]:
+    def take(self, now: float) -> list[Outcome]:
         """What is due, in order: everything once held ``hold_s``, else the outcomes of the robots with
         an outcome that is not steady (the rest stay held, from when they were)."""
         if now - self._since >= self.hold_s:
             out, self.held = self.held, []
         else:
             urgent = self._urgent
-            out = [o for o in self.held if getattr(o, "owner", "") in urgent]
-            self.held = [o for o in self.held if getattr(o, "owner", "") not in urgent]
+            out = [o for o in self.held if o.owner in urgent]
+            self.held = [o for o in self.held if o.owner not in urgent]
         self._urgent = set()
         if not self.held:
             self._since = math.inf
         self.bunches += 1
         return out
 
-    def _steady(self, outcome: object) -> bool:
+    def _steady(self, outcome: Outcome) -> bool:
         """Whether ``outcome`` is a steady array (if it is not, it becomes the robot's reference)."""
-        translation = getattr(outcome, "translation", None)
-        if translation is None:
+        if not isinstance(outcome, Translated):
             return False  # a refusal, a wait for TF
-        t: _Translated = outcome  # type: ignore[assignment]
+        t = outcome
         doc = t.translation.document
         if isinstance(doc, Checked):
             doc = doc.observation

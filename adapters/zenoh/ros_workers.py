@@ -45,11 +45,12 @@ from adapters.ros.detections import (
     camera_fov,
     translate_detections,
 )
-from adapters.ros.observation_doc import RosInputError, Translation
+from adapters.ros.observation_doc import RosInputError
 from adapters.ros.sessions import TrackerSession
 from adapters.ros.tf import TfBuffer, decode_tf_message
 from adapters.ros.view import Structure, ViewCache
 from adapters.zenoh.ros_hold import SteadyHold
+from adapters.zenoh.ros_outcomes import Outcome, Refused, Translated, Waited
 from twin.config import Limits
 from twin.errors import MapError
 from twin.live.validate import checked
@@ -66,32 +67,6 @@ SUPERVISE_S = 0.25
 """The messages of a robot that its translator handles."""
 
 
-@dataclass(frozen=True, slots=True)
-class Translated:
-    owner: str
-    translation: Translation
-    received_ns: int
-    session: TrackerSession | None = None
-    """The robot's tracker session after this array (a copy when it comes from a worker)."""
-
-    def __reduce__(self) -> tuple[type[Translated], tuple[object, ...]]:
-        """A call with its fields (one per array from a worker; a frozen dataclass's setstate is slower)."""
-        return (Translated, (self.owner, self.translation, self.received_ns, self.session))
-
-
-@dataclass(frozen=True, slots=True)
-class Refused:
-    owner: str
-    cause: str
-    message: str
-
-
-@dataclass(frozen=True, slots=True)
-class Waited:
-    owner: str
-
-
-Outcome = Translated | Refused | Waited
 
 
 @dataclass(frozen=True, slots=True)
