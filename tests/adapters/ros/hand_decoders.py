@@ -1,10 +1,12 @@
 """What the tests of the hand decoders (``Detection3DArray``, ``TFMessage``) share: values compared bit
-for bit, and a message's bytes damaged as hostile input would be."""
+for bit, a message's bytes damaged as hostile input would be, and the check that the hand decoder
+accepts nothing the reference refuses."""
 
 from __future__ import annotations
 
 import dataclasses
 import struct
+from collections.abc import Callable
 from typing import Any
 
 
@@ -29,3 +31,21 @@ def mutated(payload: bytes, cut: int, flips: list[tuple[int, int]], tail: bytes)
         if at < len(raw):
             raw[at] = value
     return bytes(raw[: max(cut, 0)]) + tail if cut < len(raw) else bytes(raw) + tail
+
+
+def accepts_nothing_refused(
+    payload: bytes,
+    fast: Callable[[bytes], Any],
+    reference: Callable[[bytes], Any],
+    refused: type[Exception],
+) -> None:
+    """Assert that ``fast`` (None: left to the reference) accepts ``payload`` only if ``reference``
+    does (it raises ``refused`` otherwise), and then decodes it to the same bits."""
+    got = fast(payload)
+    try:
+        expected = reference(payload)
+    except refused:
+        expected = None
+    if got is not None:
+        assert expected is not None, "the hand decoder accepted what rosbags refuses"
+        assert bits(got) == bits(expected)

@@ -27,7 +27,7 @@ from adapters.ros.detections import (
 from adapters.ros.interfaces import DETECTION_3D_ARRAY
 from adapters.ros.observation_doc import RosInputError
 from adapters.ros.tf import TfBuffer, decode_tf_message, matrix, quaternion_matrix
-from tests.adapters.ros.hand_decoders import bits, mutated
+from tests.adapters.ros.hand_decoders import accepts_nothing_refused, bits, mutated
 from tests.adapters.ros_reports import Det, Tf, cdr_detections, cdr_tf
 from tests.conftest import examples
 
@@ -104,14 +104,7 @@ def test_on_hostile_bytes_the_hand_decoder_accepts_nothing_rosbags_refuses(
     message: Any, cut: int, flips: list[tuple[int, int]], tail: bytes
 ) -> None:
     payload = mutated(_cdr(message), cut, flips, tail)
-    fast = _decode_le(payload)
-    try:
-        slow = _decode_rosbags(payload)
-    except RosInputError:
-        slow = None
-    if fast is not None:
-        assert slow is not None, "the hand decoder accepted what rosbags refuses"
-        assert bits(fast) == bits(slow)
+    accepts_nothing_refused(payload, _decode_le, _decode_rosbags, RosInputError)
 
 
 def test_a_truncated_array_is_refused_as_malformed_naming_its_size() -> None:
