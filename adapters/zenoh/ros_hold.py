@@ -77,8 +77,6 @@ class SteadyHold:
         self._urgent: set[str] = set()
         """The robots whose held outcomes are due."""
         self._robots: dict[str, _Robot] = {}
-        self.bunches = 0
-        """Bunches taken."""
 
     def add(self, outcomes: Sequence[Outcome], now: float) -> None:
         """Hold ``outcomes`` (in order after what is held)."""
@@ -114,7 +112,6 @@ class SteadyHold:
         self._urgent = set()
         if not self.held:
             self._since = math.inf
-        self.bunches += 1
         return out
 
     def _steady(self, outcome: Outcome) -> bool:
