@@ -500,7 +500,8 @@ class WorkerPool:
             selector.close()
 
     def _take(self, ready: list[Any], watched: dict[Any, _Worker]) -> None:
-        """Read a batch of outcomes from each ready pipe into the hold (the pool's thread)."""
+        """Read a batch of outcomes from each ready pipe and deliver it, or put it in the hold (the pool's
+        thread)."""
         for conn in ready:
             w = watched.get(conn)
             if w is None or w.outbox is not conn:
@@ -516,7 +517,10 @@ class WorkerPool:
                 continue
             self.bunches += 1
             self.outcomes += len(item)
-            self._hold.add(item, time.monotonic())
+            if self._hold.hold_s > 0.0:
+                self._hold.add(item, time.monotonic())
+            else:  # (no hold: each batch delivered as it is read, as it always was)
+                self._deliver(item)
 
     def _deliver(self, outcomes: list[Any]) -> None:
         self.delivered += 1
