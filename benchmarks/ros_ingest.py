@@ -153,9 +153,12 @@ def publisher(
     first: int = 0,
     count: int | None = None,
     views: str = "distinct",
+    tf_rate: float = 20.0,
+    stagger: bool = True,
 ) -> int:
-    """Publish the TF and detections of robots ``first`` .. ``first + count`` (of ``robots``) at
-    ``rate`` for ``duration`` seconds."""
+    """Publish the TF and detections of robots ``first`` .. ``first + count`` (of ``robots``) for
+    ``duration`` seconds: each robot's TF at ``tf_rate`` and its array at ``rate``, the array after
+    the TF of its stamp (``stagger``: each robot at its own moment of the period)."""
     import zenoh
 
     from adapters.ros.interfaces import DETECTION_3D_ARRAY, TF_MESSAGE
@@ -178,28 +181,38 @@ def publisher(
         sent, seq = 0, 0
         gid = bytes(16)
         phase = int(time.time() / MOVE_S)
+        per_array = max(1, round(tf_rate / rate))  # TF messages per array (the array's own among them)
+        period = 1.0 / (rate * per_array)  # between a robot's TF messages
+        # each robot's messages at its own moment of the period (stagger: spread over it, as robots
+        # that run independently are; else all of this process's robots at once)
+        offsets = [period * k / len(mine) if stagger else 0.0 for k in range(len(mine))]
         start = time.monotonic()
         tick = 0
         while time.monotonic() - start < duration:
-            stamp = time.time_ns()
-            seq += 1
-            extra = {"attachment": attachment(seq, stamp, gid)} if layout == "rmw_zenoh" else {}
-            now = int(stamp / 1e9 / MOVE_S)
-            moved, phase = now != phase, now
-            shift = MOVER[2] * (now % 2)
-            for r, (tf_pub, det_pub) in zip(mine, outs, strict=True):
+            array_tick = tick % per_array == 0
+            for k, (r, (tf_pub, det_pub)) in enumerate(zip(mine, outs, strict=True)):
+                time.sleep(max(0.0, start + tick * period + offsets[k] - time.monotonic()))
+                stamp = time.time_ns()
+                seq += 1
+                extra = {"attachment": attachment(seq, stamp, gid)} if layout == "rmw_zenoh" else {}
                 at = (*base(r, robots, views), 0.0)
                 tf_pub.put(cdr_tf([Tf("map", "base_link", at, stamp_ns=stamp)]), **extra)
+                if not array_tick:
+                    continue
+                seq += 1
+                extra = {"attachment": attachment(seq, stamp, gid)} if layout == "rmw_zenoh" else {}
+                now = int(stamp / 1e9 / MOVE_S)
                 moves = r == 0 or views == "shared"  # (distinct views: robot 0's table alone)
-                array = robot_array(stamp, per_robot, shift if moves else 0.0)
-                if moved and r == (mine[0] if views == "shared" else 0):  # the move's first send
+                array = robot_array(stamp, per_robot, MOVER[2] * (now % 2) if moves else 0.0)
+                if now != phase and r == (mine[0] if views == "shared" else 0):  # the move's first send
                     # (shared views: every robot's table moves, each process's first send; distinct
                     # views: robot 0's alone)
+                    phase = now
                     print(json.dumps({"moved": time.time(), "phase": now}), flush=True)
                 det_pub.put(array, **extra)
                 sent += 1
             tick += 1
-            time.sleep(max(0.0, start + tick / rate - time.monotonic()))
+            time.sleep(max(0.0, start + tick * period - time.monotonic()))
         print(json.dumps({"sent": sent, "seconds": time.monotonic() - start}), flush=True)
     return 0
 
@@ -295,6 +308,8 @@ def run(
     workers: int | None = None,
     extra: str = "",
     views: str = "distinct",
+    tf_rate: float = 20.0,
+    stagger: bool = True,
 ) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -317,7 +332,8 @@ def run(
         drain = threading.Thread(target=lambda: [None for _ in daemon.stdout or []], daemon=True)
         drain.start()
         per = -(-robots // max(1, publishers))
-        args = [endpoint, str(robots), str(rate), str(per_robot), str(duration), layout, views]
+        args = [endpoint, str(robots), str(rate), str(per_robot), str(duration), layout, views, str(tf_rate)]
+        args.append("1" if stagger else "0")
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
         pubs = [
             subprocess.Popen(
@@ -384,8 +400,9 @@ def run(
         exit_code = daemon.wait(timeout=30)
 
     def total(s: dict[str, Any], key: str) -> int:
-        if key == "arrays":
-            return sum(int(c["messages"].get("detections", 0)) for c in s["ros_ingest"]["counts"].values())
+        if key in ("arrays", "tf"):
+            kind = "detections" if key == "arrays" else key
+            return sum(int(c["messages"].get(kind, 0)) for c in s["ros_ingest"]["counts"].values())
         return sum(int(c[key]) for c in s["ros_ingest"]["counts"].values())
 
     window = w1 - w0
@@ -421,10 +438,13 @@ def run(
         "views": views,
         "robots": robots,
         "rate_hz": rate,
+        "tf_rate_hz": tf_rate,
+        "staggered": stagger,
         "detections": per_robot,
         "window_s": round(window, 2),
         "arrays_per_s_offered": round(robots * rate, 1),
         "arrays_received_per_s": round(received / window, 1),
+        "tf_received_per_s": round((total(s1, "tf") - total(s0, "tf")) / window, 1),
         "acked_per_s": round(acked / window, 1),
         "cpu_ms_per_array": round(1000 * (c1 - c0) / max(received, 1), 3),
         "writer_ms_per_array": round(1000 * (m1 - m0) / max(received, 1), 3),
@@ -492,15 +512,30 @@ def _serve(cfg: Path, store: Path, endpoint: str, root: Path = ROOT) -> subproce
 
 def main() -> int:
     if len(sys.argv) > 1 and sys.argv[1] == "--child":
-        endpoint, robots, rate, per_robot, duration, layout, views, first, count = sys.argv[2:]
+        endpoint, robots, rate, per_robot, duration, layout, views, tf_rate, stagger, first, count = sys.argv[
+            2:
+        ]
         return publisher(
             endpoint, robots=int(robots), rate=float(rate), per_robot=int(per_robot),
             duration=float(duration), layout=layout, first=int(first), count=int(count), views=views,
+            tf_rate=float(tf_rate), stagger=stagger == "1",
         )  # fmt: skip
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--robots", type=int, default=10)
     p.add_argument("--rate", type=float, default=10.0)
     p.add_argument("--detections", type=int, default=20)
+    p.add_argument(
+        "--tf-rate",
+        type=float,
+        default=None,
+        help="each robot's TF messages a second (default: twice --rate, the issue's 20 Hz for 10 Hz arrays)",
+    )
+    p.add_argument(
+        "--together",
+        action="store_true",
+        help="a publisher's robots send at the same instant (default: each at its own moment of the "
+        "period, as robots that run independently)",
+    )
     p.add_argument("--duration", type=float, default=30.0)
     p.add_argument("--warmup", type=float, default=8.0)
     p.add_argument("--layout", choices=["bridge", "rmw_zenoh"], default="rmw_zenoh")
@@ -540,6 +575,7 @@ def main() -> int:
     common = {
         "robots": a.robots, "rate": a.rate, "per_robot": a.detections, "duration": a.duration,
         "warmup": a.warmup, "layout": a.layout, "publishers": a.publishers or a.robots, "views": a.views,
+        "tf_rate": a.tf_rate if a.tf_rate is not None else 2 * a.rate, "stagger": not a.together,
     }  # fmt: skip
     extra = a.extra.replace("\\n", "\n") + "\n"
     result: dict[str, Any] = {"this": run(**common, workers=a.workers, extra=extra)}
