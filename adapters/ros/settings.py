@@ -100,14 +100,13 @@ class RosSettings(ConfigSection):
     )
 
     hold_steady_ms: Number = Field(
-        0.0,
+        40.0,
         ge=0.0,
         le=1000.0,
         description="How long the daemon holds the detection arrays that only re-confirm what the "
         "robot's last array said (the same tracks, every box where it was within a detector's noise) to "
         "pass them to the twin in bunches, which cost the writer less CPU each; an array with any change "
-        "passes at once, with what its robot held before it. 0 (the default): every array at once; "
-        "40 trades some CPU of the daemon's thread that reads the workers' results for the writer's "
+        "passes at once, with what its robot held before it. 0: every array at once "
         "(docs/ros2-reporting.md).",
     )
 
