@@ -4,10 +4,13 @@ mostly confirmations, against the daemon process.
 The daemon (``twin serve``, on-disk store of the generated lab, no recording) is configured with
 ``--robots`` robots, each with a ``[robots.NAME.detections]`` table (views and sense times on: the
 view cut at the localization map), on one layout. Publisher processes (``--publishers``, default one
-per robot) play the robots on loopback: every ``1 / --rate`` s each robot publishes its TF
-(``map -> base_link`` at the array's stamp) and one array of ``--detections`` tables in ``base_link``,
-everything its view holds, each with a tracker id; all but one keep their pose (confirmations), the
-last moves 1.0 m every 2 s (beyond ``certain_move_m``, into free floor). Publishers' CPU is not counted.
+per robot) play the robots on loopback: each robot publishes its TF (``map -> base_link``) at
+``--tf-rate`` (default twice ``--rate``: the issue's 20 Hz) and, every ``1 / --rate`` s, right after the
+TF of its stamp, one array of ``--detections`` tables in ``base_link``, everything its view holds, each
+with a tracker id; each robot at its own moment of the period, as robots that run independently send
+(``--together``: a publisher's robots all at once, as this benchmark did before 2026-11-29); all but
+one table keep their pose (confirmations), the last moves 1.0 m every 2 s (beyond ``certain_move_m``,
+into free floor). Publishers' CPU is not counted.
 
 ``--views distinct`` (the default, as the issue that set the targets asks: robots at distinct poses
 whose views do not overlap) stands each robot in a room of its own (6 x 4 m, one storey of as many
