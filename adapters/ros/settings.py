@@ -100,7 +100,7 @@ class RosSettings(ConfigSection):
     )
 
     hold_steady_ms: Number = Field(
-        40.0,
+        100.0,
         ge=0.0,
         le=1000.0,
         description="How long the daemon holds the detection arrays that only re-confirm what the "
