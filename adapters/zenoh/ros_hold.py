@@ -19,6 +19,9 @@ held before it (a robot's outcomes keep their order; another robot's held outcom
 
 So a move, a new object or a lost one reaches the twin as soon as it did before; a re-confirmation up to
 ``hold_steady_ms`` later (its sense time is its own: the twin orders sightings by when they were seen).
+The view is not compared: a robot that moves while its tracks stay put sends steady arrays, and the miss
+its new view gives an element it covers but does not report (absence) also comes up to
+``hold_steady_ms`` later, against the ``miss_span_s`` (1 s) a removal by absence takes anyway.
 
 Example::
 
