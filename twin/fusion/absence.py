@@ -25,7 +25,7 @@ from twin.fusion.effects import forget, miss
 from twin.fusion.footprints import Pose, heights_overlap
 from twin.fusion.gates import compatible, is_candidate, kinds_agree, lies_within
 from twin.fusion.memory import Miss
-from twin.fusion.merge import merge, one_object
+from twin.fusion.merge import fold, merge, one_object
 from twin.fusion.visibility import view_sees
 from twin.records import ElementReport, ObservedView
 
@@ -128,7 +128,9 @@ def absence(ctx: FusionContext, *, view: ObservedView, sense: int) -> None:
         if covered(ctx, storey, pose, state):
             kept = covered_by_another(ctx, storey, iri, pose, state)
             if kept is not None:  # the box is another element of the same object: one element of it
-                ctx.reports.append(merge(ctx, iri, kept, sense=sense))
+                removal, extra = merge(ctx, iri, kept, sense=sense)
+                ctx.reports.append(removal)
+                fold(ctx, extra, sense=sense)  # what it knew and the one kept lacks
             continue  # else a box over it and its neighbours (two desks pushed together seen as one)
         track = memory.tracks.get(iri)
         if sense <= max(state.sensed_ns, track.seen_ns if track is not None else 0):
