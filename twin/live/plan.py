@@ -390,7 +390,7 @@ def _descriptive(step: _Step, state: ElementState, change: Right, *, exists: boo
     w.add += [Triple(r.iri, vocab.RDF_TYPE, c) for c in classes]
     return replace(
         state,
-        name=r.labels[0] if r.labels else state.name,
+        name=min(state.labels | set(labels)) if labels else state.name,  # as loading names it
         labels=state.labels | set(labels),
         materials=state.materials | set(materials),
         facing_materials=state.facing_materials | set(materials),

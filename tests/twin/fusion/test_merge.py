@@ -99,3 +99,23 @@ def test_a_robot_that_may_not_change_the_element_kept_still_merges_and_carries_n
     allowed = FusionContext("robot2", frozenset({"dynamic"}), live, live.states, {}, rules, "", {}, now)
     _, extra = merge(allowed, DUPLICATE, TABLE, sense=now)
     assert extra is not None and extra.iri == TABLE and extra.labels == ("Desk 12",)
+
+
+def test_an_element_that_gains_a_label_is_named_as_a_restart_names_it() -> None:
+    service, _ = started()
+    imported = element_iri(spec("Table"))
+    assert service.states[imported].labels  # its IFC name, which sorts before "zz desk"
+    observe(
+        service,
+        "robot2",
+        with_triples(
+            box_turtle(DUPLICATE, 5.2, 2.0, sx=1.2, sy=0.8, cls="IfcFurnishingElement"),
+            f'<{vocab.RDFS_LABEL}> "zz desk"',
+        ),
+    )
+    moved = observe(
+        service, "robot2", box_turtle(DUPLICATE, 2.0, 3.0, sx=1.2, sy=0.8, cls="IfcFurnishingElement")
+    )
+    assert moved.body["merged"] == {DUPLICATE: imported}
+    again, _ = started(service.store, service.config)
+    assert service.states[imported].name == again.states[imported].name == min(again.states[imported].labels)
