@@ -10,7 +10,8 @@ TF of its stamp, one array of ``--detections`` tables in ``base_link``, everythi
 with a tracker id; each robot at its own moment of the period, as robots that run independently send
 (``--together``: a publisher's robots all at once, as this benchmark did before 2026-11-29); all but
 one table keep their pose (confirmations), the last moves 1.0 m every 2 s (beyond ``certain_move_m``,
-into free floor). Publishers' CPU is not counted.
+into free floor). The robots stand still (``--moving``: each drives 0.4 m ahead and back every 8 s, so
+that every array's view is cut from a new pose). Publishers' CPU is not counted.
 
 ``--views distinct`` (the default, as the issue that set the targets asks: robots at distinct poses
 whose views do not overlap) stands each robot in a room of its own (6 x 4 m, one storey of as many
@@ -119,9 +120,10 @@ def views_store(views: str, robots: int, work: Path) -> Path:
     return live.import_store(work / "rooms.ifc", work / "store")
 
 
-def robot_array(stamp_ns: int, per_robot: int, shift: float = 0.0) -> bytes:
+def robot_array(stamp_ns: int, per_robot: int, shift: float = 0.0, ahead: float = 0.0) -> bytes:
     """A robot's CDR Detection3DArray in ``base_link``: its ``per_robot`` tables (:func:`tables`, seen from
-    ``ROBOT``), each with its tracker id, the last one ``shift`` m aside (the mover)."""
+    ``ROBOT``, or from ``ahead`` m further along x), each with its tracker id, the last one ``shift`` m
+    aside (the mover)."""
     from tests.adapters.ros_reports import Det, cdr_detections
 
     spots = tables(per_robot)
@@ -129,13 +131,24 @@ def robot_array(stamp_ns: int, per_robot: int, shift: float = 0.0) -> bytes:
     dets = [
         Det(
             (("table", 0.9),),
-            (x - ROBOT[0], y - ROBOT[1] + (shift if i == last else 0.0), 0.375),
+            (x - ROBOT[0] - ahead, y - ROBOT[1] + (shift if i == last else 0.0), 0.375),
             (0.2, 0.2, 0.75),
             id=f"t{i}",
         )
         for i, (x, y) in enumerate(spots)
     ]
     return cdr_detections(stamp_ns, "base_link", dets)
+
+
+DRIVE_M, DRIVE_S = 0.4, 8.0
+"""``--moving``: each robot drives ``DRIVE_M`` ahead and back every ``DRIVE_S`` seconds (a smooth swing,
+at most 0.16 m/s, at a phase of its own): every array has a view from a new pose."""
+
+
+def drive(robot: int, stamp_ns: int) -> float:
+    """How far ahead of its place robot ``robot`` is at ``stamp_ns`` (``--moving``)."""
+    phase = 2 * math.pi * (stamp_ns / 1e9 / DRIVE_S + robot / 7)
+    return DRIVE_M * (1.0 - math.cos(phase)) / 2
 
 
 def tables(per_robot: int) -> list[tuple[float, float]]:
@@ -158,6 +171,7 @@ def publisher(
     views: str = "distinct",
     tf_rate: float = 20.0,
     stagger: bool = True,
+    moving: bool = False,
 ) -> int:
     """Publish the TF and detections of robots ``first`` .. ``first + count`` (of ``robots``) for
     ``duration`` seconds: each robot's TF at ``tf_rate`` and its array at ``rate``, the array after
@@ -198,7 +212,9 @@ def publisher(
                 stamp = time.time_ns()
                 seq += 1
                 extra = {"attachment": attachment(seq, stamp, gid)} if layout == "rmw_zenoh" else {}
-                at = (*base(r, robots, views), 0.0)
+                bx, by = base(r, robots, views)
+                ahead = drive(r, stamp) if moving else 0.0
+                at = (bx + ahead, by, 0.0)
                 tf_pub.put(cdr_tf([Tf("map", "base_link", at, stamp_ns=stamp)]), **extra)
                 if not array_tick:
                     continue
@@ -206,7 +222,7 @@ def publisher(
                 extra = {"attachment": attachment(seq, stamp, gid)} if layout == "rmw_zenoh" else {}
                 now = int(stamp / 1e9 / MOVE_S)
                 moves = r == 0 or views == "shared"  # (distinct views: robot 0's table alone)
-                array = robot_array(stamp, per_robot, MOVER[2] * (now % 2) if moves else 0.0)
+                array = robot_array(stamp, per_robot, MOVER[2] * (now % 2) if moves else 0.0, ahead)
                 if now != phase and r == (mine[0] if views == "shared" else 0):  # the move's first send
                     # (shared views: every robot's table moves, each process's first send; distinct
                     # views: robot 0's alone)
@@ -313,6 +329,7 @@ def run(
     views: str = "distinct",
     tf_rate: float = 20.0,
     stagger: bool = True,
+    moving: bool = False,
 ) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -336,7 +353,7 @@ def run(
         drain.start()
         per = -(-robots // max(1, publishers))
         args = [endpoint, str(robots), str(rate), str(per_robot), str(duration), layout, views, str(tf_rate)]
-        args.append("1" if stagger else "0")
+        args += ["1" if stagger else "0", "1" if moving else "0"]
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
         pubs = [
             subprocess.Popen(
@@ -443,6 +460,7 @@ def run(
         "rate_hz": rate,
         "tf_rate_hz": tf_rate,
         "staggered": stagger,
+        "moving": moving,
         "detections": per_robot,
         "window_s": round(window, 2),
         "arrays_per_s_offered": round(robots * rate, 1),
@@ -515,13 +533,13 @@ def _serve(cfg: Path, store: Path, endpoint: str, root: Path = ROOT) -> subproce
 
 def main() -> int:
     if len(sys.argv) > 1 and sys.argv[1] == "--child":
-        endpoint, robots, rate, per_robot, duration, layout, views, tf_rate, stagger, first, count = sys.argv[
-            2:
-        ]
+        endpoint, robots, rate, per_robot, duration, layout, views, tf_rate, stagger, moving, first, count = (
+            sys.argv[2:]
+        )
         return publisher(
             endpoint, robots=int(robots), rate=float(rate), per_robot=int(per_robot),
             duration=float(duration), layout=layout, first=int(first), count=int(count), views=views,
-            tf_rate=float(tf_rate), stagger=stagger == "1",
+            tf_rate=float(tf_rate), stagger=stagger == "1", moving=moving == "1",
         )  # fmt: skip
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--robots", type=int, default=10)
@@ -532,6 +550,11 @@ def main() -> int:
         type=float,
         default=None,
         help="each robot's TF messages a second (default: twice --rate, the issue's 20 Hz for 10 Hz arrays)",
+    )
+    p.add_argument(
+        "--moving",
+        action="store_true",
+        help="each robot drives 0.4 m ahead and back every 8 s (every view from a new pose; default: still)",
     )
     p.add_argument(
         "--together",
@@ -579,6 +602,7 @@ def main() -> int:
         "robots": a.robots, "rate": a.rate, "per_robot": a.detections, "duration": a.duration,
         "warmup": a.warmup, "layout": a.layout, "publishers": a.publishers or a.robots, "views": a.views,
         "tf_rate": a.tf_rate if a.tf_rate is not None else 2 * a.rate, "stagger": not a.together,
+        "moving": a.moving,
     }  # fmt: skip
     extra = a.extra.replace("\\n", "\n") + "\n"
     result: dict[str, Any] = {"this": run(**common, workers=a.workers, extra=extra)}
