@@ -133,7 +133,7 @@ def carried(ctx: FusionContext, gone: str, kept: str) -> tuple[ElementReport | N
         classes = tuple(sorted(descriptive_types(schema, was.classes, was.ifc_class) - state.classes))
     if not (labels or materials or classes):
         return None, ""
-    right = "static" if state.is_static else "dynamic"
+    right = state.change_right
     held = kept in ctx.states and not state.removed  # else created by this observation: no change right
     if held and right not in ctx.rights:
         skipped = f"its labels, materials and types not carried over: {ctx.robot} lacks the {right!r} right"

@@ -202,7 +202,7 @@ def _remove(step: _Step, *, reason: str | None, merged_into: str | None) -> Elem
     r, w, state = step.r, step.w, step.state
     if not step.exists or state is None:
         raise _fail(f"Element <{r.iri}> cannot be removed: the twin has no such element.")
-    _need(step.rights, "static" if state.is_static else "dynamic", step.robot, f"remove <{r.iri}>")
+    _need(step.rights, state.change_right, step.robot, f"remove <{r.iri}>")
     w.set(r.iri, vocab.OMG_HAS_GEOMETRY, None)
     w.clear(vocab.geometry_iri(r.iri))
     w.set(r.iri, vocab.TWIN_REMOVED, boolean(True))
@@ -235,7 +235,7 @@ def _upsert(step: _Step) -> ElementState:
         raise _fail(
             f"Element <{r.iri}> is an {state.ifc_class}: an observation cannot make it {r.ifc_class}."
         )
-    change: Right = "static" if state.is_static else "dynamic"
+    change = state.change_right
     state = _door(step, state)
     state = _zones(step, state)
     _geometry(step, change, exists=exists)

@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from twin.config import Right
 from twin.fusion.memory import FusionMemory
 from twin.graph.rdf import Object
 from twin.graph.store import GraphStore
@@ -50,6 +51,12 @@ class ElementState:
     @property
     def is_door(self) -> bool:
         return "IfcDoor" in self.ifc_types
+
+    @property
+    def change_right(self) -> Right:
+        """The right a robot needs to change or remove it: ``static`` for a static element, else
+        ``dynamic``."""
+        return "static" if self.is_static else "dynamic"
 
 
 @dataclass(frozen=True, slots=True)
